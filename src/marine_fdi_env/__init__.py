@@ -1,0 +1,6 @@
+"""marine_fdi_env: a fault detection and isolation benchmark on an MVFP marine diesel engine model."""
+
+from .params import EngineParams, list_parameter_sets, load_params
+
+__version__ = "0.1.0"
+__all__ = ["EngineParams", "load_params", "list_parameter_sets", "__version__"]

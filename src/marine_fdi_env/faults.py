@@ -1,0 +1,380 @@
+"""Sensor and process faults, their time profiles and fault schedules.
+
+Time profile (eq. 2.3-2.6, 5.1, 5.2): a fault is active on one or more windows
+``[t_a, t_b)``; inside a window its value is ``β(t - t_a) φ(t - t_a)`` with the evolution
+``β(s) = 1 - exp(-κ s)`` (κ = inf: abrupt, β = 1).  Permanent: one window [onset, ∞).
+Transient: [onset, end).  Intermittent: windows of length ``duty·period`` repeating every
+``period`` from onset until ``end``.
+
+Fault functions φ
+-----------------
+Sensor faults (any of the 19 sensor ids), ``kind``:
+
+``offset``     y += φ, φ = magnitude (default: table 6.3 magnitude), eq. 5.1.
+``drift``      y += R s, R = magnitude [unit/s] (default: table 6.3 magnitude per 60 s).
+``stuck``      y = reading just before the window opened (magnitude ignored) or, if a magnitude
+               is given, that constant value.
+``gain``       y = (1 + β g) (true value) + noise, g = magnitude (default 0.05).
+``precision``  extra uniform noise with bound β·magnitude (default: 3x the sensor's noise bound).
+
+Process faults (tables 3.1, 3.2, 6.4), fixed fault functions with the thesis's defaults:
+
+=============================  ============  =====================  ==========  ==========
+id                             symbol        value                  κ [1/s]     magnitude
+=============================  ============  =====================  ==========  ==========
+valve_seizing                  f_u           f_u = 1 - β φ           1e-2        φ = 0.25
+bore_damage                    f_z,V1        ΔV1 = β R s [m³]        1e-5        R = 3e-3 m³/s
+turbine_seal_leak              f_x,tur       φ_tur = β R s           2e-5        R = 3.5e-4 1/s
+turbine_lubrication_loss       f_z,Tsl       ΔT_sl = β R s [K]       1e3         R = 1.25 K/s
+compressor_seal_leak           f_x,int       φ_int = β R s           1e-4        R = 5e-2 1/s
+compressor_lubrication_loss    f_z,Tinl      ΔT_inl = β R s [K]      1e3         R = 2.5 K/s
+intercooler_blockage           f_z,Tc        ΔT_co = β R s [K]       1e-3        R = 2 K/s
+=============================  ============  =====================  ==========  ==========
+
+(s = time since the window opened.)  Table 6.4 gives φ_u = 25 "%"; we read it as the fraction
+0.25 (a multiplier 1 - 25 would be meaningless).  The seal leaks act as ``f_x = φ x`` on the state
+(table 3.2) and are subtracted, see :mod:`marine_fdi_env.subsystems.exhaust_receiver`.
+
+Fault SPEC strings (CLI ``--fault``): ``ID@ONSET[:MAGNITUDE][,key=value...]`` e.g.
+``S4.2@235:5e4``, ``S3.4@175``, ``bore_damage@5``, ``S2.1@20:3e4,kind=drift``,
+``S1.1@50,kind=offset,end=80``, ``valve_seizing@20:0.1,kappa=0.05``,
+``S3.3@10,period=20,duty=0.25``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .sensors import DEFAULT_FAULT_MAGNITUDES, NOISE_BOUNDS, N_SENSORS, SENSOR_IDS, sensor_index
+
+__all__ = [
+    "PROCESS_FAULT_IDS",
+    "FAULT_IDS",
+    "SENSOR_FAULT_KINDS",
+    "PROCESS_FAULT_DEFAULTS",
+    "FaultSpec",
+    "parse_fault_spec",
+    "random_fault_schedule",
+    "fault_class",
+]
+
+PROCESS_FAULT_IDS: tuple[str, ...] = (
+    "valve_seizing",
+    "bore_damage",
+    "turbine_seal_leak",
+    "turbine_lubrication_loss",
+    "compressor_seal_leak",
+    "compressor_lubrication_loss",
+    "intercooler_blockage",
+)
+FAULT_IDS: tuple[str, ...] = SENSOR_IDS + PROCESS_FAULT_IDS
+SENSOR_FAULT_KINDS: tuple[str, ...] = ("offset", "drift", "stuck", "gain", "precision")
+
+
+@dataclass(frozen=True)
+class ProcessFaultDefault:
+    symbol: str
+    onset_s: float
+    kappa: float
+    magnitude: float
+    unit: str
+    subsystem: int
+
+
+PROCESS_FAULT_DEFAULTS: dict[str, ProcessFaultDefault] = {
+    "valve_seizing": ProcessFaultDefault("f_u", 20.0, 1e-2, 0.25, "-", 1),
+    "bore_damage": ProcessFaultDefault("f_z,V1", 15.0, 1e-5, 3e-3, "m3/s", 2),
+    "turbine_seal_leak": ProcessFaultDefault("f_x,tur", 15.0, 2e-5, 3.5e-4, "1/s", 3),
+    "turbine_lubrication_loss": ProcessFaultDefault("f_z,Tsl", 30.0, 1e3, 1.25, "K/s", 3),
+    "compressor_seal_leak": ProcessFaultDefault("f_x,int", 30.0, 1e-4, 5e-2, "1/s", 4),
+    "compressor_lubrication_loss": ProcessFaultDefault("f_z,Tinl", 30.0, 1e3, 2.5, "K/s", 4),
+    "intercooler_blockage": ProcessFaultDefault("f_z,Tc", 30.0, 1e-3, 2.0, "K/s", 4),
+}
+
+
+def fault_class(fault_id: str) -> str:
+    """'sensor' or 'process'; ``ValueError`` for an unknown id."""
+    if fault_id in SENSOR_IDS:
+        return "sensor"
+    if fault_id in PROCESS_FAULT_IDS:
+        return "process"
+    raise ValueError(f"unknown fault id {fault_id!r}; allowed: {', '.join(FAULT_IDS)}")
+
+
+def _check_number(name: str, value, *, positive: bool = False, nonneg: bool = False, allow_inf: bool = False):
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"fault field {name!r} must be a number, got {value!r}") from None
+    if math.isnan(v) or (math.isinf(v) and not allow_inf):
+        raise ValueError(f"fault field {name!r} must be finite, got {value!r}")
+    if positive and not v > 0:
+        raise ValueError(f"fault field {name!r} must be > 0, got {value!r}")
+    if nonneg and v < 0:
+        raise ValueError(f"fault field {name!r} must be >= 0, got {value!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class FaultSpec:
+    """One scheduled fault.
+
+    fault_id : a sensor id (``S4.2``) or a process fault id (``bore_damage``).
+    onset_s : start of the first active window [s].
+    magnitude : fault function parameter (see module docstring); None -> thesis default.
+    kind : sensor fault kind (``offset`` default); process faults accept only their own kind.
+    kappa : evolution rate κ [1/s]; None -> default (inf for sensor faults, table 6.4 for process).
+    end_s : end of activity (None: permanent).
+    period_s, duty : intermittent activity (both or neither).
+    """
+
+    fault_id: str
+    onset_s: float
+    magnitude: float | None = None
+    kind: str | None = None
+    kappa: float | None = None
+    end_s: float | None = None
+    period_s: float | None = None
+    duty: float | None = None
+
+    def __post_init__(self) -> None:
+        cls = fault_class(self.fault_id)
+        _check_number("onset_s", self.onset_s, nonneg=True)
+        if self.magnitude is not None:
+            m = _check_number("magnitude", self.magnitude)
+            if cls == "process" and m < 0:
+                raise ValueError(f"fault field 'magnitude' of {self.fault_id} must be >= 0, got {self.magnitude!r}")
+            if cls == "sensor" and self.resolved_kind in ("precision",) and m < 0:
+                raise ValueError(f"fault field 'magnitude' of a precision fault must be >= 0, got {m!r}")
+        if self.kind is not None:
+            allowed = SENSOR_FAULT_KINDS if cls == "sensor" else ("process",)
+            if self.kind not in allowed:
+                raise ValueError(f"fault field 'kind' of {self.fault_id} must be one of {allowed}, got {self.kind!r}")
+        if self.kappa is not None:
+            _check_number("kappa", self.kappa, positive=True, allow_inf=True)
+        if self.end_s is not None:
+            e = _check_number("end_s", self.end_s, nonneg=True)
+            if e <= float(self.onset_s):
+                raise ValueError(f"fault field 'end_s' ({e}) must be later than 'onset_s' ({self.onset_s})")
+        if (self.period_s is None) != (self.duty is None):
+            raise ValueError("fault fields 'period_s' and 'duty' must be given together")
+        if self.period_s is not None:
+            _check_number("period_s", self.period_s, positive=True)
+            d = _check_number("duty", self.duty, positive=True)
+            if d > 1:
+                raise ValueError(f"fault field 'duty' must lie in (0, 1], got {self.duty!r}")
+
+    @property
+    def fault_class(self) -> str:
+        return fault_class(self.fault_id)
+
+    @property
+    def resolved_kind(self) -> str:
+        if self.fault_id in PROCESS_FAULT_IDS:
+            return "process"
+        return self.kind or "offset"
+
+    @property
+    def resolved_kappa(self) -> float:
+        if self.kappa is not None:
+            return float(self.kappa)
+        if self.fault_id in PROCESS_FAULT_IDS:
+            return PROCESS_FAULT_DEFAULTS[self.fault_id].kappa
+        return math.inf
+
+    @property
+    def resolved_magnitude(self) -> float:
+        if self.magnitude is not None:
+            return float(self.magnitude)
+        if self.fault_id in PROCESS_FAULT_IDS:
+            return PROCESS_FAULT_DEFAULTS[self.fault_id].magnitude
+        j = sensor_index(self.fault_id)
+        kind = self.resolved_kind
+        if kind == "offset":
+            return float(DEFAULT_FAULT_MAGNITUDES[j])
+        if kind == "drift":
+            return float(DEFAULT_FAULT_MAGNITUDES[j]) / 60.0
+        if kind == "gain":
+            return 0.05
+        if kind == "precision":
+            return 3.0 * float(NOISE_BOUNDS[j])
+        return math.nan  # stuck at the last reading
+
+    def to_dict(self) -> dict:
+        return {
+            "fault_id": self.fault_id,
+            "class": self.fault_class,
+            "kind": self.resolved_kind,
+            "onset_s": float(self.onset_s),
+            "magnitude": self.resolved_magnitude,
+            "kappa": self.resolved_kappa,
+            "end_s": None if self.end_s is None else float(self.end_s),
+            "period_s": None if self.period_s is None else float(self.period_s),
+            "duty": None if self.duty is None else float(self.duty),
+        }
+
+    def with_onset(self, onset_s: float) -> "FaultSpec":
+        return replace(self, onset_s=onset_s)
+
+
+_SPEC_KEYS = {"kind": str, "kappa": float, "end": float, "period": float, "duty": float, "magnitude": float}
+
+
+def parse_fault_spec(text: str) -> FaultSpec:
+    """Parse ``ID@ONSET[:MAGNITUDE][,key=value...]`` (see module docstring) into a :class:`FaultSpec`."""
+    if not isinstance(text, str) or "@" not in text:
+        raise ValueError(f"fault spec {text!r} must look like ID@ONSET[:MAGNITUDE][,key=value...], e.g. S4.2@235:5e4")
+    head, *opts = text.split(",")
+    fid, _, rest = head.partition("@")
+    onset_txt, _, mag_txt = rest.partition(":")
+    fault_class(fid.strip())
+    kwargs: dict = {}
+    try:
+        onset = float(onset_txt)
+    except ValueError:
+        raise ValueError(f"fault spec {text!r}: onset {onset_txt!r} is not a number") from None
+    if mag_txt:
+        try:
+            kwargs["magnitude"] = float(mag_txt)
+        except ValueError:
+            raise ValueError(f"fault spec {text!r}: magnitude {mag_txt!r} is not a number") from None
+    for opt in opts:
+        key, eq, val = opt.partition("=")
+        key = key.strip()
+        if not eq or key not in _SPEC_KEYS:
+            raise ValueError(f"fault spec {text!r}: option {opt!r} must be key=value with key in {sorted(_SPEC_KEYS)}")
+        try:
+            v = _SPEC_KEYS[key](val)
+        except ValueError:
+            raise ValueError(f"fault spec {text!r}: option {key} value {val!r} is not valid") from None
+        kwargs[{"end": "end_s", "period": "period_s"}.get(key, key)] = v
+    return FaultSpec(fault_id=fid.strip(), onset_s=onset, **kwargs)
+
+
+def random_fault_schedule(
+    rng: np.random.Generator,
+    duration_s: float,
+    max_faults: int = 2,
+    fault_ids: tuple[str, ...] = FAULT_IDS,
+    onset_range: tuple[float, float] | None = None,
+) -> list[FaultSpec]:
+    """Draw 0..max_faults distinct faults with uniform onsets and default magnitudes (seeded)."""
+    k = int(rng.integers(0, max_faults + 1))
+    ids = rng.choice(len(fault_ids), size=k, replace=False)
+    lo, hi = onset_range or (0.1 * duration_s, 0.7 * duration_s)
+    return [FaultSpec(fault_ids[i], float(rng.uniform(lo, hi))) for i in sorted(ids)]
+
+
+# ----------------------------------------------------------------------------- compiled schedules
+def _window_time(t: float, onset, end, period, duty):
+    """Time since the current window opened (NaN when inactive); arrays of equal shape."""
+    s = t - onset
+    active = (s >= 0.0) & (t < end)
+    with np.errstate(invalid="ignore"):
+        s_mod = np.where(np.isfinite(period), np.mod(s, np.where(np.isfinite(period), period, 1.0)), s)
+        on = active & (~np.isfinite(period) | (s_mod < duty * period))
+    return np.where(on, s_mod, np.nan)
+
+
+def _beta(s, kappa):
+    """Evolution β(s) = 1 - exp(-κ s) (eq. 2.4), 1 for abrupt faults; 0 where s is NaN."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        b = np.where(np.isinf(kappa), 1.0, -np.expm1(-np.where(np.isinf(kappa), 0.0, kappa) * s))
+    return np.where(np.isnan(s), 0.0, b)
+
+
+@dataclass
+class CompiledSchedule:
+    """Fault schedules of N engines as flat arrays, evaluated in one vectorised call per sample.
+
+    ``process[k]`` holds, for process fault k, index arrays over engines with that fault; sensor
+    faults are flat lists of (engine, sensor) pairs.
+    """
+
+    n_engines: int
+    process: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
+    s_engine: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    s_sensor: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    s_kind: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    s_params: dict[str, np.ndarray] = field(default_factory=dict)
+    breakpoints: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    @classmethod
+    def compile(cls, schedules: list[list[FaultSpec]]) -> "CompiledSchedule":
+        n = len(schedules)
+        out = cls(n_engines=n)
+        proc: dict[str, list] = {k: [] for k in PROCESS_FAULT_IDS}
+        sens: list = []
+        breaks = []
+        for i, sched in enumerate(schedules):
+            seen = set()
+            for f in sched:
+                if not isinstance(f, FaultSpec):
+                    raise ValueError(f"fault schedule of engine {i} must hold FaultSpec items, got {f!r}")
+                if f.fault_id in seen:
+                    raise ValueError(f"fault {f.fault_id!r} is scheduled twice for engine {i}; one window set per fault")
+                seen.add(f.fault_id)
+                row = (i, f.onset_s, f.resolved_kappa, f.resolved_magnitude,
+                       math.inf if f.end_s is None else f.end_s,
+                       math.inf if f.period_s is None else f.period_s,
+                       1.0 if f.duty is None else f.duty)
+                breaks.append(f.onset_s)
+                if f.end_s is not None:
+                    breaks.append(f.end_s)
+                if f.fault_id in PROCESS_FAULT_IDS:
+                    proc[f.fault_id].append(row)
+                else:
+                    sens.append(row + (sensor_index(f.fault_id), SENSOR_FAULT_KINDS.index(f.resolved_kind)))
+        names = ("engine", "onset", "kappa", "mag", "end", "period", "duty")
+        for k, rows in proc.items():
+            if rows:
+                arr = list(zip(*rows))
+                out.process[k] = {nm: np.asarray(col, dtype=np.int64 if nm == "engine" else float)
+                                  for nm, col in zip(names, arr)}
+        if sens:
+            cols = list(zip(*sens))
+            out.s_engine = np.asarray(cols[0], dtype=np.int64)
+            out.s_params = {nm: np.asarray(c, dtype=float) for nm, c in zip(names[1:], cols[1:7])}
+            out.s_sensor = np.asarray(cols[7], dtype=np.int64)
+            out.s_kind = np.asarray(cols[8], dtype=np.int64)
+        out.breakpoints = np.unique(np.asarray(breaks, dtype=float))
+        return out
+
+    @property
+    def has_seal_faults(self) -> bool:
+        return "turbine_seal_leak" in self.process or "compressor_seal_leak" in self.process
+
+    def process_values(self, t: float):
+        """Per-engine values of the seven process faults at time t (healthy where absent)."""
+        from .model import ProcessFaultValues
+
+        n = self.n_engines
+        vals = {}
+        for k, d in self.process.items():
+            s = _window_time(t, d["onset"], d["end"], d["period"], d["duty"])
+            b = _beta(s, d["kappa"])
+            if k == "valve_seizing":
+                v = np.ones(n)
+                v[d["engine"]] = 1.0 - b * d["mag"]
+            else:
+                v = np.zeros(n)
+                v[d["engine"]] = b * d["mag"] * np.where(np.isnan(s), 0.0, s)
+            vals[k] = v
+        return ProcessFaultValues(
+            f_u=vals.get("valve_seizing", 1.0),
+            dV1_m3=vals.get("bore_damage", 0.0),
+            phi_tur=vals.get("turbine_seal_leak", 0.0),
+            dT_sl_K=vals.get("turbine_lubrication_loss", 0.0),
+            phi_int=vals.get("compressor_seal_leak", 0.0),
+            dT_inl_K=vals.get("compressor_lubrication_loss", 0.0),
+            dT_c_K=vals.get("intercooler_blockage", 0.0),
+        )
+
+    def sensor_fault_state(self, t: float):
+        """(active window time s or NaN, β) for every scheduled sensor fault at time t."""
+        p = self.s_params
+        s = _window_time(t, p["onset"], p["end"], p["period"], p["duty"])
+        return s, _beta(s, p["kappa"])

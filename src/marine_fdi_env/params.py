@@ -1,0 +1,189 @@
+"""Engine parameters: a frozen dataclass with units, loaded from named parameter sets.
+
+A parameter set is a JSON file in ``marine_fdi_env/data/params/NAME.json``.  Every entry has a
+``value``, a ``unit`` and a ``source`` (a thesis table, a data sheet, or the derivation in
+:mod:`marine_fdi_env.calibration` that produced it).  Field names carry their SI unit as a suffix
+where the quantity has one (``_Pa``, ``_K``, ``_m3``, ...).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+from importlib import resources
+from typing import Any
+
+__all__ = ["EngineParams", "load_params", "list_parameter_sets", "params_provenance"]
+
+
+@dataclass(frozen=True)
+class EngineParams:
+    """Parameters of the MVFP engine model (thesis table 4.1 plus derived values).
+
+    Geometry and rating
+    -------------------
+    P_nom_W, n_nom_rev_s : nominal brake power and engine speed.
+    n_cylinders : i_e.  revs_per_cycle : k_e (2 for a 4-stroke engine).
+    bore_m, stroke_m, crank_rod_m : cylinder geometry (eq. B.1-B.8).
+    alpha_IC_deg, alpha_EO_deg : inlet-closure and exhaust-open crank angles after TDC.
+    eps_c : geometric compression ratio.  V1_m3 : cylinder volume at state 1.
+
+    Combustion and cycle (Σ2)
+    -------------------------
+    SFC_nom_kg_per_J, eta_comb (η), h_L_J_per_kg, n_exp, X_cv_nom, X_cv_grad, X_ct_nom,
+    p_max_nom_Pa, Q_loss_nom_Nm, Q_loss_grad, c_load_W_s3 (propeller law P = c n^3, eq. 3.11).
+
+    Gas properties: R_a, R_g, c_v_a, c_p_a, c_p_g [J/(kg K)], kappa_a, kappa_g, sigma_f (AFR).
+
+    Exhaust receiver and turbocharger (Σ3): tau_pd_s, A_eff_m2, alpha_z, n_bld, s_sl_nom,
+    T_sl_K, m1_nom_kg, Psi_sc_nom, a_turbo, b_turbo_per_Pa, c_turbo_per_Pa2, p_ex_Pa.
+
+    Air intake (Σ4): tau_TC_s, a_eta_per_Pa2, b_eta_per_Pa, c_eta (η_TC = a x² + b x + c,
+    eq. 3.33 as corrected), eta_com, T_c_K, T_inl_K, eps_inl, p_amb_Pa, T_amb_K, p1_nom_Pa.
+
+    Fuel pump (Σ1): tau_X_s, x1_nom_kg.
+    """
+
+    name: str
+    # rating and geometry
+    P_nom_W: float
+    n_nom_rev_s: float
+    n_cylinders: int
+    revs_per_cycle: int
+    bore_m: float
+    stroke_m: float
+    crank_rod_m: float
+    alpha_IC_deg: float
+    alpha_EO_deg: float
+    eps_c: float
+    V1_m3: float
+    # fuel pump
+    SFC_nom_kg_per_J: float
+    x1_nom_kg: float
+    tau_X_s: float
+    # combustion / Seiliger
+    eta_comb: float
+    h_L_J_per_kg: float
+    n_exp: float
+    X_cv_nom: float
+    X_cv_grad: float
+    X_ct_nom: float
+    p_max_nom_Pa: float
+    Q_loss_nom_Nm: float
+    Q_loss_grad: float
+    c_load_W_s3: float
+    # gas properties
+    R_a_J_per_kgK: float
+    R_g_J_per_kgK: float
+    c_v_a_J_per_kgK: float
+    c_p_a_J_per_kgK: float
+    c_p_g_J_per_kgK: float
+    kappa_a: float
+    kappa_g: float
+    sigma_f: float
+    # exhaust receiver and turbocharger
+    tau_pd_s: float
+    A_eff_m2: float
+    alpha_z: float
+    n_bld: float
+    s_sl_nom: float
+    T_sl_K: float
+    m1_nom_kg: float
+    Psi_sc_nom: float
+    a_turbo: float
+    b_turbo_per_Pa: float
+    c_turbo_per_Pa2: float
+    p_ex_Pa: float
+    # air intake and intercooler
+    tau_TC_s: float
+    a_eta_per_Pa2: float
+    b_eta_per_Pa: float
+    c_eta: float
+    eta_com: float
+    T_c_K: float
+    T_inl_K: float
+    eps_inl: float
+    p_amb_Pa: float
+    T_amb_K: float
+    p1_nom_Pa: float
+
+    def replace(self, **changes: Any) -> "EngineParams":
+        """Return a copy with some fields changed (validated like a loaded set)."""
+        new = dataclasses.replace(self, **changes)
+        new.validate()
+        return new
+
+    def validate(self) -> None:
+        """Raise ``ValueError`` naming the first field that is not finite or out of range."""
+        for f in dataclasses.fields(self):
+            if f.name == "name":
+                continue
+            v = getattr(self, f.name)
+            if not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ValueError(f"parameter {f.name!r} must be a finite number, got {v!r}")
+        positive = [
+            "P_nom_W", "n_nom_rev_s", "n_cylinders", "revs_per_cycle", "bore_m", "stroke_m",
+            "crank_rod_m", "eps_c", "V1_m3", "SFC_nom_kg_per_J", "x1_nom_kg", "tau_X_s",
+            "eta_comb", "h_L_J_per_kg", "p_max_nom_Pa", "c_load_W_s3", "R_a_J_per_kgK",
+            "R_g_J_per_kgK", "c_v_a_J_per_kgK", "c_p_a_J_per_kgK", "c_p_g_J_per_kgK",
+            "sigma_f", "tau_pd_s", "A_eff_m2", "alpha_z", "m1_nom_kg", "Psi_sc_nom",
+            "p_ex_Pa", "tau_TC_s", "eta_com", "T_c_K", "T_inl_K", "p_amb_Pa", "T_amb_K",
+            "p1_nom_Pa", "T_sl_K",
+        ]
+        for key in positive:
+            if getattr(self, key) <= 0:
+                raise ValueError(f"parameter {key!r} must be > 0, got {getattr(self, key)!r}")
+        for key in ("kappa_a", "kappa_g", "n_exp", "n_bld"):
+            if getattr(self, key) <= 1:
+                raise ValueError(f"parameter {key!r} must be > 1, got {getattr(self, key)!r}")
+        if not 0 <= self.X_ct_nom < 1 or not 0 <= self.X_cv_nom < 1:
+            raise ValueError("parameters 'X_cv_nom' and 'X_ct_nom' must lie in [0, 1)")
+
+
+def _params_dir():
+    return resources.files("marine_fdi_env") / "data" / "params"
+
+
+def list_parameter_sets() -> list[str]:
+    """Names of the parameter sets shipped with the package."""
+    return sorted(p.name[:-5] for p in _params_dir().iterdir() if p.name.endswith(".json"))
+
+
+@lru_cache(maxsize=None)
+def _raw(name: str) -> dict[str, Any]:
+    names = list_parameter_sets()
+    if name not in names:
+        raise ValueError(f"unknown parameter set {name!r}; allowed: {', '.join(names)}")
+    with (_params_dir() / f"{name}.json").open() as fh:
+        return json.load(fh)
+
+
+def params_provenance(name: str) -> dict[str, dict[str, Any]]:
+    """Value, unit and source of every parameter of a shipped set."""
+    return dict(_raw(name)["parameters"])
+
+
+def params_from_dict(name: str, entries: dict[str, Any]) -> EngineParams:
+    """Build and validate :class:`EngineParams` from ``{field: value or {"value": ...}}``."""
+    names = {f.name for f in dataclasses.fields(EngineParams)} - {"name"}
+    values = {k: (v["value"] if isinstance(v, dict) else v) for k, v in entries.items()}
+    missing = sorted(names - values.keys())
+    unknown = sorted(values.keys() - names)
+    if missing:
+        raise ValueError(f"parameter set {name!r} lacks fields: {', '.join(missing)}")
+    if unknown:
+        raise ValueError(f"parameter set {name!r} has unknown fields: {', '.join(unknown)}")
+    p = EngineParams(name=name, **values)
+    p.validate()
+    return p
+
+
+@lru_cache(maxsize=None)
+def load_params(name: str = "thesis-12v28") -> EngineParams:
+    """Load a shipped parameter set by name (``thesis-12v28``, ``man-12v32-40``, ``wartsila-6l46``)."""
+    if not isinstance(name, str):
+        raise ValueError(f"parameter set name must be a string, got {name!r}")
+    return params_from_dict(name, _raw(name)["parameters"])

@@ -1,0 +1,164 @@
+"""Operating profiles: the fuel setting u(t) as a piecewise-linear function of time.
+
+A profile is a list of breakpoints ``(t_i, u_i)``; between breakpoints u is linear, and two
+breakpoints at the same time make a step (u is right-continuous).  The fixed-step solver is exact
+for u linear between samples, so step times are rounded to the sample grid by the simulator.
+
+Named profiles (``make_profile``), with optional ``key=value`` overrides, e.g.
+``step:u0=0.8,u1=1.0,t=100``:
+
+``constant``     u = u0 (default 1.0), as in the thesis.
+``step``         u0 -> u1 at t (defaults 0.8 -> 1.0 at 100 s).
+``ramp``         u0 -> u1 linearly between t0 and t1 (defaults 0.6 -> 1.0, 50 s -> 150 s).
+``manoeuvring``  a harbour-manoeuvring sequence: full ahead, slow down, dead slow, half ahead,
+                 full ahead (ramps at 2 %/s, a governor-like rate limit), repeating every 300 s.
+``random``       seeded random piecewise-linear setpoints (``seed``, ``u_min``, ``u_max``,
+                 ``dwell`` mean seconds between setpoint changes, ``rate`` limit per second).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .steady_state import check_fuel_setting
+
+__all__ = ["Profile", "make_profile", "PROFILE_NAMES"]
+
+PROFILE_NAMES = ("constant", "step", "ramp", "manoeuvring", "random")
+
+
+@dataclass(frozen=True)
+class Profile:
+    """Piecewise-linear fuel setting; ``times`` non-decreasing, ``values`` in [0, 1.2]."""
+
+    name: str
+    times: tuple[float, ...]
+    values: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.times, dtype=float)
+        if len(t) == 0 or len(t) != len(self.values):
+            raise ValueError("profile needs equally many breakpoint times and values (at least one)")
+        if not np.all(np.isfinite(t)) or np.any(np.diff(t) < 0) or t[0] < 0:
+            raise ValueError(f"profile {self.name!r}: breakpoint times must be finite, >= 0 and non-decreasing")
+        check_fuel_setting(self.values, f"profile {self.name!r} fuel_setting")
+
+    def __call__(self, t) -> np.ndarray:
+        """u at time(s) t (right-continuous at steps)."""
+        t = np.asarray(t, dtype=float)
+        times = np.asarray(self.times)
+        vals = np.asarray(self.values)
+        # right-continuity: among equal times take the last value
+        idx = np.searchsorted(times, t, side="right")
+        left = np.clip(idx - 1, 0, len(times) - 1)
+        right = np.clip(idx, 0, len(times) - 1)
+        t0, t1 = times[left], times[right]
+        v0, v1 = vals[left], vals[right]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            w = np.where(t1 > t0, (t - t0) / np.where(t1 > t0, t1 - t0, 1.0), 0.0)
+        return np.where(t < times[0], vals[0], v0 + np.clip(w, 0.0, 1.0) * (v1 - v0))
+
+    def left_limit(self, t) -> np.ndarray:
+        """u just before time(s) t (differs from ``self(t)`` only at a step)."""
+        t = np.asarray(t, dtype=float)
+        times = np.asarray(self.times)
+        idx = np.searchsorted(times, t, side="left")
+        j = np.clip(idx, 0, len(times) - 1)
+        # the segment that ends at a breakpoint ends at the value of its first occurrence
+        at_break = (idx < len(times)) & (np.take(times, j) == t)
+        return np.where(at_break, np.take(np.asarray(self.values), j), self(t))
+
+    @property
+    def breakpoints(self) -> np.ndarray:
+        return np.unique(np.asarray(self.times, dtype=float))
+
+    def snapped(self, dt: float) -> "Profile":
+        """Breakpoints rounded to multiples of dt (so steps fall on sample instants)."""
+        t = tuple(float(np.round(x / dt) * dt) for x in self.times)
+        return Profile(self.name, t, self.values)
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "times": list(self.times), "values": list(self.values)}
+
+
+def _opts(text: str) -> tuple[str, dict[str, float]]:
+    name, _, rest = text.partition(":")
+    opts = {}
+    for item in filter(None, rest.split(",")):
+        k, eq, v = item.partition("=")
+        if not eq:
+            raise ValueError(f"profile option {item!r} must be key=value")
+        try:
+            opts[k.strip()] = float(v)
+        except ValueError:
+            raise ValueError(f"profile option {k!r}: {v!r} is not a number") from None
+    return name.strip(), opts
+
+
+def make_profile(spec: "str | Profile | float", duration_s: float = 300.0) -> Profile:
+    """Build a profile from a name with options (module docstring), a constant or a Profile."""
+    if isinstance(spec, Profile):
+        return spec
+    if isinstance(spec, (int, float)) and not isinstance(spec, bool):
+        return Profile("constant", (0.0,), (float(spec),))
+    if not isinstance(spec, str):
+        raise ValueError(f"profile must be a name, a number or a Profile, got {spec!r}")
+    name, o = _opts(spec)
+    allowed = {
+        "constant": {"u0"},
+        "step": {"u0", "u1", "t"},
+        "ramp": {"u0", "u1", "t0", "t1"},
+        "manoeuvring": {"scale"},
+        "random": {"seed", "u_min", "u_max", "dwell", "rate"},
+    }
+    if name not in allowed:
+        raise ValueError(f"unknown profile {name!r}; allowed: {', '.join(PROFILE_NAMES)}")
+    bad = set(o) - allowed[name]
+    if bad:
+        raise ValueError(f"profile {name!r} does not take {sorted(bad)}; allowed options: {sorted(allowed[name])}")
+    if name == "constant":
+        return Profile(name, (0.0,), (o.get("u0", 1.0),))
+    if name == "step":
+        t = o.get("t", 100.0)
+        return Profile(name, (0.0, t, t), (o.get("u0", 0.8), o.get("u0", 0.8), o.get("u1", 1.0)))
+    if name == "ramp":
+        t0, t1 = o.get("t0", 50.0), o.get("t1", 150.0)
+        if t1 < t0:
+            raise ValueError("profile 'ramp': t1 must not precede t0")
+        return Profile(name, (0.0, t0, t1), (o.get("u0", 0.6), o.get("u0", 0.6), o.get("u1", 1.0)))
+    if name == "manoeuvring":
+        s = o.get("scale", 1.0)
+        setpoints = [(0, 1.0), (40, 1.0), (65, 0.5), (110, 0.5), (125, 0.3), (170, 0.3), (190, 0.7), (240, 0.7),
+                     (255, 1.0), (300, 1.0)]
+        times, vals = [], []
+        period = 300.0
+        k = 0
+        while True:
+            for t, v in setpoints:
+                tt = k * period + t
+                if times and tt <= times[-1]:
+                    continue
+                times.append(tt)
+                vals.append(min(v * s, 1.2))
+            k += 1
+            if k * period > duration_s:
+                break
+        return Profile(name, tuple(float(x) for x in times), tuple(vals))
+    # random
+    rng = np.random.default_rng(int(o.get("seed", 0)))
+    lo, hi = o.get("u_min", 0.4), o.get("u_max", 1.05)
+    dwell, rate = o.get("dwell", 40.0), o.get("rate", 0.02)
+    t, u = 0.0, float(rng.uniform(lo, hi))
+    times, vals = [0.0], [u]
+    while t < duration_s:
+        t += float(rng.exponential(dwell))
+        times.append(t)
+        vals.append(u)
+        u_new = float(rng.uniform(lo, hi))
+        t += abs(u_new - u) / rate
+        u = u_new
+        times.append(t)
+        vals.append(u)
+    return Profile(name, tuple(times), tuple(vals))

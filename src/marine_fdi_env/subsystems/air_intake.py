@@ -1,0 +1,69 @@
+"""Σ4, air intake, compressor and intercooler (eq. 3.28-3.38).
+
+State x4: charge-air pressure p1 [Pa],
+``x4' = -(1 + φ_int) x4 / τ_TC + h4`` with the turbocharger power balance (eq. 3.31).
+Algebraic variables: z1 = inlet air temperature T1 at the cylinders, z2 = compressor outlet
+temperature.
+
+Corrections and decisions (see also docs/model.md):
+
+* **Exponent of eq. 3.31.**  The compressor pressure ratio from the turbocharger power balance
+  ``ṁ_a c_p,a T_amb (π^((κa-1)/κa) - 1) = η_TC ṁ_g c_p,g z1^(3) (1 - Π_turbo)`` is
+  ``π = (1 + χ_g δ_f η_TC r_TC (1 - Π_turbo))^(κa/(κa-1))``; the extracted text has the inverse
+  exponent (κa-1)/κa, which would make the charge pressure almost independent of load.
+* **Eq. 3.33.**  With table 4.1's coefficients the polynomial only gives a plausible overall
+  turbocharger efficiency (0.69 at 4.1 bar, maximum 0.70 at 3.8 bar) when read as
+  ``η_TC = a x4² + b x4 + c`` with ``b = +2.52e-6`` (the table's sign of b is lost in the PDF).
+* **Eq. 3.37.**  The inlet duct *heats* the charge air: ``z1 = T_c + ε_inl (T_inl + f - T_c)``.
+* **Eq. 3.38** (garbled) is rebuilt from the same power balance: the compressor temperature rise
+  equals the turbine temperature drop scaled by the mass-flow and heat-capacity ratios and the
+  mechanical efficiency, ``z2 = T_amb + η_com χ_g δ_f (z1^(3) - z2^(3)) + f_z,Tc``.  With the
+  turbine efficiency η_turbo = η_TC / (η_c η_com) (see calibration) this is exactly isentropic
+  compression with a constant compressor efficiency η_c.
+* **Compressor seal leak f_x,int** is a pressure drop (table 2.2); like f_x,tur it is subtracted.
+* **Intercooler blockage f_z,Tc** enters z2 (compressor outlet temperature) as in eq. 3.38 and
+  table 3.1, so that the thesis's fault signatures stay comparable.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..params import EngineParams
+
+__all__ = ["inlet_air_temperature", "delta_f", "eta_tc", "compressor_forcing", "compressor_outlet_temperature",
+           "air_excess_ratio"]
+
+
+def inlet_air_temperature(dT_inl: np.ndarray, p: EngineParams) -> np.ndarray:
+    """z1^(4) = T_c + ε_inl (T_inl + f_z,Tinl - T_c) [K] (eq. 3.37, sign corrected)."""
+    return p.T_c_K + p.eps_inl * (p.T_inl_K + dT_inl - p.T_c_K)
+
+
+def delta_f(x1, m1, s_sl):
+    """Exhaust-to-air mass ratio δ_f = 1 + x1 / ((1 + s_sl) m1) (eq. 3.32)."""
+    return 1.0 + x1 / ((1.0 + s_sl) * m1)
+
+
+def eta_tc(x4, p: EngineParams):
+    """Overall turbocharger efficiency η_TC = a x4² + b x4 + c (eq. 3.33 as corrected)."""
+    return p.a_eta_per_Pa2 * x4 * x4 + p.b_eta_per_Pa * x4 + p.c_eta
+
+
+def compressor_forcing(x4, x1, m1, s_sl, T_in, Pi_turbo, p: EngineParams):
+    """Forcing h4 of eq. 3.31 [Pa/s] (exponent κa/(κa-1), see module docstring)."""
+    chi_g = p.c_p_g_J_per_kgK / p.c_p_a_J_per_kgK  # eq. 3.35
+    base = 1.0 + chi_g * delta_f(x1, m1, s_sl) * eta_tc(x4, p) * (T_in / p.T_amb_K) * (1.0 - Pi_turbo)
+    expo = p.kappa_a / (p.kappa_a - 1.0)
+    return (p.p_amb_Pa / p.tau_TC_s) * np.exp(expo * np.log(np.maximum(base, 1e-12)))
+
+
+def compressor_outlet_temperature(x1, m1, s_sl, T_in, T_out, dT_c, p: EngineParams):
+    """z2^(4) = T_amb + η_com χ_g δ_f (z1^(3) - z2^(3)) + f_z,Tc [K] (eq. 3.38 rebuilt)."""
+    chi_g = p.c_p_g_J_per_kgK / p.c_p_a_J_per_kgK
+    return p.T_amb_K + p.eta_com * chi_g * delta_f(x1, m1, s_sl) * (T_in - T_out) + dT_c
+
+
+def air_excess_ratio(m1, x1, p: EngineParams):
+    """λ = m1 / (x1 σ_f) (eq. 3.28-3.29)."""
+    return m1 / (x1 * p.sigma_f)
