@@ -188,13 +188,7 @@ class Simulator:
 
         pf0s = ProcessFaultValues(**{k: pick(v) for k, v in vars(pf0).items()})
         pf1s = ProcessFaultValues(**{k: pick(v) for k, v in vars(pf1).items()})
-        if self.schedule.has_seal_faults:
-            pfm = self._process(t0 + 0.5 * h)
-            pfm = ProcessFaultValues(**{k: pick(v) for k, v in vars(pfm).items()})
-            a1, a3, a4 = m.linear_coefficients(pfm)
-            c = (ExponentialRK2.for_rate(a1, h), ExponentialRK2.for_rate(a3, h), ExponentialRK2.for_rate(a4, h))
-        else:
-            c = self._etd[h]
+        c = self._rates(t0 + 0.5 * h, h, sel) if self.schedule.has_seal_faults else self._etd[h]
         alg0 = m.algebraic(x1, x3, x4, pf0s, n)
         F0 = m.forcing(u0, alg0, pf0s)
         xp = [c[i].predict(x, F0[i]) for i, x in enumerate((x1, x3, x4))]
@@ -202,6 +196,14 @@ class Simulator:
         Fp = m.forcing(u1, algp, pf1s)
         xn = [c[i].correct(xp[i], Fp[i], F0[i]) for i in range(3)]
         return xn, algp.n
+
+    def _rates(self, t_mid: float, h: float, sel=None):
+        """ETD2RK coefficients with the seal-leak faults evaluated at mid-step."""
+        pfm = self._process(t_mid)
+        a1, a3, a4 = self.model.linear_coefficients(pfm)
+        if sel is not None:
+            a3, a4 = np.asarray(a3)[sel] if np.ndim(a3) else a3, np.asarray(a4)[sel] if np.ndim(a4) else a4
+        return (self._etd[h][0], ExponentialRK2.for_rate(a3, h), ExponentialRK2.for_rate(a4, h))
 
     def step(self) -> np.ndarray:
         """Advance all engines by one sample; returns the measurements (N, 19) at the new time."""
@@ -211,18 +213,15 @@ class Simulator:
         u1 = self._u(t1, left=True)  # left limit at t1
         pf0 = self._process(t0)
         pf1 = self._process(t1)
-        # start-of-step algebraic state is self.alg, except that F1 uses the right limit of u
-        c = self._etd[h] if not self.schedule.has_seal_faults else None
-        if c is not None:
-            m = self.model
-            F0 = m.forcing(u0, self.alg, pf0)
-            xp = [c[i].predict(x, F0[i]) for i, x in enumerate((self.x1, self.x3, self.x4))]
-            algp = m.algebraic(*xp, pf1, self.alg.n)
-            Fp = m.forcing(u1, algp, pf1)
-            x1, x3, x4 = [c[i].correct(xp[i], Fp[i], F0[i]) for i in range(3)]
-            n_guess = algp.n
-        else:
-            (x1, x3, x4), n_guess = self._etd_step(h, t0, self.x1, self.x3, self.x4, self.alg.n, u0, u1, pf0, pf1)
+        # ETD2RK from the start-of-step algebraic state self.alg (x1's forcing uses the right limit of u)
+        m = self.model
+        c = self._etd[h] if not self.schedule.has_seal_faults else self._rates(t0 + 0.5 * h, h)
+        F0 = m.forcing(u0, self.alg, pf0)
+        xp = [c[i].predict(x, F0[i]) for i, x in enumerate((self.x1, self.x3, self.x4))]
+        algp = m.algebraic(*xp, pf1, self.alg.n)
+        Fp = m.forcing(u1, algp, pf1)
+        x1, x3, x4 = [c[i].correct(xp[i], Fp[i], F0[i]) for i in range(3)]
+        n_guess = algp.n
         # substeps for engines whose fuel pump is far from its target
         target = self._x1_target_coeff * np.asarray(pf1.f_u) * u1
         trans = np.abs(self.x1 - target) > _TRANSIENT_TOL * self.params.x1_nom_kg
