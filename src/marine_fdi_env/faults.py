@@ -347,21 +347,26 @@ class CompiledSchedule:
     def has_seal_faults(self) -> bool:
         return "turbine_seal_leak" in self.process or "compressor_seal_leak" in self.process
 
-    def process_values(self, t: float):
-        """Per-engine values of the seven process faults at time t (healthy where absent)."""
+    def process_values(self, t):
+        """Values of the seven process faults at time t (scalar -> arrays (N,); array (T,) -> (T, N)).
+
+        Engines without a fault get the healthy value (1 for f_u, 0 otherwise).
+        """
         from .model import ProcessFaultValues
 
-        n = self.n_engines
+        t_arr = np.asarray(t, dtype=float)
+        shape = t_arr.shape + (self.n_engines,)
+        tt = t_arr[..., None]
         vals = {}
         for k, d in self.process.items():
-            s = _window_time(t, d["onset"], d["end"], d["period"], d["duty"])
+            s = _window_time(tt, d["onset"], d["end"], d["period"], d["duty"])
             b = _beta(s, d["kappa"])
             if k == "valve_seizing":
-                v = np.ones(n)
-                v[d["engine"]] = 1.0 - b * d["mag"]
+                v = np.ones(shape)
+                v[..., d["engine"]] = 1.0 - b * d["mag"]
             else:
-                v = np.zeros(n)
-                v[d["engine"]] = b * d["mag"] * np.where(np.isnan(s), 0.0, s)
+                v = np.zeros(shape)
+                v[..., d["engine"]] = b * d["mag"] * np.where(np.isnan(s), 0.0, s)
             vals[k] = v
         return ProcessFaultValues(
             f_u=vals.get("valve_seizing", 1.0),

@@ -94,15 +94,17 @@ class EngineModel:
         return self._k2.seiliger
 
     # ------------------------------------------------------------------ algebraic part
-    def algebraic(self, x1, x3, x4, pf: ProcessFaultValues = HEALTHY, n_guess=None) -> Algebraic:
-        """Solve the algebraic equations of Σ2-Σ4 for given states (eq. 3.7-3.38)."""
+    def algebraic(self, x1, x3, x4, pf: ProcessFaultValues = HEALTHY, n_guess=None, sweeps: int | None = None) -> Algebraic:
+        """Solve the algebraic equations of Σ2-Σ4 for given states (eq. 3.7-3.38).
+
+        ``sweeps`` overrides ``speed_sweeps`` of the speed loop (see :func:`engine_block`).
+        """
         p = self.params
         if n_guess is None:
             n_guess = np.full(np.shape(x1), p.n_nom_rev_s)
         T1 = s4.inlet_air_temperature(pf.dT_inl_K, p)
-        if np.ndim(T1) < np.ndim(x1):
-            T1 = np.broadcast_to(T1, np.shape(x1))
-        blk = s2.engine_block(x1, x4, T1, p.V1_m3 + pf.dV1_m3, n_guess, p, self._k2, self.speed_sweeps)
+        blk = s2.engine_block(x1, x4, T1, p.V1_m3 + pf.dV1_m3, n_guess, p, self._k2,
+                              self.speed_sweeps if sweeps is None else sweeps)
         n = blk.n
         n_safe = np.maximum(n, 1e-9)
         s_sl = s3.slip_ratio(x3, x4, blk.m1, n_safe, self._k3)
@@ -121,7 +123,7 @@ class EngineModel:
             s_sl=s_sl,
             T_in=rec.T_in,
             T_out=rec.T_out,
-            T1=T1,
+            T1=T1 if np.ndim(T1) == np.ndim(x1) else np.full(np.shape(x1), T1),
             T_co=T_co,
             lam=s4.air_excess_ratio(blk.m1, x1, p),
             mdot_g=rec.mdot_g,

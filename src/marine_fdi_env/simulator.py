@@ -41,6 +41,10 @@ TRUTH_VARIABLES: tuple[str, ...] = (
     "u", "x1", "x3", "x4", "n", "torque", "power", "p6", "T6", "p_max", "T_in", "T_out", "T1", "T_co", "lam",
 )
 _NOISE_BLOCK = 128
+_CHUNK = 256
+# The predictor stage needs the speed only to second order in h: one sweep from the previous
+# sample's speed (contraction ~0.1, speed change per sample ~1e-4) is accurate to ~1e-5 there.
+_PREDICTOR_SWEEPS = 1
 _TRANSIENT_TOL = 1e-3
 
 
@@ -151,6 +155,7 @@ class Simulator:
         self.t = 0.0
         self._rngs = [np.random.Generator(np.random.PCG64(np.random.SeedSequence(s).spawn(2)[0])) for s in self.seeds]
         self._prec_rngs = None
+        self._noise_raw = np.empty((self.n, _NOISE_BLOCK * N_SENSORS))
         self._noise = np.empty((_NOISE_BLOCK, self.n, N_SENSORS))
         self._noise_pos = _NOISE_BLOCK
         u0 = np.array([pr(0.0) for pr in self.profiles], dtype=float)
@@ -162,6 +167,7 @@ class Simulator:
         self.failed = np.zeros(self.n, dtype=bool)
         self.failures: list[EngineFailure] = []
         self._stuck = np.full(len(self.schedule.s_engine), np.nan)
+        self._fill_chunk(0)
         self._last_y = None
         a1, a3, a4 = self.model.linear_coefficients()
         self._etd = {h: tuple(ExponentialRK2.for_rate(a, h) for a in (a1, a3, a4))
@@ -177,6 +183,38 @@ class Simulator:
         if left:
             return np.array([pr.left_limit(t) for pr in self.profiles], dtype=float)
         return np.array([pr(t) for pr in self.profiles], dtype=float)
+
+    def _fill_chunk(self, k0: int) -> None:
+        """Precompute u (right and left limits) and process-fault values on samples k0..k0+_CHUNK."""
+        t = self.dt * np.arange(k0, k0 + _CHUNK + 1)
+        self._chunk_k0 = k0
+        self._u_right = np.empty((len(t), self.n))
+        self._u_left = np.empty((len(t), self.n))
+        groups: dict[int, list[int]] = {}
+        for i, pr in enumerate(self.profiles):
+            groups.setdefault(id(pr), []).append(i)
+        for idx in groups.values():
+            pr = self.profiles[idx[0]]
+            self._u_right[:, idx] = pr(t)[:, None]
+            self._u_left[:, idx] = pr.left_limit(t)[:, None]
+        if self.schedule.process:
+            pf = self.schedule.process_values(t)
+            fields_ = vars(pf)
+            self._pf_rows = [ProcessFaultValues(**{f: (v[j] if np.ndim(v) == 2 else v) for f, v in fields_.items()})
+                             for j in range(len(t))]
+        else:
+            self._pf_rows = None
+        if len(self.schedule.s_engine):
+            self._sf_s, self._sf_beta = self.schedule.sensor_fault_state(t[:, None])
+
+    def _grid(self, k: int):
+        """(u right limit, u left limit, process faults) at sample k."""
+        j = k - self._chunk_k0
+        if j < 0 or j > _CHUNK:
+            self._fill_chunk(k)
+            j = 0
+        pf = HEALTHY if self._pf_rows is None else self._pf_rows[j]
+        return self._u_right[j], self._u_left[j], pf
 
     # ----------------------------------------------------------------------------- stepping
     def _etd_step(self, h, t0, x1, x3, x4, n, u0, u1, pf0: ProcessFaultValues, pf1: ProcessFaultValues, sel=None):
@@ -209,16 +247,14 @@ class Simulator:
         """Advance all engines by one sample; returns the measurements (N, 19) at the new time."""
         h = self.dt
         t0, t1 = self.t, (self.k + 1) * self.dt
-        u0 = self._u(t0)  # right limit at t0
-        u1 = self._u(t1, left=True)  # left limit at t1
-        pf0 = self._process(t0)
-        pf1 = self._process(t1)
+        u0, _, pf0 = self._grid(self.k)  # right limit of u at t0
+        u1_right, u1, pf1 = self._grid(self.k + 1)  # left limit at t1
         # ETD2RK from the start-of-step algebraic state self.alg (x1's forcing uses the right limit of u)
         m = self.model
         c = self._etd[h] if not self.schedule.has_seal_faults else self._rates(t0 + 0.5 * h, h)
         F0 = m.forcing(u0, self.alg, pf0)
         xp = [c[i].predict(x, F0[i]) for i, x in enumerate((self.x1, self.x3, self.x4))]
-        algp = m.algebraic(*xp, pf1, self.alg.n)
+        algp = m.algebraic(*xp, pf1, self.alg.n, sweeps=_PREDICTOR_SWEEPS)
         Fp = m.forcing(u1, algp, pf1)
         x1, x3, x4 = [c[i].correct(xp[i], Fp[i], F0[i]) for i in range(3)]
         n_guess = algp.n
@@ -245,7 +281,7 @@ class Simulator:
         ok = ~self.failed
         prev = (self.x1, self.x3, self.x4, self.alg)
         self.x1, self.x3, self.x4, self.alg = x1, x3, x4, alg
-        self.u = self._u(t1)
+        self.u = u1_right
         self.k += 1
         self.t = t1
         newly = self._check_failure(t1, ok)
@@ -259,22 +295,24 @@ class Simulator:
     def _check_failure(self, t: float, candidates: np.ndarray) -> np.ndarray:
         p = self.params
         a = self.alg
-        reasons = [
-            ("non-finite state", ~(np.isfinite(self.x1) & np.isfinite(self.x3) & np.isfinite(self.x4)
-                                   & np.isfinite(a.n) & np.isfinite(a.T_in) & np.isfinite(a.T_co))),
-            ("stall: shaft torque not positive", ~(a.torque > 0.0)),
-            ("stall: engine speed below 5 % of nominal", ~(a.n > 0.05 * p.n_nom_rev_s)),
-            ("air excess ratio below 1", ~(a.lam >= 1.0)),
-            ("turbine pressure ratio at or below 1", ~(self.x3 > p.p_ex_Pa)),
-            ("charge-air pressure not positive", ~(self.x4 > 0.0)),
-        ]
-        newly = np.zeros(self.n, dtype=bool)
-        for reason, bad in reasons:
-            hit = bad & candidates & ~self.failed & ~newly
-            for i in np.flatnonzero(hit):
+        with np.errstate(invalid="ignore"):
+            checks = (
+                ("non-finite state", ~np.isfinite(self.x1 + self.x3 + self.x4 + a.n + a.T_in + a.T_co)),
+                ("stall: shaft torque not positive", ~(a.torque > 0.0)),
+                ("stall: engine speed below 5 % of nominal", ~(a.n > 0.05 * p.n_nom_rev_s)),
+                ("air excess ratio below 1", ~(a.lam >= 1.0)),
+                ("turbine pressure ratio at or below 1", ~(self.x3 > p.p_ex_Pa)),
+                ("charge-air pressure not positive", ~(self.x4 > 0.0)),
+            )
+        any_bad = checks[0][1]
+        for _, bad in checks[1:]:
+            any_bad = any_bad | bad
+        newly = any_bad & candidates & ~self.failed
+        if newly.any():
+            for i in np.flatnonzero(newly):
+                reason = next(r for r, bad in checks if bad[i])
                 self.failures.append(EngineFailure(int(i), float(t), reason))
-            newly |= hit
-        self.failed |= newly
+            self.failed |= newly
         return newly
 
     def _restore(self, mask: np.ndarray, prev) -> None:
@@ -287,8 +325,14 @@ class Simulator:
     # ------------------------------------------------------------------------- sensors
     def _next_noise(self) -> np.ndarray:
         if self._noise_pos >= _NOISE_BLOCK:
+            raw = self._noise_raw
             for i, rng in enumerate(self._rngs):
-                self._noise[:, i, :] = rng.uniform(-1.0, 1.0, (_NOISE_BLOCK, N_SENSORS))
+                rng.random(out=raw[i])  # U[0, 1), one contiguous block per engine
+            # scaled noise d = (2 U - 1) * bound, laid out (sample, engine, sensor)
+            bounds = NOISE_BOUNDS * self.noise_scale
+            np.multiply(raw.reshape(self.n, _NOISE_BLOCK, N_SENSORS).transpose(1, 0, 2), 2.0, out=self._noise)
+            self._noise -= 1.0
+            self._noise *= bounds
             self._noise_pos = 0
         z = self._noise[self._noise_pos]
         self._noise_pos += 1
@@ -301,8 +345,7 @@ class Simulator:
 
     def _measure(self, t: float) -> np.ndarray:
         true = self.true_variables()[:, VARIABLE_OF_SENSOR]
-        noise = self._next_noise() * (NOISE_BOUNDS * self.noise_scale)
-        y = true + noise
+        y = true + self._next_noise()
         self._fault_dev = None
         if len(self.schedule.s_engine):
             y = self._apply_sensor_faults(t, y, true)
@@ -323,7 +366,8 @@ class Simulator:
 
     def _apply_sensor_faults(self, t: float, y: np.ndarray, true: np.ndarray) -> np.ndarray:
         sch = self.schedule
-        s, beta = sch.sensor_fault_state(t)
+        j = self.k - self._chunk_k0
+        s, beta = self._sf_s[j], self._sf_beta[j]
         active = ~np.isnan(s)
         e, j, kind, mag = sch.s_engine, sch.s_sensor, sch.s_kind, sch.s_params["mag"]
         yv = y[e, j]

@@ -71,8 +71,8 @@ class EngineBlockResult:
 
 def constant_volume_portion(n: np.ndarray, X_ct: np.ndarray, p: EngineParams) -> np.ndarray:
     """X_cv = X_cv_nom + X_cv_grad (n - n_nom)/n_nom (eq. 3.12), clipped to [0, 1 - X_ct]."""
-    X_cv = p.X_cv_nom + p.X_cv_grad * (n - p.n_nom_rev_s) / p.n_nom_rev_s
-    return np.clip(X_cv, 0.0, 1.0 - X_ct)
+    X_cv = p.X_cv_nom + (p.X_cv_grad / p.n_nom_rev_s) * (n - p.n_nom_rev_s)
+    return np.minimum(np.maximum(X_cv, 0.0), 1.0 - X_ct)
 
 
 def friction_torque(n: np.ndarray, p: EngineParams) -> np.ndarray:
@@ -97,8 +97,9 @@ def engine_block(
     x1 : fuel per cylinder and cycle [kg].  x4 : charge-air pressure p1 [Pa].
     T1 : inlet air temperature z1^(4) [K].  V1 : cylinder volume at point 1 incl. bore damage [m³].
     n_guess : warm start for the speed [rev/s].
-    sweeps : 3 = two sweeps, Aitken extrapolation, one sweep; each further unit repeats the
-        sweep-sweep-extrapolate block (the steady-state solver uses more).
+    sweeps : 1 or 2 = that many plain sweeps; 3 = two sweeps, Aitken extrapolation, one sweep;
+        each further unit repeats the sweep-sweep-extrapolate block (the steady-state solver
+        uses more).
     """
     m1 = x4 * V1 / (p.R_a_J_per_kgK * T1)
     q = (p.eta_comb * p.h_L_J_per_kg) * x1 / m1
@@ -111,7 +112,11 @@ def engine_block(
         return np.sqrt(k.two_pi_over_c * np.maximum(torque, 0.0)), torque, cyc, X_cv
 
     n0 = n_guess
-    for _ in range(max(sweeps - 2, 1)):
+    if sweeps < 3:  # plain sweeps only (used for predictor stages, where the warm start is close)
+        for _ in range(sweeps):
+            n0, torque, cyc, X_cv = sweep(n0)
+        return EngineBlockResult(n=n0, torque=torque, cycle=cyc, m1=m1, X_cv=X_cv)
+    for _ in range(sweeps - 2):
         n1, torque, cyc, X_cv = sweep(n0)
         n2, torque, cyc, X_cv = sweep(n1)
         d1, d2 = n1 - n0, n2 - n1
