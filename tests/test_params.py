@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from types import SimpleNamespace
 import math
 from importlib import resources
 
@@ -14,6 +15,7 @@ from marine_fdi_env import EngineParams, list_parameter_sets, load_params
 from marine_fdi_env.calibration import INPUT_SETS, derive_parameters
 from marine_fdi_env.geometry import cylinder_geometry
 from marine_fdi_env.params import params_provenance
+from marine_fdi_env.constants import model_constants
 from marine_fdi_env.seiliger import seiliger_cycle
 from marine_fdi_env.subsystems import air_intake as s4
 from marine_fdi_env.subsystems import engine_block as s2
@@ -109,10 +111,11 @@ def test_geometric_inlet_closure_volume_matches_table_V1():
 # ---------------------------------------------------------------------- calibration
 def _nominal_cycle(p: EngineParams, X_cv: float):
     """Seiliger cycle at the nominal charge state (p1_nom, T1(eq. 3.37), m1_nom, x1_nom)."""
-    k = s2.engine_block_constants(p).seiliger
-    T1 = float(s4.inlet_air_temperature(0.0, p))
+    c = model_constants(p)
+    T1 = float(s4.inlet_air_temperature(0.0, c))
     q = p.eta_comb * p.h_L_J_per_kg * p.x1_nom_kg / p.m1_nom_kg
-    return seiliger_cycle(p.p1_nom_Pa, T1, q, X_cv, p.X_ct_nom, k)
+    T2, T3, T4, T6, p3, p6, w = seiliger_cycle(p.p1_nom_Pa, T1, q, X_cv, p.X_ct_nom, c)
+    return SimpleNamespace(T2=T2, T3=T3, T4=T4, T6=T6, p3=p3, p6=p6, w=w)
 
 
 def test_table_4_1_X_cv_gives_158_bar():

@@ -172,10 +172,9 @@ INPUT_SETS["wartsila-6l46"]["T_amb_K"]["source"] = "choice: ISO 25 C (ambient no
 
 def derive_parameters(name: str, inputs: dict[str, Entry], choices: dict[str, Entry] | None = None) -> dict[str, Entry]:
     """Complete a set of table inputs with the derived parameters (module docstring, steps 1-7)."""
-    from .model import EngineModel  # local import: model depends on params only
+    from .constants import model_constants
     from .seiliger import seiliger_cycle
-    from .subsystems import engine_block as s2
-    from .subsystems import exhaust_receiver as s3
+    from .subsystems.exhaust_receiver import scavenge_flow_function
 
     choices = choices or THESIS_CHOICES
     v = {k: e["value"] for k, e in inputs.items()}
@@ -211,20 +210,18 @@ def derive_parameters(name: str, inputs: dict[str, Entry], choices: dict[str, En
     prov = {k: e["value"] for k, e in out.items()}
     prov.update(Q_loss_nom_Nm=0.0, A_eff_m2=1.0, Psi_sc_nom=1.0)
     P0 = EngineParams(name=name, **{f.name: prov[f.name] for f in fields(EngineParams) if f.name != "name"})
-    k2 = s2.engine_block_constants(P0)
+    c0 = model_constants(P0)
     X_ct = v["X_ct_nom"]
-    cyc = seiliger_cycle(p1, T1, q, X_cv, X_ct, k2.seiliger)
+    _, _, _, T6, _, p6, w = seiliger_cycle(p1, T1, q, X_cv, X_ct, c0)
     Q_brake = P / (2.0 * math.pi * n)
-    Q_ind = m1 * float(cyc.w) * k2.torque_per_work
+    Q_ind = m1 * w * c0.torque_per_work
     out["Q_loss_nom_Nm"] = _e(Q_ind - Q_brake, "N m", "eq. 3.10 at the nominal point: indicated minus brake torque")
     if Q_ind <= Q_brake:
         raise ValueError(f"{name}: indicated torque {Q_ind:.0f} N m below brake torque {Q_brake:.0f} N m")
 
-    k3 = s3.exhaust_constants(P0)
     s_sl = v["s_sl_nom"]
     cp_a, cp_g, nb = v["c_p_a_J_per_kgK"], v["c_p_g_J_per_kgK"], v["n_bld"]
     psi2, psi3 = cp_a * s_sl * m1, cp_g * (x1 + m1)
-    T6, p6 = float(cyc.T6), float(cyc.p6)
     mdot = ((1.0 + s_sl) * m1 + x1) * n * v["n_cylinders"] / v["revs_per_cycle"]
     chi = cp_g / cp_a
     dfac = 1.0 + x1 / ((1.0 + s_sl) * m1)
@@ -234,14 +231,14 @@ def derive_parameters(name: str, inputs: dict[str, Entry], choices: dict[str, En
         return (psi2 * T1 + psi3 * T6 * (1.0 / nb + (nb - 1.0) / nb * pd / p6)) / (psi2 + psi3)
 
     def balance(pd: float) -> float:
-        Pi = (v["p_ex_Pa"] / pd) ** k3.pi_exp
+        Pi = (v["p_ex_Pa"] / pd) ** c0.pi_exp
         base = 1.0 + chi * dfac * eta_tc * T_in(pd) / v["T_amb_K"] * (1.0 - Pi)
         return v["p_amb_Pa"] * base ** (ka / (ka - 1.0)) - p1
 
     pd = brentq(balance, v["p_ex_Pa"] * (1.0 + 1e-9), 50.0 * p1, xtol=1e-9, rtol=1e-14)
     if pd >= p1:
         raise ValueError(f"{name}: receiver pressure {pd:.0f} Pa above charge pressure: no scavenging")
-    Psi = float(s3.scavenge_flow_function(pd / p1, k3))
+    Psi = scavenge_flow_function(pd / p1, c0)
     out["Psi_sc_nom"] = _e(Psi, "-", f"eq. 3.19 at the nominal receiver pressure p_d = {pd:.1f} Pa (root of eq. 3.31 = p1_nom)")
     A = mdot * math.sqrt(v["R_g_J_per_kgK"] * T_in(pd) / (pd**2 - v["p_ex_Pa"] ** 2)) / v["alpha_z"]
     out["A_eff_m2"] = _e(A, "m2", "eq. 3.16 solved for the area at the nominal receiver pressure and flow")

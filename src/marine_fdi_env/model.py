@@ -7,7 +7,10 @@ that collects the interconnection terms h of eq. 3.4, 3.15 and 3.30.
 
 The algebraic part is solved in causal order, which the structure allows:
 Σ4 inlet temperature -> Σ2 cycle and speed (a contraction, :func:`engine_block`) -> Σ3 slip,
-receiver/turbine (closed form) -> Σ4 compressor.  Arrays have shape ``(n_engines,)``.
+receiver/turbine (closed form) -> Σ4 compressor.
+
+:func:`solve_algebraic` works on one engine (compiled); :class:`EngineModel` evaluates arrays of
+engines with compiled loops and returns named arrays (:class:`Algebraic`).
 """
 
 from __future__ import annotations
@@ -16,13 +19,29 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
+from ._jit import jit
+from .constants import ModelConstants, model_constants
 from .params import EngineParams
-from .subsystems import air_intake as s4
-from .subsystems import engine_block as s2
-from .subsystems import exhaust_receiver as s3
-from .subsystems import fuel_pump as s1
+from .subsystems.air_intake import (
+    air_excess_ratio,
+    compressor_forcing,
+    compressor_outlet_temperature,
+    delta_f,
+    inlet_air_temperature,
+)
+from .subsystems.engine_block import engine_block
+from .subsystems.exhaust_receiver import receiver_and_turbine, slip_ratio
+from .subsystems.fuel_pump import fuel_pump_forcing
 
-__all__ = ["ProcessFaultValues", "Algebraic", "EngineModel"]
+__all__ = ["ProcessFaultValues", "Algebraic", "EngineModel", "solve_algebraic", "ALG_FIELDS", "PF_FIELDS",
+           "HEALTHY_PF"]
+
+# Order of the process-fault vector and of the algebraic output vector of compiled code.
+PF_FIELDS = ("f_u", "dV1_m3", "phi_tur", "dT_sl_K", "phi_int", "dT_inl_K", "dT_c_K")
+HEALTHY_PF = np.array([1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+ALG_FIELDS = ("n", "torque", "p6", "T6", "p_max", "m1", "s_sl", "T_in", "T_out", "T1", "T_co", "lam", "mdot_g",
+              "Pi_turbo", "h3", "h4")
+N_ALG = len(ALG_FIELDS)
 
 
 @dataclass
@@ -46,13 +65,20 @@ class ProcessFaultValues:
     dT_inl_K: np.ndarray | float = 0.0
     dT_c_K: np.ndarray | float = 0.0
 
+    def as_array(self, n: int) -> np.ndarray:
+        """The values as a contiguous (n, 7) array in the order of ``PF_FIELDS``."""
+        out = np.empty((n, len(PF_FIELDS)))
+        for j, name in enumerate(PF_FIELDS):
+            out[:, j] = getattr(self, name)
+        return out
+
 
 HEALTHY = ProcessFaultValues()
 
 
 @dataclass
 class Algebraic:
-    """All algebraic and output variables at one instant (SI units)."""
+    """All algebraic and output variables at one instant (SI units), arrays over engines."""
 
     n: np.ndarray  # engine speed [rev/s]
     torque: np.ndarray  # z3^(2) [N m]
@@ -71,83 +97,111 @@ class Algebraic:
     h3: np.ndarray  # receiver forcing [Pa/s]
     h4: np.ndarray  # compressor forcing [Pa/s]
 
+    @classmethod
+    def from_array(cls, a: np.ndarray) -> "Algebraic":
+        return cls(*(a[:, j] for j in range(N_ALG)))
+
     def power(self) -> np.ndarray:
         """Brake power 2π n z3 [W]."""
         return 2.0 * np.pi * self.n * self.torque
 
 
+@jit
+def solve_algebraic(c, x1, x3, x4, pf, n_guess, sweeps, out):
+    """Solve the algebraic equations of Σ2-Σ4 for one engine (eq. 3.7-3.38).
+
+    ``pf`` is the process-fault vector (order ``PF_FIELDS``); the results are written to ``out``
+    in the order of ``ALG_FIELDS``.
+    """
+    T1 = inlet_air_temperature(pf[5], c)
+    n, torque, p6, T6, p_max, m1 = engine_block(x1, x4, T1, c.V1_m3 + pf[1], n_guess, c, sweeps)
+    s_sl = slip_ratio(x3, x4, m1, max(n, 1e-9), c)
+    h3, T_in, T_out, Pi, mdot = receiver_and_turbine(x1, x3, x4, m1, s_sl, n, T6, p6, c.T_sl_K + pf[3], c)
+    d_f = delta_f(x1, m1, s_sl)
+    out[0] = n
+    out[1] = torque
+    out[2] = p6
+    out[3] = T6
+    out[4] = p_max
+    out[5] = m1
+    out[6] = s_sl
+    out[7] = T_in
+    out[8] = T_out
+    out[9] = T1
+    out[10] = compressor_outlet_temperature(d_f, T_in, T_out, pf[6], c)
+    out[11] = air_excess_ratio(m1, x1, c)
+    out[12] = mdot
+    out[13] = Pi
+    out[14] = h3
+    out[15] = compressor_forcing(x4, d_f, T_in, Pi, c)
+
+
+@jit
+def linear_rates(pf, c):
+    """Diagonal linear parts a1, a3, a4 [1/s] (eq. 3.4, 3.15, 3.30 with the seal-leak faults)."""
+    return -1.0 / c.tau_X_s, -(1.0 + pf[2]) / c.tau_pd_s, -(1.0 + pf[4]) / c.tau_TC_s
+
+
+@jit
+def forcings(u, pf, alg, c):
+    """Forcings F1 [kg/s] (eq. 3.4), F3 = h3, F4 = h4 [Pa/s] of one engine."""
+    return fuel_pump_forcing(u, pf[0], c), alg[14], alg[15]
+
+
+@jit
+def algebraic_batch(c, x1, x3, x4, pf, n_guess, sweeps, out):
+    for i in range(x1.shape[0]):
+        solve_algebraic(c, x1[i], x3[i], x4[i], pf[i], n_guess[i], sweeps, out[i])
+
+
+def _vec(v, n: int) -> np.ndarray:
+    a = np.asarray(v, dtype=np.float64)
+    if a.shape == (n,) and a.flags.c_contiguous:
+        return a
+    return np.ascontiguousarray(np.broadcast_to(a, (n,)))
+
+
 @dataclass
 class EngineModel:
-    """The coupled model of one parameter set; all methods are vectorised over engines."""
+    """The coupled model of one parameter set; methods take arrays over engines."""
 
     params: EngineParams
     speed_sweeps: int = 3
-    _k2: s2.EngineBlockConstants = field(init=False, repr=False)
-    _k3: s3.ExhaustConstants = field(init=False, repr=False)
+    constants: ModelConstants = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        self._k2 = s2.engine_block_constants(self.params)
-        self._k3 = s3.exhaust_constants(self.params)
+        self.constants = model_constants(self.params)
 
-    @property
-    def seiliger_constants(self):
-        return self._k2.seiliger
-
-    # ------------------------------------------------------------------ algebraic part
     def algebraic(self, x1, x3, x4, pf: ProcessFaultValues = HEALTHY, n_guess=None, sweeps: int | None = None) -> Algebraic:
         """Solve the algebraic equations of Σ2-Σ4 for given states (eq. 3.7-3.38).
 
         ``sweeps`` overrides ``speed_sweeps`` of the speed loop (see :func:`engine_block`).
         """
-        p = self.params
+        n = int(np.size(np.asarray(x1)))
         if n_guess is None:
-            n_guess = np.full(np.shape(x1), p.n_nom_rev_s)
-        T1 = s4.inlet_air_temperature(pf.dT_inl_K, p)
-        blk = s2.engine_block(x1, x4, T1, p.V1_m3 + pf.dV1_m3, n_guess, p, self._k2,
-                              self.speed_sweeps if sweeps is None else sweeps)
-        n = blk.n
-        n_safe = np.maximum(n, 1e-9)
-        s_sl = s3.slip_ratio(x3, x4, blk.m1, n_safe, self._k3)
-        rec = s3.receiver_and_turbine(
-            x1, x3, x4, blk.m1, s_sl, n, blk.cycle.T6, blk.cycle.p6, p.T_sl_K + pf.dT_sl_K, p, self._k3
-        )
-        h4 = s4.compressor_forcing(x4, x1, blk.m1, s_sl, rec.T_in, rec.Pi_turbo, p)
-        T_co = s4.compressor_outlet_temperature(x1, blk.m1, s_sl, rec.T_in, rec.T_out, pf.dT_c_K, p)
-        return Algebraic(
-            n=n,
-            torque=blk.torque,
-            p6=blk.cycle.p6,
-            T6=blk.cycle.T6,
-            p_max=blk.cycle.p3,
-            m1=blk.m1,
-            s_sl=s_sl,
-            T_in=rec.T_in,
-            T_out=rec.T_out,
-            T1=T1 if np.ndim(T1) == np.ndim(x1) else np.full(np.shape(x1), T1),
-            T_co=T_co,
-            lam=s4.air_excess_ratio(blk.m1, x1, p),
-            mdot_g=rec.mdot_g,
-            Pi_turbo=rec.Pi_turbo,
-            h3=rec.h3,
-            h4=h4,
-        )
+            n_guess = self.params.n_nom_rev_s
+        out = np.empty((n, N_ALG))
+        algebraic_batch(self.constants, _vec(x1, n), _vec(x3, n), _vec(x4, n), pf.as_array(n), _vec(n_guess, n),
+                        self.speed_sweeps if sweeps is None else int(sweeps), out)
+        return Algebraic.from_array(out)
 
-    # ---------------------------------------------------------------- differential part
     def linear_coefficients(self, pf: ProcessFaultValues = HEALTHY):
         """Diagonal linear parts a1, a3, a4 [1/s] (eq. 3.4, 3.15, 3.30 with the seal-leak faults)."""
         p = self.params
-        return (s1.fuel_pump_linear(p), -(1.0 + pf.phi_tur) / p.tau_pd_s, -(1.0 + pf.phi_int) / p.tau_TC_s)
+        return (-1.0 / p.tau_X_s, -(1.0 + np.asarray(pf.phi_tur)) / p.tau_pd_s,
+                -(1.0 + np.asarray(pf.phi_int)) / p.tau_TC_s)
 
     def forcing(self, u, alg: Algebraic, pf: ProcessFaultValues = HEALTHY):
         """Forcings F1 [kg/s], F3 = h3 [Pa/s], F4 = h4 [Pa/s]."""
-        return s1.fuel_pump_forcing(u, pf.f_u, self.params), alg.h3, alg.h4
+        p = self.params
+        return (p.x1_nom_kg / p.tau_X_s) * np.asarray(pf.f_u) * np.asarray(u), alg.h3, alg.h4
 
     def derivatives(self, x1, x3, x4, u, pf: ProcessFaultValues = HEALTHY, n_guess=None):
         """Time derivatives of the three states and the algebraic solution (for reference solvers)."""
         alg = self.algebraic(x1, x3, x4, pf, n_guess)
         a1, a3, a4 = self.linear_coefficients(pf)
         F1, F3, F4 = self.forcing(u, alg, pf)
-        return (a1 * x1 + F1, a3 * x3 + F3, a4 * x4 + F4), alg
+        return (a1 * np.asarray(x1) + F1, a3 * np.asarray(x3) + F3, a4 * np.asarray(x4) + F4), alg
 
 
 def algebraic_field_names() -> list[str]:

@@ -28,49 +28,15 @@ The maximum cylinder pressure is p3 = p4 (end of the constant-volume stage).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
 
-import numpy as np
+from ._jit import jit
 
-__all__ = ["SeiligerConstants", "SeiligerState", "seiliger_cycle"]
-
-
-@dataclass(frozen=True)
-class SeiligerConstants:
-    """Per-engine constants of the cycle, precomputed once (see :func:`seiliger_constants`)."""
-
-    r_c: float
-    r_eo: float
-    rc_pow_kappa: float  # r_c^κa
-    rc_pow_kappa_m1: float  # r_c^(κa-1)
-    ln_rc_reo: float  # ln(r_c r_eo)
-    c_v: float
-    c_p: float
-    R: float
-    n_exp: float
+__all__ = ["seiliger_cycle"]
 
 
-@dataclass
-class SeiligerState:
-    """Pressures [Pa], temperatures [K] of the cycle points and the net work per kg [J/kg]."""
-
-    T2: np.ndarray
-    T3: np.ndarray
-    T4: np.ndarray
-    T6: np.ndarray
-    p3: np.ndarray  # = p_max
-    p6: np.ndarray
-    w: np.ndarray
-
-
-def seiliger_cycle(
-    p1: np.ndarray,
-    T1: np.ndarray,
-    q: np.ndarray,
-    X_cv: np.ndarray,
-    X_ct: np.ndarray,
-    k: SeiligerConstants,
-) -> SeiligerState:
+@jit
+def seiliger_cycle(p1: float, T1: float, q: float, X_cv: float, X_ct: float, c) -> tuple:
     """Evaluate the Seiliger cycle point by point (table B.1, corrected; eq. B.9).
 
     Parameters
@@ -78,15 +44,21 @@ def seiliger_cycle(
     p1, T1 : pressure [Pa] and temperature [K] at inlet closure (point 1).
     q : heat released per kg of trapped charge [J/kg].
     X_cv, X_ct : fractions of q released at constant volume and constant temperature.
+    c : :class:`~marine_fdi_env.constants.ModelConstants`.
+
+    Returns
+    -------
+    (T2, T3, T4, T6, p3, p6, w): temperatures [K], p3 = p_max and p6 [Pa], net work w [J/kg].
     """
-    T2 = T1 * k.rc_pow_kappa_m1
-    T3 = T2 + X_cv * q / k.c_v
-    T4 = T3 + (1.0 - X_cv - X_ct) * q / k.c_p
-    ln_c = X_ct * q / (k.R * T4)
+    R = c.R_a_J_per_kgK
+    T2 = T1 * c.rc_pow_kappa_m1
+    T3 = T2 + X_cv * q / c.c_v_a_J_per_kgK
+    T4 = T3 + (1.0 - X_cv - X_ct) * q / c.c_p_a_J_per_kgK
+    ln_c = X_ct * q / (R * T4)
     # ln(V5/V6) = ln(V4/V3) + ln c - ln(r_c r_eo), with V4/V3 = T4/T3 and V3 = V1 / r_c
-    ln_v = np.log(T4 / T3) + ln_c - k.ln_rc_reo
-    T6 = T4 * np.exp((k.n_exp - 1.0) * ln_v)
-    p3 = p1 * k.rc_pow_kappa * (T3 / T2)
-    p6 = p3 * np.exp(k.n_exp * ln_v - ln_c)
-    w = -k.c_v * (T2 - T1) + k.R * (T4 - T3) + X_ct * q + k.R * (T4 - T6) / (k.n_exp - 1.0)
-    return SeiligerState(T2=T2, T3=T3, T4=T4, T6=T6, p3=p3, p6=p6, w=w)
+    ln_v = math.log(T4 / T3) + ln_c - c.ln_rc_reo
+    T6 = T4 * math.exp((c.n_exp - 1.0) * ln_v)
+    p3 = p1 * c.rc_pow_kappa * (T3 / T2)
+    p6 = p3 * math.exp(c.n_exp * ln_v - ln_c)
+    w = -c.c_v_a_J_per_kgK * (T2 - T1) + R * (T4 - T3) + X_ct * q + R * (T4 - T6) / (c.n_exp - 1.0)
+    return T2, T3, T4, T6, p3, p6, w

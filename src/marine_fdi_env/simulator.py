@@ -27,8 +27,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .faults import PROCESS_FAULT_IDS, FAULT_IDS, CompiledSchedule, FaultSpec, parse_fault_spec
-from .integrators import ExponentialRK2
-from .model import HEALTHY, Algebraic, EngineModel, ProcessFaultValues
+from .integrators import FAILURE_REASONS, _failure_code, etd2rk_batch
+from .model import ALG_FIELDS, HEALTHY, HEALTHY_PF, N_ALG, PF_FIELDS, Algebraic, EngineModel, ProcessFaultValues
 from .params import EngineParams, load_params
 from .profiles import Profile, make_profile
 from .sensors import MEASURED_VARIABLES, NOISE_BOUNDS, N_SENSORS, SENSOR_IDS, VARIABLE_OF_SENSOR
@@ -41,16 +41,8 @@ TRUTH_VARIABLES: tuple[str, ...] = (
     "u", "x1", "x3", "x4", "n", "torque", "power", "p6", "T6", "p_max", "T_in", "T_out", "T1", "T_co", "lam",
 )
 _NOISE_BLOCK = 128
-_CHUNK = 256
-# The predictor stage needs the speed only to second order in h: one sweep from the previous
-# sample's speed (contraction ~0.1, speed change per sample ~1e-4) is accurate to ~1e-5 there.
-_PREDICTOR_SWEEPS = 1
-# The output stage starts from the predictor's speed, which differs from the final one by far
-# less than a sample's change; two sweeps (contraction <= 0.12) leave a relative speed and torque
-# error below 2e-6 even at a fuel-setting step (measured against the fully converged solve),
-# negligible against the 1e-3 accuracy budget of the fixed-step solver.
-_OUTPUT_SWEEPS = 2
-_TRANSIENT_TOL = 1e-3
+_CHUNK = 256  # samples of fuel setting and fault values precomputed at a time
+DEFAULT_LIMITER_LAMBDA = 1.3
 
 
 @dataclass(frozen=True)
@@ -110,6 +102,16 @@ class Simulator:
     dt : sample time [s] (default 0.01 s).
     noise_scale : multiplier of the table 6.3 noise bounds (0 = noise-free).
     substeps : substeps while the fuel pump is in a fast transient.
+    fuel_limiter_lambda : the governor's charge-air (smoke) limiter keeps the air excess ratio
+        at or above this value by capping the applied fuel setting (0 disables it; see below).
+
+    The thesis's turbocharger is slow (τ_TC = 51 s), so a fast load increase would drive the air
+    excess ratio below 1, where the Seiliger heat release (all fuel burns) is no longer valid.
+    Marine governors prevent that with a charge-air-pressure-dependent fuel limiter; ours caps
+    the fuel setting at the value giving λ = ``fuel_limiter_lambda`` (default 1.3, below every
+    steady state of the three parameter sets, so it acts only in fast load increases).  The
+    applied setting is recorded as the truth variable ``u`` and is the control input a
+    diagnoser sees.
     """
 
     def __init__(
@@ -122,6 +124,7 @@ class Simulator:
         dt: float = 0.01,
         noise_scale: float = 1.0,
         substeps: int = 4,
+        fuel_limiter_lambda: float = DEFAULT_LIMITER_LAMBDA,
     ) -> None:
         self.params = load_params(params) if isinstance(params, str) else params
         if not isinstance(n_engines, (int, np.integer)) or n_engines < 1:
@@ -134,6 +137,10 @@ class Simulator:
         self.dt = float(dt)
         self.noise_scale = float(noise_scale)
         self.substeps = int(substeps)
+        if not (isinstance(fuel_limiter_lambda, (int, float)) and math.isfinite(fuel_limiter_lambda)
+                and fuel_limiter_lambda >= 0):
+            raise ValueError(f"fuel_limiter_lambda must be a finite number >= 0, got {fuel_limiter_lambda!r}")
+        self.fuel_limiter_lambda = float(fuel_limiter_lambda)
         if isinstance(seeds, (int, np.integer)):
             self.seeds = [int(seeds) + i for i in range(self.n)]
         else:
@@ -155,39 +162,56 @@ class Simulator:
     # ----------------------------------------------------------------------------- set-up
     def reset(self) -> None:
         """Put every engine at the steady state of its fuel setting at t = 0 and rewind the noise."""
-        p = self.params
+        n = self.n
         self.k = 0
         self.t = 0.0
         self._rngs = [np.random.Generator(np.random.PCG64(np.random.SeedSequence(s).spawn(2)[0])) for s in self.seeds]
         self._prec_rngs = None
-        self._noise_raw = np.empty((self.n, _NOISE_BLOCK * N_SENSORS))
-        self._noise = np.empty((_NOISE_BLOCK, self.n, N_SENSORS))
+        self._noise_raw = np.empty((n, _NOISE_BLOCK * N_SENSORS))
+        self._noise_bounds = 2.0 * NOISE_BOUNDS * self.noise_scale
         self._noise_pos = _NOISE_BLOCK
-        u0 = np.array([pr(0.0) for pr in self.profiles], dtype=float)
-        pf0 = self._process(0.0)
-        ss = steady_state(self.model, u0, pf0)
-        self.x1, self.x3, self.x4 = ss.x1.copy(), ss.x3.copy(), ss.x4.copy()
-        self.alg = ss.alg
-        self.u = u0
-        self.failed = np.zeros(self.n, dtype=bool)
-        self.failures: list[EngineFailure] = []
         self._stuck = np.full(len(self.schedule.s_engine), np.nan)
-        self._fill_chunk(0)
         self._last_y = None
-        a1, a3, a4 = self.model.linear_coefficients()
-        self._etd = {h: tuple(ExponentialRK2.for_rate(a, h) for a in (a1, a3, a4))
-                     for h in (self.dt, self.dt / self.substeps)}
-        self._x1_target_coeff = p.x1_nom_kg
-        self._check_failure(0.0, np.ones(self.n, dtype=bool))
+        self._fill_chunk(0)
+        u0 = self._u_right[0].copy()
+        ss = steady_state(self.model, u0, self._pf_values(0))
+        self.X = np.ascontiguousarray(np.stack([ss.x1, ss.x3, ss.x4], axis=1))
+        self.ALG = np.ascontiguousarray(np.stack([getattr(ss.alg, f) for f in ALG_FIELDS], axis=1))
+        self._X_new = np.empty_like(self.X)
+        self._ALG_new = np.empty_like(self.ALG)
+        self._codes = np.zeros(n, dtype=np.int64)
+        self._scr_pf = np.empty((n, 3, len(PF_FIELDS)))
+        self._scr_alg = np.empty((n, 3, N_ALG))
+        self.u = self._applied_u(u0)
+        self.failed = np.zeros(n, dtype=bool)
+        self.failures: list[EngineFailure] = []
+        codes = np.zeros(n, dtype=np.int64)
+        for i in range(n):
+            codes[i] = _failure_code(self.model.constants, self.X[i, 0], self.X[i, 1], self.X[i, 2], self.ALG[i])
+        self._record_failures(codes, 0.0)
         self.y = self._measure(0.0)
 
-    def _process(self, t: float) -> ProcessFaultValues:
-        return self.schedule.process_values(t) if self.schedule.process else HEALTHY
+    # state views
+    @property
+    def x1(self) -> np.ndarray:
+        return self.X[:, 0]
 
-    def _u(self, t: float, left: bool = False) -> np.ndarray:
-        if left:
-            return np.array([pr.left_limit(t) for pr in self.profiles], dtype=float)
-        return np.array([pr(t) for pr in self.profiles], dtype=float)
+    @property
+    def x3(self) -> np.ndarray:
+        return self.X[:, 1]
+
+    @property
+    def x4(self) -> np.ndarray:
+        return self.X[:, 2]
+
+    @property
+    def alg(self) -> Algebraic:
+        return Algebraic.from_array(self.ALG)
+
+    def _pf_values(self, j: int) -> ProcessFaultValues:
+        if self._pf is None:
+            return HEALTHY
+        return ProcessFaultValues(*(self._pf[j, :, m] for m in range(len(PF_FIELDS))))
 
     def _fill_chunk(self, k0: int) -> None:
         """Precompute u (right and left limits) and process-fault values on samples k0..k0+_CHUNK."""
@@ -204,128 +228,62 @@ class Simulator:
             self._u_left[:, idx] = pr.left_limit(t)[:, None]
         if self.schedule.process:
             pf = self.schedule.process_values(t)
-            fields_ = vars(pf)
-            self._pf_rows = [ProcessFaultValues(**{f: (v[j] if np.ndim(v) == 2 else v) for f, v in fields_.items()})
-                             for j in range(len(t))]
+            self._pf = np.empty((len(t), self.n, len(PF_FIELDS)))
+            for m, name in enumerate(PF_FIELDS):
+                self._pf[:, :, m] = getattr(pf, name)
         else:
-            self._pf_rows = None
+            self._pf = None
+            self._pf_healthy = np.ascontiguousarray(np.broadcast_to(HEALTHY_PF, (self.n, len(PF_FIELDS))))
         if len(self.schedule.s_engine):
             self._sf_s, self._sf_beta = self.schedule.sensor_fault_state(t[:, None])
 
-    def _grid(self, k: int):
-        """(u right limit, u left limit, process faults) at sample k."""
+    def _grid_row(self, k: int) -> int:
         j = k - self._chunk_k0
         if j < 0 or j > _CHUNK:
             self._fill_chunk(k)
             j = 0
-        pf = HEALTHY if self._pf_rows is None else self._pf_rows[j]
-        return self._u_right[j], self._u_left[j], pf
+        return j
 
     # ----------------------------------------------------------------------------- stepping
-    def _etd_step(self, h, t0, x1, x3, x4, n, u0, u1, pf0: ProcessFaultValues, pf1: ProcessFaultValues, sel=None):
-        """One ETD2RK step of length h for the engines ``sel`` (all if None)."""
-        m = self.model
-
-        def pick(v):
-            return v if sel is None or np.ndim(v) == 0 else v[sel]
-
-        pf0s = ProcessFaultValues(**{k: pick(v) for k, v in vars(pf0).items()})
-        pf1s = ProcessFaultValues(**{k: pick(v) for k, v in vars(pf1).items()})
-        c = self._rates(t0 + 0.5 * h, h, sel) if self.schedule.has_seal_faults else self._etd[h]
-        alg0 = m.algebraic(x1, x3, x4, pf0s, n)
-        F0 = m.forcing(u0, alg0, pf0s)
-        xp = [c[i].predict(x, F0[i]) for i, x in enumerate((x1, x3, x4))]
-        algp = m.algebraic(*xp, pf1s, alg0.n)
-        Fp = m.forcing(u1, algp, pf1s)
-        xn = [c[i].correct(xp[i], Fp[i], F0[i]) for i in range(3)]
-        return xn, algp.n
-
-    def _rates(self, t_mid: float, h: float, sel=None):
-        """ETD2RK coefficients with the seal-leak faults evaluated at mid-step."""
-        pfm = self._process(t_mid)
-        a1, a3, a4 = self.model.linear_coefficients(pfm)
-        if sel is not None:
-            a3, a4 = np.asarray(a3)[sel] if np.ndim(a3) else a3, np.asarray(a4)[sel] if np.ndim(a4) else a4
-        return (self._etd[h][0], ExponentialRK2.for_rate(a3, h), ExponentialRK2.for_rate(a4, h))
-
     def step(self) -> np.ndarray:
         """Advance all engines by one sample; returns the measurements (N, 19) at the new time."""
-        h = self.dt
-        t0, t1 = self.t, (self.k + 1) * self.dt
-        u0, _, pf0 = self._grid(self.k)  # right limit of u at t0
-        u1_right, u1, pf1 = self._grid(self.k + 1)  # left limit at t1
-        # ETD2RK from the start-of-step algebraic state self.alg (x1's forcing uses the right limit of u)
-        m = self.model
-        c = self._etd[h] if not self.schedule.has_seal_faults else self._rates(t0 + 0.5 * h, h)
-        F0 = m.forcing(u0, self.alg, pf0)
-        xp = [c[i].predict(x, F0[i]) for i, x in enumerate((self.x1, self.x3, self.x4))]
-        algp = m.algebraic(*xp, pf1, self.alg.n, sweeps=_PREDICTOR_SWEEPS)
-        Fp = m.forcing(u1, algp, pf1)
-        x1, x3, x4 = [c[i].correct(xp[i], Fp[i], F0[i]) for i in range(3)]
-        n_guess = algp.n
-        # substeps for engines whose fuel pump is far from its target
-        target = self._x1_target_coeff * np.asarray(pf1.f_u) * u1
-        trans = np.abs(self.x1 - target) > _TRANSIENT_TOL * self.params.x1_nom_kg
-        if self.substeps > 1 and trans.any():
-            sel = np.flatnonzero(trans)
-            hs = h / self.substeps
-            sx1, sx3, sx4, sn = self.x1[sel], self.x3[sel], self.x4[sel], self.alg.n[sel]
-            for j in range(self.substeps):
-                ta, tb = t0 + j * hs, t0 + (j + 1) * hs
-                w0, w1 = j / self.substeps, (j + 1) / self.substeps
-                ua = u0[sel] + w0 * (u1[sel] - u0[sel])
-                ub = u0[sel] + w1 * (u1[sel] - u0[sel])
-                pfa = pf0 if j == 0 else self._process(ta)
-                pfb = pf1 if j == self.substeps - 1 else self._process(tb)
-                (sx1, sx3, sx4), sn = self._etd_step(hs, ta, sx1, sx3, sx4, sn, ua, ub, pfa, pfb, sel)
-            x1, x3, x4 = x1.copy(), x3.copy(), x4.copy()
-            x1[sel], x3[sel], x4[sel] = sx1, sx3, sx4
-            n_guess = n_guess.copy()
-            n_guess[sel] = sn
-        alg = self.model.algebraic(x1, x3, x4, pf1, n_guess, sweeps=_OUTPUT_SWEEPS)
-        ok = ~self.failed
-        prev = (self.x1, self.x3, self.x4, self.alg)
-        self.x1, self.x3, self.x4, self.alg = x1, x3, x4, alg
-        self.u = u1_right
+        j0 = self._grid_row(self.k)
+        if j0 == _CHUNK:  # the step needs rows j0 and j0 + 1 of one chunk
+            self._fill_chunk(self.k)
+            j0 = 0
+        j1 = j0 + 1
+        if self._pf is None:
+            pf0 = pf1 = self._pf_healthy
+        else:
+            pf0, pf1 = self._pf[j0], self._pf[j1]
+        etd2rk_batch(self.model.constants, self.dt, self.substeps, self.X, self._u_right[j0], self._u_left[j1],
+                     pf0, pf1, self.ALG, ~self.failed, self._X_new, self._ALG_new, self._codes,
+                     self._scr_pf, self._scr_alg, self.fuel_limiter_lambda)
+        self.X, self._X_new = self._X_new, self.X
+        self.ALG, self._ALG_new = self._ALG_new, self.ALG
+        self.u = self._applied_u(self._u_right[j1])
         self.k += 1
-        self.t = t1
-        newly = self._check_failure(t1, ok)
-        frozen = self.failed
-        if frozen.any():
-            self._restore(frozen, prev)
-        self.y = self._measure(t1)
+        self.t = self.k * self.dt
+        if self._codes.any():
+            self._record_failures(self._codes, self.t)
+        self.y = self._measure(self.t)
         return self.y
 
-    # ------------------------------------------------------------------------- failures
-    def _check_failure(self, t: float, candidates: np.ndarray) -> np.ndarray:
+    def _applied_u(self, u_cmd: np.ndarray) -> np.ndarray:
+        """Fuel setting after the charge-air limiter (see class docstring)."""
+        if self.fuel_limiter_lambda <= 0:
+            return u_cmd.copy()
         p = self.params
-        a = self.alg
-        with np.errstate(invalid="ignore"):
-            checks = (
-                ("non-finite state", ~np.isfinite(self.x1 + self.x3 + self.x4 + a.n + a.T_in + a.T_co)),
-                ("stall: shaft torque not positive", ~(a.torque > 0.0)),
-                ("stall: engine speed below 5 % of nominal", ~(a.n > 0.05 * p.n_nom_rev_s)),
-                ("air excess ratio below 1", ~(a.lam >= 1.0)),
-                ("turbine pressure ratio at or below 1", ~(self.x3 > p.p_ex_Pa)),
-                ("charge-air pressure not positive", ~(self.x4 > 0.0)),
-            )
-        any_bad = checks[0][1]
-        for _, bad in checks[1:]:
-            any_bad = any_bad | bad
-        newly = any_bad & candidates & ~self.failed
-        if newly.any():
-            for i in np.flatnonzero(newly):
-                reason = next(r for r, bad in checks if bad[i])
-                self.failures.append(EngineFailure(int(i), float(t), reason))
-            self.failed |= newly
-        return newly
+        u_max = self.X[:, 2] * p.V1_m3 / (p.R_a_J_per_kgK * self.ALG[:, 9] * self.fuel_limiter_lambda * p.sigma_f
+                                          * p.x1_nom_kg)
+        return np.minimum(u_cmd, u_max)
 
-    def _restore(self, mask: np.ndarray, prev) -> None:
-        x1, x3, x4, alg = prev
-        self.x1 = np.where(mask, x1, self.x1)
-        self.x3 = np.where(mask, x3, self.x3)
-        self.x4 = np.where(mask, x4, self.x4)
-        self.alg = Algebraic(**{k: np.where(mask, getattr(alg, k), v) for k, v in vars(self.alg).items()})
+    # ------------------------------------------------------------------------- failures
+    def _record_failures(self, codes: np.ndarray, t: float) -> None:
+        for i in np.flatnonzero(codes):
+            if not self.failed[i]:
+                self.failed[i] = True
+                self.failures.append(EngineFailure(int(i), float(t), FAILURE_REASONS[int(codes[i])]))
 
     # ------------------------------------------------------------------------- sensors
     def _next_noise(self) -> np.ndarray:
@@ -333,23 +291,19 @@ class Simulator:
             raw = self._noise_raw
             for i, rng in enumerate(self._rngs):
                 rng.random(out=raw[i])  # U[0, 1), one contiguous block per engine
-            # scaled noise d = (2 U - 1) * bound, laid out (sample, engine, sensor)
-            bounds = NOISE_BOUNDS * self.noise_scale
-            np.multiply(raw.reshape(self.n, _NOISE_BLOCK, N_SENSORS).transpose(1, 0, 2), 2.0, out=self._noise)
-            self._noise -= 1.0
-            self._noise *= bounds
+            raw -= 0.5
             self._noise_pos = 0
-        z = self._noise[self._noise_pos]
+        j = self._noise_pos * N_SENSORS
         self._noise_pos += 1
-        return z
+        # uniform noise d = (2 U - 1) * bound
+        return self._noise_raw[:, j:j + N_SENSORS] * self._noise_bounds
 
     def true_variables(self) -> np.ndarray:
         """Noise-free measured variables, shape (N, 10) in the order of MEASURED_VARIABLES."""
-        a = self.alg
-        return np.stack([self.x1, a.p6, a.T6, a.torque, self.x3, a.T_in, a.T_out, self.x4, a.T1, a.T_co], axis=1)
+        return np.concatenate([self.X, self.ALG], axis=1)[:, _MEASURED_COLUMNS]
 
     def _measure(self, t: float) -> np.ndarray:
-        true = self.true_variables()[:, VARIABLE_OF_SENSOR]
+        true = np.concatenate([self.X, self.ALG], axis=1)[:, _SENSOR_COLUMNS]
         y = true + self._next_noise()
         self._fault_dev = None
         if len(self.schedule.s_engine):
@@ -371,7 +325,7 @@ class Simulator:
 
     def _apply_sensor_faults(self, t: float, y: np.ndarray, true: np.ndarray) -> np.ndarray:
         sch = self.schedule
-        j = self.k - self._chunk_k0
+        j = self._grid_row(self.k)
         s, beta = self._sf_s[j], self._sf_beta[j]
         active = ~np.isnan(s)
         e, j, kind, mag = sch.s_engine, sch.s_sensor, sch.s_kind, sch.s_params["mag"]
@@ -412,7 +366,7 @@ class Simulator:
             act[sch.s_engine, sch.s_sensor] = a
             val[sch.s_engine, sch.s_sensor] = np.where(a, dev, 0.0)
         if sch.process:
-            pf = self._process(t)
+            pf = self._pf_values(self._grid_row(self.k))
             for k, d in sch.process.items():
                 col = FAULT_IDS.index(k)
                 s = _active_time(t, d)
@@ -484,6 +438,13 @@ _PF_FIELD = {
     "compressor_lubrication_loss": "dT_inl_K",
     "intercooler_blockage": "dT_c_K",
 }
+
+
+# columns of [X | ALG] holding the measured variables, in MEASURED_VARIABLES / sensor order
+_STATE_COLS = {"x1": 0, "x3": 1, "x4": 2}
+_MEASURED_COLUMNS = np.array([_STATE_COLS[v] if v in _STATE_COLS else 3 + ALG_FIELDS.index(v)
+                              for v in MEASURED_VARIABLES])
+_SENSOR_COLUMNS = _MEASURED_COLUMNS[VARIABLE_OF_SENSOR]
 
 
 def _active_time(t, d):

@@ -27,43 +27,46 @@ Corrections and decisions (see also docs/model.md):
 
 from __future__ import annotations
 
-import numpy as np
+import math
 
-from ..params import EngineParams
+from .._jit import jit
 
 __all__ = ["inlet_air_temperature", "delta_f", "eta_tc", "compressor_forcing", "compressor_outlet_temperature",
            "air_excess_ratio"]
 
 
-def inlet_air_temperature(dT_inl: np.ndarray, p: EngineParams) -> np.ndarray:
+@jit
+def inlet_air_temperature(dT_inl: float, c) -> float:
     """z1^(4) = T_c + ε_inl (T_inl + f_z,Tinl - T_c) [K] (eq. 3.37, sign corrected)."""
-    return p.T_c_K + p.eps_inl * (p.T_inl_K + dT_inl - p.T_c_K)
+    return c.T_c_K + c.eps_inl * (c.T_inl_K + dT_inl - c.T_c_K)
 
 
-def delta_f(x1, m1, s_sl):
+@jit
+def delta_f(x1: float, m1: float, s_sl: float) -> float:
     """Exhaust-to-air mass ratio δ_f = 1 + x1 / ((1 + s_sl) m1) (eq. 3.32)."""
     return 1.0 + x1 / ((1.0 + s_sl) * m1)
 
 
-def eta_tc(x4, p: EngineParams):
+@jit
+def eta_tc(x4: float, c) -> float:
     """Overall turbocharger efficiency η_TC = a x4² + b x4 + c (eq. 3.33 as corrected)."""
-    return p.a_eta_per_Pa2 * x4 * x4 + p.b_eta_per_Pa * x4 + p.c_eta
+    return c.a_eta_per_Pa2 * x4 * x4 + c.b_eta_per_Pa * x4 + c.c_eta
 
 
-def compressor_forcing(x4, x1, m1, s_sl, T_in, Pi_turbo, p: EngineParams):
-    """Forcing h4 of eq. 3.31 [Pa/s] (exponent κa/(κa-1), see module docstring)."""
-    chi_g = p.c_p_g_J_per_kgK / p.c_p_a_J_per_kgK  # eq. 3.35
-    base = 1.0 + chi_g * delta_f(x1, m1, s_sl) * eta_tc(x4, p) * (T_in / p.T_amb_K) * (1.0 - Pi_turbo)
-    expo = p.kappa_a / (p.kappa_a - 1.0)
-    return (p.p_amb_Pa / p.tau_TC_s) * np.exp(expo * np.log(np.maximum(base, 1e-12)))
+@jit
+def compressor_forcing(x4: float, d_f: float, T_in: float, Pi_turbo: float, c) -> float:
+    """Forcing h4 of eq. 3.31 [Pa/s] (exponent κa/(κa-1), see module docstring); d_f = δ_f."""
+    base = 1.0 + c.chi_g * d_f * eta_tc(x4, c) * (T_in / c.T_amb_K) * (1.0 - Pi_turbo)
+    return (c.p_amb_Pa / c.tau_TC_s) * math.exp(c.comp_exp * math.log(max(base, 1e-12)))
 
 
-def compressor_outlet_temperature(x1, m1, s_sl, T_in, T_out, dT_c, p: EngineParams):
+@jit
+def compressor_outlet_temperature(d_f: float, T_in: float, T_out: float, dT_c: float, c) -> float:
     """z2^(4) = T_amb + η_com χ_g δ_f (z1^(3) - z2^(3)) + f_z,Tc [K] (eq. 3.38 rebuilt)."""
-    chi_g = p.c_p_g_J_per_kgK / p.c_p_a_J_per_kgK
-    return p.T_amb_K + p.eta_com * chi_g * delta_f(x1, m1, s_sl) * (T_in - T_out) + dT_c
+    return c.T_amb_K + c.eta_com * c.chi_g * d_f * (T_in - T_out) + dT_c
 
 
-def air_excess_ratio(m1, x1, p: EngineParams):
+@jit
+def air_excess_ratio(m1: float, x1: float, c) -> float:
     """λ = m1 / (x1 σ_f) (eq. 3.28-3.29)."""
-    return m1 / (x1 * p.sigma_f)
+    return m1 / (x1 * c.sigma_f)

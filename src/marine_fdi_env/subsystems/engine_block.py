@@ -22,74 +22,38 @@ Decisions where the thesis is silent or garbled:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
 
-import numpy as np
+from .._jit import jit
+from ..seiliger import seiliger_cycle
 
-from ..geometry import cylinder_geometry
-from ..params import EngineParams
-from ..seiliger import SeiligerConstants, SeiligerState, seiliger_cycle
-
-__all__ = ["EngineBlockConstants", "engine_block_constants", "EngineBlockResult", "engine_block"]
+__all__ = ["constant_volume_portion", "friction_torque", "engine_block"]
 
 
-@dataclass(frozen=True)
-class EngineBlockConstants:
-    seiliger: SeiligerConstants
-    two_pi_over_c: float  # 2π / c [1/(N m s^2)]
-    torque_per_work: float  # i_e / (2π k_e) [1/rad]
-
-
-def engine_block_constants(p: EngineParams) -> EngineBlockConstants:
-    g = cylinder_geometry(p.bore_m, p.stroke_m, p.crank_rod_m, p.eps_c, p.alpha_IC_deg, p.alpha_EO_deg)
-    k = SeiligerConstants(
-        r_c=g.r_c,
-        r_eo=g.r_eo,
-        rc_pow_kappa=g.r_c**p.kappa_a,
-        rc_pow_kappa_m1=g.r_c ** (p.kappa_a - 1.0),
-        ln_rc_reo=float(np.log(g.r_c * g.r_eo)),
-        c_v=p.c_v_a_J_per_kgK,
-        c_p=p.c_p_a_J_per_kgK,
-        R=p.R_a_J_per_kgK,
-        n_exp=p.n_exp,
-    )
-    return EngineBlockConstants(
-        seiliger=k,
-        two_pi_over_c=2.0 * np.pi / p.c_load_W_s3,
-        torque_per_work=p.n_cylinders / (2.0 * np.pi * p.revs_per_cycle),
-    )
-
-
-@dataclass
-class EngineBlockResult:
-    n: np.ndarray  # engine speed [rev/s]
-    torque: np.ndarray  # z3 [N m]
-    cycle: SeiligerState  # p6 = z1, T6 = z2, p3 = p_max
-    m1: np.ndarray  # trapped air mass per cylinder and cycle [kg]
-    X_cv: np.ndarray
-
-
-def constant_volume_portion(n: np.ndarray, X_ct: np.ndarray, p: EngineParams) -> np.ndarray:
+@jit
+def constant_volume_portion(n: float, X_ct: float, c) -> float:
     """X_cv = X_cv_nom + X_cv_grad (n - n_nom)/n_nom (eq. 3.12), clipped to [0, 1 - X_ct]."""
-    X_cv = p.X_cv_nom + (p.X_cv_grad / p.n_nom_rev_s) * (n - p.n_nom_rev_s)
-    return np.minimum(np.maximum(X_cv, 0.0), 1.0 - X_ct)
+    X_cv = c.X_cv_nom + (c.X_cv_grad / c.n_nom_rev_s) * (n - c.n_nom_rev_s)
+    return min(max(X_cv, 0.0), 1.0 - X_ct)
 
 
-def friction_torque(n: np.ndarray, p: EngineParams) -> np.ndarray:
+@jit
+def friction_torque(n: float, c) -> float:
     """Q_loss = Q_loss_nom (1 + Q_loss_grad (n_nom - n)/n_nom) [N m] (eq. 3.10)."""
-    return p.Q_loss_nom_Nm * (1.0 + p.Q_loss_grad * (p.n_nom_rev_s - n) / p.n_nom_rev_s)
+    return c.Q_loss_nom_Nm * (1.0 + c.Q_loss_grad * (c.n_nom_rev_s - n) / c.n_nom_rev_s)
 
 
-def engine_block(
-    x1: np.ndarray,
-    x4: np.ndarray,
-    T1: np.ndarray,
-    V1: np.ndarray,
-    n_guess: np.ndarray,
-    p: EngineParams,
-    k: EngineBlockConstants,
-    sweeps: int = 3,
-) -> EngineBlockResult:
+@jit
+def _sweep(n, x4, T1, q, m1, X_ct, c):
+    """One fixed-point sweep n <- sqrt(2π z3(n)/c) of the speed loop; returns (n_new, torque, cycle)."""
+    X_cv = constant_volume_portion(n, X_ct, c)
+    cyc = seiliger_cycle(x4, T1, q, X_cv, X_ct, c)
+    torque = m1 * cyc[6] * c.torque_per_work - friction_torque(n, c)
+    return math.sqrt(c.two_pi_over_c * max(torque, 0.0)), torque, cyc
+
+
+@jit
+def engine_block(x1: float, x4: float, T1: float, V1: float, n_guess: float, c, sweeps: int) -> tuple:
     """Solve Σ2 with the propeller law for the speed (eq. 3.7-3.13).
 
     Parameters
@@ -100,29 +64,25 @@ def engine_block(
     sweeps : 1 or 2 = that many plain sweeps; 3 = two sweeps, Aitken extrapolation, one sweep;
         each further unit repeats the sweep-sweep-extrapolate block (the steady-state solver
         uses more).
+
+    Returns
+    -------
+    (n [rev/s], torque z3 [N m], p6 = z1 [Pa], T6 = z2 [K], p_max [Pa], m1 [kg])
     """
-    m1 = x4 * V1 / (p.R_a_J_per_kgK * T1)
-    q = (p.eta_comb * p.h_L_J_per_kg) * x1 / m1
-    X_ct = p.X_ct_nom * x1 / p.x1_nom_kg  # eq. 3.13
-
-    def sweep(n):
-        X_cv = constant_volume_portion(n, X_ct, p)
-        cyc = seiliger_cycle(x4, T1, q, X_cv, X_ct, k.seiliger)
-        torque = m1 * cyc.w * k.torque_per_work - friction_torque(n, p)
-        return np.sqrt(k.two_pi_over_c * np.maximum(torque, 0.0)), torque, cyc, X_cv
-
+    m1 = x4 * V1 / (c.R_a_J_per_kgK * T1)
+    q = (c.eta_comb * c.h_L_J_per_kg) * x1 / m1
+    X_ct = c.X_ct_nom * x1 / c.x1_nom_kg  # eq. 3.13
     n0 = n_guess
-    if sweeps < 3:  # plain sweeps only (used for predictor stages, where the warm start is close)
-        for _ in range(sweeps):
-            n0, torque, cyc, X_cv = sweep(n0)
-        return EngineBlockResult(n=n0, torque=torque, cycle=cyc, m1=m1, X_cv=X_cv)
+    if sweeps < 3:  # plain sweeps only (predictor stages, where the warm start is close)
+        n, torque, cyc = _sweep(n0, x4, T1, q, m1, X_ct, c)
+        for _ in range(sweeps - 1):
+            n, torque, cyc = _sweep(n, x4, T1, q, m1, X_ct, c)
+        return n, torque, cyc[5], cyc[3], cyc[4], m1
     for _ in range(sweeps - 2):
-        n1, torque, cyc, X_cv = sweep(n0)
-        n2, torque, cyc, X_cv = sweep(n1)
-        d1, d2 = n1 - n0, n2 - n1
-        den = d2 - d1
-        ok = np.abs(den) > 1e-300
+        n1, torque, cyc = _sweep(n0, x4, T1, q, m1, X_ct, c)
+        n2, torque, cyc = _sweep(n1, x4, T1, q, m1, X_ct, c)
+        den = (n2 - n1) - (n1 - n0)
         # Aitken Δ² extrapolation; where the sweeps have already converged keep n2
-        n0 = np.where(ok, n2 - d2 * d2 / np.where(ok, den, 1.0), n2)
-    n, torque, cyc, X_cv = sweep(n0)
-    return EngineBlockResult(n=n, torque=torque, cycle=cyc, m1=m1, X_cv=X_cv)
+        n0 = n2 - (n2 - n1) ** 2 / den if den != 0.0 else n2
+    n, torque, cyc = _sweep(n0, x4, T1, q, m1, X_ct, c)
+    return n, torque, cyc[5], cyc[3], cyc[4], m1

@@ -6,23 +6,23 @@ valve-seizing fault ``f_u`` multiplying the setting ``u`` (table 3.2).
 
 from __future__ import annotations
 
-import numpy as np
-
-from ..params import EngineParams
+from .._jit import jit
 
 __all__ = ["nominal_fuel_per_cycle", "fuel_pump_linear", "fuel_pump_forcing"]
 
 
-def nominal_fuel_per_cycle(p: EngineParams) -> float:
+def nominal_fuel_per_cycle(p) -> float:
     """x1_nom = SFC P k_e / (i_e n) [kg per cylinder and cycle] (eq. 3.5)."""
     return p.SFC_nom_kg_per_J * p.P_nom_W * p.revs_per_cycle / (p.n_cylinders * p.n_nom_rev_s)
 
 
-def fuel_pump_linear(p: EngineParams) -> float:
+@jit
+def fuel_pump_linear(c) -> float:
     """Linear coefficient a1 = -1/τ_X [1/s] of eq. 3.4."""
-    return -1.0 / p.tau_X_s
+    return -1.0 / c.tau_X_s
 
 
-def fuel_pump_forcing(u: np.ndarray, f_u: np.ndarray, p: EngineParams) -> np.ndarray:
+@jit
+def fuel_pump_forcing(u: float, f_u: float, c) -> float:
     """Forcing x1_nom f_u u / τ_X [kg/s] of eq. 3.4 (u is the fuel setting, 1.0 = nominal)."""
-    return (p.x1_nom_kg / p.tau_X_s) * f_u * u
+    return (c.x1_nom_kg / c.tau_X_s) * f_u * u

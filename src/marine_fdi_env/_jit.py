@@ -1,0 +1,20 @@
+"""Just-in-time compilation of the physics with numba.
+
+The model is written as scalar functions of one engine (readable, with plain ``if`` branches)
+and compiled with numba; batches of engines are explicit loops in compiled code.  This gives the
+speed of compiled code for one engine (a Gymnasium env steps one engine at a time) and for many
+(training and evaluation batches), from a single source of the physics.
+
+``error_model="numpy"``: a division by zero gives inf/nan instead of raising, so that an engine
+leaving its physical range is detected by the failure checks rather than crashing a batch.
+"""
+
+from __future__ import annotations
+
+import numba
+
+__all__ = ["jit", "jit_parallel", "prange"]
+
+jit = numba.njit(cache=True, error_model="numpy")
+jit_parallel = numba.njit(cache=True, error_model="numpy", parallel=True)
+prange = numba.prange
