@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._jit import jit, jit_parallel, prange
-from .model import N_ALG, forcings, linear_rates, solve_algebraic
+from .model import forcings, solve_algebraic
 
 __all__ = ["etd_coefficients", "ExponentialRK2", "etd2rk_batch", "reference_solve", "FAILURE_REASONS",
            "PREDICTOR_SWEEPS", "OUTPUT_SWEEPS", "TRANSIENT_TOL"]
@@ -111,17 +111,26 @@ def limited_fuel_setting(u_cmd, x4, T1, lam_lim, c):
 
 
 @jit
-def _etd_once(c, h, x1, x3, x4, u0, u1, pf0, pf1, pfm, alg0, algp, alg_out, lam_lim):
+def healthy_coefficients(c, h):
+    """ETD2RK coefficients (E, hφ1, hφ2) of x1, x3, x4 without seal-leak faults, for step h."""
+    return _etd_scalar(-1.0 / c.tau_X_s, h) + _etd_scalar(-1.0 / c.tau_pd_s, h) + _etd_scalar(-1.0 / c.tau_TC_s, h)
+
+
+@jit
+def _etd_once(c, h, coef, x1, x3, x4, u0, u1, pf0, pf1, pfm, alg0, algp, alg_out, lam_lim):
     """One ETD2RK step of one engine; alg0 is the algebraic state at the start, alg_out the end.
 
     u0, u1 are the commanded fuel settings; the applied ones pass the charge-air limiter.
+    ``coef`` holds the healthy coefficients for step h; a seal-leak fault (evaluated at mid-step)
+    changes the linear rate of x3 or x4 and its coefficients are recomputed.
     """
-    for j in range(pfm.shape[0]):
-        pfm[j] = 0.5 * (pf0[j] + pf1[j])
-    a1, a3, a4 = linear_rates(pfm, c)  # seal-leak faults at mid-step
-    E1, q1, r1 = _etd_scalar(a1, h)
-    E3, q3, r3 = _etd_scalar(a3, h)
-    E4, q4, r4 = _etd_scalar(a4, h)
+    E1, q1, r1, E3, q3, r3, E4, q4, r4 = coef
+    phi_tur = 0.5 * (pf0[2] + pf1[2])
+    phi_int = 0.5 * (pf0[4] + pf1[4])
+    if phi_tur != 0.0:
+        E3, q3, r3 = _etd_scalar(-(1.0 + phi_tur) / c.tau_pd_s, h)
+    if phi_int != 0.0:
+        E4, q4, r4 = _etd_scalar(-(1.0 + phi_int) / c.tau_TC_s, h)
     F1, F3, F4 = forcings(limited_fuel_setting(u0, x4, alg0[9], lam_lim, c), pf0, alg0, c)
     y1 = E1 * x1 + q1 * F1
     y3 = E3 * x3 + q3 * F3
@@ -155,7 +164,8 @@ def _failure_code(c, x1, x3, x4, alg):
 
 
 @jit
-def _engine_step(c, i, h, substeps, X, U0, U1, PF0, PF1, ALG, X_NEW, ALG_NEW, SCR_PF, SCR_ALG, lam_lim):
+def _engine_step(c, i, h, substeps, X, U0, U1, PF0, PF1, ALG, X_NEW, ALG_NEW, SCR_PF, SCR_ALG, lam_lim, coef,
+                 coef_sub):
     x1, x3, x4 = X[i, 0], X[i, 1], X[i, 2]
     target = c.x1_nom_kg * PF1[i, 0] * limited_fuel_setting(U1[i], x4, ALG[i, 9], lam_lim, c)
     pfm = SCR_PF[i, 0]
@@ -173,11 +183,11 @@ def _engine_step(c, i, h, substeps, X, U0, U1, PF0, PF1, ALG, X_NEW, ALG_NEW, SC
                 pfb[k] = PF0[i, k] + w1 * (PF1[i, k] - PF0[i, k])
             ua = U0[i] + w0 * (U1[i] - U0[i])
             ub = U0[i] + w1 * (U1[i] - U0[i])
-            x1, x3, x4 = _etd_once(c, hs, x1, x3, x4, ua, ub, pfa, pfb, pfm, alg_a, algp, alg_b, lam_lim)
+            x1, x3, x4 = _etd_once(c, hs, coef_sub, x1, x3, x4, ua, ub, pfa, pfb, pfm, alg_a, algp, alg_b, lam_lim)
             alg_a[:] = alg_b
         ALG_NEW[i, :] = alg_a
     else:
-        x1, x3, x4 = _etd_once(c, h, x1, x3, x4, U0[i], U1[i], PF0[i], PF1[i], pfm, ALG[i], algp, ALG_NEW[i],
+        x1, x3, x4 = _etd_once(c, h, coef, x1, x3, x4, U0[i], U1[i], PF0[i], PF1[i], pfm, ALG[i], algp, ALG_NEW[i],
                                lam_lim)
     X_NEW[i, 0] = x1
     X_NEW[i, 1] = x3
@@ -192,10 +202,12 @@ def _engine_step(c, i, h, substeps, X, U0, U1, PF0, PF1, ALG, X_NEW, ALG_NEW, SC
 @jit
 def _etd2rk_serial(c, h, substeps, X, U0, U1, PF0, PF1, ALG, active, X_NEW, ALG_NEW, CODES, SCR_PF, SCR_ALG,
                    lam_lim):
+    coef = healthy_coefficients(c, h)
+    coef_sub = healthy_coefficients(c, h / max(substeps, 1))
     for i in range(X.shape[0]):
         if active[i]:
             CODES[i] = _engine_step(c, i, h, substeps, X, U0, U1, PF0, PF1, ALG, X_NEW, ALG_NEW, SCR_PF, SCR_ALG,
-                                    lam_lim)
+                                    lam_lim, coef, coef_sub)
         else:
             X_NEW[i, :] = X[i]
             ALG_NEW[i, :] = ALG[i]
@@ -204,18 +216,20 @@ def _etd2rk_serial(c, h, substeps, X, U0, U1, PF0, PF1, ALG, active, X_NEW, ALG_
 
 @jit_parallel
 def _etd2rk_parallel(c, h, substeps, X, U0, U1, PF0, PF1, ALG, active, X_NEW, ALG_NEW, CODES, SCR_PF, SCR_ALG,
-                     lam_lim):
+                   lam_lim):
+    coef = healthy_coefficients(c, h)
+    coef_sub = healthy_coefficients(c, h / max(substeps, 1))
     for i in prange(X.shape[0]):
         if active[i]:
             CODES[i] = _engine_step(c, i, h, substeps, X, U0, U1, PF0, PF1, ALG, X_NEW, ALG_NEW, SCR_PF, SCR_ALG,
-                                    lam_lim)
+                                    lam_lim, coef, coef_sub)
         else:
             X_NEW[i, :] = X[i]
             ALG_NEW[i, :] = ALG[i]
             CODES[i] = 0
 
 
-PARALLEL_MIN_ENGINES = 1 << 62  # see note in etd2rk_batch
+PARALLEL_MIN_ENGINES = 64
 
 
 def etd2rk_batch(c, h, substeps, X, U0, U1, PF0, PF1, ALG, active, X_NEW, ALG_NEW, CODES, SCR_PF, SCR_ALG,

@@ -85,7 +85,7 @@ class Algebraic:
     p6: np.ndarray  # z1^(2), cylinder pressure at exhaust opening [Pa]
     T6: np.ndarray  # z2^(2), cylinder temperature at exhaust opening [K]
     p_max: np.ndarray  # maximum cylinder pressure p3 [Pa]
-    m1: np.ndarray  # trapped mass per cylinder and cycle [kg]
+    m1: np.ndarray  # trapped mass per cylinder and cycle, incl. bore damage [kg]
     s_sl: np.ndarray  # slip ratio [-]
     T_in: np.ndarray  # z1^(3), turbine inlet temperature [K]
     T_out: np.ndarray  # z2^(3), turbine outlet temperature [K]
@@ -114,7 +114,10 @@ def solve_algebraic(c, x1, x3, x4, pf, n_guess, sweeps, out):
     in the order of ``ALG_FIELDS``.
     """
     T1 = inlet_air_temperature(pf[5], c)
-    n, torque, p6, T6, p_max, m1 = engine_block(x1, x4, T1, c.V1_m3 + pf[1], n_guess, c, sweeps)
+    n, torque, p6, T6, p_max, m1_cyl = engine_block(x1, x4, T1, c.V1_m3 + pf[1], n_guess, c, sweeps)
+    # Gas exchange (Σ3, Σ4) uses the nominal V1 as in eq. 3.17-3.22 and 3.32: bore damage acts on
+    # the cylinder process (Σ2) only, the variables of table 3.1.
+    m1 = x4 * c.V1_m3 / (c.R_a_J_per_kgK * T1)
     s_sl = slip_ratio(x3, x4, m1, max(n, 1e-9), c)
     h3, T_in, T_out, Pi, mdot = receiver_and_turbine(x1, x3, x4, m1, s_sl, n, T6, p6, c.T_sl_K + pf[3], c)
     d_f = delta_f(x1, m1, s_sl)
@@ -123,13 +126,13 @@ def solve_algebraic(c, x1, x3, x4, pf, n_guess, sweeps, out):
     out[2] = p6
     out[3] = T6
     out[4] = p_max
-    out[5] = m1
+    out[5] = m1_cyl
     out[6] = s_sl
     out[7] = T_in
     out[8] = T_out
     out[9] = T1
     out[10] = compressor_outlet_temperature(d_f, T_in, T_out, pf[6], c)
-    out[11] = air_excess_ratio(m1, x1, c)
+    out[11] = air_excess_ratio(m1_cyl, x1, c)
     out[12] = mdot
     out[13] = Pi
     out[14] = h3
@@ -155,10 +158,9 @@ def algebraic_batch(c, x1, x3, x4, pf, n_guess, sweeps, out):
 
 
 def _vec(v, n: int) -> np.ndarray:
-    a = np.asarray(v, dtype=np.float64)
-    if a.shape == (n,) and a.flags.c_contiguous:
-        return a
-    return np.ascontiguousarray(np.broadcast_to(a, (n,)))
+    """A writable, contiguous float64 copy of shape (n,): compiled code is specialised on array
+    flags, and one specialisation for every input keeps results independent of the batch."""
+    return np.array(np.broadcast_to(np.asarray(v, dtype=np.float64), (n,)), dtype=np.float64, order="C")
 
 
 @dataclass

@@ -233,7 +233,9 @@ class Simulator:
                 self._pf[:, :, m] = getattr(pf, name)
         else:
             self._pf = None
-            self._pf_healthy = np.ascontiguousarray(np.broadcast_to(HEALTHY_PF, (self.n, len(PF_FIELDS))))
+            # a writable copy: compiled code is specialised on array flags, and one specialisation
+            # for every batch size keeps batched runs bit-identical to single runs
+            self._pf_healthy = np.tile(HEALTHY_PF, (self.n, 1))
         if len(self.schedule.s_engine):
             self._sf_s, self._sf_beta = self.schedule.sensor_fault_state(t[:, None])
 

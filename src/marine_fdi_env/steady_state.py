@@ -107,7 +107,7 @@ def steady_state(
         converged = np.zeros(u.shape, dtype=bool)
         for _ in range(max_iter):
             r3, r4, alg = residual(x3, x4, n)
-            n = alg.n
+            n = np.where(converged, n, alg.n)
             d3 = 1e-7 * x3
             d4 = 1e-7 * x4
             r3a, r4a, _ = residual(x3 + d3, x4, n)
@@ -120,9 +120,13 @@ def steady_state(
             # damped step that keeps pressures physical
             s3 = np.clip(s3, -0.5 * (x3 - p.p_ex_Pa), 0.5 * x3)
             s4 = np.clip(s4, -0.5 * (x4 - 0.2 * p.p_amb_Pa), 0.5 * x4)
+            # an engine stops iterating once converged, so its result does not depend on the
+            # other engines of the batch (batched runs equal single runs bit for bit)
+            s3 = np.where(converged, 0.0, s3)
+            s4 = np.where(converged, 0.0, s4)
             x3 = x3 - s3
             x4 = x4 - s4
-            converged = (np.abs(s3) <= tol * x3) & (np.abs(s4) <= tol * x4)
+            converged = converged | ((np.abs(s3) <= tol * x3) & (np.abs(s4) <= tol * x4))
             if np.all(converged | ~np.isfinite(x3)):
                 break
         alg = model.algebraic(x1, x3, x4, pf, n)

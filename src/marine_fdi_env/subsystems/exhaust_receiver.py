@@ -38,8 +38,8 @@ __all__ = ["scavenge_flow_function", "slip_ratio", "receiver_and_turbine"]
 def scavenge_flow_function(ratio: float, c) -> float:
     """Ψ_sc of the pressure ratio x3/x4 (eq. 3.19), clipped to [critical ratio, 1]."""
     r = min(max(ratio, c.r_crit), 1.0)
-    lr = math.log(r)
-    return c.psi_coeff * math.sqrt(max(math.exp(c.psi_exp_a * lr) - math.exp(c.psi_exp_b * lr), 0.0))
+    r_1k = math.exp(math.log(r) / c.kappa_g)  # r^(1/κ): r^(2/κ) - r^((κ+1)/κ) = r^(1/κ) (r^(1/κ) - r)
+    return c.psi_coeff * math.sqrt(max(r_1k * (r_1k - r), 0.0))
 
 
 @jit
