@@ -27,7 +27,7 @@ import math
 from .._jit import jit
 from ..seiliger import seiliger_cycle
 
-__all__ = ["constant_volume_portion", "friction_torque", "engine_block"]
+__all__ = ["constant_volume_portion", "friction_torque", "engine_block", "torque_given_speed"]
 
 
 @jit
@@ -86,3 +86,21 @@ def engine_block(x1: float, x4: float, T1: float, V1: float, n_guess: float, c, 
         n0 = n2 - (n2 - n1) ** 2 / den if den != 0.0 else n2
     n, torque, cyc = _sweep(n0, x4, T1, q, m1, X_ct, c)
     return n, torque, cyc[5], cyc[3], cyc[4], m1
+
+
+@jit
+def torque_given_speed(x1: float, x4: float, T1: float, T6: float, n: float, c) -> float:
+    """Shaft torque z3 [N m] at a known speed n and exhaust-opening temperature T6 (eq. 3.10).
+
+    Eq. 3.10 writes the expansion work with ξ_z2 = T6, so a monitoring module can use the
+    measured cylinder temperature there; with the cycle's own T6 this equals the torque of
+    :func:`engine_block` at speed n.
+    """
+    m1 = x4 * c.V1_m3 / (c.R_a_J_per_kgK * T1)
+    q = (c.eta_comb * c.h_L_J_per_kg) * x1 / m1
+    X_ct = c.X_ct_nom * x1 / c.x1_nom_kg
+    X_cv = constant_volume_portion(n, X_ct, c)
+    T2, T3, T4, _, _, _, _ = seiliger_cycle(x4, T1, q, X_cv, X_ct, c)
+    R = c.R_a_J_per_kgK
+    w = -c.c_v_a_J_per_kgK * (T2 - T1) + R * (T4 - T3) + X_ct * q + R * (T4 - T6) / (c.n_exp - 1.0)
+    return m1 * w * c.torque_per_work - friction_torque(n, c)

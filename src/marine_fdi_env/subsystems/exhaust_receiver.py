@@ -31,7 +31,8 @@ import math
 
 from .._jit import jit
 
-__all__ = ["scavenge_flow_function", "slip_ratio", "receiver_and_turbine"]
+__all__ = ["scavenge_flow_function", "slip_ratio", "turbine_mass_flow", "receiver_forcing", "turbine_expansion",
+           "turbine_outlet_temperature", "receiver_and_turbine"]
 
 
 @jit
@@ -49,6 +50,31 @@ def slip_ratio(x3: float, x4: float, m1: float, n: float, c) -> float:
 
 
 @jit
+def turbine_mass_flow(x1: float, m1: float, s_sl: float, n: float, c) -> float:
+    """ṁ_g = ((1 + s_sl) m1 + x1) n i_e/k_e [kg/s]: scavenge air plus fuel (eq. 3.16 corrected)."""
+    return ((1.0 + s_sl) * m1 + x1) * n * c.cycles_per_rev
+
+
+@jit
+def receiver_forcing(mdot: float, T_in: float, c) -> float:
+    """h3 = sqrt(p_ex² + R_g z1 ṁ² / (α_z A_eff)²) / τ_pd [Pa/s] (eq. 3.16)."""
+    return math.sqrt(c.p_ex_Pa * c.p_ex_Pa + c.gamma_coeff * mdot * mdot * T_in) / c.tau_pd_s
+
+
+@jit
+def turbine_expansion(x3: float, c) -> float:
+    """Π_turbo = (p_ex / x3)^((κg-1)/κg) (eq. 3.25)."""
+    return math.exp(c.pi_exp * math.log(c.p_ex_Pa / x3)) if x3 > 0.0 else math.inf
+
+
+@jit
+def turbine_outlet_temperature(T_in: float, x3: float, x4: float, c) -> float:
+    """z2 = ψ4 z1 = z1 (1 - η_turbo(x4) (1 - Π_turbo(x3))) [K] (eq. 3.24-3.26)."""
+    eta_t = c.a_turbo + c.b_turbo_per_Pa * x4 + c.c_turbo_per_Pa2 * x4 * x4
+    return T_in * (1.0 - eta_t * (1.0 - turbine_expansion(x3, c)))
+
+
+@jit
 def receiver_and_turbine(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, c) -> tuple:
     """Algebraic part of Σ3 and the forcing h3 (eq. 3.16, 3.20-3.26, corrected as documented above).
 
@@ -58,7 +84,7 @@ def receiver_and_turbine(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, c) -> tuple:
     -------
     (h3 [Pa/s], T_in = z1 [K], T_out = z2 [K], Π_turbo, ṁ_g [kg/s])
     """
-    mdot = ((1.0 + s_sl) * m1 + x1) * n * c.cycles_per_rev
+    mdot = turbine_mass_flow(x1, m1, s_sl, n, c)
     psi2 = c.c_p_a_J_per_kgK * s_sl * m1
     psi3 = c.c_p_g_J_per_kgK * (x1 + m1)
     inv = 1.0 / (psi2 + psi3)
@@ -69,7 +95,4 @@ def receiver_and_turbine(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, c) -> tuple:
     gb = gamma * beta
     P = 0.5 * (gb + math.sqrt(gb * gb + 4.0 * (c.p_ex_Pa * c.p_ex_Pa + gamma * alpha)))
     T_in = alpha + beta * P
-    Pi = math.exp(c.pi_exp * math.log(c.p_ex_Pa / x3)) if x3 > 0.0 else math.inf
-    eta_t = c.a_turbo + c.b_turbo_per_Pa * x4 + c.c_turbo_per_Pa2 * x4 * x4
-    T_out = T_in * (1.0 - eta_t * (1.0 - Pi))
-    return P / c.tau_pd_s, T_in, T_out, Pi, mdot
+    return P / c.tau_pd_s, T_in, turbine_outlet_temperature(T_in, x3, x4, c), turbine_expansion(x3, c), mdot

@@ -1,0 +1,651 @@
+"""The measured-data format: a CSV with the unit in each column name and a ``FILE.meta.json`` sidecar.
+
+CSV
+    One row per operating point.  Column names are registered in
+    :mod:`marine_fdi_env.validation.columns` (``speed_rpm``, ``power_kW``,
+    ``charge_air_pressure_bar_abs``, ``charge_air_pressure_bar_gauge``, ``turbine_outlet_temperature_C``,
+    ``fuel_flow_kg_per_h``, ``sfc_g_per_kWh``, ``air_flow_kg_per_kWh``, ``load_fraction``, ``fuel_rack``,
+    ...), plus an optional ``engine`` id column when several engines are recorded.  Empty cells (and
+    ``NA``/``NaN``/``n/a``) are missing values: they become NaN and are counted in the data-quality
+    summary, never an error.
+
+Sidecar ``FILE.meta.json`` (a JSON object)
+    ``engine_params``   name of the parameter set (required unless given to the loader);
+    ``load_law``        free text ("propeller law", "constant speed", "controllable pitch ..."), optional;
+    ambient             ``ambient_pressure_bar``/``_Pa``, ``ambient_temperature_C``/``_K`` (or ``"ambient":
+                        "not recorded"``); gauge pressures are made absolute with the recorded ambient
+                        pressure, else with the parameter set's ``p_amb_Pa``;
+    ``columns``         description per column; ``source`` (provenance), ``kind``, ``notes``;
+    ``rated_power_kW``  reference of ``load_fraction`` (default: the parameter set's ``P_nom_W``);
+    ``column_quantities`` optional {column: quantity} to resolve ambiguous columns (see columns.py);
+    ``fuel_rack_at_nominal`` optional rack position at fuel setting 1 (for rack matching).
+
+:func:`load_dataset` checks units, columns and values and collects *every* problem with its row and
+column; errors raise one :class:`DatasetError` (a ``ValueError``) listing all of them, suspicious but
+kept values give :class:`DataWarning` warnings (also kept in ``MeasuredDataset.warnings``).
+Row numbers are 1-based data rows; the CSV line is row + 1 (the header is line 1).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import warnings
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any, Iterable, Mapping
+
+import numpy as np
+
+from ..params import EngineParams, list_parameter_sets, load_params
+from .columns import COLUMNS, ID_COLUMNS, QUANTITIES, ColumnSpec, column_problem, resolve_quantity
+
+__all__ = [
+    "MeasuredDataset", "DatasetError", "DataWarning", "Problem", "load_dataset", "load_shipped",
+    "list_shipped", "shipped_path", "write_dataset", "parse_ambient", "MISSING_TOKENS", "ENVELOPE",
+]
+
+MISSING_TOKENS = frozenset({"", "na", "nan", "n/a", "none", "null"})
+
+# Envelope of a plausible operating point (errors beyond, see _check_values for the warnings).
+ENVELOPE = {
+    "load_fraction_max": 1.15,
+    "speed_max_rel": 1.10,
+    "power_max_rel": 1.15,
+    "fuel_setting_max": 1.2,
+}
+ENGINE_COLUMN = "engine"
+# Columns that set an operating point (identify duplicates); responses are everything else.
+SETPOINT_QUANTITIES = ("load_fraction", "engine_speed_rev_s", "power_W")
+
+
+class DataWarning(UserWarning):
+    """A suspicious measured value that is kept (and reported)."""
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One problem found in a dataset: its rows (1-based data rows), column and message."""
+
+    severity: str  # "error" | "warning"
+    message: str
+    rows: tuple[int, ...] = ()
+    column: str | None = None
+
+    def __str__(self) -> str:
+        where = []
+        if self.rows:
+            lines = ", ".join(str(r + 1) for r in self.rows)
+            rows = ", ".join(str(r) for r in self.rows)
+            where.append(f"row{'s' if len(self.rows) > 1 else ''} {rows} (line{'s' if len(self.rows) > 1 else ''} "
+                         f"{lines})")
+        if self.column is not None:
+            where.append(f"column {self.column!r}")
+        return (", ".join(where) + ": " if where else "") + self.message
+
+
+class DatasetError(ValueError):
+    """Raised with every error of a dataset; ``problems`` holds them (and the warnings)."""
+
+    def __init__(self, source: str, problems: list[Problem]):
+        self.problems = problems
+        errors = [p for p in problems if p.severity == "error"]
+        lines = [f"{source}: {len(errors)} error{'s' if len(errors) != 1 else ''} in the measured data:"]
+        lines += [f"  - {p}" for p in errors]
+        warns = [p for p in problems if p.severity == "warning"]
+        if warns:
+            lines.append(f"  and {len(warns)} warning{'s' if len(warns) != 1 else ''}:")
+            lines += [f"  - {p}" for p in warns]
+        super().__init__("\n".join(lines))
+
+
+@dataclass(frozen=True)
+class MeasuredDataset:
+    """A loaded, checked measured dataset.
+
+    values : SI arrays per quantity (:data:`marine_fdi_env.validation.columns.QUANTITIES`), one entry per
+        point; NaN where the cell was empty.  raw : the columns in the file's units.
+    column_quantity : quantity of each data column (after resolving ambiguous columns).
+    engines : engine id per point (``None`` when the file has no ``engine`` column).
+    ambient : ``{"p_amb_Pa", "T_amb_K", "recorded"}``; p_amb_Pa is the pressure used for gauge columns.
+    load_law : normalised stated load law (``propeller`` | ``constant_speed`` | ``independent`` | ``None``).
+    quality : data-quality summary (points, engines, missing cells per column with their rows).
+    """
+
+    name: str
+    params_name: str
+    meta: dict[str, Any]
+    columns: tuple[str, ...]
+    column_quantity: dict[str, str]
+    values: dict[str, np.ndarray]
+    raw: dict[str, np.ndarray]
+    engines: tuple[str, ...] | None
+    provenance: str
+    ambient: dict[str, Any]
+    load_law: str | None
+    load_law_text: str | None
+    rated_power_W: float
+    quality: dict[str, Any]
+    warnings: tuple[Problem, ...] = ()
+    notes: tuple[str, ...] = ()
+    path: str | None = None
+
+    @property
+    def n_points(self) -> int:
+        return len(next(iter(self.raw.values()))) if self.raw else 0
+
+    @property
+    def params(self) -> EngineParams:
+        return load_params(self.params_name)
+
+    def spec(self, column: str) -> ColumnSpec:
+        return COLUMNS[column]
+
+    def has(self, quantity: str) -> bool:
+        return quantity in self.values
+
+    def column_of(self, quantity: str) -> str | None:
+        """The data column that holds ``quantity`` (``None`` if absent)."""
+        for col, q in self.column_quantity.items():
+            if q == quantity:
+                return col
+        return None
+
+    def to_si(self, column: str, values) -> np.ndarray:
+        return COLUMNS[column].to_si(values, self.ambient["p_amb_Pa"])
+
+    def from_si(self, column: str, values) -> np.ndarray:
+        return COLUMNS[column].from_si(values, self.ambient["p_amb_Pa"])
+
+    def engine_ids(self) -> list[str]:
+        """Distinct engine ids in order of appearance (``[]`` without an engine column)."""
+        if self.engines is None:
+            return []
+        return list(dict.fromkeys(self.engines))
+
+    def point_label(self, i: int) -> str:
+        parts = [] if self.engines is None else [self.engines[i]]
+        for q in SETPOINT_QUANTITIES:
+            col = self.column_of(q)
+            if col is not None and math.isfinite(self.raw[col][i]):
+                parts.append(f"{col}={self.raw[col][i]:g}")
+        return f"point {i + 1} (" + ", ".join(parts) + ")"
+
+    def subset(self, mask) -> "MeasuredDataset":
+        """The dataset restricted to the points where ``mask`` is true (e.g. one engine left out)."""
+        m = np.asarray(mask)
+        if m.dtype != bool:
+            idx = m
+            m = np.zeros(self.n_points, dtype=bool)
+            m[idx] = True
+        eng = None if self.engines is None else tuple(e for e, k in zip(self.engines, m) if k)
+        return MeasuredDataset(
+            name=self.name, params_name=self.params_name, meta=self.meta, columns=self.columns,
+            column_quantity=self.column_quantity, values={k: v[m] for k, v in self.values.items()},
+            raw={k: v[m] for k, v in self.raw.items()}, engines=eng, provenance=self.provenance,
+            ambient=self.ambient, load_law=self.load_law, load_law_text=self.load_law_text,
+            rated_power_W=self.rated_power_W, quality=_quality(self.columns, {k: v[m] for k, v in self.raw.items()},
+                                                               eng, self.warnings),
+            warnings=self.warnings, notes=self.notes, path=self.path,
+        )
+
+    def quality_report(self) -> str:
+        """The data-quality summary as text."""
+        q = self.quality
+        lines = [f"{self.name}: {q['n_points']} points"
+                 + (f", engines {', '.join(q['engines'])}" if q["engines"] else "")]
+        for col, c in q["columns"].items():
+            if c["missing"]:
+                lines.append(f"  {col}: {c['missing']} missing (rows {', '.join(map(str, c['missing_rows']))})")
+        for w in self.warnings:
+            lines.append(f"  warning: {w}")
+        for n in self.notes:
+            lines.append(f"  note: {n}")
+        return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------------------- helpers
+def normalise_load_law(text: str | None) -> str | None:
+    """``propeller`` (fixed pitch, P ~ n^3), ``constant_speed`` (generator), ``independent`` (CPP /
+    combinator: speed and power set separately) or ``None`` (unknown/unstated)."""
+    if text is None:
+        return None
+    t = str(text).lower()
+    if not t.strip() or any(k in t for k in ("unknown", "not stated", "not recorded")):
+        return None
+    if any(k in t for k in ("controllable", "cpp", "combinator", "independent")):
+        return "independent"
+    if any(k in t for k in ("generator", "constant speed", "constant-speed", "genset", "isochronous")):
+        return "constant_speed"
+    if "propeller" in t or "fpp" in t or "cubic" in t:
+        return "propeller"
+    return None
+
+
+def parse_ambient(meta: Mapping[str, Any], params: EngineParams) -> tuple[dict[str, Any], list[str]]:
+    """Ambient conditions of the sidecar (SI) and notes on what was assumed."""
+    notes: list[str] = []
+    src = dict(meta)
+    if isinstance(meta.get("ambient"), Mapping):
+        src.update(meta["ambient"])
+    p = T = Tc = None
+    if "ambient_pressure_bar" in src:
+        p = float(src["ambient_pressure_bar"]) * 1e5
+    elif "ambient_pressure_Pa" in src:
+        p = float(src["ambient_pressure_Pa"])
+    if "ambient_temperature_C" in src:
+        T = float(src["ambient_temperature_C"]) + 273.15
+    elif "ambient_temperature_K" in src:
+        T = float(src["ambient_temperature_K"])
+    if "charge_air_coolant_temperature_C" in src:
+        Tc = float(src["charge_air_coolant_temperature_C"]) + 273.15
+    recorded = p is not None or T is not None
+    if p is None:
+        notes.append(f"ambient pressure not recorded: gauge pressures made absolute with the parameter set's "
+                     f"p_amb = {params.p_amb_Pa / 1e5:g} bar")
+    if p is not None and abs(p - params.p_amb_Pa) > 0.005 * params.p_amb_Pa:
+        notes.append(f"recorded ambient pressure {p / 1e5:g} bar differs from the parameter set's "
+                     f"{params.p_amb_Pa / 1e5:g} bar (the base model runs at the parameter set's)")
+    if T is not None and abs(T - params.T_amb_K) > 0.5:
+        notes.append(f"recorded ambient temperature {T - 273.15:g} C differs from the parameter set's "
+                     f"{params.T_amb_K - 273.15:g} C (the base model runs at the parameter set's)")
+    return {"p_amb_Pa": p if p is not None else params.p_amb_Pa, "T_amb_K": T, "coolant_T_K": Tc,
+            "recorded": recorded}, notes
+
+
+def _parse_cell(text: str) -> float | None:
+    """Float value of a cell, NaN if missing, ``None`` if not numeric."""
+    t = text.strip()
+    if t.lower() in MISSING_TOKENS:
+        return math.nan
+    try:
+        v = float(t)
+    except ValueError:
+        return None
+    if math.isinf(v):
+        return None
+    return v
+
+
+def _quality(columns, raw, engines, warns) -> dict[str, Any]:
+    n = len(next(iter(raw.values()))) if raw else 0
+    cols = {}
+    for c in columns:
+        miss = [i + 1 for i, v in enumerate(raw[c]) if not math.isfinite(v)]
+        cols[c] = {"n": n - len(miss), "missing": len(miss), "missing_rows": miss}
+    return {
+        "n_points": n,
+        "engines": [] if engines is None else list(dict.fromkeys(engines)),
+        "columns": cols,
+        "n_missing": sum(c["missing"] for c in cols.values()),
+        "n_warnings": len(warns),
+    }
+
+
+def _fmt(v: float) -> str:
+    return f"{v:g}"
+
+
+# --------------------------------------------------------------------------------------- loader
+def load_dataset(
+    path: str | Path,
+    meta: str | Path | Mapping[str, Any] | None = None,
+    *,
+    params: str | None = None,
+    name: str | None = None,
+    text: str | None = None,
+) -> MeasuredDataset:
+    """Load and check a measured dataset (CSV + sidecar); raise :class:`DatasetError` listing every error.
+
+    path : the CSV file.  meta : the sidecar (path or dict); default ``PATH`` with ``.csv`` replaced by
+    ``.meta.json``.  params : parameter-set name overriding the sidecar's ``engine_params``.
+    text : CSV content to use instead of reading ``path`` (shipped datasets).
+    """
+    path = Path(path)
+    source = name or path.name
+    problems: list[Problem] = []
+
+    def err(msg, rows=(), column=None):
+        problems.append(Problem("error", msg, tuple(rows), column))
+
+    def warn(msg, rows=(), column=None):
+        problems.append(Problem("warning", msg, tuple(rows), column))
+
+    # ---- sidecar
+    meta_path: Path | None = None
+    if isinstance(meta, Mapping):
+        meta_d = dict(meta)
+    else:
+        meta_path = Path(meta) if meta is not None else path.with_name(
+            path.name[:-4] + ".meta.json" if path.name.endswith(".csv") else path.name + ".meta.json")
+        meta_d = {}
+        try:
+            meta_d = json.loads(meta_path.read_text())
+            if not isinstance(meta_d, dict):
+                err(f"sidecar {meta_path.name} must hold a JSON object")
+                meta_d = {}
+        except FileNotFoundError:
+            if params is None:
+                err(f"no sidecar {meta_path.name}: it must name the engine parameter set (engine_params)")
+            else:
+                warn(f"no sidecar {meta_path.name}: parameter set {params!r} from the caller, ambient and load "
+                     "law unknown")
+        except json.JSONDecodeError as e:
+            err(f"sidecar {meta_path.name} is not valid JSON: {e}")
+    params_name = params or meta_d.get("engine_params")
+    p: EngineParams | None = None
+    if params_name is None:
+        if not any("sidecar" in pr.message for pr in problems):
+            err("the sidecar does not name the engine parameter set (key 'engine_params')")
+    elif params_name not in list_parameter_sets():
+        err(f"unknown engine parameter set {params_name!r} (known: {', '.join(list_parameter_sets())})")
+    else:
+        p = load_params(params_name)
+
+    # ---- CSV
+    try:
+        content = text if text is not None else path.read_text()
+    except FileNotFoundError:
+        raise DatasetError(source, [Problem("error", f"no such file {path}")]) from None
+    rows = list(csv.reader(io.StringIO(content)))
+    while rows and not any(c.strip() for c in rows[-1]):
+        rows.pop()
+    if not rows:
+        raise DatasetError(source, problems + [Problem("error", "empty file: no header")])
+    header = [h.strip() for h in rows[0]]
+    data = rows[1:]
+    if not data:
+        err("no data rows")
+
+    # header checks: unknown, missing unit, duplicated names and duplicated quantities
+    seen: dict[str, int] = {}
+    known: list[tuple[int, str]] = []
+    for j, h in enumerate(header):
+        if h in seen:
+            err(f"duplicated column (also column {seen[h] + 1})", column=h)
+            continue
+        seen[h] = j
+        msg = column_problem(h)
+        if msg is not None:
+            err(f"column {j + 1}: {msg}", column=h)
+            continue
+        known.append((j, h))
+    column_quantity: dict[str, str] = {}
+    notes: list[str] = []
+    by_quantity: dict[str, str] = {}
+    for j, h in known:
+        if h in ID_COLUMNS:
+            continue
+        try:
+            q, note = resolve_quantity(h, COLUMNS[h], meta_d)
+        except ValueError as e:
+            err(str(e), column=h)
+            continue
+        if note:
+            notes.append(note)
+        if q in by_quantity:
+            err(f"duplicated column: holds the same quantity ({q}) as column {by_quantity[q]!r}", column=h)
+            continue
+        by_quantity[q] = h
+        column_quantity[h] = q
+
+    # cells
+    n = len(data)
+    raw: dict[str, np.ndarray] = {h: np.full(n, np.nan) for h in column_quantity}
+    engines: list[str] | None = [] if ENGINE_COLUMN in seen else None
+    for i, row in enumerate(data, start=1):
+        if len(row) != len(header):
+            err(f"{len(row)} fields, the header has {len(header)}", rows=(i,))
+        if engines is not None:
+            j = seen[ENGINE_COLUMN]
+            e = row[j].strip() if j < len(row) else ""
+            if not e:
+                err("empty engine id", rows=(i,), column=ENGINE_COLUMN)
+            engines.append(e)
+        for h in column_quantity:
+            j = seen[h]
+            if j >= len(row):
+                continue
+            v = _parse_cell(row[j])
+            if v is None:
+                err(f"non-numeric value {row[j].strip()!r}", rows=(i,), column=h)
+            else:
+                raw[h][i - 1] = v
+
+    # ---- ambient, rated power, load law
+    if p is not None:
+        ambient, amb_notes = parse_ambient(meta_d, p)
+        notes.extend(amb_notes)
+        rated = float(meta_d["rated_power_kW"]) * 1e3 if "rated_power_kW" in meta_d else p.P_nom_W
+    else:
+        ambient, rated = {"p_amb_Pa": 1.013e5, "T_amb_K": None, "coolant_T_K": None, "recorded": False}, math.nan
+
+    values = {column_quantity[h]: COLUMNS[h].to_si(raw[h], ambient["p_amb_Pa"]) for h in column_quantity}
+    if p is not None:
+        _check_values(raw, values, column_quantity, p, rated, ambient, engines, err, warn)
+        _check_duplicates(raw, column_quantity, engines, err)
+        _check_across_engines(raw, column_quantity, engines, warn)
+    for h in column_quantity:
+        if n and not np.any(np.isfinite(raw[h])):
+            warn("every value is missing", column=h)
+    described = meta_d.get("columns") or {}
+    if isinstance(described, Mapping):
+        for c in described:
+            if c not in seen:
+                warn(f"the sidecar describes column {c!r}, which the CSV does not have")
+
+    if any(pr.severity == "error" for pr in problems):
+        raise DatasetError(source, problems)
+    warns = tuple(pr for pr in problems if pr.severity == "warning")
+    for w in warns:
+        warnings.warn(f"{source}: {w}", DataWarning, stacklevel=2)
+    columns = tuple(column_quantity)
+    eng = None if engines is None else tuple(engines)
+    law_text = meta_d.get("load_law")
+    return MeasuredDataset(
+        name=name or (path.name[:-4] if path.name.endswith(".csv") else path.name),
+        params_name=params_name,
+        meta=meta_d,
+        columns=columns,
+        column_quantity=column_quantity,
+        values=values,
+        raw=raw,
+        engines=eng,
+        provenance=str(meta_d.get("source", "not stated")),
+        ambient=ambient,
+        load_law=normalise_load_law(law_text),
+        load_law_text=law_text,
+        rated_power_W=rated,
+        quality=_quality(columns, raw, eng, warns),
+        warnings=warns,
+        notes=tuple(notes),
+        path=str(path),
+    )
+
+
+def _rows_where(mask) -> list[int]:
+    return [int(i) + 1 for i in np.flatnonzero(mask)]
+
+
+def _check_values(raw, values, column_quantity, p: EngineParams, rated, ambient, engines, err, warn) -> None:
+    """Envelope (errors) and plausibility (warnings) of every value, one problem per column and kind."""
+    n_nom = p.n_nom_rev_s
+    for col, q in column_quantity.items():
+        v = values[q]
+        fin = np.isfinite(v)
+        kind = QUANTITIES[q].kind
+
+        def flag(mask, msg, f=err):
+            rows = _rows_where(mask & fin)
+            if rows:
+                f(msg, rows=rows, column=col)
+
+        if q == "load_fraction":
+            flag(v < 0, "negative load fraction")
+            flag(v > ENVELOPE["load_fraction_max"],
+                 f"load fraction above {ENVELOPE['load_fraction_max']} (outside the engine envelope)")
+        elif q == "engine_speed_rev_s":
+            flag(v <= 0, "speed not positive")
+            flag(v > ENVELOPE["speed_max_rel"] * n_nom,
+                 f"speed above {ENVELOPE['speed_max_rel']} x nominal ({ENVELOPE['speed_max_rel'] * n_nom * 60:g} rpm;"
+                 " outside the engine envelope)")
+            flag((v > 0) & (v < 0.2 * n_nom), "speed below 0.2 x nominal (suspicious, kept)", warn)
+        elif q == "power_W":
+            flag(v < 0, "negative power")
+            flag(v > ENVELOPE["power_max_rel"] * rated,
+                 f"power above {ENVELOPE['power_max_rel']} x rated ({ENVELOPE['power_max_rel'] * rated / 1e3:g} kW;"
+                 " outside the engine envelope)")
+        elif q == "fuel_setting":
+            flag((v < 0) | (v > ENVELOPE["fuel_setting_max"]), f"fuel setting outside [0, {ENVELOPE['fuel_setting_max']}]")
+        elif q.endswith("_Pa"):
+            spec = COLUMNS[col]
+            flag(v <= 0, "negative absolute pressure" + (" (gauge reading below -ambient)" if spec.gauge else ""))
+            if spec.gauge:
+                flag((v > 0) & (raw[col] < 0), "gauge pressure below ambient (suspicious, kept)", warn)
+            elif q == "charge_air_pressure_Pa":
+                flag((v > 0) & (v < 0.9 * ambient["p_amb_Pa"]), "charge-air pressure below ambient (suspicious, kept)",
+                     warn)
+        elif kind == "temperature":
+            flag(v < 0, "temperature below absolute zero")
+            flag((v >= 0) & ((v < 223.15) | (v > 1273.15)), "temperature outside [-50, 1000] C (suspicious, kept)", warn)
+        elif q == "sfc_kg_per_J":
+            flag(v <= 0, "specific fuel consumption not positive")
+            lo, hi = 150e-3 / 3.6e6, 400e-3 / 3.6e6
+            flag((v > 0) & ((v < lo) | (v > hi)), "SFC outside [150, 400] g/kWh (suspicious, kept)", warn)
+        elif q in ("fuel_mass_flow_kg_s", "air_mass_flow_kg_s", "exhaust_mass_flow_kg_s",
+                   "specific_air_flow_kg_per_J", "specific_exhaust_flow_kg_per_J", "torque_Nm"):
+            flag(v < 0, "negative value")
+            if q == "fuel_mass_flow_kg_s":
+                nominal = p.SFC_nom_kg_per_J * p.P_nom_W
+                flag(v > 1.4 * nominal, f"fuel flow above 1.4 x nominal ({1.4 * nominal * 3600:g} kg/h; suspicious, kept)",
+                     warn)
+        elif q in ("fuel_rack", "air_excess_ratio"):
+            flag(v < 0, "negative value")
+    # consistency of load fraction and power
+    if "load_fraction" in values and "power_W" in values and math.isfinite(rated):
+        lf, pw = values["load_fraction"], values["power_W"]
+        bad = np.isfinite(lf) & np.isfinite(pw) & (np.abs(pw / rated - lf) > 0.02)
+        if np.any(bad):
+            warn(f"load fraction and power / rated power ({rated / 1e3:g} kW) differ by more than 0.02 "
+                 "(suspicious, kept)", rows=_rows_where(bad), column=column_of(column_quantity, "load_fraction"))
+
+
+def column_of(column_quantity: Mapping[str, str], quantity: str) -> str | None:
+    for c, q in column_quantity.items():
+        if q == quantity:
+            return c
+    return None
+
+
+def _setpoint_columns(column_quantity) -> list[str]:
+    return [c for c, q in column_quantity.items() if q in SETPOINT_QUANTITIES]
+
+
+def _check_duplicates(raw, column_quantity, engines, err) -> None:
+    """Duplicate operating points: same engine and same set-point values (load, speed, power); without any
+    set-point column, identical rows."""
+    keys_cols = _setpoint_columns(column_quantity) or list(column_quantity)
+    if not keys_cols:
+        return
+    n = len(raw[keys_cols[0]])
+    groups: dict[tuple, list[int]] = {}
+    for i in range(n):
+        vals = tuple(raw[c][i] for c in keys_cols)
+        if any(not math.isfinite(v) for v in vals):
+            continue
+        key = ((engines[i] if engines is not None else None),) + tuple(round(v, 9) for v in vals)
+        groups.setdefault(key, []).append(i + 1)
+    for key, rws in groups.items():
+        if len(rws) > 1:
+            what = ", ".join(f"{c}={_fmt(v)}" for c, v in zip(keys_cols, key[1:]))
+            eng = f"engine {key[0]}, " if key[0] is not None else ""
+            err(f"duplicate operating point ({eng}{what})", rows=rws)
+
+
+def _check_across_engines(raw, column_quantity, engines, warn) -> None:
+    """With three or more engines at the same set point, a value far from the others' median is suspicious."""
+    if engines is None or len(set(engines)) < 3:
+        return
+    keys_cols = _setpoint_columns(column_quantity)
+    if not keys_cols:
+        return
+    n = len(engines)
+    groups: dict[tuple, list[int]] = {}
+    for i in range(n):
+        vals = tuple(raw[c][i] for c in keys_cols)
+        if all(math.isfinite(v) for v in vals):
+            groups.setdefault(tuple(round(v, 6) for v in vals), []).append(i)
+    for col, q in column_quantity.items():
+        if col in keys_cols or QUANTITIES[q].kind == "index":
+            continue
+        temp = QUANTITIES[q].kind == "temperature"
+        for key, idx in groups.items():
+            x = raw[col][idx]
+            ok = np.isfinite(x)
+            if ok.sum() < 3:
+                continue
+            med = float(np.median(x[ok]))
+            for i, xi in zip(idx, x):
+                if not math.isfinite(xi):
+                    continue
+                dev = abs(xi - med)
+                if (temp and dev > 25.0) or (not temp and dev > 0.25 * abs(med) and dev > 1e-12):
+                    others = ", ".join(f"{engines[k]}: {_fmt(raw[col][k])}" for k in idx if k != i)
+                    warn(f"engine {engines[i]} reads {_fmt(xi)} where the other engines at the same set point read "
+                         f"{others} (suspicious, kept)", rows=(i + 1,), column=col)
+
+
+# --------------------------------------------------------------------------------------- writer
+def write_dataset(path: str | Path, columns: Mapping[str, Iterable], meta: Mapping[str, Any],
+                  engines: Iterable[str] | None = None, digits: int = 6) -> Path:
+    """Write a CSV (+ ``.meta.json`` sidecar) in the measured-data format; NaN becomes an empty cell.
+
+    ``columns`` maps registered column names to values in the column's units.
+    """
+    path = Path(path)
+    names = list(columns)
+    for c in names:
+        msg = column_problem(c)
+        if msg is not None:
+            raise ValueError(msg)
+    cols = [np.asarray(list(columns[c]), dtype=float) for c in names]
+    n = len(cols[0]) if cols else 0
+    eng = None if engines is None else list(engines)
+    with path.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(([ENGINE_COLUMN] if eng is not None else []) + names)
+        for i in range(n):
+            cells = [("" if not math.isfinite(float(c[i])) else f"{float(c[i]):.{digits}g}") for c in cols]
+            w.writerow(([eng[i]] if eng is not None else []) + cells)
+    meta_path = path.with_name(path.name[:-4] + ".meta.json" if path.name.endswith(".csv") else path.name + ".meta.json")
+    meta_path.write_text(json.dumps(dict(meta), indent=2) + "\n")
+    return path
+
+
+# --------------------------------------------------------------------------------------- shipped data
+def _measured_dir():
+    return resources.files("marine_fdi_env") / "data" / "measured"
+
+
+def list_shipped() -> list[str]:
+    """Names of the measured datasets shipped with the package."""
+    return sorted(p.name[:-4] for p in _measured_dir().iterdir() if p.name.endswith(".csv"))
+
+
+def shipped_path(name: str):
+    """Traversable of a shipped dataset's CSV."""
+    names = list_shipped()
+    if name not in names:
+        raise ValueError(f"unknown shipped dataset {name!r}; shipped: {', '.join(names)}")
+    return _measured_dir() / f"{name}.csv"
+
+
+def load_shipped(name: str, *, params: str | None = None) -> MeasuredDataset:
+    """Load a dataset shipped in ``marine_fdi_env/data/measured`` (``birka_6l46_shop_test``,
+    ``man_12v32_40_fpp_iso``); its provenance is the sidecar's ``source``."""
+    csv_res = shipped_path(name)
+    meta = json.loads((_measured_dir() / f"{name}.meta.json").read_text())
+    return load_dataset(Path(str(csv_res)), meta, params=params, name=name, text=csv_res.read_text())
