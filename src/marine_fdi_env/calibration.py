@@ -116,7 +116,7 @@ THESIS_CHOICES = {
 def _scaled(base: dict[str, Entry], name: str, changes: dict[str, Entry]) -> dict[str, Entry]:
     out = {}
     for k, v in base.items():
-        out[k] = changes.get(k, {**v, "source": f"scaled from thesis-12v28 ({v['source']})"})
+        out[k] = changes.get(k, {**v, "source": f"same value as thesis-12v28 ({v['source']})"})
     for k in changes:
         if k not in out:
             out[k] = changes[k]
@@ -162,12 +162,14 @@ INPUT_SETS: dict[str, dict[str, Entry]] = {
     "wartsila-6l46": _sibling(
         "wartsila-6l46", 0.46, 0.58, 6, 5890e3, 500.0,
         sfc=(1141.0 + 1165.1 + 1152.0) / 3 / 3600.0 / 5890e3, p1=(3.15 + 3.04 + 3.11) / 3 * 1e5 + 1.013e5,
-        T_amb=298.15, T_c=323.0, src=BIRKA_SRC,
+        T_amb=298.15, T_c=THESIS_12V28["T_c_K"]["value"], src=BIRKA_SRC,
         extra={"p_amb_Pa": _e(1.013e5, "Pa", "choice: standard atmosphere (ambient not recorded)"),
                "p_ex_Pa": _e(1.013e5, "Pa", "equal to the ambient pressure")},
     ),
 }
 INPUT_SETS["wartsila-6l46"]["T_amb_K"]["source"] = "choice: ISO 25 C (ambient not recorded in the shop tests)"
+INPUT_SETS["wartsila-6l46"]["T_c_K"]["source"] = (
+    "same value as thesis-12v28 (thesis table 4.1): the shop tests record no cooler-outlet temperature")
 
 
 def derive_parameters(name: str, inputs: dict[str, Entry], choices: dict[str, Entry] | None = None) -> dict[str, Entry]:
@@ -196,8 +198,8 @@ def derive_parameters(name: str, inputs: dict[str, Entry], choices: dict[str, En
     X_cv = cv * (T3 - T2) / q
     out["X_cv_nom"] = _e(
         X_cv, "-",
-        "calibrated (table 4.1 gives 0.06017, which yields p_max = 158 bar): closed form from "
-        "p_max_nom = p1 r_c^ka T3/T2 with T3 = T2 + X_cv q / c_v",
+        "calibrated to p_max_nom (for thesis-12v28, table 4.1's 0.06017 yields p_max = 158 bar): closed form "
+        "from p_max_nom = p1 r_c^ka T3/T2 with T3 = T2 + X_cv q / c_v",
     )
     eta_c = choices["eta_c_nom"]["value"]
     denom = eta_c * v["eta_com"]

@@ -3,7 +3,8 @@
 Fixed step (:class:`ExponentialRK2`)
     Every state obeys ``x' = a x + F(x, t)`` with a diagonal linear part a = -(1+φ)/τ whose time
     constants (τ_X = 0.015 s, τ_pd = 0.01 s) are as short as the sample time.  Explicit Euler at
-    h = 0.01 s would be unstable for x3 (h/τ_pd = 1) and inaccurate for x1.  The exponential
+    h = 0.01 s would sit at its stability limit for x3 (h/τ_pd = 1, unstable beyond 2, e.g. under
+    a turbine seal leak) and be grossly inaccurate for x1 and x3.  The exponential
     Runge-Kutta method of Cox and Matthews (ETD2RK) integrates the linear part exactly and the
     forcing to second order::
 
@@ -35,7 +36,9 @@ __all__ = ["etd_coefficients", "ExponentialRK2", "etd2rk_batch", "reference_solv
            "PREDICTOR_SWEEPS", "OUTPUT_SWEEPS", "TRANSIENT_TOL"]
 
 # The predictor stage needs the speed only to second order in h: one sweep from the previous
-# sample's speed (contraction ~0.1, speed change per sample ~1e-4) is accurate to ~1e-5 there.
+# sample's speed (contraction 0.06-0.13) leaves an error of about a tenth of the speed change per
+# sample (1e-5 relative in steady running, up to 1e-2 at a large fuel step, where the substeps
+# shrink the change per step).
 PREDICTOR_SWEEPS = 1
 # The output stage starts from the predictor's speed, which differs from the final one by far
 # less than a sample's change; two sweeps (contraction <= 0.12) leave a relative speed and torque
@@ -254,7 +257,7 @@ def reference_solve(
     dt: float = 0.01,
     rtol: float = 1e-10,
     method: str = "Radau",
-    fuel_limiter_lambda: float = 0.0,
+    fuel_limiter_lambda: float = 1.3,
 ):
     """Reference solution of one engine with ``scipy.integrate.solve_ivp`` (noise-free).
 

@@ -58,7 +58,8 @@ from ..subsystems.exhaust_receiver import (
 )
 from .modules import MODULE_IDS
 
-__all__ = ["OBSERVER_GAINS", "compute_residuals", "ResidualTrace", "SAFETY", "MODEL_MARGIN"]
+__all__ = ["OBSERVER_GAINS", "compute_residuals", "compute_residuals_batch", "ResidualTrace", "SAFETY",
+           "MODEL_MARGIN", "new_state", "N_STATE", "residuals_for_run"]
 
 # Observer gains L [1/s] of table 6.1 for M(1,q), M(3,q), M(4,q).
 OBSERVER_GAINS = (33.3833, 1.25, 0.3764)
@@ -154,16 +155,30 @@ def _all_finite(y, idx):
     return True
 
 
-@jit
-def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR):
-    """Residuals R (T, 19) and thresholds THR (T, 19) of all modules over a recorded run.
+# Observer state of one engine, one row per side (0: odd sensors, 1: even sensors):
+# columns of ST: 0 x̂1, 1 ē1, 2 x̂3, 3 ē3, 4 F3(prev), 5 H3(prev), 6 ok3(prev), 7 x̂4, 8 ē4, 9 F4(prev),
+# 10 H4(prev), 11 ok4(prev), 12 speed warm start, 13 u(prev), 14 samples seen
+N_STATE = 15
 
-    Y : (T, 19) measurements; U : (T,) applied fuel setting (the known control input);
-    dbar : (19,) noise bounds.  Module columns follow ``MODULE_IDS``.  A module whose inputs are
-    not finite gets R = inf (its ARR is violated).
+
+def new_state(n_engines: int, n_nom: float) -> np.ndarray:
+    """Fresh observer state for ``n_engines`` engines, shape (n_engines, 2, N_STATE)."""
+    st = np.zeros((n_engines, 2, N_STATE))
+    st[:, :, 12] = n_nom
+    return st
+
+
+@jit
+def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST):
+    """Residuals R (T, 19) and thresholds THR (T, 19) of all modules for samples Y (T, 19) of one
+    engine, continuing from the observer state ST (2, N_STATE), which is updated in place.
+
+    U : (T,) applied fuel setting (the known control input); dbar : (19,) noise bounds.
+    Module columns follow ``MODULE_IDS``.  A module whose inputs are not finite gets R = inf
+    (its ARR is violated).
     """
     T = Y.shape[0]
-    L1, L3, L4 = 33.3833, 1.25, 0.3764
+    L1, L3, L4 = OBSERVER_GAINS
     E1, q1, r1 = _etd_scalar(-1.0 / c.tau_X_s, dt)
     E3, q3, r3 = _etd_scalar(-1.0 / c.tau_pd_s, dt)
     E4, q4, r4 = _etd_scalar(-1.0 / c.tau_TC_s, dt)
@@ -171,24 +186,13 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR):
     fuel_gain = c.x1_nom_kg / c.tau_X_s
     T1_model = inlet_air_temperature(0.0, c)
     tab = np.empty((2, 7, 3))
-    xh1 = np.empty(2)  # observer estimates x̂ (after injection) per side, for x1, x3, x4
-    xh3 = np.empty(2)
-    xh4 = np.empty(2)
-    eb1 = np.empty(2)  # error bounds ē of the prior estimates
-    eb3 = np.empty(2)
-    eb4 = np.empty(2)
-    F3p = np.empty(2)
-    F4p = np.empty(2)
-    H3p = np.empty(2)
-    H4p = np.empty(2)
-    ok3p = np.zeros(2, dtype=np.bool_)
-    ok4p = np.zeros(2, dtype=np.bool_)
     yv = np.empty(5)
     db = np.empty(5)
-    n_guess = np.full(2, c.n_nom_rev_s)
-    for k in range(T):
-        y = Y[k]
+    for kk in range(T):
+        y = Y[kk]
         for side in range(2):
+            st = ST[side]
+            first = st[14] == 0.0
             cols = side_cols[side]
             cx1, cp6, cT6, ctq, cx3, cTin, cx4, cT1, cTco = (cols[0], cols[1], cols[2], cols[3], cols[4], cols[5],
                                                                cols[6], cols[7], cols[8])
@@ -196,31 +200,31 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR):
                                                          y[cT1], y[cTco])
             base_ok = math.isfinite(x1) and math.isfinite(x4) and math.isfinite(T1)
             if base_ok:
-                _cycle_table(c, x1, x4, T1, dbar[cx1], dbar[cx4], dbar[cT1], n_guess[side], tab[side])
-                n_guess[side] = tab[side, 0, 0]
+                _cycle_table(c, x1, x4, T1, dbar[cx1], dbar[cx4], dbar[cT1], st[12], tab[side])
+                if math.isfinite(tab[side, 0, 0]):
+                    st[12] = tab[side, 0, 0]
             t = tab[side]
             n0 = t[0, 0]
             # ---------------------------------------------------------------- M1.q (fuel observer)
             m = 0 + side
-            if k == 0:
-                xh1[side] = x1
-                eb1[side] = dbar[cx1]
+            if first:
+                st[0] = x1
+                st[1] = dbar[cx1]
+                R[kk, m] = 0.0 if math.isfinite(x1) else math.inf
             else:
                 # prior from the exact model step with the known input (u linear within the step)
-                F0 = fuel_gain * U[k - 1]
-                F1 = fuel_gain * U[k]
-                prior = E1 * xh1[side] + q1 * F0 + r1 * (F1 - F0)
-                eta = r1 * fuel_gain * abs(U[k] - U[k - 1]) + MODEL_MARGIN * abs(prior)
-                eb1[side] = E1 * ((1.0 - Ld1) * eb1[side] + Ld1 * dbar[cx1]) + eta
+                F0 = fuel_gain * st[13]
+                F1 = fuel_gain * U[kk]
+                prior = E1 * st[0] + q1 * F0 + r1 * (F1 - F0)
+                eta = r1 * abs(F1 - F0) + MODEL_MARGIN * abs(prior)
+                st[1] = E1 * ((1.0 - Ld1) * st[1] + Ld1 * dbar[cx1]) + eta
                 if math.isfinite(x1):
-                    R[k, m] = x1 - prior
-                    xh1[side] = prior + Ld1 * (x1 - prior)
+                    R[kk, m] = x1 - prior
+                    st[0] = prior + Ld1 * (x1 - prior)
                 else:
-                    R[k, m] = math.inf
-                    xh1[side] = prior
-            if k == 0:
-                R[k, m] = 0.0
-            THR[k, m] = eb1[side] + dbar[cx1]
+                    R[kk, m] = math.inf
+                    st[0] = prior
+            THR[kk, m] = st[1] + dbar[cx1]
             # ---------------------------------------------------------------- M2.(1,2): p6, M2.(3,4): T6
             for j in range(2):
                 m = 2 + 2 * j + side
@@ -229,11 +233,11 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR):
                     g0 = t[0, 1 + j]
                     b = _dev(g0, t[1, 1 + j], t[2, 1 + j]) + _dev(g0, t[3, 1 + j], t[4, 1 + j]) + \
                         _dev(g0, t[5, 1 + j], t[6, 1 + j])
-                    R[k, m] = y[col] - g0
-                    THR[k, m] = dbar[col] + SAFETY * b + MODEL_MARGIN * abs(g0)
+                    R[kk, m] = y[col] - g0
+                    THR[kk, m] = dbar[col] + SAFETY * b + MODEL_MARGIN * abs(g0)
                 else:
-                    R[k, m] = math.inf
-                    THR[k, m] = dbar[col]
+                    R[kk, m] = math.inf
+                    THR[kk, m] = dbar[col]
             # ---------------------------------------------------------------- M2.(5,6): torque
             m = 6 + side
             if base_ok and math.isfinite(tqm) and math.isfinite(T6m) and tqm > 0.0:
@@ -254,11 +258,11 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR):
                           tqm - torque_given_speed(x1, x4 - dbar[cx4], T1, T6m, n_t, c))
                 b += _dev(r0, tqm - torque_given_speed(x1, x4, T1 + dbar[cT1], T6m, n_t, c),
                           tqm - torque_given_speed(x1, x4, T1 - dbar[cT1], T6m, n_t, c))
-                R[k, m] = r0
-                THR[k, m] = SAFETY * b + MODEL_MARGIN * abs(g0)
+                R[kk, m] = r0
+                THR[kk, m] = SAFETY * b + MODEL_MARGIN * abs(g0)
             else:
-                R[k, m] = math.inf
-                THR[k, m] = dbar[ctq]
+                R[kk, m] = math.inf
+                THR[kk, m] = dbar[ctq]
             # ---------------------------------------------------------------- M3.q (receiver observer)
             yv[0], yv[1], yv[2], yv[3], yv[4] = x1, x3, x4, T1, T_in
             db[0], db[1], db[2], db[3], db[4] = dbar[cx1], dbar[cx3], dbar[cx4], dbar[cT1], dbar[cTin]
@@ -268,24 +272,24 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR):
                 F, H = _forcing_and_bound(c, 3, yv, t, db)
             else:
                 F, H = 0.0, 0.0
-            if k == 0 or not ok3p[side]:
+            if first or st[6] == 0.0:
                 if ok:
-                    xh3[side] = x3
-                    eb3[side] = dbar[cx3]
-                R[k, m] = 0.0 if ok else math.inf
+                    st[2] = x3
+                    st[3] = dbar[cx3]
+                R[kk, m] = 0.0 if ok else math.inf
             else:
                 if ok:
-                    prior = E3 * xh3[side] + q3 * F3p[side] + r3 * (F - F3p[side])
-                    eb3[side] = E3 * ((1.0 - Ld3) * eb3[side] + Ld3 * dbar[cx3]) + (q3 - r3) * H3p[side] + \
+                    prior = E3 * st[2] + q3 * st[4] + r3 * (F - st[4])
+                    st[3] = E3 * ((1.0 - Ld3) * st[3] + Ld3 * dbar[cx3]) + (q3 - r3) * st[5] + \
                         r3 * H + MODEL_MARGIN * abs(prior)
-                    R[k, m] = x3 - prior
-                    xh3[side] = prior + Ld3 * (x3 - prior)
+                    R[kk, m] = x3 - prior
+                    st[2] = prior + Ld3 * (x3 - prior)
                 else:
-                    R[k, m] = math.inf
-            THR[k, m] = eb3[side] + dbar[cx3]
-            ok3p[side] = ok
-            F3p[side] = F
-            H3p[side] = H
+                    R[kk, m] = math.inf
+            THR[kk, m] = st[3] + dbar[cx3]
+            st[6] = 1.0 if ok else 0.0
+            st[4] = F
+            st[5] = H
             # ---------------------------------------------------------------- M3.(3,4): T_in
             m = 10 + side
             if base_ok and math.isfinite(x3) and math.isfinite(p6m) and math.isfinite(T6m) and math.isfinite(T_in):
@@ -301,11 +305,11 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR):
                           _t_in(c, x1, x3, x4, T1, p6m - dbar[cp6], T6m, n0))
                 b += _dev(g0, _t_in(c, x1, x3, x4, T1, p6m, T6m + dbar[cT6], n0),
                           _t_in(c, x1, x3, x4, T1, p6m, T6m - dbar[cT6], n0))
-                R[k, m] = T_in - g0
-                THR[k, m] = dbar[cTin] + SAFETY * b + MODEL_MARGIN * abs(g0)
+                R[kk, m] = T_in - g0
+                THR[kk, m] = dbar[cTin] + SAFETY * b + MODEL_MARGIN * abs(g0)
             else:
-                R[k, m] = math.inf
-                THR[k, m] = dbar[cTin]
+                R[kk, m] = math.inf
+                THR[kk, m] = dbar[cTin]
             # ---------------------------------------------------------------- M4.q (charge observer)
             m = 13 + side
             ok = base_ok and math.isfinite(x3) and math.isfinite(T_in)
@@ -313,28 +317,28 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR):
                 F, H = _forcing_and_bound(c, 4, yv, t, db)
             else:
                 F, H = 0.0, 0.0
-            if k == 0 or not ok4p[side]:
+            if first or st[11] == 0.0:
                 if ok:
-                    xh4[side] = x4
-                    eb4[side] = dbar[cx4]
-                R[k, m] = 0.0 if ok else math.inf
+                    st[7] = x4
+                    st[8] = dbar[cx4]
+                R[kk, m] = 0.0 if ok else math.inf
             else:
                 if ok:
-                    prior = E4 * xh4[side] + q4 * F4p[side] + r4 * (F - F4p[side])
-                    eb4[side] = E4 * ((1.0 - Ld4) * eb4[side] + Ld4 * dbar[cx4]) + (q4 - r4) * H4p[side] + \
+                    prior = E4 * st[7] + q4 * st[9] + r4 * (F - st[9])
+                    st[8] = E4 * ((1.0 - Ld4) * st[8] + Ld4 * dbar[cx4]) + (q4 - r4) * st[10] + \
                         r4 * H + MODEL_MARGIN * abs(prior)
-                    R[k, m] = x4 - prior
-                    xh4[side] = prior + Ld4 * (x4 - prior)
+                    R[kk, m] = x4 - prior
+                    st[7] = prior + Ld4 * (x4 - prior)
                 else:
-                    R[k, m] = math.inf
-            THR[k, m] = eb4[side] + dbar[cx4]
-            ok4p[side] = ok
-            F4p[side] = F
-            H4p[side] = H
+                    R[kk, m] = math.inf
+            THR[kk, m] = st[8] + dbar[cx4]
+            st[11] = 1.0 if ok else 0.0
+            st[9] = F
+            st[10] = H
             # ---------------------------------------------------------------- M4.(3,4): T1
             m = 15 + side
-            R[k, m] = T1 - T1_model if math.isfinite(T1) else math.inf
-            THR[k, m] = dbar[cT1] + MODEL_MARGIN * T1_model
+            R[kk, m] = T1 - T1_model if math.isfinite(T1) else math.inf
+            THR[kk, m] = dbar[cT1] + MODEL_MARGIN * T1_model
             # ---------------------------------------------------------------- M4.(5,6): compressor outlet
             m = 17 + side
             T_out = y[t_out_col]
@@ -352,11 +356,13 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR):
                           _t_co(c, x1, x3, x4, T1, T_in - db[4], T_out, n0))
                 b += _dev(g0, _t_co(c, x1, x3, x4, T1, T_in, T_out + dbar[t_out_col], n0),
                           _t_co(c, x1, x3, x4, T1, T_in, T_out - dbar[t_out_col], n0))
-                R[k, m] = T_co - g0
-                THR[k, m] = dbar[cTco] + SAFETY * b + MODEL_MARGIN * abs(g0)
+                R[kk, m] = T_co - g0
+                THR[kk, m] = dbar[cTco] + SAFETY * b + MODEL_MARGIN * abs(g0)
             else:
-                R[k, m] = math.inf
-                THR[k, m] = dbar[cTco]
+                R[kk, m] = math.inf
+                THR[kk, m] = dbar[cTco]
+            st[13] = U[kk]
+            st[14] += 1.0
         # ---------------------------------------------------------------- M3.5: turbine outlet
         m = 12
         x3e, Tine, x4e, T_out = y[side_cols[1, 4]], y[side_cols[1, 5]], y[side_cols[1, 6]], y[t_out_col]
@@ -368,11 +374,11 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR):
                       turbine_outlet_temperature(Tine, x3e - dbar[side_cols[1, 4]], x4e, c))
             b += _dev(g0, turbine_outlet_temperature(Tine, x3e, x4e + dbar[side_cols[1, 6]], c),
                       turbine_outlet_temperature(Tine, x3e, x4e - dbar[side_cols[1, 6]], c))
-            R[k, m] = T_out - g0
-            THR[k, m] = dbar[t_out_col] + SAFETY * b + MODEL_MARGIN * abs(g0)
+            R[kk, m] = T_out - g0
+            THR[kk, m] = dbar[t_out_col] + SAFETY * b + MODEL_MARGIN * abs(g0)
         else:
-            R[k, m] = math.inf
-            THR[k, m] = dbar[t_out_col]
+            R[kk, m] = math.inf
+            THR[kk, m] = dbar[t_out_col]
 
 
 class ResidualTrace:
@@ -400,5 +406,13 @@ def residuals_for_run(constants, measurements: np.ndarray, u: np.ndarray, dt: fl
     T = Y.shape[0]
     R = np.zeros((T, len(MODULE_IDS)))
     THR = np.zeros((T, len(MODULE_IDS)))
-    compute_residuals(constants, Y, U, float(dt), db, _SIDE_COLS, _T_OUT_COL, R, THR)
+    st = new_state(1, constants.n_nom_rev_s)[0]
+    compute_residuals(constants, Y, U, float(dt), db, _SIDE_COLS, _T_OUT_COL, R, THR, st)
     return ResidualTrace(R, THR)
+
+
+@jit
+def compute_residuals_batch(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST):
+    """:func:`compute_residuals` for N engines: Y (N, B, 19), U (N, B), R/THR (N, B, 19), ST (N, 2, N_STATE)."""
+    for i in range(Y.shape[0]):
+        compute_residuals(c, Y[i], U[i], dt, dbar, side_cols, t_out_col, R[i], THR[i], ST[i])
