@@ -33,7 +33,7 @@ import io
 import json
 import math
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import Any, Iterable, Mapping
@@ -45,7 +45,8 @@ from .columns import COLUMNS, ID_COLUMNS, QUANTITIES, ColumnSpec, column_problem
 
 __all__ = [
     "MeasuredDataset", "DatasetError", "DataWarning", "Problem", "load_dataset", "load_shipped",
-    "list_shipped", "shipped_path", "write_dataset", "parse_ambient", "MISSING_TOKENS", "ENVELOPE",
+    "list_shipped", "shipped_path", "write_dataset", "parse_ambient", "normalise_load_law", "MISSING_TOKENS",
+    "ENVELOPE",
 ]
 
 MISSING_TOKENS = frozenset({"", "na", "nan", "n/a", "none", "null"})

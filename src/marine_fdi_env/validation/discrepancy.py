@@ -14,12 +14,20 @@ data have them, else the model's):
 * **change point** - the best single breakpoint x0 of a continuous piecewise-linear fit (hinge
   ``a + b x + c max(x - x0, 0)``, at least two distinct values of x on each side), its improvement in
   SSE over the straight line and an F-test (2 extra parameters: slope change and location, which
-  is conservative for the search over x0); its magnitude is the deviation from the straight line at the
-  end of the range, ``c (x_max - x0)``;
-* **outliers** - robust z-score ``0.6745 (d - median d) / MAD > 3.5`` of the residuals after a robust
-  (Theil-Sen) trend on load is removed, so that a systematic trend does not hide or create outliers.
+  is conservative for the search over x0); its magnitude is the largest departure of the piecewise fit
+  from the straight line over the data;
+* **outliers** - robust z-score ``0.6745 (d - median d) / MAD > 3.5`` of the residuals about their local
+  structure: the median residual of the same set point where several engines share it (Birka), else a
+  robust (Theil-Sen) line on load, so that a systematic trend does not hide or create outliers.
+  Relevant outliers are left out of the trend and change-point fits.
 
-Each finding has a p-value and a ``score = |magnitude| / tolerance``; the tolerance is the smallest
+A channel is not tested against its own quantity (charge pressure against charge pressure: circular).
+Noise: the tests estimate it from the residual scatter when at least 3 residual degrees of freedom
+remain; with fewer points (the 4 complete points of the MAN data) they use the tolerance as the noise
+level instead (z and chi-square tests; ``noise`` in each finding says which).
+
+Each finding has a p-value (for trend and change point: Bonferroni-corrected for the choice among
+the operating variables) and a ``score = |magnitude| / tolerance``; the tolerance is the smallest
 discrepancy worth naming (default 1 % of the measured value for ratio quantities, 5 K for temperatures,
 0.01 for load fraction; override per column).  A finding is *significant* when ``p < alpha`` and
 ``score >= 1``: statistically real and practically relevant.  The ranked list holds the significant
@@ -47,6 +55,8 @@ __all__ = [
 KINDS = ("bias", "trend", "change_point", "outlier")
 VARIABLES = ("load", "speed", "charge_pressure")
 _VAR_UNIT = {"load": "", "speed": " rpm", "charge_pressure": " bar"}
+_VAR_QUANTITY = {"load": ("load_fraction", "power_W"), "speed": ("engine_speed_rev_s",),
+                 "charge_pressure": ("charge_air_pressure_Pa",)}
 _VAR_LABEL = {"load": "load", "speed": "speed", "charge_pressure": "charge pressure"}
 
 REL_TOL = 0.01
@@ -122,8 +132,11 @@ def change_point(x, r, min_side: int = 2, sigma: float | None = None, min_dof: i
         A = np.column_stack([np.ones(n), x, np.maximum(x - x0, 0.0)])
         sse, coef = _lstsq_sse(A, r)
         if best is None or sse < best[0] - 1e-12 * max(sse_lin, 1e-300):
-            best = (sse, x0, coef)
-    sse_pw, x0, coef = best
+            best = (sse, x0, coef, A)
+    sse_pw, x0, coef, A = best
+    # magnitude: the largest departure of the piecewise fit from the straight line over the data
+    dev = A @ coef - A_lin @ _lstsq_sse(A_lin, r)[1]
+    magnitude = float(dev[np.argmax(np.abs(dev))])
     gain = max(sse_lin - sse_pw, 0.0)
     df1, df2 = 2, n - 4
     if df2 >= min_dof:
@@ -140,7 +153,7 @@ def change_point(x, r, min_side: int = 2, sigma: float | None = None, min_dof: i
     return {"location": x0, "slope_left": float(coef[1]), "slope_right": float(coef[1] + coef[2]),
             "slope_change": float(coef[2]), "sse_linear": sse_lin, "sse_piecewise": sse_pw,
             "sse_improvement": gain, "sse_improvement_rel": gain / sse_lin if sse_lin > 0 else 0.0,
-            "F": float(F), "p_value": p, "magnitude": float(coef[2] * (x.max() - x0)), "n": int(n),
+            "F": float(F), "p_value": p, "magnitude": magnitude, "n": int(n),
             "noise": noise}
 
 
@@ -151,8 +164,15 @@ def robust_zscores(d) -> np.ndarray:
     mad = np.median(np.abs(d - med))
     dev = d - med
     if mad == 0:
-        return np.where(dev == 0, 0.0, np.sign(dev) * np.inf)
+        return _inf_where_nonzero(dev)
     return 0.6745 * dev / mad
+
+
+def _inf_where_nonzero(d: np.ndarray) -> np.ndarray:
+    z = np.zeros_like(d, dtype=float)
+    nz = d != 0
+    z[nz] = np.copysign(np.inf, d[nz])
+    return z
 
 
 # --------------------------------------------------------------------------------------- report types
@@ -177,6 +197,7 @@ class ChannelDiscrepancy:
     outliers: list[dict[str, Any]] = field(default_factory=list)
     bias_by_engine: dict[str, float] = field(default_factory=dict)
     bias_noise: str = "estimated"
+    excluded_from_structure: tuple[int, ...] = ()  # points (1-based) left out of trend / change point
 
     def as_dict(self) -> dict[str, Any]:
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
@@ -292,14 +313,17 @@ def analyse_discrepancies(
 ) -> DiscrepancyReport:
     """Bias, RMSE, relative error and residual structure of every channel of ``match``, ranked.
 
-    tolerances : per column, in the column's units (default :func:`default_tolerance`).
+    tolerances : per column, in the column's units (default: the sidecar's ``tolerances``, else
+        :func:`default_tolerance`).
     variables : operating variables to test the residuals against (subset of ``VARIABLES``).
     channels : restrict to these columns (default ``match.channels``).
     """
     ds = match.dataset
     ops_all = operating_variables(match)
     ops = {k: ops_all[k] for k in variables if k in ops_all}
-    tolerances = dict(tolerances or {})
+    if tolerances is None:  # the sidecar may state them: {"tolerances": {column: value in its units}}
+        tolerances = ds.meta.get("tolerances") if isinstance(ds.meta.get("tolerances"), Mapping) else {}
+    tolerances = dict(tolerances)
     out: dict[str, ChannelDiscrepancy] = {}
     findings: list[dict[str, Any]] = []
     for col in (channels if channels is not None else match.channels):
@@ -328,16 +352,25 @@ def analyse_discrepancies(
             for e in dict.fromkeys(eng):
                 by_engine[str(e)] = float(np.mean(r[eng == e]))
 
+        # a channel's residual is not tested against its own quantity (circular: r = model - x)
+        ch_ops = {k: v[ok] for k, v in ops.items() if q not in _VAR_QUANTITY[k]}
+        # ratio quantities: errors scale with the value, so outliers are judged on relative residuals
+        if QUANTITIES[q].kind == "ratio":
+            w = np.abs(meas_si[ok]) / np.mean(np.abs(meas_si[ok]))
+        else:
+            w = np.ones(n)
+        outliers = _outliers(ds, idx, r, ch_ops, z_outlier, w)
+        # trend and change point without the relevant outliers, which would otherwise shape them
+        drop = {o["point"] - 1 for o in outliers if abs(o["deviation"]) >= tol * o["weight"]}
+        keep = np.array([int(i) not in drop for i in idx], dtype=bool)
         trends, cps = {}, {}
-        for var, xv in ops.items():
-            x = xv[ok]
-            good = np.isfinite(x)
+        for var, x in ch_ops.items():
+            good = np.isfinite(x) & keep
             trends[var] = linear_trend(x[good], r[good], sigma=tol)
             cps[var] = change_point(x[good], r[good], sigma=tol)
-        outliers = _outliers(ds, idx, r, {k: v[ok] for k, v in ops.items()}, z_outlier)
         ch = ChannelDiscrepancy(col, q, unit, n, int(ds.n_points - n), bias, rmse, std, rel,
                                 float(np.max(np.abs(r))), tol, p_bias, trends, cps, outliers, by_engine,
-                                bias_noise)
+                                bias_noise, tuple(sorted(i + 1 for i in drop)))
         out[col] = ch
         findings.extend(_channel_findings(ch, alpha, tol))
 
@@ -379,7 +412,8 @@ def _replicate_groups(ds, idx: np.ndarray) -> list[np.ndarray]:
     return [np.array(g) for g in groups.values() if len(g) >= 2]
 
 
-def _outliers(ds, idx: np.ndarray, r: np.ndarray, ops: Mapping[str, np.ndarray], z_outlier: float) -> list[dict]:
+def _outliers(ds, idx: np.ndarray, r_abs: np.ndarray, ops: Mapping[str, np.ndarray], z_outlier: float,
+              weight: np.ndarray | None = None) -> list[dict]:
     """Points whose residual deviates from the local structure by a robust z-score above ``z_outlier``.
 
     With replicated set points (several engines at the same load) the structure is the median residual
@@ -387,7 +421,11 @@ def _outliers(ds, idx: np.ndarray, r: np.ndarray, ops: Mapping[str, np.ndarray],
     leaving out the zero of each odd group's median member (zero by construction, it would bias the
     scale low).  Otherwise the structure is a robust (Theil-Sen) line on load (else the first operating
     variable available) and the scale the MAD about it.  Needs at least 5 tested points.
+    ``weight``: the residuals are judged as ``r / weight`` (relative residuals for ratio quantities);
+    deviations are reported in the channel's units.
     """
+    w = np.ones(r_abs.size) if weight is None else np.asarray(weight, float)
+    r = r_abs / w
     n = r.size
     groups = _replicate_groups(ds, idx)
     if groups and sum(len(g) for g in groups) >= max(5, n // 2):
@@ -396,7 +434,7 @@ def _outliers(ds, idx: np.ndarray, r: np.ndarray, ops: Mapping[str, np.ndarray],
         d = np.concatenate(devs)
         scale_d = np.concatenate([np.delete(dv, np.argmin(np.abs(dv))) if dv.size % 2 else dv for dv in devs])
         mad = float(np.median(np.abs(scale_d)))
-        z = np.where(d == 0, 0.0, np.sign(d) * np.inf) if mad == 0 else 0.6745 * d / mad
+        z = _inf_where_nonzero(d) if mad == 0 else 0.6745 * d / mad
     else:
         if n < 5:
             return []
@@ -413,8 +451,8 @@ def _outliers(ds, idx: np.ndarray, r: np.ndarray, ops: Mapping[str, np.ndarray],
     out = []
     for k in np.flatnonzero(np.abs(z) > z_outlier):
         i = int(idx[pos[k]])
-        out.append({"point": i + 1, "label": ds.point_label(i), "residual": float(r[pos[k]]),
-                    "deviation": float(d[k]), "robust_z": float(z[k])})
+        out.append({"point": i + 1, "label": ds.point_label(i), "residual": float(r_abs[pos[k]]),
+                    "deviation": float(d[k] * w[pos[k]]), "robust_z": float(z[k]), "weight": float(w[pos[k]])})
     return out
 
 
@@ -440,19 +478,20 @@ def _channel_findings(ch: ChannelDiscrepancy, alpha: float, tol: float) -> list[
     tr = [(v, t) for v, t in ch.trends.items() if math.isfinite(t["r2"])]
     if tr:
         var, t = _pick_variable(tr, lambda d: 1.0 - d["r2"], 0.05)
-        f.append(_finding(ch, "trend", "all", t["magnitude"], t["p_value"], alpha, tol, variable=var,
-                          slope=t["slope"], r2=t["r2"], noise=t["noise"]))
+        f.append(_finding(ch, "trend", "all", t["magnitude"], min(1.0, t["p_value"] * len(tr)), alpha, tol,
+                          variable=var, slope=t["slope"], r2=t["r2"], noise=t["noise"], p_value_raw=t["p_value"]))
     # change point: the variable with the best piecewise fit (smallest SSE; ties -> load)
     cp = [(v, c) for v, c in ch.change_points.items() if c is not None]
     if cp:
         var, c = _pick_variable(cp, lambda d: d["sse_piecewise"], 0.05)
-        f.append(_finding(ch, "change_point", _fmt_region(var, c["location"]), c["magnitude"], c["p_value"], alpha,
-                          tol, variable=var, location=c["location"], slope_change=c["slope_change"],
+        f.append(_finding(ch, "change_point", _fmt_region(var, c["location"]), c["magnitude"],
+                          min(1.0, c["p_value"] * len(cp)), alpha, tol, variable=var, p_value_raw=c["p_value"], location=c["location"], slope_change=c["slope_change"],
                           sse_improvement=c["sse_improvement"], sse_improvement_rel=c["sse_improvement_rel"],
                           F=c["F"], noise=c["noise"]))
     for o in ch.outliers:
         # p-value of a robust z under normal residuals (two-sided)
         p = float(2 * stats.norm.sf(abs(o["robust_z"]))) if math.isfinite(o["robust_z"]) else 0.0
-        f.append(_finding(ch, "outlier", o["label"], o["deviation"], p, alpha, tol, robust_z=o["robust_z"],
-                          point=o["point"]))
+        # ratio quantities: the tolerance of a point scales with its value like the residuals do
+        f.append(_finding(ch, "outlier", o["label"], o["deviation"], p, alpha, tol * o["weight"],
+                          robust_z=o["robust_z"], point=o["point"]))
     return f

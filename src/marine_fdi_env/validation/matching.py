@@ -408,6 +408,10 @@ def match_operating_points(
         notes.append(f"load law {load_law.law}: speed is set independently of power, which the base model's "
                      "propeller law (eq. 3.11) cannot honour; its speed residual measures that mismatch")
 
+    for c in ds.columns:
+        if ds.column_quantity[c] == "charge_air_cooler_outlet_temperature_K":
+            notes.append(f"{c}: the base model's value is the constant parameter T_c_K "
+                         f"({params.T_c_K - 273.15:g} C), not a prediction")
     predicted = predict_columns(summaries, ds.columns, params, rated_power_W=ds.rated_power_W,
                                 p_amb_Pa=ds.ambient["p_amb_Pa"], column_quantity=ds.column_quantity)
     keys = list(next((s for s in summaries if s is not None), {}).keys())

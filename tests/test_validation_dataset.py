@@ -1,0 +1,241 @@
+"""Measured-data format: the shipped datasets load, units convert, and bad input is reported in full."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from marine_fdi_env.validation import DatasetError, DataWarning, list_shipped, load_dataset, load_shipped, write_dataset
+from marine_fdi_env.validation.columns import COLUMNS, QUANTITIES, column_problem
+
+SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
+BIRKA, MAN = "birka_6l46_shop_test", "man_12v32_40_fpp_iso"
+
+
+def _write(tmp_path: Path, csv_text: str, meta: dict | None = None, name: str = "data") -> Path:
+    path = tmp_path / f"{name}.csv"
+    path.write_text(csv_text)
+    if meta is not None:
+        (tmp_path / f"{name}.meta.json").write_text(json.dumps(meta))
+    return path
+
+
+META = {"engine_params": "wartsila-6l46", "load_law": "propeller law", "source": "test"}
+
+
+def _errors(exc: DatasetError) -> list[str]:
+    return [str(p) for p in exc.problems if p.severity == "error"]
+
+
+# --------------------------------------------------------------------------------------- shipped data
+def test_shipped_datasets_listed():
+    assert list_shipped() == [BIRKA, MAN]
+
+
+def test_birka_loads_with_missing_temperatures_and_a_warning():
+    with pytest.warns(DataWarning, match=r"row 6 .*charge_air_pressure_bar_gauge.*ME2 reads 1.3"):
+        ds = load_shipped(BIRKA)
+    assert ds.n_points == 15 and ds.params_name == "wartsila-6l46"
+    assert ds.engine_ids() == ["ME1", "ME2", "ME3"]
+    assert ds.load_law == "propeller"
+    assert "Ecos2015PaperExtension" in ds.provenance
+    # ME2's temperatures were not recorded: NaN and counted as missing, not an error
+    q = ds.quality["columns"]["charge_air_temperature_C"]
+    assert q["missing"] == 5 and q["missing_rows"] == [6, 7, 8, 9, 10]
+    assert np.all(np.isnan(ds.raw["charge_air_temperature_C"][5:10]))
+    # the ambiguous charge-air temperature is placed after the compressor by the sidecar's description
+    assert ds.column_quantity["charge_air_temperature_C"] == "compressor_outlet_temperature_K"
+    # SI conversion: rpm -> rev/s, gauge bar -> absolute Pa with the parameter set's ambient (not recorded)
+    assert ds.values["engine_speed_rev_s"][4] == pytest.approx(500 / 60)
+    assert ds.values["charge_air_pressure_Pa"][4] == pytest.approx(3.15e5 + 1.013e5)
+    assert ds.values["fuel_mass_flow_kg_s"][4] == pytest.approx(1141.0 / 3600)
+    assert ds.values["compressor_outlet_temperature_K"][4] == pytest.approx(212 + 273.15)
+
+
+def test_man_loads():
+    ds = load_shipped(MAN)
+    assert ds.n_points == 5 and ds.engines is None and ds.params_name == "man-12v32-40"
+    assert ds.ambient["p_amb_Pa"] == pytest.approx(1e5) and ds.ambient["T_amb_K"] == pytest.approx(298.15)
+    assert ds.values["sfc_kg_per_J"][0] == pytest.approx(187e-3 / 3.6e6)
+    assert ds.values["specific_air_flow_kg_per_J"][0] == pytest.approx(7.34 / 3.6e6)
+    assert ds.values["power_W"][1] == pytest.approx(4590e3)
+    assert ds.quality["n_missing"] == 6  # the 25 % row has SFC only
+    assert "MAN 32/40" in ds.provenance
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="shared data directory not present")
+@pytest.mark.parametrize("name", [BIRKA, MAN])
+def test_shared_files_load_as_they_are_and_match_the_shipped_copies(name):
+    ds = _quiet(load_dataset, SHARED / f"{name}.csv")
+    shipped = _quiet(load_shipped, name)
+    assert ds.columns == shipped.columns
+    for c in ds.columns:
+        np.testing.assert_array_equal(ds.raw[c], shipped.raw[c])
+    assert ds.meta == shipped.meta
+
+
+def _quiet(f, *a, **k):
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)
+        return f(*a, **k)
+
+
+def test_registry_is_consistent():
+    for col, spec in COLUMNS.items():
+        assert spec.quantity in QUANTITIES or spec.quantity == "charge_air_temperature_K", col
+        assert spec.scale > 0
+        v = np.array([1.0, 2.5])
+        np.testing.assert_allclose(spec.from_si(spec.to_si(v, 1e5), 1e5), v)
+
+
+# --------------------------------------------------------------------------------------- bad input
+def test_header_problems_all_reported(tmp_path):
+    path = _write(tmp_path, "speed,power_kW,power_kW,colour_index,charge_air_pressure_bar,load_fraction\n"
+                            "400,3000,3000,1,2.0,0.5\n", META)
+    with pytest.raises(DatasetError) as ei:
+        load_dataset(path)
+    errs = _errors(ei.value)
+    text = str(ei.value)
+    assert any("'speed'" in e and "missing unit suffix" in e and "speed_rpm" in e for e in errs)
+    assert any("'power_kW'" in e and "duplicated column" in e for e in errs)
+    assert any("'colour_index'" in e and "unknown column" in e for e in errs)
+    assert any("'charge_air_pressure_bar'" in e and "bar_abs or bar_gauge" in e for e in errs)
+    assert len(errs) == 4, text
+    assert isinstance(ei.value, ValueError)
+
+
+def test_same_quantity_twice_is_a_duplicated_column(tmp_path):
+    path = _write(tmp_path, "speed_rpm,speed_rev_s,load_fraction\n400,6.67,0.5\n", META)
+    with pytest.raises(DatasetError, match=r"column 'speed_rev_s': duplicated column: holds the same quantity"):
+        load_dataset(path)
+
+
+def test_non_numeric_values_every_cell_listed(tmp_path):
+    path = _write(tmp_path, "engine,load_fraction,speed_rpm,fuel_flow_kg_per_h\n"
+                            "A,0.25,315,abc\n"
+                            "A,0.5,fast,587\n"
+                            "A,0.75,454,8 38\n"
+                            "A,1.0,500,1141\n", META)
+    with pytest.raises(DatasetError) as ei:
+        load_dataset(path)
+    errs = _errors(ei.value)
+    assert len(errs) == 3
+    assert any(re.search(r"row 1 \(line 2\), column 'fuel_flow_kg_per_h': non-numeric value 'abc'", e) for e in errs)
+    assert any(re.search(r"row 2 \(line 3\), column 'speed_rpm': non-numeric value 'fast'", e) for e in errs)
+    assert any(re.search(r"row 3 \(line 4\), column 'fuel_flow_kg_per_h': non-numeric value '8 38'", e) for e in errs)
+
+
+def test_duplicate_operating_points_listed_with_their_rows(tmp_path):
+    path = _write(tmp_path, "engine,load_fraction,speed_rpm,fuel_flow_kg_per_h\n"
+                            "A,0.5,397,587\n"
+                            "B,0.5,397,590\n"  # other engine: not a duplicate
+                            "A,0.5,397,588\n"
+                            "A,1.0,500,1141\n"
+                            "B,1.0,500,1150\n"
+                            "B,1.0,500,1150\n", META)
+    with pytest.raises(DatasetError) as ei:
+        load_dataset(path)
+    errs = _errors(ei.value)
+    assert len(errs) == 2
+    assert any("rows 1, 3 (lines 2, 4)" in e and "duplicate operating point (engine A" in e for e in errs)
+    assert any("rows 5, 6" in e and "engine B" in e for e in errs)
+
+
+def test_points_outside_the_envelope_listed(tmp_path):
+    # wartsila-6l46: 500 rpm, 5890 kW; envelope: load <= 1.15, speed <= 550 rpm, power <= 6773.5 kW
+    path = _write(tmp_path, "load_fraction,speed_rpm,power_kW,charge_air_pressure_bar_abs\n"
+                            "0.5,397,2945,2.4\n"
+                    "1.2,520,7000,4.0\n"
+                    "0.9,600,5300,-0.5\n"
+                    "-0.1,300,100,1.0\n", META)
+    with pytest.raises(DatasetError) as ei:
+        load_dataset(path)
+    errs = _errors(ei.value)
+    text = "\n".join(errs)
+    assert re.search(r"row 2 \(line 3\), column 'load_fraction': load fraction above 1.15", text)
+    assert re.search(r"row 4 \(line 5\), column 'load_fraction': negative load fraction", text)
+    assert re.search(r"row 3 \(line 4\), column 'speed_rpm': speed above 1.1 x nominal", text)
+    assert re.search(r"row 2 \(line 3\), column 'power_kW': power above 1.15 x rated", text)
+    assert re.search(r"row 3 \(line 4\), column 'charge_air_pressure_bar_abs': negative absolute pressure", text)
+    assert len(errs) == 5, text
+
+
+def test_gauge_pressure_below_minus_ambient_is_an_error_slightly_negative_a_warning(tmp_path):
+    path = _write(tmp_path, "load_fraction,speed_rpm,charge_air_pressure_bar_gauge\n"
+                            "0.25,315,-0.05\n0.5,397,-1.5\n0.75,454,-2.0\n1.0,500,3.1\n", META)
+    with pytest.raises(DatasetError) as ei:
+        load_dataset(path)
+    errs = _errors(ei.value)
+    assert len(errs) == 1 and "rows 2, 3 (lines 3, 4)" in errs[0] and "negative absolute pressure" in errs[0]
+    warns = [str(p) for p in ei.value.problems if p.severity == "warning"]
+    assert any("row 1 " in w and "below ambient" in w for w in warns)
+
+
+def test_every_kind_of_problem_in_one_error(tmp_path):
+    path = _write(tmp_path, "engine,load_fraction,speed,speed_rpm,fuel_flow_kg_per_h,weird\n"
+                            "A,0.5,1,397,x,1\n"
+                            "A,0.5,1,397,587,1\n"
+                            "A,1.3,1,500,1141,1\n"
+                            "A,0.75,1,454\n", META)
+    with pytest.raises(DatasetError) as ei:
+        load_dataset(path)
+    text = "\n".join(_errors(ei.value))
+    assert "column 'speed': column 3: missing unit suffix" in text
+    assert "column 'weird': column 6: unknown column" in text
+    assert "row 1 (line 2), column 'fuel_flow_kg_per_h': non-numeric value 'x'" in text
+    assert "rows 1, 2 (lines 2, 3): duplicate operating point" in text
+    assert "row 3 (line 4), column 'load_fraction': load fraction above 1.15" in text
+    assert "row 4 (line 5): 4 fields, the header has 6" in text
+
+
+def test_missing_cells_are_nan_and_reported_not_errors(tmp_path):
+    path = _write(tmp_path, "load_fraction,speed_rpm,fuel_flow_kg_per_h,turbine_outlet_temperature_C\n"
+                            "0.25,315,,300\n0.5,397,587,NA\n0.75,454,838,\n1.0,500,1141,350\n", META)
+    ds = load_dataset(path)
+    assert math.isnan(ds.raw["fuel_flow_kg_per_h"][0])
+    assert ds.quality["columns"]["turbine_outlet_temperature_C"]["missing_rows"] == [2, 3]
+    assert ds.quality["columns"]["fuel_flow_kg_per_h"]["missing_rows"] == [1]
+    assert "missing (rows 2, 3)" in ds.quality_report()
+
+
+def test_sidecar_problems(tmp_path):
+    path = _write(tmp_path, "load_fraction,speed_rpm\n0.5,397\n")
+    with pytest.raises(DatasetError, match="no sidecar data.meta.json"):
+        load_dataset(path)
+    ds = _quiet(load_dataset, path, params="wartsila-6l46")  # the caller names the engine
+    assert ds.params_name == "wartsila-6l46"
+    _write(tmp_path, "load_fraction,speed_rpm\n0.5,397\n", {"engine_params": "no-such-engine"})
+    with pytest.raises(DatasetError, match="unknown engine parameter set 'no-such-engine'"):
+        load_dataset(path)
+
+
+def test_column_problem_messages():
+    assert column_problem("speed_rpm") is None
+    assert "missing unit suffix" in column_problem("power")
+    assert "unknown unit 'furlongs'" in column_problem("speed_furlongs")
+    assert "did you mean speed_rpm" in column_problem("sped_rpm")
+
+
+def test_write_dataset_round_trip(tmp_path):
+    cols = {"load_fraction": [0.25, 0.5, 1.0], "speed_rpm": [315, 397, 500],
+            "turbine_outlet_temperature_C": [300.0, float("nan"), 350.0]}
+    path = write_dataset(tmp_path / "rt.csv", cols, META, engines=["X", "X", "X"])
+    ds = load_dataset(path)
+    assert ds.engine_ids() == ["X"]
+    np.testing.assert_array_equal(ds.raw["speed_rpm"], [315, 397, 500])
+    assert ds.quality["columns"]["turbine_outlet_temperature_C"]["missing"] == 1
+
+
+def test_subset_keeps_one_engine():
+    ds = _quiet(load_shipped, BIRKA)
+    me3 = ds.subset(np.array(ds.engines) == "ME3")
+    assert me3.n_points == 5 and me3.engine_ids() == ["ME3"]
+    np.testing.assert_array_equal(me3.raw["fuel_flow_kg_per_h"], ds.raw["fuel_flow_kg_per_h"][10:])
+    assert me3.quality["columns"]["charge_air_temperature_C"]["missing"] == 0
