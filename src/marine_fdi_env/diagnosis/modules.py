@@ -34,7 +34,7 @@ The engine speed n is not measured: modules of Σ3 and Σ4 obtain it from Σ2's 
 (``speed``) fed with their interconnection sensors x1, x4, T1, so the bore damage, which changes
 the cylinder process and hence the speed, enters those ARRs too.  The thesis states that process
 faults never propagate between agents; with the speed dependence of eq. 3.16-3.18 they do, and
-the derived signature matrices say so (docs/diagnosis.md lists every cell that differs).
+the derived signature matrices say so (docs/diagnosis_structure.md lists every cell that differs).
 """
 
 from __future__ import annotations
