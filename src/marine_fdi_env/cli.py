@@ -359,6 +359,12 @@ def cmd_info(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_diagnose(args: argparse.Namespace) -> int:
+    from .diagnosis.cli_diagnose import cmd_diagnose
+
+    return cmd_diagnose(args)
+
+
 # ----------------------------------------------------------------------------- parser
 def build_parser() -> argparse.ArgumentParser:
     fmt = argparse.RawDescriptionHelpFormatter
@@ -425,6 +431,19 @@ def build_parser() -> argparse.ArgumentParser:
                        description="The named scenarios usable with 'simulate --scenario'.")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_scenarios)
+
+    p = sub.add_parser(
+        "diagnose", help="run the reference diagnoser on a run file",
+        description="Run the thesis's reference diagnoser (19 monitoring modules, adaptive thresholds, "
+                    "minimal diagnoses) on one engine of a run written by 'marine-fdi simulate'.")
+    p.add_argument("--run", required=True, metavar="FILE", help="run file (.npz)")
+    p.add_argument("--out", required=True, metavar="FILE.json", help="JSON report")
+    p.add_argument("--plots", default=None, metavar="DIR", help="write residual/threshold figures per agent")
+    p.add_argument("--engine", type=int, default=0, metavar="I", help="engine of the run (default 0)")
+    p.add_argument("--exoneration", choices=("sure", "none", "all"), default="sure",
+                   help="sure (default): a silent module clears the faults it surely sees; none: plain "
+                        "consistency-based diagnosis; all: every structural sensitivity counts as sure")
+    p.set_defaults(func=_cmd_diagnose)
 
     p = sub.add_parser("info", help="validate and summarise a run file",
                        description="Load a .npz run file (validating it) and print its metadata and ground truth.")

@@ -1,0 +1,175 @@
+"""The reference diagnoser as an agent: the thesis's distributed observer / adaptive-threshold /
+fault-signature scheme (chapters 5-6), reproduced in :mod:`marine_fdi_env.diagnosis`.
+
+It consumes the measurement stream of N engines (blocks of samples) and gives, at every sample:
+whether a fault is detected, the first detection time of every module, the minimal diagnoses
+(sets of fault ids, consistency-based: minimal hitting sets of the fired ARRs' fault supports),
+the class (sensor or process) of each candidate, and the residual/threshold features the
+environment observes.
+
+>>> agent = ReferenceDiagnoser("thesis-12v28", n_engines=1)
+>>> out = agent.observe(measurements_block, u_block)      # doctest: +SKIP
+>>> agent.diagnoses(0)                                    # doctest: +SKIP
+[frozenset({'S4.2'})]
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from marine_fdi_env.constants import model_constants
+from marine_fdi_env.diagnosis.decision import DiagnosisState, candidate_classes, sorted_diagnoses
+from marine_fdi_env.diagnosis.modules import MODULE_IDS
+from marine_fdi_env.diagnosis.residuals import _SIDE_COLS, _T_OUT_COL, N_STATE, compute_residuals_batch, new_state
+from marine_fdi_env.params import EngineParams, load_params
+from marine_fdi_env.sensors import NOISE_BOUNDS, N_SENSORS
+
+__all__ = ["ReferenceDiagnoser", "BlockOutput", "N_FEATURES_PER_MODULE"]
+
+N_MODULES = len(MODULE_IDS)
+# per module: max |r|/threshold over the block, latched decision, time since first violation [s]
+N_FEATURES_PER_MODULE = 3
+TIME_SINCE_CAP_S = 300.0
+
+
+@dataclass
+class BlockOutput:
+    """What the agent concluded over one block of samples (arrays over engines and samples)."""
+
+    residuals: np.ndarray  # (N, B, 19)
+    thresholds: np.ndarray  # (N, B, 19)
+    violations: np.ndarray  # (N, B, 19) bool
+    detected: np.ndarray  # (N,) bool, at the end of the block
+    features: np.ndarray  # (N, 19 * N_FEATURES_PER_MODULE) float32
+
+
+class ReferenceDiagnoser:
+    """Streaming reference diagnoser for N engines.
+
+    Parameters
+    ----------
+    params : parameter-set name or :class:`EngineParams` (the diagnoser's model of the engine).
+    n_engines : number of engines monitored in parallel.
+    dt : sample time [s].
+    noise_bounds : (19,) sensor noise bounds (default: table 6.3).
+    max_cardinality : largest diagnosis considered by the hitting-set search.
+    exoneration : ``"sure"`` (default): a module that has not fired clears the faults it surely
+        detects (measured cells, :mod:`marine_fdi_env.diagnosis.certainty`; the thesis's '1'
+        cells), with the temporal check that a fault explains a module only if its sure modules
+        fired no later than shortly after it; ``"none"``: plain consistency-based diagnosis;
+        ``"all"``: every structural sensitivity counts as sure.
+    """
+
+    name = "reference"
+
+    def __init__(self, params: "str | EngineParams" = "thesis-12v28", n_engines: int = 1, dt: float = 0.01,
+                 noise_bounds=None, max_cardinality: int = 2, exoneration: str = "sure") -> None:
+        self.params = load_params(params) if isinstance(params, str) else params
+        if not isinstance(n_engines, (int, np.integer)) or n_engines < 1:
+            raise ValueError(f"n_engines must be a positive integer, got {n_engines!r}")
+        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be a positive finite number of seconds, got {dt!r}")
+        self.n = int(n_engines)
+        self.dt = float(dt)
+        self.c = model_constants(self.params)
+        nb = NOISE_BOUNDS if noise_bounds is None else np.asarray(noise_bounds, dtype=float)
+        if nb.shape != (N_SENSORS,) or not np.all(np.isfinite(nb)) or np.any(nb < 0):
+            raise ValueError(f"noise_bounds must be 19 finite numbers >= 0, got {noise_bounds!r}")
+        self.noise_bounds = np.array(nb, dtype=np.float64)
+        self.max_cardinality = max_cardinality
+        if exoneration not in ("sure", "none", "all", None):
+            raise ValueError(f"exoneration must be 'sure', 'none' or 'all', got {exoneration!r}")
+        self.exoneration = "none" if exoneration is None else exoneration
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget everything: observers restart on the next sample."""
+        self.state = new_state(self.n, self.params.n_nom_rev_s)
+        self.samples = 0
+        settle = None
+        if self.exoneration == "sure":
+            from .certainty import settle_times, sure_cells
+
+            ex, temporal, settle = sure_cells(), True, settle_times()
+        else:
+            ex, temporal = (True if self.exoneration == "all" else None), False
+        self.decisions = [DiagnosisState(exoneration=ex, max_cardinality=self.max_cardinality, temporal=temporal,
+                                         settle_s=settle) for _ in range(self.n)]
+        self.first_violation = np.full((self.n, N_MODULES), np.nan)
+
+    # ------------------------------------------------------------------------------ streaming
+    def observe(self, measurements, u) -> BlockOutput:
+        """Process a block of samples: measurements (N, B, 19) or (B, 19); u (N, B) or (B,)."""
+        Y = np.asarray(measurements, dtype=np.float64)
+        U = np.asarray(u, dtype=np.float64)
+        if Y.ndim == 2:
+            Y = Y[None]
+        if U.ndim == 1:
+            U = U[None]
+        if Y.ndim != 3 or Y.shape[0] != self.n or Y.shape[2] != N_SENSORS:
+            raise ValueError(f"measurements must have shape ({self.n}, B, {N_SENSORS}), got {np.shape(measurements)}")
+        if U.shape != Y.shape[:2]:
+            raise ValueError(f"u must have shape {Y.shape[:2]} (engines, samples), got {np.shape(u)}")
+        if not np.all(np.isfinite(U)):
+            raise ValueError("u (the applied fuel setting) must be finite")
+        N, B, _ = Y.shape
+        Y = np.ascontiguousarray(Y)
+        U = np.ascontiguousarray(U)
+        R = np.empty((N, B, N_MODULES))
+        THR = np.empty((N, B, N_MODULES))
+        compute_residuals_batch(self.c, Y, U, self.dt, self.noise_bounds, _SIDE_COLS, _T_OUT_COL, R, THR, self.state)
+        with np.errstate(invalid="ignore"):
+            viol = ~(np.abs(R) <= THR)
+        t = (self.samples + np.arange(B)) * self.dt
+        for i in range(N):
+            rows = np.flatnonzero(viol[i].any(axis=1))
+            if len(rows):
+                st = self.decisions[i]
+                for r in rows:
+                    st.update(viol[i, r], float(t[r]))
+                newly = np.isnan(self.first_violation[i]) & viol[i].any(axis=0)
+                if newly.any():
+                    first = np.argmax(viol[i], axis=0)
+                    self.first_violation[i, newly] = t[first[newly]]
+        self.samples += B
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ratio = np.where(THR > 0, np.abs(R) / THR, np.inf)
+        feats = self._features(ratio)
+        return BlockOutput(residuals=R, thresholds=THR, violations=viol, detected=self.detected.copy(), features=feats)
+
+    def _features(self, ratio: np.ndarray) -> np.ndarray:
+        now = self.samples * self.dt
+        peak = np.nan_to_num(ratio.max(axis=1), nan=1e3, posinf=1e3)
+        latched = ~np.isnan(self.first_violation)
+        since = np.where(latched, np.minimum(now - np.nan_to_num(self.first_violation), TIME_SINCE_CAP_S), 0.0)
+        f = np.stack([np.minimum(peak, 1e3), latched.astype(float), since], axis=2)
+        return f.reshape(self.n, -1).astype(np.float32)
+
+    # ------------------------------------------------------------------------------ results
+    @property
+    def detected(self) -> np.ndarray:
+        return np.array([d.detected for d in self.decisions])
+
+    def first_detection_time(self, engine: int = 0) -> float:
+        return self.decisions[engine].first_detection_time
+
+    def module_detection_times(self, engine: int = 0) -> dict[str, float | None]:
+        t = self.decisions[engine].detection_times
+        return {m: (None if math.isnan(v) else float(v)) for m, v in zip(MODULE_IDS, t)}
+
+    def diagnoses(self, engine: int = 0) -> list[frozenset[str]]:
+        return list(self.decisions[engine].diagnoses)
+
+    def report(self, engine: int = 0) -> dict:
+        """JSON-ready summary of one engine (keys of ``marine-fdi diagnose``)."""
+        d = self.decisions[engine]
+        return {
+            "detected": bool(d.detected),
+            "first_detection_time_s": None if math.isnan(d.first_detection_time) else d.first_detection_time,
+            "module_detection_times_s": self.module_detection_times(engine),
+            "final_minimal_diagnoses": sorted_diagnoses(d.diagnoses) if d.detected else [],
+            "candidate_classes": candidate_classes(d.diagnoses) if d.detected else {},
+        }
