@@ -89,15 +89,15 @@ class ReferenceDiagnoser:
         """Forget everything: observers restart on the next sample."""
         self.state = new_state(self.n, self.params.n_nom_rev_s)
         self.samples = 0
-        settle = None
+        settle, grace = None, 0.0
         if self.exoneration == "sure":
-            from .certainty import settle_times, sure_cells
+            from .certainty import grace_times, settle_times, sure_cells
 
-            ex, temporal, settle = sure_cells(), True, settle_times()
+            ex, temporal, settle, grace = sure_cells(), True, settle_times(), grace_times()
         else:
             ex, temporal = (True if self.exoneration == "all" else None), False
         self.decisions = [DiagnosisState(exoneration=ex, max_cardinality=self.max_cardinality, temporal=temporal,
-                                         settle_s=settle) for _ in range(self.n)]
+                                         settle_s=settle, grace_s=grace) for _ in range(self.n)]
         self.first_violation = np.full((self.n, N_MODULES), np.nan)
 
     # ------------------------------------------------------------------------------ streaming
@@ -134,6 +134,9 @@ class ReferenceDiagnoser:
                 if newly.any():
                     first = np.argmax(viol[i], axis=0)
                     self.first_violation[i, newly] = t[first[newly]]
+        t_end = float(t[-1])
+        for st in self.decisions:
+            st.advance(t_end)
         self.samples += B
         with np.errstate(invalid="ignore", divide="ignore"):
             ratio = np.where(THR > 0, np.abs(R) / THR, np.inf)

@@ -29,7 +29,7 @@ from ..faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, FaultSpec
 from .modules import MODULE_IDS
 from .structure import fault_signature_matrix
 
-__all__ = ["sure_cells", "settle_times", "measure_sure_cells", "SURE_CELLS_FILE"]
+__all__ = ["sure_cells", "settle_times", "grace_times", "measure_sure_cells", "SURE_CELLS_FILE"]
 
 SURE_CELLS_FILE = "sure_cells.json"
 SENSOR_ONSET_S = 30.0
@@ -109,13 +109,18 @@ def sure_cells() -> np.ndarray:
     return (counts == data["runs_per_fault"]) & support
 
 
+def grace_times(margin_s: float = 2.0, factor: float = 1.5) -> np.ndarray:
+    """Per-fault grace periods (26,): how long after a fault's first fired module its silent sure
+    modules are still awaited before they exonerate it (measured spread x ``factor`` + ``margin_s``)."""
+    spread = np.asarray(_data().get("sure_spread_s", [0.0] * len(FAULT_IDS)), dtype=float)
+    return factor * spread + margin_s
+
+
 def settle_times(margin_s: float = 2.0, factor: float = 1.5) -> np.ndarray:
     """Per-fault settle times (26,) for the temporal check: the largest spread measured between the
     first and the last of a fault's sure modules, times ``factor`` plus ``margin_s``; process faults
     (incipient, their spread grows with the fault's size) get no temporal constraint (inf)."""
-    data = _data()
-    spread = np.asarray(data.get("sure_spread_s", [0.0] * len(FAULT_IDS)), dtype=float)
-    out = factor * spread + margin_s
+    out = grace_times(margin_s, factor)
     for j, f in enumerate(FAULT_IDS):
         if f in PROCESS_FAULT_DEFAULTS:
             out[j] = np.inf

@@ -250,29 +250,47 @@ def exonerated_faults(fired, exoneration) -> np.ndarray:
 
 
 def diagnosis_conflicts(fired, *, support=None, exoneration=None, detection_times=None,
-                        settle_s=0.0) -> list[int]:
+                        settle_s=0.0, now: float | None = None, grace_s=0.0) -> list[int]:
     """Bitmask (over ``FAULT_IDS``) of the admissible faults that can explain each fired module.
 
-    Static: support row minus the faults exonerated now.  With ``detection_times`` (19,) (NaN or
-    inf = not fired) and an exoneration matrix: a fault can explain module m only if every module
-    that would surely have fired for it had fired by T_D(m) + ``settle_s`` (a number, or one per
-    fault in ``FAULT_IDS`` order, see :func:`default_settle_times`).
+    Static (``now`` None): support row minus the faults exonerated now.  With ``detection_times``
+    (19,) (NaN or inf = not fired) and an exoneration matrix: a fault can explain module m only if
+    every module that would surely have fired for it had fired by T_D(m) + ``settle_s`` (a number,
+    or one per fault in ``FAULT_IDS`` order, see :func:`default_settle_times`).
+
+    With ``now`` (the current time) and ``grace_s`` (a number or one per fault): a fault whose
+    first fired module fired less than its grace time ago is not exonerated by its sure modules
+    that are still silent (they may fire later), and only the sure modules that have fired
+    constrain the time order.
     """
     f = fired_vector(fired)
     sup = _support(support)
     ex = _exoneration(exoneration, sup)
-    admissible_now = np.ones(N_FAULTS, dtype=bool) if ex is None else ~ex[~f].any(axis=0)
     settle = np.broadcast_to(np.asarray(settle_s, dtype=float), (N_FAULTS,)) if np.ndim(settle_s) == 0 \
         else np.asarray(settle_s, dtype=float)
     if settle.shape != (N_FAULTS,):
         raise ValueError(f"settle_s must be a number or have shape ({N_FAULTS},), got {settle.shape}")
-    if ex is not None and detection_times is not None:
+    td = None
+    if detection_times is not None:
         td = np.asarray(detection_times, dtype=float)
         if td.shape != (N_MODULES,):
             raise ValueError(f"detection_times must have shape ({N_MODULES},), got {td.shape}")
         td = np.where(f & np.isfinite(td), td, np.inf)
+    if ex is None:
+        admissible_now = np.ones(N_FAULTS, dtype=bool)
+    elif now is not None and td is not None:
+        # first firing among each fault's support modules; inside the grace period silent sure
+        # modules do not exonerate yet
+        grace = np.broadcast_to(np.asarray(grace_s, dtype=float), (N_FAULTS,))
+        first = np.where(sup & f[:, None], td[:, None], np.inf).min(axis=0)
+        waiting = (now - first) <= grace
+        admissible_now = ~ex[~f].any(axis=0) | waiting
+    else:
+        admissible_now = ~ex[~f].any(axis=0)
+    if ex is not None and td is not None:
         # time from which each fault is admissible: last firing among its certain modules
-        need = np.where(ex, td[:, None], -np.inf)
+        fired_or_pending = td if now is None else np.where(f, td, -np.inf)
+        need = np.where(ex, fired_or_pending[:, None], -np.inf)
         admissible_from = need.max(axis=0) if N_MODULES else np.full(N_FAULTS, -np.inf)
     else:
         admissible_from = None
@@ -280,7 +298,7 @@ def diagnosis_conflicts(fired, *, support=None, exoneration=None, detection_time
     for i in np.flatnonzero(f):
         ok = sup[i] & admissible_now
         if admissible_from is not None:
-            t_i = np.asarray(detection_times, dtype=float)[i]
+            t_i = td[i]
             if np.isfinite(t_i):
                 ok = ok & (admissible_from <= t_i + settle)
         m = 0
@@ -309,7 +327,8 @@ def sorted_diagnoses(diagnoses: Iterable[Iterable[str]]) -> list[list[str]]:
 
 
 def minimal_diagnoses(fired, *, support=None, exoneration=None, detection_times=None, settle_s=0.0,
-                      max_cardinality: int | None = 3, method: str = "berge") -> list[frozenset[str]]:
+                      max_cardinality: int | None = 3, method: str = "berge",
+                      now: float | None = None, grace_s=0.0) -> list[frozenset[str]]:
     """Minimal diagnoses (sets of fault ids, smallest first) consistent with the fired modules.
 
     fired : bool (19,) decisions in ``MODULE_IDS`` order, or an iterable of module ids.
@@ -325,7 +344,8 @@ def minimal_diagnoses(fired, *, support=None, exoneration=None, detection_times=
     admissible fault explains give ``[]``.
     """
     conflicts = diagnosis_conflicts(fired, support=support, exoneration=exoneration,
-                                    detection_times=detection_times, settle_s=settle_s)
+                                    detection_times=detection_times, settle_s=settle_s, now=now,
+                                    grace_s=grace_s)
     k = N_FAULTS if max_cardinality is None else int(max_cardinality)
     if method == "berge":
         masks = _mhs_masks(conflicts, k)
@@ -528,12 +548,13 @@ class DiagnosisState:
     """
 
     def __init__(self, *, support=None, exoneration=None, max_cardinality: int | None = 3,
-                 temporal: bool = False, settle_s=None):
+                 temporal: bool = False, settle_s=None, grace_s=0.0):
         self.support = _support(support)
         self.exoneration = _exoneration(exoneration, self.support)
         self.max_cardinality = max_cardinality
         self.temporal = bool(temporal)
         self.settle_s = default_settle_times() if settle_s is None else settle_s
+        self.grace_s = grace_s
         self.n_recomputations = 0
         self.reset()
 
@@ -543,6 +564,7 @@ class DiagnosisState:
         self.first_detection_time = math.nan
         self.diagnoses: list[frozenset[str]] = [frozenset()]
         self._t = -1
+        self._next_expiry = math.inf
 
     @property
     def detected(self) -> bool:
@@ -566,17 +588,35 @@ class DiagnosisState:
         tt = float(self._t if t is None else t)
         new = fired_vector(decisions) & ~self.fired
         if not new.any():
-            return False
+            return self.advance(tt)
         self.fired = self.fired | new
         self.detection_times[new] = tt
         if math.isnan(self.first_detection_time):
             self.first_detection_time = tt
+        self._recompute(tt)
+        return True
+
+    def advance(self, t: float) -> bool:
+        """Move the clock to t without new decisions; recompute when a grace period has expired
+        (temporal mode only).  True if the diagnoses were recomputed."""
+        if self.temporal and self.fired.any() and t > self._next_expiry:
+            self._recompute(float(t))
+            return True
+        return False
+
+    def _recompute(self, now: float) -> None:
+        temporal = self.temporal
         self.diagnoses = minimal_diagnoses(
             self.fired, support=self.support, exoneration=self.exoneration,
-            detection_times=self.detection_times if self.temporal else None, settle_s=self.settle_s,
-            max_cardinality=self.max_cardinality)
+            detection_times=self.detection_times if temporal else None, settle_s=self.settle_s,
+            max_cardinality=self.max_cardinality, now=now if temporal else None, grace_s=self.grace_s)
         self.n_recomputations += 1
-        return True
+        if temporal:
+            td = np.where(self.fired, self.detection_times, np.inf)
+            first = np.where(self.support & self.fired[:, None], td[:, None], np.inf).min(axis=0)
+            ends = first + np.broadcast_to(np.asarray(self.grace_s, dtype=float), (N_FAULTS,))
+            pending = ends[np.isfinite(ends) & (ends >= now)]
+            self._next_expiry = float(pending.min()) if len(pending) else math.inf
 
 
 @dataclass(frozen=True)
