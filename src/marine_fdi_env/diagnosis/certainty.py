@@ -72,6 +72,7 @@ def measure_sure_cells(n_seeds: int = 20, duration_s: float = 300.0, params: str
     # spread of the firing times of the sure modules of each fault, per run: the settle time the
     # temporal check of the diagnosis must allow
     spread = []
+    lag = np.zeros((len(MODULE_IDS), len(FAULT_IDS)))  # max delay of a sure module after the first one
     for j in range(len(FAULT_IDS)):
         sure = [i for i in range(len(MODULE_IDS)) if counts[i, j] == runs]
         if len(sure) < 2:
@@ -79,12 +80,14 @@ def measure_sure_cells(n_seeds: int = 20, duration_s: float = 300.0, params: str
             continue
         t = np.array([times[i][j] for i in sure])  # (sure modules, runs)
         spread.append(float((t.max(axis=0) - t.min(axis=0)).max()))
+        lag[sure, j] = (t - t.min(axis=0)).max(axis=1)
     return {
         "module_ids": list(MODULE_IDS),
         "fault_ids": list(FAULT_IDS),
         "runs_per_fault": runs,
         "fire_counts": counts.tolist(),
         "sure_spread_s": spread,
+        "sure_lag_s": lag.tolist(),
         "settings": {"n_seeds": n_seeds, "profiles": list(PROFILES), "duration_s": duration_s, "params": params,
                      "first_seed": first_seed, "sensor_onset_s": SENSOR_ONSET_S,
                      "magnitudes": "defaults of tables 6.3 (sensor offsets) and 6.4 (process faults)"},
@@ -110,17 +113,20 @@ def sure_cells() -> np.ndarray:
 
 
 def grace_times(margin_s: float = 2.0, factor: float = 1.5) -> np.ndarray:
-    """Per-fault grace periods (26,): how long after a fault's first fired module its silent sure
-    modules are still awaited before they exonerate it (measured spread x ``factor`` + ``margin_s``)."""
-    spread = np.asarray(_data().get("sure_spread_s", [0.0] * len(FAULT_IDS)), dtype=float)
-    return factor * spread + margin_s
+    """Grace periods (19, 26): how long after a fault's first fired module a silent sure module is
+    still awaited before it exonerates the fault (its measured largest lag behind the fault's first
+    sure module x ``factor`` + ``margin_s``)."""
+    data = _data()
+    lag = np.asarray(data.get("sure_lag_s", np.zeros((len(MODULE_IDS), len(FAULT_IDS)))), dtype=float)
+    return factor * lag + margin_s
 
 
 def settle_times(margin_s: float = 2.0, factor: float = 1.5) -> np.ndarray:
     """Per-fault settle times (26,) for the temporal check: the largest spread measured between the
     first and the last of a fault's sure modules, times ``factor`` plus ``margin_s``; process faults
     (incipient, their spread grows with the fault's size) get no temporal constraint (inf)."""
-    out = grace_times(margin_s, factor)
+    spread = np.asarray(_data().get("sure_spread_s", [0.0] * len(FAULT_IDS)), dtype=float)
+    out = factor * spread + margin_s
     for j, f in enumerate(FAULT_IDS):
         if f in PROCESS_FAULT_DEFAULTS:
             out[j] = np.inf

@@ -258,10 +258,10 @@ def diagnosis_conflicts(fired, *, support=None, exoneration=None, detection_time
     every module that would surely have fired for it had fired by T_D(m) + ``settle_s`` (a number,
     or one per fault in ``FAULT_IDS`` order, see :func:`default_settle_times`).
 
-    With ``now`` (the current time) and ``grace_s`` (a number or one per fault): a fault whose
-    first fired module fired less than its grace time ago is not exonerated by its sure modules
-    that are still silent (they may fire later), and only the sure modules that have fired
-    constrain the time order.
+    With ``now`` (the current time) and ``grace_s`` (a number, one per fault (26,) or one per cell
+    (19, 26)): a silent sure module m exonerates fault f only once f's first fired module is older
+    than grace[m, f] (m may still fire), and only the sure modules that have fired constrain the
+    time order.
     """
     f = fired_vector(fired)
     sup = _support(support)
@@ -281,10 +281,10 @@ def diagnosis_conflicts(fired, *, support=None, exoneration=None, detection_time
     elif now is not None and td is not None:
         # first firing among each fault's support modules; inside the grace period silent sure
         # modules do not exonerate yet
-        grace = np.broadcast_to(np.asarray(grace_s, dtype=float), (N_FAULTS,))
+        grace = np.broadcast_to(np.asarray(grace_s, dtype=float), (N_MODULES, N_FAULTS))
         first = np.where(sup & f[:, None], td[:, None], np.inf).min(axis=0)
-        waiting = (now - first) <= grace
-        admissible_now = ~ex[~f].any(axis=0) | waiting
+        expired = (now - first)[None, :] > grace  # (19, 26): silent sure module no longer awaited
+        admissible_now = ~(ex & expired & ~f[:, None]).any(axis=0)
     else:
         admissible_now = ~ex[~f].any(axis=0)
     if ex is not None and td is not None:
@@ -614,7 +614,7 @@ class DiagnosisState:
         if temporal:
             td = np.where(self.fired, self.detection_times, np.inf)
             first = np.where(self.support & self.fired[:, None], td[:, None], np.inf).min(axis=0)
-            ends = first + np.broadcast_to(np.asarray(self.grace_s, dtype=float), (N_FAULTS,))
+            ends = first[None, :] + np.broadcast_to(np.asarray(self.grace_s, dtype=float), (N_MODULES, N_FAULTS))
             pending = ends[np.isfinite(ends) & (ends >= now)]
             self._next_expiry = float(pending.min()) if len(pending) else math.inf
 
