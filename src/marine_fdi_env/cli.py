@@ -445,6 +445,12 @@ def build_parser() -> argparse.ArgumentParser:
                         "consistency-based diagnosis; all: every structural sensitivity counts as sure")
     p.set_defaults(func=_cmd_diagnose)
 
+    # implemented in marine_fdi_env.validation (own argument parsers; see main())
+    sub.add_parser("validate", add_help=False,
+                   help="compare the model with measured data, name the causes of misfit (see --help)")
+    sub.add_parser("synthesize-measurements", add_help=False,
+                   help="write 'measured' data from the model with hidden mechanisms (see --help)")
+
     p = sub.add_parser("info", help="validate and summarise a run file",
                        description="Load a .npz run file (validating it) and print its metadata and ground truth.")
     p.add_argument("file", metavar="FILE", help="run file written by 'marine-fdi simulate'")
@@ -457,6 +463,14 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; returns the exit code (0 ok, 2 invalid input, 1 I/O error)."""
     argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] == "validate":
+        from .validation.report import validate_main
+
+        return validate_main(argv[1:])
+    if argv and argv[0] == "synthesize-measurements":
+        from .validation.synthesize import synthesize_main
+
+        return synthesize_main(argv[1:])
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

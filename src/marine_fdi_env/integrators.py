@@ -202,12 +202,10 @@ def _engine_step(c, i, h, substeps, X, U0, U1, PF0, PF1, ALG, X_NEW, ALG_NEW, SC
     return code
 
 
-@jit
-def _etd2rk_serial(c, h, substeps, X, U0, U1, PF0, PF1, ALG, active, X_NEW, ALG_NEW, CODES, SCR_PF, SCR_ALG,
-                   lam_lim):
+def _etd2rk_loop(c, h, substeps, X, U0, U1, PF0, PF1, ALG, active, X_NEW, ALG_NEW, CODES, SCR_PF, SCR_ALG, lam_lim):
     coef = healthy_coefficients(c, h)
     coef_sub = healthy_coefficients(c, h / max(substeps, 1))
-    for i in range(X.shape[0]):
+    for i in prange(X.shape[0]):  # prange is a plain range when compiled without parallel=True
         if active[i]:
             CODES[i] = _engine_step(c, i, h, substeps, X, U0, U1, PF0, PF1, ALG, X_NEW, ALG_NEW, SCR_PF, SCR_ALG,
                                     lam_lim, coef, coef_sub)
@@ -217,19 +215,8 @@ def _etd2rk_serial(c, h, substeps, X, U0, U1, PF0, PF1, ALG, active, X_NEW, ALG_
             CODES[i] = 0
 
 
-@jit_parallel
-def _etd2rk_parallel(c, h, substeps, X, U0, U1, PF0, PF1, ALG, active, X_NEW, ALG_NEW, CODES, SCR_PF, SCR_ALG,
-                   lam_lim):
-    coef = healthy_coefficients(c, h)
-    coef_sub = healthy_coefficients(c, h / max(substeps, 1))
-    for i in prange(X.shape[0]):
-        if active[i]:
-            CODES[i] = _engine_step(c, i, h, substeps, X, U0, U1, PF0, PF1, ALG, X_NEW, ALG_NEW, SCR_PF, SCR_ALG,
-                                    lam_lim, coef, coef_sub)
-        else:
-            X_NEW[i, :] = X[i]
-            ALG_NEW[i, :] = ALG[i]
-            CODES[i] = 0
+_etd2rk_serial = jit(_etd2rk_loop)
+_etd2rk_parallel = jit_parallel(_etd2rk_loop)
 
 
 PARALLEL_MIN_ENGINES = 64

@@ -104,12 +104,22 @@ def _data() -> dict:
     return data
 
 
+# An abrupt sensor fault surely fires a module only if it does so promptly: a module that fired in
+# every run but up to minutes after the others did so by chance of the noise (e.g. M3.3 for S2.1,
+# which may as well stay silent in a shorter run).
+SENSOR_MAX_LAG_S = 30.0
+
+
 def sure_cells() -> np.ndarray:
-    """Bool (19, 26): cells that fired in every measured run, within the structural support."""
+    """Bool (19, 26): cells that fired in every measured run, within the structural support; for
+    sensor faults also within ``SENSOR_MAX_LAG_S`` of the fault's first sure module in every run."""
     data = _data()
     counts = np.asarray(data["fire_counts"])
     support, _, _ = fault_signature_matrix()
-    return (counts == data["runs_per_fault"]) & support
+    sure = (counts == data["runs_per_fault"]) & support
+    lag = np.asarray(data.get("sure_lag_s", np.zeros(sure.shape)), dtype=float)
+    is_sensor = np.array([f not in PROCESS_FAULT_DEFAULTS for f in FAULT_IDS])
+    return sure & ~(is_sensor[None, :] & (lag > SENSOR_MAX_LAG_S))
 
 
 def grace_times(margin_s: float = 2.0, factor: float = 1.5) -> np.ndarray:

@@ -4,6 +4,7 @@
     python -m marine_fdi_env.diagnosis.kpis delays --seeds 100              # single faults, delays
     python -m marine_fdi_env.diagnosis.kpis scenarios --seeds 20            # the 4 examples of 6.4
     python -m marine_fdi_env.diagnosis.kpis min-detectable --seeds 5        # KPI 6.5.2, bisection
+    python -m marine_fdi_env.diagnosis.kpis render                          # docs/diagnosis_results.md
 
 Each writes a JSON file under ``docs/data/`` (``--out`` to change) and prints a Markdown table.
 Engines are simulated in batches and diagnosed with :class:`ReferenceDiagnoser`.
@@ -173,14 +174,94 @@ def min_detectable(n_seeds: int, iters: int = 8, first_seed: int = 30_000, fault
     return out
 
 
+_THESIS_NOTES = {
+    "valve_seizing": "about 10 s with noise (fig. 6.22); 6.4.2: M2 at +1.6 s, M1 at +7.1 s",
+    "bore_damage": "6.4.2: 141.1 s after onset (146.1 s)",
+    "turbine_seal_leak": "'relatively short time' (fig. 6.26)",
+    "turbine_lubrication_loss": "6.4.4: 74.6 s after onset (104.6 s)",
+    "compressor_seal_leak": "6.4.3: 126.8 s after onset (156.8 s)",
+    "compressor_lubrication_loss": "'shortly after' (fig. 6.32)",
+    "intercooler_blockage": "about 15 s (fig. 6.34)",
+}
+
+
+def render(data_dir: Path = Path("docs/data")) -> str:
+    """Markdown tables of the KPI JSON files (written by the other subcommands)."""
+    lines = []
+
+    def load(name):
+        p = data_dir / f"diagnoser_{name}.json"
+        return json.loads(p.read_text()) if p.exists() else None
+
+    fa = load("false-alarms")
+    if fa:
+        lines += [f"### False alarms (`{fa['command']}`)", "", "| profile | runs x 300 s | runs with a false alarm |",
+                  "|---|---|---|"]
+        for prof, v in fa["result"].items():
+            lines.append(f"| {prof} | {v['runs']} | {v['runs_with_false_alarm']} |")
+        lines.append("")
+    de = load("delays")
+    if de:
+        lines += [f"### Single faults at their default magnitudes (`{de['command']}`)", "",
+                  "Detection delay = first violation of any module minus onset (constant fuel setting 1.0). "
+                  "'in diagnoses': runs whose final minimal diagnoses contain the fault; "
+                  "'alone': runs where {fault} itself is a minimal diagnosis.", "",
+                  "| fault | detected | in diagnoses | alone | median delay [s] | 10-90 % [s] | std [s] | thesis |",
+                  "|---|---|---|---|---|---|---|---|"]
+        for f, v in de["result"].items():
+            med = "-" if v["median_delay_s"] is None else f"{v['median_delay_s']:.2f}"
+            rng = "-" if v["p10_delay_s"] is None else f"{v['p10_delay_s']:.2f}-{v['p90_delay_s']:.2f}"
+            sd = "-" if v["std_delay_s"] is None else f"{v['std_delay_s']:.3f}"
+            lines.append(f"| {f} | {v['detected']}/{v['runs']} | {v['contains_fault']} | {v['single_fault_diagnosis']} "
+                         f"| {med} | {rng} | {sd} | {_THESIS_NOTES.get(f, 'immediate (figs. 6.2-6.20)')} |")
+        lines += ["", "KPI 6.5.1, spread of the detection time per module for the sensor offsets "
+                  "(std over runs, thesis: below 0.003 s):", "", "| fault | module: std [s] |", "|---|---|"]
+        for f, v in de["result"].items():
+            if f.startswith("S"):
+                lines.append(f"| {f} | " + ", ".join(f"{m}: {x['std_s']:.3f}" for m, x in v["modules"].items()) + " |")
+        lines.append("")
+    sc = load("scenarios")
+    if sc:
+        lines += [f"### The thesis's multiple-fault examples (`{sc['command']}`)", "",
+                  "| example | injected | no detection before onset | injected set among the minimal diagnoses "
+                  "| most candidates (thesis) | unique |", "|---|---|---|---|---|---|"]
+        for name, v in sc["result"].items():
+            lines.append(f"| {name} | {', '.join(v['injected'])} | {v['no_early_detection']} | "
+                         f"{v['injected_always_in_diagnoses']} | {v['max_candidates']} ({v['thesis_final_candidates']}) | "
+                         f"{v['always_unique']} |")
+        lines += ["", "Module detection times of the first seed, beside the thesis's:", ""]
+        for name, v in sc["result"].items():
+            r = v["runs"][0]
+            lines.append(f"* {name}: " + ", ".join(f"{m} {t:.2f} s" for m, t in sorted(
+                r["module_detection_times_s"].items(), key=lambda kv: kv[1]))
+                + (f" — thesis: {THESIS_DELAYS_S[name]}" if name in THESIS_DELAYS_S else ""))
+        lines.append("")
+    md = load("min-detectable")
+    if md:
+        lines += [f"### Smallest detectable process faults, KPI 6.5.2 (`{md['command']}`)", "",
+                  "| fault | ours | thesis table 6.10 | unit |", "|---|---|---|---|"]
+        for f, v in md["result"].items():
+            ours = "not detected" if v.get("min_detectable") is None else f"{v['min_detectable']:.3g}"
+            lines.append(f"| {f} | {ours} | {THESIS_MIN_DETECTABLE[f]:g} | {PROCESS_FAULT_DEFAULTS[f].unit} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("what", choices=("false-alarms", "delays", "scenarios", "min-detectable"))
+    ap.add_argument("what", choices=("false-alarms", "delays", "scenarios", "min-detectable", "render"))
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--out", type=Path, default=None)
     args = ap.parse_args(argv)
     if args.seeds < 1:
         ap.error("--seeds must be >= 1")
+    if args.what == "render":
+        text = "# Reference diagnoser: measured results\n\nGenerated by " \
+               "`python -m marine_fdi_env.diagnosis.kpis render` from `docs/data/diagnoser_*.json`.\n\n" + render()
+        out = args.out or Path("docs/diagnosis_results.md")
+        out.write_text(text + "\n")
+        print(f"wrote {out}")
+        return 0
     fn = {"false-alarms": false_alarms, "delays": single_fault_delays, "scenarios": scenario_checks,
           "min-detectable": min_detectable}[args.what]
     data = {"what": args.what, "seeds": args.seeds, "params": PARAMS,

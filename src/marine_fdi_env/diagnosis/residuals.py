@@ -148,6 +148,28 @@ def _forcing_and_bound(c, which, y, tab, db):
 
 
 @jit
+def _observer_update(st, b, first, ok, y, F, H, E, q, r, Ld, dbar):
+    """One sample of a receiver/charge observer whose state sits at st[b:b+5] =
+    (x̂, ē, F(prev), H̄(prev), ok(prev)); returns (residual, threshold).  See the module docstring."""
+    if first or st[b + 4] == 0.0:
+        if ok:  # (re)start from the measurement
+            st[b] = y
+            st[b + 1] = dbar
+        res = 0.0 if ok else math.inf
+    elif ok:
+        prior = E * st[b] + q * st[b + 2] + r * (F - st[b + 2])
+        st[b + 1] = E * ((1.0 - Ld) * st[b + 1] + Ld * dbar) + (q - r) * st[b + 3] + r * H + MODEL_MARGIN * abs(prior)
+        res = y - prior
+        st[b] = prior + Ld * (y - prior)
+    else:
+        res = math.inf
+    st[b + 4] = 1.0 if ok else 0.0
+    st[b + 2] = F
+    st[b + 3] = H
+    return res, st[b + 1] + dbar
+
+
+@jit
 def _all_finite(y, idx):
     for i in idx:
         if not math.isfinite(y[i]):
@@ -268,28 +290,8 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST):
             db[0], db[1], db[2], db[3], db[4] = dbar[cx1], dbar[cx3], dbar[cx4], dbar[cT1], dbar[cTin]
             m = 8 + side
             ok = base_ok and math.isfinite(x3) and math.isfinite(T_in)
-            if ok:
-                F, H = _forcing_and_bound(c, 3, yv, t, db)
-            else:
-                F, H = 0.0, 0.0
-            if first or st[6] == 0.0:
-                if ok:
-                    st[2] = x3
-                    st[3] = dbar[cx3]
-                R[kk, m] = 0.0 if ok else math.inf
-            else:
-                if ok:
-                    prior = E3 * st[2] + q3 * st[4] + r3 * (F - st[4])
-                    st[3] = E3 * ((1.0 - Ld3) * st[3] + Ld3 * dbar[cx3]) + (q3 - r3) * st[5] + \
-                        r3 * H + MODEL_MARGIN * abs(prior)
-                    R[kk, m] = x3 - prior
-                    st[2] = prior + Ld3 * (x3 - prior)
-                else:
-                    R[kk, m] = math.inf
-            THR[kk, m] = st[3] + dbar[cx3]
-            st[6] = 1.0 if ok else 0.0
-            st[4] = F
-            st[5] = H
+            F, H = _forcing_and_bound(c, 3, yv, t, db) if ok else (0.0, 0.0)
+            R[kk, m], THR[kk, m] = _observer_update(st, 2, first, ok, x3, F, H, E3, q3, r3, Ld3, dbar[cx3])
             # ---------------------------------------------------------------- M3.(3,4): T_in
             m = 10 + side
             if base_ok and math.isfinite(x3) and math.isfinite(p6m) and math.isfinite(T6m) and math.isfinite(T_in):
@@ -313,28 +315,8 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST):
             # ---------------------------------------------------------------- M4.q (charge observer)
             m = 13 + side
             ok = base_ok and math.isfinite(x3) and math.isfinite(T_in)
-            if ok:
-                F, H = _forcing_and_bound(c, 4, yv, t, db)
-            else:
-                F, H = 0.0, 0.0
-            if first or st[11] == 0.0:
-                if ok:
-                    st[7] = x4
-                    st[8] = dbar[cx4]
-                R[kk, m] = 0.0 if ok else math.inf
-            else:
-                if ok:
-                    prior = E4 * st[7] + q4 * st[9] + r4 * (F - st[9])
-                    st[8] = E4 * ((1.0 - Ld4) * st[8] + Ld4 * dbar[cx4]) + (q4 - r4) * st[10] + \
-                        r4 * H + MODEL_MARGIN * abs(prior)
-                    R[kk, m] = x4 - prior
-                    st[7] = prior + Ld4 * (x4 - prior)
-                else:
-                    R[kk, m] = math.inf
-            THR[kk, m] = st[8] + dbar[cx4]
-            st[11] = 1.0 if ok else 0.0
-            st[9] = F
-            st[10] = H
+            F, H = _forcing_and_bound(c, 4, yv, t, db) if ok else (0.0, 0.0)
+            R[kk, m], THR[kk, m] = _observer_update(st, 7, first, ok, x4, F, H, E4, q4, r4, Ld4, dbar[cx4])
             # ---------------------------------------------------------------- M4.(3,4): T1
             m = 15 + side
             R[kk, m] = T1 - T1_model if math.isfinite(T1) else math.inf
