@@ -58,6 +58,8 @@ def throughput(n: int, seconds: float, repeats: int = 3) -> float:
 
 def accuracy(duration: float) -> tuple[float, float, float]:
     """(max relative error, scipy engine-samples/s, fixed-step single-engine engine-samples/s)."""
+    Simulator(PARAMS, 1, 0, [FAULTS], PROFILE, noise_scale=0.0).run(1.0)  # load compiled code first
+    reference_solve(PARAMS, PROFILE, FAULTS, 1.0)
     t0 = time.perf_counter()
     t, _, true = reference_solve(PARAMS, PROFILE, FAULTS, duration)
     t_ref = time.perf_counter() - t0

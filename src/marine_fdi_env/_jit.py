@@ -13,14 +13,6 @@ from __future__ import annotations
 
 import numba
 
-# numba's OpenMP layer busy-waits between parallel regions by default; on the 2-core machines this
-# project targets that made each parallel call cost ~8 ms (measured).  The work-queue layer costs
-# ~50 us per call and needs no environment variables, so we select it unless the user chose one.
-if numba.config.THREADING_LAYER == "default":
-    numba.config.THREADING_LAYER = "workqueue"
-
-__all__ = ["jit", "jit_parallel", "prange"]
+__all__ = ["jit"]
 
 jit = numba.njit(cache=True, error_model="numpy")
-jit_parallel = numba.njit(cache=True, error_model="numpy", parallel=True)
-prange = numba.prange

@@ -19,6 +19,7 @@ Named profiles (``make_profile``), with optional ``key=value`` overrides, e.g.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -45,30 +46,34 @@ class Profile:
             raise ValueError(f"profile {self.name!r}: breakpoint times must be finite, >= 0 and non-decreasing")
         check_fuel_setting(self.values, f"profile {self.name!r} fuel_setting")
 
+    @cached_property
+    def _arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.asarray(self.times, dtype=float), np.asarray(self.values, dtype=float)
+
     def __call__(self, t) -> np.ndarray:
         """u at time(s) t (right-continuous at steps)."""
         t = np.asarray(t, dtype=float)
-        times = np.asarray(self.times)
-        vals = np.asarray(self.values)
+        times, vals = self._arrays
         # right-continuity: among equal times take the last value
         idx = np.searchsorted(times, t, side="right")
-        left = np.clip(idx - 1, 0, len(times) - 1)
-        right = np.clip(idx, 0, len(times) - 1)
+        last = len(times) - 1
+        left = np.maximum(np.minimum(idx - 1, last), 0)
+        right = np.minimum(idx, last)
         t0, t1 = times[left], times[right]
         v0, v1 = vals[left], vals[right]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            w = np.where(t1 > t0, (t - t0) / np.where(t1 > t0, t1 - t0, 1.0), 0.0)
-        return np.where(t < times[0], vals[0], v0 + np.clip(w, 0.0, 1.0) * (v1 - v0))
+        dt = t1 - t0
+        w = np.where(dt > 0, (t - t0) / np.where(dt > 0, dt, 1.0), 0.0)
+        return np.where(t < times[0], vals[0], v0 + np.minimum(np.maximum(w, 0.0), 1.0) * (v1 - v0))
 
     def left_limit(self, t) -> np.ndarray:
         """u just before time(s) t (differs from ``self(t)`` only at a step)."""
         t = np.asarray(t, dtype=float)
-        times = np.asarray(self.times)
+        times, vals = self._arrays
         idx = np.searchsorted(times, t, side="left")
-        j = np.clip(idx, 0, len(times) - 1)
+        j = np.minimum(idx, len(times) - 1)
         # the segment that ends at a breakpoint ends at the value of its first occurrence
-        at_break = (idx < len(times)) & (np.take(times, j) == t)
-        return np.where(at_break, np.take(np.asarray(self.values), j), self(t))
+        at_break = (idx < len(times)) & (times[j] == t)
+        return np.where(at_break, vals[j], self(t))
 
     @property
     def breakpoints(self) -> np.ndarray:

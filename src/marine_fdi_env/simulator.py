@@ -41,7 +41,7 @@ TRUTH_VARIABLES: tuple[str, ...] = (
     "u", "x1", "x3", "x4", "n", "torque", "power", "p6", "T6", "p_max", "T_in", "T_out", "T1", "T_co", "lam",
 )
 _NOISE_BLOCK = 128
-_CHUNK = 256  # samples of fuel setting and fault values precomputed at a time
+_CHUNK = 512  # samples of fuel setting and fault values precomputed at a time
 DEFAULT_LIMITER_LAMBDA = 1.3
 
 
