@@ -301,3 +301,19 @@ def test_console_script_help():
     proc = subprocess.run([sys.executable, "-m", "marine_fdi_env.cli", "operating-point", "--fuel-setting", "9"],
                           capture_output=True, text=True, timeout=60, env=env)
     assert proc.returncode == 2 and "--fuel-setting" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_validate_and_synthesize_are_wired(tmp_path, capsys):
+    # the validation commands (issue #4) are reachable through the marine-fdi entry point
+    from marine_fdi_env.cli import main
+
+    data = tmp_path / "synth.csv"
+    assert main(["synthesize-measurements", "--params", "man-12v32-40", "--mechanism", "none", "--points", "6",
+                 "--noise", "0.005", "--seed", "3", "--out", str(data)]) == 0
+    out = tmp_path / "report.json"
+    assert main(["validate", "--data", str(data), "--out", str(out), "--screen"]) == 0
+    rep = json.loads(out.read_text())
+    for key in ("channels", "discrepancies", "candidates", "selected_causes", "unexplained", "parameters"):
+        assert key in rep
+    assert rep["selected_causes"] == []  # no hidden effect, nothing to explain
+    assert main(["validate", "--data", str(tmp_path / "missing.csv"), "--out", str(out)]) == 2
