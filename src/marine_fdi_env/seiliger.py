@@ -57,8 +57,10 @@ def seiliger_cycle(p1: float, T1: float, q: float, X_cv: float, X_ct: float, c) 
     ln_c = X_ct * q / (R * T4)
     # ln(V5/V6) = ln(V4/V3) + ln c - ln(r_c r_eo), with V4/V3 = T4/T3 and V3 = V1 / r_c
     ln_v = math.log(T4 / T3) + ln_c - c.ln_rc_reo
-    T6 = T4 * math.exp((c.n_exp - 1.0) * ln_v)
+    ratio_n1 = math.exp((c.n_exp - 1.0) * ln_v)  # (V5/V6)^(n_exp-1)
+    T6 = T4 * ratio_n1
     p3 = p1 * c.rc_pow_kappa * (T3 / T2)
-    p6 = p3 * math.exp(c.n_exp * ln_v - ln_c)
+    # p6 = p5 (V5/V6)^n_exp with p5 = p3/c and (V5/V6)/c = T4 / (T3 r_c r_eo): no second exponential
+    p6 = p3 * ratio_n1 * T4 / (T3 * c.r_c * c.r_eo)
     w = -c.c_v_a_J_per_kgK * (T2 - T1) + R * (T4 - T3) + X_ct * q + R * (T4 - T6) / (c.n_exp - 1.0)
     return T2, T3, T4, T6, p3, p6, w

@@ -68,10 +68,16 @@ def turbine_expansion(x3: float, c) -> float:
 
 
 @jit
+def turbine_outlet_from_expansion(T_in: float, Pi: float, x4: float, c) -> float:
+    """z2 = ψ4 z1 = z1 (1 - η_turbo(x4) (1 - Π_turbo)) [K] (eq. 3.24, 3.26)."""
+    eta_t = c.a_turbo + c.b_turbo_per_Pa * x4 + c.c_turbo_per_Pa2 * x4 * x4
+    return T_in * (1.0 - eta_t * (1.0 - Pi))
+
+
+@jit
 def turbine_outlet_temperature(T_in: float, x3: float, x4: float, c) -> float:
     """z2 = ψ4 z1 = z1 (1 - η_turbo(x4) (1 - Π_turbo(x3))) [K] (eq. 3.24-3.26)."""
-    eta_t = c.a_turbo + c.b_turbo_per_Pa * x4 + c.c_turbo_per_Pa2 * x4 * x4
-    return T_in * (1.0 - eta_t * (1.0 - turbine_expansion(x3, c)))
+    return turbine_outlet_from_expansion(T_in, turbine_expansion(x3, c), x4, c)
 
 
 @jit
@@ -95,4 +101,5 @@ def receiver_and_turbine(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, c) -> tuple:
     gb = gamma * beta
     P = 0.5 * (gb + math.sqrt(gb * gb + 4.0 * (c.p_ex_Pa * c.p_ex_Pa + gamma * alpha)))
     T_in = alpha + beta * P
-    return P / c.tau_pd_s, T_in, turbine_outlet_temperature(T_in, x3, x4, c), turbine_expansion(x3, c), mdot
+    Pi = turbine_expansion(x3, c)
+    return P / c.tau_pd_s, T_in, turbine_outlet_from_expansion(T_in, Pi, x4, c), Pi, mdot
