@@ -168,6 +168,19 @@ def robust_zscores(d) -> np.ndarray:
     return 0.6745 * dev / mad
 
 
+def theil_sen_detrend(r: np.ndarray, ops: Mapping[str, np.ndarray]) -> np.ndarray:
+    """Residuals minus a robust (Theil-Sen) line on the first usable operating variable (load
+    first), centred on their median."""
+    d = r.copy()
+    for var in ("load",) + tuple(ops):
+        x = ops.get(var)
+        if x is not None and np.all(np.isfinite(x)) and np.ptp(x) > 0:
+            slope, intercept, *_ = stats.theilslopes(r, x)
+            d = r - (intercept + slope * x)
+            break
+    return d - np.median(d)
+
+
 def _inf_where_nonzero(d: np.ndarray) -> np.ndarray:
     z = np.zeros_like(d, dtype=float)
     nz = d != 0
@@ -439,14 +452,7 @@ def _outliers(ds, idx: np.ndarray, r_abs: np.ndarray, ops: Mapping[str, np.ndarr
         if n < 5:
             return []
         pos = np.arange(n)
-        d = r.copy()
-        for var in ("load",) + tuple(ops):
-            x = ops.get(var)
-            if x is not None and np.all(np.isfinite(x)) and np.ptp(x) > 0:
-                slope, intercept, *_ = stats.theilslopes(r, x)
-                d = r - (intercept + slope * x)
-                break
-        d = d - np.median(d)
+        d = theil_sen_detrend(r, ops)
         z = robust_zscores(d)
     out = []
     for k in np.flatnonzero(np.abs(z) > z_outlier):

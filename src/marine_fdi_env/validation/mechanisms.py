@@ -91,7 +91,8 @@ class Mechanism:
 
     @property
     def params(self) -> tuple[Param, ...]:
-        raise NotImplementedError
+        """The mechanism's parameters (every subclass defines them)."""
+        raise TypeError(f"{type(self).__name__} does not define its parameters")
 
     @property
     def param_names(self) -> tuple[str, ...]:
@@ -115,8 +116,9 @@ class Mechanism:
         return out
 
     def apply(self, hooks: Hooks, values: Mapping[str, float], params) -> Hooks:
-        """Hooks with this mechanism switched on at parameter ``values`` (``params``: the engine's)."""
-        raise NotImplementedError
+        """Hooks with this mechanism switched on at parameter ``values`` (``params``: the engine's);
+        every subclass defines it."""
+        raise TypeError(f"{type(self).__name__} does not define how it modifies the model")
 
     def describe(self) -> dict:
         return {"id": self.id, "label": self.label, "title": self.title, "touches": list(self.touches),

@@ -54,7 +54,7 @@ from scipy.optimize import least_squares
 from ..params import EngineParams, load_params
 from .columns import COLUMNS, QUANTITIES
 from .dataset import MeasuredDataset
-from .discrepancy import (_VAR_QUANTITY, DiscrepancyReport, _replicate_groups, analyse_discrepancies,
+from .discrepancy import (_VAR_QUANTITY, DiscrepancyReport, _replicate_groups, analyse_discrepancies, theil_sen_detrend,
                           default_tolerance, operating_variables)
 from .extended_model import MODE_F, MODE_P, MODE_U, NO_HOOKS, SUMMARY_KEYS, ExtendedModel, Hooks
 from .matching import MatchResult, _rack_settings, _resolve_target, _target_values, load_law_of
@@ -573,14 +573,7 @@ def _local_deviations(ds, idx: np.ndarray, r: np.ndarray, ops: Mapping[str, np.n
             dev.append(d)
             info.append(keep)
         return np.concatenate(pos), np.concatenate(dev), np.concatenate(info)
-    d = r.copy()
-    for var in ("load",) + tuple(ops):
-        x = ops.get(var)
-        if x is not None and np.all(np.isfinite(x)) and np.ptp(x) > 0:
-            slope, intercept, *_ = stats.theilslopes(r, x)
-            d = r - (intercept + slope * x)
-            break
-    return np.arange(n), d - np.median(d), np.ones(n, bool)
+    return np.arange(n), theil_sen_detrend(r, ops), np.ones(n, bool)
 
 
 def point_outliers(match: MatchResult, tolerances: Mapping[str, float], alpha: float) -> list[dict[str, Any]]:
