@@ -15,4 +15,5 @@ import numba
 
 __all__ = ["jit"]
 
-jit = numba.njit(cache=True, error_model="numpy")
+# nogil: compiled loops release the GIL, so halves of a large batch can run on two threads
+jit = numba.njit(cache=True, error_model="numpy", nogil=True)
