@@ -25,14 +25,13 @@ Reference (:func:`reference_solve`)
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from ._jit import jit
 from .model import forcings, solve_algebraic
 
-__all__ = ["etd_coefficients", "ExponentialRK2", "etd2rk_batch", "reference_solve", "FAILURE_REASONS",
+__all__ = ["etd2rk_batch", "reference_solve", "FAILURE_REASONS",
            "PREDICTOR_SWEEPS", "OUTPUT_SWEEPS", "TRANSIENT_TOL"]
 
 # The predictor stage needs the speed only to second order in h: one sweep from the previous
@@ -56,37 +55,6 @@ FAILURE_REASONS = (
     "turbine pressure ratio at or below 1",
     "charge-air pressure not positive",
 )
-
-
-def etd_coefficients(a, h: float):
-    """exp(a h), φ1(a h) and φ2(a h) for the ETD2RK update (a may be an array)."""
-    z = np.asarray(a, dtype=float) * h
-    em1 = np.expm1(z)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        phi1 = np.where(z == 0.0, 1.0, em1 / np.where(z == 0.0, 1.0, z))
-        phi2 = np.where(np.abs(z) < 1e-5, 0.5 + z / 6.0, (em1 - z) / np.where(z == 0.0, 1.0, z * z))
-    return em1 + 1.0, phi1, phi2
-
-
-@dataclass(frozen=True)
-class ExponentialRK2:
-    """Coefficients of ETD2RK for a fixed step ``h`` and constant linear part ``a``."""
-
-    h: float
-    E: np.ndarray
-    hphi1: np.ndarray
-    hphi2: np.ndarray
-
-    @classmethod
-    def for_rate(cls, a, h: float) -> "ExponentialRK2":
-        E, p1, p2 = etd_coefficients(a, h)
-        return cls(h=h, E=E, hphi1=h * p1, hphi2=h * p2)
-
-    def predict(self, x, F):
-        return self.E * x + self.hphi1 * F
-
-    def correct(self, x_pred, F_pred, F):
-        return x_pred + self.hphi2 * (F_pred - F)
 
 
 @jit

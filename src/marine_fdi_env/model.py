@@ -15,7 +15,7 @@ engines with compiled loops and returns named arrays (:class:`Algebraic`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -205,6 +205,3 @@ class EngineModel:
         F1, F3, F4 = self.forcing(u, alg, pf)
         return (a1 * np.asarray(x1) + F1, a3 * np.asarray(x3) + F3, a4 * np.asarray(x4) + F4), alg
 
-
-def algebraic_field_names() -> list[str]:
-    return [f.name for f in fields(Algebraic)]
