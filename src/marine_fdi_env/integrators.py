@@ -1,6 +1,6 @@
 """Time integration of the DAE: a fixed-step exponential integrator and a scipy reference.
 
-Fixed step (:class:`ExponentialRK2`)
+Fixed step (:func:`etd2rk_batch`)
     Every state obeys ``x' = a x + F(x, t)`` with a diagonal linear part a = -(1+φ)/τ whose time
     constants (τ_X = 0.015 s, τ_pd = 0.01 s) are as short as the sample time.  Explicit Euler at
     h = 0.01 s would sit at its stability limit for x3 (h/τ_pd = 1, unstable beyond 2, e.g. under
