@@ -1,0 +1,1 @@
+"""Gymnasium environment ``MarineFDI-v0`` for fault detection and isolation."""
