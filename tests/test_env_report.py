@@ -1,0 +1,135 @@
+"""Benchmark report: loading, table order and formatting, plots."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from marine_fdi_env.envs.metrics import compute_metrics
+from marine_fdi_env.envs.report import (agent_sort_key, load_results, markdown_table, report_main,
+                                        write_report)
+
+
+def episode(agent: str, suite: str, delay: float | None, sid: str = "e") -> dict:
+    changes = [[1.0, [], False]]
+    if delay is not None:
+        changes.append([5.0 + delay, ["S1.1"], True])
+    return {
+        "scenario_id": sid, "suite": suite, "seed": 0, "agent": agent, "duration_s": 20.0,
+        "decision_period_s": 1.0, "n_samples": 1000, "profile": "constant",
+        "faults": [{"id": "S1.1", "class": "sensor", "onset_s": 5.0, "magnitude": 1.0, "end_s": None}],
+        "declared_changes": changes, "terminated": False, "failure_reason": None,
+        "compute_s": 0.0125, "return": 0.0, "reward_terms": {},
+    }
+
+
+def write_result(tmp: Path, agent: str, suite: str, delays, *, with_metrics: bool = True) -> Path:
+    eps = [episode(agent, suite, d, sid=f"{suite}-{i}") for i, d in enumerate(delays)]
+    data = {"agent": agent, "suite": suite, "suite_version": "1", "episodes": eps}
+    if with_metrics:
+        data["metrics"] = compute_metrics(eps)
+    p = tmp / f"{suite}-{agent}.json"
+    p.write_text(json.dumps(data))
+    return p
+
+
+@pytest.fixture
+def result_files(tmp_path: Path) -> list[Path]:
+    return [
+        write_result(tmp_path, "oracle", "b", [0, 0]),
+        write_result(tmp_path, "zeta", "a", [1, 3]),
+        write_result(tmp_path, "reference", "a", [2, None], with_metrics=False),
+        write_result(tmp_path, "oracle", "a", [0, 0]),
+        write_result(tmp_path, "alpha", "a", [4, 4]),
+        write_result(tmp_path, "null", "a", [None, None]),
+        write_result(tmp_path, "random", "b", [1, None]),
+    ]
+
+
+def test_agent_order():
+    names = ["oracle", "zeta", "reference", "alpha", "random", "null"]
+    assert sorted(names, key=agent_sort_key) == ["null", "random", "reference", "alpha", "zeta", "oracle"]
+
+
+def test_table_rows_order_and_formatting(result_files):
+    table = markdown_table(load_results(result_files))
+    lines = table.strip().splitlines()
+    assert lines[0].startswith("| Suite | Agent | Episodes | Detection |")
+    assert "Compute [µs/sample]" in lines[0]
+    rows = [[c.strip() for c in line.strip("|").split("|")] for line in lines[2:]]
+    assert [(r[0], r[1]) for r in rows] == [
+        ("a", "null"), ("a", "reference"), ("a", "alpha"), ("a", "zeta"), ("a", "oracle"),
+        ("b", "random"), ("b", "oracle")]
+    ref = dict(zip([c.strip() for c in lines[0].strip("|").split("|")], rows[1]))
+    assert ref["Episodes"] == "2"
+    assert ref["Detection"] == "50.0 %"
+    assert ref["Median det. delay [s]"] == "2.0"
+    assert ref["False alarms [1/h]"] == "0.00"
+    assert ref["Compute [µs/sample]"] == "12.5"
+    null = dict(zip([c.strip() for c in lines[0].strip("|").split("|")], rows[0]))
+    assert null["Detection"] == "0.0 %" and null["Median det. delay [s]"] == "–"
+
+
+def test_load_errors_name_the_path(tmp_path):
+    missing = tmp_path / "nope.json"
+    with pytest.raises(ValueError, match="nope.json"):
+        load_results([missing])
+    bad = tmp_path / "bad.json"
+    bad.write_text("{not json")
+    with pytest.raises(ValueError, match="bad.json"):
+        load_results([bad])
+    noagent = tmp_path / "noagent.json"
+    noagent.write_text(json.dumps({"suite": "a", "episodes": []}))
+    with pytest.raises(ValueError, match="noagent.json.*'agent'"):
+        load_results([noagent])
+    badep = tmp_path / "badep.json"
+    ep = episode("x", "a", 1)
+    del ep["seed"]
+    badep.write_text(json.dumps({"agent": "x", "suite": "a", "episodes": [ep]}))
+    with pytest.raises(ValueError, match="badep.json.*'seed'"):
+        load_results([badep])
+
+
+def test_duplicate_suite_agent_rejected(tmp_path):
+    p1 = write_result(tmp_path, "x", "a", [1])
+    p2 = tmp_path / "copy.json"
+    p2.write_text(p1.read_text())
+    with pytest.raises(ValueError, match="two results"):
+        markdown_table(load_results([p1, p2]))
+
+
+def test_write_report_without_plots(result_files, tmp_path):
+    out = tmp_path / "rep"
+    path = write_report(result_files, out, plots=False)
+    text = path.read_text()
+    assert path == out / "report.md"
+    assert "## All episodes" in text and "## Sensor fault episodes" in text
+    assert "## Process fault episodes" not in text and "## Fault-free episodes" not in text
+    assert not (out / "summary.png").exists()
+
+
+def test_write_report_with_plots(result_files, tmp_path):
+    pytest.importorskip("matplotlib")
+    out = tmp_path / "rep"
+    assert report_main([*map(str, result_files), "--out", str(out)]) == 0
+    for name in ("report.md", "detection_delay.png", "summary.png"):
+        f = out / name
+        assert f.exists() and f.stat().st_size > 0
+    assert (out / "summary.png").read_bytes()[:4] == b"\x89PNG"
+    assert "![summary](summary.png)" in (out / "report.md").read_text()
+
+
+def test_report_main_error_exit_code(tmp_path, capsys):
+    assert report_main([str(tmp_path / "missing.json"), "--out", str(tmp_path), "--no-plots"]) == 2
+    assert "missing.json" in capsys.readouterr().err
+
+
+def test_missing_matplotlib_gives_clear_error(result_files, tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(__import__("sys").modules, "matplotlib", None)
+    with pytest.raises(RuntimeError, match="matplotlib"):
+        write_report(result_files, tmp_path / "rep")
+    assert report_main([*map(str, result_files), "--out", str(tmp_path / "r2")]) == 2
+    assert "--no-plots" in capsys.readouterr().err
+    assert report_main([*map(str, result_files), "--out", str(tmp_path / "r3"), "--no-plots"]) == 0
