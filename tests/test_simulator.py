@@ -514,3 +514,102 @@ def test_threaded_batch_equals_single_runs(monkeypatch):
         single = Simulator(n_engines=1, seeds=[seeds[i]], faults=[faults[i]], profiles=[profiles[i]]).run(3.0)
         assert np.array_equal(batch.measurements[:, i], single.measurements[:, 0]), f"engine {i}"
         assert np.array_equal(batch.truth[:, i], single.truth[:, 0]), f"engine {i}"
+
+
+# ----------------------------------------------------------------------------- block advance
+BLOCK_FAULTS = [
+    ["S4.2@1.5:5e4", "S2.1@0.5:300,kind=drift", "S3.3@2:0,kind=stuck,end=4", "S1.1@1:0.05,kind=gain",
+     "S3.5@0.3:20,kind=precision,period=1,duty=0.5"],
+    ["bore_damage@0.2", "S2.5@1:0,kind=stuck,period=0.7,duty=0.4", "S4.4@0.5:30,kind=precision"],
+    ["turbine_seal_leak@0.5", "valve_seizing@1:0.1,kappa=0.05", "S3.1@2:3e4"],
+    ["valve_seizing@3.2:0.97,kappa=inf"],  # stalls inside a block
+]
+BLOCK_PROFILES = ["manoeuvring", "constant", "step:u0=0.8,u1=1.0,t=2", "ramp"]
+
+
+def _block_sim():
+    return Simulator(n_engines=4, seeds=[3, 4, 5, 6], faults=BLOCK_FAULTS, profiles=BLOCK_PROFILES)
+
+
+@pytest.mark.parametrize("block", [1, 37, 700])
+def test_advance_in_blocks_equals_sample_by_sample(block):
+    # One compiled call per block must give the numbers of one call per sample: the noise streams,
+    # stuck-at holds and precision-noise draws carried across blocks, the 512-sample precompute
+    # chunks crossed (700 samples), and an engine failure inside a block with its exact time.
+    ref = _block_sim()
+    ys = [ref.step().copy() for _ in range(700)]
+    sim = _block_sim()
+    got, done = [], 0
+    while done < 700:
+        m = min(block, 700 - done)
+        b = sim.advance(m)
+        assert b.measurements.shape == (4, m, 19) and b.u.shape == (4, m)
+        got.append(b.measurements)
+        done += m
+    assert np.array_equal(np.concatenate(got, axis=1), np.stack(ys, axis=1), equal_nan=True)
+    assert np.array_equal(sim.u, ref.u) and np.array_equal(sim.X, ref.X)
+    assert [f.to_dict() for f in sim.failures] == [f.to_dict() for f in ref.failures]
+    assert len(sim.failures) == 1 and sim.failures[0].engine == 3 and 3.2 < sim.failures[0].time_s < 7.0
+
+
+def test_advance_record_matches_run():
+    # run() records through advance(record=True); a recorded block must carry the same truth,
+    # applied fuel setting and fault ground truth as the run at the same samples.
+    res = _block_sim().run(3.0)
+    sim = _block_sim()
+    b = sim.advance(300, record=True)
+    assert np.array_equal(b.t, res.t[1:])
+    assert np.array_equal(b.measurements, res.measurements[1:].transpose(1, 0, 2))
+    assert np.array_equal(b.truth, res.truth[1:].transpose(1, 0, 2))
+    assert np.array_equal(b.u, res.truth_of("u")[1:].T)
+    assert np.array_equal(b.fault_active, res.fault_active[1:].transpose(1, 0, 2))
+    assert np.array_equal(b.fault_value, res.fault_value[1:].transpose(1, 0, 2))
+    # the sensor faults really act in the block (else the comparison would prove little)
+    col = FAULT_IDS.index("S4.2")
+    assert not b.fault_active[0, :140, col].any() and b.fault_active[0, 160:, col].all()
+
+
+@pytest.mark.parametrize("bad", [0, -3, 2.5, "10"])
+def test_advance_rejects_bad_sample_count(bad):
+    with pytest.raises(ValueError, match="n_samples"):
+        Simulator().advance(bad)
+
+
+def test_restarted_engine_equals_fresh_simulator():
+    # A vector environment restarts one engine at a time (per-engine autoreset): the restarted
+    # engine must reproduce a fresh single-engine simulator bit for bit, its clock restarting at 0
+    # (process faults, profile, stuck-at and precision noise on that clock), while the other
+    # engines carry on exactly as if nothing had happened.
+    new_faults = ["compressor_seal_leak@0.8:0.3", "S2.5@1:0,kind=stuck,period=0.7,duty=0.4",
+                  "S4.4@0.5:30,kind=precision", "S1.2@0.3:0.05,kind=gain"]
+    new_profile = "step:u0=0.8,u1=1.0,t=2"
+    sim = _block_sim()
+    untouched = _block_sim()
+    sim.advance(137)
+    untouched.advance(137)
+    sim.restart_engines([1], seeds=[77], faults=[new_faults], profiles=[new_profile])
+    fresh = Simulator(n_engines=1, seeds=[77], faults=[new_faults], profiles=[new_profile])
+    assert np.array_equal(sim.y[1], fresh.y[0])
+    assert sim.local_time[1] == 0.0 and sim.local_time[0] == pytest.approx(1.37)
+    for block in (100, 100, 300, 100):  # crosses a 512-sample chunk of the batch
+        got, ref, other = sim.advance(block, record=True), fresh.advance(block, record=True), untouched.advance(block)
+        assert np.array_equal(got.measurements[1], ref.measurements[0])
+        assert np.array_equal(got.truth[1], ref.truth[0])
+        assert np.array_equal(got.fault_active[1], ref.fault_active[0])
+        assert np.array_equal(got.fault_value[1], ref.fault_value[0])
+        assert np.array_equal(got.measurements[[0, 2, 3]], other.measurements[[0, 2, 3]])
+    assert sim.fault_truth(0.0)[0][1, FAULT_IDS.index("compressor_seal_leak")]
+    # the failed engine 3 (stalled at about 3.2 s) can be restarted too, and runs again
+    assert [f.engine for f in sim.failures] == [3]
+    sim.restart_engines([3], seeds=[5], faults=[[]], profiles=["constant"])
+    assert not sim.failed[3]
+    healthy = Simulator(n_engines=1, seeds=[5])
+    assert np.array_equal(sim.advance(50).measurements[3], healthy.advance(50).measurements[0])
+
+
+def test_restart_engines_rejects_bad_input():
+    sim = Simulator(n_engines=2)
+    with pytest.raises(ValueError, match="engines"):
+        sim.restart_engines([2], seeds=[1], faults=[[]], profiles=["constant"])
+    with pytest.raises(ValueError, match="one seed"):
+        sim.restart_engines([0], seeds=[1, 2], faults=[[]], profiles=["constant"])

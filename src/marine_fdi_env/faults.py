@@ -347,18 +347,19 @@ class CompiledSchedule:
     def has_seal_faults(self) -> bool:
         return "turbine_seal_leak" in self.process or "compressor_seal_leak" in self.process
 
-    def process_values(self, t):
+    def process_values(self, t, per_engine: bool = False):
         """Values of the seven process faults at time t (scalar -> arrays (N,); array (T,) -> (T, N)).
 
-        Engines without a fault get the healthy value (1 for f_u, 0 otherwise).
+        With ``per_engine``, t is (T, N): each engine's own clock (engines restarted at different
+        times).  Engines without a fault get the healthy value (1 for f_u, 0 otherwise).
         """
         from .model import ProcessFaultValues
 
         t_arr = np.asarray(t, dtype=float)
-        shape = t_arr.shape + (self.n_engines,)
-        tt = t_arr[..., None]
+        shape = t_arr.shape if per_engine else t_arr.shape + (self.n_engines,)
         vals = {}
         for k, d in self.process.items():
+            tt = t_arr[..., d["engine"]] if per_engine else t_arr[..., None]
             s = _window_time(tt, d["onset"], d["end"], d["period"], d["duty"])
             b = _beta(s, d["kappa"])
             if k == "valve_seizing":

@@ -27,14 +27,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .faults import PROCESS_FAULT_IDS, FAULT_IDS, CompiledSchedule, FaultSpec, parse_fault_spec
-from .integrators import FAILURE_REASONS, _failure_code, etd2rk_batch
+from .integrators import FAILURE_REASONS, _failure_code, advance_batch
 from .model import ALG_FIELDS, HEALTHY, HEALTHY_PF, N_ALG, PF_FIELDS, Algebraic, EngineModel, ProcessFaultValues
 from .params import EngineParams, load_params
 from .profiles import Profile, make_profile
 from .sensors import MEASURED_VARIABLES, NOISE_BOUNDS, N_SENSORS, SENSOR_IDS, VARIABLE_OF_SENSOR
 from .steady_state import steady_state
 
-__all__ = ["Simulator", "SimulationResult", "EngineFailure", "TRUTH_VARIABLES"]
+__all__ = ["Simulator", "SimulationResult", "Block", "EngineFailure", "TRUTH_VARIABLES"]
 
 # True variables recorded with every sample (units: see docs/model.md).
 TRUTH_VARIABLES: tuple[str, ...] = (
@@ -166,11 +166,14 @@ class Simulator:
         n = self.n
         self.k = 0
         self.t = 0.0
+        self._k_start = np.zeros(n, dtype=np.int64)  # sample at which each engine's clock is 0
         self._rngs = [np.random.Generator(np.random.PCG64(np.random.SeedSequence(s).spawn(2)[0])) for s in self.seeds]
         self._prec_rngs = None
         self._noise_raw = np.empty((n, _NOISE_BLOCK * N_SENSORS))
         self._noise_bounds = 2.0 * NOISE_BOUNDS * self.noise_scale
         self._noise_pos = _NOISE_BLOCK
+        self._has_gain = bool(np.any(self.schedule.s_kind == 3)) if len(self.schedule.s_engine) else False
+        self._no_state = np.empty((n, 1, 3 + N_ALG))
         self._stuck = np.full(len(self.schedule.s_engine), np.nan)
         self._last_y = None
         self._fill_chunk(0)
@@ -190,7 +193,76 @@ class Simulator:
         for i in range(n):
             codes[i] = _failure_code(self.model.constants, self.X[i, 0], self.X[i, 1], self.X[i, 2], self.ALG[i])
         self._record_failures(codes, 0.0)
-        self.y = self._measure(0.0)
+        self.y = self._measure_initial()
+
+    def restart_engines(self, engines, seeds, faults, profiles) -> None:
+        """Start new runs on some engines at the current sample, leaving the others untouched.
+
+        ``engines``: indices; ``seeds``, ``faults`` (one schedule each), ``profiles``: one per
+        engine.  A restarted engine's clock restarts at 0 and it produces the same numbers, bit
+        for bit, as engine 0 of a fresh ``Simulator(seeds=[seed], faults=[schedule],
+        profiles=[profile])`` (what a vector environment's per-engine autoreset needs).
+        """
+        idx = [int(i) for i in np.atleast_1d(engines)]
+        if len(set(idx)) != len(idx) or any(not 0 <= i < self.n for i in idx):
+            raise ValueError(f"engines must be distinct indices in [0, {self.n}), got {engines!r}")
+        if not (len(seeds) == len(faults) == len(profiles) == len(idx)):
+            raise ValueError("restart_engines needs one seed, one fault schedule and one profile per engine")
+        new_sched = _as_schedules(list(faults), len(idx)) if idx else []
+        old = {(int(e), int(j)): v for e, j, v in zip(self.schedule.s_engine, self.schedule.s_sensor, self._stuck)}
+        for i, seed, sched, prof in zip(idx, seeds, new_sched, profiles):
+            self.seeds[i] = int(seed)
+            self.schedules[i] = sched
+            self.profiles[i] = make_profile(prof).snapped(self.dt)
+            self._rngs[i] = np.random.Generator(np.random.PCG64(np.random.SeedSequence(int(seed)).spawn(2)[0]))
+            if self._prec_rngs is not None:
+                self._prec_rngs.pop(i, None)
+        self.schedule = CompiledSchedule.compile(self.schedules)
+        restarted = np.zeros(self.n, dtype=bool)
+        restarted[idx] = True
+        sch = self.schedule
+        self._stuck = np.array([np.nan if restarted[e] else old.get((int(e), int(j)), np.nan)
+                                for e, j in zip(sch.s_engine, sch.s_sensor)], dtype=float)
+        self._has_gain = bool(np.any(sch.s_kind == 3)) if len(sch.s_engine) else False
+        self._fault_dev = None
+        self._k_start[idx] = self.k
+        self._fill_chunk(self.k)
+        # steady state of the restarted engines at their t = 0 (row 0 of the fresh chunk)
+        u0 = self._u_right[0, idx].copy()
+        pf = self._pf_values(0)
+        ss = steady_state(self.model, u0, ProcessFaultValues(*(np.asarray(getattr(pf, f))[idx] if np.ndim(
+            getattr(pf, f)) else getattr(pf, f) for f in PF_FIELDS)))
+        self.X[idx] = np.stack([ss.x1, ss.x3, ss.x4], axis=1)
+        self.ALG[idx] = np.stack([getattr(ss.alg, f) for f in ALG_FIELDS], axis=1)
+        self.u = self.u.copy()
+        self.u[idx] = self._applied_u(self._u_right[0])[idx]
+        self.failed[idx] = False
+        codes = np.zeros(self.n, dtype=np.int64)
+        for i in idx:
+            codes[i] = _failure_code(self.model.constants, self.X[i, 0], self.X[i, 1], self.X[i, 2], self.ALG[i])
+        self._record_failures(codes, 0.0)
+        # first reading: the first 19 numbers of each new noise stream, the rest refills the buffer
+        state = np.concatenate([self.X, self.ALG], axis=1)
+        y = self._last_y.copy()[:, None, :]
+        pos = self._noise_pos * N_SENSORS
+        for i in idx:
+            first = self._rngs[i].random(N_SENSORS) - 0.5
+            y[i, 0] = state[i, _SENSOR_COLUMNS] + first * self._noise_bounds
+            rest = self._noise_raw[i, pos:]
+            if rest.size:
+                self._rngs[i].random(out=rest)
+                rest -= 0.5
+        if len(sch.s_engine):
+            sel = np.flatnonzero(restarted[sch.s_engine])
+            if len(sel):
+                self._apply_sensor_faults(slice(0, 1), y, state[:, None, :], sel=sel, initial=True)
+        self._last_y = y[:, 0].copy()
+        self.y = self._last_y
+
+    @property
+    def local_time(self) -> np.ndarray:
+        """Each engine's own clock [s] (differs from ``t`` for engines restarted mid-run)."""
+        return (self.k - self._k_start) * self.dt
 
     # state views
     @property
@@ -215,20 +287,25 @@ class Simulator:
         return ProcessFaultValues(*(self._pf[j, :, m] for m in range(len(PF_FIELDS))))
 
     def _fill_chunk(self, k0: int) -> None:
-        """Precompute u (right and left limits) and process-fault values on samples k0..k0+_CHUNK."""
-        t = self.dt * np.arange(k0, k0 + _CHUNK + 1)
+        """Precompute u (right and left limits) and process-fault values on samples k0..k0+_CHUNK.
+
+        Times are each engine's own clock, (k - k0_engine) dt, so an engine restarted mid-run
+        sees exactly the numbers of a fresh simulator.
+        """
+        t = self.dt * (np.arange(k0, k0 + _CHUNK + 1)[:, None] - self._k_start[None, :])  # (rows, N)
         self._chunk_k0 = k0
-        self._u_right = np.empty((len(t), self.n))
-        self._u_left = np.empty((len(t), self.n))
+        self._t_local = t
+        self._u_right = np.empty(t.shape)
+        self._u_left = np.empty(t.shape)
         groups: dict[int, list[int]] = {}
         for i, pr in enumerate(self.profiles):
             groups.setdefault(id(pr), []).append(i)
         for idx in groups.values():
             pr = self.profiles[idx[0]]
-            self._u_right[:, idx] = pr(t)[:, None]
-            self._u_left[:, idx] = pr.left_limit(t)[:, None]
+            self._u_right[:, idx] = pr(t[:, idx])
+            self._u_left[:, idx] = pr.left_limit(t[:, idx])
         if self.schedule.process:
-            pf = self.schedule.process_values(t)
+            pf = self.schedule.process_values(t, per_engine=True)
             self._pf = np.empty((len(t), self.n, len(PF_FIELDS)))
             for m, name in enumerate(PF_FIELDS):
                 self._pf[:, :, m] = getattr(pf, name)
@@ -236,9 +313,9 @@ class Simulator:
             self._pf = None
             # a writable copy: compiled code is specialised on array flags, and one specialisation
             # for every batch size keeps batched runs bit-identical to single runs
-            self._pf_healthy = np.tile(HEALTHY_PF, (self.n, 1))
+            self._pf_healthy = np.ascontiguousarray(np.tile(HEALTHY_PF, (1, self.n, 1)))
         if len(self.schedule.s_engine):
-            self._sf_s, self._sf_beta = self.schedule.sensor_fault_state(t[:, None])
+            self._sf_s, self._sf_beta = self.schedule.sensor_fault_state(t[:, self.schedule.s_engine])
 
     def _grid_row(self, k: int) -> int:
         j = k - self._chunk_k0
@@ -250,27 +327,73 @@ class Simulator:
     # ----------------------------------------------------------------------------- stepping
     def step(self) -> np.ndarray:
         """Advance all engines by one sample; returns the measurements (N, 19) at the new time."""
-        j0 = self._grid_row(self.k)
-        if j0 == _CHUNK:  # the step needs rows j0 and j0 + 1 of one chunk
-            self._fill_chunk(self.k)
-            j0 = 0
-        j1 = j0 + 1
-        if self._pf is None:
-            pf0 = pf1 = self._pf_healthy
-        else:
-            pf0, pf1 = self._pf[j0], self._pf[j1]
-        etd2rk_batch(self.model.constants, self.dt, self.substeps, self.X, self._u_right[j0], self._u_left[j1],
-                     pf0, pf1, self.ALG, ~self.failed, self._X_new, self._ALG_new, self._codes,
-                     self._scr_pf, self._scr_alg, self.fuel_limiter_lambda)
-        self.X, self._X_new = self._X_new, self.X
-        self.ALG, self._ALG_new = self._ALG_new, self.ALG
-        self.u = self._applied_u(self._u_right[j1])
-        self.k += 1
-        self.t = self.k * self.dt
-        if self._codes.any():
-            self._record_failures(self._codes, self.t)
-        self.y = self._measure(self.t)
+        self.advance(1)
         return self.y
+
+    def advance(self, n_samples: int, record: bool = False) -> "Block":
+        """Advance all engines by ``n_samples`` samples in as few compiled calls as possible.
+
+        Returns the readings of the new samples (engine-major, the diagnoser's layout) and the
+        applied fuel setting; with ``record`` also the truth variables and the fault ground truth.
+        ``advance(K)`` gives the same numbers bit for bit as K calls of ``advance(1)``.
+        """
+        if not isinstance(n_samples, (int, np.integer)) or n_samples < 1:
+            raise ValueError(f"n_samples must be a positive integer, got {n_samples!r}")
+        K = int(n_samples)
+        t = self.dt * np.arange(self.k + 1, self.k + K + 1)
+        pieces = []
+        done = 0
+        while done < K:
+            j0 = self._grid_row(self.k)
+            if j0 == _CHUNK:  # a step needs rows j0 and j0 + 1 of one chunk
+                self._fill_chunk(self.k)
+                j0 = 0
+            m = min(K - done, _CHUNK - j0)
+            pieces.append(self._advance_piece(j0, m, record))
+            done += m
+        if len(pieces) == 1:
+            y, u, truth, act, val = pieces[0]
+        else:
+            y = np.concatenate([p[0] for p in pieces], axis=1)
+            u = np.concatenate([p[1] for p in pieces], axis=1)
+            truth, act, val = ((np.concatenate([p[i] for p in pieces], axis=1) for i in (2, 3, 4)) if record
+                               else (None, None, None))
+        return Block(t=t, measurements=y, u=u, truth=truth, fault_active=act, fault_value=val)
+
+    def _advance_piece(self, j0: int, m: int, record: bool):
+        """m samples within one precomputed chunk (rows j0 .. j0 + m)."""
+        n = self.n
+        pos = self._reserve_noise(m)
+        Y = np.empty((n, m, N_SENSORS))
+        U = np.empty((n, m))
+        need_state = record or self._has_gain
+        STATE = np.empty((n, m, 3 + N_ALG)) if need_state else self._no_state
+        PF = self._pf[j0:j0 + m + 1] if self._pf is not None else self._pf_healthy
+        alive = ~self.failed
+        codes = np.zeros(n, dtype=np.int64)
+        fail_k = np.full(n, -1, dtype=np.int64)
+        advance_batch(self.model.constants, self.dt, self.substeps, self.X, self._u_right[j0:j0 + m + 1],
+                      self._u_left[j0:j0 + m + 1], PF, self.ALG, alive, self.fuel_limiter_lambda,
+                      self._noise_raw, pos, self._noise_bounds, _SENSOR_COLUMNS, Y, U, STATE, need_state, codes,
+                      fail_k, self._scr_pf, self._scr_alg, self._X_new, self._ALG_new)
+        k_start = self.k
+        self.k += m
+        self.t = self.k * self.dt
+        failed = np.flatnonzero(fail_k >= 0)
+        if len(failed):
+            for i in failed[np.lexsort((failed, fail_k[failed]))]:
+                self.failed[i] = True
+                self.failures.append(EngineFailure(int(i), float((k_start + fail_k[i] + 1 - self._k_start[i]) * self.dt),
+                                                   FAILURE_REASONS[int(codes[i])]))
+        self.u = U[:, -1].copy()
+        rows = slice(j0 + 1, j0 + m + 1)
+        sens = self._apply_sensor_faults(rows, Y, STATE) if len(self.schedule.s_engine) else None
+        self._last_y = Y[:, -1].copy()
+        self.y = self._last_y
+        if not record:
+            return Y, U, None, None, None
+        act, val = self._fault_truth_rows(rows, sens)
+        return Y, U, _truth_from_state(STATE, U), act, val
 
     def _applied_u(self, u_cmd: np.ndarray) -> np.ndarray:
         """Fuel setting after the charge-air limiter (see class docstring)."""
@@ -289,74 +412,104 @@ class Simulator:
                 self.failures.append(EngineFailure(int(i), float(t), FAILURE_REASONS[int(codes[i])]))
 
     # ------------------------------------------------------------------------- sensors
-    def _next_noise(self) -> np.ndarray:
-        if self._noise_pos >= _NOISE_BLOCK:
-            raw = self._noise_raw
+    def _reserve_noise(self, m: int) -> int:
+        """Make m samples of noise available; returns their first sample index in the buffer.
+
+        Each engine's noise is one sequential PCG64 stream of U[0, 1) doubles (minus 1/2), drawn
+        into the buffer in blocks; how the stream is cut into blocks does not change the numbers.
+        """
+        cap = self._noise_raw.shape[1] // N_SENSORS
+        if self._noise_pos + m > cap:
+            rem = cap - self._noise_pos
+            size = max(_NOISE_BLOCK, m)
+            buf = np.empty((self.n, size * N_SENSORS))
+            buf[:, :rem * N_SENSORS] = self._noise_raw[:, self._noise_pos * N_SENSORS:]
             for i, rng in enumerate(self._rngs):
-                rng.random(out=raw[i])  # U[0, 1), one contiguous block per engine
-            raw -= 0.5
+                rng.random(out=buf[i, rem * N_SENSORS:])
+            buf[:, rem * N_SENSORS:] -= 0.5
+            self._noise_raw = buf
             self._noise_pos = 0
-        j = self._noise_pos * N_SENSORS
-        self._noise_pos += 1
-        # uniform noise d = (2 U - 1) * bound
-        return self._noise_raw[:, j:j + N_SENSORS] * self._noise_bounds
+        pos = self._noise_pos
+        self._noise_pos += m
+        return pos
 
     def true_variables(self) -> np.ndarray:
         """Noise-free measured variables, shape (N, 10) in the order of MEASURED_VARIABLES."""
         return np.concatenate([self.X, self.ALG], axis=1)[:, _MEASURED_COLUMNS]
 
-    def _measure(self, t: float) -> np.ndarray:
-        true = np.concatenate([self.X, self.ALG], axis=1)[:, _SENSOR_COLUMNS]
-        y = true + self._next_noise()
+    def _measure_initial(self) -> np.ndarray:
+        """Readings at t = 0 (the state set by reset)."""
+        state = np.concatenate([self.X, self.ALG], axis=1)
+        pos = self._reserve_noise(1)
+        noise = self._noise_raw[:, pos * N_SENSORS:(pos + 1) * N_SENSORS] * self._noise_bounds
+        y = (state[:, _SENSOR_COLUMNS] + noise)[:, None, :]
         self._fault_dev = None
         if len(self.schedule.s_engine):
-            y = self._apply_sensor_faults(t, y, true)
-        self._last_y = y
-        return y
+            self._apply_sensor_faults(slice(0, 1), y, state[:, None, :], initial=True)
+        self._last_y = y[:, 0].copy()
+        return self._last_y
 
-    def _precision_noise(self, engines: np.ndarray) -> np.ndarray:
+    def _precision_noise(self, engine: int, count: int) -> np.ndarray:
         if self._prec_rngs is None:
             self._prec_rngs = {}
-        out = np.empty(len(engines))
-        for j, e in enumerate(engines):
-            e = int(e)
-            if e not in self._prec_rngs:
-                self._prec_rngs[e] = np.random.Generator(
-                    np.random.PCG64(np.random.SeedSequence(self.seeds[e]).spawn(2)[1]))
-            out[j] = self._prec_rngs[e].uniform(-1.0, 1.0)
-        return out
+        if engine not in self._prec_rngs:
+            self._prec_rngs[engine] = np.random.Generator(
+                np.random.PCG64(np.random.SeedSequence(self.seeds[engine]).spawn(2)[1]))
+        return self._prec_rngs[engine].uniform(-1.0, 1.0, size=count)
 
-    def _apply_sensor_faults(self, t: float, y: np.ndarray, true: np.ndarray) -> np.ndarray:
+    def _apply_sensor_faults(self, rows: slice, Y: np.ndarray, STATE: np.ndarray, sel=None, initial=False):
+        """Apply the sensor faults to readings Y (N, m, 19) in place; rows: the chunk rows of Y's samples.
+
+        ``sel``: indices of the scheduled sensor faults to apply (default all); ``initial``: the
+        first reading of the engines concerned (a stuck-at fault then holds that reading).
+        Returns (active (m, F), deviation (m, F)) per selected sensor fault F.
+        """
         sch = self.schedule
-        j = self._grid_row(self.k)
-        s, beta = self._sf_s[j], self._sf_beta[j]
+        sel = np.arange(len(sch.s_engine)) if sel is None else np.asarray(sel, dtype=np.int64)
+        s, beta = self._sf_s[rows][:, sel], self._sf_beta[rows][:, sel]  # (m, F)
         active = ~np.isnan(s)
-        e, j, kind, mag = sch.s_engine, sch.s_sensor, sch.s_kind, sch.s_params["mag"]
-        yv = y[e, j]
-        dev = np.zeros(len(e))
-        # offset
+        e, j, kind, mag = sch.s_engine[sel], sch.s_sensor[sel], sch.s_kind[sel], sch.s_params["mag"][sel]
+        stuck = self._stuck[sel]
+        yv = Y[e, :, j].T  # (m, F)
+        dev = np.zeros(yv.shape)
+        bm = beta * mag
         k0 = active & (kind == 0)
-        dev[k0] = beta[k0] * mag[k0]
+        dev[k0] = bm[k0]
         k1 = active & (kind == 1)
-        dev[k1] = beta[k1] * mag[k1] * s[k1]
+        dev[k1] = (bm * s)[k1]
         k3 = active & (kind == 3)
-        dev[k3] = beta[k3] * mag[k3] * true[e[k3], j[k3]]
+        if k3.any():
+            true = STATE[e, :, _SENSOR_COLUMNS[j]].T
+            dev[k3] = (bm * true)[k3]
         k4 = active & (kind == 4)
         if k4.any():
-            dev[k4] = beta[k4] * mag[k4] * self._precision_noise(e[k4])
+            prec = np.zeros(yv.shape)
+            for eng in np.unique(e[(kind == 4)]):
+                cols = np.flatnonzero((e == eng) & (kind == 4))
+                mask = k4[:, cols]
+                block = np.zeros(mask.shape)
+                block[mask] = self._precision_noise(int(eng), int(mask.sum()))  # time-major, then fault order
+                prec[:, cols] = block
+            dev[k4] = (bm * prec)[k4]
         new = yv + dev
-        k2 = kind == 2
-        if k2.any():
-            prev = self._last_y[e, j] if self._last_y is not None else yv
-            opening = k2 & active & np.isnan(self._stuck)
-            self._stuck[opening] = np.where(np.isnan(mag[opening]), prev[opening], mag[opening])
-            self._stuck[k2 & ~active] = np.nan
-            hold = k2 & active
-            new[hold] = self._stuck[hold]
-        y = y.copy()
-        y[e, j] = new
-        self._fault_dev = (active, new - yv)
-        return y
+        for f in np.flatnonzero(kind == 2):  # stuck-at: hold the last reading (or the given value)
+            prev = yv[0, f] if initial or self._last_y is None else self._last_y[e[f], j[f]]
+            for r in range(new.shape[0]):
+                if active[r, f]:
+                    if np.isnan(stuck[f]):
+                        stuck[f] = prev if np.isnan(mag[f]) else mag[f]
+                    new[r, f] = stuck[f]
+                else:
+                    stuck[f] = np.nan
+                prev = new[r, f]
+        self._stuck[sel] = stuck
+        Y[e, :, j] = new.T
+        if self._fault_dev is None or len(sel) == len(sch.s_engine):
+            self._fault_dev = (active[-1], new[-1] - yv[-1])
+        else:
+            self._fault_dev[0][sel] = active[-1]
+            self._fault_dev[1][sel] = new[-1] - yv[-1]
+        return active, new - yv
 
     # ------------------------------------------------------------------------- ground truth
     def fault_truth(self, t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -370,9 +523,10 @@ class Simulator:
             val[sch.s_engine, sch.s_sensor] = np.where(a, dev, 0.0)
         if sch.process:
             pf = self._pf_values(self._grid_row(self.k))
+            t_now = self._t_local[self._grid_row(self.k)]
             for k, d in sch.process.items():
                 col = FAULT_IDS.index(k)
-                s = _active_time(t, d)
+                s = _active_time(t_now[d["engine"]], d)
                 act[d["engine"], col] = ~np.isnan(s)
                 v = getattr(pf, _PF_FIELD[k])
                 v = v[d["engine"]]
@@ -384,38 +538,70 @@ class Simulator:
         return np.stack([self.u, self.x1, self.x3, self.x4, a.n, a.torque, a.power(), a.p6, a.T6, a.p_max,
                          a.T_in, a.T_out, a.T1, a.T_co, a.lam], axis=1)
 
+    def _fault_truth_rows(self, rows: slice, sens) -> tuple[np.ndarray, np.ndarray]:
+        """(active, value), each (N, m, 26), of every fault id on the samples of chunk rows ``rows``."""
+        t = self._t_local[rows]
+        m = len(t)
+        act = np.zeros((self.n, m, len(FAULT_IDS)), dtype=bool)
+        val = np.zeros((self.n, m, len(FAULT_IDS)))
+        sch = self.schedule
+        if sens is not None:
+            a, dev = sens
+            act[sch.s_engine, :, sch.s_sensor] = a.T
+            val[sch.s_engine, :, sch.s_sensor] = np.where(a, dev, 0.0).T
+        if sch.process:
+            pf = self._pf[rows]
+            for k, d in sch.process.items():
+                col = FAULT_IDS.index(k)
+                s = _active_time(t[:, d["engine"]], d)  # (m, engines of the fault)
+                act[d["engine"], :, col] = ~np.isnan(s).T
+                v = pf[:, d["engine"], PF_FIELDS.index(_PF_FIELD[k])].T
+                val[d["engine"], :, col] = (1.0 - v) if k == "valve_seizing" else v
+        return act, val
+
     # ------------------------------------------------------------------------- whole runs
-    def run(self, duration_s: float, progress: bool = False, record: bool = True) -> SimulationResult:
+    def run(self, duration_s: float, progress: bool = False, record: bool = True,
+            block_samples: int = 256) -> SimulationResult:
         """Simulate ``duration_s`` seconds from the current state and return the recorded samples."""
         if not (isinstance(duration_s, (int, float)) and math.isfinite(duration_s) and duration_s > 0):
             raise ValueError(f"duration must be a positive finite number of seconds, got {duration_s!r}")
         steps = int(round(duration_s / self.dt))
-        T = steps + 1
+        T = steps + 1 if record else 1
         nF = len(FAULT_IDS)
-        meas = np.empty((T, self.n, N_SENSORS)) if record else np.empty((1, self.n, N_SENSORS))
-        truth = np.empty((T, self.n, len(TRUTH_VARIABLES))) if record else np.empty((1, self.n, len(TRUTH_VARIABLES)))
-        f_act = np.zeros((T, self.n, nF), dtype=bool) if record else np.zeros((1, self.n, nF), bool)
-        f_val = np.zeros((T, self.n, nF)) if record else np.zeros((1, self.n, nF))
-        times = self.t + self.dt * np.arange(T)
+        meas = np.empty((T, self.n, N_SENSORS))
+        truth = np.empty((T, self.n, len(TRUTH_VARIABLES)))
+        f_act = np.zeros((T, self.n, nF), dtype=bool)
+        f_val = np.zeros((T, self.n, nF))
+        times = self.t + self.dt * np.arange(steps + 1)
 
-        def rec(i):
-            j = i if record else 0
+        def rec_current(j):
             meas[j] = self.y
             truth[j] = self.truth_vector()
             f_act[j], f_val[j] = self.fault_truth(self.t)
 
-        rec(0)
-        iterator = range(1, T)
+        rec_current(0)
+        bar = None
         if progress:
             from tqdm import tqdm
 
-            iterator = tqdm(iterator, desc="simulate", unit="sample", mininterval=0.5)
-        for i in iterator:
-            self.step()
+            bar = tqdm(total=steps, desc="simulate", unit="sample", mininterval=0.5)
+        done = 0
+        while done < steps:
+            m = min(block_samples, steps - done)
+            blk = self.advance(m, record=record)
             if record:
-                rec(i)
+                sl = slice(done + 1, done + 1 + m)
+                meas[sl] = blk.measurements.transpose(1, 0, 2)
+                truth[sl] = blk.truth.transpose(1, 0, 2)
+                f_act[sl] = blk.fault_active.transpose(1, 0, 2)
+                f_val[sl] = blk.fault_value.transpose(1, 0, 2)
+            done += m
+            if bar is not None:
+                bar.update(m)
+        if bar is not None:
+            bar.close()
         if not record:
-            rec(0)
+            rec_current(0)
         return SimulationResult(
             params_name=self.params.name,
             dt=self.dt,
@@ -430,6 +616,26 @@ class Simulator:
             failures=list(self.failures),
             noise_scale=self.noise_scale,
         )
+
+
+@dataclass
+class Block:
+    """Samples produced by :meth:`Simulator.advance`, engine-major: arrays (N, K, ...)."""
+
+    t: np.ndarray  # (K,) sample times [s]
+    measurements: np.ndarray  # (N, K, 19)
+    u: np.ndarray  # (N, K) applied fuel setting
+    truth: "np.ndarray | None" = None  # (N, K, len(TRUTH_VARIABLES)) if recorded
+    fault_active: "np.ndarray | None" = None  # (N, K, 26)
+    fault_value: "np.ndarray | None" = None  # (N, K, 26)
+
+
+def _truth_from_state(state: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """TRUTH_VARIABLES from recorded [x1, x3, x4, ALG] states (N, K, 19) and applied u (N, K)."""
+    a = lambda f: state[..., 3 + ALG_FIELDS.index(f)]  # noqa: E731
+    n, torque = a("n"), a("torque")
+    return np.stack([u, state[..., 0], state[..., 1], state[..., 2], n, torque, 2.0 * np.pi * n * torque,
+                     a("p6"), a("T6"), a("p_max"), a("T_in"), a("T_out"), a("T1"), a("T_co"), a("lam")], axis=-1)
 
 
 _PF_FIELD = {
