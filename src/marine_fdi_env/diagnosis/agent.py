@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from marine_fdi_env._jit import jit
 from marine_fdi_env.constants import model_constants
 from marine_fdi_env.diagnosis.decision import DiagnosisState, candidate_classes, sorted_diagnoses
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
@@ -33,6 +34,7 @@ N_MODULES = len(MODULE_IDS)
 # per module: max |r|/threshold over the block, latched decision, time since first violation [s]
 N_FEATURES_PER_MODULE = 3
 TIME_SINCE_CAP_S = 300.0
+PEAK_CAP = 1e3
 
 
 @dataclass
@@ -44,6 +46,26 @@ class BlockOutput:
     violations: np.ndarray  # (N, B, 19) bool
     detected: np.ndarray  # (N,) bool, at the end of the block
     features: np.ndarray  # (N, 19 * N_FEATURES_PER_MODULE) float32
+
+
+@jit
+def _violations_and_peaks(R, THR, viol, peak):
+    """viol = not |R| <= THR (inf/nan residuals violate); peak[i, m] = max over the block of
+    |R|/THR, where a ratio that is not finite or THR <= 0 counts as the cap 1e3, capped at 1e3."""
+    N, B, M = R.shape
+    for i in range(N):
+        for m in range(M):
+            peak[i, m] = 0.0
+        for k in range(B):
+            for m in range(M):
+                r = abs(R[i, k, m])
+                thr = THR[i, k, m]
+                viol[i, k, m] = not (r <= thr)
+                q = r / thr if thr > 0.0 else math.inf
+                if not (q <= PEAK_CAP):  # nan, inf or above the cap
+                    q = PEAK_CAP
+                if q > peak[i, m]:
+                    peak[i, m] = q
 
 
 class ReferenceDiagnoser:
@@ -99,6 +121,8 @@ class ReferenceDiagnoser:
         self.decisions = [DiagnosisState(exoneration=ex, max_cardinality=self.max_cardinality, temporal=temporal,
                                          settle_s=settle, grace_s=grace) for _ in range(self.n)]
         self.first_violation = np.full((self.n, N_MODULES), np.nan)
+        # per engine, the next time a grace period of its decision state ends (inf: none pending)
+        self._next_expiry = np.full(self.n, np.inf)
 
     # ------------------------------------------------------------------------------ streaming
     def observe(self, measurements, u) -> BlockOutput:
@@ -121,40 +145,56 @@ class ReferenceDiagnoser:
         R = np.empty((N, B, N_MODULES))
         THR = np.empty((N, B, N_MODULES))
         compute_residuals_batch(self.c, Y, U, self.dt, self.noise_bounds, _SIDE_COLS, _T_OUT_COL, R, THR, self.state)
-        with np.errstate(invalid="ignore"):
-            viol = ~(np.abs(R) <= THR)
+        viol = np.empty((N, B, N_MODULES), dtype=np.bool_)
+        peak = np.empty((N, N_MODULES))
+        _violations_and_peaks(R, THR, viol, peak)
         t = (self.samples + np.arange(B)) * self.dt
-        for i in range(N):
-            rows = np.flatnonzero(viol[i].any(axis=1))
-            if len(rows):
-                st = self.decisions[i]
-                for r in rows:
-                    st.update(viol[i, r], float(t[r]))
-                newly = np.isnan(self.first_violation[i]) & viol[i].any(axis=0)
-                if newly.any():
-                    first = np.argmax(viol[i], axis=0)
-                    self.first_violation[i, newly] = t[first[newly]]
         t_end = float(t[-1])
-        for st in self.decisions:
-            st.advance(t_end)
+        # Only engines where a module fires for the first time, or a grace period of the decision
+        # logic ends within the block, need the (Python) decision update; for all others
+        # DiagnosisState.update/advance would change nothing.
+        new_mod = viol.any(axis=1) & np.isnan(self.first_violation)  # (N, 19)
+        busy = new_mod.any(axis=1) | (t_end > self._next_expiry)
+        if busy.any():
+            any_row = viol.any(axis=2)  # (N, B)
+            for i in np.flatnonzero(busy):
+                st = self.decisions[i]
+                v = viol[i]
+                rows = np.flatnonzero(any_row[i])
+                if len(rows):
+                    # a row that fires no new module only advances the clock: feed it only where a
+                    # grace period may have ended (the same recomputations as feeding every row)
+                    fired = np.logical_or.accumulate(v[rows], axis=0) | st.fired
+                    adds = np.empty(len(rows), dtype=bool)
+                    adds[0] = (fired[0] != st.fired).any()
+                    adds[1:] = (fired[1:] != fired[:-1]).any(axis=1)
+                    for r, a in zip(rows, adds):
+                        if a or t[r] > st._next_expiry:
+                            st.update(v[r], float(t[r]))
+                if new_mod[i].any():
+                    first = np.argmax(v, axis=0)
+                    self.first_violation[i, new_mod[i]] = t[first[new_mod[i]]]
+                st.advance(t_end)
+                self._next_expiry[i] = st._next_expiry
         self.samples += B
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ratio = np.where(THR > 0, np.abs(R) / THR, np.inf)
-        feats = self._features(ratio)
+        feats = self._features(peak)
         return BlockOutput(residuals=R, thresholds=THR, violations=viol, detected=self.detected.copy(), features=feats)
 
-    def _features(self, ratio: np.ndarray) -> np.ndarray:
+    def _features(self, peak: np.ndarray) -> np.ndarray:
+        """peak: (N, 19) max |r|/threshold over the block, capped at 1e3 (see _violations_and_peaks)."""
         now = self.samples * self.dt
-        peak = np.nan_to_num(ratio.max(axis=1), nan=1e3, posinf=1e3)
         latched = ~np.isnan(self.first_violation)
-        since = np.where(latched, np.minimum(now - np.nan_to_num(self.first_violation), TIME_SINCE_CAP_S), 0.0)
-        f = np.stack([np.minimum(peak, 1e3), latched.astype(float), since], axis=2)
-        return f.reshape(self.n, -1).astype(np.float32)
+        f = np.empty((self.n, N_MODULES, N_FEATURES_PER_MODULE), dtype=np.float32)
+        f[:, :, 0] = peak
+        f[:, :, 1] = latched
+        f[:, :, 2] = np.where(latched, np.minimum(now - self.first_violation, TIME_SINCE_CAP_S), 0.0)
+        return f.reshape(self.n, -1)
 
     # ------------------------------------------------------------------------------ results
     @property
     def detected(self) -> np.ndarray:
-        return np.array([d.detected for d in self.decisions])
+        # a module fired (latched) exactly when it has a first violation time
+        return ~np.isnan(self.first_violation).all(axis=1)
 
     def first_detection_time(self, engine: int = 0) -> float:
         return self.decisions[engine].first_detection_time

@@ -44,16 +44,18 @@ import math
 import numpy as np
 
 from .._jit import jit
-from ..integrators import _etd_scalar
+from ..integrators import THREADED_MIN_ENGINES, _etd_scalar, _executor
 from ..sensors import NOISE_BOUNDS, SENSOR_IDS
 from ..subsystems.air_intake import compressor_forcing, compressor_outlet_temperature, delta_f, inlet_air_temperature
-from ..subsystems.engine_block import engine_block, torque_given_speed
+from ..seiliger import seiliger_cycle
+from ..subsystems.engine_block import constant_volume_portion, engine_block, friction_torque
 from ..subsystems.exhaust_receiver import (
     receiver_and_turbine,
     receiver_forcing,
-    slip_ratio,
+    scavenge_flow_function,
     turbine_expansion,
     turbine_mass_flow,
+    turbine_outlet_from_expansion,
     turbine_outlet_temperature,
 )
 from .modules import MODULE_IDS
@@ -66,6 +68,9 @@ OBSERVER_GAINS = (33.3833, 1.25, 0.3764)
 SAFETY = 1.05
 MODEL_MARGIN = 1e-6  # η̄ per step, relative to the state, and relative margin of algebraic ARRs
 SPEED_SWEEPS = 4
+ONE_SIDED = False
+LINEAR_SPEED = True
+SLOPE_STEP = 1e-5
 
 # sensor columns
 S = {sid: i for i, sid in enumerate(SENSOR_IDS)}
@@ -81,70 +86,100 @@ _M = {m: i for i, m in enumerate(MODULE_IDS)}
 
 @jit
 def _cycle_table(c, x1, x4, T1, dx1, dx4, dT1, n_guess, tab):
-    """Σ2 at the centre and at ±d̄ of x1, x4, T1: rows (n, p6, T6); returns nothing (fills tab 7x3)."""
-    pts = ((0.0, 0.0, 0.0), (dx1, 0.0, 0.0), (-dx1, 0.0, 0.0), (0.0, dx4, 0.0), (0.0, -dx4, 0.0),
-           (0.0, 0.0, dT1), (0.0, 0.0, -dT1))
-    for p in range(7):
-        a, b, d = pts[p]
-        n, torque, p6, T6, p_max, m1 = engine_block(x1 + a, x4 + b, T1 + d, c.V1_m3, n_guess, c, SPEED_SWEEPS)
-        tab[p, 0] = n
+    """Σ2 at the centre and at +d̄ (and -d̄ unless ``ONE_SIDED``) of x1, x4, T1: rows (n, p6, T6) in
+    the order centre, x1+, x1-, x4+, x4-, T1+, T1- (fills tab 7x3; skipped rows repeat the centre).
+
+    The centre is solved to machine precision (``SPEED_SWEEPS`` from the previous sample's speed).
+    A perturbed point is one sweep from the centre's speed n_c, linearised in the speed with the
+    centre's slopes (one more sweep at n_c + h)::
+
+        n_p  = n_c + (f_p(n_c) - n_c) / (1 - f_c'(n_c))
+        p6_p = p6_p(n_c) + p6_c'(n_c) (n_p - n_c)           (T6 alike)
+
+    exact to first order in the perturbation; the neglected terms are second order (the slope's
+    change over the noise box times the speed change, and the curvature in n), the same order as
+    the mixed terms the coordinate-wise inclusion neglects (see the module docstring).  Where the
+    slope is not a contraction (never seen in the envelope) every point is solved in full.
+    """
+    V1 = c.V1_m3
+    n_c, tq, p6, T6, p_max, m1 = engine_block(x1, x4, T1, V1, n_guess, c, SPEED_SWEEPS)
+    tab[0, 0] = n_c
+    tab[0, 1] = p6
+    tab[0, 2] = T6
+    for p in range(1, 7):
+        tab[p, 0] = n_c
         tab[p, 1] = p6
         tab[p, 2] = T6
-
-
-@jit
-def _h3(c, x1, x3, x4, T1, T_in, n):
-    m1 = x4 * c.V1_m3 / (c.R_a_J_per_kgK * T1)
-    s_sl = slip_ratio(x3, x4, m1, n, c)
-    return receiver_forcing(turbine_mass_flow(x1, m1, s_sl, n, c), T_in, c)
-
-
-@jit
-def _h4(c, x1, x3, x4, T1, T_in, n):
-    m1 = x4 * c.V1_m3 / (c.R_a_J_per_kgK * T1)
-    s_sl = slip_ratio(x3, x4, m1, n, c)
-    return compressor_forcing(x4, delta_f(x1, m1, s_sl), T_in, turbine_expansion(x3, c), c)
-
-
-@jit
-def _t_in(c, x1, x3, x4, T1, p6, T6, n):
-    m1 = x4 * c.V1_m3 / (c.R_a_J_per_kgK * T1)
-    s_sl = slip_ratio(x3, x4, m1, n, c)
-    return receiver_and_turbine(x1, x3, x4, m1, s_sl, n, T6, p6, c.T_sl_K, c)[1]
-
-
-@jit
-def _t_co(c, x1, x3, x4, T1, T_in, T_out, n):
-    m1 = x4 * c.V1_m3 / (c.R_a_J_per_kgK * T1)
-    s_sl = slip_ratio(x3, x4, m1, n, c)
-    return compressor_outlet_temperature(delta_f(x1, m1, s_sl), T_in, T_out, 0.0, c)
+    step = 2 if ONE_SIDED else 1
+    h = SLOPE_STEP * n_c
+    n_h, tq, p6_h, T6_h, p_max, m1 = engine_block(x1, x4, T1, V1, n_c + h, c, 1)
+    k = (n_h - n_c) / h
+    linear = LINEAR_SPEED and math.isfinite(k) and abs(k) < 0.5
+    s_p6 = (p6_h - p6) / h
+    s_T6 = (T6_h - T6) / h
+    for p in range(1, 7, step):
+        a = dx1 if p == 1 else (-dx1 if p == 2 else 0.0)
+        b = dx4 if p == 3 else (-dx4 if p == 4 else 0.0)
+        d = dT1 if p == 5 else (-dT1 if p == 6 else 0.0)
+        if linear:
+            f_p, tq, p6_p, T6_p, p_max, m1 = engine_block(x1 + a, x4 + b, T1 + d, V1, n_c, c, 1)
+            dn = (f_p - n_c) / (1.0 - k)
+            tab[p, 0] = n_c + dn
+            tab[p, 1] = p6_p + s_p6 * dn
+            tab[p, 2] = T6_p + s_T6 * dn
+        else:
+            n, tq, p6_p, T6_p, p_max, m1 = engine_block(x1 + a, x4 + b, T1 + d, V1, n_c, c, SPEED_SWEEPS)
+            tab[p, 0] = n
+            tab[p, 1] = p6_p
+            tab[p, 2] = T6_p
 
 
 @jit
 def _dev(g0, gp, gm):
+    """One coordinate's term of the inclusion: max(|g(+)-g0|, |g(-)-g0|), or |g(+)-g0| if ONE_SIDED."""
+    if ONE_SIDED:
+        return abs(gp - g0)
     return max(abs(gp - g0), abs(gm - g0))
 
 
 @jit
-def _forcing_and_bound(c, which, y, tab, db):
-    """F (h3 or h4) on the measurements and its inclusion bound; y = (x1, x3, x4, T1, T_in)."""
-    x1, x3, x4, T1, T_in = y[0], y[1], y[2], y[3], y[4]
-    n0 = tab[0, 0]
-    if which == 3:
-        f0 = _h3(c, x1, x3, x4, T1, T_in, n0)
-        b = _dev(f0, _h3(c, x1 + db[0], x3, x4, T1, T_in, tab[1, 0]), _h3(c, x1 - db[0], x3, x4, T1, T_in, tab[2, 0]))
-        b += _dev(f0, _h3(c, x1, x3 + db[1], x4, T1, T_in, n0), _h3(c, x1, x3 - db[1], x4, T1, T_in, n0))
-        b += _dev(f0, _h3(c, x1, x3, x4 + db[2], T1, T_in, tab[3, 0]), _h3(c, x1, x3, x4 - db[2], T1, T_in, tab[4, 0]))
-        b += _dev(f0, _h3(c, x1, x3, x4, T1 + db[3], T_in, tab[5, 0]), _h3(c, x1, x3, x4, T1 - db[3], T_in, tab[6, 0]))
-        b += _dev(f0, _h3(c, x1, x3, x4, T1, T_in + db[4], n0), _h3(c, x1, x3, x4, T1, T_in - db[4], n0))
-    else:
-        f0 = _h4(c, x1, x3, x4, T1, T_in, n0)
-        b = _dev(f0, _h4(c, x1 + db[0], x3, x4, T1, T_in, tab[1, 0]), _h4(c, x1 - db[0], x3, x4, T1, T_in, tab[2, 0]))
-        b += _dev(f0, _h4(c, x1, x3 + db[1], x4, T1, T_in, n0), _h4(c, x1, x3 - db[1], x4, T1, T_in, n0))
-        b += _dev(f0, _h4(c, x1, x3, x4 + db[2], T1, T_in, tab[3, 0]), _h4(c, x1, x3, x4 - db[2], T1, T_in, tab[4, 0]))
-        b += _dev(f0, _h4(c, x1, x3, x4, T1 + db[3], T_in, tab[5, 0]), _h4(c, x1, x3, x4, T1 - db[3], T_in, tab[6, 0]))
-        b += _dev(f0, _h4(c, x1, x3, x4, T1, T_in + db[4], n0), _h4(c, x1, x3, x4, T1, T_in - db[4], n0))
-    return f0, SAFETY * b
+def _torque_cycle(x1, x4, T1, n, c):
+    """The T6-independent part of :func:`torque_given_speed`: (m1, w without the T6 term, T4, Q_loss).
+
+    Same operations in the same order, so ``_torque_from(...)`` equals ``torque_given_speed`` bit
+    for bit; the measured-T6 perturbations of M2.5/6 then reuse one Seiliger cycle."""
+    m1 = x4 * c.V1_m3 / (c.R_a_J_per_kgK * T1)
+    q = (c.eta_comb * c.h_L_J_per_kg) * x1 / m1
+    X_ct = c.X_ct_nom * x1 / c.x1_nom_kg
+    X_cv = constant_volume_portion(n, X_ct, c)
+    T2, T3, T4, _, _, _, _ = seiliger_cycle(x4, T1, q, X_cv, X_ct, c)
+    R = c.R_a_J_per_kgK
+    w0 = -c.c_v_a_J_per_kgK * (T2 - T1) + R * (T4 - T3) + X_ct * q
+    return m1, w0, T4, friction_torque(n, c)
+
+
+@jit
+def _torque_from(parts, T6, c):
+    m1, w0, T4, q_loss = parts
+    w = w0 + c.R_a_J_per_kgK * (T4 - T6) / (c.n_exp - 1.0)
+    return m1 * w * c.torque_per_work - q_loss
+
+
+@jit
+def _point(c, x1, x3, x4, T1, n, psi, Pi, T_in, T_out, T6, p6, out, j):
+    """h3, h4, T_in(model), T_co(model) at one point of the (x1, x3, x4, T1, n) box into out[j],
+    sharing m1, s_sl, ṁ_g, δ_f; psi = Ψ_sc(x3/x4) and Pi = Π_turbo(x3) are passed in (they depend
+    on x3, x4 only, so most points reuse the centre's).  The same operations as ``slip_ratio``,
+    ``receiver_forcing``, ... in the same order, so the numbers equal the direct calls bit for bit."""
+    m1 = x4 * c.V1_m3 / (c.R_a_J_per_kgK * T1)
+    s_sl = c.slip_coeff * x4 * psi / (n * m1)
+    mdot = turbine_mass_flow(x1, m1, s_sl, n, c)
+    df = delta_f(x1, m1, s_sl)
+    out[j, 0] = receiver_forcing(mdot, T_in, c)
+    out[j, 1] = compressor_forcing(x4, df, T_in, Pi, c)
+    out[j, 2] = receiver_and_turbine(x1, x3, x4, m1, s_sl, n, T6, p6, c.T_sl_K, c)[1]
+    out[j, 3] = compressor_outlet_temperature(df, T_in, T_out, 0.0, c)
+    return m1, s_sl, mdot, df
 
 
 @jit
@@ -208,10 +243,14 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST):
     fuel_gain = c.x1_nom_kg / c.tau_X_s
     T1_model = inlet_air_temperature(0.0, c)
     tab = np.empty((2, 7, 3))
-    yv = np.empty(5)
-    db = np.empty(5)
+    # model values at the points of the (x1, x3, x4, T1) box, columns h3, h4, T_in, T_co; rows:
+    # 0 centre, 1/2 x1+-, 3/4 x3+-, 5/6 x4+-, 7/8 T1+-, 9/10 T_in+-, 11/12 p6+-, 13/14 T6+-, 15/16 T_out+-
+    G = np.empty((17, 4))
+    step = 2 if ONE_SIDED else 1
     for kk in range(T):
         y = Y[kk]
+        T_out = y[t_out_col]
+        dTo = dbar[t_out_col]
         for side in range(2):
             st = ST[side]
             first = st[14] == 0.0
@@ -220,9 +259,10 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST):
                                                                cols[6], cols[7], cols[8])
             x1, p6m, T6m, tqm, x3, T_in, x4, T1, T_co = (y[cx1], y[cp6], y[cT6], y[ctq], y[cx3], y[cTin], y[cx4],
                                                          y[cT1], y[cTco])
+            d1, d3, d4, dT1, dTin = dbar[cx1], dbar[cx3], dbar[cx4], dbar[cT1], dbar[cTin]
             base_ok = math.isfinite(x1) and math.isfinite(x4) and math.isfinite(T1)
             if base_ok:
-                _cycle_table(c, x1, x4, T1, dbar[cx1], dbar[cx4], dbar[cT1], st[12], tab[side])
+                _cycle_table(c, x1, x4, T1, d1, d4, dT1, st[12], tab[side])
                 if math.isfinite(tab[side, 0, 0]):
                     st[12] = tab[side, 0, 0]
             t = tab[side]
@@ -231,7 +271,7 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST):
             m = 0 + side
             if first:
                 st[0] = x1
-                st[1] = dbar[cx1]
+                st[1] = d1
                 R[kk, m] = 0.0 if math.isfinite(x1) else math.inf
             else:
                 # prior from the exact model step with the known input (u linear within the step)
@@ -239,14 +279,14 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST):
                 F1 = fuel_gain * U[kk]
                 prior = E1 * st[0] + q1 * F0 + r1 * (F1 - F0)
                 eta = r1 * abs(F1 - F0) + MODEL_MARGIN * abs(prior)
-                st[1] = E1 * ((1.0 - Ld1) * st[1] + Ld1 * dbar[cx1]) + eta
+                st[1] = E1 * ((1.0 - Ld1) * st[1] + Ld1 * d1) + eta
                 if math.isfinite(x1):
                     R[kk, m] = x1 - prior
                     st[0] = prior + Ld1 * (x1 - prior)
                 else:
                     R[kk, m] = math.inf
                     st[0] = prior
-            THR[kk, m] = st[1] + dbar[cx1]
+            THR[kk, m] = st[1] + d1
             # ---------------------------------------------------------------- M2.(1,2): p6, M2.(3,4): T6
             for j in range(2):
                 m = 2 + 2 * j + side
@@ -264,49 +304,89 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST):
             m = 6 + side
             if base_ok and math.isfinite(tqm) and math.isfinite(T6m) and tqm > 0.0:
                 n_t = math.sqrt(c.two_pi_over_c * tqm)
-                g0 = torque_given_speed(x1, x4, T1, T6m, n_t, c)
-                r0 = tqm - g0
-                b = 0.0
                 dq = dbar[ctq]
+                dT6 = dbar[cT6]
+                pc = _torque_cycle(x1, x4, T1, n_t, c)
+                g0 = _torque_from(pc, T6m, c)
+                r0 = tqm - g0
                 n_p = math.sqrt(c.two_pi_over_c * (tqm + dq))
-                n_m = math.sqrt(c.two_pi_over_c * max(tqm - dq, 0.0))
-                b += _dev(r0, (tqm + dq) - torque_given_speed(x1, x4, T1, T6m, n_p, c),
-                          (tqm - dq) - torque_given_speed(x1, x4, T1, T6m, n_m, c))
-                b += _dev(r0, tqm - torque_given_speed(x1, x4, T1, T6m + dbar[cT6], n_t, c),
-                          tqm - torque_given_speed(x1, x4, T1, T6m - dbar[cT6], n_t, c))
-                b += _dev(r0, tqm - torque_given_speed(x1 + dbar[cx1], x4, T1, T6m, n_t, c),
-                          tqm - torque_given_speed(x1 - dbar[cx1], x4, T1, T6m, n_t, c))
-                b += _dev(r0, tqm - torque_given_speed(x1, x4 + dbar[cx4], T1, T6m, n_t, c),
-                          tqm - torque_given_speed(x1, x4 - dbar[cx4], T1, T6m, n_t, c))
-                b += _dev(r0, tqm - torque_given_speed(x1, x4, T1 + dbar[cT1], T6m, n_t, c),
-                          tqm - torque_given_speed(x1, x4, T1 - dbar[cT1], T6m, n_t, c))
+                rp = (tqm + dq) - _torque_from(_torque_cycle(x1, x4, T1, n_p, c), T6m, c)
+                rm = r0
+                if not ONE_SIDED:
+                    n_m = math.sqrt(c.two_pi_over_c * max(tqm - dq, 0.0))
+                    rm = (tqm - dq) - _torque_from(_torque_cycle(x1, x4, T1, n_m, c), T6m, c)
+                b = _dev(r0, rp, rm)
+                b += _dev(r0, tqm - _torque_from(pc, T6m + dT6, c), tqm - _torque_from(pc, T6m - dT6, c))
+                rp = tqm - _torque_from(_torque_cycle(x1 + d1, x4, T1, n_t, c), T6m, c)
+                if not ONE_SIDED:
+                    rm = tqm - _torque_from(_torque_cycle(x1 - d1, x4, T1, n_t, c), T6m, c)
+                b += _dev(r0, rp, rm)
+                rp = tqm - _torque_from(_torque_cycle(x1, x4 + d4, T1, n_t, c), T6m, c)
+                if not ONE_SIDED:
+                    rm = tqm - _torque_from(_torque_cycle(x1, x4 - d4, T1, n_t, c), T6m, c)
+                b += _dev(r0, rp, rm)
+                rp = tqm - _torque_from(_torque_cycle(x1, x4, T1 + dT1, n_t, c), T6m, c)
+                if not ONE_SIDED:
+                    rm = tqm - _torque_from(_torque_cycle(x1, x4, T1 - dT1, n_t, c), T6m, c)
+                b += _dev(r0, rp, rm)
                 R[kk, m] = r0
                 THR[kk, m] = SAFETY * b + MODEL_MARGIN * abs(g0)
             else:
                 R[kk, m] = math.inf
                 THR[kk, m] = dbar[ctq]
-            # ---------------------------------------------------------------- M3.q (receiver observer)
-            yv[0], yv[1], yv[2], yv[3], yv[4] = x1, x3, x4, T1, T_in
-            db[0], db[1], db[2], db[3], db[4] = dbar[cx1], dbar[cx3], dbar[cx4], dbar[cT1], dbar[cTin]
-            m = 8 + side
+            # ------------------------------------------------- model values of M3.q, M3.(3,4), M4.q, M4.(5,6)
             ok = base_ok and math.isfinite(x3) and math.isfinite(T_in)
-            F, H = _forcing_and_bound(c, 3, yv, t, db) if ok else (0.0, 0.0)
-            R[kk, m], THR[kk, m] = _observer_update(st, 2, first, ok, x3, F, H, E3, q3, r3, Ld3, dbar[cx3])
+            if ok:
+                dp6 = dbar[cp6]
+                dT6 = dbar[cT6]
+                psi = scavenge_flow_function(x3 / x4, c)
+                Pi = turbine_expansion(x3, c)
+                m1, s_sl, mdot, df = _point(c, x1, x3, x4, T1, n0, psi, Pi, T_in, T_out, T6m, p6m, G, 0)
+                for j in range(1, 9, step):
+                    a = d1 if j == 1 else (-d1 if j == 2 else 0.0)
+                    e = d3 if j == 3 else (-d3 if j == 4 else 0.0)
+                    f = d4 if j == 5 else (-d4 if j == 6 else 0.0)
+                    g = dT1 if j == 7 else (-dT1 if j == 8 else 0.0)
+                    psi_j, Pi_j = psi, Pi
+                    if j == 3 or j == 4:
+                        psi_j = scavenge_flow_function((x3 + e) / x4, c)
+                        Pi_j = turbine_expansion(x3 + e, c)
+                    elif j == 5 or j == 6:
+                        psi_j = scavenge_flow_function(x3 / (x4 + f), c)
+                    n_j = t[j, 0] if j < 3 else (n0 if j < 5 else t[j - 2, 0])
+                    _point(c, x1 + a, x3 + e, x4 + f, T1 + g, n_j, psi_j, Pi_j, T_in, T_out, T6m, p6m, G, j)
+                for j in range(9, 17, step):
+                    sg = 1.0 if j % 2 == 1 else -1.0
+                    Ti = T_in + sg * dTin if j < 11 else T_in
+                    if j < 11 or j >= 15:  # T_in or T_out: h3, h4, T_co
+                        To = T_out + sg * dTo if j >= 15 else T_out
+                        G[j, 0] = receiver_forcing(mdot, Ti, c)
+                        G[j, 1] = compressor_forcing(x4, df, Ti, Pi, c)
+                        G[j, 3] = compressor_outlet_temperature(df, Ti, To, 0.0, c)
+                    else:  # p6 or T6: T_in
+                        pp = p6m + sg * dp6 if j < 13 else p6m
+                        TT = T6m + sg * dT6 if j >= 13 else T6m
+                        G[j, 2] = receiver_and_turbine(x1, x3, x4, m1, s_sl, n0, TT, pp, c.T_sl_K, c)[1]
+                if ONE_SIDED:
+                    for j in range(2, 17, 2):
+                        for q in range(4):
+                            G[j, q] = G[0, q]
+            # ---------------------------------------------------------------- M3.q (receiver observer)
+            m = 8 + side
+            F, H = 0.0, 0.0
+            if ok:
+                F = G[0, 0]
+                H = SAFETY * (_dev(F, G[1, 0], G[2, 0]) + _dev(F, G[3, 0], G[4, 0]) + _dev(F, G[5, 0], G[6, 0])
+                              + _dev(F, G[7, 0], G[8, 0]) + _dev(F, G[9, 0], G[10, 0]))
+            R[kk, m], THR[kk, m] = _observer_update(st, 2, first, ok, x3, F, H, E3, q3, r3, Ld3, d3)
             # ---------------------------------------------------------------- M3.(3,4): T_in
             m = 10 + side
-            if base_ok and math.isfinite(x3) and math.isfinite(p6m) and math.isfinite(T6m) and math.isfinite(T_in):
-                g0 = _t_in(c, x1, x3, x4, T1, p6m, T6m, n0)
-                b = _dev(g0, _t_in(c, x1 + db[0], x3, x4, T1, p6m, T6m, t[1, 0]),
-                         _t_in(c, x1 - db[0], x3, x4, T1, p6m, T6m, t[2, 0]))
-                b += _dev(g0, _t_in(c, x1, x3 + db[1], x4, T1, p6m, T6m, n0), _t_in(c, x1, x3 - db[1], x4, T1, p6m, T6m, n0))
-                b += _dev(g0, _t_in(c, x1, x3, x4 + db[2], T1, p6m, T6m, t[3, 0]),
-                          _t_in(c, x1, x3, x4 - db[2], T1, p6m, T6m, t[4, 0]))
-                b += _dev(g0, _t_in(c, x1, x3, x4, T1 + db[3], p6m, T6m, t[5, 0]),
-                          _t_in(c, x1, x3, x4, T1 - db[3], p6m, T6m, t[6, 0]))
-                b += _dev(g0, _t_in(c, x1, x3, x4, T1, p6m + dbar[cp6], T6m, n0),
-                          _t_in(c, x1, x3, x4, T1, p6m - dbar[cp6], T6m, n0))
-                b += _dev(g0, _t_in(c, x1, x3, x4, T1, p6m, T6m + dbar[cT6], n0),
-                          _t_in(c, x1, x3, x4, T1, p6m, T6m - dbar[cT6], n0))
+            if ok and math.isfinite(p6m) and math.isfinite(T6m):
+                g0 = G[0, 2]
+                b = _dev(g0, G[1, 2], G[2, 2]) + _dev(g0, G[3, 2], G[4, 2]) + _dev(g0, G[5, 2], G[6, 2])
+                b += _dev(g0, G[7, 2], G[8, 2])
+                b += _dev(g0, G[11, 2], G[12, 2])
+                b += _dev(g0, G[13, 2], G[14, 2])
                 R[kk, m] = T_in - g0
                 THR[kk, m] = dbar[cTin] + SAFETY * b + MODEL_MARGIN * abs(g0)
             else:
@@ -314,30 +394,24 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST):
                 THR[kk, m] = dbar[cTin]
             # ---------------------------------------------------------------- M4.q (charge observer)
             m = 13 + side
-            ok = base_ok and math.isfinite(x3) and math.isfinite(T_in)
-            F, H = _forcing_and_bound(c, 4, yv, t, db) if ok else (0.0, 0.0)
-            R[kk, m], THR[kk, m] = _observer_update(st, 7, first, ok, x4, F, H, E4, q4, r4, Ld4, dbar[cx4])
+            F, H = 0.0, 0.0
+            if ok:
+                F = G[0, 1]
+                H = SAFETY * (_dev(F, G[1, 1], G[2, 1]) + _dev(F, G[3, 1], G[4, 1]) + _dev(F, G[5, 1], G[6, 1])
+                              + _dev(F, G[7, 1], G[8, 1]) + _dev(F, G[9, 1], G[10, 1]))
+            R[kk, m], THR[kk, m] = _observer_update(st, 7, first, ok, x4, F, H, E4, q4, r4, Ld4, d4)
             # ---------------------------------------------------------------- M4.(3,4): T1
             m = 15 + side
             R[kk, m] = T1 - T1_model if math.isfinite(T1) else math.inf
-            THR[kk, m] = dbar[cT1] + MODEL_MARGIN * T1_model
+            THR[kk, m] = dT1 + MODEL_MARGIN * T1_model
             # ---------------------------------------------------------------- M4.(5,6): compressor outlet
             m = 17 + side
-            T_out = y[t_out_col]
             if ok and math.isfinite(T_co) and math.isfinite(T_out):
-                g0 = _t_co(c, x1, x3, x4, T1, T_in, T_out, n0)
-                b = _dev(g0, _t_co(c, x1 + db[0], x3, x4, T1, T_in, T_out, t[1, 0]),
-                         _t_co(c, x1 - db[0], x3, x4, T1, T_in, T_out, t[2, 0]))
-                b += _dev(g0, _t_co(c, x1, x3 + db[1], x4, T1, T_in, T_out, n0),
-                          _t_co(c, x1, x3 - db[1], x4, T1, T_in, T_out, n0))
-                b += _dev(g0, _t_co(c, x1, x3, x4 + db[2], T1, T_in, T_out, t[3, 0]),
-                          _t_co(c, x1, x3, x4 - db[2], T1, T_in, T_out, t[4, 0]))
-                b += _dev(g0, _t_co(c, x1, x3, x4, T1 + db[3], T_in, T_out, t[5, 0]),
-                          _t_co(c, x1, x3, x4, T1 - db[3], T_in, T_out, t[6, 0]))
-                b += _dev(g0, _t_co(c, x1, x3, x4, T1, T_in + db[4], T_out, n0),
-                          _t_co(c, x1, x3, x4, T1, T_in - db[4], T_out, n0))
-                b += _dev(g0, _t_co(c, x1, x3, x4, T1, T_in, T_out + dbar[t_out_col], n0),
-                          _t_co(c, x1, x3, x4, T1, T_in, T_out - dbar[t_out_col], n0))
+                g0 = G[0, 3]
+                b = _dev(g0, G[1, 3], G[2, 3]) + _dev(g0, G[3, 3], G[4, 3]) + _dev(g0, G[5, 3], G[6, 3])
+                b += _dev(g0, G[7, 3], G[8, 3])
+                b += _dev(g0, G[9, 3], G[10, 3])
+                b += _dev(g0, G[15, 3], G[16, 3])
                 R[kk, m] = T_co - g0
                 THR[kk, m] = dbar[cTco] + SAFETY * b + MODEL_MARGIN * abs(g0)
             else:
@@ -347,20 +421,25 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST):
             st[14] += 1.0
         # ---------------------------------------------------------------- M3.5: turbine outlet
         m = 12
-        x3e, Tine, x4e, T_out = y[side_cols[1, 4]], y[side_cols[1, 5]], y[side_cols[1, 6]], y[t_out_col]
+        x3e, Tine, x4e = y[side_cols[1, 4]], y[side_cols[1, 5]], y[side_cols[1, 6]]
         if math.isfinite(x3e) and math.isfinite(Tine) and math.isfinite(x4e) and math.isfinite(T_out):
-            g0 = turbine_outlet_temperature(Tine, x3e, x4e, c)
-            b = _dev(g0, turbine_outlet_temperature(Tine + dbar[side_cols[1, 5]], x3e, x4e, c),
-                     turbine_outlet_temperature(Tine - dbar[side_cols[1, 5]], x3e, x4e, c))
-            b += _dev(g0, turbine_outlet_temperature(Tine, x3e + dbar[side_cols[1, 4]], x4e, c),
-                      turbine_outlet_temperature(Tine, x3e - dbar[side_cols[1, 4]], x4e, c))
-            b += _dev(g0, turbine_outlet_temperature(Tine, x3e, x4e + dbar[side_cols[1, 6]], c),
-                      turbine_outlet_temperature(Tine, x3e, x4e - dbar[side_cols[1, 6]], c))
+            dTi, dx3, dx4 = dbar[side_cols[1, 5]], dbar[side_cols[1, 4]], dbar[side_cols[1, 6]]
+            Pi = turbine_expansion(x3e, c)
+            g0 = turbine_outlet_from_expansion(Tine, Pi, x4e, c)
+            gp = turbine_outlet_from_expansion(Tine + dTi, Pi, x4e, c)
+            gm = g0 if ONE_SIDED else turbine_outlet_from_expansion(Tine - dTi, Pi, x4e, c)
+            b = _dev(g0, gp, gm)
+            gp = turbine_outlet_temperature(Tine, x3e + dx3, x4e, c)
+            gm = g0 if ONE_SIDED else turbine_outlet_temperature(Tine, x3e - dx3, x4e, c)
+            b += _dev(g0, gp, gm)
+            gp = turbine_outlet_from_expansion(Tine, Pi, x4e + dx4, c)
+            gm = g0 if ONE_SIDED else turbine_outlet_from_expansion(Tine, Pi, x4e - dx4, c)
+            b += _dev(g0, gp, gm)
             R[kk, m] = T_out - g0
-            THR[kk, m] = dbar[t_out_col] + SAFETY * b + MODEL_MARGIN * abs(g0)
+            THR[kk, m] = dTo + SAFETY * b + MODEL_MARGIN * abs(g0)
         else:
             R[kk, m] = math.inf
-            THR[kk, m] = dbar[t_out_col]
+            THR[kk, m] = dTo
 
 
 class ResidualTrace:
@@ -394,7 +473,22 @@ def residuals_for_run(constants, measurements: np.ndarray, u: np.ndarray, dt: fl
 
 
 @jit
-def compute_residuals_batch(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST):
-    """:func:`compute_residuals` for N engines: Y (N, B, 19), U (N, B), R/THR (N, B, 19), ST (N, 2, N_STATE)."""
-    for i in range(Y.shape[0]):
+def _batch_range(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, i0, i1):
+    for i in range(i0, i1):
         compute_residuals(c, Y[i], U[i], dt, dbar, side_cols, t_out_col, R[i], THR[i], ST[i])
+
+
+def compute_residuals_batch(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST):
+    """:func:`compute_residuals` for N engines: Y (N, B, 19), U (N, B), R/THR (N, B, 19), ST (N, 2, N_STATE).
+
+    Batches of at least ``THREADED_MIN_ENGINES`` engines run as two contiguous halves on two
+    threads (the compiled loop releases the GIL; engines are independent, so the results equal
+    the single-thread loop bit for bit), as the simulator's batch step does.
+    """
+    n = Y.shape[0]
+    args = (c, Y, U, float(dt), dbar, side_cols, t_out_col, R, THR, ST)
+    if n < THREADED_MIN_ENGINES:
+        _batch_range(*args, 0, n)
+        return
+    half = n // 2
+    list(_executor().map(lambda r: _batch_range(*args, r[0], r[1]), [(0, half), (half, n)]))
