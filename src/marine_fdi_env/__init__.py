@@ -1,6 +1,12 @@
-"""marine_fdi_env: a fault detection and isolation benchmark on an MVFP marine diesel engine model."""
+"""marine_fdi_env: a fault detection and isolation benchmark on an MVFP marine diesel engine model.
 
+Importing the package registers the Gymnasium environment ``MarineFDI-v0``.
+"""
+
+from .envs import ENV_ID, register_envs
 from .params import EngineParams, list_parameter_sets, load_params
 
 __version__ = "0.1.0"
-__all__ = ["EngineParams", "load_params", "list_parameter_sets", "__version__"]
+__all__ = ["EngineParams", "load_params", "list_parameter_sets", "ENV_ID", "__version__"]
+
+register_envs()

@@ -111,6 +111,30 @@ class ReferenceDiagnoser:
         """Forget everything: observers restart on the next sample."""
         self.state = new_state(self.n, self.params.n_nom_rev_s)
         self.samples = 0
+        self.decisions = [self._new_decision() for _ in range(self.n)]
+        self.first_violation = np.full((self.n, N_MODULES), np.nan)
+        # per engine, the next time a grace period of its decision state ends (inf: none pending)
+        self._next_expiry = np.full(self.n, np.inf)
+        # per engine, the stream sample whose time is 0 (engines restarted mid-stream differ)
+        self._offset = np.zeros(self.n, dtype=np.int64)
+
+    def reset_engines(self, engines, first_sample_index: int = 0) -> None:
+        """Forget everything about some engines (new runs on them); the others carry on.
+
+        The next sample of each engine given is its sample number ``first_sample_index`` (time
+        ``first_sample_index * dt``): 1 when its run's t = 0 reading is not passed on.
+        """
+        idx = np.asarray(engines, dtype=np.int64).reshape(-1)
+        if np.any((idx < 0) | (idx >= self.n)):
+            raise ValueError(f"engines must be indices in [0, {self.n}), got {engines!r}")
+        for i in idx:
+            self.state[i] = new_state(1, self.params.n_nom_rev_s)[0]
+            self.decisions[i] = self._new_decision()
+            self.first_violation[i] = np.nan
+            self._next_expiry[i] = np.inf
+            self._offset[i] = self.samples - int(first_sample_index)
+
+    def _new_decision(self) -> DiagnosisState:
         settle, grace = None, 0.0
         if self.exoneration == "sure":
             from .certainty import grace_times, settle_times, sure_cells
@@ -118,11 +142,8 @@ class ReferenceDiagnoser:
             ex, temporal, settle, grace = sure_cells(), True, settle_times(), grace_times()
         else:
             ex, temporal = (True if self.exoneration == "all" else None), False
-        self.decisions = [DiagnosisState(exoneration=ex, max_cardinality=self.max_cardinality, temporal=temporal,
-                                         settle_s=settle, grace_s=grace) for _ in range(self.n)]
-        self.first_violation = np.full((self.n, N_MODULES), np.nan)
-        # per engine, the next time a grace period of its decision state ends (inf: none pending)
-        self._next_expiry = np.full(self.n, np.inf)
+        return DiagnosisState(exoneration=ex, max_cardinality=self.max_cardinality, temporal=temporal,
+                              settle_s=settle, grace_s=grace)
 
     # ------------------------------------------------------------------------------ streaming
     def observe(self, measurements, u) -> BlockOutput:
@@ -148,16 +169,18 @@ class ReferenceDiagnoser:
         viol = np.empty((N, B, N_MODULES), dtype=np.bool_)
         peak = np.empty((N, N_MODULES))
         _violations_and_peaks(R, THR, viol, peak)
-        t = (self.samples + np.arange(B)) * self.dt
-        t_end = float(t[-1])
+        tt = (self.samples - self._offset[:, None] + np.arange(B)[None, :]) * self.dt  # (N, B) engine clocks
+        t_end_all = tt[:, -1]
         # Only engines where a module fires for the first time, or a grace period of the decision
         # logic ends within the block, need the (Python) decision update; for all others
         # DiagnosisState.update/advance would change nothing.
         new_mod = viol.any(axis=1) & np.isnan(self.first_violation)  # (N, 19)
-        busy = new_mod.any(axis=1) | (t_end > self._next_expiry)
+        busy = new_mod.any(axis=1) | (t_end_all > self._next_expiry)
         if busy.any():
             any_row = viol.any(axis=2)  # (N, B)
             for i in np.flatnonzero(busy):
+                t = tt[i]
+                t_end = float(t_end_all[i])
                 st = self.decisions[i]
                 v = viol[i]
                 rows = np.flatnonzero(any_row[i])
@@ -182,7 +205,7 @@ class ReferenceDiagnoser:
 
     def _features(self, peak: np.ndarray) -> np.ndarray:
         """peak: (N, 19) max |r|/threshold over the block, capped at 1e3 (see _violations_and_peaks)."""
-        now = self.samples * self.dt
+        now = ((self.samples - self._offset) * self.dt)[:, None]
         latched = ~np.isnan(self.first_violation)
         f = np.empty((self.n, N_MODULES, N_FEATURES_PER_MODULE), dtype=np.float32)
         f[:, :, 0] = peak
