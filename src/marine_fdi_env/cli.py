@@ -448,6 +448,9 @@ def build_parser() -> argparse.ArgumentParser:
     # implemented in marine_fdi_env.validation (own argument parsers; see main())
     sub.add_parser("validate", add_help=False,
                    help="compare the model with measured data, name the causes of misfit (see --help)")
+    sub.add_parser("evaluate", add_help=False, help="run an agent on a frozen evaluation suite (see evaluate --help)")
+    sub.add_parser("report", add_help=False, help="Markdown table and plots from results files (see report --help)")
+    sub.add_parser("dataset", add_help=False, help="export features and labels for offline learning (see dataset --help)")
     sub.add_parser("synthesize-measurements", add_help=False,
                    help="write 'measured' data from the model with hidden mechanisms (see --help)")
 
@@ -460,6 +463,13 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+_ENV_COMMANDS = {
+    "evaluate": ("marine_fdi_env.envs.evaluate", "evaluate_main"),
+    "report": ("marine_fdi_env.envs.report", "report_main"),
+    "dataset": ("marine_fdi_env.envs.dataset", "dataset_main"),
+}
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; returns the exit code (0 ok, 2 invalid input, 1 I/O error)."""
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -467,6 +477,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         from .validation.report import validate_main
 
         return validate_main(argv[1:])
+    if argv and argv[0] in _ENV_COMMANDS:
+        import importlib
+
+        mod, fn = _ENV_COMMANDS[argv[0]]
+        return getattr(importlib.import_module(mod), fn)(argv[1:])
     if argv and argv[0] == "synthesize-measurements":
         from .validation.synthesize import synthesize_main
 
