@@ -1,0 +1,219 @@
+"""Trained models as benchmark agents (``marine-fdi evaluate --agent training/models/NAME``).
+
+A model directory holds ``agent.json`` (``{"class": "training.agents:SB3Agent"}`` or
+``"training.agents:ClassifierAgent"``), ``config.json`` (algorithm, hyperparameters, seed,
+observation size and feature names, the command that trained it, training CPU time), the
+weights (``model.zip`` for SB3, ``model.pt`` for the classifier) and ``learning_curve.csv``.
+
+Loading checks what it reads and raises ``ValueError`` naming the file and the problem (missing,
+unreadable or corrupt, made for another observation space) instead of a stack trace from inside
+torch or SB3.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from marine_fdi_env.envs.hypotheses import N_HYPOTHESES, UNKNOWN
+from marine_fdi_env.envs.observation import feature_names
+
+__all__ = ["SB3Agent", "ClassifierAgent", "read_config", "check_observation"]
+
+
+def read_config(path: Path) -> dict:
+    f = Path(path) / "config.json"
+    if not f.is_file():
+        raise ValueError(f"{f}: missing (a model directory needs config.json beside its weights)")
+    try:
+        cfg = json.loads(f.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise ValueError(f"{f}: not a readable model config ({e})") from None
+    if not isinstance(cfg, dict) or "observation" not in cfg:
+        raise ValueError(f"{f}: not a model config (no 'observation' entry)")
+    return cfg
+
+
+def check_observation(cfg: dict, where: Path, observe_sensors: bool = False) -> int:
+    """The per-decision observation size of a model; ValueError if it is not this env's."""
+    ob = cfg["observation"]
+    names = feature_names(bool(ob.get("observe_sensors", observe_sensors)))
+    if ob.get("feature_names") != names:
+        size = ob.get("size")
+        raise ValueError(f"{where}: model made for another observation space ({size} features "
+                         f"{'with different names' if size == len(names) else ''}); this environment has "
+                         f"{len(names)} features ({names[0]}, ..., {names[-1]})".replace("  ", " "))
+    return len(names)
+
+
+def _need_file(f: Path) -> Path:
+    if not f.is_file():
+        raise ValueError(f"{f}: missing model file")
+    if f.stat().st_size == 0:
+        raise ValueError(f"{f}: empty model file")
+    return f
+
+
+def _check_batch(obs: np.ndarray, size: int, where: Path) -> np.ndarray:
+    obs = np.asarray(obs, dtype=np.float32)
+    if obs.ndim != 2 or obs.shape[1] != size:
+        raise ValueError(f"{where}: model expects observations of {size} features, got shape {obs.shape}")
+    return obs
+
+
+class SB3Agent:
+    """A Stable-Baselines3 policy (PPO, or RecurrentPPO from sb3-contrib), deterministic actions."""
+
+    def __init__(self, model, cfg: dict, where: Path) -> None:
+        self.model = model
+        self.cfg = cfg
+        self.where = where
+        self.name = cfg.get("name", cfg.get("algo", "sb3"))
+        self.action_mode = cfg["action_mode"]
+        self.frame_stack = int(cfg.get("frame_stack", 1))
+        self.recurrent = cfg["algo"] == "ppo_lstm"
+        self.obs_size = int(cfg["observation"]["size"])
+
+    @classmethod
+    def from_dir(cls, path, **kwargs) -> "SB3Agent":
+        path = Path(path)
+        cfg = read_config(path)
+        check_observation(cfg, path / "config.json")
+        f = _need_file(path / "model.zip")
+        algo = cfg.get("algo")
+        import zipfile
+
+        if not zipfile.is_zipfile(f):
+            raise ValueError(f"{f}: corrupt model file (not a zip archive as saved by stable-baselines3)")
+        try:
+            import torch
+
+            torch.set_num_threads(1)
+            if algo == "ppo_lstm":
+                from sb3_contrib import RecurrentPPO as Algo
+            elif algo == "ppo":
+                from stable_baselines3 import PPO as Algo
+            else:
+                raise ValueError(f"{path / 'config.json'}: unknown algo {algo!r} (ppo, ppo_lstm)")
+            model = Algo.load(f, device="cpu")
+        except ValueError:
+            raise
+        except Exception as e:  # noqa: BLE001 - any failure inside SB3/torch is a bad file
+            raise ValueError(f"{f}: corrupt or unreadable model ({type(e).__name__}: {e})") from None
+        want = (int(cfg["observation"]["size"]) * int(cfg.get("frame_stack", 1)),)
+        if tuple(model.observation_space.shape) != want:
+            raise ValueError(f"{f}: model made for another observation space (shape "
+                             f"{tuple(model.observation_space.shape)}, this environment gives {want})")
+        return cls(model, cfg, path)
+
+    def reset(self, seeds: list[int]) -> None:
+        n = len(seeds)
+        self.stack = None
+        self.state = None
+        self.episode_start = np.ones(n, dtype=bool)
+        self.n = n
+
+    def _stacked(self, obs: np.ndarray) -> np.ndarray:
+        if self.frame_stack == 1:
+            return obs
+        if self.stack is None:  # SB3's VecFrameStack starts with zeros
+            self.stack = np.zeros((len(obs), self.frame_stack * self.obs_size), dtype=np.float32)
+        self.stack = np.roll(self.stack, -self.obs_size, axis=1)
+        self.stack[:, -self.obs_size:] = obs
+        return self.stack
+
+    def act(self, obs: np.ndarray, infos: dict) -> np.ndarray:
+        from .vec_adapter import to_belief
+
+        x = self._stacked(_check_batch(obs, self.obs_size, self.where))
+        if self.recurrent:
+            a, self.state = self.model.predict(x, state=self.state, episode_start=self.episode_start,
+                                               deterministic=True)
+            self.episode_start[:] = False
+        else:
+            a, _ = self.model.predict(x, deterministic=True)
+        return to_belief(a, self.action_mode)
+
+
+class ClassifierAgent:
+    """The GRU diagnoser of :mod:`training.classifier` with its calibrated declaration rule."""
+
+    def __init__(self, model, cfg: dict, where: Path, use_reference: bool | None = None) -> None:
+        self.model = model
+        self.cfg = cfg
+        self.where = where
+        self.name = cfg.get("name", "classifier")
+        d = cfg["declaration"]
+        self.alarm_threshold = float(d["alarm_threshold"])
+        self.isolation_threshold = float(d.get("isolation_threshold", 0.5))
+        self.use_reference = bool(d.get("use_reference", False) if use_reference is None else use_reference)
+        self.obs_size = int(cfg["observation"]["size"])
+
+    @classmethod
+    def from_dir(cls, path, **kwargs) -> "ClassifierAgent":
+        path = Path(path)
+        cfg = read_config(path)
+        check_observation(cfg, path / "config.json")
+        f = _need_file(path / "model.pt")
+        if "declaration" not in cfg or "architecture" not in cfg:
+            raise ValueError(f"{path / 'config.json'}: not a classifier config (needs 'declaration' and "
+                             "'architecture')")
+        import torch
+
+        from .classifier import GRUDiagnoser
+
+        torch.set_num_threads(1)
+        try:
+            state = torch.load(f, map_location="cpu", weights_only=True)
+        except Exception as e:  # noqa: BLE001
+            raise ValueError(f"{f}: corrupt or unreadable model ({type(e).__name__}: {e})") from None
+        if not isinstance(state, dict):
+            raise ValueError(f"{f}: corrupt model (not a state dict)")
+        arch = cfg["architecture"]
+        model = GRUDiagnoser(int(arch["n_features"]), hidden=int(arch["hidden"]), embed=int(arch["embed"]))
+        w = state.get("inp.weight")
+        if w is None or not hasattr(w, "shape"):
+            raise ValueError(f"{f}: corrupt model (no input layer weights)")
+        if w.shape[1] != int(cfg["observation"]["size"]):
+            raise ValueError(f"{f}: model made for another observation space ({w.shape[1]} features, this "
+                             f"environment gives {cfg['observation']['size']})")
+        try:
+            model.load_state_dict(state)
+        except Exception as e:  # noqa: BLE001
+            raise ValueError(f"{f}: weights do not fit the architecture in config.json ({e})") from None
+        model.eval()
+        return cls(model, cfg, path, **kwargs)
+
+    def reset(self, seeds: list[int]) -> None:
+        self.n = len(seeds)
+        self.h = None
+        self.alarm = np.zeros(self.n, dtype=bool)
+
+    def act(self, obs: np.ndarray, infos: dict) -> np.ndarray:
+        import torch
+
+        x = _check_batch(obs, self.obs_size, self.where)
+        with torch.no_grad():
+            logits, self.h = self.model(torch.as_tensor(x[:, None, :]), self.h)
+            p = torch.sigmoid(logits[:, 0]).numpy()
+        self.alarm |= p[:, -1] >= self.alarm_threshold
+        out = np.zeros((len(x), N_HYPOTHESES), dtype=np.float32)
+        ref = infos.get("reference") if self.use_reference else None
+        for i in np.flatnonzero(self.alarm):
+            faults = p[i, :-1]
+            if ref is not None and bool(ref["detected"][i]):
+                from baselines.reference_agent import belief_from_diagnoses
+
+                b = belief_from_diagnoses(True, ref["diagnoses"][i])
+                # the reference's candidates, ranked by the classifier where it is ambiguous
+                cand = b[:-2] > 0
+                if cand.any() and not (b[:-2] >= 0.5).any():
+                    faults = np.where(cand, faults, 0.0)
+            dec = faults >= self.isolation_threshold
+            if dec.any():
+                out[i, :-2][dec] = 1.0
+            else:
+                out[i, UNKNOWN] = 1.0
+        return out

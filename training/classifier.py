@@ -1,0 +1,167 @@
+"""Supervised diagnoser: a small GRU over the episode's residual features.
+
+Model (:class:`GRUDiagnoser`): per decision, the 96 observation features are standardised (mean
+and scale of the training data, stored with the weights), pass a linear layer + ReLU and a
+one-layer GRU that carries the episode's history (causal: the output at decision k depends only
+on decisions 0..k), and a linear head gives 27 logits: one per fault id (multi-label: which
+faults are active) and one for "some fault is active".
+
+Training data: ``marine-fdi dataset`` exports of scenario *presets* (never of the evaluation
+suites); labels are the ``active`` arrays (a fault counts from its onset on).  Loss: binary cross
+entropy on every valid decision, the "fault active" logit weighted ``alarm_weight``.
+
+Declaration (:class:`training.agents.ClassifierAgent`): the alarm is raised when the "fault
+active" probability passes ``alarm_threshold`` and then stays on (latched: faults do not go away
+by themselves in the suites, and a flickering alarm would count one false alarm per rising
+edge); the threshold is calibrated on fault-free episodes for a target false-alarm rate
+(:func:`calibrate_threshold`).  While the alarm is on, the faults with probability >=
+``isolation_threshold`` are declared (``unknown`` when none is).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torch import nn
+
+from marine_fdi_env.faults import FAULT_IDS
+
+__all__ = ["GRUDiagnoser", "TrainResult", "train_classifier", "calibrate_threshold", "load_dataset",
+           "episode_scores"]
+
+N_FAULTS = len(FAULT_IDS)
+
+
+class GRUDiagnoser(nn.Module):
+    """Causal GRU: (B, T, D) features -> (B, T, 27) logits (26 faults, then "some fault")."""
+
+    def __init__(self, n_features: int, hidden: int = 64, embed: int = 64) -> None:
+        super().__init__()
+        self.n_features = int(n_features)
+        self.hidden = int(hidden)
+        self.embed = int(embed)
+        self.register_buffer("mean", torch.zeros(n_features))
+        self.register_buffer("scale", torch.ones(n_features))
+        self.inp = nn.Linear(n_features, embed)
+        self.gru = nn.GRU(embed, hidden, batch_first=True)
+        self.head = nn.Linear(hidden, N_FAULTS + 1)
+
+    def forward(self, x: torch.Tensor, h: torch.Tensor | None = None):
+        z = torch.relu(self.inp((x - self.mean) / self.scale))
+        y, h = self.gru(z, h)
+        return self.head(y), h
+
+
+@dataclass
+class TrainResult:
+    model: GRUDiagnoser
+    curve: list[dict]
+    cpu_s: float
+
+
+def load_dataset(path) -> dict:
+    """The arrays of a ``marine-fdi dataset`` export (``dataset.npz`` or its directory)."""
+    from pathlib import Path
+
+    p = Path(path)
+    if p.is_dir():
+        p = p / "dataset.npz"
+    with np.load(p) as z:
+        return {k: z[k] for k in ("obs", "active", "valid")}
+
+
+def _targets(active: np.ndarray) -> np.ndarray:
+    return np.concatenate([active, active.any(axis=-1, keepdims=True)], axis=-1).astype(np.float32)
+
+
+def train_classifier(data: dict, *, seed: int, hidden: int = 64, embed: int = 64, epochs: int = 30,
+                     batch_size: int = 32, lr: float = 2e-3, weight_decay: float = 1e-5, alarm_weight: float = 4.0,
+                     val_fraction: float = 0.1, log=print) -> TrainResult:
+    """Train a :class:`GRUDiagnoser` on dataset arrays (``obs``, ``active``, ``valid``); seeded."""
+    c0 = time.process_time()
+    torch.manual_seed(seed)
+    rng = np.random.default_rng(seed)
+    obs = torch.as_tensor(data["obs"], dtype=torch.float32)
+    y = torch.as_tensor(_targets(data["active"]))
+    valid = torch.as_tensor(data["valid"], dtype=torch.float32)
+    E, T, D = obs.shape
+    perm = rng.permutation(E)
+    n_val = int(round(val_fraction * E)) if E >= 10 else 0
+    val_idx, tr_idx = perm[:n_val], perm[n_val:]
+    model = GRUDiagnoser(D, hidden=hidden, embed=embed)
+    flat = obs[tr_idx][valid[tr_idx] > 0]
+    model.mean.copy_(flat.mean(0))
+    model.scale.copy_(flat.std(0).clamp_min(1e-3))
+    opt = torch.optim.Adam(model.parameters(), lr=lr, weight_decay=weight_decay)
+    w = torch.ones(N_FAULTS + 1)
+    w[-1] = alarm_weight
+    bce = nn.BCEWithLogitsLoss(reduction="none")
+
+    def loss_of(idx):
+        logits, _ = model(obs[idx])
+        per = (bce(logits, y[idx]) * w).sum(-1)
+        m = valid[idx]
+        return (per * m).sum() / m.sum().clamp_min(1.0)
+
+    curve = []
+    for ep in range(epochs):
+        model.train()
+        order = rng.permutation(tr_idx)
+        tot, nb = 0.0, 0
+        for s in range(0, len(order), batch_size):
+            idx = order[s:s + batch_size]
+            opt.zero_grad()
+            loss = loss_of(idx)
+            loss.backward()
+            nn.utils.clip_grad_norm_(model.parameters(), 1.0)
+            opt.step()
+            tot += loss.item()
+            nb += 1
+        row = {"epoch": ep + 1, "train_loss": tot / max(nb, 1), "cpu_s": time.process_time() - c0}
+        if n_val:
+            model.eval()
+            with torch.no_grad():
+                row["val_loss"] = float(loss_of(val_idx))
+        curve.append(row)
+        if log:
+            log(f"epoch {ep + 1:3d}  train {row['train_loss']:.4f}" +
+                (f"  val {row['val_loss']:.4f}" if n_val else "") + f"  cpu {row['cpu_s']:.0f} s")
+    model.eval()
+    return TrainResult(model, curve, time.process_time() - c0)
+
+
+@torch.no_grad()
+def episode_scores(model: GRUDiagnoser, obs: np.ndarray, batch: int = 64) -> np.ndarray:
+    """Probabilities (E, T, 27) for whole episodes (E, T, D)."""
+    out = []
+    for s in range(0, len(obs), batch):
+        logits, _ = model(torch.as_tensor(obs[s:s + batch], dtype=torch.float32))
+        out.append(torch.sigmoid(logits).numpy())
+    return np.concatenate(out)
+
+
+def calibrate_threshold(alarm_prob: np.ndarray, valid: np.ndarray, period_s: float = 1.0,
+                        target_per_hour: float = 0.0, margin: float = 1.0) -> dict:
+    """Alarm threshold for at most ``target_per_hour`` false alarms on fault-free episodes.
+
+    ``alarm_prob`` (E, T): the "some fault" probability of fault-free episodes.  With the latched
+    alarm an episode raises one false alarm iff its maximum passes the threshold, so the
+    threshold is set above the maximum of all but ``floor(target * hours)`` episodes; ``margin``
+    (>= 0) then moves it further up in log-odds (``logit(thr) + margin``), a safety distance for
+    operating conditions the calibration episodes do not cover.
+    """
+    p = np.where(valid, alarm_prob, 0.0)
+    peaks = np.sort(p.max(axis=1))[::-1]
+    hours = float(valid.sum()) * period_s / 3600.0
+    allowed = int(math.floor(target_per_hour * hours + 1e-9))
+    base = float(peaks[allowed]) if allowed < len(peaks) else 0.0
+    base = min(max(base, 1e-6), 1 - 1e-6)
+    logit = math.log(base / (1 - base)) + margin
+    thr = 1.0 / (1.0 + math.exp(-logit))
+    return {"alarm_threshold": thr, "calibration_peak": base, "calibration_hours": hours,
+            "calibration_episodes": int(len(peaks)), "target_false_alarms_per_hour": target_per_hour,
+            "margin_logodds": margin}

@@ -1,0 +1,267 @@
+"""Train a learned diagnoser for ``MarineFDI-v0`` (RL Zoo style).
+
+    python -m training.train --algo ppo --seed 0                 # PPO on the batched env
+    python -m training.train --algo ppo_lstm --seed 0            # RecurrentPPO (sb3-contrib)
+    python -m training.train --algo classifier --seed 0          # supervised GRU diagnoser
+    python -m training.train --algo ppo --seed -1                # draw a seed (logged and saved)
+
+Hyperparameters: ``training/hyperparams/ALGO.yml``, keyed by env id; ``--params key=value ...``
+overrides entries (values parsed as YAML), ``--n-timesteps`` the PPO budget.  The run directory
+(``--out``, default ``training/logs/ALGO_sSEED``) receives the model, ``config.json`` (algorithm,
+hyperparameters, seed, observation space, the exact command, CPU time), ``learning_curve.csv``
+and ``agent.json``, so ``marine-fdi evaluate --agent DIR`` runs it.  The shipped models in
+``training/models/`` were made with the command recorded in their ``config.json``.
+
+CPU time is the process CPU time (all threads; simulation, features and learning together,
+including the data generation of the classifier, cached or not).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import platform
+import shlex
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from marine_fdi_env.envs.fdi_env import ENV_ID
+from marine_fdi_env.envs.observation import feature_names
+
+__all__ = ["main", "load_hyperparams", "train_sb3", "train_classifier_run", "ALGOS"]
+
+ALGOS = ("ppo", "ppo_lstm", "classifier")
+HERE = Path(__file__).resolve().parent
+CACHE = HERE / ".cache"
+
+
+def load_hyperparams(algo: str, env_id: str = ENV_ID, overrides: dict | None = None) -> dict:
+    f = HERE / "hyperparams" / f"{algo}.yml"
+    if not f.is_file():
+        raise ValueError(f"{f}: no hyperparameter file for algo {algo!r}")
+    data = yaml.safe_load(f.read_text())
+    if env_id not in data:
+        raise ValueError(f"{f}: no entry for env id {env_id!r} (has {', '.join(data)})")
+    hp = dict(data[env_id])
+    hp.update(overrides or {})
+    return hp
+
+
+def _observation_meta(observe_sensors: bool = False) -> dict:
+    names = feature_names(observe_sensors)
+    return {"size": len(names), "observe_sensors": observe_sensors, "feature_names": names}
+
+
+def _write_curve(path: Path, rows: list[dict]) -> None:
+    keys = list(dict.fromkeys(k for r in rows for k in r))
+    with path.open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=keys)
+        w.writeheader()
+        w.writerows(rows)
+
+
+def _save_meta(out: Path, cfg: dict, agent_class: str) -> None:
+    (out / "config.json").write_text(json.dumps(cfg, indent=1) + "\n")
+    (out / "agent.json").write_text(json.dumps({"class": agent_class, "kwargs": {}}, indent=1) + "\n")
+
+
+# ----------------------------------------------------------------------------- reinforcement learning
+def train_sb3(algo: str, seed: int, hp: dict, out: Path | None, log=print) -> tuple[object, dict]:
+    """Train PPO / RecurrentPPO on the batched env; returns (model, config)."""
+    import torch
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.utils import set_random_seed
+    from stable_baselines3.common.vec_env import VecFrameStack, VecMonitor
+
+    from .vec_adapter import SB3VecEnv
+
+    hp = dict(hp)
+    c0, w0 = time.process_time(), time.perf_counter()
+    torch.set_num_threads(int(hp.pop("torch_threads", 1)))
+    n_envs = int(hp.pop("n_envs"))
+    n_timesteps = int(hp.pop("n_timesteps"))
+    action_mode = hp.pop("action_mode", "discrete")
+    frame_stack = int(hp.pop("frame_stack", 1))
+    scenario = hp.pop("scenario_config", "default")
+    policy = hp.pop("policy")
+    pk = hp.pop("policy_kwargs", None)
+    policy_kwargs = eval(pk, {"dict": dict}) if isinstance(pk, str) else (pk or {})  # RL Zoo convention
+    set_random_seed(seed)
+    env = SB3VecEnv(n_envs, scenario_config=scenario, action_mode=action_mode, seed=seed)
+    env = VecMonitor(env)
+    if frame_stack > 1:
+        env = VecFrameStack(env, frame_stack)
+    if algo == "ppo":
+        from stable_baselines3 import PPO as Algo
+    else:
+        from sb3_contrib import RecurrentPPO as Algo
+    model = Algo(policy, env, seed=seed, device="cpu", verbose=0, policy_kwargs=policy_kwargs, **hp)
+    curve: list[dict] = []
+
+    class Curve(BaseCallback):
+        def __init__(self):
+            super().__init__()
+            self.returns: list[float] = []
+
+        def _on_step(self) -> bool:
+            for info in self.locals.get("infos", []):
+                if "episode" in info:
+                    self.returns.append(float(info["episode"]["r"]))
+            return True
+
+        def _on_rollout_end(self) -> None:
+            row = {"timesteps": int(self.num_timesteps), "episodes": len(self.returns),
+                   "mean_return_last": float(np.mean(self.returns[-n_envs:])) if self.returns else "",
+                   "cpu_s": round(time.process_time() - c0, 2), "wall_s": round(time.perf_counter() - w0, 2)}
+            curve.append(row)
+            if log:
+                log(f"{row['timesteps']:8d} steps  episodes {row['episodes']:5d}  "
+                    f"return {row['mean_return_last']}  cpu {row['cpu_s']:.0f} s")
+
+    model.learn(total_timesteps=n_timesteps, callback=Curve())
+    cfg = {"name": algo, "algo": algo, "env_id": ENV_ID, "seed": seed, "n_envs": n_envs,
+           "n_timesteps": n_timesteps, "action_mode": action_mode, "frame_stack": frame_stack,
+           "scenario_config": scenario, "policy": policy, "policy_kwargs": pk, "hyperparams": hp,
+           "observation": _observation_meta(), "cpu_s": round(time.process_time() - c0, 1),
+           "wall_s": round(time.perf_counter() - w0, 1)}
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        model.save(out / "model.zip")
+        _write_curve(out / "learning_curve.csv", curve)
+        cfg["model_bytes"] = (out / "model.zip").stat().st_size
+    return model, cfg
+
+
+# ----------------------------------------------------------------------------- supervised
+def _dataset(spec: dict, use_cache: bool, log=print) -> tuple[dict, float, bool]:
+    """Export (or load from the cache) a preset dataset; returns (arrays, CPU s of the export, fresh)."""
+    from marine_fdi_env import __version__
+    from marine_fdi_env.envs.dataset import export_dataset
+    from marine_fdi_env.envs.scenario_sampler import get_preset
+
+    from .classifier import load_dataset
+
+    preset, n, s = spec["preset"], int(spec["episodes"]), int(spec["seed"])
+    d = CACHE / f"{preset}_{n}_{s}_v{__version__}"
+    meta = d / "cpu.json"
+    if use_cache and meta.is_file() and (d / "dataset.npz").is_file():
+        return load_dataset(d), float(json.loads(meta.read_text())["cpu_s"]), False
+    c0 = time.process_time()
+    log(f"exporting dataset: marine-fdi dataset --preset {preset} --episodes {n} --seed {s}")
+    cfg = get_preset(preset)
+    ent = np.random.default_rng(np.random.SeedSequence(s)).integers(0, 2**63 - 1, size=n)
+    scenarios = [cfg.sample(int(e), scenario_id=f"{cfg.name}/{s}/{i}") for i, e in enumerate(ent)]
+    export_dataset(scenarios, d, {"scenario_config": cfg}, progress=False)
+    cpu = time.process_time() - c0
+    meta.write_text(json.dumps({"cpu_s": cpu}))
+    return load_dataset(d), cpu, True
+
+
+def train_classifier_run(seed: int, hp: dict, out: Path | None, use_cache: bool = True, log=print):
+    """Data export, GRU training and alarm-threshold calibration; returns (model, config)."""
+    import torch
+
+    from .classifier import calibrate_threshold, episode_scores, train_classifier
+
+    hp = dict(hp)
+    c0, w0 = time.process_time(), time.perf_counter()
+    torch.set_num_threads(int(hp.pop("torch_threads", 1)))
+    data_cpu = fresh_cpu = 0.0
+    parts = []
+    for spec in hp["datasets"] + [hp["calibration"]]:
+        arr, cpu, fresh = _dataset(spec, use_cache, log)
+        parts.append(arr)
+        data_cpu += cpu
+        fresh_cpu += cpu if fresh else 0.0
+    cal_data = parts.pop()
+    data = {k: np.concatenate([p[k] for p in parts]) for k in ("obs", "active", "valid")}
+    c_train = time.process_time()
+    res = train_classifier(data, seed=seed, hidden=int(hp["hidden"]), embed=int(hp["embed"]),
+                           epochs=int(hp["epochs"]), batch_size=int(hp["batch_size"]), lr=float(hp["lr"]),
+                           weight_decay=float(hp["weight_decay"]), alarm_weight=float(hp["alarm_weight"]),
+                           log=log)
+    train_cpu = time.process_time() - c_train
+    probs = episode_scores(res.model, cal_data["obs"])
+    cal = calibrate_threshold(probs[..., -1], cal_data["valid"], target_per_hour=float(hp["target_false_alarms_per_hour"]),
+                              margin=float(hp["margin_logodds"]))
+    log(f"alarm threshold {cal['alarm_threshold']:.4f} (calibration peak {cal['calibration_peak']:.4f} over "
+        f"{cal['calibration_episodes']} fault-free episodes)")
+    cpu_here = time.process_time() - c0
+    cfg = {"name": "classifier", "algo": "classifier", "env_id": ENV_ID, "seed": seed, "hyperparams": hp,
+           "architecture": {"kind": "gru", "n_features": int(data["obs"].shape[-1]), "hidden": int(hp["hidden"]),
+                            "embed": int(hp["embed"])},
+           "declaration": {"alarm_threshold": cal["alarm_threshold"],
+                           "isolation_threshold": float(hp["isolation_threshold"]),
+                           "use_reference": bool(hp.get("use_reference", False)), "calibration": cal},
+           "observation": _observation_meta(), "training_episodes": int(len(data["obs"])),
+           "n_parameters": int(sum(p.numel() for p in res.model.parameters())),
+           "cpu_s_data": round(data_cpu, 1), "cpu_s_train": round(train_cpu, 1),
+           # a data export cached from an earlier run still counts
+           "cpu_s": round(cpu_here - fresh_cpu + data_cpu, 1), "wall_s": round(time.perf_counter() - w0, 1)}
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        torch.save(res.model.state_dict(), out / "model.pt")
+        _write_curve(out / "learning_curve.csv", res.curve)
+        cfg["model_bytes"] = (out / "model.pt").stat().st_size
+    return res.model, cfg
+
+
+# ----------------------------------------------------------------------------- CLI
+def _parse_params(items: list[str]) -> dict:
+    out = {}
+    for it in items or []:
+        k, sep, v = it.partition("=")
+        if not sep:
+            raise ValueError(f"--params entries must look like key=value, got {it!r}")
+        out[k] = yaml.safe_load(v)
+    return out
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    ap = argparse.ArgumentParser(prog="python -m training.train", description=__doc__.splitlines()[0])
+    ap.add_argument("--algo", choices=ALGOS, required=True)
+    ap.add_argument("--seed", type=int, default=0, help="random seed; negative: draw one (logged)")
+    ap.add_argument("--env", default=ENV_ID)
+    ap.add_argument("--out", type=Path, default=None, help="run directory (default training/logs/ALGO_sSEED)")
+    ap.add_argument("--n-timesteps", type=int, default=None, help="override the PPO budget")
+    ap.add_argument("--params", nargs="*", default=[], help="hyperparameter overrides key=value")
+    ap.add_argument("--no-cache", action="store_true", help="re-export the classifier's datasets")
+    args = ap.parse_args(argv)
+    seed = args.seed
+    if seed < 0:
+        seed = int(np.random.SeedSequence().entropy % (2**31))
+        print(f"drew seed {seed}")
+    try:
+        over = _parse_params(args.params)
+        if args.n_timesteps is not None:
+            over["n_timesteps"] = args.n_timesteps
+        hp = load_hyperparams(args.algo, args.env, over)
+    except ValueError as e:
+        print(f"training.train: error: {e}", file=sys.stderr)
+        return 2
+    out = args.out or HERE / "logs" / f"{args.algo}_s{seed}"
+    if args.algo == "classifier":
+        _, cfg = train_classifier_run(seed, hp, out, use_cache=not args.no_cache)
+        agent_class = "training.agents:ClassifierAgent"
+    else:
+        _, cfg = train_sb3(args.algo, seed, hp, out)
+        agent_class = "training.agents:SB3Agent"
+    cmd = ["python", "-m", "training.train"] + [a for a in argv]
+    if args.seed < 0:
+        cmd = [a if a != str(args.seed) else str(seed) for a in cmd]
+    cfg.update(command=shlex.join(cmd), seed_drawn=args.seed < 0, cpu_minutes=round(cfg["cpu_s"] / 60.0, 2),
+               machine={"cpus": os.cpu_count(), "python": platform.python_version()})
+    _save_meta(out, cfg, agent_class)
+    print(f"saved {out} (seed {seed}, {cfg['cpu_minutes']} CPU minutes)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

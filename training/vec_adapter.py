@@ -1,0 +1,123 @@
+"""Stable-Baselines3 ``VecEnv`` over the batched ``MarineFDIVectorEnv``.
+
+SB3 expects its own vector API: ``step`` resets a finished sub-environment at once and returns
+the new episode's first observation, with the last one in ``info["terminal_observation"]``.
+``MarineFDIVectorEnv`` uses Gymnasium's next-step autoreset instead (the step after the end
+returns the new first observation, ignores the action and pays 0).  The adapter bridges the two:
+
+* when *every* slot ends at the same step (the usual case: all episodes last 300 decisions and
+  start together), it takes the autoreset step at once with a dummy action: nothing is scored in
+  it, so SB3 sees exactly its own API;
+* when only some slots end (an engine failure cut an episode short), it reports them done with
+  their last observation as the next observation, and on the next step the vector env's
+  autoreset returns their new first observation with reward 0.  That one transition per engine
+  failure (rare) is the only difference from SB3's API.
+
+Actions: ``action_mode="box"``: ``Box(-1, 1, (28,))`` rescaled to beliefs ``(a + 1) / 2``
+(SB3's Gaussian policies prefer a symmetric box); ``action_mode="discrete"``: ``Discrete(28)``,
+action k declares hypothesis k alone (belief 1 on it, 0 elsewhere; k = 26 is ``no_fault``, the
+quiet action).
+
+Measured throughput (2 shared cores, ``default`` preset): 1 engine ~280 decisions/s, 16 engines
+~570/s, 64 engines ~650/s; a DummyVecEnv of single environments runs at the 1-engine rate, so the
+batched adapter is ~2.3x faster.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from stable_baselines3.common.vec_env import VecEnv
+
+from marine_fdi_env.envs.hypotheses import N_HYPOTHESES
+from marine_fdi_env.envs.vector import MarineFDIVectorEnv
+
+__all__ = ["SB3VecEnv", "ACTION_MODES", "to_belief"]
+
+ACTION_MODES = ("box", "discrete")
+
+
+def to_belief(actions: np.ndarray, action_mode: str) -> np.ndarray:
+    """SB3 actions (N, 28) in [-1, 1] or (N,) ints -> beliefs (N, 28) in [0, 1]."""
+    if action_mode == "box":
+        a = np.asarray(actions, dtype=np.float32).reshape(-1, N_HYPOTHESES)
+        return np.clip((a + 1.0) * 0.5, 0.0, 1.0).astype(np.float32)
+    if action_mode == "discrete":
+        k = np.asarray(actions, dtype=np.int64).reshape(-1)
+        out = np.zeros((len(k), N_HYPOTHESES), dtype=np.float32)
+        out[np.arange(len(k)), k] = 1.0
+        return out
+    raise ValueError(f"action_mode must be one of {ACTION_MODES}, got {action_mode!r}")
+
+
+class SB3VecEnv(VecEnv):
+    """``num_envs`` engines of ``MarineFDIVectorEnv`` behind SB3's ``VecEnv`` (see module docstring).
+
+    ``seed``: the vector env is reset with ``seed`` (slot i gets ``seed + i``) at the first reset;
+    later resets continue the slots' own random streams.
+    """
+
+    def __init__(self, num_envs: int = 16, scenario_config: Any = "default", action_mode: str = "box",
+                 seed: int | None = None, **env_kwargs) -> None:
+        if action_mode not in ACTION_MODES:
+            raise ValueError(f"action_mode must be one of {ACTION_MODES}, got {action_mode!r}")
+        self.venv = MarineFDIVectorEnv(num_envs=num_envs, scenario_config=scenario_config, **env_kwargs)
+        self.action_mode = action_mode
+        self.render_mode = None
+        obs_space = self.venv.single_observation_space
+        act_space = (spaces.Box(-1.0, 1.0, (N_HYPOTHESES,), dtype=np.float32) if action_mode == "box"
+                     else spaces.Discrete(N_HYPOTHESES))
+        super().__init__(num_envs, obs_space, act_space)
+        self._first_seed = seed
+        self._pending = np.zeros(num_envs, dtype=bool)  # slot ended alone: the next step is its autoreset
+        self._actions = None
+
+    # ------------------------------------------------------------------ VecEnv API
+    def reset(self):
+        seed = self._first_seed if self._seeds[0] is None else self._seeds[0]
+        obs, _ = self.venv.reset(seed=seed)
+        self._first_seed = None
+        self._reset_seeds()
+        self._pending[:] = False
+        return obs.copy()
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self._actions = actions
+
+    def step_wait(self):
+        n = self.num_envs
+        beliefs = to_belief(self._actions, self.action_mode)
+        obs, rew, term, trunc, _ = self.venv.step(beliefs)
+        done = term | trunc
+        rew = rew.astype(np.float32)
+        infos: list[dict] = [{} for _ in range(n)]
+        for i in np.flatnonzero(done):
+            infos[i]["terminal_observation"] = obs[i].copy()
+            infos[i]["TimeLimit.truncated"] = bool(trunc[i] and not term[i])
+        if done.all():
+            # every slot has ended at this step: take the autoreset step at once (nothing scored)
+            obs, _, _, _, _ = self.venv.step(np.zeros((n, N_HYPOTHESES), dtype=np.float32))
+            self._pending[:] = False
+        else:
+            self._pending = done.copy()
+        return obs.copy(), rew, done.copy(), infos
+
+    def close(self) -> None:
+        pass
+
+    def get_attr(self, attr_name: str, indices=None) -> list[Any]:
+        idx = list(self._get_indices(indices))
+        if attr_name == "render_mode":
+            return [None] * len(idx)
+        return [getattr(self.venv, attr_name)] * len(idx)
+
+    def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
+        setattr(self.venv, attr_name, value)
+
+    def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list[Any]:
+        raise NotImplementedError("env_method is not supported by the batched MarineFDI adapter")
+
+    def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
+        return [False] * len(list(self._get_indices(indices)))
