@@ -4,6 +4,7 @@
     python -m marine_fdi_env.diagnosis.kpis delays --seeds 100              # single faults, delays
     python -m marine_fdi_env.diagnosis.kpis scenarios --seeds 20            # the 4 examples of 6.4
     python -m marine_fdi_env.diagnosis.kpis min-detectable --seeds 5        # KPI 6.5.2, bisection
+    python -m marine_fdi_env.diagnosis.kpis min-detectable --all --seeds 4  # all 26 faults -> env table
     python -m marine_fdi_env.diagnosis.kpis render                          # docs/diagnosis_results.md
 
 Each writes a JSON file under ``docs/data/`` (``--out`` to change) and prints a Markdown table.
@@ -22,16 +23,19 @@ import numpy as np
 
 from ..faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, PROCESS_FAULT_IDS, FaultSpec
 from ..scenarios import SCENARIOS, get_scenario
+from ..sensors import SENSORS, sensor_index
 from ..simulator import Simulator
 from .agent import ReferenceDiagnoser
 from .modules import MODULE_IDS
 
 __all__ = ["diagnose_batch", "false_alarms", "single_fault_delays", "scenario_checks", "min_detectable",
-           "THESIS_DELAYS_S", "THESIS_MIN_DETECTABLE"]
+           "detectability_limits", "THESIS_DELAYS_S", "THESIS_MIN_DETECTABLE"]
 
 PARAMS = "thesis-12v28"
 DURATION_S = 300.0
 SENSOR_ONSET_S = 30.0
+LIMIT_SENSOR_ONSET_S = 50.0  # onset of the sensor offsets in the detectability-limit bisection
+ENV_TABLE = Path(__file__).resolve().parents[1] / "data" / "env" / "detectability.json"
 BATCH = 64
 # Detection times the thesis states for its examples (section 6.4) and KPI table 6.10.
 THESIS_DELAYS_S = {
@@ -174,6 +178,120 @@ def min_detectable(n_seeds: int, iters: int = 8, first_seed: int = 30_000, fault
     return out
 
 
+def _fault_unit(f: str) -> str:
+    return PROCESS_FAULT_DEFAULTS[f].unit if f in PROCESS_FAULT_DEFAULTS else SENSORS[sensor_index(f)].unit
+
+
+def _limit_spec(f: str, magnitude: float, sensor_onset_s: float) -> FaultSpec:
+    if f in PROCESS_FAULT_DEFAULTS:
+        return FaultSpec(f, PROCESS_FAULT_DEFAULTS[f].onset_s, magnitude=magnitude)
+    return FaultSpec(f, sensor_onset_s, magnitude=magnitude, kind="offset")
+
+
+def detectability_limits(n_seeds: int, fault_ids=FAULT_IDS, first_seed: int = 30_000, factor: float = 2.0,
+                         rtol: float = 1.05, max_up: int = 4, max_down: int = 20,
+                         sensor_onset_s: float = LIMIT_SENSOR_ONSET_S, duration_s: float = DURATION_S,
+                         log=None) -> dict:
+    """Smallest magnitude of every fault detected (any module violated, first at or after the onset)
+    before ``duration_s`` in each of ``n_seeds`` noise seeds, at constant fuel setting 1.0.
+
+    Sensor faults: abrupt positive offsets with onset ``sensor_onset_s``; process faults: their
+    table 6.4 fault functions with their default onsets and κ (as in :func:`min_detectable`).
+    Bracketing from the table magnitude m0: a magnitude detected in every seed becomes the upper
+    bound and the next try is divided by ``factor``; otherwise it becomes the lower bound and the
+    next try is multiplied by ``factor`` (at most m0·factor**max_up; down to m0/factor**max_down).
+    Once both bounds exist, log-space bisection until hi/lo <= ``rtol``.  All faults still searching
+    are simulated in one batch per iteration (all seeds of every magnitude together).
+
+    Returns ``{fault_id: {"limit", "detected", "bracket", "unit", "table_magnitude", "onset_s",
+    "evaluations": [[magnitude, n_detected, median_delay_s or None, n_early, n_failures], ...],
+    "note"?}}``; a fault not detected in every seed even at the largest magnitude tried gets
+    ``limit = None, detected = False``.
+    """
+    if factor <= 1 or rtol <= 1:
+        raise ValueError("factor and rtol must be > 1")
+    seeds = [first_seed + i for i in range(n_seeds)]
+    state = {}
+    for f in fault_ids:
+        m0 = FaultSpec(f, 0.0, kind=None if f in PROCESS_FAULT_DEFAULTS else "offset").resolved_magnitude
+        state[f] = {"table": m0, "lo": None, "hi": None, "next": m0, "evals": [], "note": None}
+    it = 0
+    while True:
+        todo = [(f, st["next"]) for f, st in state.items() if st["next"] is not None]
+        if not todo:
+            break
+        it += 1
+        schedules = [[_limit_spec(f, m, sensor_onset_s)] for f, m in todo for _ in seeds]
+        reps = diagnose_batch(schedules, seeds * len(todo), duration_s=duration_s)
+        for k, (f, m) in enumerate(todo):
+            st = state[f]
+            onset = schedules[k * n_seeds][0].onset_s
+            rs = reps[k * n_seeds:(k + 1) * n_seeds]
+            ok = [bool(r["detected"]) and r["first_detection_time_s"] >= onset for r in rs]
+            early = sum(1 for r in rs if r["detected"] and r["first_detection_time_s"] < onset)
+            delays = [r["first_detection_time_s"] - onset for r, o in zip(rs, ok) if o]
+            st["evals"].append([m, int(sum(ok)), float(np.median(delays)) if delays else None, early,
+                                sum(1 for r in rs if r["failures"])])
+            if all(ok):
+                st["hi"] = m
+            else:
+                st["lo"] = m
+            lo, hi, m0 = st["lo"], st["hi"], st["table"]
+            if lo is None:
+                nxt = m / factor
+                if nxt < m0 / factor ** max_down * (1 - 1e-9):
+                    nxt, st["note"] = None, f"detected in every seed at every magnitude tried, down to {m:g}"
+            elif hi is None:
+                nxt = m * factor
+                if nxt > m0 * factor ** max_up * (1 + 1e-9):
+                    nxt, st["note"] = None, f"not detected in every seed even at {m:g} ({m / m0:g} x table)"
+            else:
+                nxt = math.sqrt(lo * hi) if hi / lo > rtol else None
+            st["next"] = nxt
+        if log is not None:
+            log(f"iteration {it}: {len(todo)} faults x {n_seeds} seeds; "
+                + ", ".join(f"{f} {m:.3g}:{state[f]['evals'][-1][1]}/{n_seeds}" for f, m in todo))
+    out = {}
+    for f, st in state.items():
+        det = st["hi"] is not None
+        d = {"limit": st["hi"], "detected": det, "bracket": [st["lo"], st["hi"]], "unit": _fault_unit(f),
+             "table_magnitude": st["table"], "onset_s": _limit_spec(f, 1.0, sensor_onset_s).onset_s,
+             "seeds": n_seeds, "evaluations": st["evals"]}
+        if st["note"]:
+            d["note"] = st["note"]
+        out[f] = d
+    return out
+
+
+def env_table(limits: dict, command: str, n_seeds: int) -> dict:
+    """The environment's detectability table (``marine_fdi_env/data/env/detectability.json``) from
+    :func:`detectability_limits`; an undetected fault gets its table magnitude as limit."""
+    faults = {}
+    for f, v in limits.items():
+        e = {"limit": v["limit"], "unit": v["unit"],
+             "source": f"bisection, {n_seeds} seeds, command {command}",
+             "table_magnitude": v["table_magnitude"], "detected": v["detected"], "onset_s": v["onset_s"],
+             "bracket": v["bracket"], "ratio_to_table": None, "evaluations": v["evaluations"]}
+        if not v["detected"]:
+            e["limit"] = v["table_magnitude"]
+            e["note"] = (f"{v.get('note', 'never detected')}; the limit is the table magnitude, so scenarios "
+                         "are sampled relative to it")
+        elif v.get("note"):
+            e["note"] = v["note"]
+        e["ratio_to_table"] = e["limit"] / v["table_magnitude"]
+        faults[f] = e
+    return {
+        "description": "Detectability limit of every fault: the smallest magnitude detected by the reference "
+                       "diagnoser (any module, at or after the onset) before the end of a 300 s run in every "
+                       "seed, at constant fuel setting 1.0. Sensor faults: abrupt positive offsets with onset "
+                       f"{LIMIT_SENSOR_ONSET_S:g} s; process faults: table 6.4 fault functions with their default "
+                       "onsets and kappa. evaluations: [magnitude, seeds detected, median delay s, early alarms, "
+                       "runs with engine failure].",
+        "params": PARAMS, "seeds": n_seeds, "duration_s": DURATION_S, "command": command,
+        "faults": faults,
+    }
+
+
 _THESIS_NOTES = {
     "valve_seizing": "about 10 s with noise (fig. 6.22); 6.4.2: M2 at +1.6 s, M1 at +7.1 s",
     "bore_damage": "6.4.2: 141.1 s after onset (146.1 s)",
@@ -252,6 +370,10 @@ def main(argv=None) -> int:
     ap.add_argument("what", choices=("false-alarms", "delays", "scenarios", "min-detectable", "render"))
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--out", type=Path, default=None)
+    ap.add_argument("--all", action="store_true",
+                    help="min-detectable: all 26 faults (sensor offsets too) with a bracketing log-space "
+                         "bisection; writes the environment's table (default "
+                         "src/marine_fdi_env/data/env/detectability.json)")
     args = ap.parse_args(argv)
     if args.seeds < 1:
         ap.error("--seeds must be >= 1")
@@ -260,6 +382,21 @@ def main(argv=None) -> int:
                "`python -m marine_fdi_env.diagnosis.kpis render` from `docs/data/diagnoser_*.json`.\n\n" + render()
         out = args.out or Path("docs/diagnosis_results.md")
         out.write_text(text + "\n")
+        print(f"wrote {out}")
+        return 0
+    if args.all:
+        if args.what != "min-detectable":
+            ap.error("--all only applies to min-detectable")
+        command = f"python -m marine_fdi_env.diagnosis.kpis min-detectable --all --seeds {args.seeds}"
+        limits = detectability_limits(args.seeds, log=lambda msg: print(msg, flush=True))
+        table = env_table(limits, command, args.seeds)
+        out = args.out or ENV_TABLE
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(table, indent=1) + "\n")
+        print("| fault | limit | unit | table | limit/table |\n|---|---|---|---|---|")
+        for f, v in table["faults"].items():
+            lim = f"{v['limit']:.3g}" + ("" if v["detected"] else " (not detected)")
+            print(f"| {f} | {lim} | {v['unit']} | {v['table_magnitude']:g} | {v['ratio_to_table']:.3g} |")
         print(f"wrote {out}")
         return 0
     fn = {"false-alarms": false_alarms, "delays": single_fault_delays, "scenarios": scenario_checks,

@@ -1,0 +1,68 @@
+"""Detectability limit of every fault: the scale on which scenario fault magnitudes are drawn.
+
+The limit of a fault is the smallest magnitude that the reference diagnoser
+(:class:`marine_fdi_env.diagnosis.ReferenceDiagnoser`) detects - some module violated, first at or
+after the onset - before the end of a 300 s run in *every* one of a few noise seeds (4), at the
+constant nominal fuel setting 1.0.  That is, detected within ``300 s - onset``:
+
+* sensor faults (``S1.1`` .. ``S4.6``): abrupt positive offsets with onset 50 s, so within 250 s;
+  unit: the sensor's unit;
+* process faults: their table 6.4 fault functions (rates, evolution κ) with their default onsets
+  (15-30 s); unit: the table 6.4 unit of the magnitude.
+
+It was found by bisection on a log scale (bracketed from the table 6.3 / 6.4 magnitude by factors
+of 2, then bisected to a 5 % bracket; the limit is the upper, detected end) with
+``python -m marine_fdi_env.diagnosis.kpis min-detectable --all --seeds 4``, which regenerates
+``marine_fdi_env/data/env/detectability.json``.  A fault never detected at any magnitude tried
+(``turbine_seal_leak``: its effect on the receiver pressure stays far below the sensor noise) has
+``"detected": false`` and its table magnitude as limit, so it is sampled relative to that.
+
+The limit is a *scale* for sampling scenarios (e.g. magnitudes 0.5x .. 4x the limit: some below,
+some well above what the reference diagnoser can see); it is not a guarantee.  Another seed, load
+profile, onset or run length, and other faults acting at the same time, move the threshold; a
+fault at 2x the limit is detected in practice, at 0.5x it often is not, but neither is promised.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+from functools import lru_cache
+from importlib import resources
+
+from ..faults import FAULT_IDS
+
+__all__ = ["detectability_limit", "detectability_table", "TABLE_RESOURCE"]
+
+TABLE_RESOURCE = ("marine_fdi_env", "data/env/detectability.json")
+
+
+@lru_cache(maxsize=1)
+def _load() -> dict:
+    pkg, rel = TABLE_RESOURCE
+    data = json.loads(resources.files(pkg).joinpath(rel).read_text())
+    faults = data["faults"]
+    if set(faults) != set(FAULT_IDS):
+        raise RuntimeError(f"{rel} must cover exactly the {len(FAULT_IDS)} fault ids; "
+                           f"missing {sorted(set(FAULT_IDS) - set(faults))}, extra {sorted(set(faults) - set(FAULT_IDS))}")
+    for f, v in faults.items():
+        lim = v.get("limit")
+        if not (isinstance(lim, (int, float)) and math.isfinite(lim) and lim > 0):
+            raise RuntimeError(f"{rel}: limit of {f} must be a positive finite number, got {lim!r}")
+    return data
+
+
+def detectability_table() -> dict:
+    """``{fault_id: {"limit", "unit", "source", "table_magnitude", "detected", ...}}`` for all 26
+    fault ids, in ``FAULT_IDS`` order (a fresh copy of the cached file)."""
+    faults = _load()["faults"]
+    return {f: copy.deepcopy(faults[f]) for f in FAULT_IDS}
+
+
+def detectability_limit(fault_id: str) -> float:
+    """Detectability limit of one fault (unit of its magnitude); ``ValueError`` for an unknown id."""
+    faults = _load()["faults"]
+    if fault_id not in faults:
+        raise ValueError(f"unknown fault id {fault_id!r}; allowed: {', '.join(FAULT_IDS)}")
+    return float(faults[fault_id]["limit"])
