@@ -30,7 +30,8 @@ from marine_fdi_env.profiles import PROFILE_NAMES
 from marine_fdi_env.sensors import SENSOR_IDS
 
 MAX_STEPS = 250  # per episode (a 30 s episode at 0.01 s decisions would be 3000)
-FUZZ = dict(deadline=None, phases=[Phase.explicit, Phase.reuse, Phase.generate, Phase.shrink], suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+FUZZ = dict(deadline=None, phases=[Phase.explicit, Phase.reuse, Phase.generate, Phase.shrink],  # no explain: slow
+            suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 
 # ----------------------------------------------------------------------------- strategies
 def _cs(k: int) -> float:  # k hundredths of a second, as a float on the 0.01 grid
