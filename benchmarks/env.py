@@ -1,0 +1,190 @@
+"""``MarineFDI-v0`` throughput benchmark.
+
+    python benchmarks/env.py --json
+
+prints one JSON object:
+
+``vector_engine_samples_per_s_n1024``  ``MarineFDIVectorEnv(num_envs=1024, scenario_config="default")``
+                                  stepped with random belief actions (``action_space.sample()``;
+                                  the residual features are always computed): engine-samples/s =
+                                  1024 x 100 samples per 1 s decision x steps / wall time of the
+                                  ``env.step`` calls (the first reset and compilation excluded; best
+                                  of ``--repeats`` runs of ``--vector-steps`` steps).  The default
+                                  episodes last 300 s, so no sub-env autoresets in the timed steps.
+                                  Target: >= 5e5.
+``vector_decision_steps_per_s_n1024`` the same run in sub-env decisions per second (1024 x steps / s).
+``vector_step_s_n1024``           wall time of one vector ``step`` (the best run's mean).
+``vector_breakdown_n1024``        shares of the vector step time (same timed runs; the methods
+                                  wrapped with a timer, overhead < 1 us per call):
+
+                                  * ``simulator``: ``env.batch.sim.advance`` (the engines and sensors),
+                                  * ``diagnoser``: ``env.batch.diag.observe`` (the 19 monitoring
+                                    modules: residuals and adaptive thresholds),
+                                  * ``features``: the rest of ``EpisodeBatch.advance`` (observation
+                                    features from residuals, failure bookkeeping),
+                                  * ``scoring``: ``EpisodeBatch.score`` (per-sub-env reward terms,
+                                    declared sets, a Python loop over the 1024 slots),
+                                  * ``infos``: the rest of ``step`` (checking the action, per-slot
+                                    truncation checks, 1024 info dicts merged by Gymnasium's
+                                    ``_add_info``);
+
+                                  ``seconds`` holds the absolute time per step of each part.
+``single_env_decision_steps_per_s``  one ``MarineFDIEnv(scenario_config="default")``: decisions per
+                                  second of wall time over ``--episodes`` full 300-decision episodes
+                                  with random actions, resets included (after one warm-up reset).
+                                  Target: >= 200.
+``single_env_engine_samples_per_s``  the same in engine-samples/s (x 100).
+``python``, ``numpy``, ``cpu_count``  the platform; ``load_average_1min`` before the run (the
+                                  diagnoser uses two threads: other processes on a 2-core machine
+                                  slow every number down).
+
+With ``--profile`` it also prints (to stderr) the top cProfile entries of one vector step.
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import io
+import json
+import os
+import pstats
+import sys
+import time
+from collections import defaultdict
+
+import numpy as np
+
+import marine_fdi_env  # noqa: F401  (registers the environment)
+from marine_fdi_env.envs.fdi_env import MarineFDIEnv
+from marine_fdi_env.envs.vector import MarineFDIVectorEnv
+
+PRESET = "default"
+
+
+class _Timers:
+    """Wraps bound methods of an instance with accumulating wall-clock timers."""
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = defaultdict(float)
+
+    def wrap(self, obj, method: str, key: str) -> None:
+        inner = getattr(obj, method)
+        seconds = self.seconds
+
+        def timed(*args, **kwargs):
+            t0 = time.perf_counter()
+            try:
+                return inner(*args, **kwargs)
+            finally:
+                seconds[key] += time.perf_counter() - t0
+
+        setattr(obj, method, timed)
+
+    def reset(self) -> None:
+        self.seconds.clear()
+
+
+def vector_throughput(n: int, steps: int, repeats: int, seed: int = 0, profile: bool = False) -> dict:
+    env = MarineFDIVectorEnv(num_envs=n, scenario_config=PRESET)
+    env.action_space.seed(seed)
+    env.reset(seed=seed)
+    env.step(env.action_space.sample())  # warm-up: first scoring, first infos
+    timers = _Timers()
+    b = env.batch
+    timers.wrap(b.sim, "advance", "simulator")
+    timers.wrap(b.diag, "observe", "diagnoser")
+    timers.wrap(b, "advance", "batch_advance")
+    timers.wrap(b, "score", "scoring")
+    samples = b.period_samples
+    best = None
+    for _ in range(repeats):
+        actions = [env.action_space.sample() for _ in range(steps)]
+        timers.reset()
+        t0 = time.perf_counter()
+        for a in actions:
+            env.step(a)
+        wall = time.perf_counter() - t0
+        if best is None or wall < best[0]:
+            best = (wall, dict(timers.seconds))
+    wall, sec = best
+    parts = {
+        "simulator": sec["simulator"],
+        "diagnoser": sec["diagnoser"],
+        "features": sec["batch_advance"] - sec["simulator"] - sec["diagnoser"],
+        "scoring": sec["scoring"],
+    }
+    parts["infos"] = wall - sum(parts.values())
+    out = {
+        f"vector_engine_samples_per_s_n{n}": round(n * samples * steps / wall, 1),
+        f"vector_decision_steps_per_s_n{n}": round(n * steps / wall, 1),
+        f"vector_step_s_n{n}": round(wall / steps, 4),
+        f"vector_breakdown_n{n}": {
+            "share": {k: round(v / wall, 3) for k, v in parts.items()},
+            "seconds": {k: round(v / steps, 4) for k, v in parts.items()},
+        },
+    }
+    if profile:
+        pr = cProfile.Profile()
+        a = env.action_space.sample()
+        pr.enable()
+        env.step(a)
+        pr.disable()
+        s = io.StringIO()
+        pstats.Stats(pr, stream=s).sort_stats("tottime").print_stats(25)
+        print(s.getvalue(), file=sys.stderr)
+    return out
+
+
+def single_env_throughput(episodes: int, seed: int = 0) -> dict:
+    env = MarineFDIEnv(scenario_config=PRESET)
+    env.action_space.seed(seed)
+    env.reset(seed=seed)  # warm-up (compilation, nominal readings)
+    steps = 0
+    t0 = time.perf_counter()
+    for _ in range(episodes):
+        env.reset()
+        done = False
+        while not done:
+            _, _, term, trunc, _ = env.step(env.action_space.sample())
+            steps += 1
+            done = term or trunc
+    wall = time.perf_counter() - t0
+    return {
+        "single_env_decision_steps_per_s": round(steps / wall, 1),
+        "single_env_engine_samples_per_s": round(steps * env.batch.period_samples / wall, 1),
+        "single_env_steps_timed": steps,
+    }
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--json", action="store_true", help="print one JSON object")
+    ap.add_argument("--num-envs", type=int, default=1024)
+    ap.add_argument("--vector-steps", type=int, default=8, help="timed vector steps per repeat")
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--episodes", type=int, default=3, help="full single-env episodes timed")
+    ap.add_argument("--profile", action="store_true", help="cProfile one vector step (to stderr)")
+    args = ap.parse_args(argv)
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
+    out = {}
+    out.update(vector_throughput(args.num_envs, args.vector_steps, args.repeats, profile=args.profile))
+    out.update(single_env_throughput(args.episodes))
+    out.update({
+        "preset": PRESET,
+        "targets": {f"vector_engine_samples_per_s_n{args.num_envs}": 5e5, "single_env_decision_steps_per_s": 200},
+        "numpy": np.__version__,
+        "python": sys.version.split()[0],
+        "cpu_count": os.cpu_count(),
+        "load_average_1min": load,
+    })
+    if args.json:
+        print(json.dumps(out))
+    else:
+        for k, v in out.items():
+            print(f"{k:36s} {v}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
