@@ -33,6 +33,16 @@ second-order terms, which over the small noise boxes are below 1e-3 of the total
 far tighter than the natural interval extension, which multiplies the overestimation of every
 subtraction in the Seiliger cycle.
 
+Cost (see docs/diagnosis.md, "Performance"): the engine speed at the ±d̄ points of x1, x4, T1 is
+one sweep of the speed loop from the centre's converged speed, linearised with the centre's slope
+(:func:`_cycle_table`); this drops only second-order terms and lowers the M2.1-M2.4 inclusion terms
+by at most 0.21 % and M3.1-M3.4 by 0.03 % against full solves (measured over 16 runs x 200 s,
+constant and manoeuvring), well inside SAFETY.  The model values of M3.q, M3.(3,4), M4.q and
+M4.(5,6) share their intermediates (m1, slip, mass flow, Ψ_sc, Π_turbo) per point.  The one-sided
+form Σ_i |g(y + d̄_i e_i) - g(y)| was measured and rejected: it lowers the T_in inclusion (M3.3/4)
+by up to 15 % and T6 (M2.3/4) by 3.4 %, not covered by SAFETY.  ``ONE_SIDED`` and
+``LINEAR_SPEED`` switch these choices (compile-time constants, for measurements).
+
 Every module's inputs that are not finite (a sensor that dropped out) violate its ARR; an
 observer then holds its last estimate.
 """
@@ -68,9 +78,9 @@ OBSERVER_GAINS = (33.3833, 1.25, 0.3764)
 SAFETY = 1.05
 MODEL_MARGIN = 1e-6  # η̄ per step, relative to the state, and relative margin of algebraic ARRs
 SPEED_SWEEPS = 4
-ONE_SIDED = False
-LINEAR_SPEED = True
-SLOPE_STEP = 1e-5
+ONE_SIDED = False  # measured and rejected (see the module docstring)
+LINEAR_SPEED = True  # perturbed points: one sweep + linearisation in the speed (see _cycle_table)
+SLOPE_STEP = 1e-5  # relative step of the centre's speed slope
 
 # sensor columns
 S = {sid: i for i, sid in enumerate(SENSOR_IDS)}
