@@ -459,8 +459,6 @@ def test_bad_decision_periods_raise_value_error(period):
 
 
 # ----------------------------------------------------------------------------- known bugs (src)
-@pytest.mark.xfail(strict=True, reason="src bug: ScenarioConfig.sample places the second onset at duration_s - 10 "
-                                       "(< 0 for episodes shorter than 10 s); see the helper report")
 @settings(max_examples=10, **FUZZ)
 @given(D=st.integers(500, 999).map(_cs), entropy=st.integers(0, 2**32))
 def test_sampler_short_episodes_with_two_faults(D, entropy):
@@ -469,15 +467,11 @@ def test_sampler_short_episodes_with_two_faults(D, entropy):
     assert all(0.0 <= f.onset_s < D for f in sc.faults)
 
 
-@pytest.mark.xfail(strict=True, reason="src bug: ScenarioConfig.sample rounds onsets to 0.01 s, which can reach "
-                                       "duration_s; see the helper report")
 def test_sampler_onset_rounding_stays_inside_the_episode():
     cfg = ScenarioConfig(name="edge", duration_s=5.0, fault_count_weights=(0.0, 1.0, 0.0), onset_range_s=(4.999, 4.999))
     cfg.sample(1)
 
 
-@pytest.mark.xfail(strict=True, reason="src bug: EpisodeBatch.start drops engine failures recorded at t = 0 "
-                                       "(steady state outside the physical range); see the helper report")
 @pytest.mark.parametrize("spec", [
     ScenarioSpec(profile="constant:u0=0.0", duration_s=5.0),
     ScenarioSpec(faults=("valve_seizing@0:0.97,kappa=inf",), profile="constant:u0=0.8", duration_s=5.0),
@@ -490,30 +484,23 @@ def test_failure_at_time_zero_terminates_the_episode(spec):
     assert term and "engine failure" in info["termination_reason"]  # ... the environment must say so
 
 
-@pytest.mark.xfail(strict=True, reason="src bug: non-iterable list fields raise TypeError, not ValueError; see "
-                                       "the helper report")
 @pytest.mark.parametrize("field", ["profiles", "fault_count_weights", "fault_ids", "sensor_kinds"])
 def test_non_iterable_config_fields_raise_value_error(field):
     with pytest.raises(ValueError, match=field):
         ScenarioConfig(**{field: None})
 
 
-@pytest.mark.xfail(strict=True, reason="src bug: ScenarioSpec(faults=None) raises TypeError; see the helper report")
 @pytest.mark.parametrize("field", ["faults", "magnitude_scales"])
 def test_non_iterable_scenario_fields_raise_value_error(field):
     with pytest.raises(ValueError, match=field):
         ScenarioSpec.from_dict({field: None})
 
 
-@pytest.mark.xfail(strict=True, reason="src bug: a ragged action raises numpy's ValueError, which does not name "
-                                       "the action; see the helper report")
 def test_ragged_action_error_names_the_action():
     with pytest.raises(ValueError, match="action"):
         check_action([0.5] * 27 + [[0.5, 0.5]])
 
 
-@pytest.mark.xfail(strict=True, reason="src bug: the vector env builds the infos of finished slots after advancing "
-                                       "their engines one more period; see the helper report")
 def test_vector_final_info_is_the_single_env_final_info():
     spec = ScenarioSpec(faults=(FaultSpec("compressor_seal_leak", 0.01, magnitude=10.0, kappa=math.inf),),
                         profile="constant:u0=0.625", duration_s=5.0)

@@ -18,12 +18,14 @@ from ..diagnosis.agent import ReferenceDiagnoser
 from ..faults import FAULT_IDS
 from ..params import EngineParams, load_params
 from ..simulator import Simulator
-from .hypotheses import belief_share, declared_ids, raises_alarm
+from .hypotheses import DECLARE_THRESHOLD, N_FAULTS, UNKNOWN
 from .observation import module_features, observation_size, sensor_features
-from .reward import RewardConfig, score
+from .reward import REWARD_TERMS, RewardConfig, score
 from .scenario_sampler import ScenarioSpec, nominal_reading
 
 __all__ = ["EpisodeBatch", "StepOutcome"]
+
+_FAULT_COL = {f: k for k, f in enumerate(FAULT_IDS)}
 
 
 @dataclass
@@ -31,7 +33,7 @@ class StepOutcome:
     """Scores of one decision for every slot."""
 
     reward: np.ndarray  # (N,)
-    terms: list[dict[str, float]]
+    terms: dict[str, np.ndarray]  # term -> (N,)
     declared: list[tuple[str, ...]]
     alarm: np.ndarray  # (N,) bool
     belief_on_truth: np.ndarray  # (N,) (NaN when no fault is active)
@@ -88,6 +90,7 @@ class EpisodeBatch:
         seeds = [sc.noise_seed for sc in scenarios]
         faults = [list(sc.faults) for sc in scenarios]
         profiles = [sc.profile for sc in scenarios]
+        n_before = 0 if self.sim is None else len(self.sim.failures)
         if self.sim is None:
             if len(slots) != self.n:
                 raise RuntimeError("the first start must start every slot")
@@ -98,11 +101,14 @@ class EpisodeBatch:
         else:
             self.sim.restart_engines(slots, seeds, faults, profiles)
         self.diag.reset_engines(slots, first_sample_index=1)
+        self.t = self.sim.local_time
         for s, sc in zip(slots, scenarios):
             self.scenarios[s] = sc
             self.steps[s] = 0
             self.failure[s] = None
             self.compute_s[s] = 0.0
+        for f in self.sim.failures[n_before:]:  # engines outside their physical range at t = 0
+            self.failure[f.engine] = f.to_dict()
         self._failures_seen = len(self.sim.failures)
 
     def advance(self, slots=None) -> np.ndarray:
@@ -113,7 +119,7 @@ class EpisodeBatch:
         blk = self.sim.advance(self.period_samples)
         t0 = time.perf_counter()
         out = self.diag.observe(blk.measurements, blk.u)
-        t_now = self.sim.local_time
+        t_now = self.t = self.sim.local_time
         durations = np.array([sc.duration_s if sc is not None else 1.0 for sc in self.scenarios])
         feats = module_features(out.residuals, out.thresholds, self.diag.first_violation, t_now, durations)
         if self.observe_sensors:
@@ -131,7 +137,7 @@ class EpisodeBatch:
 
     # ------------------------------------------------------------------------------ truth
     def time(self, slot: int) -> float:
-        return float(self.sim.local_time[slot])
+        return float(self.t[slot])
 
     def active_faults(self, slot: int, t: float | None = None) -> dict[str, float]:
         """Faults active in the slot's episode at time t (default now): id -> onset [s]."""
@@ -145,25 +151,34 @@ class EpisodeBatch:
                 out[f.fault_id] = float(f.onset_s)
         return out
 
+    def active_matrix(self, slots) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(active (n, 26) bool, first onset (n,), last onset (n,)) of the slots' faults now."""
+        n = len(slots)
+        act = np.zeros((n, N_FAULTS), dtype=bool)
+        first = np.zeros(n)
+        last = np.zeros(n)
+        for j, s in enumerate(slots):
+            on = self.active_faults(s)
+            if on:
+                act[j, [_FAULT_COL[f] for f in on]] = True
+                first[j] = min(on.values())
+                last[j] = max(on.values())
+        return act, first, last
+
     def score(self, beliefs: np.ndarray, slots) -> StepOutcome:
         """Score the declarations ``beliefs`` (len(slots), 28) made now."""
-        n = len(slots)
-        reward = np.zeros(n)
-        terms, declared = [], []
-        alarm = np.zeros(n, dtype=bool)
-        share = np.full(n, np.nan)
-        for j, s in enumerate(slots):
-            b = beliefs[j]
-            d = declared_ids(b)
-            a = raises_alarm(b)
-            act = self.active_faults(s)
-            tm = score(self.reward_cfg, frozenset(d), a, act, self.time(s))
-            reward[j] = sum(tm.values())
-            terms.append(tm)
-            declared.append(d)
-            alarm[j] = a
-            if act:
-                share[j] = belief_share(b, act)
+        slots = np.asarray(slots, dtype=np.int64)
+        decl = beliefs[:, :N_FAULTS] >= DECLARE_THRESHOLD
+        alarm = decl.any(axis=1) | (beliefs[:, UNKNOWN] >= DECLARE_THRESHOLD)
+        act, first, last = self.active_matrix(slots)
+        terms = score(self.reward_cfg, decl, alarm, act, first, last, self.t[slots])
+        reward = sum(terms[k] for k in REWARD_TERMS)
+        total = beliefs.sum(axis=1, dtype=np.float64)
+        on_truth = np.where(act, beliefs[:, :N_FAULTS], 0.0).sum(axis=1, dtype=np.float64)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            share = np.where(total > 0, on_truth / total, 0.0)
+        share = np.where(act.any(axis=1), share, np.nan)
+        declared = [tuple(FAULT_IDS[k] for k in np.flatnonzero(row)) for row in decl]
         return StepOutcome(reward, terms, declared, alarm, share)
 
     def reference_declaration(self, slot: int) -> dict:

@@ -162,7 +162,7 @@ class MarineFDIEnv(gym.Env):
         info = b.info(0)
         info.update(declared=list(out.declared[0]), alarm=bool(out.alarm[0]),
                     belief_on_truth=None if math.isnan(out.belief_on_truth[0]) else float(out.belief_on_truth[0]),
-                    reward_terms=out.terms[0], decision_time_s=t)
+                    reward_terms={k: float(v[0]) for k, v in out.terms.items()}, decision_time_s=t)
         if terminated:
             info["termination_reason"] = f"engine failure: {b.failure[0]['reason']}"
         self._done = terminated or truncated

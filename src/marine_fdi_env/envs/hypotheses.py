@@ -33,14 +33,17 @@ _INDEX = {h: i for i, h in enumerate(HYPOTHESES)}
 def check_action(action, n_envs: int | None = None) -> np.ndarray:
     """The action as a float32 array (28,) (or (n_envs, 28)); ``ValueError`` naming what is wrong."""
     shape = (N_HYPOTHESES,) if n_envs is None else (n_envs, N_HYPOTHESES)
-    a = np.asarray(action)
-    if a.dtype == object or not (np.issubdtype(a.dtype, np.floating) or np.issubdtype(a.dtype, np.integer)
-                                 or a.dtype == bool):
+    try:
+        a = np.asarray(action)
+    except ValueError:  # ragged nested sequences
+        raise ValueError(f"action must be a numeric array of shape {shape}, got a ragged sequence") from None
+    if a.dtype.kind not in "biuf":
         raise ValueError(f"action must be a numeric array of shape {shape}, got dtype {a.dtype}")
     if a.shape != shape:
         raise ValueError(f"action must have shape {shape} (belief over {', '.join(HYPOTHESES[:2])}, ..., "
                          f"no_fault, unknown), got {a.shape}")
-    a = a.astype(np.float32)
+    with np.errstate(over="ignore"):  # beyond the float32 range: inf, refused below
+        a = a.astype(np.float32)
     if not np.all(np.isfinite(a)):
         raise ValueError("action must be finite (a belief in [0, 1] per hypothesis)")
     if np.any(a < 0.0) or np.any(a > 1.0):

@@ -27,6 +27,8 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 
+import numpy as np
+
 __all__ = ["RewardConfig", "REWARD_TERMS", "score"]
 
 REWARD_TERMS = ("false_alarm", "missed", "detection", "isolation", "wrong_isolation")
@@ -51,19 +53,25 @@ class RewardConfig:
             raise ValueError(f"reward config field 'tau_s' must be > 0, got {self.tau_s!r}")
 
 
-def score(cfg: RewardConfig, declared: frozenset, alarm: bool, active: dict[str, float], t: float) -> dict[str, float]:
-    """Reward terms of one decision; ``active`` maps each active fault id to its onset [s]."""
-    terms = dict.fromkeys(REWARD_TERMS, 0.0)
-    if not active:
-        if alarm:
-            terms["false_alarm"] = -cfg.false_alarm
-    else:
-        if alarm:
-            terms["detection"] = cfg.detection * math.exp(-(t - min(active.values())) / cfg.tau_s)
-        else:
-            terms["missed"] = -cfg.missed
-        if declared == frozenset(active):
-            terms["isolation"] = cfg.isolation * math.exp(-(t - max(active.values())) / cfg.tau_s)
-    if declared and declared != frozenset(active):
-        terms["wrong_isolation"] = -cfg.wrong_isolation
-    return terms
+def score(cfg: RewardConfig, declared: np.ndarray, alarm: np.ndarray, active: np.ndarray, first_onset: np.ndarray,
+          last_onset: np.ndarray, t: np.ndarray) -> dict[str, np.ndarray]:
+    """Reward terms of n decisions (arrays over decisions).
+
+    declared, active : (n, 26) bool masks of the declared and the active fault ids;
+    alarm : (n,) bool; first_onset, last_onset : (n,) onsets of the active faults [s] (any value
+    where none is active); t : (n,) decision times [s].
+    """
+    any_active = active.any(axis=1)
+    exact = any_active & np.all(declared == active, axis=1)
+    wrong = declared.any(axis=1) & ~np.all(declared == active, axis=1)
+    zero = np.zeros(len(t))
+    with np.errstate(over="ignore"):
+        det = cfg.detection * np.exp(-(t - first_onset) / cfg.tau_s)
+        iso = cfg.isolation * np.exp(-(t - last_onset) / cfg.tau_s)
+    return {
+        "false_alarm": np.where(alarm & ~any_active, -cfg.false_alarm, zero),
+        "missed": np.where(~alarm & any_active, -cfg.missed, zero),
+        "detection": np.where(alarm & any_active, det, zero),
+        "isolation": np.where(exact, iso, zero),
+        "wrong_isolation": np.where(wrong, -cfg.wrong_isolation, zero),
+    }

@@ -22,13 +22,15 @@ of every episode unchanged.
 
 Magnitudes are drawn log-uniformly in ``magnitude_range`` times the fault's *detectability
 limit* (:mod:`marine_fdi_env.envs.detectability`: the smallest magnitude the reference diagnoser
-detects within the run at nominal load), so "1.0" means "just detectable by the reference" for
-every fault, whatever its unit.
+detects within the run at nominal load, floored at 2 % of the thesis table magnitude; see
+``sampling_scale``), so "1.0" means "just detectable by the reference" for every fault, whatever
+its unit.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import asdict, dataclass
 from functools import lru_cache
 
@@ -95,8 +97,9 @@ class ScenarioSpec:
     magnitude_scales: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
-        faults = tuple(_fault_from(f) for f in self.faults)
+        faults = tuple(_fault_from(f) for f in _as_tuple("scenario", "faults", self.faults))
         object.__setattr__(self, "faults", faults)
+        object.__setattr__(self, "magnitude_scales", _as_tuple("scenario", "magnitude_scales", self.magnitude_scales))
         if not (isinstance(self.duration_s, (int, float)) and math.isfinite(self.duration_s) and self.duration_s > 0):
             raise ValueError(f"scenario field 'duration_s' must be a positive number of seconds, got {self.duration_s!r}")
         if not (isinstance(self.noise_scale, (int, float)) and math.isfinite(self.noise_scale) and self.noise_scale >= 0):
@@ -138,9 +141,13 @@ class ScenarioSpec:
         if bad:
             raise ValueError(f"unknown scenario fields {sorted(bad)}; allowed: {sorted(allowed)}")
         kw = dict(d)
-        kw["faults"] = tuple(kw.get("faults", ()))
-        kw["magnitude_scales"] = tuple(kw.get("magnitude_scales", ()))
         return cls(**kw)
+
+
+def _as_tuple(what: str, name: str, v) -> tuple:
+    if isinstance(v, (str, bytes, dict)) or not isinstance(v, Iterable):
+        raise ValueError(f"{what} field {name!r} must be a sequence, got {v!r}")
+    return tuple(v)
 
 
 def _check_pair(name: str, v, lo: float = 0.0) -> tuple[float, float]:
@@ -155,7 +162,7 @@ def _check_pair(name: str, v, lo: float = 0.0) -> tuple[float, float]:
 
 def _check_weights(name: str, pairs, allowed) -> tuple[tuple[str, float], ...]:
     out = []
-    for item in pairs:
+    for item in _as_tuple("scenario config", name, pairs):
         try:
             k, w = item
             w = float(w)
@@ -208,12 +215,15 @@ class ScenarioConfig:
         if lr[0] <= 0 or lr[1] > 1.2:
             raise ValueError(f"scenario config field 'load_range' must lie in (0, 1.2], got {self.load_range!r}")
         object.__setattr__(self, "load_range", lr)
-        w = tuple(float(x) for x in self.fault_count_weights)
+        try:
+            w = tuple(float(x) for x in _as_tuple("scenario config", "fault_count_weights", self.fault_count_weights))
+        except (TypeError, ValueError):
+            w = ()
         if len(w) != 3 or not all(math.isfinite(x) and x >= 0 for x in w) or sum(w) <= 0:
             raise ValueError("scenario config field 'fault_count_weights' must be 3 weights >= 0 (0, 1, 2 faults) "
                              f"with a positive sum, got {self.fault_count_weights!r}")
         object.__setattr__(self, "fault_count_weights", w)
-        ids = tuple(self.fault_ids)
+        ids = _as_tuple("scenario config", "fault_ids", self.fault_ids)
         for f in ids:
             if f not in FAULT_IDS:
                 raise ValueError(f"scenario config field 'fault_ids': unknown fault id {f!r}")
@@ -265,8 +275,9 @@ class ScenarioConfig:
         t = float(r_on.uniform(*self.onset_range_s))
         for i in range(count):
             if i > 0:
-                t = min(t + float(r_on.uniform(*self.second_onset_gap_s)), self.duration_s - 10.0)
-            onsets.append(round(t, 2))
+                t = max(0.0, min(t + float(r_on.uniform(*self.second_onset_gap_s)), self.duration_s - 10.0))
+            onset = round(t, 2)
+            onsets.append(onset if onset < self.duration_s else t)
         r_mag = rng["magnitudes"]
         lo, hi = self.magnitude_range
         faults, scales = [], []
@@ -302,9 +313,9 @@ class ScenarioConfig:
 
 def _fault_at_scale(fault_id: str, kind: str, onset: float, scale: float, sign: float) -> FaultSpec:
     """A fault whose size is ``scale`` times its detectability limit (sign for sensor faults)."""
-    from .detectability import detectability_limit
+    from .detectability import sampling_scale
 
-    limit = detectability_limit(fault_id)
+    limit = sampling_scale(fault_id)
     if fault_id in PROCESS_FAULT_IDS:
         return FaultSpec(fault_id, onset, magnitude=scale * limit)
     if kind == "offset":

@@ -90,9 +90,7 @@ class MarineFDIVectorEnv(VectorEnv):
         self.batch.advance()
         self._autoreset[:] = False
         self._started = True
-        infos: dict = {}
-        for i in range(n):
-            infos = self._add_info(infos, _uniform(self.batch.info(i)), i)
+        infos = _stack_infos([_uniform(self.batch.info(i)) for i in range(n)])
         return self.batch.obs.copy(), infos
 
     def _draw(self, i: int) -> ScenarioSpec:
@@ -129,25 +127,27 @@ class MarineFDIVectorEnv(VectorEnv):
                 terminated[i] = True
             elif decision_t[i] >= b.scenarios[i].duration_s - 1e-9:
                 truncated[i] = True
+        ended = terminated | truncated
+        final_infos = {int(i): b.info(int(i)) for i in np.flatnonzero(ended)}  # before their engines move on
         if len(resetting):
             b.start(resetting, [self._draw(int(i)) for i in resetting])
-        advancing = np.flatnonzero(~(terminated | truncated))  # live slots going on, and the new episodes
+        advancing = np.flatnonzero(~ended)  # live slots going on, and the new episodes
         failed = b.advance(advancing)
         for i in failed:
             if i in live and not (terminated[i] or truncated[i]):
                 terminated[i] = True
-        infos: dict = {}
+        per_slot: list[dict | None] = [None] * n
         for j, i in enumerate(live):
-            info = b.info(i)
-            share = out.belief_on_truth[j]
+            info = final_infos[int(i)] if ended[i] else b.info(i)
             info.update(declared=list(out.declared[j]), alarm=bool(out.alarm[j]),
-                        belief_on_truth=None if math.isnan(share) else float(share),
-                        reward_terms=out.terms[j], decision_time_s=decision_t[i])
+                        belief_on_truth=float(out.belief_on_truth[j]),
+                        reward_terms={k: float(v[j]) for k, v in out.terms.items()}, decision_time_s=decision_t[i])
             if terminated[i]:
                 info["termination_reason"] = f"engine failure: {b.failure[i]['reason']}"
-            infos = self._add_info(infos, _uniform(info), int(i))
+            per_slot[i] = info
         for i in resetting:
-            infos = self._add_info(infos, _uniform(b.info(int(i))), int(i))
+            per_slot[i] = b.info(int(i))
+        infos = _stack_infos([_uniform(x) if x is not None else None for x in per_slot])
         self._autoreset = terminated | truncated
         return b.obs.copy(), rewards, terminated, truncated, infos
 
@@ -163,3 +163,32 @@ def _uniform(info: dict) -> dict:
     if "belief_on_truth" in info and info["belief_on_truth"] is None:
         info["belief_on_truth"] = math.nan
     return info
+
+
+def _stack_infos(per_slot: list[dict | None]) -> dict:
+    """Gymnasium's vector info layout (``infos[key][i]`` with a mask ``infos["_" + key]``), built in
+    one pass instead of one ``_add_info`` merge per sub-env (measured 0.13 s per step at N = 1024)."""
+    n = len(per_slot)
+    keys: list[str] = []
+    for d in per_slot:
+        if d is not None:
+            keys.extend(k for k in d if k not in keys)
+    out: dict = {}
+    for k in keys:
+        vals = [None if d is None or k not in d else d[k] for d in per_slot]
+        mask = np.array([d is not None and k in d for d in per_slot], dtype=bool)
+        first = next(v for v, m in zip(vals, mask) if m)
+        if isinstance(first, dict):
+            out[k] = _stack_infos([v if m else None for v, m in zip(vals, mask)])
+        elif type(first) in (int, float, bool) or isinstance(first, np.number):
+            arr = np.zeros(n, dtype=type(first))
+            for i in np.flatnonzero(mask):
+                arr[i] = vals[i]
+            out[k] = arr
+        else:
+            arr = np.full(n, None, dtype=object)
+            for i in np.flatnonzero(mask):
+                arr[i] = vals[i]
+            out[k] = arr
+        out["_" + k] = mask
+    return out
