@@ -505,14 +505,18 @@ def _batch_range(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, i0, i1):
 def compute_residuals_batch(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST):
     """:func:`compute_residuals` for N engines: Y (N, B, 19), U (N, B), R/THR (N, B, 19), ST (N, 2, N_STATE).
 
-    Batches of at least ``THREADED_MIN_ENGINES`` engines run as two contiguous halves on two
-    threads (the compiled loop releases the GIL; engines are independent, so the results equal
-    the single-thread loop bit for bit), as the simulator's batch step does.
+    Batches of at least ``THREADED_MIN_ENGINES`` engines run on the simulator's two worker
+    threads (the compiled loop releases the GIL) as ``THREAD_CHUNKS`` contiguous chunks, so that a
+    thread slowed down by other load does not hold up the other; engines are independent, so the
+    results equal the single-thread loop bit for bit.
     """
     n = Y.shape[0]
     args = (c, Y, U, float(dt), dbar, side_cols, t_out_col, R, THR, ST)
     if n < THREADED_MIN_ENGINES:
         _batch_range(*args, 0, n)
         return
-    half = n // 2
-    list(_executor().map(lambda r: _batch_range(*args, r[0], r[1]), [(0, half), (half, n)]))
+    edges = np.linspace(0, n, THREAD_CHUNKS + 1).astype(np.int64)
+    list(_executor().map(lambda r: _batch_range(*args, r[0], r[1]), list(zip(edges[:-1], edges[1:]))))
+
+
+THREAD_CHUNKS = 8
