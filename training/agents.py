@@ -148,7 +148,13 @@ class ClassifierAgent:
         d = cfg["declaration"]
         self.alarm_threshold = float(d["alarm_threshold"])
         self.isolation_threshold = float(d.get("isolation_threshold", 0.5))
-        self.use_reference = bool(d.get("use_reference", False) if use_reference is None else use_reference)
+        # False: the classifier alone; "fallback": also alarm when the reference has detected, and
+        # declare the reference's isolation when the classifier declares no fault; "first": the
+        # reference's isolation whenever it has one, the classifier's otherwise
+        self.use_reference = d.get("use_reference", False) if use_reference is None else use_reference
+        if self.use_reference not in (False, "fallback", "first"):
+            raise ValueError(f"{where / 'config.json'}: declaration.use_reference must be false, 'fallback' or "
+                             f"'first', got {self.use_reference!r}")
         self.obs_size = int(cfg["observation"]["size"])
 
     @classmethod
@@ -199,19 +205,18 @@ class ClassifierAgent:
             logits, self.h = self.model(torch.as_tensor(x[:, None, :]), self.h)
             p = torch.sigmoid(logits[:, 0]).numpy()
         self.alarm |= p[:, -1] >= self.alarm_threshold
-        out = np.zeros((len(x), N_HYPOTHESES), dtype=np.float32)
         ref = infos.get("reference") if self.use_reference else None
+        if ref is not None:
+            self.alarm |= np.asarray(ref["detected"], dtype=bool)
+        out = np.zeros((len(x), N_HYPOTHESES), dtype=np.float32)
         for i in np.flatnonzero(self.alarm):
-            faults = p[i, :-1]
+            dec = p[i, :-1] >= self.isolation_threshold
             if ref is not None and bool(ref["detected"][i]):
                 from baselines.reference_agent import belief_from_diagnoses
 
-                b = belief_from_diagnoses(True, ref["diagnoses"][i])
-                # the reference's candidates, ranked by the classifier where it is ambiguous
-                cand = b[:-2] > 0
-                if cand.any() and not (b[:-2] >= 0.5).any():
-                    faults = np.where(cand, faults, 0.0)
-            dec = faults >= self.isolation_threshold
+                rb = belief_from_diagnoses(True, ref["diagnoses"][i])[:-2] >= 0.5
+                if rb.any() and (self.use_reference == "first" or not dec.any()):
+                    dec = rb
             if dec.any():
                 out[i, :-2][dec] = 1.0
             else:

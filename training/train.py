@@ -198,7 +198,7 @@ def train_classifier_run(seed: int, hp: dict, out: Path | None, use_cache: bool 
                             "embed": int(hp["embed"])},
            "declaration": {"alarm_threshold": cal["alarm_threshold"],
                            "isolation_threshold": float(hp["isolation_threshold"]),
-                           "use_reference": bool(hp.get("use_reference", False)), "calibration": cal},
+                           "use_reference": hp.get("use_reference", False), "calibration": cal},
            "observation": _observation_meta(), "training_episodes": int(len(data["obs"])),
            "n_parameters": int(sum(p.numel() for p in res.model.parameters())),
            "cpu_s_data": round(data_cpu, 1), "cpu_s_train": round(train_cpu, 1),
