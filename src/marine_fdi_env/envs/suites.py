@@ -10,7 +10,8 @@ Once published a suite file never changes: results on it are comparable across v
 code that keep the simulator's numbers.  A change of content is a new name (``-v2``).  The files
 were made by :func:`build_suite` (``python -m marine_fdi_env.envs.suites build NAME``); the test
 suite checks that the builders still reproduce them, so a change of the sampler or of the
-detectability table cannot silently alter a published suite.
+detectability table (which sets the magnitudes) cannot silently alter a published suite: such a
+change needs new suite versions.
 
 =================  =========================================================================
 suite              content
@@ -38,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..faults import FAULT_IDS, PROCESS_FAULT_IDS, FaultSpec
+from ..faults import FAULT_IDS, PROCESS_FAULT_IDS
 from ..scenarios import get_scenario
 from .scenario_sampler import PRESETS, ScenarioConfig, ScenarioSpec, _fault_at_scale
 
@@ -120,38 +121,32 @@ def _profile_of(config: ScenarioConfig, entropy: int) -> str:
     return config.sample(entropy).profile
 
 
-def _single() -> list[ScenarioSpec]:
+def _grid(name: str, fault_ids, scales, reps: int, signed: bool) -> list[ScenarioSpec]:
+    """Every fault alone at every scale, ``reps`` times: training-type profile, onset in the
+    default range, random sign for sensor offsets if ``signed``; three seeds per episode."""
     base = PRESETS["default"]
-    seeds = _seeds("single-v1", 26 * 3 * 2 * 3)
+    seeds = _seeds(name, len(fault_ids) * len(scales) * reps * 3)
     out, k = [], 0
-    for fid in FAULT_IDS:
-        for scale in (1.0, 2.0, 4.0):
-            for rep in range(2):
+    for fid in fault_ids:
+        for scale in scales:
+            for rep in range(reps):
                 s_prof, s_onset, s_noise = seeds[k:k + 3]
                 k += 3
                 r = np.random.default_rng(s_onset)
                 onset = round(float(r.uniform(*base.onset_range_s)), 2)
-                sign = 1.0 if r.random() < 0.5 else -1.0
+                sign = (1.0 if r.random() < 0.5 else -1.0) if signed else 1.0
                 f = _fault_at_scale(fid, "offset", onset, scale, sign)
                 out.append(ScenarioSpec(faults=(f,), profile=_profile_of(base, s_prof), noise_seed=s_noise,
                                         scenario_id=f"{fid}/x{scale:g}/r{rep}", magnitude_scales=(scale,)))
     return out
 
 
+def _single() -> list[ScenarioSpec]:
+    return _grid("single-v1", FAULT_IDS, (1.0, 2.0, 4.0), 2, signed=True)
+
+
 def _incipient() -> list[ScenarioSpec]:
-    base = PRESETS["default"]
-    seeds = _seeds("incipient-v1", 7 * 3 * 3 * 3)
-    out, k = [], 0
-    for fid in PROCESS_FAULT_IDS:
-        for scale in (0.5, 1.0, 1.5):
-            for rep in range(3):
-                s_prof, s_onset, s_noise = seeds[k:k + 3]
-                k += 3
-                onset = round(float(np.random.default_rng(s_onset).uniform(*base.onset_range_s)), 2)
-                f = _fault_at_scale(fid, "offset", onset, scale, 1.0)
-                out.append(ScenarioSpec(faults=(f,), profile=_profile_of(base, s_prof), noise_seed=s_noise,
-                                        scenario_id=f"{fid}/x{scale:g}/r{rep}", magnitude_scales=(scale,)))
-    return out
+    return _grid("incipient-v1", PROCESS_FAULT_IDS, (0.5, 1.0, 1.5), 3, signed=False)
 
 
 def _sampled(name: str, preset: str, n: int) -> list[ScenarioSpec]:
