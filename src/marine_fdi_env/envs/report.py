@@ -82,7 +82,14 @@ def _sorted(results: Sequence[Mapping]) -> list[Mapping]:
             raise ValueError(f"two results for suite {key[0]!r}, agent {key[1]!r}: "
                              f"{seen[key]} and {r.get('path', '?')}")
         seen[key] = r.get("path", "?")
-    return sorted(results, key=lambda r: (r["suite"], agent_sort_key(r["agent"])))
+    return sorted(results, key=lambda r: (_suite_sort_key(r["suite"]), agent_sort_key(r["agent"])))
+
+
+def _suite_sort_key(suite: str) -> tuple:
+    """Shipped suites in their documented order (thesis, single, multi, ...), then others by name."""
+    from .suites import SUITE_NAMES
+
+    return (SUITE_NAMES.index(suite), "") if suite in SUITE_NAMES else (len(SUITE_NAMES), suite)
 
 
 # ----------------------------------------------------------------------------- formatting
@@ -111,6 +118,7 @@ COLUMNS: tuple[_Col, ...] = (
     _Col("Median det. delay [s]", "median_detection_delay_s", _sec),
     _Col("P90 det. delay [s]", "p90_detection_delay_s", _sec),
     _Col("Isolation acc.", "isolation_accuracy", _pct),
+    _Col("Belief on truth", "belief_on_truth", _pct),
     _Col("Median iso. delay [s]", "median_isolation_delay_s", _sec),
     _Col("P90 iso. delay [s]", "p90_isolation_delay_s", _sec),
     _Col("False alarms [1/h]", "false_alarm_rate", _rate),
