@@ -198,7 +198,7 @@ def evaluate(agent_spec: str, suite_name: str, out: Path, *, workers: int = 1, s
     result.update(package_version=__version__, n_scenarios=len(episodes), metrics=compute_metrics(episodes),
                   episodes=episodes)
     tmp = out.with_name(out.name + ".tmp")
-    tmp.write_text(json.dumps(result, indent=1) + "\n")
+    tmp.write_text(json.dumps(result, separators=(",", ":")) + "\n")  # compact: episodes hold traces
     os.replace(tmp, out)
     partial.unlink()
     return result
