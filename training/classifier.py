@@ -4,7 +4,10 @@ Model (:class:`GRUDiagnoser`): per decision, the 96 observation features are sta
 and scale of the training data, stored with the weights), pass a linear layer + ReLU and a
 one-layer GRU that carries the episode's history (causal: the output at decision k depends only
 on decisions 0..k), and a linear head gives 27 logits: one per fault id (multi-label: which
-faults are active) and one for "some fault is active".
+faults are active) and one for "some fault is active".  Features listed in ``drop_features`` are
+masked out: by default the episode clock ``time_fraction``, which would otherwise let the model
+learn the prior "late in an episode there is usually a fault" (onsets are drawn in 20-200 s) and
+raise its fault probability on long fault-free stretches without any evidence.
 
 Training data: ``marine-fdi dataset`` exports of scenario *presets* (never of the evaluation
 suites); labels are the ``active`` arrays (a fault counts from its onset on).  Loss: binary cross
@@ -46,12 +49,13 @@ class GRUDiagnoser(nn.Module):
         self.embed = int(embed)
         self.register_buffer("mean", torch.zeros(n_features))
         self.register_buffer("scale", torch.ones(n_features))
+        self.register_buffer("mask", torch.ones(n_features))  # 0: feature ignored (e.g. the clock)
         self.inp = nn.Linear(n_features, embed)
         self.gru = nn.GRU(embed, hidden, batch_first=True)
         self.head = nn.Linear(hidden, N_FAULTS + 1)
 
     def forward(self, x: torch.Tensor, h: torch.Tensor | None = None):
-        z = torch.relu(self.inp((x - self.mean) / self.scale))
+        z = torch.relu(self.inp((x - self.mean) / self.scale * self.mask))
         y, h = self.gru(z, h)
         return self.head(y), h
 
@@ -80,7 +84,7 @@ def _targets(active: np.ndarray) -> np.ndarray:
 
 def train_classifier(data: dict, *, seed: int, hidden: int = 64, embed: int = 64, epochs: int = 30,
                      batch_size: int = 32, lr: float = 2e-3, weight_decay: float = 1e-5, alarm_weight: float = 4.0,
-                     val_fraction: float = 0.1, log=print) -> TrainResult:
+                     val_fraction: float = 0.1, drop_features=(), feature_names=None, log=print) -> TrainResult:
     """Train a :class:`GRUDiagnoser` on dataset arrays (``obs``, ``active``, ``valid``); seeded."""
     c0 = time.process_time()
     torch.manual_seed(seed)
@@ -96,6 +100,8 @@ def train_classifier(data: dict, *, seed: int, hidden: int = 64, embed: int = 64
     flat = obs[tr_idx][valid[tr_idx] > 0]
     model.mean.copy_(flat.mean(0))
     model.scale.copy_(flat.std(0).clamp_min(1e-3))
+    for name in drop_features:
+        model.mask[list(feature_names).index(name)] = 0.0
     opt = torch.optim.Adam(model.parameters(), lr=lr, weight_decay=weight_decay)
     w = torch.ones(N_FAULTS + 1)
     w[-1] = alarm_weight

@@ -1,7 +1,7 @@
 """Compare the learned diagnosers with the baselines on every frozen suite.
 
     python -m training.compare                      # evaluate what is missing, write the report
-    python -m training.compare --force              # re-evaluate everything
+    python -m training.compare --force              # re-evaluate the learned agents (ppo, classifier)
     python -m training.compare --report-only        # only rewrite docs/learned_agents.md
 
 Runs ``marine-fdi evaluate`` (the same code, :func:`marine_fdi_env.envs.evaluate.evaluate`) for
@@ -75,11 +75,18 @@ def result_path(agent: str, suite: str) -> Path:
     return RESULTS / f"{agent}_{suite}.json"
 
 
-def run(agents: dict, suites, force: bool = False, workers: int = 1, log=print) -> None:
+LEARNED = ("ppo", "classifier")
+
+
+def run(agents: dict, suites, force: bool = False, force_baselines: bool = False, workers: int = 1,
+        log=print) -> None:
+    """Evaluate the missing results; ``force`` re-evaluates the learned agents (and the baselines
+    too with ``force_baselines``: their results are shared with the README's baseline table)."""
     for suite in suites:
         for name, spec in agents.items():
             out = result_path(name, suite)
-            if out.is_file() and not force:
+            again = force_baselines or (force and name in LEARNED)
+            if out.is_file() and not again:
                 continue
             if "/" in spec and not (ROOT / spec / "agent.json").is_file():
                 log(f"skip {name}: {spec} not trained")
@@ -98,7 +105,7 @@ def _relabel(out: Path, name: str, spec: str) -> None:
     data["agent"] = name
     for e in data.get("episodes", []):
         e["agent"] = name
-    out.write_text(json.dumps(data, indent=1) + "\n")
+    out.write_text(json.dumps(data, separators=(",", ":")) + "\n")
 
 
 def _load(agent: str, suite: str) -> dict | None:
@@ -195,7 +202,8 @@ def models_table() -> str:
         if cfg["algo"] == "classifier":
             data = ", ".join(f"{d['preset']} x{d['episodes']} (seed {d['seed']})" for d in cfg["hyperparams"]["datasets"])
             c = cfg["hyperparams"]["calibration"]
-            data += f"; threshold: {c['preset']} x{c['episodes']} (seed {c['seed']})"
+            cname = c.get("preset") or c["config"]["name"]
+            data += f"; threshold: {cname} x{c['episodes']} (seed {c['seed']})"
             data_min = f"{cfg['cpu_s_data'] / 60:.1f}"
             algo = "GRU classifier (supervised)"
         else:
@@ -242,12 +250,14 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m training.compare", description=__doc__.splitlines()[0])
     ap.add_argument("--agents", nargs="*", default=list(AGENTS), choices=list(AGENTS))
     ap.add_argument("--suites", nargs="*", default=list(SUITE_NAMES))
-    ap.add_argument("--force", action="store_true", help="re-evaluate even when a results file exists")
+    ap.add_argument("--force", action="store_true", help="re-evaluate the learned agents even when results exist")
+    ap.add_argument("--force-baselines", action="store_true", help="re-evaluate null/random/reference/oracle too")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--report-only", action="store_true")
     args = ap.parse_args(argv)
     if not args.report_only:
-        run({a: AGENTS[a] for a in args.agents}, args.suites, force=args.force, workers=args.workers)
+        run({a: AGENTS[a] for a in args.agents}, args.suites, force=args.force,
+            force_baselines=args.force_baselines, workers=args.workers)
     notes = NOTES_FILE.read_text() if NOTES_FILE.is_file() else ""
     print(f"wrote {write_report(notes=notes)}")
     return 0

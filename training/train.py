@@ -147,14 +147,22 @@ def _dataset(spec: dict, use_cache: bool, log=print) -> tuple[dict, float, bool]
 
     from .classifier import load_dataset
 
-    preset, n, s = spec["preset"], int(spec["episodes"]), int(spec["seed"])
+    n, s = int(spec["episodes"]), int(spec["seed"])
+    if "config" in spec:  # a scenario config (dict) instead of a named preset
+        from marine_fdi_env.envs.scenario_sampler import ScenarioConfig
+
+        cfg = ScenarioConfig.from_dict({k: (tuple(tuple(x) if isinstance(x, list) else x for x in v)
+                                            if isinstance(v, list) else v) for k, v in spec["config"].items()})
+        preset = cfg.name
+    else:
+        preset = spec["preset"]
+        cfg = get_preset(preset)
     d = CACHE / f"{preset}_{n}_{s}_v{__version__}"
     meta = d / "cpu.json"
     if use_cache and meta.is_file() and (d / "dataset.npz").is_file():
         return load_dataset(d), float(json.loads(meta.read_text())["cpu_s"]), False
     c0 = time.process_time()
     log(f"exporting dataset: marine-fdi dataset --preset {preset} --episodes {n} --seed {s}")
-    cfg = get_preset(preset)
     ent = np.random.default_rng(np.random.SeedSequence(s)).integers(0, 2**63 - 1, size=n)
     scenarios = [cfg.sample(int(e), scenario_id=f"{cfg.name}/{s}/{i}") for i, e in enumerate(ent)]
     export_dataset(scenarios, d, {"scenario_config": cfg}, progress=False)
@@ -185,6 +193,7 @@ def train_classifier_run(seed: int, hp: dict, out: Path | None, use_cache: bool 
     res = train_classifier(data, seed=seed, hidden=int(hp["hidden"]), embed=int(hp["embed"]),
                            epochs=int(hp["epochs"]), batch_size=int(hp["batch_size"]), lr=float(hp["lr"]),
                            weight_decay=float(hp["weight_decay"]), alarm_weight=float(hp["alarm_weight"]),
+                           drop_features=tuple(hp.get("drop_features", ())), feature_names=feature_names(False),
                            log=log)
     train_cpu = time.process_time() - c_train
     probs = episode_scores(res.model, cal_data["obs"])
