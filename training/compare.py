@@ -189,6 +189,18 @@ def must_shows() -> list[tuple[str, str, bool | None]]:
     return out
 
 
+def _count_parameters(name: str):
+    """Parameters of a shipped model whose config predates the count."""
+    try:
+        from marine_fdi_env.envs.agent_api import load_agent
+
+        agent = load_agent(str(ROOT / AGENTS[name]))
+        net = agent.model.policy if hasattr(agent.model, "policy") else agent.model
+        return int(sum(p.numel() for p in net.parameters()))
+    except Exception:  # noqa: BLE001 - the table shows a dash
+        return "–"
+
+
 def models_table() -> str:
     rows = ["| model | algorithm | training data | training [CPU min] | of which data export | parameters | "
             "files | command |", "|---|---|---|---:|---:|---:|---:|---|"]
@@ -210,7 +222,7 @@ def models_table() -> str:
             data = f"{cfg['scenario_config']} preset, {cfg['n_timesteps']} decisions"
             data_min = "(in the total)"
             algo = f"{cfg['algo']} ({cfg['action_mode']} actions)"
-        n_par = cfg.get("n_parameters", "–")
+        n_par = cfg.get("n_parameters") or _count_parameters(a)
         rows.append(f"| `{AGENTS[a]}` | {algo} | {data} | {cfg['cpu_minutes']:.1f} | {data_min} | {n_par} | "
                     f"{_dir_bytes(ROOT / AGENTS[a]) / 1024:.0f} KiB | `{cfg['command']}` |")
     return "\n".join(rows) + "\n"

@@ -128,8 +128,8 @@ def train_sb3(algo: str, seed: int, hp: dict, out: Path | None, log=print) -> tu
     cfg = {"name": algo, "algo": algo, "env_id": ENV_ID, "seed": seed, "n_envs": n_envs,
            "n_timesteps": n_timesteps, "action_mode": action_mode, "frame_stack": frame_stack,
            "scenario_config": scenario, "policy": policy, "policy_kwargs": pk, "hyperparams": hp,
-           "observation": _observation_meta(), "cpu_s": round(time.process_time() - c0, 1),
-           "wall_s": round(time.perf_counter() - w0, 1)}
+           "observation": _observation_meta(), "n_parameters": int(sum(p.numel() for p in model.policy.parameters())),
+           "cpu_s": round(time.process_time() - c0, 1), "wall_s": round(time.perf_counter() - w0, 1)}
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
         model.save(out / "model.zip")
