@@ -64,6 +64,7 @@ def test_ppo_same_seed_same_weights(tmp_path):
 
 
 def test_recurrent_ppo_smoke_and_agent(tmp_path):
+    pytest.importorskip("sb3_contrib")
     hp = load_hyperparams("ppo_lstm", overrides=dict(TINY, policy_kwargs="dict(lstm_hidden_size=8)"))
     out = tmp_path / "lstm"
     _, cfg = train_sb3("ppo_lstm", 1, hp, out, log=None)
@@ -72,6 +73,17 @@ def test_recurrent_ppo_smoke_and_agent(tmp_path):
     assert isinstance(agent, SB3Agent)
     recs = run_episodes(agent, [ScenarioConfig.from_dict(SHORT).sample(5, scenario_id="x")])
     assert recs[0]["duration_s"] == 12.0
+
+
+def test_frame_stacked_ppo_agent(tmp_path):
+    hp = load_hyperparams("ppo", overrides=dict(TINY, frame_stack=3, action_mode="box"))
+    out = tmp_path / "fs"
+    _, cfg = train_sb3("ppo", 2, hp, out, log=None)
+    _save_meta(out, cfg, "training.agents:SB3Agent")
+    agent = load_agent(str(out))
+    assert agent.frame_stack == 3 and agent.model.observation_space.shape == (3 * 96,)
+    rec = run_episodes(agent, [ScenarioConfig.from_dict(SHORT).sample(6, scenario_id="y")])[0]
+    assert rec["duration_s"] == 12.0
 
 
 def _tiny_classifier(tmp_path) -> Path:
