@@ -76,12 +76,12 @@ def test_stable_baselines3_env_checker_passes_without_warnings():
 
 def test_make_and_make_vec_work():
     env = gym.make("marine_fdi_env:MarineFDI-v0", scenario_config="nominal")
-    assert env.observation_space.shape == (96,) and env.action_space.shape == (28,)
+    assert env.observation_space.shape == (115,) and env.action_space.shape == (28,)
     envs = gym.make_vec("marine_fdi_env:MarineFDI-v0", num_envs=3, vectorization_mode="vector_entry_point",
                         scenario_config=SHORT)
     assert isinstance(envs.unwrapped, MarineFDIVectorEnv)
     obs, infos = envs.reset(seed=1)
-    assert obs.shape == (3, 96) and obs.dtype == np.float32
+    assert obs.shape == (3, 115) and obs.dtype == np.float32
     obs, r, term, trunc, infos = envs.step(np.zeros((3, 28), np.float32))
     assert r.shape == (3,) and infos["t_s"].tolist() == pytest.approx([2.0, 2.0, 2.0])
 

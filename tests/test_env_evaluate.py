@@ -102,7 +102,7 @@ def test_cli_evaluate_prints_table_and_rejects_bad_agents(suite_file, tmp_path, 
 def test_dataset_export_labels_match_ground_truth(suite_file, tmp_path):
     assert cli_main(["dataset", "--suite", str(suite_file), "--out", str(tmp_path / "ds"), "--no-progress"]) == 0
     d = np.load(tmp_path / "ds" / "dataset.npz")
-    assert d["obs"].shape == (4, 20, 96) and d["active"].shape == (4, 20, 26)
+    assert d["obs"].shape == (4, 20, 115) and d["active"].shape == (4, 20, 26)
     fid = list(d["fault_ids"])
     s42 = d["active"][0, :, fid.index("S4.2")]
     assert not s42[d["t_s"][0] < 6.0].any() and s42[d["t_s"][0] >= 6.0].all()

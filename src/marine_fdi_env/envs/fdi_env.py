@@ -56,9 +56,10 @@ class MarineFDIEnv(gym.Env):
     turns this into ``Discrete(28)`` (one hypothesis at a time).
 
     ## Observation space
-    ``Box(low, high, (96,), float32)`` (116 with ``observe_sensors=True``); per module, over the
-    period: log(1 + max |r|/threshold), log(1 + mean |r|/threshold), share of samples violating,
-    fired-this-episode flag, time since first violation / episode length; then the episode's
+    ``Box(low, high, (115,), float32)`` (135 with ``observe_sensors=True``); per module, over the
+    period: log(1 + max |r|/threshold), log(1 + mean |r|/threshold), the signed mean of
+    r/threshold (log-compressed), share of samples violating, fired-this-episode flag, time since
+    first violation / episode length; then the episode's
     time fraction (:mod:`marine_fdi_env.envs.observation` has the table and bounds;
     ``env.unwrapped.feature_names`` the names).
 

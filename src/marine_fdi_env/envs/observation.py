@@ -6,13 +6,19 @@ the period, with ``ratio = |residual| / threshold`` (> 1: the module's ARR is vi
 
 =====  ===========================  ===============================================  ==========
 #      feature                      definition                                       bounds
-=====  ===========================  ===============================================  ==========
+=====  ===========================  ===============================================  ===============
 0      ``log_max_ratio``            log(1 + min(max ratio, 1000))                    [0, 6.909]
 1      ``log_mean_ratio``           log(1 + min(mean ratio, 1000))                   [0, 6.909]
-2      ``violation_fraction``       share of the period's samples with ratio > 1     [0, 1]
-3      ``fired``                    1 once the module has fired this episode          {0, 1}
-4      ``since_first_violation``    (t - first violation time) / episode length       [0, 1]
-=====  ===========================  ===============================================  ==========
+2      ``signed_mean_ratio``        s log(1 + min(|m|, 1000)), m = mean of r/thr,    [-6.909, 6.909]
+                                    s = sign(m)
+3      ``violation_fraction``       share of the period's samples with ratio > 1     [0, 1]
+4      ``fired``                    1 once the module has fired this episode          {0, 1}
+5      ``since_first_violation``    (t - first violation time) / episode length       [0, 1]
+=====  ===========================  ===============================================  ===============
+
+The signed mean keeps what the unsigned ratios lose: a small fault shifts a residual's mean one way
+while the noise averages out, long before the worst-case threshold is crossed (the adaptive
+thresholds bound the noise's extremes, not its mean), so a learner can accumulate the evidence.
 
 then one global feature, ``time_fraction`` = t / episode length in [0, 1]; and, with
 ``observe_sensors=True``, the period means of the 19 sensors as relative deviations from the
@@ -33,7 +39,8 @@ from ..sensors import SENSOR_IDS
 __all__ = ["MODULE_FEATURES", "RATIO_CAP", "observation_size", "observation_bounds", "feature_names",
            "module_features"]
 
-MODULE_FEATURES = ("log_max_ratio", "log_mean_ratio", "violation_fraction", "fired", "since_first_violation")
+MODULE_FEATURES = ("log_max_ratio", "log_mean_ratio", "signed_mean_ratio", "violation_fraction", "fired",
+                   "since_first_violation")
 RATIO_CAP = 1000.0
 _LOG_CAP = math.log1p(RATIO_CAP)
 N_MODULES = len(MODULE_IDS)
@@ -51,7 +58,8 @@ def feature_names(observe_sensors: bool) -> list[str]:
 
 
 def observation_bounds(observe_sensors: bool) -> tuple[np.ndarray, np.ndarray]:
-    per = np.array([[0.0, 0.0, 0.0, 0.0, 0.0], [_LOG_CAP, _LOG_CAP, 1.0, 1.0, 1.0]], dtype=np.float32)
+    per = np.array([[0.0, 0.0, -_LOG_CAP, 0.0, 0.0, 0.0], [_LOG_CAP, _LOG_CAP, _LOG_CAP, 1.0, 1.0, 1.0]],
+                   dtype=np.float32)
     low = np.concatenate([np.tile(per[0], N_MODULES), [0.0]])
     high = np.concatenate([np.tile(per[1], N_MODULES), [1.0]])
     if observe_sensors:
@@ -62,24 +70,27 @@ def observation_bounds(observe_sensors: bool) -> tuple[np.ndarray, np.ndarray]:
 
 def module_features(R: np.ndarray, THR: np.ndarray, first_violation: np.ndarray, t_now: np.ndarray,
                     duration_s: np.ndarray) -> np.ndarray:
-    """Features (N, 19 * 5 + 1) from residuals and thresholds (N, B, 19) of one period.
+    """Features (N, 19 * 6 + 1) from residuals and thresholds (N, B, 19) of one period.
 
     first_violation : (N, 19) time of each module's first violation this episode (NaN: never).
     t_now : (N,) each engine's time at the end of the period [s]; duration_s : (N,) episode lengths.
     """
     duration_s = np.broadcast_to(np.asarray(duration_s, dtype=float), t_now.shape)
     with np.errstate(invalid="ignore", divide="ignore"):
-        ratio = np.abs(R) / THR
-    ratio = np.where(np.isnan(ratio) | (ratio > RATIO_CAP), RATIO_CAP, ratio)  # NaN: dropped-out sensor
+        signed = R / THR
+    signed = np.where(np.isnan(signed), RATIO_CAP, np.clip(signed, -RATIO_CAP, RATIO_CAP))  # NaN: dropped-out sensor
+    ratio = np.abs(signed)
     N = R.shape[0]
     out = np.empty((N, N_MODULES, len(MODULE_FEATURES)))
     out[:, :, 0] = np.log1p(ratio.max(axis=1))
     out[:, :, 1] = np.log1p(ratio.mean(axis=1))
-    out[:, :, 2] = (ratio > 1.0).mean(axis=1)
+    m = signed.mean(axis=1)
+    out[:, :, 2] = np.sign(m) * np.log1p(np.abs(m))
+    out[:, :, 3] = (ratio > 1.0).mean(axis=1)
     fired = ~np.isnan(first_violation)
-    out[:, :, 3] = fired
+    out[:, :, 4] = fired
     since = np.where(fired, t_now[:, None] - np.nan_to_num(first_violation), 0.0) / duration_s[:, None]
-    out[:, :, 4] = np.clip(since, 0.0, 1.0)
+    out[:, :, 5] = np.clip(since, 0.0, 1.0)
     time_frac = np.clip(t_now / duration_s, 0.0, 1.0)[:, None]
     return np.concatenate([out.reshape(N, -1), time_frac], axis=1).astype(np.float32)
 
