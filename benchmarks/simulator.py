@@ -88,7 +88,7 @@ def main(argv=None) -> int:
     err, scipy_rate, fixed_n1_acc = accuracy(args.accuracy_duration)
     n1 = throughput(1, args.seconds_n1)
     n1_step = throughput(1, args.seconds_n1, block=1)
-    n1024 = throughput(1024, args.seconds_n1024, repeats=2)
+    n1024 = throughput(1024, args.seconds_n1024, repeats=5)
     out = {
         "engine_samples_per_s_n1": round(n1, 1),
         "engine_samples_per_s_n1_step": round(n1_step, 1),
