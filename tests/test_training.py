@@ -15,6 +15,7 @@ pytest.importorskip("stable_baselines3")
 from marine_fdi_env.envs.agent_api import load_agent  # noqa: E402
 from marine_fdi_env.envs.evaluate import run_episodes  # noqa: E402
 from marine_fdi_env.envs.hypotheses import N_HYPOTHESES  # noqa: E402
+from marine_fdi_env.envs.observation import observation_size  # noqa: E402
 from marine_fdi_env.envs.scenario_sampler import ScenarioConfig  # noqa: E402
 from training.agents import ClassifierAgent, SB3Agent  # noqa: E402
 from training.classifier import calibrate_threshold, train_classifier  # noqa: E402
@@ -24,6 +25,7 @@ from training.vec_adapter import SB3VecEnv, to_belief  # noqa: E402
 # fault-free 12 s episodes: no dependence on the detectability table, and episode ends happen
 SHORT = ScenarioConfig(name="short", duration_s=12.0, fault_count_weights=(1.0, 0.0, 0.0),
                        onset_range_s=(2.0, 5.0)).to_dict()
+NF = observation_size(False)  # features per decision (module features + clock)
 TINY = dict(n_envs=2, n_timesteps=48, n_steps=12, batch_size=24, n_epochs=1, scenario_config=SHORT,
             policy_kwargs="dict(net_arch=[16])")
 
@@ -35,10 +37,10 @@ def _params(model) -> list[np.ndarray]:
 def test_adapter_autoreset_and_actions():
     env = SB3VecEnv(2, scenario_config=SHORT, action_mode="box", seed=3)
     obs = env.reset()
-    assert obs.shape == (2, 96) and obs.dtype == np.float32
+    assert obs.shape == (2, NF) and obs.dtype == np.float32
     for k in range(12):
         obs, rew, done, infos = env.step(np.full((2, N_HYPOTHESES), -1.0, dtype=np.float32))
-        assert obs.shape == (2, 96)
+        assert obs.shape == (2, NF)
     assert done.all() and all("terminal_observation" in i for i in infos)
     assert all(i["TimeLimit.truncated"] for i in infos)
     # the new episodes started at once: time fraction of the first decision period
@@ -60,7 +62,7 @@ def test_ppo_same_seed_same_weights(tmp_path):
         np.testing.assert_array_equal(a, b)
     assert any(not np.array_equal(a, b) for a, b in zip(_params(m1), _params(m3)))
     assert (tmp_path / "a" / "model.zip").is_file() and (tmp_path / "a" / "learning_curve.csv").is_file()
-    assert cfg["seed"] == 7 and cfg["observation"]["size"] == 96
+    assert cfg["seed"] == 7 and cfg["observation"]["size"] == NF
 
 
 def test_recurrent_ppo_smoke_and_agent(tmp_path):
@@ -81,14 +83,14 @@ def test_frame_stacked_ppo_agent(tmp_path):
     _, cfg = train_sb3("ppo", 2, hp, out, log=None)
     _save_meta(out, cfg, "training.agents:SB3Agent")
     agent = load_agent(str(out))
-    assert agent.frame_stack == 3 and agent.model.observation_space.shape == (3 * 96,)
+    assert agent.frame_stack == 3 and agent.model.observation_space.shape == (3 * NF,)
     rec = run_episodes(agent, [ScenarioConfig.from_dict(SHORT).sample(6, scenario_id="y")])[0]
     assert rec["duration_s"] == 12.0
 
 
 def _tiny_classifier(tmp_path) -> Path:
     rng = np.random.default_rng(0)
-    obs = rng.random((6, 10, 96)).astype(np.float32)
+    obs = rng.random((6, 10, NF)).astype(np.float32)
     active = np.zeros((6, 10, 26), dtype=bool)
     active[:3, 5:, 4] = True
     data = {"obs": obs, "active": active, "valid": np.ones((6, 10), dtype=bool)}
@@ -100,7 +102,7 @@ def _tiny_classifier(tmp_path) -> Path:
     out.mkdir()
     torch.save(r1.model.state_dict(), out / "model.pt")
     cfg = {"name": "classifier", "algo": "classifier", "observation": _observation_meta(),
-           "architecture": {"kind": "gru", "n_features": 96, "hidden": 8, "embed": 8},
+           "architecture": {"kind": "gru", "n_features": NF, "hidden": 8, "embed": 8},
            "declaration": {"alarm_threshold": 0.99, "isolation_threshold": 0.5}}
     _save_meta(out, cfg, "training.agents:ClassifierAgent")
     return out
@@ -111,7 +113,7 @@ def test_classifier_seeded_and_agent(tmp_path):
     agent = load_agent(str(out))
     assert isinstance(agent, ClassifierAgent)
     agent.reset([0, 1])
-    b = agent.act(np.zeros((2, 96), dtype=np.float32), {})
+    b = agent.act(np.zeros((2, NF), dtype=np.float32), {})
     assert b.shape == (2, N_HYPOTHESES) and b.dtype == np.float32
 
 
@@ -136,7 +138,7 @@ def test_model_loading_errors(tmp_path):
     (bad / "model.pt").write_bytes(b"\x00garbage" * 10)
     with pytest.raises(ValueError, match=r"model\.pt: corrupt"):
         load_agent(str(bad))
-    # another observation space (116 features, observe_sensors=True)
+    # another observation space (the sensor features too, observe_sensors=True)
     bad = tmp_path / "other_space"
     shutil.copytree(out, bad)
     cfg = json.loads((bad / "config.json").read_text())
@@ -168,8 +170,36 @@ def test_shipped_models_load(name):
         pytest.skip(f"{d} not shipped yet")
     agent = load_agent(str(d))
     agent.reset([0, 1])
-    b = agent.act(np.zeros((2, 96), dtype=np.float32), {"reference": {"detected": np.zeros(2, bool),
+    b = agent.act(np.zeros((2, NF), dtype=np.float32), {"reference": {"detected": np.zeros(2, bool),
                                                                        "diagnoses": [[], []]}})
     assert b.shape == (2, N_HYPOTHESES)
     cfg = json.loads((d / "config.json").read_text())
     assert cfg["command"].startswith("python -m training.train")
+
+
+def test_classifier_ewma_inputs_streaming_equals_episode():
+    """The EWMA inputs of the signed means are causal: one decision at a time gives the whole-episode logits."""
+    from training.classifier import GRUDiagnoser
+    from marine_fdi_env.envs.observation import feature_names
+
+    names = feature_names(False)
+    idx = [i for i, n in enumerate(names) if n.endswith(".signed_mean_ratio")]
+    assert len(idx) == 19
+    torch.manual_seed(0)
+    m = GRUDiagnoser(NF, hidden=8, embed=8, ewma_idx=idx, ewma_taus=(5.0, 20.0)).eval()
+    assert m.n_inputs == NF + 2 * 19
+    x = torch.randn(3, 7, NF)
+    xa, _ = m.augment(x)
+    # the first EWMA input of the first signed feature: s_t = s_{t-1} + (x_t - s_{t-1}) / 5, s_{-1} = 0
+    s, ref = 0.0, []
+    for t in range(7):
+        s = s + (float(x[0, t, idx[0]]) - s) / 5.0
+        ref.append(s)
+    np.testing.assert_allclose(xa[0, :, NF].numpy(), ref, rtol=1e-5, atol=1e-6)
+    with torch.no_grad():
+        whole, _ = m(x)
+        h, steps = None, []
+        for t in range(7):
+            y, h = m(x[:, t:t + 1], h)
+            steps.append(y)
+    torch.testing.assert_close(torch.cat(steps, 1), whole, rtol=1e-5, atol=1e-5)

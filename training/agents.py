@@ -178,13 +178,14 @@ class ClassifierAgent:
         if not isinstance(state, dict):
             raise ValueError(f"{f}: corrupt model (not a state dict)")
         arch = cfg["architecture"]
-        model = GRUDiagnoser(int(arch["n_features"]), hidden=int(arch["hidden"]), embed=int(arch["embed"]))
+        model = GRUDiagnoser(int(arch["n_features"]), hidden=int(arch["hidden"]), embed=int(arch["embed"]),
+                             ewma_idx=arch.get("ewma_idx", ()), ewma_taus=arch.get("ewma_taus", ()))
         w = state.get("inp.weight")
         if w is None or not hasattr(w, "shape"):
             raise ValueError(f"{f}: corrupt model (no input layer weights)")
-        if w.shape[1] != int(cfg["observation"]["size"]):
-            raise ValueError(f"{f}: model made for another observation space ({w.shape[1]} features, this "
-                             f"environment gives {cfg['observation']['size']})")
+        if w.shape[1] != model.n_inputs:
+            raise ValueError(f"{f}: model made for another observation space ({w.shape[1]} inputs, this "
+                             f"environment and config.json give {model.n_inputs})")
         try:
             model.load_state_dict(state)
         except Exception as e:  # noqa: BLE001

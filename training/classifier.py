@@ -40,24 +40,57 @@ N_FAULTS = len(FAULT_IDS)
 
 
 class GRUDiagnoser(nn.Module):
-    """Causal GRU: (B, T, D) features -> (B, T, 27) logits (26 faults, then "some fault")."""
+    """Causal GRU: (B, T, D) features -> (B, T, 27) logits (26 faults, then "some fault").
 
-    def __init__(self, n_features: int, hidden: int = 64, embed: int = 64) -> None:
+    With ``ewma_idx`` (feature indices, normally the 19 ``signed_mean_ratio`` features) and
+    ``ewma_taus`` (time constants in decisions), the model first appends exponentially weighted
+    moving averages of those features (one per index and time constant, started at 0 at the
+    episode start): the agent's own accumulation of the small, persistent residual bias of an
+    incipient fault, which a single decision period's mean hides in the noise.  The state passed
+    between calls is ``(gru_state, ewma_state)``.
+    """
+
+    def __init__(self, n_features: int, hidden: int = 64, embed: int = 64, ewma_idx=(), ewma_taus=()) -> None:
         super().__init__()
         self.n_features = int(n_features)
         self.hidden = int(hidden)
         self.embed = int(embed)
-        self.register_buffer("mean", torch.zeros(n_features))
-        self.register_buffer("scale", torch.ones(n_features))
-        self.register_buffer("mask", torch.ones(n_features))  # 0: feature ignored (e.g. the clock)
-        self.inp = nn.Linear(n_features, embed)
+        self.ewma_idx = [int(i) for i in ewma_idx]
+        self.ewma_taus = [float(t) for t in ewma_taus] if self.ewma_idx else []
+        n_in = self.n_features + len(self.ewma_idx) * len(self.ewma_taus)
+        self.n_inputs = n_in
+        self.register_buffer("mean", torch.zeros(n_in))
+        self.register_buffer("scale", torch.ones(n_in))
+        self.register_buffer("mask", torch.ones(n_in))  # 0: feature ignored (e.g. the clock)
+        self.inp = nn.Linear(n_in, embed)
         self.gru = nn.GRU(embed, hidden, batch_first=True)
         self.head = nn.Linear(hidden, N_FAULTS + 1)
 
-    def forward(self, x: torch.Tensor, h: torch.Tensor | None = None):
-        z = torch.relu(self.inp((x - self.mean) / self.scale * self.mask))
+    def augment(self, x: torch.Tensor, state: torch.Tensor | None = None):
+        """(B, T, D) -> (B, T, D + n_ewma) and the EWMA state (B, n_ewma) after the last step."""
+        if not self.ewma_idx:
+            return x, None
+        sel = x[..., self.ewma_idx]  # (B, T, k)
+        k = sel.shape[-1]
+        alpha = torch.tensor([1.0 / t for t in self.ewma_taus], dtype=x.dtype).repeat_interleave(k)
+        src = sel.repeat(1, 1, len(self.ewma_taus))  # (B, T, k * n_taus), tau-major
+        s = torch.zeros(x.shape[0], src.shape[-1], dtype=x.dtype) if state is None else state
+        out = []
+        for t in range(x.shape[1]):
+            s = s + alpha * (src[:, t] - s)
+            out.append(s)
+        return torch.cat([x, torch.stack(out, 1)], -1), s
+
+    def core(self, xa: torch.Tensor, h: torch.Tensor | None = None):
+        z = torch.relu(self.inp((xa - self.mean) / self.scale * self.mask))
         y, h = self.gru(z, h)
         return self.head(y), h
+
+    def forward(self, x: torch.Tensor, h=None):
+        gh, es = h if isinstance(h, tuple) else (h, None)
+        xa, es = self.augment(x, es)
+        logits, gh = self.core(xa, gh)
+        return logits, ((gh, es) if self.ewma_idx else gh)
 
 
 @dataclass
@@ -84,7 +117,8 @@ def _targets(active: np.ndarray) -> np.ndarray:
 
 def train_classifier(data: dict, *, seed: int, hidden: int = 64, embed: int = 64, epochs: int = 30,
                      batch_size: int = 32, lr: float = 2e-3, weight_decay: float = 1e-5, alarm_weight: float = 4.0,
-                     val_fraction: float = 0.1, drop_features=(), feature_names=None, log=print) -> TrainResult:
+                     val_fraction: float = 0.1, drop_features=(), feature_names=None, ewma_features=(),
+                     ewma_taus=(), episode_weight=None, log=print) -> TrainResult:
     """Train a :class:`GRUDiagnoser` on dataset arrays (``obs``, ``active``, ``valid``); seeded."""
     c0 = time.process_time()
     torch.manual_seed(seed)
@@ -96,7 +130,12 @@ def train_classifier(data: dict, *, seed: int, hidden: int = 64, embed: int = 64
     perm = rng.permutation(E)
     n_val = int(round(val_fraction * E)) if E >= 10 else 0
     val_idx, tr_idx = perm[:n_val], perm[n_val:]
-    model = GRUDiagnoser(D, hidden=hidden, embed=embed)
+    names = list(feature_names) if feature_names is not None else []
+    ewma_idx = [i for i, n in enumerate(names) if any(n.endswith("." + f) for f in ewma_features)]
+    model = GRUDiagnoser(D, hidden=hidden, embed=embed, ewma_idx=ewma_idx, ewma_taus=ewma_taus)
+    with torch.no_grad():  # the EWMA inputs are fixed functions of the observations: computed once
+        obs = torch.cat([model.augment(obs[s:s + 256])[0] for s in range(0, E, 256)])
+    ew = torch.ones(E) if episode_weight is None else torch.as_tensor(episode_weight, dtype=torch.float32)
     flat = obs[tr_idx][valid[tr_idx] > 0]
     model.mean.copy_(flat.mean(0))
     model.scale.copy_(flat.std(0).clamp_min(1e-3))
@@ -108,9 +147,9 @@ def train_classifier(data: dict, *, seed: int, hidden: int = 64, embed: int = 64
     bce = nn.BCEWithLogitsLoss(reduction="none")
 
     def loss_of(idx):
-        logits, _ = model(obs[idx])
+        logits, _ = model.core(obs[idx])
         per = (bce(logits, y[idx]) * w).sum(-1)
-        m = valid[idx]
+        m = valid[idx] * ew[idx, None]
         return (per * m).sum() / m.sum().clamp_min(1.0)
 
     curve = []

@@ -181,20 +181,23 @@ def train_classifier_run(seed: int, hp: dict, out: Path | None, use_cache: bool 
     c0, w0 = time.process_time(), time.perf_counter()
     torch.set_num_threads(int(hp.pop("torch_threads", 1)))
     data_cpu = fresh_cpu = 0.0
-    parts = []
+    parts, weights = [], []
     for spec in hp["datasets"] + [hp["calibration"]]:
         arr, cpu, fresh = _dataset(spec, use_cache, log)
         parts.append(arr)
+        weights.append(np.full(len(arr["obs"]), float(spec.get("weight", 1.0)), dtype=np.float32))
         data_cpu += cpu
         fresh_cpu += cpu if fresh else 0.0
     cal_data = parts.pop()
+    weights.pop()
     data = {k: np.concatenate([p[k] for p in parts]) for k in ("obs", "active", "valid")}
     c_train = time.process_time()
     res = train_classifier(data, seed=seed, hidden=int(hp["hidden"]), embed=int(hp["embed"]),
                            epochs=int(hp["epochs"]), batch_size=int(hp["batch_size"]), lr=float(hp["lr"]),
                            weight_decay=float(hp["weight_decay"]), alarm_weight=float(hp["alarm_weight"]),
                            drop_features=tuple(hp.get("drop_features", ())), feature_names=feature_names(False),
-                           log=log)
+                           ewma_features=tuple(hp.get("ewma_features", ())), ewma_taus=tuple(hp.get("ewma_taus", ())),
+                           episode_weight=np.concatenate(weights), log=log)
     train_cpu = time.process_time() - c_train
     probs = episode_scores(res.model, cal_data["obs"])
     cal = calibrate_threshold(probs[..., -1], cal_data["valid"], target_per_hour=float(hp["target_false_alarms_per_hour"]),
@@ -204,7 +207,8 @@ def train_classifier_run(seed: int, hp: dict, out: Path | None, use_cache: bool 
     cpu_here = time.process_time() - c0
     cfg = {"name": "classifier", "algo": "classifier", "env_id": ENV_ID, "seed": seed, "hyperparams": hp,
            "architecture": {"kind": "gru", "n_features": int(data["obs"].shape[-1]), "hidden": int(hp["hidden"]),
-                            "embed": int(hp["embed"])},
+                            "embed": int(hp["embed"]), "ewma_idx": res.model.ewma_idx,
+                            "ewma_taus": res.model.ewma_taus},
            "declaration": {"alarm_threshold": cal["alarm_threshold"],
                            "isolation_threshold": float(hp["isolation_threshold"]),
                            "use_reference": hp.get("use_reference", False), "calibration": cal},
