@@ -42,9 +42,9 @@ def check_observation(cfg: dict, where: Path, observe_sensors: bool = False) -> 
     names = feature_names(bool(ob.get("observe_sensors", observe_sensors)))
     if ob.get("feature_names") != names:
         size = ob.get("size")
-        raise ValueError(f"{where}: model made for another observation space ({size} features "
-                         f"{'with different names' if size == len(names) else ''}); this environment has "
-                         f"{len(names)} features ({names[0]}, ..., {names[-1]})".replace("  ", " "))
+        same = " with different names" if size == len(names) else ""
+        raise ValueError(f"{where}: model made for another observation space ({size} features{same}); "
+                         f"this environment has {len(names)} features ({names[0]}, ..., {names[-1]})")
     return len(names)
 
 
