@@ -1,7 +1,8 @@
 """Supervised diagnoser: a small GRU over the episode's residual features.
 
-Model (:class:`GRUDiagnoser`): per decision, the 96 observation features are standardised (mean
-and scale of the training data, stored with the weights), pass a linear layer + ReLU and a
+Model (:class:`GRUDiagnoser`): per decision, the observation features (115 without sensors), and
+optionally EWMAs of the signed residual means the model computes itself (``ewma_features``,
+``ewma_taus``), are standardised (mean and scale of the training data, stored with the weights), pass a linear layer + ReLU and a
 one-layer GRU that carries the episode's history (causal: the output at decision k depends only
 on decisions 0..k), and a linear head gives 27 logits: one per fault id (multi-label: which
 faults are active) and one for "some fault is active".  Features listed in ``drop_features`` are
