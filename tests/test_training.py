@@ -51,6 +51,11 @@ def test_adapter_autoreset_and_actions():
     assert d[0, 26] == 1.0 and d[1, 0] == 1.0 and d.sum() == 2.0
     with pytest.raises(ValueError, match="action_mode"):
         SB3VecEnv(1, scenario_config=SHORT, action_mode="multi")
+    # env_method reaches the shared batched env once, one result per index
+    drawn = env.env_method("_draw", 0, indices=[0, 1])
+    assert len(drawn) == 2 and drawn[0] is drawn[1] and drawn[0].duration_s == 12.0
+    with pytest.raises(ValueError, match="no method"):
+        env.env_method("fly")
 
 
 def test_ppo_same_seed_same_weights(tmp_path):

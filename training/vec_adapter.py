@@ -117,7 +117,13 @@ class SB3VecEnv(VecEnv):
         setattr(self.venv, attr_name, value)
 
     def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list[Any]:
-        raise NotImplementedError("env_method is not supported by the batched MarineFDI adapter")
+        """The sub-environments share one batched env: the method is called on it once, and its
+        result is returned for every index (as ``get_attr`` does for attributes)."""
+        idx = list(self._get_indices(indices))
+        method = getattr(self.venv, method_name, None)
+        if not callable(method):
+            raise ValueError(f"the MarineFDI vector env has no method {method_name!r}")
+        return [method(*method_args, **method_kwargs)] * len(idx)
 
     def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
         return [False] * len(list(self._get_indices(indices)))
