@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .faults import PROCESS_FAULT_IDS, FAULT_IDS, CompiledSchedule, FaultSpec, parse_fault_spec
-from .integrators import FAILURE_REASONS, _failure_code, advance_batch
+from .integrators import FAILURE_REASONS, _failure_code, advance_batch, limited_fuel_setting
 from .model import ALG_FIELDS, HEALTHY, HEALTHY_PF, N_ALG, PF_FIELDS, Algebraic, EngineModel, ProcessFaultValues
 from .params import EngineParams, load_params
 from .profiles import Profile, make_profile
@@ -235,7 +235,7 @@ class Simulator:
         self.X[idx] = np.stack([ss.x1, ss.x3, ss.x4], axis=1)
         self.ALG[idx] = np.stack([getattr(ss.alg, f) for f in ALG_FIELDS], axis=1)
         self.u = self.u.copy()
-        self.u[idx] = self._applied_u(self._u_right[0])[idx]
+        self.u[idx] = self._applied_u(self._u_right[0], idx)
         self.failed[idx] = False
         codes = np.zeros(self.n, dtype=np.int64)
         for i in idx:
@@ -395,14 +395,13 @@ class Simulator:
         act, val = self._fault_truth_rows(rows, sens)
         return Y, U, _truth_from_state(STATE, U), act, val
 
-    def _applied_u(self, u_cmd: np.ndarray) -> np.ndarray:
-        """Fuel setting after the charge-air limiter (see class docstring)."""
-        if self.fuel_limiter_lambda <= 0:
-            return u_cmd.copy()
-        p = self.params
-        u_max = self.X[:, 2] * p.V1_m3 / (p.R_a_J_per_kgK * self.ALG[:, 9] * self.fuel_limiter_lambda * p.sigma_f
-                                          * p.x1_nom_kg)
-        return np.minimum(u_cmd, u_max)
+    def _applied_u(self, u_cmd: np.ndarray, engines=None) -> np.ndarray:
+        """Fuel setting after the charge-air limiter (see class docstring), for ``engines`` (default
+        all); the compiled kernel applies the same function at every sample."""
+        idx = range(self.n) if engines is None else engines
+        c = self.model.constants
+        return np.array([limited_fuel_setting(float(u_cmd[i]), self.X[i, 2], self.ALG[i, 9],
+                                              self.fuel_limiter_lambda, c) for i in idx])
 
     # ------------------------------------------------------------------------- failures
     def _record_failures(self, codes: np.ndarray, t: float) -> None:

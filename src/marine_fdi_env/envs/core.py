@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..diagnosis.agent import ReferenceDiagnoser
-from ..faults import FAULT_IDS
+from ..faults import FAULT_IDS, _window_time
 from ..params import EngineParams, load_params
 from ..simulator import Simulator
 from .hypotheses import DECLARE_THRESHOLD, N_FAULTS, UNKNOWN
@@ -140,14 +140,16 @@ class EpisodeBatch:
         return float(self.t[slot])
 
     def active_faults(self, slot: int, t: float | None = None) -> dict[str, float]:
-        """Faults active in the slot's episode at time t (default now): id -> onset [s]."""
+        """Faults active in the slot's episode at time t (default now): id -> onset [s].
+
+        The same activity windows as the simulator's ground truth (``faults._window_time``)."""
         t = self.time(slot) if t is None else t
-        sc = self.scenarios[slot]
         out = {}
-        for f in sc.faults:
-            if f.onset_s <= t + 1e-9 and (f.end_s is None or t < f.end_s - 1e-9):
-                if f.period_s is not None and ((t - f.onset_s) % f.period_s) >= f.duty * f.period_s:
-                    continue
+        for f in self.scenarios[slot].faults:
+            inf = math.inf
+            s = _window_time(t, f.onset_s, inf if f.end_s is None else f.end_s,
+                             inf if f.period_s is None else f.period_s, 1.0 if f.duty is None else f.duty)
+            if not np.isnan(s):
                 out[f.fault_id] = float(f.onset_s)
         return out
 

@@ -19,7 +19,7 @@ import numpy as np
 from ..faults import FAULT_IDS
 
 __all__ = ["HYPOTHESES", "N_HYPOTHESES", "NO_FAULT", "UNKNOWN", "DECLARE_THRESHOLD", "check_action",
-           "declared_ids", "raises_alarm", "belief_share", "one_hot"]
+           "one_hot"]
 
 HYPOTHESES: tuple[str, ...] = FAULT_IDS + ("no_fault", "unknown")
 N_HYPOTHESES = len(HYPOTHESES)
@@ -49,23 +49,6 @@ def check_action(action, n_envs: int | None = None) -> np.ndarray:
     if np.any(a < 0.0) or np.any(a > 1.0):
         raise ValueError("action entries must lie in [0, 1] (a belief per hypothesis)")
     return a
-
-
-def declared_ids(belief: np.ndarray) -> tuple[str, ...]:
-    """Fault ids declared by a belief vector (28,), in FAULT_IDS order."""
-    return tuple(FAULT_IDS[i] for i in np.flatnonzero(belief[:N_FAULTS] >= DECLARE_THRESHOLD))
-
-
-def raises_alarm(belief: np.ndarray) -> bool:
-    return bool(np.any(belief[:N_FAULTS] >= DECLARE_THRESHOLD) or belief[UNKNOWN] >= DECLARE_THRESHOLD)
-
-
-def belief_share(belief: np.ndarray, true_ids) -> float:
-    """Share of the total belief mass on the true fault ids."""
-    total = float(np.sum(belief, dtype=np.float64))
-    if total <= 0.0:
-        return 0.0
-    return float(sum(float(belief[_INDEX[f]]) for f in true_ids)) / total
 
 
 def one_hot(hypotheses) -> np.ndarray:
