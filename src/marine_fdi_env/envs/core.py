@@ -65,6 +65,8 @@ class EpisodeBatch:
         self.sim: Simulator | None = None
         self.diag = ReferenceDiagnoser(self.params, n_engines=self.n, dt=self.dt)
         self.scenarios: list[ScenarioSpec | None] = [None] * self.n
+        self._truth: list[list[dict]] = [[] for _ in range(self.n)]  # per slot, computed once per episode
+        self._durations = np.ones(self.n)  # episode lengths [s]
         self.steps = np.zeros(self.n, dtype=np.int64)  # decisions taken this episode
         self.obs = np.zeros((self.n, self.obs_size), dtype=np.float32)
         self.failure: list[dict | None] = [None] * self.n
@@ -104,6 +106,8 @@ class EpisodeBatch:
         self.t = self.sim.local_time
         for s, sc in zip(slots, scenarios):
             self.scenarios[s] = sc
+            self._truth[s] = sc.truth()
+            self._durations[s] = sc.duration_s
             self.steps[s] = 0
             self.failure[s] = None
             self.compute_s[s] = 0.0
@@ -120,7 +124,7 @@ class EpisodeBatch:
         t0 = time.perf_counter()
         out = self.diag.observe(blk.measurements, blk.u)
         t_now = self.t = self.sim.local_time
-        durations = np.array([sc.duration_s if sc is not None else 1.0 for sc in self.scenarios])
+        durations = self._durations
         feats = module_features(out.residuals, out.thresholds, self.diag.first_violation, t_now, durations)
         if self.observe_sensors:
             feats = np.concatenate([feats, sensor_features(blk.measurements, blk.u, self._nominal)], axis=1)
@@ -197,7 +201,7 @@ class EpisodeBatch:
             "t_s": t,
             "scenario_id": sc.scenario_id,
             "profile": sc.profile,
-            "true_faults": sc.truth(),
+            "true_faults": [dict(f) for f in self._truth[slot]],
             "active_faults": sorted(act, key=FAULT_IDS.index),
             "engine_failure": self.failure[slot],
             "reference": self.reference_declaration(slot),
