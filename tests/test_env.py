@@ -86,6 +86,22 @@ def test_make_and_make_vec_work():
     assert r.shape == (3,) and infos["t_s"].tolist() == pytest.approx([2.0, 2.0, 2.0])
 
 
+def assert_same_info(infos: dict, i: int, info: dict, where: str) -> None:
+    """Sub-env i's entries of vector infos equal a single env's info (None: engine -1 / NaN)."""
+    assert {k for k in infos if not k.startswith("_") and infos["_" + k][i]} == set(info), where
+    for key, v in info.items():
+        got = infos[key][i] if not isinstance(infos[key], dict) else {k: infos[key][k][i] for k in infos[key]
+                                                                      if not k.startswith("_")}
+        if key == "engine_failure" and v is None:
+            assert got["engine"] == -1 and np.isnan(got["time_s"]) and got["reason"] == "", where
+        elif key == "engine_failure":  # "engine" is the sub-env index (0 in a single env)
+            assert got == dict(v, engine=i), f"{where}: {got!r} != {v!r}"
+        elif key == "belief_on_truth" and v is None:
+            assert np.isnan(got), where
+        else:
+            assert got == v, f"{where}: {key} {got!r} != {v!r}"
+
+
 def test_two_envs_with_one_seed_are_bit_identical():
     from gymnasium.utils.env_match import check_environments_match
 
@@ -105,7 +121,8 @@ def test_vector_env_equals_single_envs_seeded_seed_plus_i():
     obs, infos = venv.reset(seed=seed, options={"scenarios": first})
     s_obs = []
     for i, env in enumerate(singles):
-        o, _ = env.reset(seed=seed + i, options={"scenario": first[i]})
+        o, info = env.reset(seed=seed + i, options={"scenario": first[i]})
+        assert_same_info(infos, i, info, f"reset env {i}")
         s_obs.append(o)
     assert np.array_equal(obs, np.stack(s_obs))
     pending = [False] * n
@@ -116,12 +133,14 @@ def test_vector_env_equals_single_envs_seeded_seed_plus_i():
         obs, r, term, trunc, infos = venv.step(actions)
         for i, env in enumerate(singles):
             if pending[i]:
-                o, _ = env.reset()
+                o, info = env.reset()
+                assert_same_info(infos, i, info, f"autoreset step {k} env {i}")
                 pending[i] = False
                 assert r[i] == 0.0 and not term[i] and not trunc[i]
             else:
-                o, ri, ti, tri, _ = env.step(actions[i])
+                o, ri, ti, tri, info = env.step(actions[i])
                 assert (r[i], term[i], trunc[i]) == (ri, ti, tri), f"step {k} env {i}"
+                assert_same_info(infos, i, info, f"step {k} env {i}")
                 pending[i] = ti or tri
                 ended += ti or tri
             assert np.array_equal(obs[i], o), f"step {k} env {i}"
@@ -260,3 +279,24 @@ def test_discrete_wrapper_declares_one_hypothesis():
     assert info["declared"] == ["S2.1"]
     with pytest.raises(ValueError, match="integer"):
         env.step(28)
+
+
+def test_compiled_period_statistics_equal_the_numpy_reductions():
+    # the observation's per-module statistics come from one compiled pass; they must equal the
+    # numpy definitions in the observation docstring bit for bit (inf, NaN, zero thresholds included)
+    from marine_fdi_env.envs.observation import RATIO_CAP, _period_stats
+
+    rng = np.random.default_rng(0)
+    for B in (1, 7, 100):
+        R = rng.normal(size=(20, B, 19)) * rng.choice([1e-3, 1.0, 1e4], size=(20, B, 19))
+        THR = np.abs(rng.normal(size=(20, B, 19)))
+        R[0, 0, 0], R[1, 0, 1], R[4, 0, 4] = np.inf, np.nan, -np.inf
+        R[2, 0, 2] = THR[2, 0, 2] = THR[3, 0, 3] = 0.0
+        with np.errstate(invalid="ignore", divide="ignore"):
+            signed = R / THR
+        signed = np.where(np.isnan(signed), RATIO_CAP, np.clip(signed, -RATIO_CAP, RATIO_CAP))
+        ratio = np.abs(signed)
+        want = np.stack([ratio.max(axis=1), ratio.mean(axis=1), signed.mean(axis=1), (ratio > 1.0).mean(axis=1)], -1)
+        got = np.empty((20, 19, 4))
+        _period_stats(R, THR, got)
+        assert np.array_equal(got, want)

@@ -28,6 +28,12 @@ __all__ = ["EpisodeBatch", "StepOutcome"]
 _FAULT_COL = {f: k for k, f in enumerate(FAULT_IDS)}
 
 
+def _row_members(mask: np.ndarray) -> list[np.ndarray]:
+    """The column indices of the True entries of each row of a 2-d bool mask, ascending."""
+    rows, cols = np.nonzero(mask)
+    return np.split(cols, np.cumsum(np.bincount(rows, minlength=len(mask)))[:-1]) if len(mask) else []
+
+
 @dataclass
 class StepOutcome:
     """Scores of one decision for every slot."""
@@ -70,6 +76,11 @@ class EpisodeBatch:
         self.steps = np.zeros(self.n, dtype=np.int64)  # decisions taken this episode
         self.obs = np.zeros((self.n, self.obs_size), dtype=np.float32)
         self.failure: list[dict | None] = [None] * self.n
+        self.failed = np.zeros(self.n, dtype=bool)  # failure[i] is not None
+        # the slots' fault windows as padded arrays (n, width): fault column (-1: none), onset,
+        # end, period, duty; so the active faults of all slots are one vectorised call
+        self._fcol = np.full((self.n, 0), -1, dtype=np.int64)
+        self._fwin = np.zeros((4, self.n, 0))
         self.compute_s = np.zeros(self.n)
         self._nominal = None
         if self.observe_sensors:
@@ -110,10 +121,30 @@ class EpisodeBatch:
             self._durations[s] = sc.duration_s
             self.steps[s] = 0
             self.failure[s] = None
+            self.failed[s] = False
             self.compute_s[s] = 0.0
+            self._set_fault_windows(s, sc.faults)
         for f in self.sim.failures[n_before:]:  # engines outside their physical range at t = 0
-            self.failure[f.engine] = f.to_dict()
+            self._fail(f)
         self._failures_seen = len(self.sim.failures)
+
+    def _fail(self, f) -> None:
+        self.failure[f.engine] = f.to_dict()
+        self.failed[f.engine] = True
+
+    def _set_fault_windows(self, slot: int, faults) -> None:
+        width = self._fcol.shape[1]
+        if len(faults) > width:  # grow the padding
+            extra = len(faults) - width
+            self._fcol = np.concatenate([self._fcol, np.full((self.n, extra), -1, dtype=np.int64)], axis=1)
+            self._fwin = np.concatenate([self._fwin, np.zeros((4, self.n, extra))], axis=2)
+        inf = math.inf
+        self._fcol[slot] = -1
+        self._fwin[:, slot] = np.array([[inf], [inf], [inf], [1.0]])  # never active
+        for k, f in enumerate(faults):
+            self._fcol[slot, k] = _FAULT_COL[f.fault_id]
+            self._fwin[:, slot, k] = (f.onset_s, inf if f.end_s is None else f.end_s,
+                                      inf if f.period_s is None else f.period_s, 1.0 if f.duty is None else f.duty)
 
     def advance(self, slots=None) -> np.ndarray:
         """Advance all engines one decision period; update the observations of ``slots`` (default all).
@@ -134,7 +165,7 @@ class EpisodeBatch:
         self.compute_s += elapsed / self.n
         failed = []
         for f in self.sim.failures[self._failures_seen:]:
-            self.failure[f.engine] = f.to_dict()
+            self._fail(f)
             failed.append(f.engine)
         self._failures_seen = len(self.sim.failures)
         return np.asarray(failed, dtype=np.int64)
@@ -143,32 +174,19 @@ class EpisodeBatch:
     def time(self, slot: int) -> float:
         return float(self.t[slot])
 
-    def active_faults(self, slot: int, t: float | None = None) -> dict[str, float]:
-        """Faults active in the slot's episode at time t (default now): id -> onset [s].
-
-        The same activity windows as the simulator's ground truth (``faults._window_time``)."""
-        t = self.time(slot) if t is None else t
-        out = {}
-        for f in self.scenarios[slot].faults:
-            inf = math.inf
-            s = _window_time(t, f.onset_s, inf if f.end_s is None else f.end_s,
-                             inf if f.period_s is None else f.period_s, 1.0 if f.duty is None else f.duty)
-            if not np.isnan(s):
-                out[f.fault_id] = float(f.onset_s)
-        return out
-
     def active_matrix(self, slots) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(active (n, 26) bool, first onset (n,), last onset (n,)) of the slots' faults now."""
-        n = len(slots)
-        act = np.zeros((n, N_FAULTS), dtype=bool)
-        first = np.zeros(n)
-        last = np.zeros(n)
-        for j, s in enumerate(slots):
-            on = self.active_faults(s)
-            if on:
-                act[j, [_FAULT_COL[f] for f in on]] = True
-                first[j] = min(on.values())
-                last[j] = max(on.values())
+        """(active (n, 26) bool, first onset (n,), last onset (n,)) of the slots' faults now (onsets 0
+        where none is active): the simulator's activity windows (``faults._window_time``)."""
+        slots = np.asarray(slots, dtype=np.int64)
+        col = self._fcol[slots]
+        onset, end, period, duty = self._fwin[:, slots]
+        on = ~np.isnan(_window_time(self.t[slots][:, None], onset, end, period, duty))
+        act = np.zeros((len(slots), N_FAULTS), dtype=bool)
+        rows, ks = np.nonzero(on)
+        act[rows, col[rows, ks]] = True
+        some = on.any(axis=1)
+        first = np.where(some, np.where(on, onset, math.inf).min(axis=1, initial=math.inf), 0.0)
+        last = np.where(some, np.where(on, onset, -math.inf).max(axis=1, initial=-math.inf), 0.0)
         return act, first, last
 
     def score(self, beliefs: np.ndarray, slots) -> StepOutcome:
@@ -184,7 +202,7 @@ class EpisodeBatch:
         with np.errstate(invalid="ignore", divide="ignore"):
             share = np.where(total > 0, on_truth / total, 0.0)
         share = np.where(act.any(axis=1), share, np.nan)
-        declared = [tuple(FAULT_IDS[k] for k in np.flatnonzero(row)) for row in decl]
+        declared = [tuple(FAULT_IDS[k] for k in ks) for ks in _row_members(decl)]
         return StepOutcome(reward, terms, declared, alarm, share)
 
     def reference_declaration(self, slot: int) -> dict:
@@ -194,15 +212,44 @@ class EpisodeBatch:
                 "diagnoses": [sorted(d) for d in st.diagnoses] if st.detected else []}
 
     def info(self, slot: int) -> dict:
-        sc = self.scenarios[slot]
-        t = self.time(slot)
-        act = self.active_faults(slot, t)
+        """The info of one slot now (the single environment's ``info``)."""
+        parts = self.info_arrays([slot])
+        fail = self.failure[slot]
         return {
-            "t_s": t,
-            "scenario_id": sc.scenario_id,
-            "profile": sc.profile,
-            "true_faults": [dict(f) for f in self._truth[slot]],
-            "active_faults": sorted(act, key=FAULT_IDS.index),
-            "engine_failure": self.failure[slot],
-            "reference": self.reference_declaration(slot),
+            "t_s": float(parts["t_s"][0]),
+            "scenario_id": parts["scenario_id"][0],
+            "profile": parts["profile"][0],
+            "true_faults": parts["true_faults"][0],
+            "active_faults": parts["active_faults"][0],
+            "engine_failure": None if fail is None else dict(fail),
+            "reference": {"detected": bool(parts["reference"]["detected"][0]),
+                          "diagnoses": parts["reference"]["diagnoses"][0]},
         }
+
+    def info_arrays(self, slots) -> dict:
+        """The infos of ``slots`` now as arrays over the slots (Gymnasium's vector info layout,
+        without the masks): ``engine_failure`` of a slot without failure is engine -1, time NaN,
+        reason ""."""
+        slots = np.asarray(slots, dtype=np.int64)
+        k = len(slots)
+        act, _, _ = self.active_matrix(slots)
+        active = _row_members(act)
+        sid, prof, truth, act_ids, diagnoses = (np.empty(k, dtype=object) for _ in range(5))
+        engine = np.full(k, -1, dtype=np.int64)
+        fail_t = np.full(k, math.nan)
+        reason = np.full(k, "", dtype=object)
+        detected = np.zeros(k, dtype=bool)
+        for j, s in enumerate(slots):
+            sc = self.scenarios[s]
+            sid[j] = sc.scenario_id
+            prof[j] = sc.profile
+            truth[j] = [dict(f) for f in self._truth[s]]
+            act_ids[j] = [FAULT_IDS[c] for c in active[j]]
+            fail = self.failure[s]
+            if fail is not None:
+                engine[j], fail_t[j], reason[j] = fail["engine"], fail["time_s"], fail["reason"]
+            ref = self.reference_declaration(s)
+            detected[j], diagnoses[j] = ref["detected"], ref["diagnoses"]
+        return {"t_s": self.t[slots].astype(float), "scenario_id": sid, "profile": prof, "true_faults": truth,
+                "active_faults": act_ids, "engine_failure": {"engine": engine, "time_s": fail_t, "reason": reason},
+                "reference": {"detected": detected, "diagnoses": diagnoses}}

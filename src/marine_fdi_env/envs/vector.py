@@ -11,8 +11,6 @@ reward 0 and ``terminated = truncated = False``.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import seeding
@@ -90,7 +88,7 @@ class MarineFDIVectorEnv(VectorEnv):
         self.batch.advance()
         self._autoreset[:] = False
         self._started = True
-        infos = _stack_infos([_uniform(self.batch.info(i)) for i in range(n)])
+        infos = _scatter(n, [(np.arange(n), self.batch.info_arrays(np.arange(n)))])
         return self.batch.obs.copy(), infos
 
     def _draw(self, i: int) -> ScenarioSpec:
@@ -118,77 +116,60 @@ class MarineFDIVectorEnv(VectorEnv):
         terminated = np.zeros(n, dtype=bool)
         truncated = np.zeros(n, dtype=bool)
         out = b.score(beliefs[live], live)
-        decision_t = {}
-        for j, i in enumerate(live):
-            b.steps[i] += 1
-            rewards[i] = out.reward[j]
-            decision_t[i] = b.time(i)
-            if b.failure[i] is not None:
-                terminated[i] = True
-            elif decision_t[i] >= b.scenarios[i].duration_s - 1e-9:
-                truncated[i] = True
-        ended = terminated | truncated
-        final_infos = {int(i): b.info(int(i)) for i in np.flatnonzero(ended)}  # before their engines move on
+        b.steps[live] += 1
+        rewards[live] = out.reward
+        decision_t = b.t[live].astype(float)
+        terminated[live] = b.failed[live]
+        truncated[live] = ~terminated[live] & (decision_t >= b._durations[live] - 1e-9)
+        ended = np.flatnonzero(terminated | truncated)
+        final = b.info_arrays(ended)  # before their engines move on
         if len(resetting):
             b.start(resetting, [self._draw(int(i)) for i in resetting])
-        advancing = np.flatnonzero(~ended)  # live slots going on, and the new episodes
+        advancing = np.flatnonzero(~(terminated | truncated))  # live slots going on, and the new episodes
         failed = b.advance(advancing)
+        live_mask = ~self._autoreset
         for i in failed:
-            if i in live and not (terminated[i] or truncated[i]):
+            if live_mask[i] and not (terminated[i] or truncated[i]):
                 terminated[i] = True
-        per_slot: list[dict | None] = [None] * n
-        for j, i in enumerate(live):
-            info = final_infos[int(i)] if ended[i] else b.info(i)
-            info.update(declared=list(out.declared[j]), alarm=bool(out.alarm[j]),
-                        belief_on_truth=float(out.belief_on_truth[j]),
-                        reward_terms={k: float(v[j]) for k, v in out.terms.items()}, decision_time_s=decision_t[i])
-            if terminated[i]:
-                info["termination_reason"] = f"engine failure: {b.failure[i]['reason']}"
-            per_slot[i] = info
-        for i in resetting:
-            per_slot[i] = b.info(int(i))
-        infos = _stack_infos([_uniform(x) if x is not None else None for x in per_slot])
+        infos = _scatter(n, [(ended, final), (advancing, b.info_arrays(advancing))])
+        declared = _objects([list(d) for d in out.declared])
+        infos.update(_scatter(n, [(live, {"declared": declared, "alarm": out.alarm,
+                                          "belief_on_truth": out.belief_on_truth.astype(float),
+                                          "reward_terms": {k: v.astype(float) for k, v in out.terms.items()},
+                                          "decision_time_s": decision_t})]))
+        stopped = np.flatnonzero(terminated)
+        reasons = _objects([f"engine failure: {b.failure[i]['reason']}" for i in stopped])
+        infos.update(_scatter(n, [(stopped, {"termination_reason": reasons})]))
         self._autoreset = terminated | truncated
         return b.obs.copy(), rewards, terminated, truncated, infos
 
 
-_NO_FAILURE = {"engine": -1, "time_s": math.nan, "reason": ""}
+def _objects(values: list) -> np.ndarray:
+    """A 1-d object array holding the given Python objects (lists stay lists)."""
+    arr = np.empty(len(values), dtype=object)
+    for j, v in enumerate(values):
+        arr[j] = v
+    return arr
 
 
-def _uniform(info: dict) -> dict:
-    """One type per info key across sub-envs (Gymnasium stacks them into arrays): None -> NaN."""
-    info = dict(info)
-    if info.get("engine_failure") is None:
-        info["engine_failure"] = dict(_NO_FAILURE)
-    if "belief_on_truth" in info and info["belief_on_truth"] is None:
-        info["belief_on_truth"] = math.nan
-    return info
-
-
-def _stack_infos(per_slot: list[dict | None]) -> dict:
-    """Gymnasium's vector info layout (``infos[key][i]`` with a mask ``infos["_" + key]``), built in
-    one pass instead of one ``_add_info`` merge per sub-env (measured 0.13 s per step at N = 1024)."""
-    n = len(per_slot)
-    keys: list[str] = []
-    for d in per_slot:
-        if d is not None:
-            keys.extend(k for k in d if k not in keys)
+def _scatter(n: int, pieces: list[tuple[np.ndarray, dict]]) -> dict:
+    """Gymnasium's vector info layout (``infos[key][i]`` with a mask ``infos["_" + key]``) from info
+    arrays over disjoint sets of slots (:meth:`EpisodeBatch.info_arrays`), built with array
+    assignments instead of one ``_add_info`` merge per sub-env (measured 0.13 s per step at N = 1024)."""
+    pieces = [(np.asarray(sl, dtype=np.int64), p) for sl, p in pieces if len(sl)]
+    if not pieces:
+        return {}
     out: dict = {}
-    for k in keys:
-        vals = [None if d is None or k not in d else d[k] for d in per_slot]
-        mask = np.array([d is not None and k in d for d in per_slot], dtype=bool)
-        first = next(v for v, m in zip(vals, mask) if m)
-        if isinstance(first, dict):
-            out[k] = _stack_infos([v if m else None for v, m in zip(vals, mask)])
-        elif type(first) in (int, float, bool) or isinstance(first, np.number):
-            arr = np.zeros(n, dtype=type(first))
-            for i in np.flatnonzero(mask):
-                arr[i] = vals[i]
-            out[k] = arr
+    mask = np.zeros(n, dtype=bool)
+    for sl, _ in pieces:
+        mask[sl] = True
+    for key, v in pieces[0][1].items():
+        if isinstance(v, dict):
+            out[key] = _scatter(n, [(sl, p[key]) for sl, p in pieces])
         else:
-            arr = np.full(n, None, dtype=object)
-            for i in np.flatnonzero(mask):
-                arr[i] = vals[i]
-            out[k] = arr
-        out["_" + k] = mask
+            arr = np.full(n, None, dtype=object) if v.dtype == object else np.zeros(n, dtype=v.dtype)
+            for sl, p in pieces:
+                arr[sl] = p[key]
+            out[key] = arr
+        out["_" + key] = mask.copy()
     return out
