@@ -5,6 +5,7 @@
     python -m marine_fdi_env.diagnosis.kpis scenarios --seeds 20            # the 4 examples of 6.4
     python -m marine_fdi_env.diagnosis.kpis min-detectable --seeds 5        # KPI 6.5.2, bisection
     python -m marine_fdi_env.diagnosis.kpis min-detectable --all --seeds 4  # all 26 faults -> env table
+    python -m marine_fdi_env.diagnosis.kpis seal-leak-snr --seeds 16        # why turbine_seal_leak is missed
     python -m marine_fdi_env.diagnosis.kpis render                          # docs/diagnosis_results.md
 
 Each writes a JSON file under ``docs/data/`` (``--out`` to change) and prints a Markdown table.
@@ -27,8 +28,9 @@ from ..sensors import SENSORS, sensor_index
 from ..simulator import Simulator
 from .agent import ReferenceDiagnoser
 from .modules import MODULE_IDS
+from .residuals import residuals_for_run
 
-__all__ = ["diagnose_batch", "false_alarms", "single_fault_delays", "scenario_checks", "min_detectable",
+__all__ = ["diagnose_batch", "seal_leak_snr", "false_alarms", "single_fault_delays", "scenario_checks", "min_detectable",
            "detectability_limits", "THESIS_DELAYS_S", "THESIS_MIN_DETECTABLE"]
 
 PARAMS = "thesis-12v28"
@@ -292,6 +294,62 @@ def env_table(limits: dict, command: str, n_seeds: int) -> dict:
     }
 
 
+SNR_MULTIPLES = (1.0, 4.0, 16.0)
+SNR_WINDOW_S = 60.0
+
+
+def seal_leak_snr(n_seeds: int, fault: str = "turbine_seal_leak", multiples=SNR_MULTIPLES,
+                  profiles=("constant", "manoeuvring"), window_s: float = SNR_WINDOW_S, first_seed: int = 70_000) -> dict:
+    """How visible a seal leak is to the receiver observers M3.1/M3.2 (or M4.1/M4.2) in the last
+    ``window_s`` of a 300 s run, at multiples of the table 6.4 magnitude, same noise seeds with and
+    without the fault.
+
+    Per profile and multiple: the fault's effect on the true state (x3 or x4) and on the mean of
+    the two modules' residuals over the window, the fault-free spread (std over seeds) of that window
+    mean, their ratio (the z-score of the best averaging test on one window), and the mean worst-case
+    threshold the thesis's scheme compares single samples with.
+    """
+    sys_ = "x3" if fault == "turbine_seal_leak" else "x4"
+    mods = [MODULE_IDS.index(m) for m in (("M3.1", "M3.2") if sys_ == "x3" else ("M4.1", "M4.2"))]
+    c = ReferenceDiagnoser(PARAMS).c
+    seeds = [first_seed + i for i in range(n_seeds)]
+    table = PROCESS_FAULT_DEFAULTS[fault].magnitude
+    out = {}
+    for prof in profiles:
+        runs = {}
+        for mult in (0.0,) + tuple(multiples):
+            faults = [[] if mult == 0 else [FaultSpec(fault, PROCESS_FAULT_DEFAULTS[fault].onset_s, table * mult)]
+                      for _ in seeds]
+            sim = Simulator(PARAMS, len(seeds), seeds=seeds, faults=faults, profiles=prof)
+            res = sim.run(DURATION_S)
+            w = int(round(window_s / sim.dt))
+            state = res.truth_of(sys_)[-w:].mean(axis=0)  # (N,)
+            r_mean, thr = [], []
+            for i in range(len(seeds)):
+                tr = residuals_for_run(c, res.measurements[:, i], res.truth_of("u")[:, i], sim.dt)
+                r_mean.append(tr.residuals[-w:, mods].mean())
+                thr.append(tr.thresholds[-w:, mods].mean())
+            runs[mult] = (state, np.array(r_mean), float(np.mean(thr)))
+        state0, r0, thr0 = runs[0.0]
+        sigma = float(np.std(r0, ddof=1)) if len(seeds) > 1 else math.nan
+        rows = {"fault_free": {"residual_window_mean_Pa": float(r0.mean()), "residual_window_mean_std_Pa": sigma,
+                               "threshold_mean_Pa": thr0}}
+        for mult in multiples:
+            state, r, thr = runs[mult]
+            shift = float((r - r0).mean())
+            rows[f"{mult:g}x"] = {
+                "magnitude": table * mult,
+                "state_change_Pa": float((state - state0).mean()),
+                "state_change_relative": float(((state - state0) / state0).mean()),
+                "residual_shift_Pa": shift,
+                "z_score": shift / sigma if sigma > 0 else math.nan,
+                "threshold_mean_Pa": thr,
+            }
+        out[prof] = rows
+    return {"fault": fault, "state": sys_, "modules": [MODULE_IDS[m] for m in mods], "window_s": window_s,
+            "result": out}
+
+
 _THESIS_NOTES = {
     "valve_seizing": "about 10 s with noise (fig. 6.22); 6.4.2: M2 at +1.6 s, M1 at +7.1 s",
     "bore_damage": "6.4.2: 141.1 s after onset (146.1 s)",
@@ -354,6 +412,23 @@ def render(data_dir: Path = Path("docs/data")) -> str:
                 r["module_detection_times_s"].items(), key=lambda kv: kv[1]))
                 + (f" — thesis: {THESIS_DELAYS_S[name]}" if name in THESIS_DELAYS_S else ""))
         lines.append("")
+    sn = load("seal-leak-snr")
+    if sn:
+        lines += [f"### Why turbine_seal_leak is missed (`{sn['command']}`)", "",
+                  f"Last {sn['result']['window_s']:g} s of 300 s runs, same noise seeds with and without the fault; "
+                  f"residual = mean of {' and '.join(sn['result']['modules'])}; z = residual shift / fault-free "
+                  "spread (std over seeds) of that window mean, i.e. what the best averaging test over the window "
+                  "could see; threshold = the worst-case bound a single sample is compared with.", "",
+                  "| profile | magnitude | change of x3 [Pa] | residual shift [Pa] | z | threshold [Pa] |",
+                  "|---|---|---|---|---|---|"]
+        for prof, rows in sn["result"]["result"].items():
+            for k, v in rows.items():
+                if k == "fault_free":
+                    continue
+                lines.append(f"| {prof} | {k} ({v['magnitude']:.3g}) | {v['state_change_Pa']:.0f} "
+                             f"({100 * v['state_change_relative']:.3f} %) | {v['residual_shift_Pa']:.0f} | "
+                             f"{v['z_score']:.1f} | {v['threshold_mean_Pa']:.0f} |")
+        lines.append("")
     md = load("min-detectable")
     if md:
         lines += [f"### Smallest detectable process faults, KPI 6.5.2 (`{md['command']}`)", "",
@@ -367,7 +442,8 @@ def render(data_dir: Path = Path("docs/data")) -> str:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("what", choices=("false-alarms", "delays", "scenarios", "min-detectable", "render"))
+    ap.add_argument("what", choices=("false-alarms", "delays", "scenarios", "min-detectable", "seal-leak-snr",
+                                     "render"))
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--out", type=Path, default=None)
     ap.add_argument("--all", action="store_true",
@@ -400,7 +476,7 @@ def main(argv=None) -> int:
         print(f"wrote {out}")
         return 0
     fn = {"false-alarms": false_alarms, "delays": single_fault_delays, "scenarios": scenario_checks,
-          "min-detectable": min_detectable}[args.what]
+          "min-detectable": min_detectable, "seal-leak-snr": seal_leak_snr}[args.what]
     data = {"what": args.what, "seeds": args.seeds, "params": PARAMS,
             "command": f"python -m marine_fdi_env.diagnosis.kpis {args.what} --seeds {args.seeds}",
             "result": fn(args.seeds)}
