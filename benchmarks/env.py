@@ -13,6 +13,11 @@ prints one JSON object:
                                   episodes last 300 s, so no sub-env autoresets in the timed steps.
                                   Target: >= 5e5.
 ``vector_decision_steps_per_s_n1024`` the same run in sub-env decisions per second (1024 x steps / s).
+``vector_*_n1024_autoreset``      the same in steady state: ``--autoresets-per-step`` (default 4) slots
+                                  autoreset in every timed step (a training run with 300 s episodes
+                                  restarts 1024 / 300 = 3.4 per step): those slots run short,
+                                  fault-free episodes of the preset's profiles ending at staggered
+                                  decisions, then the preset's episodes.
 ``vector_step_s_n1024``           wall time of one vector ``step`` (the best run's mean).
 ``vector_breakdown_n1024``        shares of the vector step time (same timed runs; the methods
                                   wrapped with a timer, overhead < 1 us per call):
@@ -52,6 +57,7 @@ import pstats
 import sys
 import time
 from collections import defaultdict
+from dataclasses import replace
 
 import numpy as np
 
@@ -85,11 +91,30 @@ class _Timers:
         self.seconds.clear()
 
 
-def vector_throughput(n: int, steps: int, repeats: int, seed: int = 0, profile: bool = False) -> dict:
+def _staggered_scenarios(env: MarineFDIVectorEnv, seed: int, first_end: int, steps: int, per_step: int) -> list:
+    """The preset's scenarios for every slot, except that ``per_step`` slots end (fault-free, same
+    profile) at each of the decisions first_end .. first_end + steps - 1, so each of the steps after
+    them autoresets that many slots (a vector env in steady state autoresets N / 300 slots per step)."""
+    rng = np.random.default_rng(seed)
+    scenarios = [env.scenario_config.sample(int(rng.integers(0, 2**63 - 1))) for _ in range(env.num_envs)]
+    for k in range(steps):
+        for j in range(per_step):
+            i = k * per_step + j
+            scenarios[i] = replace(scenarios[i], faults=(), magnitude_scales=(), duration_s=float(first_end + k))
+    return scenarios
+
+
+def vector_throughput(n: int, steps: int, repeats: int, seed: int = 0, profile: bool = False,
+                      autoresets_per_step: int = 0) -> dict:
     env = MarineFDIVectorEnv(num_envs=n, scenario_config=PRESET)
     env.action_space.seed(seed)
-    env.reset(seed=seed)
-    env.step(env.action_space.sample())  # warm-up: first scoring, first infos
+    warm = 2  # steps before timing: the first scoring and infos
+    options = None
+    if autoresets_per_step:
+        options = {"scenarios": _staggered_scenarios(env, seed, warm, steps * repeats, autoresets_per_step)}
+    env.reset(seed=seed, options=options)
+    for _ in range(warm):
+        env.step(env.action_space.sample())
     timers = _Timers()
     b = env.batch
     timers.wrap(b.sim, "advance", "simulator")
@@ -108,6 +133,7 @@ def vector_throughput(n: int, steps: int, repeats: int, seed: int = 0, profile: 
         if best is None or wall < best[0]:
             best = (wall, dict(timers.seconds))
     wall, sec = best
+    tag = f"n{n}" + ("_autoreset" if autoresets_per_step else "")
     parts = {
         "simulator": sec["simulator"],
         "diagnoser": sec["diagnoser"],
@@ -116,10 +142,10 @@ def vector_throughput(n: int, steps: int, repeats: int, seed: int = 0, profile: 
     }
     parts["infos"] = wall - sum(parts.values())
     out = {
-        f"vector_engine_samples_per_s_n{n}": round(n * samples * steps / wall, 1),
-        f"vector_decision_steps_per_s_n{n}": round(n * steps / wall, 1),
-        f"vector_step_s_n{n}": round(wall / steps, 4),
-        f"vector_breakdown_n{n}": {
+        f"vector_engine_samples_per_s_{tag}": round(n * samples * steps / wall, 1),
+        f"vector_decision_steps_per_s_{tag}": round(n * steps / wall, 1),
+        f"vector_step_s_{tag}": round(wall / steps, 4),
+        f"vector_breakdown_{tag}": {
             "share": {k: round(v / wall, 3) for k, v in parts.items()},
             "seconds": {k: round(v / steps, 4) for k, v in parts.items()},
         },
@@ -165,10 +191,14 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--episodes", type=int, default=3, help="full single-env episodes timed")
     ap.add_argument("--profile", action="store_true", help="cProfile one vector step (to stderr)")
+    ap.add_argument("--autoresets-per-step", type=int, default=4,
+                    help="slots autoreset in each step of the steady-state run (N / 300 s episodes: 3.4 at N=1024)")
     args = ap.parse_args(argv)
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
     out = {}
     out.update(vector_throughput(args.num_envs, args.vector_steps, args.repeats, profile=args.profile))
+    out.update(vector_throughput(args.num_envs, args.vector_steps, args.repeats,
+                                 autoresets_per_step=args.autoresets_per_step))
     out.update(single_env_throughput(args.episodes))
     out.update({
         "preset": PRESET,

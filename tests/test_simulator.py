@@ -607,9 +607,60 @@ def test_restarted_engine_equals_fresh_simulator():
     assert np.array_equal(sim.advance(50).measurements[3], healthy.advance(50).measurements[0])
 
 
+def test_restarts_recompute_only_the_restarted_engines_columns():
+    # restart_engines refills the precomputed chunk only for the restarted engines: the batch's
+    # process-fault table appears (none -> some) and disappears again (some -> none), and the other
+    # engines' sensor faults (a stuck-at hold, a drift) carry over to the recompiled schedule
+    others = [["S3.3@0.3,kind=stuck,period=0.9,duty=0.5"], [], ["S4.1@0.2:2e4,kind=drift"]]
+    sim = Simulator(n_engines=3, seeds=[1, 2, 3], faults=others, profiles=["constant", "ramp:t0=0,t1=3", "manoeuvring"])
+    untouched = Simulator(n_engines=3, seeds=[1, 2, 3], faults=others,
+                          profiles=["constant", "ramp:t0=0,t1=3", "manoeuvring"])
+    sim.advance(60)
+    untouched.advance(60)
+    plans = [(61, [1], [["turbine_lubrication_loss@0.4:3", "S2.2@0.1"]]),  # no process fault -> some
+             (250, [1, 0], [[], ["S1.1@0.2:1e-4,kind=drift"]])]  # some -> none; engine 0's stuck fault gone
+    fresh = {}
+    for k, (steps, engines, faults) in enumerate(plans):
+        seeds = [40 + 10 * k + e for e in engines]
+        sim.restart_engines(engines, seeds=seeds, faults=faults, profiles=["step:u0=0.9,u1=0.7,t=1"] * len(engines))
+        for e, sd, f in zip(engines, seeds, faults):
+            fresh[e] = Simulator(n_engines=1, seeds=[sd], faults=[f], profiles=["step:u0=0.9,u1=0.7,t=1"])
+        for block in (steps // 2, steps - steps // 2):
+            got, other = sim.advance(block, record=True), untouched.advance(block, record=True)
+            for e, f in fresh.items():
+                ref = f.advance(block, record=True)
+                assert np.array_equal(got.measurements[e], ref.measurements[0])
+                assert np.array_equal(got.fault_value[e], ref.fault_value[0])
+            assert np.array_equal(got.measurements[2], other.measurements[2])
+            assert np.array_equal(got.fault_value[2], other.fault_value[2])
+    assert sim._pf is None and fresh[1].advance(1).measurements.shape == (1, 1, 19)
+
+
 def test_restart_engines_rejects_bad_input():
     sim = Simulator(n_engines=2)
     with pytest.raises(ValueError, match="engines"):
         sim.restart_engines([2], seeds=[1], faults=[[]], profiles=["constant"])
     with pytest.raises(ValueError, match="one seed"):
         sim.restart_engines([0], seeds=[1, 2], faults=[[]], profiles=["constant"])
+
+
+def test_profile_table_equals_profile_evaluation_bit_for_bit():
+    # the simulator evaluates all engines' fuel profiles in one compiled call; it must give the
+    # numbers of Profile.__call__ / left_limit (steps, breakpoints, before the first and after the
+    # last breakpoint, every named profile family)
+    from marine_fdi_env.profiles import ProfileTable, make_profile
+
+    profiles = [make_profile(s).snapped(0.01) for s in
+                ("constant", "step:t=0.05", "ramp:t0=0.1,t1=0.5", "manoeuvring", "random:seed=3,dwell=0.2",
+                 "random:seed=4,dwell=5")]
+    profiles.append(type(profiles[0])("steps", (0.0, 0.1, 0.1, 0.2, 0.2, 0.2, 0.3), (0.5, 0.5, 0.9, 0.9, 0.4, 1.1, 1.1)))
+    table = ProfileTable(profiles)
+    rng = np.random.default_rng(1)
+    grid = np.concatenate([np.arange(-2, 60) * 0.01, rng.uniform(-1, 400, 300), [0.1, 0.2, 0.3, 50.0, 1e6]])
+    t = np.tile(grid[:, None], (1, len(profiles)))
+    right, left = table.values(t)
+    for j, p in enumerate(profiles):
+        assert np.array_equal(right[:, j], p(grid)), p.name
+        assert np.array_equal(left[:, j], p.left_limit(grid)), p.name
+    sub_r, sub_l = table.values(t[:, [2, 6]], engines=[2, 6])
+    assert np.array_equal(sub_r, right[:, [2, 6]]) and np.array_equal(sub_l, left[:, [2, 6]])

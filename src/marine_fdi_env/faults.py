@@ -379,8 +379,9 @@ class CompiledSchedule:
             dT_c_K=vals.get("intercooler_blockage", 0.0),
         )
 
-    def sensor_fault_state(self, t: float):
-        """(active window time s or NaN, β) for every scheduled sensor fault at time t."""
-        p = self.s_params
+    def sensor_fault_state(self, t, entries=None):
+        """(active window time s or NaN, β) for every scheduled sensor fault (or the ``entries``
+        given, indices into ``s_engine``) at time(s) t (one column per entry)."""
+        p = self.s_params if entries is None else {k: v[entries] for k, v in self.s_params.items()}
         s = _window_time(t, p["onset"], p["end"], p["period"], p["duty"])
         return s, _beta(s, p["kappa"])

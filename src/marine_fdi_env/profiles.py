@@ -23,9 +23,10 @@ from functools import cached_property
 
 import numpy as np
 
+from ._jit import jit
 from .steady_state import check_fuel_setting
 
-__all__ = ["Profile", "make_profile", "PROFILE_NAMES"]
+__all__ = ["Profile", "make_profile", "PROFILE_NAMES", "ProfileTable"]
 
 PROFILE_NAMES = ("constant", "step", "ramp", "manoeuvring", "random")
 
@@ -86,6 +87,84 @@ class Profile:
 
     def to_dict(self) -> dict:
         return {"name": self.name, "times": list(self.times), "values": list(self.values)}
+
+
+@jit
+def _value_right(times, vals, L, t):
+    """:meth:`Profile.__call__` at one time, same operations (right-continuous)."""
+    lo, hi = 0, L  # searchsorted(times[:L], t, side="right")
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if times[mid] <= t:
+            lo = mid + 1
+        else:
+            hi = mid
+    last = L - 1
+    left = max(min(lo - 1, last), 0)
+    right = min(lo, last)
+    t0, t1 = times[left], times[right]
+    v0, v1 = vals[left], vals[right]
+    dt = t1 - t0
+    w = (t - t0) / dt if dt > 0 else 0.0
+    if t < times[0]:
+        return vals[0]
+    return v0 + min(max(w, 0.0), 1.0) * (v1 - v0)
+
+
+@jit
+def _table_values(t, times, vals, lens, engines, u_right, u_left):
+    """u (right limits) and left limits at times t[:, j] of the profile of engine engines[j]."""
+    for jj in range(len(engines)):
+        e = engines[jj]
+        L = lens[e]
+        for r in range(t.shape[0]):
+            tt = t[r, jj]
+            u = _value_right(times[e], vals[e], L, tt)
+            u_right[r, jj] = u
+            lo, hi = 0, L  # searchsorted(times[:L], t, side="left")
+            while lo < hi:
+                mid = (lo + hi) // 2
+                if times[e, mid] < tt:
+                    lo = mid + 1
+                else:
+                    hi = mid
+            j = min(lo, L - 1)
+            u_left[r, jj] = vals[e, j] if (lo < L and times[e, j] == tt) else u
+
+
+class ProfileTable:
+    """The profiles of N engines as padded breakpoint arrays, evaluated in one compiled call
+    (equal, bit for bit, to :meth:`Profile.__call__` and :meth:`Profile.left_limit`; tested)."""
+
+    def __init__(self, profiles: list[Profile]) -> None:
+        self.n = len(profiles)
+        width = max(len(p.times) for p in profiles)
+        self.times = np.zeros((self.n, width))
+        self.vals = np.zeros((self.n, width))
+        self.lens = np.zeros(self.n, dtype=np.int64)
+        for i, p in enumerate(profiles):
+            self.set(i, p)
+
+    def set(self, i: int, profile: Profile) -> None:
+        """Replace engine i's profile (the padding grows if needed)."""
+        m = len(profile.times)
+        if m > self.times.shape[1]:
+            pad = m - self.times.shape[1]
+            self.times = np.pad(self.times, ((0, 0), (0, pad)))
+            self.vals = np.pad(self.vals, ((0, 0), (0, pad)))
+        times, vals = profile._arrays
+        self.times[i, :m] = times
+        self.vals[i, :m] = vals
+        self.lens[i] = m
+
+    def values(self, t: np.ndarray, engines: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(u, left limits of u) at times t (rows, len(engines)) of the engines (default all)."""
+        engines = np.arange(self.n, dtype=np.int64) if engines is None else np.asarray(engines, dtype=np.int64)
+        t = np.ascontiguousarray(t, dtype=np.float64)
+        u_right = np.empty(t.shape)
+        u_left = np.empty(t.shape)
+        _table_values(t, self.times, self.vals, self.lens, engines, u_right, u_left)
+        return u_right, u_left
 
 
 def _opts(text: str) -> tuple[str, dict[str, float]]:

@@ -30,7 +30,7 @@ from .faults import PROCESS_FAULT_IDS, FAULT_IDS, CompiledSchedule, FaultSpec, p
 from .integrators import FAILURE_REASONS, _failure_code, advance_batch, limited_fuel_setting
 from .model import ALG_FIELDS, HEALTHY, HEALTHY_PF, N_ALG, PF_FIELDS, Algebraic, EngineModel, ProcessFaultValues
 from .params import EngineParams, load_params
-from .profiles import Profile, make_profile
+from .profiles import Profile, ProfileTable, make_profile
 from .sensors import MEASURED_VARIABLES, NOISE_BOUNDS, N_SENSORS, SENSOR_IDS, VARIABLE_OF_SENSOR
 from .steady_state import steady_state
 
@@ -156,6 +156,7 @@ class Simulator:
         else:
             prof = make_profile(profiles).snapped(self.dt)
             self.profiles = [prof] * self.n
+        self._profile_table = ProfileTable(self.profiles)
         self.model = EngineModel(self.params)
         self.schedule = CompiledSchedule.compile(self.schedules)
         self.reset()
@@ -214,6 +215,7 @@ class Simulator:
             self.seeds[i] = int(seed)
             self.schedules[i] = sched
             self.profiles[i] = make_profile(prof).snapped(self.dt)
+            self._profile_table.set(i, self.profiles[i])
             self._rngs[i] = np.random.Generator(np.random.PCG64(np.random.SeedSequence(int(seed)).spawn(2)[0]))
             if self._prec_rngs is not None:
                 self._prec_rngs.pop(i, None)
@@ -226,16 +228,16 @@ class Simulator:
         self._has_gain = bool(np.any(sch.s_kind == 3)) if len(sch.s_engine) else False
         self._fault_dev = None
         self._k_start[idx] = self.k
-        self._fill_chunk(self.k)
-        # steady state of the restarted engines at their t = 0 (row 0 of the fresh chunk)
-        u0 = self._u_right[0, idx].copy()
-        pf = self._pf_values(0)
+        j = self._refill_engines(np.asarray(idx, dtype=np.int64), old)
+        # steady state of the restarted engines at their t = 0 (row j of the chunk)
+        u0 = self._u_right[j, idx].copy()
+        pf = self._pf_values(j)
         ss = steady_state(self.model, u0, ProcessFaultValues(*(np.asarray(getattr(pf, f))[idx] if np.ndim(
             getattr(pf, f)) else getattr(pf, f) for f in PF_FIELDS)))
         self.X[idx] = np.stack([ss.x1, ss.x3, ss.x4], axis=1)
         self.ALG[idx] = np.stack([getattr(ss.alg, f) for f in ALG_FIELDS], axis=1)
         self.u = self.u.copy()
-        self.u[idx] = self._applied_u(self._u_right[0], idx)
+        self.u[idx] = self._applied_u(self._u_right[j], idx)
         self.failed[idx] = False
         codes = np.zeros(self.n, dtype=np.int64)
         for i in idx:
@@ -295,15 +297,7 @@ class Simulator:
         t = self.dt * (np.arange(k0, k0 + _CHUNK + 1)[:, None] - self._k_start[None, :])  # (rows, N)
         self._chunk_k0 = k0
         self._t_local = t
-        self._u_right = np.empty(t.shape)
-        self._u_left = np.empty(t.shape)
-        groups: dict[int, list[int]] = {}
-        for i, pr in enumerate(self.profiles):
-            groups.setdefault(id(pr), []).append(i)
-        for idx in groups.values():
-            pr = self.profiles[idx[0]]
-            self._u_right[:, idx] = pr(t[:, idx])
-            self._u_left[:, idx] = pr.left_limit(t[:, idx])
+        self._u_right, self._u_left = self._profile_table.values(t)
         if self.schedule.process:
             pf = self.schedule.process_values(t, per_engine=True)
             self._pf = np.empty((len(t), self.n, len(PF_FIELDS)))
@@ -316,6 +310,48 @@ class Simulator:
             self._pf_healthy = np.ascontiguousarray(np.tile(HEALTHY_PF, (1, self.n, 1)))
         if len(self.schedule.s_engine):
             self._sf_s, self._sf_beta = self.schedule.sensor_fault_state(t[:, self.schedule.s_engine])
+
+    def _refill_engines(self, idx: np.ndarray, old_stuck_keys: dict) -> int:
+        """After ``idx`` restarted at sample k: recompute their columns of the current chunk (their
+        clocks changed) and carry the other engines' columns over, instead of refilling the whole
+        chunk (what one autoreset of a large vector env costs); returns the chunk row of sample k.
+        The numbers are those :meth:`_fill_chunk` gives (the same elementwise functions of each
+        engine's own clock); ``old_stuck_keys`` maps (engine, sensor) of the previous schedule's
+        sensor faults to anything, in the previous column order."""
+        j = self.k - self._chunk_k0
+        if not 0 <= j < _CHUNK:
+            self._fill_chunk(self.k)
+            return 0
+        t = self.dt * (np.arange(self._chunk_k0, self._chunk_k0 + _CHUNK + 1)[:, None] - self._k_start[None, idx])
+        self._t_local[:, idx] = t
+        self._u_right[:, idx], self._u_left[:, idx] = self._profile_table.values(t, idx)
+        sch = self.schedule
+        if sch.process:
+            if self._pf is None:
+                self._pf = np.tile(HEALTHY_PF, (_CHUNK + 1, self.n, 1))
+            sub = CompiledSchedule.compile([self.schedules[i] for i in idx])
+            pf = sub.process_values(t, per_engine=True) if sub.process else HEALTHY
+            for m, name in enumerate(PF_FIELDS):
+                self._pf[:, idx, m] = getattr(pf, name)
+        else:
+            self._pf = None
+            self._pf_healthy = np.ascontiguousarray(np.tile(HEALTHY_PF, (1, self.n, 1)))
+        if len(sch.s_engine):
+            restarted = np.zeros(self.n, dtype=bool)
+            restarted[idx] = True
+            new = restarted[sch.s_engine]
+            s_state = np.empty((_CHUNK + 1, len(sch.s_engine)))
+            beta = np.empty_like(s_state)
+            fresh = np.flatnonzero(new)
+            if len(fresh):
+                s_state[:, fresh], beta[:, fresh] = sch.sensor_fault_state(self._t_local[:, sch.s_engine[fresh]], fresh)
+            kept = np.flatnonzero(~new)
+            if len(kept):
+                old_col = {key: c for c, key in enumerate(old_stuck_keys)}
+                cols = [old_col[(int(e), int(q))] for e, q in zip(sch.s_engine[kept], sch.s_sensor[kept])]
+                s_state[:, kept], beta[:, kept] = self._sf_s[:, cols], self._sf_beta[:, cols]
+            self._sf_s, self._sf_beta = s_state, beta
+        return j
 
     def _grid_row(self, k: int) -> int:
         j = k - self._chunk_k0
