@@ -8,7 +8,7 @@ magnitude (tables 6.3, 6.4), ``n_seeds`` noise seeds, a constant and a manoeuvri
 after onset; a cell is sure when the module fired in every run.  The result is shipped as
 ``data/diagnosis/sure_cells.json`` with the settings that produced it; regenerate with
 
-    python -m marine_fdi_env.diagnosis.certainty --seeds 20
+    python -m marine_fdi_env.diagnosis.certainty --seeds 50
 
 The cells are valid for faults at least as large as those defaults; a smaller fault can leave a
 "sure" module silent and be exonerated by mistake (the same limitation as the thesis's tables).
@@ -40,35 +40,32 @@ def _onset(fault_id: str) -> float:
     return PROCESS_FAULT_DEFAULTS[fault_id].onset_s if fault_id in PROCESS_FAULT_DEFAULTS else SENSOR_ONSET_S
 
 
-def measure_sure_cells(n_seeds: int = 20, duration_s: float = 300.0, params: str = "thesis-12v28",
+def measure_sure_cells(n_seeds: int = 50, duration_s: float = 300.0, params: str = "thesis-12v28",
                        first_seed: int = 1000, progress: bool = True) -> dict:
     """Fire counts of every (module, fault) cell over single-fault runs; see module docstring."""
-    from .agent import ReferenceDiagnoser
-
-    from ..simulator import Simulator
+    from .kpis import diagnose_batch
 
     counts = np.zeros((len(MODULE_IDS), len(FAULT_IDS)), dtype=int)
     times = [[[] for _ in FAULT_IDS] for _ in MODULE_IDS]  # detection delays per cell
     runs = 0
-    jobs = [(prof, s) for prof in PROFILES for s in range(n_seeds)]
-    iterator = jobs
+    iterator = PROFILES
     if progress:
         from tqdm import tqdm
 
-        iterator = tqdm(jobs, desc="sure cells", unit="batch")
-    for prof, s in iterator:
-        seeds = [first_seed + s * len(FAULT_IDS) + j for j in range(len(FAULT_IDS))]
-        sched = [[FaultSpec(f, _onset(f))] for f in FAULT_IDS]
-        sim = Simulator(params, len(FAULT_IDS), seeds=seeds, faults=sched, profiles=prof)
-        res = sim.run(duration_s)
-        agent = ReferenceDiagnoser(params, n_engines=len(FAULT_IDS), dt=sim.dt, exoneration="none")
-        agent.observe(res.measurements.transpose(1, 0, 2), res.truth_of("u").T)
-        for j, f in enumerate(FAULT_IDS):
-            fv = agent.first_violation[j]
-            counts[:, j] += ~np.isnan(fv)
-            for i in np.flatnonzero(~np.isnan(fv)):
-                times[i][j].append(float(fv[i]) - _onset(f))
-        runs += 1
+        iterator = tqdm(PROFILES, desc="sure cells", unit="profile")
+    for prof in iterator:
+        seeds = [first_seed + s * len(FAULT_IDS) + j for s in range(n_seeds) for j in range(len(FAULT_IDS))]
+        sched = [[FaultSpec(f, _onset(f))] for _ in range(n_seeds) for f in FAULT_IDS]
+        # module firing times do not depend on the decision logic: plain consistency, no sure cells
+        reps = diagnose_batch(sched, seeds, prof, duration_s, exoneration="none", params=params)
+        for k, rep in enumerate(reps):
+            j = k % len(FAULT_IDS)
+            for i, m in enumerate(MODULE_IDS):
+                t = rep["module_detection_times_s"][m]
+                if t is not None:
+                    counts[i, j] += 1
+                    times[i][j].append(float(t) - _onset(FAULT_IDS[j]))
+        runs += n_seeds
     # spread of the firing times of the sure modules of each fault, per run: the settle time the
     # temporal check of the diagnosis must allow
     spread = []
@@ -145,7 +142,7 @@ def settle_times(margin_s: float = 2.0, factor: float = 1.5) -> np.ndarray:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description="Measure which signature cells surely fire and write the data file.")
-    ap.add_argument("--seeds", type=int, default=20, help="noise seeds per profile (default 20)")
+    ap.add_argument("--seeds", type=int, default=50, help="noise seeds per profile (default 50)")
     ap.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[1] / "data" / "diagnosis"
                     / SURE_CELLS_FILE)
     args = ap.parse_args(argv)
