@@ -89,7 +89,9 @@ class MarineFDIEnv(gym.Env):
 
     ## info
     ``t_s``, ``scenario_id``, ``profile``, ``true_faults`` (id, class, onset, magnitude, end),
-    ``active_faults``, ``engine_failure``, ``reference`` (the reference diagnoser's detection and
+    ``active_faults``, ``engine_failure`` (None, or ``engine``, ``time_s``, ``reason``; ``engine`` is
+    0 here and the sub-env index in the vector env, whose slots without a failure carry engine -1,
+    time NaN, reason ""), ``reference`` (the reference diagnoser's detection and
     minimal diagnoses), and after a step ``decision_time_s``, ``declared``, ``alarm``,
     ``belief_on_truth``, ``reward_terms``.  (Wall-clock numbers are kept out of ``info`` so that
     equal seeds give equal infos; ``env.unwrapped.feature_compute_s`` has the time spent on the
