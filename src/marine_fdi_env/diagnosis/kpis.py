@@ -2,7 +2,7 @@
 
     python -m marine_fdi_env.diagnosis.kpis false-alarms --seeds 100        # zero false alarms?
     python -m marine_fdi_env.diagnosis.kpis delays --seeds 100              # single faults, delays
-    python -m marine_fdi_env.diagnosis.kpis scenarios --seeds 20            # the 4 examples of 6.4
+    python -m marine_fdi_env.diagnosis.kpis scenarios --seeds 100           # the 4 examples of 6.4
     python -m marine_fdi_env.diagnosis.kpis min-detectable --seeds 5        # KPI 6.5.2, bisection
     python -m marine_fdi_env.diagnosis.kpis min-detectable --all --seeds 4  # all 26 faults -> env table
     python -m marine_fdi_env.diagnosis.kpis seal-leak-snr --seeds 16        # why turbine_seal_leak is missed
