@@ -149,6 +149,20 @@ def test_delay_percentiles_with_few_values():
     assert m["median_isolation_delay_s"] == pytest.approx(1.5)
 
 
+def test_censored_median_counts_missed_faults_as_never_detected():
+    f = [fault("S1.1", 5)]
+    d1 = rec([[1, [], False], [6, ["S1.1"], True]], f, sid="a")  # delay 1
+    d3 = rec([[1, [], False], [8, ["S1.1"], True]], f, sid="b")  # delay 3
+    miss = rec([[1, [], False]], f, sid="c")
+    m = compute_metrics([d1, d3])
+    assert m["median_detection_delay_censored_s"] == m["median_detection_delay_s"] == pytest.approx(2.0)
+    m = compute_metrics([d1, d3, miss])  # 1, 3, never -> 3; the plain median stays 2
+    assert m["median_detection_delay_censored_s"] == pytest.approx(3.0) and m["median_detection_delay_s"] == 2.0
+    m = compute_metrics([d1, miss, dict(miss, scenario_id="d")])  # fewer than half detected: not reached
+    assert m["median_detection_delay_censored_s"] is None and m["median_detection_delay_s"] == 1.0
+    assert compute_metrics([rec([[1, [], False]])])["median_detection_delay_censored_s"] is None  # no fault
+
+
 def test_belief_compute_return_and_json():
     f = [fault("S1.1", 5)]
     a = rec([[1, [], False]], f, belief_on_truth=[[5, 0.2], [6, 0.4]], compute_s=2.0, n_samples=100)

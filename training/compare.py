@@ -175,6 +175,11 @@ def must_shows() -> list[tuple[str, str, bool | None]]:
             paired = _paired_incipient(a)
             if paired:
                 out.append(paired)
+            c_ref, c_me = ref_inc.get("median_detection_delay_censored_s"), inc.get("median_detection_delay_censored_s")
+            if "median_detection_delay_censored_s" in inc:
+                fmt = lambda v: "not reached" if v is None else f"{v:.1f} s"  # noqa: E731
+                out.append((f"{a}: (information) incipient-v1 median delay over all faulty episodes, a missed "
+                            "fault counting as never detected", f"{fmt(c_me)} vs {fmt(c_ref)}", None))
         if ref_nom and nom:
             out.append((f"{a}: nominal-v1 false-alarm rate <= reference",
                         f"{nom['false_alarm_rate']:.2f}/h ({nom['n_false_alarms']} alarms) vs "

@@ -50,6 +50,12 @@ Definitions
   per-episode mean share; ``None`` if no episode has one.
 * Delays: ``median_*`` and ``p90_*`` over the episodes where the delay exists, linear
   interpolation between closest ranks (numpy's default); ``None`` when there are none.
+  ``median_detection_delay_censored_s``: the median detection delay over *all* faulty episodes,
+  an undetected episode counting as never detected (+inf), i.e. the delay by which half of the
+  faulty episodes are detected (the Kaplan-Meier median without censoring before the episode
+  end); ``None`` when that is not reached (the middle rank is an undetected episode) or there is
+  no faulty episode.  Unlike ``median_detection_delay_s`` it does not improve when an agent
+  detects fewer of the hard faults.
 * ``compute_s_per_sample`` = sum ``compute_s`` / sum ``n_samples``; ``mean_return`` = mean
   ``return``; ``engine_failures`` = number of episodes with ``terminated`` true;
   ``isolation_rate`` = share of faulty episodes with an isolation time.
@@ -357,6 +363,18 @@ def _pct(values: Sequence[float], q: float) -> float | None:
     return float(np.percentile(np.asarray(values, dtype=float), q)) if values else None
 
 
+_NEVER = 1e300  # stands for +inf in the censored median (numpy's interpolation turns inf into NaN)
+
+
+def _censored_median(delays: Sequence[float], n_faulty: int) -> float | None:
+    """Median over n_faulty episodes of which ``delays`` were detected, the others never."""
+    if not n_faulty:
+        return None
+    v = np.concatenate([np.asarray(delays, dtype=float), np.full(n_faulty - len(delays), _NEVER)])
+    m = float(np.percentile(v, 50))
+    return m if m < _NEVER / 1e3 else None
+
+
 def aggregate(outcomes: Sequence[EpisodeOutcome]) -> dict:
     """Flat metrics over a group of scored episodes."""
     faulty = [o for o in outcomes if o.faulty]
@@ -377,6 +395,7 @@ def aggregate(outcomes: Sequence[EpisodeOutcome]) -> dict:
         "detection_rate": _ratio(len(det), len(faulty)),
         "median_detection_delay_s": _pct(det, 50),
         "p90_detection_delay_s": _pct(det, 90),
+        "median_detection_delay_censored_s": _censored_median(det, len(faulty)),
         "isolation_rate": _ratio(len(iso), len(faulty)),
         "isolation_accuracy": _ratio(sum(bool(o.isolation_correct) for o in faulty), len(faulty)),
         "median_isolation_delay_s": _pct(iso, 50),
