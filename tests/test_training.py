@@ -93,6 +93,25 @@ def test_frame_stacked_ppo_agent(tmp_path):
     assert rec["duration_s"] == 12.0
 
 
+def test_reference_features_from_infos_and_ppo_agent_reading_them(tmp_path):
+    from training.vec_adapter import N_REFERENCE_FEATURES, reference_features
+
+    ref = {"detected": np.array([False, True, True]),
+           "diagnoses": np.array([[], [["S3.4"], ["S3.2"]], [["S1.1", "bore_damage"]]], dtype=object)}
+    f = reference_features(ref, 3)
+    assert f.shape == (3, 27) and not f[0].any()
+    assert f[1, 0] == 1 and f[1, 1 + 11] == 0.5 and f[1, 1 + 9] == 0.5 and f[1].sum() == 2.0  # S3.4, S3.2
+    assert f[2, 1 + 0] == 1.0 and f[2, 1 + 20] == 1.0  # S1.1 and bore_damage in the one diagnosis
+    hp = load_hyperparams("ppo", overrides=dict(TINY, reference_features=True))
+    out = tmp_path / "ref"
+    _, cfg = train_sb3("ppo", 4, hp, out, log=None)
+    _save_meta(out, cfg, "training.agents:SB3Agent")
+    agent = load_agent(str(out))
+    assert agent.with_reference and agent.model.observation_space.shape == (NF + N_REFERENCE_FEATURES,)
+    rec = run_episodes(agent, [ScenarioConfig.from_dict(SHORT).sample(8, scenario_id="r")])[0]
+    assert rec["duration_s"] == 12.0
+
+
 def _tiny_classifier(tmp_path) -> Path:
     rng = np.random.default_rng(0)
     obs = rng.random((6, 10, NF)).astype(np.float32)

@@ -75,6 +75,7 @@ class SB3Agent:
         self.frame_stack = int(cfg.get("frame_stack", 1))
         self.recurrent = cfg["algo"] == "ppo_lstm"
         self.obs_size = int(cfg["observation"]["size"])
+        self.with_reference = bool(cfg["observation"].get("reference_features", False))
 
     @classmethod
     def from_dir(cls, path, **kwargs) -> "SB3Agent":
@@ -102,7 +103,10 @@ class SB3Agent:
             raise
         except Exception as e:  # noqa: BLE001 - any failure inside SB3/torch is a bad file
             raise ValueError(f"{f}: corrupt or unreadable model ({type(e).__name__}: {e})") from None
-        want = (int(cfg["observation"]["size"]) * int(cfg.get("frame_stack", 1)),)
+        from .vec_adapter import N_REFERENCE_FEATURES
+
+        extra = N_REFERENCE_FEATURES if cfg["observation"].get("reference_features") else 0
+        want = ((int(cfg["observation"]["size"]) + extra) * int(cfg.get("frame_stack", 1)),)
         if tuple(model.observation_space.shape) != want:
             raise ValueError(f"{f}: model made for another observation space (shape "
                              f"{tuple(model.observation_space.shape)}, this environment gives {want})")
@@ -118,16 +122,20 @@ class SB3Agent:
     def _stacked(self, obs: np.ndarray) -> np.ndarray:
         if self.frame_stack == 1:
             return obs
+        k = obs.shape[1]
         if self.stack is None:  # SB3's VecFrameStack starts with zeros
-            self.stack = np.zeros((len(obs), self.frame_stack * self.obs_size), dtype=np.float32)
-        self.stack = np.roll(self.stack, -self.obs_size, axis=1)
-        self.stack[:, -self.obs_size:] = obs
+            self.stack = np.zeros((len(obs), self.frame_stack * k), dtype=np.float32)
+        self.stack = np.roll(self.stack, -k, axis=1)
+        self.stack[:, -k:] = obs
         return self.stack
 
     def act(self, obs: np.ndarray, infos: dict) -> np.ndarray:
-        from .vec_adapter import to_belief
+        from .vec_adapter import reference_features, to_belief
 
-        x = self._stacked(_check_batch(obs, self.obs_size, self.where))
+        x = _check_batch(obs, self.obs_size, self.where)
+        if self.with_reference:
+            x = np.concatenate([x, reference_features(infos["reference"], len(x))], axis=1)
+        x = self._stacked(x)
         if self.recurrent:
             a, self.state = self.model.predict(x, state=self.state, episode_start=self.episode_start,
                                                deterministic=True)

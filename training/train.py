@@ -88,12 +88,14 @@ def train_sb3(algo: str, seed: int, hp: dict, out: Path | None, log=print) -> tu
     n_timesteps = int(hp.pop("n_timesteps"))
     action_mode = hp.pop("action_mode", "discrete")
     frame_stack = int(hp.pop("frame_stack", 1))
+    with_reference = bool(hp.pop("reference_features", False))
     scenario = hp.pop("scenario_config", "default")
     policy = hp.pop("policy")
     pk = hp.pop("policy_kwargs", None)
     policy_kwargs = eval(pk, {"dict": dict}) if isinstance(pk, str) else (pk or {})  # RL Zoo convention
     set_random_seed(seed)
-    env = SB3VecEnv(n_envs, scenario_config=scenario, action_mode=action_mode, seed=seed)
+    env = SB3VecEnv(n_envs, scenario_config=scenario, action_mode=action_mode, seed=seed,
+                    reference_features=with_reference)
     env = VecMonitor(env)
     if frame_stack > 1:
         env = VecFrameStack(env, frame_stack)
@@ -128,7 +130,7 @@ def train_sb3(algo: str, seed: int, hp: dict, out: Path | None, log=print) -> tu
     cfg = {"name": algo, "algo": algo, "env_id": ENV_ID, "seed": seed, "n_envs": n_envs,
            "n_timesteps": n_timesteps, "action_mode": action_mode, "frame_stack": frame_stack,
            "scenario_config": scenario, "policy": policy, "policy_kwargs": pk, "hyperparams": hp,
-           "observation": _observation_meta(), "n_parameters": int(sum(p.numel() for p in model.policy.parameters())),
+           "observation": dict(_observation_meta(), reference_features=with_reference), "n_parameters": int(sum(p.numel() for p in model.policy.parameters())),
            "cpu_s": round(time.process_time() - c0, 1), "wall_s": round(time.perf_counter() - w0, 1)}
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
