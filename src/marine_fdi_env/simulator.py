@@ -294,52 +294,52 @@ class Simulator:
         Times are each engine's own clock, (k - k0_engine) dt, so an engine restarted mid-run
         sees exactly the numbers of a fresh simulator.
         """
-        t = self.dt * (np.arange(k0, k0 + _CHUNK + 1)[:, None] - self._k_start[None, :])  # (rows, N)
         self._chunk_k0 = k0
-        self._t_local = t
-        self._u_right, self._u_left = self._profile_table.values(t)
-        if self.schedule.process:
-            pf = self.schedule.process_values(t, per_engine=True)
-            self._pf = np.empty((len(t), self.n, len(PF_FIELDS)))
+        shape = (_CHUNK + 1, self.n)
+        self._t_local, self._u_right, self._u_left = np.empty(shape), np.empty(shape), np.empty(shape)
+        self._pf = None
+        self._fill_columns(np.arange(self.n), {})
+
+    def _refill_engines(self, idx: np.ndarray, old_sensor_keys: dict) -> int:
+        """After ``idx`` restarted at sample k: recompute their columns of the current chunk (their
+        clocks changed) and carry the other engines' columns over, instead of refilling the whole
+        chunk (what one autoreset of a large vector env costs); returns the chunk row of sample k."""
+        j = self.k - self._chunk_k0
+        if not 0 <= j < _CHUNK:
+            self._fill_chunk(self.k)
+            return 0
+        self._fill_columns(idx, old_sensor_keys)
+        return j
+
+    def _fill_columns(self, idx: np.ndarray, old_sensor_keys: dict) -> None:
+        """The current chunk's columns of engines ``idx``; the other engines' columns are kept (the
+        values are elementwise functions of each engine's own clock, so a column computed alone
+        equals the same column of a whole chunk).  ``old_sensor_keys``: (engine, sensor) of the
+        previous schedule's sensor faults, in their column order, for carrying those over."""
+        k0 = self._chunk_k0
+        whole = len(idx) == self.n  # idx is every engine in order: plain slices, far cheaper than fancy indexing
+        cols = slice(None) if whole else idx
+        t = self.dt * (np.arange(k0, k0 + _CHUNK + 1)[:, None] - self._k_start[None, cols])
+        self._t_local[:, cols] = t
+        self._u_right[:, cols], self._u_left[:, cols] = self._profile_table.values(t, idx)
+        sch = self.schedule
+        if sch.process:
+            if self._pf is None:  # the columns not filled here are healthy
+                self._pf = (np.empty((_CHUNK + 1, self.n, len(PF_FIELDS))) if whole
+                            else np.tile(HEALTHY_PF, (_CHUNK + 1, self.n, 1)))
+            sub = sch if whole else CompiledSchedule.compile([self.schedules[i] for i in idx])
+            pf = sub.process_values(t, per_engine=True) if sub.process else HEALTHY
             for m, name in enumerate(PF_FIELDS):
-                self._pf[:, :, m] = getattr(pf, name)
+                self._pf[:, cols, m] = getattr(pf, name)
         else:
             self._pf = None
             # a writable copy: compiled code is specialised on array flags, and one specialisation
             # for every batch size keeps batched runs bit-identical to single runs
             self._pf_healthy = np.ascontiguousarray(np.tile(HEALTHY_PF, (1, self.n, 1)))
-        if len(self.schedule.s_engine):
-            self._sf_s, self._sf_beta = self.schedule.sensor_fault_state(t[:, self.schedule.s_engine])
-
-    def _refill_engines(self, idx: np.ndarray, old_stuck_keys: dict) -> int:
-        """After ``idx`` restarted at sample k: recompute their columns of the current chunk (their
-        clocks changed) and carry the other engines' columns over, instead of refilling the whole
-        chunk (what one autoreset of a large vector env costs); returns the chunk row of sample k.
-        The numbers are those :meth:`_fill_chunk` gives (the same elementwise functions of each
-        engine's own clock); ``old_stuck_keys`` maps (engine, sensor) of the previous schedule's
-        sensor faults to anything, in the previous column order."""
-        j = self.k - self._chunk_k0
-        if not 0 <= j < _CHUNK:
-            self._fill_chunk(self.k)
-            return 0
-        t = self.dt * (np.arange(self._chunk_k0, self._chunk_k0 + _CHUNK + 1)[:, None] - self._k_start[None, idx])
-        self._t_local[:, idx] = t
-        self._u_right[:, idx], self._u_left[:, idx] = self._profile_table.values(t, idx)
-        sch = self.schedule
-        if sch.process:
-            if self._pf is None:
-                self._pf = np.tile(HEALTHY_PF, (_CHUNK + 1, self.n, 1))
-            sub = CompiledSchedule.compile([self.schedules[i] for i in idx])
-            pf = sub.process_values(t, per_engine=True) if sub.process else HEALTHY
-            for m, name in enumerate(PF_FIELDS):
-                self._pf[:, idx, m] = getattr(pf, name)
-        else:
-            self._pf = None
-            self._pf_healthy = np.ascontiguousarray(np.tile(HEALTHY_PF, (1, self.n, 1)))
         if len(sch.s_engine):
-            restarted = np.zeros(self.n, dtype=bool)
-            restarted[idx] = True
-            new = restarted[sch.s_engine]
+            filled = np.zeros(self.n, dtype=bool)
+            filled[idx] = True
+            new = filled[sch.s_engine]
             s_state = np.empty((_CHUNK + 1, len(sch.s_engine)))
             beta = np.empty_like(s_state)
             fresh = np.flatnonzero(new)
@@ -347,11 +347,10 @@ class Simulator:
                 s_state[:, fresh], beta[:, fresh] = sch.sensor_fault_state(self._t_local[:, sch.s_engine[fresh]], fresh)
             kept = np.flatnonzero(~new)
             if len(kept):
-                old_col = {key: c for c, key in enumerate(old_stuck_keys)}
+                old_col = {key: c for c, key in enumerate(old_sensor_keys)}
                 cols = [old_col[(int(e), int(q))] for e, q in zip(sch.s_engine[kept], sch.s_sensor[kept])]
                 s_state[:, kept], beta[:, kept] = self._sf_s[:, cols], self._sf_beta[:, cols]
             self._sf_s, self._sf_beta = s_state, beta
-        return j
 
     def _grid_row(self, k: int) -> int:
         j = k - self._chunk_k0

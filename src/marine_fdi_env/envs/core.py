@@ -72,7 +72,7 @@ class EpisodeBatch:
         self.diag = ReferenceDiagnoser(self.params, n_engines=self.n, dt=self.dt)
         self.scenarios: list[ScenarioSpec | None] = [None] * self.n
         self._truth: list[list[dict]] = [[] for _ in range(self.n)]  # per slot, computed once per episode
-        self._durations = np.ones(self.n)  # episode lengths [s]
+        self.durations = np.ones(self.n)  # episode lengths [s]
         self.steps = np.zeros(self.n, dtype=np.int64)  # decisions taken this episode
         self.obs = np.zeros((self.n, self.obs_size), dtype=np.float32)
         self.failure: list[dict | None] = [None] * self.n
@@ -118,7 +118,7 @@ class EpisodeBatch:
         for s, sc in zip(slots, scenarios):
             self.scenarios[s] = sc
             self._truth[s] = sc.truth()
-            self._durations[s] = sc.duration_s
+            self.durations[s] = sc.duration_s
             self.steps[s] = 0
             self.failure[s] = None
             self.failed[s] = False
@@ -155,8 +155,7 @@ class EpisodeBatch:
         t0 = time.perf_counter()
         out = self.diag.observe(blk.measurements, blk.u)
         t_now = self.t = self.sim.local_time
-        durations = self._durations
-        feats = module_features(out.residuals, out.thresholds, self.diag.first_violation, t_now, durations)
+        feats = module_features(out.residuals, out.thresholds, self.diag.first_violation, t_now, self.durations)
         if self.observe_sensors:
             feats = np.concatenate([feats, sensor_features(blk.measurements, blk.u, self._nominal)], axis=1)
         elapsed = time.perf_counter() - t0

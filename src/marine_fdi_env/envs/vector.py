@@ -120,7 +120,7 @@ class MarineFDIVectorEnv(VectorEnv):
         rewards[live] = out.reward
         decision_t = b.t[live].astype(float)
         terminated[live] = b.failed[live]
-        truncated[live] = ~terminated[live] & (decision_t >= b._durations[live] - 1e-9)
+        truncated[live] = ~terminated[live] & (decision_t >= b.durations[live] - 1e-9)
         ended = np.flatnonzero(terminated | truncated)
         final = b.info_arrays(ended)  # before their engines move on
         if len(resetting):
