@@ -12,13 +12,13 @@ torch or SB3.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
 from marine_fdi_env.envs.hypotheses import N_HYPOTHESES, UNKNOWN
 from marine_fdi_env.envs.observation import feature_names
+from marine_fdi_env.envs.jsonfile import read_json
 
 __all__ = ["SB3Agent", "ClassifierAgent", "read_config", "check_observation"]
 
@@ -27,10 +27,7 @@ def read_config(path: Path) -> dict:
     f = Path(path) / "config.json"
     if not f.is_file():
         raise ValueError(f"{f}: missing (a model directory needs config.json beside its weights)")
-    try:
-        cfg = json.loads(f.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise ValueError(f"{f}: not a readable model config ({e})") from None
+    cfg = read_json(f, "model config")
     if not isinstance(cfg, dict) or "observation" not in cfg:
         raise ValueError(f"{f}: not a model config (no 'observation' entry)")
     return cfg
@@ -56,6 +53,14 @@ def _need_file(f: Path) -> Path:
     return f
 
 
+def _open_model_dir(path, weights: str) -> tuple[Path, dict, Path]:
+    """(directory, checked config, weights file) of a model directory."""
+    path = Path(path)
+    cfg = read_config(path)
+    check_observation(cfg, path / "config.json")
+    return path, cfg, _need_file(path / weights)
+
+
 def _check_batch(obs: np.ndarray, size: int, where: Path) -> np.ndarray:
     obs = np.asarray(obs, dtype=np.float32)
     if obs.ndim != 2 or obs.shape[1] != size:
@@ -79,10 +84,7 @@ class SB3Agent:
 
     @classmethod
     def from_dir(cls, path, **kwargs) -> "SB3Agent":
-        path = Path(path)
-        cfg = read_config(path)
-        check_observation(cfg, path / "config.json")
-        f = _need_file(path / "model.zip")
+        path, cfg, f = _open_model_dir(path, "model.zip")
         algo = cfg.get("algo")
         import zipfile
 
@@ -167,10 +169,7 @@ class ClassifierAgent:
 
     @classmethod
     def from_dir(cls, path, **kwargs) -> "ClassifierAgent":
-        path = Path(path)
-        cfg = read_config(path)
-        check_observation(cfg, path / "config.json")
-        f = _need_file(path / "model.pt")
+        path, cfg, f = _open_model_dir(path, "model.pt")
         if "declaration" not in cfg or "architecture" not in cfg:
             raise ValueError(f"{path / 'config.json'}: not a classifier config (needs 'declaration' and "
                              "'architecture')")

@@ -22,11 +22,11 @@ whose class has ``from_dir(path, **kwargs)`` returning the agent (trained models
 from __future__ import annotations
 
 import importlib
-import json
 from pathlib import Path
 from typing import Protocol
 
 import numpy as np
+from .jsonfile import read_json
 
 __all__ = ["Agent", "BUILTIN_AGENTS", "load_agent"]
 
@@ -71,10 +71,7 @@ def load_agent(spec: str) -> Agent:
     meta_file = path / "agent.json" if path.is_dir() else path
     if not meta_file.is_file():
         raise ValueError(f"agent directory {path} has no agent.json")
-    try:
-        meta = json.loads(meta_file.read_text())
-    except (OSError, json.JSONDecodeError) as e:
-        raise ValueError(f"{meta_file}: not a readable agent description ({e})") from None
+    meta = read_json(meta_file, "agent description")
     if not isinstance(meta, dict) or "class" not in meta:
         raise ValueError(f"{meta_file}: must be a JSON object with a 'class' entry")
     cls = _import(meta["class"], str(meta_file))

@@ -12,12 +12,12 @@ A results file is JSON ``{"agent", "suite", "suite_version", "metrics", "episode
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
+from .jsonfile import read_json
 from .metrics import FAULT_CLASSES, compute_metrics, episode_outcome
 
 __all__ = ["load_results", "markdown_table", "write_report", "report_main", "agent_sort_key"]
@@ -37,12 +37,9 @@ def load_results(paths: Iterable[str | Path]) -> list[dict]:
     """
     out = []
     for p in map(Path, paths):
-        try:
-            data = json.loads(p.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise ValueError(f"{p}: results file not found") from None
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-            raise ValueError(f"{p}: not a readable JSON results file ({e})") from None
+        if not p.exists():
+            raise ValueError(f"{p}: results file not found")
+        data = read_json(p, "JSON results file")
         if not isinstance(data, dict):
             raise ValueError(f"{p}: results file must hold a JSON object")
         for key in ("agent", "suite"):

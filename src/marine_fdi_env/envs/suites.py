@@ -42,6 +42,7 @@ import numpy as np
 from ..faults import FAULT_IDS, PROCESS_FAULT_IDS
 from ..scenarios import get_scenario
 from .scenario_sampler import PRESETS, ScenarioConfig, ScenarioSpec, _fault_at_scale
+from .jsonfile import read_json
 
 __all__ = ["SUITE_NAMES", "load_suite", "build_suite", "Suite"]
 
@@ -92,10 +93,7 @@ def load_suite(name_or_path: str) -> Suite:
     p = Path(name_or_path)
     if not p.is_file():
         raise ValueError(f"unknown suite {name_or_path!r}; shipped: {', '.join(SUITE_NAMES)} (or a JSON path)")
-    try:
-        data = json.loads(p.read_text())
-    except (OSError, json.JSONDecodeError) as e:
-        raise ValueError(f"{p}: not a readable suite file ({e})") from None
+    data = read_json(p, "suite file")
     return _validate(data, str(p))
 
 
