@@ -13,7 +13,6 @@ blocks of ``--block`` samples of ``--engines`` (default 1024) engines, the envir
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 
@@ -22,6 +21,7 @@ import numpy as np
 from marine_fdi_env.diagnosis.agent import ReferenceDiagnoser
 from marine_fdi_env.scenarios import get_scenario
 from marine_fdi_env.simulator import Simulator
+from _report import emit  # noqa: E402  (benchmarks/ is the script directory)
 
 
 def main(argv=None) -> int:
@@ -68,7 +68,7 @@ def main(argv=None) -> int:
         "scenario": sc.name,
         "target_seconds": 1.0,
     }
-    print(json.dumps(out) if args.json else "\n".join(f"{k:28s} {v}" for k, v in out.items()))
+    emit(out, args.json)
     return 0
 
 

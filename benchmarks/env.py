@@ -51,7 +51,6 @@ from __future__ import annotations
 import argparse
 import cProfile
 import io
-import json
 import os
 import pstats
 import sys
@@ -64,6 +63,7 @@ import numpy as np
 import marine_fdi_env  # noqa: F401  (registers the environment)
 from marine_fdi_env.envs.fdi_env import MarineFDIEnv
 from marine_fdi_env.envs.vector import MarineFDIVectorEnv
+from _report import emit  # noqa: E402  (benchmarks/ is the script directory)
 
 PRESET = "default"
 
@@ -208,11 +208,7 @@ def main(argv=None) -> int:
         "cpu_count": os.cpu_count(),
         "load_average_1min": load,
     })
-    if args.json:
-        print(json.dumps(out))
-    else:
-        for k, v in out.items():
-            print(f"{k:36s} {v}")
+    emit(out, args.json)
     return 0
 
 

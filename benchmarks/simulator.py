@@ -24,7 +24,6 @@ Targets (issue #2): >= 1e6 engine-samples/s at N=1024 on 2 cores and >= 100x the
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 
@@ -34,6 +33,7 @@ from marine_fdi_env.faults import FaultSpec, random_fault_schedule
 from marine_fdi_env.integrators import reference_solve
 from marine_fdi_env.sensors import VARIABLE_OF_SENSOR
 from marine_fdi_env.simulator import Simulator
+from _report import emit  # noqa: E402  (benchmarks/ is the script directory)
 
 PARAMS = "thesis-12v28"
 PROFILE = "step:u0=0.8,u1=1.0,t=10"
@@ -102,11 +102,7 @@ def main(argv=None) -> int:
         "numpy": np.__version__,
         "python": sys.version.split()[0],
     }
-    if args.json:
-        print(json.dumps(out))
-    else:
-        for k, v in out.items():
-            print(f"{k:32s} {v}")
+    emit(out, args.json)
     return 0
 
 
