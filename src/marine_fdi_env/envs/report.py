@@ -42,7 +42,7 @@ def _parquet_results(p: Path) -> list[dict]:
     for r in records:
         r.pop("agent_spec", None)
         r.pop("seed_offset", None)
-    data = dict(meta, episodes=records)
+    data = dict(meta, episodes=records, path=str(p))
     data.setdefault("agent", records[0]["agent"] if records else "")
     data.setdefault("suite", records[0]["suite"] if records else "")
     return [data]

@@ -106,6 +106,7 @@ def run_sweep(agents: list[str], suites: list[str], seed_offsets: list[int], out
     suite_objs = {s: load_suite(s) for s in suites}
     out_dir = Path(out_dir)
     header = {"kind": "marine-fdi sweep", "grid": {"agents": agents, "suites": suites, "seed_offsets": offsets}}
+    out_dir.mkdir(parents=True, exist_ok=True)
     partial, table = out_dir / PARTIAL, out_dir / TABLE
 
     earlier: dict[tuple, dict] = {}
