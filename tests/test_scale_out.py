@@ -280,3 +280,20 @@ def test_custom_agent_file_runs_with_evaluate(tiny, tmp_path, capsys, monkeypatc
     assert "has no 'Nope'" in capsys.readouterr().err
     assert cli_main(["evaluate", "--agent", "no/such/file.py:X", "--suite", str(tiny)]) == 2
     assert "no such file" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("cmd", ["agents", "sweep", "export-raw", "predict-raw", "score-raw"])
+def test_new_commands_have_help_and_reject_bad_input(cmd, capsys, tmp_path):
+    assert cli_main([cmd, "--help"]) == 0
+    assert f"marine-fdi {cmd}" in capsys.readouterr().out
+    if cmd == "agents":
+        return
+    deep = str(tmp_path / "no" / "such" / "dir")  # only the parent of --out is created, never more levels
+    args = {"sweep": ["--agents", "null", "--suites", "thesis-v1", "--out", deep],
+            "export-raw": ["--suite", "thesis-v1", "--out", deep],
+            "predict-raw": ["--data", str(tmp_path), "--out", deep],
+            "score-raw": ["--suite", "thesis-v1", "--predictions", str(tmp_path), "--out", deep + "/r.json"]}[cmd]
+    assert cli_main([cmd, *args]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"marine-fdi {cmd}: error: --out: folder") and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "no").exists()

@@ -106,7 +106,7 @@ def _run_batch(agent, scenarios, env_kwargs, suite, seed_offset, progress=None, 
         actions = np.asarray(agent.act(obs, infos), dtype=np.float32)
         act_s = (time.perf_counter() - t0) / live.sum()
         agent_s[live] += act_s
-        feats_before = venv.batch.compute_s.copy()
+        feats_before = venv.batch.compute_s.copy() if on_decision is not None else None
         obs, rew, term, trunc, infos = venv.step(actions)
         if on_decision is not None:
             for i in np.flatnonzero(live):
@@ -150,14 +150,30 @@ def _run_batch(agent, scenarios, env_kwargs, suite, seed_offset, progress=None, 
     return out
 
 
-_AGENTS: dict[str, object] = {}  # agents loaded in this process (workers reuse theirs across tasks)
+_AGENTS: dict[tuple, object] = {}  # agents loaded in this process (workers reuse theirs across tasks)
+
+
+def _spec_stamp(spec: str) -> float:
+    """The newest modification time of the files a spec loads (0 for names): a retrained model
+    folder or an edited agent file is loaded anew."""
+    from .agent_api import _split_file_spec
+
+    fs = _split_file_spec(str(spec))
+    path = fs[0] if fs is not None else Path(str(spec))
+    try:
+        if path.is_dir():
+            return max((f.stat().st_mtime for f in path.iterdir() if f.is_file()), default=0.0)
+        return path.stat().st_mtime if path.is_file() else 0.0
+    except OSError:
+        return 0.0
 
 
 def cached_agent(spec: str):
     """The agent of ``spec``, loaded once per process (agents are reset at every batch)."""
-    if spec not in _AGENTS:
-        _AGENTS[spec] = load_agent(spec)
-    return _AGENTS[spec]
+    key = (spec, _spec_stamp(spec))
+    if key not in _AGENTS:
+        _AGENTS[key] = load_agent(spec)
+    return _AGENTS[key]
 
 
 def evaluate_chunk(agent_spec, scenarios_dicts, env_kwargs, suite, seed_offset, batch_size, progress=None):
