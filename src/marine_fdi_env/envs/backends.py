@@ -192,7 +192,12 @@ def ray_connect(backend: Backend):
 
     address = backend.ray_address or os.environ.get("RAY_ADDRESS") or None
     if address:
-        ray.init(address=address, logging_level=logging.WARNING, log_to_driver=False)
+        where = "--ray-address" if backend.ray_address else "RAY_ADDRESS"
+        try:
+            ray.init(address=address, logging_level=logging.WARNING, log_to_driver=False)
+        except Exception as e:  # noqa: BLE001 - Ray raises ConnectionError, RuntimeError, ... for a bad address
+            msg = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+            raise ValueError(f"{where} {address}: cannot connect to a Ray cluster ({msg})") from None
     else:
         ray.init(num_cpus=backend.workers, include_dashboard=False, logging_level=logging.WARNING,
                  log_to_driver=False)

@@ -237,7 +237,12 @@ def sweep_main(argv=None) -> int:
     run = res["run"]
     print(markdown_table(res["table"]))
     n = sum(r["n_episodes"] for r in res["results"])
+    where = run["backend"]
+    if run["backend"] == "ray" and (run["ray_address"] or os.environ.get("RAY_ADDRESS")):
+        where += f" (cluster at {run['ray_address'] or os.environ.get('RAY_ADDRESS')})"
+    elif run["backend"] != "serial":
+        where += f" ({run['workers']} workers)"
     print(f"wrote {out / TABLE} ({n} episodes, {len(res['results'])} agent x suite cells) and {out / 'metrics.json'}; "
-          f"{run['episodes_run']} episodes run in {run['wall_s']:.1f} s on {run['backend']} "
-          f"({run['workers']} workers, load {run['load_average_before'][0]:.2f})")
+          f"{run['episodes_run']} episodes run in {run['wall_s']:.1f} s on {where}, load average "
+          f"{run['load_average_before'][0]:.2f} before, {run['load_average_after'][0]:.2f} after")
     return 0
