@@ -13,9 +13,9 @@ Reproducibility does not depend on the backend: a task's result is a function of
 neighbours), so serial, process and Ray runs agree bit for bit (tested).
 
 Ray is optional (``pip install 'marine-fdi-env[ray]'``) and imported only when asked for.  With
-``ray_address`` (or the ``RAY_ADDRESS`` environment variable) :func:`run_tasks` connects to an
-existing cluster; otherwise it starts a local instance with ``num_cpus = workers`` and no
-dashboard, and stops it at the end.  If Ray is already initialised in this process (a test, a
+``ray_address`` (or the ``RAY_ADDRESS`` environment variable; ``auto`` = the cluster ``ray start``
+made on this machine) :func:`run_tasks` connects to an existing cluster; otherwise it starts a new
+local instance with ``num_cpus = workers`` and no dashboard, and stops it at the end.  If Ray is already initialised in this process (a test, a
 notebook) that instance is used and left running.
 """
 
@@ -199,7 +199,9 @@ def ray_connect(backend: Backend):
             msg = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
             raise ValueError(f"{where} {address}: cannot connect to a Ray cluster ({msg})") from None
     else:
-        ray.init(num_cpus=backend.workers, include_dashboard=False, logging_level=logging.WARNING,
+        # address="local": a new instance even if `ray start` left one on this machine (plain
+        # ray.init() would join that one); join it with --ray-address auto
+        ray.init(address="local", num_cpus=backend.workers, include_dashboard=False, logging_level=logging.WARNING,
                  log_to_driver=False)
     return ray, True
 
