@@ -55,9 +55,9 @@ class Backend:
 
     @classmethod
     def make(cls, name: str | None, workers: int = 1, ray_address: str | None = None) -> "Backend":
-        """``name`` None: ``process`` with several workers, else ``serial`` (the old ``--workers`` rule)."""
+        """``name`` None: ``ray`` with an address, ``process`` with several workers, else ``serial``."""
         if name is None:
-            name = "process" if isinstance(workers, int) and workers > 1 else "serial"
+            name = "ray" if ray_address else "process" if isinstance(workers, int) and workers > 1 else "serial"
         return cls(name, workers, ray_address)
 
 

@@ -80,7 +80,8 @@ def add_backend_args(ap: argparse.ArgumentParser, default_batch: int = 32) -> No
     ap.add_argument("--backend", choices=BACKENDS, default=None,
                     help="where chunks of episodes run: serial (this process), process (a local pool of --workers), "
                          "ray (a local Ray instance with --workers CPUs, or the cluster at --ray-address / "
-                         "RAY_ADDRESS). Default: process if --workers > 1, else serial. Results do not depend on it.")
+                         "RAY_ADDRESS). Default: ray with --ray-address, process if --workers > 1, else serial. Results do "
+                         "not depend on it.")
     ap.add_argument("--workers", type=int, default=1, help="worker processes / local Ray CPUs (default 1)")
     ap.add_argument("--ray-address", default=None, metavar="ADDR",
                     help="connect to this Ray cluster (e.g. ray://head:10001 or auto); default: $RAY_ADDRESS, "
