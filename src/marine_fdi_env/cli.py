@@ -453,6 +453,15 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_parser("dataset", add_help=False, help="export features and labels for offline learning (see dataset --help)")
     sub.add_parser("synthesize-measurements", add_help=False,
                    help="write 'measured' data from the model with hidden mechanisms (see --help)")
+    sub.add_parser("agents", add_help=False, help="list the agents known by name (see agents --help)")
+    sub.add_parser("sweep", add_help=False,
+                   help="agents x suites x seed offsets on a backend, resumably, into one Parquet table (see --help)")
+    sub.add_parser("export-raw", add_help=False,
+                   help="write a suite's 100 Hz sensor samples and ground truth in the DX competition layout")
+    sub.add_parser("predict-raw", add_help=False,
+                   help="write an agent's per-sample diagnoses of a suite in the DX layout (see --help)")
+    sub.add_parser("score-raw", add_help=False,
+                   help="score per-sample diagnoses in the DX layout with the benchmark's and DX metrics")
 
     p = sub.add_parser("info", help="validate and summarise a run file",
                        description="Load a .npz run file (validating it) and print its metadata and ground truth.")
@@ -467,6 +476,11 @@ _ENV_COMMANDS = {
     "evaluate": ("marine_fdi_env.envs.evaluate", "evaluate_main"),
     "report": ("marine_fdi_env.envs.report", "report_main"),
     "dataset": ("marine_fdi_env.envs.dataset", "dataset_main"),
+    "agents": ("marine_fdi_env.envs.agents_cli", "agents_main"),
+    "sweep": ("marine_fdi_env.envs.sweep", "sweep_main"),
+    "export-raw": ("marine_fdi_env.envs.rawdata", "export_raw_main"),
+    "predict-raw": ("marine_fdi_env.envs.rawdata", "predict_raw_main"),
+    "score-raw": ("marine_fdi_env.envs.rawscore", "score_raw_main"),
 }
 
 

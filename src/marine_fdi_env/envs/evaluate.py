@@ -14,6 +14,12 @@ wall-clock fields (``compute_s``) vary from run to run.
 
 ``compute_s`` of an episode = the time spent making its observations (the residual generators
 run for every agent) + its share of the agent's ``act`` time.
+
+Backends (``--backend serial|process|ray``, :mod:`.backends`): the suite is cut into chunks of at
+most ``batch_size`` episodes, one task each; results, every metric and every episode record
+except ``compute_s``, are the same bit for bit whichever backend and number of workers run them
+(tested).  ``--out`` ending in ``.parquet`` writes the episode records as a Parquet table
+(:mod:`.records`) with the header and metrics in its metadata instead of JSON.
 """
 
 from __future__ import annotations
@@ -24,21 +30,21 @@ import json
 import os
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from .. import __version__
-from .agent_api import load_agent
+from .agent_api import load_agent, resolve_agent_spec
+from .backends import Backend, chunk_size, run_tasks
 from .fdi_env import ENV_ID
 from .metrics import compute_metrics
 from .scenario_sampler import ScenarioSpec
 from .suites import load_suite
 from .vector import MarineFDIVectorEnv
 
-__all__ = ["run_episodes", "evaluate", "evaluate_main", "episode_seed"]
+__all__ = ["run_episodes", "evaluate", "evaluate_main", "episode_seed", "evaluate_chunk"]
 
 _MAX_SEED = 2**63 - 1
 
@@ -56,23 +62,28 @@ def _offset(sc: ScenarioSpec, seed_offset: int) -> ScenarioSpec:
 
 
 def run_episodes(agent, scenarios: list[ScenarioSpec], env_kwargs: dict | None = None, *, suite: str = "",
-                 seed_offset: int = 0, batch_size: int = 32, on_episode=None) -> list[dict]:
+                 seed_offset: int = 0, batch_size: int = 32, on_episode=None, progress=None,
+                 on_decision=None) -> list[dict]:
     """Run ``agent`` on every scenario; returns the episode records (scenario order).
 
-    ``on_episode(record)`` is called as soon as an episode's record is complete.
+    ``on_episode(record)`` is called as soon as an episode's record is complete; ``progress(x)``
+    after every decision with the episodes' worth of work done since the last call (fractions);
+    ``on_decision(scenario_id, t_s, belief, compute_s)`` for every decision of every episode (the
+    belief vector the agent declared at decision time ``t_s`` and the time spent on this decision:
+    its observation and its share of the agent's ``act``).
     """
     env_kwargs = dict(env_kwargs or {})
     records: dict[int, dict] = {}
     for start in range(0, len(scenarios), batch_size):
         chunk = [_offset(s, seed_offset) for s in scenarios[start:start + batch_size]]
-        for j, rec in enumerate(_run_batch(agent, chunk, env_kwargs, suite, seed_offset)):
+        for j, rec in enumerate(_run_batch(agent, chunk, env_kwargs, suite, seed_offset, progress, on_decision)):
             records[start + j] = rec
             if on_episode is not None:
                 on_episode(rec)
     return [records[i] for i in range(len(scenarios))]
 
 
-def _run_batch(agent, scenarios, env_kwargs, suite, seed_offset):
+def _run_batch(agent, scenarios, env_kwargs, suite, seed_offset, progress=None, on_decision=None):
     n = len(scenarios)
     venv = MarineFDIVectorEnv(num_envs=n, **env_kwargs)
     obs, infos = venv.reset(options={"scenarios": scenarios})
@@ -87,11 +98,21 @@ def _run_batch(agent, scenarios, env_kwargs, suite, seed_offset):
     feature_s = np.zeros(n)
     steps = np.zeros(n, dtype=np.int64)
     out: list[dict | None] = [None] * n
+    n_decisions = np.maximum(1.0, np.round([s.duration_s / period for s in scenarios]))
+    obs_cost = venv.batch.compute_s.copy()  # time spent on the observation each slot decides on
+    reported = 0.0
     while live.any():
         t0 = time.perf_counter()
         actions = np.asarray(agent.act(obs, infos), dtype=np.float32)
-        agent_s[live] += (time.perf_counter() - t0) / live.sum()
+        act_s = (time.perf_counter() - t0) / live.sum()
+        agent_s[live] += act_s
+        feats_before = venv.batch.compute_s.copy() if on_decision is not None else None
         obs, rew, term, trunc, infos = venv.step(actions)
+        if on_decision is not None:
+            for i in np.flatnonzero(live):
+                on_decision(scenarios[i].scenario_id, float(infos["decision_time_s"][i]), actions[i],
+                            float(obs_cost[i]) + act_s)
+            obs_cost = venv.batch.compute_s - feats_before  # the next observation's cost
         for i in np.flatnonzero(live):
             t = float(infos["decision_time_s"][i])
             declared = list(infos["declared"][i])
@@ -122,24 +143,63 @@ def _run_batch(agent, scenarios, env_kwargs, suite, seed_offset):
                     "compute_s": float(feature_s[i] + agent_s[i]), "return": float(ret[i]),
                     "reward_terms": terms[i],
                 }
+        if progress is not None:
+            done = float(np.where(live, steps / n_decisions, 1.0).clip(0.0, 1.0).sum())
+            progress(done - reported)
+            reported = done
     return out
 
 
-def _worker(agent_spec, scenarios_dicts, env_kwargs, suite, seed_offset, batch_size):
-    agent = load_agent(agent_spec)
+_AGENTS: dict[tuple, object] = {}  # agents loaded in this process (workers reuse theirs across tasks)
+
+
+def _spec_stamp(spec: str) -> float:
+    """The newest modification time of the files a spec loads (0 for names): a retrained model
+    folder or an edited agent file is loaded anew."""
+    from .agent_api import _split_file_spec
+
+    fs = _split_file_spec(str(spec))
+    path = fs[0] if fs is not None else Path(str(spec))
+    try:
+        if path.is_dir():
+            return max((f.stat().st_mtime for f in path.iterdir() if f.is_file()), default=0.0)
+        return path.stat().st_mtime if path.is_file() else 0.0
+    except OSError:
+        return 0.0
+
+
+def cached_agent(spec: str):
+    """The agent of ``spec``, loaded once per process (agents are reset at every batch)."""
+    key = (spec, _spec_stamp(spec))
+    if key not in _AGENTS:
+        _AGENTS[key] = load_agent(spec)
+    return _AGENTS[key]
+
+
+def evaluate_chunk(agent_spec, scenarios_dicts, env_kwargs, suite, seed_offset, batch_size, progress=None):
+    """One task of a backend: the episode records of a chunk of scenarios (given as dicts)."""
+    agent = cached_agent(agent_spec)
     scs = [ScenarioSpec.from_dict(d) for d in scenarios_dicts]
-    return run_episodes(agent, scs, env_kwargs, suite=suite, seed_offset=seed_offset, batch_size=batch_size)
+    return run_episodes(agent, scs, env_kwargs, suite=suite, seed_offset=seed_offset, batch_size=batch_size,
+                        progress=progress)
 
 
 def evaluate(agent_spec: str, suite_name: str, out: Path, *, workers: int = 1, seed_offset: int = 0,
-             batch_size: int = 32, progress: bool = True) -> dict:
-    """Evaluate an agent on a suite, resumably; returns the results object written to ``out``."""
-    if not isinstance(workers, int) or workers < 1:
-        raise ValueError(f"--workers must be a positive integer, got {workers!r}")
+             batch_size: int = 32, progress: bool = True, backend: "Backend | str | None" = None,
+             ray_address: str | None = None) -> dict:
+    """Evaluate an agent on a suite, resumably; returns the results object written to ``out``.
+
+    ``backend``: a :class:`~.backends.Backend` or its name (default: ``process`` if
+    ``workers > 1``, else ``serial``).
+    """
+    if not isinstance(backend, Backend):
+        backend = Backend.make(backend, workers, ray_address)
+    workers = backend.workers
     if not isinstance(batch_size, int) or batch_size < 1:
         raise ValueError(f"--batch-size must be a positive integer, got {batch_size!r}")
     suite = load_suite(suite_name)
-    agent = load_agent(agent_spec)  # fail early on a bad agent
+    spec = resolve_agent_spec(agent_spec)  # names stay names, paths become absolute (workers may run elsewhere)
+    agent = cached_agent(spec)  # fail early on a bad agent
     env_kwargs = {k: v for k, v in suite["env"].items()}
     header = {"agent": agent.name, "agent_spec": str(agent_spec), "suite": suite.name,
               "suite_version": suite["version"], "seed_offset": int(seed_offset), "env_id": ENV_ID,
@@ -165,40 +225,41 @@ def evaluate(agent_spec: str, suite_name: str, out: Path, *, workers: int = 1, s
         out.parent.mkdir(parents=True, exist_ok=True)
         partial.write_text(json.dumps(header) + "\n")
     todo = [s for s in suite.scenarios if s.scenario_id not in done]
-    bar = None
-    if progress:
-        from tqdm import tqdm
+    from .cliutil import progress_bar
 
-        bar = tqdm(total=len(suite.scenarios), initial=len(done), desc=f"{agent.name} on {suite.name}",
-                   unit="episode", file=sys.stderr)
+    bar = progress_bar(len(suite.scenarios), len(done), f"{agent.name} on {suite.name}", progress)
+    per = chunk_size(len(todo), batch_size, workers)
+    chunks = [todo[i:i + per] for i in range(0, len(todo), per)]
+    tasks = [(spec, [s.to_dict() for s in c], env_kwargs, suite.name, seed_offset, batch_size) for c in chunks]
 
-    def record(rec):
+    def record(i, recs):
         with partial.open("a") as fh:
-            fh.write(json.dumps(rec) + "\n")
-        done[rec["scenario_id"]] = rec
-        if bar is not None:
-            bar.update(1)
+            for rec in recs:
+                fh.write(json.dumps(rec) + "\n")
+                done[rec["scenario_id"]] = rec
+        bar.set_done(len(done) + sum(in_flight.values()) - in_flight.pop(i, 0.0))
 
-    if workers == 1 or len(todo) <= batch_size:
-        run_episodes(agent, todo, env_kwargs, suite=suite.name, seed_offset=seed_offset, batch_size=batch_size,
-                     on_episode=record)
-    else:
-        per = max(1, min(batch_size, -(-len(todo) // workers)))
-        chunks = [todo[i:i + per] for i in range(0, len(todo), per)]
-        with ProcessPoolExecutor(max_workers=workers) as ex:
-            futs = [ex.submit(_worker, agent_spec, [s.to_dict() for s in c], env_kwargs, suite.name, seed_offset,
-                              batch_size) for c in chunks]
-            for f in as_completed(futs):
-                for rec in f.result():
-                    record(rec)
-    if bar is not None:
+    in_flight: dict[int, float] = {}
+
+    def advance(i, x):
+        in_flight[i] = in_flight.get(i, 0.0) + x
+        bar.advance(x)
+
+    try:
+        run_tasks(backend, evaluate_chunk, tasks, on_result=record, on_progress=advance)
+    finally:
         bar.close()
     episodes = [done[s.scenario_id] for s in suite.scenarios]
     result = dict(header)
     result.update(package_version=__version__, n_scenarios=len(episodes), metrics=compute_metrics(episodes),
                   episodes=episodes)
     tmp = out.with_name(out.name + ".tmp")
-    tmp.write_text(json.dumps(result, separators=(",", ":")) + "\n")  # compact: episodes hold traces
+    if out.suffix == ".parquet":
+        from .records import write_results_parquet
+
+        write_results_parquet(tmp, result)
+    else:
+        tmp.write_text(json.dumps(result, separators=(",", ":")) + "\n")  # compact: episodes hold traces
     os.replace(tmp, out)
     partial.unlink()
     return result
@@ -210,12 +271,16 @@ def build_parser() -> argparse.ArgumentParser:
         description="Run an agent on a frozen evaluation suite and print its metrics. With no arguments: the "
                     "reference diagnoser on thesis-v1.")
     ap.add_argument("--agent", default="reference",
-                    help="null | random | reference | oracle, or a directory with agent.json (default: reference)")
+                    help="an agent name (see 'marine-fdi agents': null, random, reference, oracle, the shipped "
+                         "models), a directory with agent.json, or path/to/file.py:ClassName (default: reference)")
     ap.add_argument("--suite", default="thesis-v1", help="suite name or JSON path (default: thesis-v1)")
-    ap.add_argument("--out", type=Path, default=None, help="results JSON (default: results/AGENT_SUITE.json)")
-    ap.add_argument("--workers", type=int, default=1, help="processes (default 1)")
+    ap.add_argument("--out", type=Path, default=None,
+                    help="results file: .json, or .parquet for the episode records as a table "
+                         "(default: results/AGENT_SUITE.json)")
     ap.add_argument("--seed-offset", type=int, default=0, help="shift every noise seed (new noise, same scenarios)")
-    ap.add_argument("--batch-size", type=int, default=32, help="episodes advanced together (default 32)")
+    from .cliutil import add_backend_args
+
+    add_backend_args(ap)
     ap.add_argument("--no-progress", action="store_true")
     return ap
 
@@ -228,10 +293,13 @@ def evaluate_main(argv=None) -> int:
     except SystemExit as e:
         return e.code if isinstance(e.code, int) else 0
     try:
-        name = Path(args.agent).name if Path(args.agent).exists() else args.agent
-        out = args.out or Path("results") / f"{name}_{Path(args.suite).stem}.json"
-        result = evaluate(args.agent, args.suite, out, workers=args.workers, seed_offset=args.seed_offset,
-                          batch_size=args.batch_size, progress=not args.no_progress)
+        from .agent_api import agent_file_stem
+        from .cliutil import backend_from_args
+
+        backend = backend_from_args(args)
+        out = args.out or Path("results") / f"{agent_file_stem(args.agent)}_{Path(args.suite).stem}.json"
+        result = evaluate(args.agent, args.suite, out, seed_offset=args.seed_offset, batch_size=args.batch_size,
+                          progress=not args.no_progress, backend=backend)
     except ValueError as e:
         print(f"marine-fdi evaluate: error: {e}", file=sys.stderr)
         return 2

@@ -29,16 +29,42 @@ _DASH = "–"
 
 # ----------------------------------------------------------------------------- loading
 
+def _parquet_results(p: Path) -> list[dict]:
+    """Results objects from a Parquet file: an evaluation's records, or a sweep's table (one
+    object per agent x suite)."""
+    from .records import read_records
+
+    records, meta = read_records(p, keep_extra=True)
+    if meta.get("kind") == "marine-fdi sweep" or (records and "agent_spec" in records[0]):
+        from .sweep import sweep_results
+
+        return sweep_results(records, str(p))
+    for r in records:
+        r.pop("agent_spec", None)
+        r.pop("seed_offset", None)
+    data = dict(meta, episodes=records, path=str(p))
+    data.setdefault("agent", records[0]["agent"] if records else "")
+    data.setdefault("suite", records[0]["suite"] if records else "")
+    return [data]
+
+
 def load_results(paths: Iterable[str | Path]) -> list[dict]:
     """Read results files; ``ValueError`` naming the path when missing or corrupt.
 
+    A path is a JSON results file, a Parquet results file (``evaluate --out X.parquet``), or a
+    sweep's table or folder (``marine-fdi sweep --out DIR``: one result per agent x suite).
     Each returned dict is the file's content plus ``"path"``; ``metrics`` is filled in from
     ``episodes`` when the file has none.
     """
     out = []
     for p in map(Path, paths):
+        if p.is_dir() and (p / "episodes.parquet").is_file():
+            p = p / "episodes.parquet"
         if not p.exists():
             raise ValueError(f"{p}: results file not found")
+        if p.suffix == ".parquet":
+            out += _parquet_results(p)
+            continue
         data = read_json(p, "JSON results file")
         if not isinstance(data, dict):
             raise ValueError(f"{p}: results file must hold a JSON object")
@@ -249,7 +275,9 @@ def write_report(paths: Iterable[str | Path], out_dir: str | Path, *, plots: boo
 
 def build_report_parser(prog: str = "marine-fdi report") -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog=prog, description="Markdown report and plots from results files.")
-    p.add_argument("results", nargs="+", help="results JSON files written by 'marine-fdi evaluate'")
+    p.add_argument("results", nargs="+",
+                   help="results files written by 'marine-fdi evaluate' (.json or .parquet), or sweep folders "
+                        "('marine-fdi sweep --out DIR') or their episodes.parquet")
     p.add_argument("--out", default="report", help="output directory (default: ./report)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots (no matplotlib needed)")
     return p
