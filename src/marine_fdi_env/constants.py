@@ -125,10 +125,13 @@ def _submodel_constants(p: EngineParams, g) -> dict:
     return out
 
 
+_geometry = lru_cache(maxsize=64)(cylinder_geometry)
+
+
 @lru_cache(maxsize=256)
 def model_constants(p: EngineParams) -> ModelConstants:
     """Flatten a parameter set and add the derived and submodel constants."""
-    g = cylinder_geometry(p.bore_m, p.stroke_m, p.crank_rod_m, p.eps_c, p.alpha_IC_deg, p.alpha_EO_deg)
+    g = _geometry(p.bore_m, p.stroke_m, p.crank_rod_m, p.eps_c, p.alpha_IC_deg, p.alpha_EO_deg)
     kg = p.kappa_g
     chl = p.submodels.cylinder_heat_loss
     k_comp = p.kappa_a if chl is None else chl.n_comp

@@ -21,6 +21,7 @@ engines with compiled loops and returns named arrays (:class:`Algebraic`).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -122,7 +123,7 @@ class Algebraic:
 
 
 @jit
-def _gas_exchange(c, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, out):
+def _gas_exchange(c, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, out, ov_wg, ov_bp):
     """Σ3 and Σ4 after Σ2 (base functions, or the extended gas path when a submodel is on); fills ``out``."""
     # Gas exchange (Σ3, Σ4) uses the nominal V1 as in eq. 3.17-3.22 and 3.32: bore damage acts on
     # the cylinder process (Σ2) only, the variables of table 3.1.
@@ -156,7 +157,7 @@ def _gas_exchange(c, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, out):
         out[22] = T_out
         return
     T_c = cooler_outlet_temperature(x4, c)
-    g = extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, c.T_sl_K + pf[3], T_c, pf[6], c)
+    g = extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, c.T_sl_K + pf[3], T_c, pf[6], c, ov_wg, ov_bp)
     out[14] = g[0]
     out[7] = g[1]
     out[8] = g[2]
@@ -182,16 +183,17 @@ def solve_algebraic(c, x1, x3, x4, pf, n_guess, sweeps, out):
     """
     T1 = inlet_air_temperature_at(pf[5], x4, c)
     n, torque, p6, T6, p_max, m1_cyl = engine_block(x1, x4, T1, c.V1_m3 + pf[1], n_guess, c, sweeps)
-    _gas_exchange(c, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, out)
+    _gas_exchange(c, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, out, math.nan, math.nan)
 
 
 @jit
-def algebraic_at_speed(c, x1, x3, x4, n, pf, out):
+def algebraic_at_speed(c, x1, x3, x4, n, pf, out, ov_wg=math.nan, ov_bp=math.nan):
     """The algebraic equations of Σ2-Σ4 at a given engine speed n [rev/s] (no load law), for the
-    steady-state solver of :mod:`marine_fdi_env.operating_point`; fills ``out`` (``ALG_FIELDS``)."""
+    steady-state solver of :mod:`marine_fdi_env.operating_point`; fills ``out`` (``ALG_FIELDS``).
+    ov_wg, ov_bp : valve openings overriding the schedules (NaN: the schedules)."""
     T1 = inlet_air_temperature_at(pf[5], x4, c)
     torque, p6, T6, p_max, m1_cyl = engine_block_at_speed(x1, x4, T1, c.V1_m3 + pf[1], n, c)
-    _gas_exchange(c, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, out)
+    _gas_exchange(c, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, out, ov_wg, ov_bp)
 
 
 @jit

@@ -24,6 +24,7 @@ with :func:`scipy.optimize.root`.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,11 +37,12 @@ from .params import EngineParams
 from .turbocharger_speed import turbocharger_speed_rpm
 
 __all__ = ["MODE_U", "MODE_P", "MODE_F", "LAW_PARAMS", "LAW_PRESCRIBED", "SUMMARY_KEYS", "OperatingPoints",
-           "solve_points", "speed_of_power", "power_of_speed", "summaries_from_alg"]
+           "solve_points", "solve_raw", "speed_of_power", "power_of_speed", "summaries_from_alg", "ALG_INDEX", "Summary"]
 
 MODE_U, MODE_P, MODE_F = 0, 1, 2
 LAW_PARAMS, LAW_PRESCRIBED = 0, 2
 _A = {f: i for i, f in enumerate(ALG_FIELDS)}
+ALG_INDEX = _A
 
 SUMMARY_KEYS = (
     "fuel_setting", "engine_speed_rev_s", "power_W", "torque_Nm", "fuel_per_cycle_kg", "fuel_mass_flow_kg_s",
@@ -55,34 +57,95 @@ SUMMARY_KEYS = (
 )
 
 
-def summaries_from_alg(params: EngineParams, u, x1, x3, x4, alg: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """The operating points as arrays of SI quantities (keys :data:`SUMMARY_KEYS`, ending in their unit).
+class Summary(Mapping):
+    """The operating points as arrays of SI quantities (keys :data:`SUMMARY_KEYS`, ending in their unit), each
+    computed when first asked for (fits read a few keys many thousand times).
 
-    ``alg`` maps ``ALG_FIELDS`` to arrays.  The base keys are computed exactly as
+    Built from the algebraic output matrix ``alg`` (rows x ``ALG_FIELDS``), the states and ``conv`` (NaN where a
+    point did not converge); ``p_amb_Pa``/``T_amb_K`` (per point) override the parameter set's ambient state for the
+    turbocharger speed.  The base keys are computed exactly as
     :meth:`marine_fdi_env.steady_state.SteadyState.summary` computes them.
     """
-    n = np.asarray(alg["n"], float)
-    torque = np.asarray(alg["torque"], float)
-    power = 2.0 * np.pi * n * torque
-    x1 = np.asarray(x1, float)
-    fuel = x1 * n * params.n_cylinders / params.revs_per_cycle
-    with np.errstate(divide="ignore", invalid="ignore"):
-        sfc = np.where(power > 0, fuel / power, np.inf)
-        bp_frac = np.where(alg["mdot_c"] > 0, alg["mdot_bp"] / alg["mdot_c"], 0.0)
-    return {
-        "fuel_setting": np.asarray(u, float), "engine_speed_rev_s": n, "power_W": power, "torque_Nm": torque,
-        "fuel_per_cycle_kg": x1, "fuel_mass_flow_kg_s": fuel, "sfc_kg_per_J": sfc,
-        "charge_air_pressure_Pa": np.asarray(x4, float), "exhaust_receiver_pressure_Pa": np.asarray(x3, float),
-        "p_max_Pa": alg["p_max"], "cylinder_pressure_eo_Pa": alg["p6"], "cylinder_temperature_eo_K": alg["T6"],
-        "turbine_inlet_temperature_K": alg["T_in"], "turbine_outlet_temperature_K": alg["T_out"],
-        "compressor_outlet_temperature_K": alg["T_co"], "inlet_air_temperature_K": alg["T1"],
-        "air_mass_flow_kg_s": alg["mdot_c"], "exhaust_mass_flow_kg_s": alg["mdot_g"],
-        "air_excess_ratio": alg["lam"], "slip_ratio": alg["s_sl"],
-        "charge_air_cooler_outlet_temperature_K": alg["T_c"], "cylinder_outlet_temperature_K": alg["T_cyl"],
-        "turbine_gas_inlet_temperature_K": alg["T_t"], "exhaust_after_waste_gate_temperature_K": alg["T_exh"],
-        "bypass_air_flow_kg_s": alg["mdot_bp"], "bypass_fraction": bp_frac, "waste_gate_fraction": alg["wg_frac"],
-        "turbocharger_speed_rpm": turbocharger_speed_rpm(params, x4),
-    }
+
+    def __init__(self, params: EngineParams, x1, x3, x4, alg: np.ndarray, conv: np.ndarray | None = None,
+                 p_amb_Pa=None, T_amb_K=None):
+        ok = np.ones(alg.shape[0], bool) if conv is None else np.asarray(conv, bool)
+        self._p, self._ok = params, ok
+        self._x1 = np.where(ok, x1, np.nan)
+        self._x3 = np.where(ok, x3, np.nan)
+        self._x4 = np.where(ok, x4, np.nan)
+        self._alg = alg
+        self._amb = (p_amb_Pa, T_amb_K)
+        self._cache: dict[str, np.ndarray] = {}
+
+    def _a(self, f: str) -> np.ndarray:
+        return np.where(self._ok, self._alg[:, _A[f]], np.nan)
+
+    def _compute(self, k: str) -> np.ndarray:
+        p = self._p
+        a = self._a
+        if k == "fuel_setting":
+            return self._x1 / p.x1_nom_kg
+        if k == "engine_speed_rev_s":
+            return a("n")
+        if k == "power_W":
+            return 2.0 * np.pi * a("n") * a("torque")
+        if k == "torque_Nm":
+            return a("torque")
+        if k == "fuel_per_cycle_kg":
+            return self._x1
+        if k == "fuel_mass_flow_kg_s":
+            return self._x1 * a("n") * p.n_cylinders / p.revs_per_cycle
+        if k == "sfc_kg_per_J":
+            P = self["power_W"]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                return np.where(P > 0, self["fuel_mass_flow_kg_s"] / P, np.inf)
+        if k == "charge_air_pressure_Pa":
+            return self._x4
+        if k == "exhaust_receiver_pressure_Pa":
+            return self._x3
+        if k == "bypass_fraction":
+            mc = a("mdot_c")
+            with np.errstate(divide="ignore", invalid="ignore"):
+                return np.where(mc > 0, a("mdot_bp") / mc, 0.0)
+        if k == "turbocharger_speed_rpm":
+            return turbocharger_speed_rpm(p, self._x4, *self._amb)
+        f = _DIRECT.get(k)
+        if f is None:
+            raise KeyError(k)
+        return a(f)
+
+    def __getitem__(self, k: str) -> np.ndarray:
+        v = self._cache.get(k)
+        if v is None:
+            v = self._cache[k] = self._compute(k)
+        return v
+
+    def __iter__(self):
+        return iter(SUMMARY_KEYS)
+
+    def __len__(self) -> int:
+        return len(SUMMARY_KEYS)
+
+    def __contains__(self, k) -> bool:
+        return k in SUMMARY_KEYS
+
+
+_DIRECT = {
+    "p_max_Pa": "p_max", "cylinder_pressure_eo_Pa": "p6", "cylinder_temperature_eo_K": "T6",
+    "turbine_inlet_temperature_K": "T_in", "turbine_outlet_temperature_K": "T_out",
+    "compressor_outlet_temperature_K": "T_co", "inlet_air_temperature_K": "T1", "air_mass_flow_kg_s": "mdot_c",
+    "exhaust_mass_flow_kg_s": "mdot_g", "air_excess_ratio": "lam", "slip_ratio": "s_sl",
+    "charge_air_cooler_outlet_temperature_K": "T_c", "cylinder_outlet_temperature_K": "T_cyl",
+    "turbine_gas_inlet_temperature_K": "T_t", "exhaust_after_waste_gate_temperature_K": "T_exh",
+    "bypass_air_flow_kg_s": "mdot_bp", "waste_gate_fraction": "wg_frac",
+}
+
+
+def summaries_from_alg(params: EngineParams, x1, x3, x4, alg: np.ndarray, conv=None, p_amb_Pa=None,
+                       T_amb_K=None) -> dict[str, np.ndarray]:
+    """Every key of :class:`Summary` as a plain dict."""
+    return dict(Summary(params, x1, x3, x4, alg, conv, p_amb_Pa, T_amb_K))
 
 
 # --------------------------------------------------------------------------------------- compiled core
@@ -95,7 +158,7 @@ def _law_residual(n, power, c):
 
 
 @jit
-def _residual(mode, law, y0, y1, y2, a0, a1, c, pf, alg):
+def _residual(mode, law, y0, y1, y2, a0, a1, c, pf, alg, ov):
     """The three equilibrium residuals at unknowns y (module docstring); fills ``alg``; returns (r, x1, n)."""
     x3 = y0
     x4 = y1
@@ -108,7 +171,7 @@ def _residual(mode, law, y0, y1, y2, a0, a1, c, pf, alg):
     else:  # MODE_F: y2 = n, a0 = fuel mass flow
         n = y2
         x1 = a0 / (max(n, 1e-9) * c.cycles_per_rev)
-    algebraic_at_speed(c, x1, x3, x4, n, pf, alg)
+    algebraic_at_speed(c, x1, x3, x4, n, pf, alg, ov[0], ov[1])
     r3 = 1.0 - c.tau_pd_s * alg[14] / ((1.0 + pf[2]) * x3)
     r4 = 1.0 - c.tau_TC_s * alg[15] / ((1.0 + pf[4]) * x4)
     torque = alg[1]
@@ -160,14 +223,14 @@ def _solve3(J, f, s):
 
 
 @jit
-def _newton(mode, law, a0, a1, c, pf, y, alg, tol, max_iter):
+def _newton(mode, law, a0, a1, c, pf, y, alg, tol, max_iter, ov):
     """Damped Newton on the three residuals from ``y`` (updated in place); returns converged."""
     f = np.empty(3)
     ft = np.empty(3)
     J = np.empty((3, 3))
     s = np.empty(3)
     yt = np.empty(3)
-    r = _residual(mode, law, y[0], y[1], y[2], a0, a1, c, pf, alg)
+    r = _residual(mode, law, y[0], y[1], y[2], a0, a1, c, pf, alg, ov)
     f[0], f[1], f[2] = r[0], r[1], r[2]
     norm = abs(f[0]) + abs(f[1]) + abs(f[2])
     for _ in range(max_iter):
@@ -177,7 +240,7 @@ def _newton(mode, law, a0, a1, c, pf, y, alg, tol, max_iter):
             yt[0], yt[1], yt[2] = y[0], y[1], y[2]
             d = 1e-7 * abs(y[j]) + 1e-300
             yt[j] += d
-            r = _residual(mode, law, yt[0], yt[1], yt[2], a0, a1, c, pf, alg)
+            r = _residual(mode, law, yt[0], yt[1], yt[2], a0, a1, c, pf, alg, ov)
             J[0, j] = (r[0] - f[0]) / d
             J[1, j] = (r[1] - f[1]) / d
             J[2, j] = (r[2] - f[2]) / d
@@ -190,7 +253,7 @@ def _newton(mode, law, a0, a1, c, pf, y, alg, tol, max_iter):
         lam = 1.0
         for _ in range(8):
             yt[0], yt[1], yt[2] = y[0] - lam * s[0], y[1] - lam * s[1], y[2] - lam * s[2]
-            r = _residual(mode, law, yt[0], yt[1], yt[2], a0, a1, c, pf, alg)
+            r = _residual(mode, law, yt[0], yt[1], yt[2], a0, a1, c, pf, alg, ov)
             ft[0], ft[1], ft[2] = r[0], r[1], r[2]
             nt = abs(ft[0]) + abs(ft[1]) + abs(ft[2])
             if math.isfinite(nt) and nt <= norm:
@@ -203,13 +266,13 @@ def _newton(mode, law, a0, a1, c, pf, y, alg, tol, max_iter):
                  and abs(lam * s[2]) <= tol * abs(y[2]))
         if small or norm == 0.0:
             if norm < 1e-9:
-                _residual(mode, law, y[0], y[1], y[2], a0, a1, c, pf, alg)
+                _residual(mode, law, y[0], y[1], y[2], a0, a1, c, pf, alg, ov)
                 return True
     return norm < 1e-11
 
 
 @jit
-def _solve_batch(mode, law, c, pf, a, y, use_guess, alg, x1_out, status, tol, max_iter):
+def _solve_batch(mode, law, c, pf, a, y, use_guess, alg, x1_out, status, tol, max_iter, ov):
     """Solve every point i with inputs a[i] = (a0, a1) from y[i] (if use_guess[i]) else the default guess."""
     for i in range(a.shape[0]):
         if not (math.isfinite(a[i, 0]) and math.isfinite(a[i, 1])):
@@ -220,18 +283,18 @@ def _solve_batch(mode, law, c, pf, a, y, use_guess, alg, x1_out, status, tol, ma
             continue
         ok = False
         if use_guess[i]:
-            ok = _newton(mode, law, a[i, 0], a[i, 1], c, pf, y[i], alg[i], tol, max_iter)
+            ok = _newton(mode, law, a[i, 0], a[i, 1], c, pf, y[i], alg[i], tol, max_iter, ov[i])
         if not ok:
             _initial_guess(mode, law, a[i, 0], a[i, 1], c, y[i])
-            ok = _newton(mode, law, a[i, 0], a[i, 1], c, pf, y[i], alg[i], tol, max_iter)
-        r = _residual(mode, law, y[i, 0], y[i, 1], y[i, 2], a[i, 0], a[i, 1], c, pf, alg[i])
+            ok = _newton(mode, law, a[i, 0], a[i, 1], c, pf, y[i], alg[i], tol, max_iter, ov[i])
+        r = _residual(mode, law, y[i, 0], y[i, 1], y[i, 2], a[i, 0], a[i, 1], c, pf, alg[i], ov[i])
         x1_out[i] = r[3]
         status[i] = 1 if ok else 0
 
 
 @jit
-def _residual_vec(mode, law, a0, a1, c, pf, y, alg):
-    r = _residual(mode, law, y[0], y[1], y[2], a0, a1, c, pf, alg)
+def _residual_vec(mode, law, a0, a1, c, pf, y, alg, ov):
+    r = _residual(mode, law, y[0], y[1], y[2], a0, a1, c, pf, alg, ov)
     out = np.empty(3)
     out[0], out[1], out[2] = r[0], r[1], r[2]
     return out
@@ -276,15 +339,36 @@ def power_of_speed(params: EngineParams, speed_rev_s) -> np.ndarray:
     return params.c_load_W_s3 * n**3
 
 
+def solve_raw(c, mode: int, a0: np.ndarray, a1: np.ndarray, law: int, y: np.ndarray, pf: np.ndarray,
+              ov: np.ndarray, tol: float = 1e-12, max_iter: int = 60) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The compiled solve of :func:`solve_points` on model constants ``c``, without summaries (a hot path of
+    fits): returns (alg (n, N_ALG), x1 (n,), converged (n,)); ``y`` (n, 3) is the warm start, updated in place
+    (NaN or non-positive rows start from the default guess)."""
+    n = a0.size
+    a = np.ascontiguousarray(np.column_stack([a0, a1]), dtype=float)
+    use = np.all(np.isfinite(y) & (y > 0), axis=1)
+    y[~use] = 0.0
+    alg = np.empty((n, N_ALG))
+    x1 = np.empty(n)
+    status = np.zeros(n, dtype=np.int64)
+    _solve_batch(int(mode), law, c, pf, a, y, use, alg, x1, status, tol, max_iter, ov)
+    for i in np.flatnonzero(status == 0):  # last resort: scipy's hybrid method
+        if _scipy_fallback(int(mode), law, a[i], c, pf, y[i], alg[i], ov[i]):
+            x1[i] = _residual(int(mode), law, y[i, 0], y[i, 1], y[i, 2], a[i, 0], a[i, 1], c, pf, alg[i], ov[i])[3]
+            status[i] = 1
+    return alg, x1, status == 1
+
+
 def solve_points(params: EngineParams, mode: int, a0, a1=None, *, prescribed_speed: bool = False,
-                 guess: np.ndarray | None = None, pf: np.ndarray | None = None, tol: float = 1e-12,
-                 max_iter: int = 60) -> OperatingPoints:
+                 guess: np.ndarray | None = None, pf: np.ndarray | None = None, valves: np.ndarray | None = None,
+                 tol: float = 1e-12, max_iter: int = 60) -> OperatingPoints:
     """Solve operating points of ``params`` (submodels included).
 
     mode : ``MODE_U`` (a0 = fuel setting), ``MODE_P`` (a0 = brake power [W], a1 = speed [rev/s]; default: the
     load law's speed at that power) or ``MODE_F`` (a0 = fuel mass flow [kg/s]).  prescribed_speed : in
     MODE_U/MODE_F the speed is a1 instead of the load law's.  pf : process-fault vector (``PF_FIELDS``),
-    healthy by default.  guess : (n, 3) warm start (see :attr:`OperatingPoints.state`).
+    healthy by default.  guess : (n, 3) warm start (see :attr:`OperatingPoints.state`).  valves : (n, 2)
+    waste-gate and bypass openings per point overriding the schedules of the submodels (NaN: schedule).
     """
     c = model_constants(params)
     a0 = np.atleast_1d(np.asarray(a0, float))
@@ -295,37 +379,25 @@ def solve_points(params: EngineParams, mode: int, a0, a1=None, *, prescribed_spe
         raise ValueError("a prescribed speed needs the speed of every point (a1)")
     a1 = np.full(n, 0.0) if a1 is None else np.broadcast_to(np.asarray(a1, float), (n,))
     law = LAW_PRESCRIBED if prescribed_speed else LAW_PARAMS
-    a = np.ascontiguousarray(np.column_stack([a0, a1]), dtype=float)
-    y = np.zeros((n, 3)) if guess is None else np.array(guess, dtype=float, order="C").reshape(n, 3)
-    use = np.zeros(n, dtype=np.bool_) if guess is None else np.all(np.isfinite(y) & (y > 0), axis=1)
+    y = np.full((n, 3), np.nan) if guess is None else np.array(guess, dtype=float, order="C").reshape(n, 3)
     pfv = np.array(HEALTHY_PF if pf is None else pf, dtype=float)
-    alg = np.empty((n, N_ALG))
-    x1 = np.empty(n)
-    status = np.zeros(n, dtype=np.int64)
-    _solve_batch(int(mode), law, c, pfv, a, y, use, alg, x1, status, tol, max_iter)
-    for i in np.flatnonzero(status == 0):  # last resort: scipy's hybrid method
-        if _scipy_fallback(int(mode), law, a[i], c, pfv, y[i], alg[i]):
-            x1[i] = _residual(int(mode), law, y[i, 0], y[i, 1], y[i, 2], a[i, 0], a[i, 1], c, pfv, alg[i])[3]
-            status[i] = 1
-    ok = status == 1
-    algd = {f: np.where(ok, alg[:, j], np.nan) for f, j in _A.items()}
-    x1 = np.where(ok, x1, np.nan)
-    vals = summaries_from_alg(params, x1 / params.x1_nom_kg, x1, np.where(ok, y[:, 0], np.nan),
-                              np.where(ok, y[:, 1], np.nan), algd)
+    ov = np.full((n, 2), np.nan) if valves is None else np.ascontiguousarray(np.broadcast_to(valves, (n, 2)), float)
+    alg, x1, ok = solve_raw(c, mode, a0, np.asarray(a1, float), law, y, pfv, ov, tol, max_iter)
+    vals = summaries_from_alg(params, x1, y[:, 0], y[:, 1], alg, ok)
     return OperatingPoints(values=vals, converged=ok, state=y)
 
 
-def _scipy_fallback(mode, law, a, c, pf, y, alg) -> bool:
+def _scipy_fallback(mode, law, a, c, pf, y, alg, ov) -> bool:
     y0 = np.empty(3)
     _initial_guess(mode, law, a[0], a[1], c, y0)
     scale = y0.copy()
-    fun = lambda z: _residual_vec(mode, law, a[0], a[1], c, pf, z * scale, alg)  # noqa: E731
+    fun = lambda z: _residual_vec(mode, law, a[0], a[1], c, pf, z * scale, alg, ov)  # noqa: E731
     try:
         sol = root(fun, np.ones(3), method="hybr", tol=1e-13)
     except (ValueError, ZeroDivisionError, FloatingPointError):
         return False
     if sol.success and np.all(np.isfinite(sol.x)) and np.max(np.abs(fun(sol.x))) < 1e-9:
         y[:] = sol.x * scale
-        _residual_vec(mode, law, a[0], a[1], c, pf, y, alg)
+        _residual_vec(mode, law, a[0], a[1], c, pf, y, alg, ov)
         return True
     return False

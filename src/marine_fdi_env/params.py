@@ -127,8 +127,17 @@ class EngineParams:
     # optional submodels (not a float: skipped by the numeric checks)
     submodels: EngineSubmodels = NO_SUBMODELS
 
-    def replace(self, **changes: Any) -> "EngineParams":
-        """Return a copy with some fields changed (validated like a loaded set)."""
+    def replace(self, validate: bool = True, **changes: Any) -> "EngineParams":
+        """Return a copy with some fields changed (validated like a loaded set; ``validate=False`` skips the
+        checks, for hot loops whose changes are valid by construction)."""
+        if not validate:  # fast path: a shallow copy with the changed fields (no __init__, no checks)
+            unknown = set(changes) - self.__dict__.keys()
+            if unknown:
+                raise TypeError(f"unknown parameter(s) {', '.join(sorted(unknown))}")
+            new = object.__new__(EngineParams)
+            new.__dict__.update(self.__dict__)
+            new.__dict__.update(changes)
+            return new
         new = dataclasses.replace(self, **changes)
         new.validate()
         return new

@@ -110,11 +110,13 @@ def _flow_law_pressure(gam: float, A0: float, A1: float, c) -> float:
 
 
 @jit
-def extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, T_c, dT_c, c) -> tuple:
+def extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, T_c, dT_c, c, ov_wg, ov_bp) -> tuple:
     """Algebraic part of Σ3 and Σ4 with the gas-path submodels (module docstring).
 
     m1 : trapped mass of the gas exchange [kg]; T_sl : slip-air temperature incl. f_z,Tsl [K];
     T_c : cooler outlet temperature [K]; dT_c : intercooler-blockage fault f_z,Tc [K].
+    ov_wg, ov_bp : waste-gate and bypass openings that override the schedules (NaN: use the schedules;
+    the steady-state solver sets one opening per measured point while a fit looks for them).
 
     Returns
     -------
@@ -126,10 +128,12 @@ def extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, T_c, dT_c, c) -> tu
     u = x1 / c.x1_nom_kg
     mdot_g = turbine_mass_flow(x1, m1, s_sl, n, c)
     m_air = (1.0 + s_sl) * m1 * cpr
-    a_wg = valve_opening(u, c.wg_u, c.wg_a) if c.wg_on != 0.0 else 0.0
+    a_wg = 0.0
+    if c.wg_on != 0.0:
+        a_wg = valve_opening(u, c.wg_u, c.wg_a) if math.isnan(ov_wg) else ov_wg
     mdot_bp = 0.0
     if c.bp_on != 0.0 and x4 > x3:
-        b = valve_opening(u, c.bp_u, c.bp_b)
+        b = valve_opening(u, c.bp_u, c.bp_b) if math.isnan(ov_bp) else ov_bp
         rho = x4 / (c.R_a_J_per_kgK * T_c)
         mdot_bp = c.alpha_z * c.A_eff_m2 * b * math.sqrt(2.0 * rho * (x4 - x3))
     # receiver mixing of exhaust and slip air: T_cyl = alpha + beta P (blowdown term, eq. 3.20-3.23)

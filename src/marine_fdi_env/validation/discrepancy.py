@@ -44,7 +44,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 from scipy import stats
 
-from .columns import COLUMNS, QUANTITIES
+from .columns import QUANTITIES
 from .matching import MatchResult
 
 __all__ = [
@@ -298,7 +298,7 @@ def default_tolerance(match: MatchResult, column: str, rel_tol: float = REL_TOL,
                       temperature_tol_K: float = TEMPERATURE_TOL_K, load_tol: float = LOAD_TOL) -> float:
     """Smallest discrepancy worth naming on ``column``, in the column's units."""
     ds = match.dataset
-    spec = COLUMNS[column]
+    spec = ds.spec(column)
     q = QUANTITIES[ds.column_quantity[column]]
     if q.kind == "temperature":
         return temperature_tol_K / spec.scale
@@ -349,7 +349,7 @@ def analyse_discrepancies(
         n = int(r.size)
         tol = float(tolerances.get(col, default_tolerance(match, col, rel_tol, temperature_tol_K)))
         q = ds.column_quantity[col]
-        unit = COLUMNS[col].unit
+        unit = ds.spec(col).unit
         if n == 0:
             out[col] = ChannelDiscrepancy(col, q, unit, 0, int(ds.n_points), math.nan, math.nan, math.nan, math.nan,
                                           math.nan, tol, math.nan)
