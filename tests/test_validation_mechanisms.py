@@ -175,7 +175,7 @@ def test_synthesized_data_load_and_hide_the_effect(tmp_path):
     truth = json.loads((tmp_path / "truth.json").read_text())
     assert [m["id"] for m in truth["mechanisms"]] == ["turbocharger_map", "sensor_calibration"]
     assert set(truth["settings"]["model_error"]) == {"A_eff_m2", "a_eta_per_Pa2", "eta_com", "eta_comb", "X_cv_nom",
-                                                     "X_ct_nom"}
+                                                     "X_ct_nom", "s_sl_nom"}
     ds = _quiet(load_dataset, path)
     assert ds.n_points == 6 and set(ds.columns) == set(DEFAULT_COLUMNS)
 

@@ -37,7 +37,7 @@ def _shipped(name):
 
 
 # --------------------------------------------------------------------------------------- the study, CI-sized
-@pytest.mark.parametrize("condition, seed", [("a", 1), ("e", 0)])
+@pytest.mark.parametrize("condition, seed", [("a", 0), ("e", 0)])
 def test_study_trial_and_its_control(condition, seed):
     """One trial of a closed-world and of an out-of-library condition, with its negative control: the hidden
     mechanism is named exactly (with the points where a valve acts), the out-of-library bump comes back as

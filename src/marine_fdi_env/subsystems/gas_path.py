@@ -32,9 +32,10 @@ from __future__ import annotations
 import math
 
 from .._jit import jit
-from .exhaust_receiver import turbine_expansion, turbine_mass_flow
+from .air_intake import compressor_forcing
+from .exhaust_receiver import turbine_expansion, turbine_mass_flow, turbine_outlet_from_expansion
 
-__all__ = ["valve_opening", "bsr_factor", "turbocharger_efficiencies", "extended_gas_path", "N_GAS_OUT"]
+__all__ = ["valve_opening", "extended_gas_path", "N_GAS_OUT"]
 
 N_GAS_OUT = 13
 
@@ -52,37 +53,6 @@ def valve_opening(u: float, ku, kv) -> float:
             t = (u - ku[j - 1]) / (ku[j] - ku[j - 1])
             return kv[j - 1] + t * (kv[j] - kv[j - 1])
     return kv[k - 1]
-
-
-@jit
-def bsr_factor(x4: float, T_t: float, Pi: float, c) -> float:
-    """Efficiency factor of the ``turbine_efficiency_bsr`` submodel (1 when off).
-
-    ``r² = (Δh_c,is(x4) / Δh_t,is) / (δ η_TC)_nom`` is the squared blade-speed ratio relative to the
-    nominal point (tip speed from a constant isentropic head coefficient, spouting velocity from the
-    turbine's isentropic enthalpy drop); the factor is ``(1 - w (r/r_opt - 1)²) / (1 - w (1/r_opt - 1)²)``.
-    """
-    if c.bsr_on == 0.0:
-        return 1.0
-    pi_c = max(x4 / c.p_amb_Pa, 1.0)
-    dh_c = c.c_p_a_J_per_kgK * c.T_amb_K * (math.exp(math.log(pi_c) / c.comp_exp) - 1.0)
-    dh_t = c.c_p_g_J_per_kgK * T_t * max(1.0 - Pi, 1e-9)
-    r = math.sqrt(max(dh_c / dh_t, 0.0) / c.bsr_ref)
-    d = r / c.bsr_ropt - 1.0
-    return max(1.0 - c.bsr_w * d * d, 0.05) / c.bsr_norm
-
-
-@jit
-def turbocharger_efficiencies(x4: float, T_t: float, Pi: float, c) -> tuple:
-    """(η_TC, η_turbo): eq. 3.33 / 3.26 or the ``turbocharger_map``, times the blade-speed-ratio factor."""
-    f = bsr_factor(x4, T_t, Pi, c)
-    if c.tm_on != 0.0:
-        dx = x4 / c.p1_nom_Pa - 1.0
-        eta = c.tm_s * c.tm_eta0 * (1.0 - c.tm_w * dx * dx)
-        return eta * f, eta * (c.a_turbo / c.c_eta) * f
-    eta = c.a_eta_per_Pa2 * x4 * x4 + c.b_eta_per_Pa * x4 + c.c_eta
-    eta_t = c.a_turbo + c.b_turbo_per_Pa * x4 + c.c_turbo_per_Pa2 * x4 * x4
-    return eta * f, eta_t * f
 
 
 @jit
@@ -160,12 +130,10 @@ def extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, T_c, dT_c, c, ov_wg
     T_t = A0 + A1 * P
     T_in = T_hl if c.bp_junction_turbine != 0.0 else T_t
     Pi = turbine_expansion(x3, c)
-    eta, eta_t = turbocharger_efficiencies(x4, T_t, Pi, c)
-    T_out = T_t * (1.0 - eta_t * (1.0 - Pi))
+    T_out = turbine_outlet_from_expansion(T_t, Pi, x4, c)
     m_c = m_air + mdot_bp
     d_f = mdot_t / ((1.0 + a_wg) * m_c)
-    base = 1.0 + c.chi_g * d_f * eta * (T_t / c.T_amb_K) * (1.0 - Pi)
-    h4 = (c.p_amb_Pa / c.tau_TC_s) * math.exp(c.comp_exp * math.log(max(base, 1e-12)))
+    h4 = compressor_forcing(x4, d_f, T_t, Pi, c)
     T_co = c.T_amb_K + c.eta_com * c.chi_g * d_f * (T_t - T_out) + dT_c
     T_exh = (T_out + a_wg * T_t) / (1.0 + a_wg)
     return (P / c.tau_pd_s, T_in, T_out, Pi, mdot_t, h4, T_co, T_cyl, T_t, mdot_bp, a_wg / (1.0 + a_wg), m_c,

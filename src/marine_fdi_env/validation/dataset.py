@@ -139,6 +139,8 @@ class MeasuredDataset:
     column_role : role of every data column; column_spec : its spec (with the dataset's gauge decision);
     groups : per-cylinder groups ``{group: {"columns", "mean_column", "spread" (per point, in the mean
         column's units), "n"}}``.
+    suspect : readings the loader flags without any model (an engine far from the others at the same set
+        point): kept in the data; hold-out errors are reported with and without them.
     load_law : normalised stated load law (``propeller`` | ``constant_speed`` | ``independent`` | ``None``).
     quality : data-quality summary (points, engines, missing cells per column with their rows).
     """
@@ -165,6 +167,7 @@ class MeasuredDataset:
     boundary: dict[str, np.ndarray] = field(default_factory=dict)
     boundary_outliers: tuple[dict[str, Any], ...] = ()
     groups: dict[str, dict[str, Any]] = field(default_factory=dict)
+    suspect: tuple[dict[str, Any], ...] = ()
 
     @property
     def n_points(self) -> int:
@@ -251,6 +254,7 @@ class MeasuredDataset:
             warnings=self.warnings, notes=self.notes, path=self.path, column_role=self.column_role,
             column_spec=self.column_spec, boundary={k: v[m] for k, v in self.boundary.items()},
             boundary_outliers=tuple(o for o in self.boundary_outliers if m[o["row"] - 1]), groups=groups,
+            suspect=tuple(dict(x, row=int(np.sum(m[:x["row"]]))) for x in self.suspect if m[x["row"] - 1]),
         )
 
     def quality_report(self) -> str:
@@ -532,11 +536,12 @@ def load_dataset(
     values = {column_quantity[h]: column_spec[h].to_si(raw[h], p_amb_rows) for h in column_quantity
               if column_role[h] != "member"}
     groups = _groups(raw, column_quantity, column_role, column_spec, n, p_amb_rows, warn)
+    suspect: list[dict[str, Any]] = []
     if p is not None:
         _check_values(raw, values, {c: q for c, q in column_quantity.items() if column_role[c] != "member"}, p,
                       rated, ambient, engines, err, warn)
         _check_duplicates(raw, column_quantity, engines, err)
-        _check_across_engines(raw, column_quantity, engines, warn)
+        _check_across_engines(raw, column_quantity, engines, warn, suspect)
     for h in column_quantity:
         if n and not np.any(np.isfinite(raw[h])):
             warn("every value is missing", column=h)
@@ -577,6 +582,7 @@ def load_dataset(
         boundary=boundary,
         boundary_outliers=tuple(b_outliers),
         groups=groups,
+        suspect=tuple(suspect),
     )
 
 
@@ -754,7 +760,7 @@ def _check_duplicates(raw, column_quantity, engines, err) -> None:
             err(f"duplicate operating point ({eng}{what})", rows=rws)
 
 
-def _check_across_engines(raw, column_quantity, engines, warn) -> None:
+def _check_across_engines(raw, column_quantity, engines, warn, suspect=None) -> None:
     """With three or more engines at the same set point, a value far from the others' median is suspicious."""
     if engines is None or len(set(engines)) < 3:
         return
@@ -785,6 +791,9 @@ def _check_across_engines(raw, column_quantity, engines, warn) -> None:
                     others = ", ".join(f"{engines[k]}: {_fmt(raw[col][k])}" for k in idx if k != i)
                     warn(f"engine {engines[i]} reads {_fmt(xi)} where the other engines at the same set point read "
                          f"{others} (suspicious, kept)", rows=(i + 1,), column=col)
+                    if suspect is not None:
+                        suspect.append({"row": i + 1, "column": col, "value": float(xi), "median_of_others": med,
+                                        "why": "far from the other engines at the same set point"})
 
 
 # --------------------------------------------------------------------------------------- writer

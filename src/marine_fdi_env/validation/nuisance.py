@@ -16,6 +16,7 @@ group                          parameters scaled together
 ``compressor_efficiency``      ``eta_com`` (sets the compressor temperature rise per turbine drop, eq. 3.38)
 ``combustion_efficiency``      ``eta_comb`` (heat released per kg of fuel)
 ``heat_release_shape``         ``X_cv_nom`` (constant-volume part of the heat release: the peak pressure)
+``late_combustion``            ``X_ct_nom`` (constant-temperature part: expansion work and exhaust heat)
 =============================  =======================================================================
 """
 
@@ -47,6 +48,7 @@ NUISANCE: tuple[NuisanceGroup, ...] = (
     NuisanceGroup("compressor_efficiency", ("eta_com",), "compressor temperature rise per turbine drop"),
     NuisanceGroup("combustion_efficiency", ("eta_comb",), "heat released per kg of fuel"),
     NuisanceGroup("heat_release_shape", ("X_cv_nom",), "constant-volume share of the heat release"),
+    NuisanceGroup("late_combustion", ("X_ct_nom",), "constant-temperature share of the heat release"),
 )
 
 

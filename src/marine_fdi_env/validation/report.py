@@ -239,9 +239,21 @@ def holdout_evaluation(sel: Selection, holdout: MeasuredDataset) -> dict[str, An
     s = s.replace(sensors={c: v for c, v in s.sensors.items() if c in ho.channels})
     pe, conv, vals = ho.predict(s)
     rb, re_ = channel_rmse(ho, pb), channel_rmse(ho, pe)
+    # the same without the readings the loader flags on its own (no model involved)
+    pb_c, pe_c = pb.copy(), pe.copy()
+    for x in holdout.suspect:
+        if x["column"] in ho.channels:
+            j = ho.channels.index(x["column"])
+            pb_c[x["row"] - 1, j] = pe_c[x["row"] - 1, j] = np.nan
+    keep = np.isfinite(pb_c) | ~ho.measured_mask
+    rb_c = {c: _rmse_masked(ho, pb_c, keep, j) for j, c in enumerate(ho.channels)}
+    re_c = {c: _rmse_masked(ho, pe_c, keep, j) for j, c in enumerate(ho.channels)}
     out = {"dataset": holdout.name, "engines": holdout.engine_ids(), "n_points": holdout.n_points,
            "not_converged": [int(i) + 1 for i in np.flatnonzero(~conv)],
+           "suspect_readings": list(holdout.suspect),
            "channels": {c: {"holdout_rmse_base": rb[c], "holdout_rmse_extended": re_[c],
+                            "holdout_rmse_base_without_suspect": rb_c[c],
+                            "holdout_rmse_extended_without_suspect": re_c[c],
                             "tolerance": float(ho.tolerance[j]), "n": int(ho.measured_mask[:, j].sum()),
                             "touched_by_selected": _touches(sel.selected.mechanisms, holdout.column_quantity[c], c)}
                         for j, c in enumerate(ho.channels)},
@@ -250,9 +262,19 @@ def holdout_evaluation(sel: Selection, holdout: MeasuredDataset) -> dict[str, An
         e = np.array(holdout.engines)
         out["per_engine"] = {
             x: {c: {"holdout_rmse_base": channel_rmse(ho, pb, np.flatnonzero(e == x))[c],
-                    "holdout_rmse_extended": channel_rmse(ho, pe, np.flatnonzero(e == x))[c]} for c in ho.channels}
+                    "holdout_rmse_extended": channel_rmse(ho, pe, np.flatnonzero(e == x))[c],
+                    "holdout_rmse_base_without_suspect": _rmse_masked(ho, pb_c, keep, j, np.flatnonzero(e == x)),
+                    "holdout_rmse_extended_without_suspect": _rmse_masked(ho, pe_c, keep, j, np.flatnonzero(e == x))}
+                for j, c in enumerate(ho.channels)}
             for x in holdout.engine_ids()}
     return out
+
+
+def _rmse_masked(pr: Problem, pred: np.ndarray, keep: np.ndarray, j: int, rows=None) -> float | None:
+    rows = np.arange(pr.n_points) if rows is None else np.asarray(rows, int)
+    e = pred[rows, j] - pr.Y[rows, j]
+    m = pr.measured_mask[rows, j] & keep[rows, j]
+    return float(np.sqrt(np.mean(e[m] ** 2))) if m.any() else None
 
 
 def run_validation(ds: MeasuredDataset, *, holdout: MeasuredDataset | None = None, target: str = "auto",

@@ -22,12 +22,16 @@ Pipeline (:func:`select_causes`), on a :class:`~.problem.Problem`:
    of the drop of the cross-validated loss per added parameter against the candidate's loss per
    residual degree of freedom gives ``p < alpha / (number of candidates tried in the step)``
    (Bonferroni, alpha = 0.01).  Selection stops at the first step where nothing qualifies.
-6. **Unexplained.**  The discrepancy analysis of :mod:`.discrepancy` runs on the final model's residuals
-   (bias, trend, change point), plus a scan for local excess: contiguous windows of points in load order
-   whose mean residual departs from the rest (t-test, Bonferroni over the windows; with fewer than 3
-   degrees of freedom the tolerance is the noise level).  What is family-significant after a Bonferroni
-   correction over the channels is reported as ``unexplained: channel, kind, region``; single readings as
-   ``outliers``.
+6. **Unexplained.**  Each channel is judged against the final model refitted *without that channel*
+   (:func:`~.fitting.loco_predictions`): an anomaly of one sensor bends a fit that includes it and would
+   hide.  The discrepancy analysis of :mod:`.discrepancy` (bias, trend, change point) and a scan for local
+   excess (:func:`window_excess`: contiguous windows of points in load order whose mean residual departs
+   from the rest) run on these residuals; what is family-significant after a Bonferroni correction over the
+   channels is reported as ``unexplained: channel, kind, region``; single readings as ``outliers``.
+   A sensor calibration is only eligible when the gain and offset it fits on the model without its channel
+   leave no such local departure: a gain and an offset are a complete explanation of a sensor or none.
+   A candidate whose fit sits at a bound of its plausible range that is not a natural limit is not eligible
+   either (the data want more than it can physically give).
 """
 
 from __future__ import annotations
@@ -44,7 +48,7 @@ from .columns import QUANTITIES
 from .discrepancy import (_VAR_QUANTITY, DiscrepancyReport, _replicate_groups, analyse_discrepancies, operating_variables,
                           theil_sen_detrend)
 from .fitting import (Combination, FitResult, ROBUST_SCALE, FoldData, cell_losses, channel_rmse, cross_validate,
-                      fit_combination, fit_sensor, fold_data, predict_setting, robust_loss)
+                      fit_combination, fit_sensor, fold_data, loco_predictions, predict_setting, robust_loss)
 from .matching import MatchResult
 from .mechanisms import Mechanism, SensorCalibration, equivalents, library, sensor_reference
 from .problem import BASE_SETTING, Problem, Setting
@@ -335,6 +339,22 @@ def _alternatives(best: CandidateScore, cv: Sequence[CandidateScore], margin: fl
     return out
 
 
+def _structure_left(problem: Problem, loco: np.ndarray, mech: SensorCalibration, alpha: float) -> str:
+    """A description of a significant local departure that a gain and offset leave on the sensor's channel, judged
+    against the model fitted without that channel (``loco``, :func:`~.fitting.loco_predictions`); "" if none.
+
+    A sensor's gain and offset are a complete explanation of its channel: what they leave must look like noise."""
+    j = problem.channels.index(mech.channel)
+    tol = float(problem.tolerance[j])
+    rows = np.flatnonzero(np.isfinite(loco[:, j]))
+    g, o = fit_sensor(problem, j, loco[rows], rows, [p.bounds for p in mech.params])
+    best = window_excess(g * loco[:, j] + o - problem.Y[:, j], problem.load_axis(), tol)
+    if best is not None and best["p"] < alpha and abs(best["d"]) >= tol:
+        lo, hi = best["load_range"]
+        return f"load {lo:.3g}-{hi:.3g}, {best['d']:+.3g}, p = {best['p']:.2g}"
+    return ""
+
+
 def _pinned(fit: FitResult) -> list[str]:
     """Parameters of the *newest* mechanism of ``fit`` at a bound of their plausible range that is not natural."""
     m = fit.combination.mechanisms[-1]
@@ -371,57 +391,65 @@ def _sensor_candidate(problem: Problem, current: FitResult, in_pred: np.ndarray,
     return fit, cvp
 
 
+def window_excess(r: np.ndarray, load: np.ndarray, tol: float, max_width: int | None = None) -> dict[str, Any] | None:
+    """The most significant window of 2 .. n/2 consecutive points (in load order) whose mean residual departs from
+    the rest: ``d = mean(window) - mean(rest)``, ``z = d / (σ sqrt(1/w + 1/(n - w)))`` with ``σ = max(tol, s_rest)``,
+    s_rest the scatter of the residuals outside the window (the window's own scatter is part of a bump, not noise;
+    the tolerance is the floor).  Returns ``{p (Bonferroni over the windows), d, load_range, positions}`` or None."""
+    ok = np.isfinite(r) & np.isfinite(load)
+    idx = np.flatnonzero(ok)
+    n = idx.size
+    if n < 4:
+        return None
+    order = idx[np.argsort(load[idx], kind="stable")]
+    rr, x = r[order], load[order]
+    wmax = max_width or n // 2
+    wins = [(a, w) for w in range(2, wmax + 1) for a in range(0, n - w + 1)]
+    best = None
+    for a, w in wins:
+        inside = np.zeros(n, bool)
+        inside[a:a + w] = True
+        rest = rr[~inside]
+        d = float(rr[inside].mean() - rest.mean())
+        s_rest = float(np.std(rest, ddof=1)) if rest.size >= 3 else 0.0
+        sigma = max(tol, s_rest)
+        z = abs(d) / (sigma * math.sqrt(1.0 / w + 1.0 / (n - w)))
+        p = float(2 * stats.norm.sf(z))
+        if best is None or p < best["p_raw"]:
+            best = {"p_raw": p, "d": d, "sigma": sigma, "load_range": [float(x[a]), float(x[a + w - 1])],
+                    "positions": order[a:a + w]}
+    if best is None:
+        return None
+    best["p"] = min(1.0, best["p_raw"] * len(wins))
+    return best
+
+
 def local_excess(match: MatchResult, tolerances: Mapping[str, float], alpha: float, max_width: int | None = None,
                  channels: Sequence[str] | None = None) -> list[dict[str, Any]]:
-    """Contiguous windows of points (in load order) whose mean residual departs from the rest.
-
-    For every channel and window of 2 .. n/2 consecutive points (by load fraction): ``d = mean(window) -
-    mean(rest)`` and ``z = d / (σ sqrt(1/w + 1/(n - w)))`` with ``σ = max(tolerance, s_rest)``, s_rest the scatter
-    of the residuals outside the window (the window's own scatter is part of a bump, not noise; the tolerance
-    is the floor so that a few well-fitted points do not make every wiggle significant).  A window is reported
-    when ``p x windows < alpha`` (Bonferroni over the windows) and ``|d|`` exceeds the tolerance; per channel the
-    most significant window is kept.
-    """
+    """Per channel, the most significant window of :func:`window_excess` when ``p < alpha`` and ``|d|`` exceeds the
+    tolerance: ``{channel, kind: "local", region: "load a-b", load_range, points, magnitude, ...}``."""
     ds = match.dataset
     load = operating_variables(match)["load"]
     out = []
     for col in (channels or match.channels):
-        r_all = match.residual(col)
-        ok = np.isfinite(r_all) & np.isfinite(load)
-        idx = np.flatnonzero(ok)
-        n = idx.size
-        if n < 4:
-            continue
-        order = idx[np.argsort(load[idx], kind="stable")]
-        r = r_all[order]
-        x = load[order]
         tol = float(tolerances[col])
-        wmax = max_width or n // 2
-        wins = [(a, w) for w in range(2, wmax + 1) for a in range(0, n - w + 1)]
-        best = None
-        for a, w in wins:
-            inside = np.zeros(n, bool)
-            inside[a:a + w] = True
-            rest = r[~inside]
-            d = float(r[inside].mean() - rest.mean())
-            s_rest = float(np.std(rest, ddof=1)) if rest.size >= 3 else 0.0
-            sigma = max(tol, s_rest)
-            z = abs(d) / (sigma * math.sqrt(1.0 / w + 1.0 / (n - w)))
-            p = float(2 * stats.norm.sf(z))
-            if best is None or p < best["p_raw"]:
-                best = {"p_raw": p, "a": a, "w": w, "d": d, "z": z, "sigma": sigma}
-        if best is None:
+        best = window_excess(match.residual(col), load, tol, max_width)
+        if best is None or not (best["p"] < alpha and abs(best["d"]) >= tol):
             continue
-        p = min(1.0, best["p_raw"] * len(wins))
-        if p < alpha and abs(best["d"]) >= tol:
-            lo, hi = float(x[best["a"]]), float(x[best["a"] + best["w"] - 1])
+        lo, hi = best["load_range"]
+        lf = load[np.isfinite(load)]
+        if lo <= lf.min() + 1e-9 and hi < lf.max():  # a window at an end splits the loads in two
+            region = f"load <= {hi:.3g} (against the loads above)"
+        elif hi >= lf.max() - 1e-9 and lo > lf.min():
+            region = f"load >= {lo:.3g} (against the loads below)"
+        else:
             region = f"load {lo:.3g}-{hi:.3g}"
-            unit = ds.spec(col).unit
-            out.append({"channel": col, "kind": "local", "region": region, "load_range": [lo, hi],
-                        "points": sorted(int(i) + 1 for i in order[best["a"]:best["a"] + best["w"]]),
-                        "magnitude": best["d"], "score": abs(best["d"]) / tol, "p_value": p, "noise": best["sigma"],
-                        "unit": unit, "significant": True,
-                        "text": f"unexplained: {col}, {region} (local, magnitude {best['d']:+.4g} {unit})"})
+        unit = ds.spec(col).unit
+        out.append({"channel": col, "kind": "local", "region": region, "load_range": [lo, hi],
+                    "points": sorted(int(i) + 1 for i in best["positions"]), "magnitude": best["d"],
+                    "score": abs(best["d"]) / tol, "p_value": best["p"], "noise": best["sigma"], "unit": unit,
+                    "significant": True,
+                    "text": f"unexplained: {col}, {region} (local, magnitude {best['d']:+.4g} {unit})"})
     return out
 
 
@@ -490,6 +518,7 @@ def select_causes(
         known = current_fit.values()
         scored: list[CandidateScore] = []
         in_pred = predict_setting(problem, current_fit, np.arange(problem.n_points))
+        loco_cur = loco_predictions(problem, current_fit)
         sensor_cv: dict[str, np.ndarray] = {}
         for mech in pool:
             comb = current.plus(mech)
@@ -532,6 +561,11 @@ def select_causes(
                 if pins:
                     c.screened = ("not eligible: pinned at the limit of its plausible range (" + ", ".join(pins) +
                                   "): the data want more than this mechanism can physically give")
+                elif isinstance(c.combination.mechanisms[-1], SensorCalibration):
+                    left = _structure_left(problem, loco_cur, c.combination.mechanisms[-1], alpha)
+                    if left:
+                        c.screened = ("not eligible: the calibrated channel keeps a local departure (" + left +
+                                      "): a gain and an offset do not explain it")
         cv = sorted((c for c in scored if c.cross_validated and not c.screened), key=lambda c: c.penalised)
         threshold = alpha / len(scored)
         if not cv:
@@ -575,20 +609,12 @@ def select_causes(
                 new.append((name, train, test, p_tr, p_te))
             current_folds = FoldData(new)
     final_setting = current_fit.setting(problem)
-    final_match = match_result(problem, final_setting)
+    # what is left is judged channel by channel against the model fitted without that channel: an anomaly of one
+    # sensor would otherwise bend the fit towards it and hide
+    final_loco = loco_predictions(problem, current_fit)
+    final_match = match_result(problem, final_setting, pred_fn=lambda: final_loco)
     final_report = analyse_discrepancies(final_match, alpha=alpha, tolerances=tol)
     unexplained = _unexplained_all(final_match, final_report, tol, alpha)
-    if current.mechanisms:
-        # a base discrepancy on a channel the extension did not improve (cross-validated) stays unexplained even
-        # if it lost significance after the fit
-        cv_b, cv_e = channel_rmse(problem, base_pred), channel_rmse(problem, current_pred)
-        have = {(u["channel"], u["kind"]) for u in unexplained}
-        for u in _unexplained_all(base_match, base_report, tol, alpha):
-            c = u["channel"]
-            if (c, u["kind"]) not in have and not cv_e[c] < cv_b[c]:
-                u = dict(u, note="base-model discrepancy; the extension did not reduce this channel's cross-validated "
-                                 "error")
-                unexplained.append(u)
     return Selection(
         problem=problem, cv_scheme=scheme, raw_pred=raw_pred, base_fit=base_fit, base_pred=base_pred,
         base_score=S_base, base_report=base_report, steps=steps, selected=current, fit=current_fit,

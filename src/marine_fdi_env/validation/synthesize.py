@@ -6,16 +6,18 @@ speed from the propeller law, or from the combinator line when ``cpp_load`` is h
 measurement noise.  What makes the data *open world* is optional:
 
 * ``perturb`` (model error): the true engine's efficiencies, areas and heat fractions differ from the
-  parameter set by a relative N(0, perturb²) each (clipped at ±2 perturb), including ones the pipeline's
-  nuisance does not cover (X_ct_nom);
+  parameter set by a relative N(0, perturb²) each (clipped at ±2 perturb), and so does one parameter the
+  pipeline's nuisance does not cover (the nominal scavenging slip s_sl_nom);
 * ``noise_model="reading"``: noise proportional to each reading instead of to the channel's typical value,
   while the pipeline keeps its own tolerances (1 %, 5 K), which then do not equal the noise;
 * several hidden mechanisms at once;
 * ``effects``: effects outside the library (:data:`EFFECT_KINDS`) on one channel: a bump around a load, a
-  step above a load, a bend of the trend; :func:`effect_region` gives the load range where they act.
+  step above a load, a bend of the trend, of 4-7 of the pipeline's tolerances (20-35 K; 4-7 % of the
+  channel's mean reading); :func:`effect_region` gives the load range where they act.
 
-Valve-type mechanisms open at the points above (waste gate) or below (bypass) a drawn load, with openings
-growing away from it.  The CSV follows the measured-data conventions of ``shared/data`` with the
+Load points are stratified (one per equal slice of the load range, uniform inside it), as a test programme
+covers its range.  Valve-type mechanisms open at the points above (waste gate) or below (bypass) a drawn
+load, with openings growing away from it.  The CSV follows the measured-data conventions of ``shared/data`` with the
 protocol's channels (:data:`DEFAULT_COLUMNS`); the sidecar names the parameter set, the seed and the
 noise but not the hidden effects.  The truth goes to a separate file only when asked for (``--truth``).
 
@@ -57,9 +59,11 @@ DEFAULT_COLUMNS = (
 )
 SET_POINT_COLUMNS = ("load_fraction", "power_kW", "power_W", "power_MW", "load_percent")
 LOAD_RANGE = (0.25, 1.1)
-# the true engine's model error (condition b): efficiencies, areas and heat fractions
+# the true engine's model error (condition b): efficiencies, areas and heat fractions, and the scavenging
+# slip, which the pipeline's nuisance does not cover
 PERTURBED_FIELDS = (("A_eff_m2",), ("a_eta_per_Pa2", "b_eta_per_Pa", "c_eta", "a_turbo", "b_turbo_per_Pa",
-                                   "c_turbo_per_Pa2"), ("eta_com",), ("eta_comb",), ("X_cv_nom",), ("X_ct_nom",))
+                                   "c_turbo_per_Pa2"), ("eta_com",), ("eta_comb",), ("X_cv_nom",), ("X_ct_nom",),
+                    ("s_sl_nom",))
 EFFECT_KINDS = ("bump", "step", "bend")
 FAMILIES = {
     "pressure": ("charge_air_pressure_bar_gauge", "turbine_inlet_pressure_bar_gauge", "max_cylinder_pressure_bar_gauge"),
@@ -114,8 +118,9 @@ def _perturbed(p: EngineParams, rng: np.random.Generator, sigma: float) -> tuple
     return p.replace(**ch), scales
 
 
-def effect_region(effect: dict[str, Any], lo: float = 0.0, hi: float = 2.0) -> tuple[float, float]:
-    """Load range where an out-of-library effect exceeds half its largest magnitude."""
+def effect_region(effect: dict[str, Any], lo: float = LOAD_RANGE[0], hi: float = LOAD_RANGE[1]) -> tuple[float, float]:
+    """Load range (within the study's load range) where an out-of-library effect exceeds half its largest magnitude
+    there."""
     x = np.linspace(lo, hi, 2001)
     y = np.abs(_effect_shape(effect, x))
     on = x[y >= 0.5 * y.max()] if y.max() > 0 else x[:0]
@@ -128,8 +133,8 @@ def _effect_shape(effect: dict[str, Any], load: np.ndarray) -> np.ndarray:
         return np.exp(-0.5 * ((load - c) / w) ** 2)
     if k == "step":
         return 0.5 * (1.0 + np.tanh((load - c) / (0.25 * w)))
-    if k == "bend":  # a kink: zero below the centre, growing linearly above (relative to the range)
-        return np.maximum(load - c, 0.0) / max(1.1 - c, 1e-3)
+    if k == "bend":  # a kink: zero below the centre, growing linearly above, the amplitude at the top of the range
+        return np.maximum(load - c, 0.0) / max(LOAD_RANGE[1] - c, 1e-3)
     raise ValueError(f"unknown effect kind {k!r}; known: {', '.join(EFFECT_KINDS)}")
 
 
@@ -144,10 +149,11 @@ def draw_effect(rng: np.random.Generator, columns: Sequence[str], family: str | 
     width = float(rng.uniform(0.08, 0.14))
     sign = float(rng.choice([-1.0, 1.0]))
     q = QUANTITIES[lookup_column(col).quantity]
+    # 4-7 tolerances of the pipeline (5 K, 1 % of the channel's mean reading)
     if q.kind == "temperature":
         amp = sign * float(rng.uniform(20.0, 35.0))
     else:
-        amp = sign * float(rng.uniform(0.05, 0.09))  # relative: times the reading
+        amp = sign * float(rng.uniform(0.04, 0.07))  # times the channel's mean reading
     return {"kind": kind, "family": fam, "channel": col, "center": center, "width": width, "amplitude": amp,
             "relative": q.kind != "temperature"}
 
@@ -206,7 +212,9 @@ def synthesize(
     dup = {x for x in labels if labels.count(x) > 1 and not x.endswith("[None]")}
     if dup:
         raise ValueError(f"--mechanism given twice: {', '.join(sorted(dup))}")
-    loads = np.sort(rng.uniform(lo, hi, int(points)))
+    # stratified: one load per equal slice of the range, uniform inside it (a test programme covers the range)
+    edges = np.linspace(lo, hi, int(points) + 1)
+    loads = np.sort(rng.uniform(edges[:-1], edges[1:]))
     p_true, scales = _perturbed(p0, rng, perturb)
 
     # physical mechanisms first (the engine), sensor calibrations after the clean readings
@@ -279,7 +287,7 @@ def synthesize(
         if e["channel"] not in clean:
             raise ValueError(f"effect on {e['channel']!r}, which is not a written column")
         shape = _effect_shape(e, loads)
-        base = np.abs(clean[e["channel"]]) if e.get("relative") else 1.0
+        base = float(np.mean(np.abs(clean[e["channel"]]))) if e.get("relative") else 1.0
         clean[e["channel"]] = clean[e["channel"]] + e["amplitude"] * base * shape
     k = max(int(engines), 1)
     out: dict[str, np.ndarray] = {}
@@ -510,18 +518,27 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
     if effects:
         e = effects[0]
         lo, hi = effect_region(e)
-        hits = [u for u in sel.unexplained if u["channel"] == e["channel"]]
+        found = list(sel.unexplained) + [dict(o, load_range=[float(syn.settings["loads"][o["point"] - 1])] * 2,
+                                              kind="local") for o in sel.outliers]
+        hits = [u for u in found if u["channel"] == e["channel"]]
         region_ok = False
+        loads_s = np.array(syn.settings["loads"])
         for u in hits:
             if u["kind"] == "local" and u.get("load_range"):
                 a, b = u["load_range"]
                 region_ok |= (a <= hi + 0.05) and (b >= lo - 0.05)
-            elif u["region"] == "all":
-                region_ok = True
+                # a window at either end of the loads splits them in two: its complement is the same finding
+                if a <= loads_s.min() + 1e-9 and b < loads_s.max():
+                    nxt = loads_s[loads_s > b + 1e-9].min()
+                    region_ok |= hi + 0.05 >= nxt
+                elif b >= loads_s.max() - 1e-9 and a > loads_s.min():
+                    prv = loads_s[loads_s < a - 1e-9].max()
+                    region_ok |= lo - 0.05 <= prv
             elif u["region"].startswith("load >"):
                 x0 = float(u["region"].split(">")[1])
                 region_ok |= x0 <= hi + 0.05
         res["effect_region"] = [lo, hi]
+        res["found_on_channel"] = [{k: u.get(k) for k in ("kind", "region", "load_range")} for u in hits]
         res["unexplained_right_channel"] = bool(hits)
         res["unexplained_right_region"] = bool(region_ok)
         res["named_other"] = bool(named)
