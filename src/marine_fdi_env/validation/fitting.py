@@ -552,6 +552,14 @@ def loco_predictions(problem: Problem, fit: FitResult, rows=None) -> np.ndarray:
         z0_parts.append(np.sqrt(np.maximum(np.nan_to_num(fit.openings[m.id][support[m.id]]), 0.0)))
     z0 = np.concatenate(z0_parts)
     n_par = N_NUIS + comb.n_global  # valve openings held
+    # a sensor calibration describes its own channel only: held when that channel is left out (undetermined then)
+    own: dict[int, list[int]] = {}
+    k = N_NUIS
+    for m in comb.globals:
+        for _ in m.params:
+            if getattr(m, "channel", None) in problem.channels:
+                own.setdefault(problem.channels.index(m.channel), []).append(k)
+            k += 1
     mask = problem.measured_mask[rows]
     r0 = obj.data_residuals(z0)
     lo, hi = obj.bounds()
@@ -577,11 +585,14 @@ def loco_predictions(problem: Problem, fit: FitResult, rows=None) -> np.ndarray:
         if not sel.any():
             continue
         Jc, wc, rc = J[sel], w[sel], r0[sel]
-        Hm = H - Jc.T @ (wc[:, None] * Jc)
+        free = np.array([i for i in range(n_par) if i not in own.get(c, ())], dtype=int)
+        Hm = (H - Jc.T @ (wc[:, None] * Jc))[np.ix_(free, free)]
+        g = (Jc.T @ (wc * rc))[free]
+        delta = np.zeros(n_par)
         try:
-            delta = np.linalg.solve(Hm, Jc.T @ (wc * rc))
+            delta[free] = np.linalg.solve(Hm, g)
         except np.linalg.LinAlgError:
-            delta = np.linalg.lstsq(Hm, Jc.T @ (wc * rc), rcond=None)[0]
+            delta[free] = np.linalg.lstsq(Hm, g, rcond=None)[0]
         col = full[:, c].copy()
         col[mask[:, c]] = rc + Jc @ delta
         out[:, c] = col

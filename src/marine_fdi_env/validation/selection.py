@@ -339,31 +339,52 @@ def _alternatives(best: CandidateScore, cv: Sequence[CandidateScore], margin: fl
     return out
 
 
-def _structure_left(problem: Problem, loco: np.ndarray, mech: SensorCalibration, alpha: float) -> str:
-    """A description of a significant local departure that a gain and offset leave on the sensor's channel, judged
-    against the model fitted without that channel (``loco``, :func:`~.fitting.loco_predictions`); "" if none.
+CALIBRATION_EXPLAINS = 0.75
 
-    A sensor's gain and offset are a complete explanation of its channel: what they leave must look like noise."""
+
+def _structure_left(problem: Problem, loco: np.ndarray, mech: SensorCalibration, alpha: float) -> str:
+    """A description of what a gain and an offset leave unexplained on the sensor's channel, judged against the model
+    fitted without that channel (``loco``, :func:`~.fitting.loco_predictions`); "" when the calibration is an
+    explanation.
+
+    A sensor's gain and offset explain its channel when what they leave looks like noise (no significant local
+    departure), or when they remove at least ``CALIBRATION_EXPLAINS`` (75 %) of the channel's RMS discrepancy (a
+    large calibration error with a smaller structure left, which is then reported as unexplained).  A local effect
+    that a gain and offset only bend towards (a bump, a step) passes neither."""
     j = problem.channels.index(mech.channel)
     tol = float(problem.tolerance[j])
-    rows = np.flatnonzero(np.isfinite(loco[:, j]))
+    rows = np.flatnonzero(np.isfinite(loco[:, j]) & problem.measured_mask[:, j])
     g, o = fit_sensor(problem, j, loco[rows], rows, [p.bounds for p in mech.params])
+    before = loco[rows, j] - problem.Y[rows, j]
+    after = g * loco[rows, j] + o - problem.Y[rows, j]
     best = window_excess(g * loco[:, j] + o - problem.Y[:, j], problem.load_axis(), tol)
     if best is not None and best["p"] < alpha and abs(best["d"]) >= tol:
+        rms_b, rms_a = float(np.sqrt(np.mean(before ** 2))), float(np.sqrt(np.mean(after ** 2)))
+        if rms_a <= (1.0 - CALIBRATION_EXPLAINS) * rms_b:
+            return ""
         lo, hi = best["load_range"]
-        return f"load {lo:.3g}-{hi:.3g}, {best['d']:+.3g}, p = {best['p']:.2g}"
+        return (f"load {lo:.3g}-{hi:.3g}, {best['d']:+.3g}, p = {best['p']:.2g}; the calibration removes only "
+                f"{1 - rms_a / rms_b:.0%} of the channel's error")
     return ""
 
 
 def _pinned(fit: FitResult) -> list[str]:
-    """Parameters of the *newest* mechanism of ``fit`` at a bound of their plausible range that is not natural."""
-    m = fit.combination.mechanisms[-1]
+    """Why a fitted combination cannot be named: parameters at a bound of their plausible range that is not natural
+    (the data want more than the mechanism can physically give), parameters the data do not determine (standard
+    error above half the plausible range), a valve that acts at no point (then it is not a valve)."""
     vals = fit.values()
+    se = dict(zip(fit.combination.names, fit.stderr))
     out = []
-    for p in m.params:
-        side = p.pinned(vals[f"{m.label}.{p.name}"])
-        if side:
-            out.append(f"{m.label}.{p.name} at its {side} bound {p.bounds[0 if side == 'lower' else 1]:g}")
+    for m in fit.combination.mechanisms:
+        for p in m.params:
+            key = f"{m.label}.{p.name}"
+            side = p.pinned(vals[key])
+            if side:
+                out.append(f"{key} at its {side} bound {p.bounds[0 if side == 'lower' else 1]:g}")
+            elif math.isfinite(se.get(key, math.nan)) and se[key] > 0.5 * (p.bounds[1] - p.bounds[0]):
+                out.append(f"{key} not determined by the data (standard error {se[key]:.3g})")
+        if m.pointwise and not fit.support.get(m.id):
+            out.append(f"{m.label} opens at no measured point")
     return out
 
 
@@ -559,8 +580,7 @@ def select_causes(
             if c.cross_validated:
                 pins = _pinned(c.fit)
                 if pins:
-                    c.screened = ("not eligible: pinned at the limit of its plausible range (" + ", ".join(pins) +
-                                  "): the data want more than this mechanism can physically give")
+                    c.screened = "not eligible: " + "; ".join(pins)
                 elif isinstance(c.combination.mechanisms[-1], SensorCalibration):
                     left = _structure_left(problem, loco_cur, c.combination.mechanisms[-1], alpha)
                     if left:
