@@ -127,6 +127,17 @@ def test_protocol_every_column_has_a_role_and_nothing_is_dropped():
     assert g["spread"][0] == pytest.approx(first.std(ddof=1))
 
 
+def test_per_row_ambient_values_are_checked(tmp_path):
+    head = "load_fraction,power_kW,ambient_pressure_hPa,compressor_inlet_temperature_C,relative_humidity_percent\n"
+    path = _write(tmp_path, head + "0.5,2945,1013,25,40\n0.75,4418,-3,25,140\n1.0,5890,700,90,40\n", META)
+    with pytest.raises(DatasetError) as ei:
+        load_dataset(path)
+    text = str(ei.value)
+    assert "row 2 (line 3), column 'ambient_pressure_hPa': ambient pressure not positive" in text
+    assert "column 'relative_humidity_percent': relative humidity outside [0, 100] %" in text
+    assert "ambient pressure outside [850, 1100] hPa" in text and "intake temperature outside [-30, 60] C" in text
+
+
 def test_boundary_outlier_needs_a_real_departure(tmp_path):
     """Readings within a few kelvin of each other are never recording errors (the robust scale has a 1 K floor)."""
     rows = "\n".join(f"{lf},{lf * 5890:.0f},{t}" for lf, t in [(0.25, 28), (0.5, 29), (0.75, 31), (0.85, 32),

@@ -695,6 +695,17 @@ def _check_values(raw, values, column_quantity, p: EngineParams, rated, ambient,
             flag((v < 0) | (v > ENVELOPE["fuel_setting_max"]), f"fuel setting outside [0, {ENVELOPE['fuel_setting_max']}]")
         elif q in ("exhaust_back_pressure_Pa", "cooler_pressure_drop_Pa"):
             flag(v < -5e3, "pressure difference below -50 mbar (suspicious, kept)", warn)
+            flag(v > 1e5, "pressure difference above 1 bar (outside any engine's exhaust or cooler)")
+        elif q == "ambient_pressure_Pa":
+            flag(v <= 0, "ambient pressure not positive")
+            flag((v > 0) & ((v < 850e2) | (v > 1100e2)), "ambient pressure outside [850, 1100] hPa (suspicious, kept)",
+                 warn)
+        elif q == "ambient_temperature_K":
+            flag(v < 0, "temperature below absolute zero")
+            flag((v >= 0) & ((v < 243.15) | (v > 333.15)), "intake temperature outside [-30, 60] C (suspicious, kept)",
+                 warn)
+        elif q == "relative_humidity":
+            flag((v < 0) | (v > 1), "relative humidity outside [0, 100] %")
         elif q.endswith("_Pa"):
             spec = lookup_column(col)
             flag(v <= 0, "negative absolute pressure" + (" (gauge reading below -ambient)" if spec.gauge else ""))

@@ -49,7 +49,7 @@ from .matching import MatchResult
 
 __all__ = [
     "ChannelDiscrepancy", "DiscrepancyReport", "analyse_discrepancies", "linear_trend", "change_point",
-    "robust_zscores", "operating_variables", "default_tolerance", "KINDS", "VARIABLES",
+    "robust_zscores", "operating_variables", "default_tolerance", "column_tolerance", "KINDS", "VARIABLES",
 ]
 
 KINDS = ("bias", "trend", "change_point", "outlier")
@@ -297,7 +297,13 @@ def operating_variables(match: MatchResult) -> dict[str, np.ndarray]:
 def default_tolerance(match: MatchResult, column: str, rel_tol: float = REL_TOL,
                       temperature_tol_K: float = TEMPERATURE_TOL_K, load_tol: float = LOAD_TOL) -> float:
     """Smallest discrepancy worth naming on ``column``, in the column's units."""
-    ds = match.dataset
+    return column_tolerance(match.dataset, column, rel_tol, temperature_tol_K, load_tol)
+
+
+def column_tolerance(ds, column: str, rel_tol: float = REL_TOL, temperature_tol_K: float = TEMPERATURE_TOL_K,
+                     load_tol: float = LOAD_TOL) -> float:
+    """Smallest discrepancy worth naming on a dataset's ``column``, in the column's units: 1 % of the mean measured
+    value (ratio quantities), 5 K (temperatures), 0.01 (load fraction)."""
     spec = ds.spec(column)
     q = QUANTITIES[ds.column_quantity[column]]
     if q.kind == "temperature":

@@ -33,7 +33,7 @@ from ..params import EngineParams, load_params
 from ..submodels import NO_SUBMODELS, EngineSubmodels
 from .columns import QUANTITIES, ModelContext
 from .dataset import MeasuredDataset
-from .discrepancy import REL_TOL, TEMPERATURE_TOL_K
+from .discrepancy import column_tolerance
 from .matching import _rack_settings, _resolve_target, _target_values, load_law_of
 
 __all__ = ["Setting", "Problem", "BASE_SETTING", "FAIL_RESIDUAL", "VALVES"]
@@ -124,16 +124,7 @@ class Problem:
     # ---- tolerances
     def default_tolerance(self, column: str) -> float:
         """1 % of the mean measured value (ratio quantities), 5 K (temperatures), 0.01 (load fraction)."""
-        ds = self.ds
-        spec = ds.spec(column)
-        q = QUANTITIES[ds.column_quantity[column]]
-        if q.kind == "temperature":
-            return TEMPERATURE_TOL_K / spec.scale
-        if q.name == "load_fraction":
-            return 0.01 / spec.scale
-        meas_si = ds.values[q.name]
-        scale = float(np.nanmean(np.abs(meas_si))) if np.any(np.isfinite(meas_si)) else 1.0
-        return REL_TOL * scale / spec.scale
+        return column_tolerance(self.ds, column)
 
     def _cell_tolerances(self) -> np.ndarray:
         tol = np.broadcast_to(self.tolerance, self.Y.shape).copy()
