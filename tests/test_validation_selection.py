@@ -38,11 +38,25 @@ def _shipped(name):
 
 # --------------------------------------------------------------------------------------- the study, CI-sized
 @pytest.mark.parametrize("condition, seed", [("a", 0), ("e", 0)])
-def test_study_trial_and_its_control(condition, seed):
+def test_study_trial_and_its_control(condition, seed, tmp_path, monkeypatch):
     """One trial of a closed-world and of an out-of-library condition, with its negative control: the hidden
     mechanism is named exactly (with the points where a valve acts), the out-of-library bump comes back as
-    unexplained on its channel and load region, and the controls name nothing."""
-    res = study([condition], [seed], controls=True, progress=False, points=7)
+    unexplained on its channel and load region, and the controls name nothing.  A rerun with the same
+    checkpoint resumes from it without running a trial again."""
+    ckpt = tmp_path / "study.trials.jsonl"
+    res = study([condition], [seed], controls=True, progress=False, points=7, checkpoint=ckpt)
+    assert len(ckpt.read_text().splitlines()) == 2
+
+    def no_rerun(*a, **k):
+        raise AssertionError("a finished trial was run again")
+
+    import marine_fdi_env.validation.synthesize as synth
+    monkeypatch.setattr(synth, "trial", no_rerun)
+    again = study([condition], [seed], controls=True, progress=False, points=7, checkpoint=ckpt)
+    def dump(x):
+        return json.dumps(x, default=float, sort_keys=True)
+
+    assert dump(again["conditions"]) == dump(res["conditions"])
     tr = [r for r in res["trials"] if not r["control"]][0]
     ct = [r for r in res["trials"] if r["control"]][0]
     assert not ct["named_any"], ct["selected"]

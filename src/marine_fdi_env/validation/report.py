@@ -510,7 +510,8 @@ def markdown_summary(rep: Mapping[str, Any], title: str | None = None) -> str:
              "all are in the JSON report.)")
     L.append("")
     for s in rep["steps"]:
-        L.append(f"* step {s['step']}: best `{s['best']}`, {s['decision']}")
+        best = f"best `{s['best']}`" if s.get("best") else "no eligible candidate"
+        L.append(f"* step {s['step']}: {best}, {s['decision']}")
     L.append("")
     L.append(f"**Selected causes: {', '.join(f'`{x}`' for x in rep['selected_labels']) or 'none'}.**")
     L.append("")

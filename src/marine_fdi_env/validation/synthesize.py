@@ -550,34 +550,64 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
 
 
 def study(conditions: Sequence[str], seeds: Sequence[int], *, controls: bool = True, workers: int = 1,
-          progress: bool = True, **kw) -> dict[str, Any]:
-    """Run :func:`trial` for every condition x seed (and its control) and summarise per condition."""
+          progress: bool = True, checkpoint: str | Path | None = None, **kw) -> dict[str, Any]:
+    """Run :func:`trial` for every condition x seed (and its control) and summarise per condition.
+
+    ``checkpoint`` (a JSON-lines file) keeps every finished trial; a rerun with the same file resumes
+    where the last one stopped (trials are deterministic in their seed, so nothing changes)."""
     jobs = [(c, int(s), False) for c in conditions for s in seeds]
     if controls:
         jobs += [(c, int(s), True) for c in conditions for s in seeds]
     results: list[dict[str, Any]] = []
+    sink = None
+    if checkpoint is not None:
+        checkpoint = Path(checkpoint)
+        if checkpoint.exists():
+            want = set(jobs)
+            for line in checkpoint.read_text().splitlines():
+                if line.strip():
+                    r = json.loads(line)
+                    key = (r["condition"], int(r["seed"]), bool(r["control"]))
+                    if key in want:
+                        want.discard(key)
+                        results.append(r)
+            jobs = [j for j in jobs if j in want]
+            if results and progress:
+                print(f"study: resuming at {len(results)}/{len(results) + len(jobs)} trials ({checkpoint})",
+                      file=sys.stderr)
+        checkpoint.parent.mkdir(parents=True, exist_ok=True)
+        sink = checkpoint.open("a")
+
+    def done(r: dict[str, Any]) -> None:
+        results.append(r)
+        if sink is not None:
+            sink.write(json.dumps(r, default=float) + "\n")
+            sink.flush()
+        if bar:
+            bar.update(1)
+
     bar = None
     if progress:
         try:
             from tqdm import tqdm
 
-            bar = tqdm(total=len(jobs), desc="study", unit="trial")
+            bar = tqdm(total=len(jobs) + len(results), initial=len(results), desc="study", unit="trial")
         except ImportError:  # pragma: no cover
             bar = None
-    if workers > 1:
-        from concurrent.futures import ProcessPoolExecutor, as_completed
+    try:
+        if workers > 1:
+            from concurrent.futures import ProcessPoolExecutor, as_completed
 
-        with ProcessPoolExecutor(max_workers=workers) as ex:
-            futs = [ex.submit(trial, c, s, control=ctl, **kw) for c, s, ctl in jobs]
-            for f in as_completed(futs):
-                results.append(f.result())
-                if bar:
-                    bar.update(1)
-    else:
-        for c, s, ctl in jobs:
-            results.append(trial(c, s, control=ctl, **kw))
-            if bar:
-                bar.update(1)
+            with ProcessPoolExecutor(max_workers=workers) as ex:
+                futs = [ex.submit(trial, c, s, control=ctl, **kw) for c, s, ctl in jobs]
+                for f in as_completed(futs):
+                    done(f.result())
+        else:
+            for c, s, ctl in jobs:
+                done(trial(c, s, control=ctl, **kw))
+    finally:
+        if sink is not None:
+            sink.close()
     if bar:
         bar.close()
     results.sort(key=lambda r: (r["condition"], r["control"], r["seed"]))
@@ -626,7 +656,8 @@ def study_main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--no-controls", action="store_true", help="skip the negative controls")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--points", type=int, default=8)
-    ap.add_argument("--out", default=None, help="write every trial as JSON here")
+    ap.add_argument("--out", default=None, help="write every trial as JSON here; finished trials are kept in "
+                    "OUT.trials.jsonl and a rerun resumes from it")
     args = ap.parse_args(list(argv) if argv is not None else None)
     bad = set(args.conditions) - set(CONDITIONS)
     if bad:
@@ -636,7 +667,8 @@ def study_main(argv: Sequence[str] | None = None) -> int:
     a, _, b = args.seeds.partition(":")
     try:
         res = study(list(args.conditions), range(int(a), int(b)), controls=not args.no_controls, workers=args.workers,
-                    points=args.points)
+                    points=args.points,
+                    checkpoint=(Path(args.out).with_suffix(".trials.jsonl") if args.out else None))
     except KeyboardInterrupt:
         print("study: interrupted", file=sys.stderr)
         return 130
