@@ -21,7 +21,7 @@ from marine_fdi_env.subsystems import air_intake as s4
 from marine_fdi_env.subsystems import engine_block as s2
 
 SHIPPED = ["man-12v32-40", "thesis-12v28", "wartsila-6l46"]
-FIELDS = [f.name for f in dataclasses.fields(EngineParams) if f.name != "name"]
+FIELDS = [f.name for f in dataclasses.fields(EngineParams) if f.name not in ("name", "submodels")]
 
 # Table 4.1 of the thesis, before calibration.
 X_CV_TABLE_4_1 = 0.06017

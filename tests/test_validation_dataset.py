@@ -14,7 +14,7 @@ from marine_fdi_env.validation import DatasetError, DataWarning, list_shipped, l
 from marine_fdi_env.validation.columns import COLUMNS, QUANTITIES, column_problem
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
-BIRKA, MAN = "birka_6l46_shop_test", "man_12v32_40_fpp_iso"
+BIRKA, MAN, PROTOCOL = "birka_6l46_shop_test", "man_12v32_40_fpp_iso", "birka_me1_test_protocol"
 
 
 def _write(tmp_path: Path, csv_text: str, meta: dict | None = None, name: str = "data") -> Path:
@@ -34,7 +34,7 @@ def _errors(exc: DatasetError) -> list[str]:
 
 # --------------------------------------------------------------------------------------- shipped data
 def test_shipped_datasets_listed():
-    assert list_shipped() == [BIRKA, MAN]
+    assert list_shipped() == [BIRKA, PROTOCOL, MAN]
 
 
 def test_birka_loads_with_missing_temperatures_and_a_warning():
@@ -48,8 +48,9 @@ def test_birka_loads_with_missing_temperatures_and_a_warning():
     q = ds.quality["columns"]["charge_air_temperature_C"]
     assert q["missing"] == 5 and q["missing_rows"] == [6, 7, 8, 9, 10]
     assert np.all(np.isnan(ds.raw["charge_air_temperature_C"][5:10]))
-    # the ambiguous charge-air temperature is placed after the compressor by the sidecar's description
+    # the ambiguous charge-air temperature is placed after the compressor by the sidecar's explicit key
     assert ds.column_quantity["charge_air_temperature_C"] == "compressor_outlet_temperature_K"
+    assert any("sidecar column_quantities" in n for n in ds.notes)
     # SI conversion: rpm -> rev/s, gauge bar -> absolute Pa with the parameter set's ambient (not recorded)
     assert ds.values["engine_speed_rev_s"][4] == pytest.approx(500 / 60)
     assert ds.values["charge_air_pressure_Pa"][4] == pytest.approx(3.15e5 + 1.013e5)
@@ -69,14 +70,82 @@ def test_man_loads():
 
 
 @pytest.mark.skipif(not SHARED.is_dir(), reason="shared data directory not present")
-@pytest.mark.parametrize("name", [BIRKA, MAN])
+@pytest.mark.parametrize("name", [BIRKA, PROTOCOL, MAN])
 def test_shared_files_load_as_they_are_and_match_the_shipped_copies(name):
     ds = _quiet(load_dataset, SHARED / f"{name}.csv")
     shipped = _quiet(load_shipped, name)
     assert ds.columns == shipped.columns
     for c in ds.columns:
         np.testing.assert_array_equal(ds.raw[c], shipped.raw[c])
-    assert ds.meta == shipped.meta
+    # the shipped sidecar may add explicit keys (stated under "additions"), nothing else differs
+    added = {k for k in shipped.meta if k not in ds.meta}
+    assert added <= {"column_quantities", "additions"}
+    assert {k: v for k, v in shipped.meta.items() if k not in added} == ds.meta
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="shared data directory not present")
+def test_ambiguous_temperature_without_the_key_is_a_warning_naming_the_column():
+    """The shared Birka sidecar places the charge-air temperature only in free text: the loader takes the
+    documented default (after the cooler) and warns, naming the column; it never reads free text."""
+    with pytest.warns(DataWarning, match=r"charge_air_temperature_C.*column_quantities"):
+        ds = load_dataset(SHARED / f"{BIRKA}.csv")
+    assert ds.column_quantity["charge_air_temperature_C"] == "charge_air_cooler_outlet_temperature_K"
+
+
+def test_protocol_every_column_has_a_role_and_nothing_is_dropped():
+    with pytest.warns(DataWarning) as rec:
+        ds = load_shipped(PROTOCOL)
+    text = " ".join(str(w.message) for w in rec)
+    header = (Path(__file__).resolve().parents[1] / "src" / "marine_fdi_env" / "data" / "measured" /
+              f"{PROTOCOL}.csv").read_text().splitlines()[0].split(",")
+    inv = {r["column"]: r for r in ds.column_inventory()}
+    assert set(inv) == set(header)  # every column is accounted for
+    roles = {c: r["role"] for c, r in inv.items()}
+    assert roles["ambient_pressure_hPa"] == roles["compressor_inlet_temperature_C"] == "boundary"
+    assert roles["exhaust_back_pressure_mbar"] == "boundary"
+    assert roles["relative_humidity_percent"] == roles["sfoc_iso_g_per_kWh"] == "not_modelled"
+    assert roles["charge_air_cooler_pressure_drop_mbar"] == "not_modelled"
+    assert roles["turbocharger_speed_rpm"] == roles["turbine_inlet_pressure_bar_gauge"] == "channel"
+    assert all(roles[f"cylinder_{k}_exhaust_temperature_C"] == "member" for k in range(1, 7))
+    assert all(inv[c]["what"] for c in inv)  # each with what happens to it
+    # the maximum pressures do not say gauge or absolute: an assumption with one warning naming them
+    assert "cylinder_1_max_pressure_bar" in text and "taken as gauge" in text
+    assert ds.values["p_max_Pa"][0] == pytest.approx(96e5 + 1025e2)
+    # per-row boundary conditions; the 0 C inlet temperature of the 50 % row is found and left out
+    np.testing.assert_allclose(ds.boundary["p_amb_Pa"], [102500, 102400, 102400, 102500, 102500, 102600])
+    assert [(o["column"], o["row"], o["value"]) for o in ds.boundary_outliers] == \
+        [("compressor_inlet_temperature_C", 2, 0.0)]
+    assert ds.boundary["T_amb_K"][1] == pytest.approx(32 + 273.15)  # the other rows' median
+    assert "row 2" in text and "recording error" in text
+    np.testing.assert_allclose(ds.boundary["p_ex_Pa"] - ds.boundary["p_amb_Pa"], [0, 400, 800, 1100, 1500, 1800])
+    # gauge columns read against the row's own ambient pressure
+    assert ds.values["charge_air_pressure_Pa"][5] == pytest.approx(3.13e5 + 1026e2)
+    # per-cylinder spread of the engine-mean channels (sample standard deviation over the six cylinders)
+    g = ds.groups["cylinder_exhaust_temperature"]
+    assert g["mean_column"] == "cylinder_exhaust_temperature_mean_C"
+    first = np.array([343, 376, 378, 376, 371, 360], float)
+    assert g["spread"][0] == pytest.approx(first.std(ddof=1))
+
+
+def test_per_row_ambient_values_are_checked(tmp_path):
+    head = "load_fraction,power_kW,ambient_pressure_hPa,compressor_inlet_temperature_C,relative_humidity_percent\n"
+    path = _write(tmp_path, head + "0.5,2945,1013,25,40\n0.75,4418,-3,25,140\n1.0,5890,700,90,40\n", META)
+    with pytest.raises(DatasetError) as ei:
+        load_dataset(path)
+    text = str(ei.value)
+    assert "row 2 (line 3), column 'ambient_pressure_hPa': ambient pressure not positive" in text
+    assert "column 'relative_humidity_percent': relative humidity outside [0, 100] %" in text
+    assert "ambient pressure outside [850, 1100] hPa" in text and "intake temperature outside [-30, 60] C" in text
+
+
+def test_boundary_outlier_needs_a_real_departure(tmp_path):
+    """Readings within a few kelvin of each other are never recording errors (the robust scale has a 1 K floor)."""
+    rows = "\n".join(f"{lf},{lf * 5890:.0f},{t}" for lf, t in [(0.25, 28), (0.5, 29), (0.75, 31), (0.85, 32),
+                                                               (1.0, 34), (1.1, 36)])
+    path = _write(tmp_path, "load_fraction,power_kW,compressor_inlet_temperature_C\n" + rows + "\n", META)
+    ds = _quiet(load_dataset, path)
+    assert ds.boundary_outliers == ()
+    np.testing.assert_allclose(ds.boundary["T_amb_K"] - 273.15, [28, 29, 31, 32, 34, 36])
 
 
 def _quiet(f, *a, **k):
@@ -93,6 +162,8 @@ def test_registry_is_consistent():
         assert spec.scale > 0
         v = np.array([1.0, 2.5])
         np.testing.assert_allclose(spec.from_si(spec.to_si(v, 1e5), 1e5), v)
+    for q in QUANTITIES.values():  # what is not compared says why
+        assert q.role in ("channel", "setpoint") or q.reason, q.name
 
 
 # --------------------------------------------------------------------------------------- bad input

@@ -24,8 +24,14 @@ steady state at fuel setting 1.0 *is* that nominal point (``derive_parameters``)
    and the turbine effective area from the flow law (eq. 3.16)
    ``A_eff = ṁ_g sqrt(R_g z1^(3) / (p_d² - p_ex²)) / α_z``.
 
+8. Turbocharger speed (an output, :mod:`marine_fdi_env.turbocharger_speed`): the rated rotor speed
+   ``N_tc_nom_rpm`` at the isentropic compressor head ``dh_c_nom_J_per_kg``.  For wartsila-6l46 both
+   come from one reading, the 100 % row of the Birka ME1 test protocol (the only turbocharger-speed
+   record we have); the other sets scale it by similarity (same isentropic head coefficient, compressor
+   diameter growing with the square root of the volume flow per turbocharger).
+
 Choices that no data determines are passed in as inputs with their justification (the
-``source`` text of the entry): η_com, η_c, Q_loss_grad, σ_f, T_sl.
+``source`` text of the entry): η_com, η_c, Q_loss_grad, σ_f, T_sl, turbochargers per engine.
 
 Run ``python -m marine_fdi_env.calibration`` to rewrite the shipped parameter sets from the
 input tables below; ``tests/test_params.py`` checks that the shipped files match.
@@ -150,6 +156,13 @@ def _sibling(name: str, bore: float, stroke: float, n_cyl: int, P: float, rpm: f
 
 MAN_SRC = "MAN 32/40 project guide, table 73/29 (shared/data/man_12v32_40_fpp_iso.meta.json)"
 BIRKA_SRC = "Birka Stockholm shop tests, 100 % load mean of ME1-ME3 (shared/data/birka_6l46_shop_test.csv)"
+PROTOCOL_SRC = ("Birka ME1 test protocol, 100 % row (shared/data/birka_me1_test_protocol.csv): turbocharger speed "
+                "22142 rpm at charge-air pressure 3.08 bar gauge, ambient 1025 hPa, compressor inlet 34 C; the one "
+                "reading the turbocharger-speed law is calibrated on")
+# The 100 % row of the protocol: the calibration point of the turbocharger-speed law of wartsila-6l46.
+PROTOCOL_TC_POINT = {"N_rpm": 22142.0, "p_ca_gauge_Pa": 3.08e5, "p_amb_Pa": 1025e2, "T_inlet_K": 34.0 + 273.15}
+# Turbochargers per engine (choice: one per row of six cylinders; thesis and project guide silent).
+TURBOCHARGERS = {"thesis-12v28": 2, "man-12v32-40": 2, "wartsila-6l46": 1}
 
 INPUT_SETS: dict[str, dict[str, Entry]] = {
     "thesis-12v28": THESIS_12V28,
@@ -211,7 +224,9 @@ def derive_parameters(name: str, inputs: dict[str, Entry], choices: dict[str, En
     # Provisional complete parameter set to evaluate the subsystems at the nominal point.
     prov = {k: e["value"] for k, e in out.items()}
     prov.update(Q_loss_nom_Nm=0.0, A_eff_m2=1.0, Psi_sc_nom=1.0)
-    P0 = EngineParams(name=name, **{f.name: prov[f.name] for f in fields(EngineParams) if f.name != "name"})
+    prov.update(N_tc_nom_rpm=1.0, dh_c_nom_J_per_kg=1.0)
+    P0 = EngineParams(name=name, **{f.name: prov[f.name] for f in fields(EngineParams)
+                                    if f.name not in ("name", "submodels")})
     c0 = model_constants(P0)
     X_ct = v["X_ct_nom"]
     _, _, _, T6, _, p6, w = seiliger_cycle(p1, T1, q, X_cv, X_ct, c0)
@@ -244,7 +259,35 @@ def derive_parameters(name: str, inputs: dict[str, Entry], choices: dict[str, En
     out["Psi_sc_nom"] = _e(Psi, "-", f"eq. 3.19 at the nominal receiver pressure p_d = {pd:.1f} Pa (root of eq. 3.31 = p1_nom)")
     A = mdot * math.sqrt(v["R_g_J_per_kgK"] * T_in(pd) / (pd**2 - v["p_ex_Pa"] ** 2)) / v["alpha_z"]
     out["A_eff_m2"] = _e(A, "m2", "eq. 3.16 solved for the area at the nominal receiver pressure and flow")
+    out.update(_turbocharger_speed_reference(name, v, mdot - x1 * n * v["n_cylinders"] / v["revs_per_cycle"]))
     return out
+
+
+def _isentropic_head(T_in_K: float, pressure_ratio: float, cp: float = 1005.0, kappa: float = 1.4) -> float:
+    """Isentropic compressor head c_p T (π^((κ-1)/κ) - 1) [J/kg]."""
+    return cp * T_in_K * (pressure_ratio ** ((kappa - 1.0) / kappa) - 1.0)
+
+
+def _turbocharger_speed_reference(name: str, v: dict[str, float], air_kg_s: float) -> dict[str, Entry]:
+    """Rated turbocharger speed and its isentropic head (step 8 of the module docstring)."""
+    cp, ka = v["c_p_a_J_per_kgK"], v["kappa_a"]
+    if name == "wartsila-6l46":
+        pt = PROTOCOL_TC_POINT
+        dh = _isentropic_head(pt["T_inlet_K"], (pt["p_amb_Pa"] + pt["p_ca_gauge_Pa"]) / pt["p_amb_Pa"], cp, ka)
+        return {"N_tc_nom_rpm": _e(pt["N_rpm"], "rpm", PROTOCOL_SRC),
+                "dh_c_nom_J_per_kg": _e(dh, "J/kg", "isentropic compressor head c_p T (pi^((k-1)/k) - 1) at that "
+                                                    "reading: " + PROTOCOL_SRC)}
+    ref = derive_parameters("wartsila-6l46", INPUT_SETS["wartsila-6l46"])
+    rv = {k: e["value"] for k, e in ref.items()}
+    dh = _isentropic_head(v["T_amb_K"], v["p1_nom_Pa"] / v["p_amb_Pa"], cp, ka)
+    air_ref = (1.0 + rv["s_sl_nom"]) * rv["m1_nom_kg"] * rv["n_nom_rev_s"] * rv["n_cylinders"] / rv["revs_per_cycle"]
+    vol = air_kg_s / TURBOCHARGERS[name] * v["R_a_J_per_kgK"] * v["T_amb_K"] / v["p_amb_Pa"]
+    vol_ref = air_ref / TURBOCHARGERS["wartsila-6l46"] * rv["R_a_J_per_kgK"] * rv["T_amb_K"] / rv["p_amb_Pa"]
+    N = rv["N_tc_nom_rpm"] * math.sqrt(dh / rv["dh_c_nom_J_per_kg"]) * math.sqrt(vol_ref / vol)
+    src = (f"similarity with wartsila-6l46 (same isentropic head coefficient, compressor diameter ~ sqrt(volume flow "
+           f"per turbocharger), {TURBOCHARGERS[name]} turbochargers (choice)): an estimate, no speed record")
+    return {"N_tc_nom_rpm": _e(N, "rpm", src),
+            "dh_c_nom_J_per_kg": _e(dh, "J/kg", "isentropic compressor head at the nominal point (p1_nom, p_amb, T_amb)")}
 
 
 def write_parameter_sets(directory: Path | None = None) -> list[Path]:
@@ -253,7 +296,7 @@ def write_parameter_sets(directory: Path | None = None) -> list[Path]:
     written = []
     for name, inputs in INPUT_SETS.items():
         entries = derive_parameters(name, inputs)
-        order = [f.name for f in fields(EngineParams) if f.name != "name"]
+        order = [f.name for f in fields(EngineParams) if f.name not in ("name", "submodels")]
         doc = {
             "name": name,
             "description": _DESCRIPTIONS[name],

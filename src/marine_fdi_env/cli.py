@@ -293,7 +293,21 @@ def cmd_params(args: argparse.Namespace) -> int:
         for n in names:
             print(f"{n:<{w}}  {_description(n)}")
         return 0
-    _field("--name", load_params, args.name)
+    p = _field("--name", load_params, args.name)
+    if args.name not in list_parameter_sets():  # a fitted-engine file: its base, overrides and submodels
+        d = json.loads(Path(args.name).read_text())
+        if args.json:
+            print(_dumps(d))
+            return 0
+        print(f"{p.name}: fitted engine on {d['base']} ({args.name})")
+        for k, v in (d.get("overrides") or {}).items():
+            print(f"  {k:<22} {v:.6g}  (base {getattr(load_params(d['base']), k):.6g})")
+        for k, v in (d.get("submodels") or {}).items():
+            print(f"  submodel {k}: {json.dumps(v)}")
+        prov = d.get("provenance") or {}
+        if prov:
+            print(f"  fitted on {prov.get('dataset', '?')} ({prov.get('date', '')}): {prov.get('command', '')}")
+        return 0
     prov = params_provenance(args.name)
     if args.json:
         print(_dumps({"name": args.name, "description": _description(args.name), "parameters": prov}))
@@ -382,8 +396,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("operating-point", help="steady state of an engine at a fuel setting",
                        description="Steady state (equilibrium) of the engine model at a constant fuel setting; "
                                    "all quantities in SI units (JSON keys end in their unit).")
-    p.add_argument("--params", default=DEFAULT_PARAMS, metavar="NAME",
-                   help=f"parameter set (default {DEFAULT_PARAMS}; see 'marine-fdi params')")
+    p.add_argument("--params", default=DEFAULT_PARAMS, metavar="NAME|FILE.json",
+                   help=f"parameter set (default {DEFAULT_PARAMS}; see 'marine-fdi params') or a fitted-engine file "
+                        "written by 'marine-fdi validate --save-params'")
     p.add_argument("--fuel-setting", type=float, required=True, metavar="U",
                    help=f"fuel setting in [{FUEL_SETTING_RANGE[0]:g}, {FUEL_SETTING_RANGE[1]:g}], 1.0 = nominal")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
@@ -398,8 +413,9 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=FAULT_SPEC_HELP + "\n" + PROFILE_HELP + "\n" + _scenario_help(),
         formatter_class=fmt,
     )
-    p.add_argument("--params", default=None, metavar="NAME",
-                   help=f"parameter set (default: the scenario's, else {DEFAULT_PARAMS})")
+    p.add_argument("--params", default=None, metavar="NAME|FILE.json",
+                   help=f"parameter set (default: the scenario's, else {DEFAULT_PARAMS}) or a fitted-engine file "
+                        "('marine-fdi validate --save-params')")
     p.add_argument("--duration", type=float, default=None, metavar="S",
                    help="simulated time [s] (required unless --scenario is given)")
     p.add_argument("--seed", type=int, default=0, metavar="N",
@@ -423,7 +439,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("params", help="list parameter sets or show one",
                        description="List the shipped parameter sets, or print one set's parameters with "
                                    "value, unit and source.")
-    p.add_argument("--name", default=None, metavar="NAME", help="parameter set to show")
+    p.add_argument("--name", default=None, metavar="NAME|FILE.json", help="parameter set or fitted-engine file to show")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_params)
 

@@ -9,12 +9,19 @@ The algebraic part is solved in causal order, which the structure allows:
 Σ4 inlet temperature -> Σ2 cycle and speed (a contraction, :func:`engine_block`) -> Σ3 slip,
 receiver/turbine (closed form) -> Σ4 compressor.
 
+Submodels (:mod:`marine_fdi_env.submodels`) are part of the parameters: the speed law and friction act
+in Σ2, the intercooler on the inlet temperature, the gas-path submodels replace Σ3/Σ4 by
+:func:`~marine_fdi_env.subsystems.gas_path.extended_gas_path`.  With none on, the code is the base
+model's, bit for bit.  The output fields after ``h4`` (``T_cyl`` ... ``T_exh``) exist for every engine;
+for the base model they repeat base quantities (T_cyl = T_t = T_in, T_exh = T_out, no bypass flow).
+
 :func:`solve_algebraic` works on one engine (compiled); :class:`EngineModel` evaluates arrays of
 engines with compiled loops and returns named arrays (:class:`Algebraic`).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -26,21 +33,23 @@ from .subsystems.air_intake import (
     air_excess_ratio,
     compressor_forcing,
     compressor_outlet_temperature,
+    cooler_outlet_temperature,
     delta_f,
-    inlet_air_temperature,
+    inlet_air_temperature_at,
 )
-from .subsystems.engine_block import engine_block
+from .subsystems.engine_block import engine_block, engine_block_at_speed
 from .subsystems.exhaust_receiver import receiver_and_turbine, slip_ratio
 from .subsystems.fuel_pump import fuel_pump_forcing
+from .subsystems.gas_path import extended_gas_path
 
-__all__ = ["ProcessFaultValues", "Algebraic", "EngineModel", "solve_algebraic", "ALG_FIELDS", "PF_FIELDS",
-           "HEALTHY_PF"]
+__all__ = ["ProcessFaultValues", "Algebraic", "EngineModel", "solve_algebraic", "algebraic_at_speed", "ALG_FIELDS",
+           "PF_FIELDS", "HEALTHY_PF"]
 
 # Order of the process-fault vector and of the algebraic output vector of compiled code.
 PF_FIELDS = ("f_u", "dV1_m3", "phi_tur", "dT_sl_K", "phi_int", "dT_inl_K", "dT_c_K")
 HEALTHY_PF = np.array([1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
 ALG_FIELDS = ("n", "torque", "p6", "T6", "p_max", "m1", "s_sl", "T_in", "T_out", "T1", "T_co", "lam", "mdot_g",
-              "Pi_turbo", "h3", "h4")
+              "Pi_turbo", "h3", "h4", "T_cyl", "T_t", "T_c", "mdot_bp", "wg_frac", "mdot_c", "T_exh")
 N_ALG = len(ALG_FIELDS)
 
 
@@ -87,15 +96,22 @@ class Algebraic:
     p_max: np.ndarray  # maximum cylinder pressure p3 [Pa]
     m1: np.ndarray  # trapped mass per cylinder and cycle, incl. bore damage [kg]
     s_sl: np.ndarray  # slip ratio [-]
-    T_in: np.ndarray  # z1^(3), turbine inlet temperature [K]
+    T_in: np.ndarray  # z1^(3), turbine inlet temperature where its thermocouple reads it [K]
     T_out: np.ndarray  # z2^(3), turbine outlet temperature [K]
     T1: np.ndarray  # z1^(4), inlet air temperature [K]
     T_co: np.ndarray  # z2^(4), compressor outlet temperature [K]
     lam: np.ndarray  # air excess ratio [-]
-    mdot_g: np.ndarray  # turbine mass flow [kg/s]
+    mdot_g: np.ndarray  # exhaust mass flow through turbine and waste gate (incl. bypass air) [kg/s]
     Pi_turbo: np.ndarray  # turbine expansion term (p_ex/x3)^((κg-1)/κg)
     h3: np.ndarray  # receiver forcing [Pa/s]
     h4: np.ndarray  # compressor forcing [Pa/s]
+    T_cyl: np.ndarray  # gas leaving the cylinders (exhaust and slip air, before heat loss and bypass) [K]
+    T_t: np.ndarray  # gas entering the turbine [K]
+    T_c: np.ndarray  # charge-air cooler outlet [K]
+    mdot_bp: np.ndarray  # bypass air flow [kg/s]
+    wg_frac: np.ndarray  # fraction of the exhaust through the waste gate [-]
+    mdot_c: np.ndarray  # compressor air flow [kg/s]
+    T_exh: np.ndarray  # exhaust after the waste-gate junction [K]
 
     @classmethod
     def from_array(cls, a: np.ndarray) -> "Algebraic":
@@ -107,20 +123,12 @@ class Algebraic:
 
 
 @jit
-def solve_algebraic(c, x1, x3, x4, pf, n_guess, sweeps, out):
-    """Solve the algebraic equations of Σ2-Σ4 for one engine (eq. 3.7-3.38).
-
-    ``pf`` is the process-fault vector (order ``PF_FIELDS``); the results are written to ``out``
-    in the order of ``ALG_FIELDS``.
-    """
-    T1 = inlet_air_temperature(pf[5], c)
-    n, torque, p6, T6, p_max, m1_cyl = engine_block(x1, x4, T1, c.V1_m3 + pf[1], n_guess, c, sweeps)
+def _gas_exchange(c, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, out, ov_wg, ov_bp):
+    """Σ3 and Σ4 after Σ2 (base functions, or the extended gas path when a submodel is on); fills ``out``."""
     # Gas exchange (Σ3, Σ4) uses the nominal V1 as in eq. 3.17-3.22 and 3.32: bore damage acts on
     # the cylinder process (Σ2) only, the variables of table 3.1.
     m1 = x4 * c.V1_m3 / (c.R_a_J_per_kgK * T1)
     s_sl = slip_ratio(x3, x4, m1, max(n, 1e-9), c)
-    h3, T_in, T_out, Pi, mdot = receiver_and_turbine(x1, x3, x4, m1, s_sl, n, T6, p6, c.T_sl_K + pf[3], c)
-    d_f = delta_f(x1, m1, s_sl)
     out[0] = n
     out[1] = torque
     out[2] = p6
@@ -128,15 +136,64 @@ def solve_algebraic(c, x1, x3, x4, pf, n_guess, sweeps, out):
     out[4] = p_max
     out[5] = m1_cyl
     out[6] = s_sl
-    out[7] = T_in
-    out[8] = T_out
     out[9] = T1
-    out[10] = compressor_outlet_temperature(d_f, T_in, T_out, pf[6], c)
     out[11] = air_excess_ratio(m1_cyl, x1, c)
-    out[12] = mdot
-    out[13] = Pi
-    out[14] = h3
-    out[15] = compressor_forcing(x4, d_f, T_in, Pi, c)
+    if c.sm_on == 0.0:
+        h3, T_in, T_out, Pi, mdot = receiver_and_turbine(x1, x3, x4, m1, s_sl, n, T6, p6, c.T_sl_K + pf[3], c)
+        d_f = delta_f(x1, m1, s_sl)
+        out[7] = T_in
+        out[8] = T_out
+        out[10] = compressor_outlet_temperature(d_f, T_in, T_out, pf[6], c)
+        out[12] = mdot
+        out[13] = Pi
+        out[14] = h3
+        out[15] = compressor_forcing(x4, d_f, T_in, Pi, c)
+        out[16] = T_in
+        out[17] = T_in
+        out[18] = cooler_outlet_temperature(x4, c)
+        out[19] = 0.0
+        out[20] = 0.0
+        out[21] = (1.0 + s_sl) * m1 * n * c.cycles_per_rev
+        out[22] = T_out
+        return
+    T_c = cooler_outlet_temperature(x4, c)
+    g = extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, c.T_sl_K + pf[3], T_c, pf[6], c, ov_wg, ov_bp)
+    out[14] = g[0]
+    out[7] = g[1]
+    out[8] = g[2]
+    out[13] = g[3]
+    out[12] = g[4]
+    out[15] = g[5]
+    out[10] = g[6]
+    out[16] = g[7]
+    out[17] = g[8]
+    out[18] = T_c
+    out[19] = g[9]
+    out[20] = g[10]
+    out[21] = g[11]
+    out[22] = g[12]
+
+
+@jit
+def solve_algebraic(c, x1, x3, x4, pf, n_guess, sweeps, out):
+    """Solve the algebraic equations of Σ2-Σ4 for one engine (eq. 3.7-3.38).
+
+    ``pf`` is the process-fault vector (order ``PF_FIELDS``); the results are written to ``out``
+    in the order of ``ALG_FIELDS``.
+    """
+    T1 = inlet_air_temperature_at(pf[5], x4, c)
+    n, torque, p6, T6, p_max, m1_cyl = engine_block(x1, x4, T1, c.V1_m3 + pf[1], n_guess, c, sweeps)
+    _gas_exchange(c, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, out, math.nan, math.nan)
+
+
+@jit
+def algebraic_at_speed(c, x1, x3, x4, n, pf, out, ov_wg=math.nan, ov_bp=math.nan):
+    """The algebraic equations of Σ2-Σ4 at a given engine speed n [rev/s] (no load law), for the
+    steady-state solver of :mod:`marine_fdi_env.operating_point`; fills ``out`` (``ALG_FIELDS``).
+    ov_wg, ov_bp : valve openings overriding the schedules (NaN: the schedules)."""
+    T1 = inlet_air_temperature_at(pf[5], x4, c)
+    torque, p6, T6, p_max, m1_cyl = engine_block_at_speed(x1, x4, T1, c.V1_m3 + pf[1], n, c)
+    _gas_exchange(c, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, out, ov_wg, ov_bp)
 
 
 @jit

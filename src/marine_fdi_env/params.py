@@ -14,9 +14,15 @@ import math
 from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
+from pathlib import Path
 from typing import Any
 
-__all__ = ["EngineParams", "load_params", "list_parameter_sets", "params_provenance"]
+from .submodels import NO_SUBMODELS, EngineSubmodels
+
+__all__ = ["EngineParams", "load_params", "list_parameter_sets", "params_provenance", "ENGINE_FILE_FORMAT",
+           "load_engine_file", "engine_file_dict"]
+
+ENGINE_FILE_FORMAT = "marine_fdi_env.engine/1"
 
 
 @dataclass(frozen=True)
@@ -45,6 +51,12 @@ class EngineParams:
     eq. 3.33 as corrected), eta_com, T_c_K, T_inl_K, eps_inl, p_amb_Pa, T_amb_K, p1_nom_Pa.
 
     Fuel pump (Σ1): tau_X_s, x1_nom_kg.
+
+    Turbocharger speed (an output only, :mod:`marine_fdi_env.turbocharger_speed`): N_tc_nom_rpm, the
+    rotor speed at the isentropic compressor head dh_c_nom_J_per_kg.
+
+    submodels : the optional extensions of the base model (:mod:`marine_fdi_env.submodels`), all off by
+    default.
     """
 
     name: str
@@ -109,17 +121,33 @@ class EngineParams:
     p_amb_Pa: float
     T_amb_K: float
     p1_nom_Pa: float
+    # turbocharger speed law (output only)
+    N_tc_nom_rpm: float
+    dh_c_nom_J_per_kg: float
+    # optional submodels (not a float: skipped by the numeric checks)
+    submodels: EngineSubmodels = NO_SUBMODELS
 
-    def replace(self, **changes: Any) -> "EngineParams":
-        """Return a copy with some fields changed (validated like a loaded set)."""
+    def replace(self, validate: bool = True, **changes: Any) -> "EngineParams":
+        """Return a copy with some fields changed (validated like a loaded set; ``validate=False`` skips the
+        checks, for hot loops whose changes are valid by construction)."""
+        if not validate:  # fast path: a shallow copy with the changed fields (no __init__, no checks)
+            unknown = set(changes) - self.__dict__.keys()
+            if unknown:
+                raise TypeError(f"unknown parameter(s) {', '.join(sorted(unknown))}")
+            new = object.__new__(EngineParams)
+            new.__dict__.update(self.__dict__)
+            new.__dict__.update(changes)
+            return new
         new = dataclasses.replace(self, **changes)
         new.validate()
         return new
 
     def validate(self) -> None:
         """Raise ``ValueError`` naming the first field that is not finite or out of range."""
+        if not isinstance(self.submodels, EngineSubmodels):
+            raise ValueError(f"parameter 'submodels' must be EngineSubmodels, got {type(self.submodels).__name__}")
         for f in dataclasses.fields(self):
-            if f.name == "name":
+            if f.name in ("name", "submodels"):
                 continue
             v = getattr(self, f.name)
             if not isinstance(v, (int, float)) or not math.isfinite(v):
@@ -131,7 +159,7 @@ class EngineParams:
             "R_g_J_per_kgK", "c_v_a_J_per_kgK", "c_p_a_J_per_kgK", "c_p_g_J_per_kgK",
             "sigma_f", "tau_pd_s", "A_eff_m2", "alpha_z", "m1_nom_kg", "Psi_sc_nom",
             "p_ex_Pa", "tau_TC_s", "eta_com", "T_c_K", "T_inl_K", "p_amb_Pa", "T_amb_K",
-            "p1_nom_Pa", "T_sl_K",
+            "p1_nom_Pa", "T_sl_K", "N_tc_nom_rpm", "dh_c_nom_J_per_kg",
         ]
         for key in positive:
             if getattr(self, key) <= 0:
@@ -168,7 +196,7 @@ def params_provenance(name: str) -> dict[str, dict[str, Any]]:
 
 def params_from_dict(name: str, entries: dict[str, Any]) -> EngineParams:
     """Build and validate :class:`EngineParams` from ``{field: value or {"value": ...}}``."""
-    names = {f.name for f in dataclasses.fields(EngineParams)} - {"name"}
+    names = {f.name for f in dataclasses.fields(EngineParams)} - {"name", "submodels"}
     values = {k: (v["value"] if isinstance(v, dict) else v) for k, v in entries.items()}
     missing = sorted(names - values.keys())
     unknown = sorted(values.keys() - names)
@@ -181,9 +209,63 @@ def params_from_dict(name: str, entries: dict[str, Any]) -> EngineParams:
     return p
 
 
-@lru_cache(maxsize=None)
-def load_params(name: str = "thesis-12v28") -> EngineParams:
-    """Load a shipped parameter set by name (``thesis-12v28``, ``man-12v32-40``, ``wartsila-6l46``)."""
+def load_params(name: "str | Path | EngineParams" = "thesis-12v28") -> EngineParams:
+    """A parameter set: a shipped one by name (``thesis-12v28``, ``man-12v32-40``, ``wartsila-6l46``), or a
+    fitted-engine file ``FILE.json`` (base set + submodels, written by ``marine-fdi validate --save-params``;
+    see :func:`load_engine_file`).  An :class:`EngineParams` is returned as it is."""
+    if isinstance(name, EngineParams):
+        return name
+    if isinstance(name, Path) or (isinstance(name, str) and name.endswith(".json")):
+        return load_engine_file(name)
     if not isinstance(name, str):
-        raise ValueError(f"parameter set name must be a string, got {name!r}")
+        raise ValueError(f"parameter set must be a name, a .json file or EngineParams, got {name!r}")
+    return _load_shipped(name)
+
+
+@lru_cache(maxsize=None)
+def _load_shipped(name: str) -> EngineParams:
     return params_from_dict(name, _raw(name)["parameters"])
+
+
+def engine_file_dict(params: EngineParams, base: str, provenance: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The fitted-engine file of ``params``: the base set's name, the parameters that differ from it
+    and the submodels, with ``provenance`` (what fitted it, on which data)."""
+    ref = _load_shipped(base)
+    overrides = {}
+    for f in dataclasses.fields(EngineParams):
+        if f.name in ("name", "submodels"):
+            continue
+        if getattr(params, f.name) != getattr(ref, f.name):
+            overrides[f.name] = getattr(params, f.name)
+    return {"format": ENGINE_FILE_FORMAT, "name": params.name, "base": base, "overrides": overrides,
+            "submodels": params.submodels.to_dict(), "provenance": provenance or {}}
+
+
+def load_engine_file(path: "str | Path") -> EngineParams:
+    """Load a fitted-engine file: ``{"format": "marine_fdi_env.engine/1", "name", "base", "overrides":
+    {field: value}, "submodels": {...}, "provenance": {...}}``.  Errors name the file and the field."""
+    path = Path(path)
+    try:
+        d = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise ValueError(f"no such engine file {str(path)!r} (give a shipped set: "
+                         f"{', '.join(list_parameter_sets())}, or a file written by 'marine-fdi validate "
+                         "--save-params')") from None
+    except json.JSONDecodeError as e:
+        raise ValueError(f"{path}: not valid JSON: {e}") from None
+    if not isinstance(d, dict) or d.get("format") != ENGINE_FILE_FORMAT:
+        raise ValueError(f"{path}: not an engine file (expected \"format\": \"{ENGINE_FILE_FORMAT}\")")
+    base = d.get("base")
+    if base not in list_parameter_sets():
+        raise ValueError(f"{path}: field 'base' must name a shipped parameter set ({', '.join(list_parameter_sets())}), "
+                         f"got {base!r}")
+    overrides = d.get("overrides") or {}
+    names = {f.name for f in dataclasses.fields(EngineParams)} - {"name", "submodels"}
+    bad = sorted(set(overrides) - names)
+    if bad:
+        raise ValueError(f"{path}: unknown parameter(s) in 'overrides': {', '.join(bad)}")
+    try:
+        sub = EngineSubmodels.from_dict(d.get("submodels"))
+        return _load_shipped(base).replace(name=str(d.get("name") or path.stem), submodels=sub, **overrides)
+    except ValueError as e:
+        raise ValueError(f"{path}: {e}") from None

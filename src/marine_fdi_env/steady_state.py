@@ -13,6 +13,7 @@ import numpy as np
 
 from .model import HEALTHY, Algebraic, EngineModel, ProcessFaultValues
 from .params import EngineParams
+from .turbocharger_speed import turbocharger_speed_rpm
 
 __all__ = ["SteadyState", "steady_state", "FUEL_SETTING_RANGE", "check_fuel_setting"]
 
@@ -52,6 +53,7 @@ class SteadyState:
         power = float(a.power()[i])
         fuel_flow = float(self.x1[i]) * n * params.n_cylinders / params.revs_per_cycle
         air_flow = float((1.0 + a.s_sl[i]) * a.m1[i]) * n * params.n_cylinders / params.revs_per_cycle
+        air_flow += float(a.mdot_bp[i])  # the compressor's air: the cylinders' and the bypass (0 in the base model)
         return {
             "fuel_setting": float(self.u[i]),
             "engine_speed_rev_s": n,
@@ -73,6 +75,14 @@ class SteadyState:
             "exhaust_mass_flow_kg_s": float(a.mdot_g[i]),
             "air_excess_ratio": float(a.lam[i]),
             "slip_ratio": float(a.s_sl[i]),
+            "charge_air_cooler_outlet_temperature_K": float(a.T_c[i]),
+            "cylinder_outlet_temperature_K": float(a.T_cyl[i]),
+            "turbine_gas_inlet_temperature_K": float(a.T_t[i]),
+            "exhaust_after_waste_gate_temperature_K": float(a.T_exh[i]),
+            "bypass_air_flow_kg_s": float(a.mdot_bp[i]),
+            "bypass_fraction": float(a.mdot_bp[i] / a.mdot_c[i]) if a.mdot_c[i] > 0 else 0.0,
+            "waste_gate_fraction": float(a.wg_frac[i]),
+            "turbocharger_speed_rpm": float(turbocharger_speed_rpm(params, float(self.x4[i]))),
         }
 
 

@@ -18,6 +18,11 @@ Decisions where the thesis is silent or garbled:
 * The torque is the net indicated work of the cycle times cylinders per revolution,
   ``z3 = m1 w i_e / (2π k_e) - Q_loss`` (eq. 3.10 rebuilt; the closed form is garbled).
 * ``X_cv`` is clipped to [0, 1 - X_ct] so that no heat fraction turns negative at extreme speeds.
+
+Submodels (:mod:`marine_fdi_env.submodels`): ``friction`` adds ``Δfmep = a + d (n/n_nom)^2`` to the
+friction torque; ``speed_law`` (combinator) replaces the propeller law in the speed loop by
+``n = n_nom (s0 + (s1 - s0) P/P_nom)`` with ``P = 2π n z3``, i.e. the fixed point
+``n <- n_nom s0 / (1 - 2π n_nom (s1 - s0) z3 / P_nom)``.  With both off the code is the base model's.
 """
 
 from __future__ import annotations
@@ -27,7 +32,8 @@ import math
 from .._jit import jit
 from ..seiliger import seiliger_cycle
 
-__all__ = ["constant_volume_portion", "friction_torque", "engine_block", "torque_given_speed"]
+__all__ = ["constant_volume_portion", "friction_torque", "engine_block", "torque_given_speed", "speed_of_torque",
+           "engine_block_at_speed"]
 
 
 @jit
@@ -39,8 +45,23 @@ def constant_volume_portion(n: float, X_ct: float, c) -> float:
 
 @jit
 def friction_torque(n: float, c) -> float:
-    """Q_loss = Q_loss_nom (1 + Q_loss_grad (n_nom - n)/n_nom) [N m] (eq. 3.10)."""
-    return c.Q_loss_nom_Nm * (1.0 + c.Q_loss_grad * (c.n_nom_rev_s - n) / c.n_nom_rev_s)
+    """Q_loss = Q_loss_nom (1 + Q_loss_grad (n_nom - n)/n_nom) [N m] (eq. 3.10), plus the ``friction``
+    submodel's ``V_d i_e/(2π k_e) (a + d (n/n_nom)^2)`` when it is on."""
+    q = c.Q_loss_nom_Nm * (1.0 + c.Q_loss_grad * (c.n_nom_rev_s - n) / c.n_nom_rev_s)
+    if c.fr_on != 0.0:
+        nr = n / c.n_nom_rev_s
+        q = q + c.fr_torque_per_Pa * (c.fr_a_Pa + c.fr_d_Pa * nr * nr)
+    return q
+
+
+@jit
+def speed_of_torque(torque: float, c) -> float:
+    """Engine speed of the load law at brake torque z3 [rev/s]: the propeller law n = sqrt(2π z3/c)
+    (eq. 3.11), or the combinator line of the ``speed_law`` submodel."""
+    if c.sl_comb != 0.0:
+        den = 1.0 - 2.0 * math.pi * c.n_nom_rev_s * (c.sl_s1 - c.sl_s0) * max(torque, 0.0) / c.P_nom_W
+        return c.n_nom_rev_s * c.sl_s0 / max(den, 1e-3)
+    return math.sqrt(c.two_pi_over_c * max(torque, 0.0))
 
 
 @jit
@@ -49,7 +70,23 @@ def _sweep(n, x4, T1, q, m1, X_ct, c):
     X_cv = constant_volume_portion(n, X_ct, c)
     cyc = seiliger_cycle(x4, T1, q, X_cv, X_ct, c)
     torque = m1 * cyc[6] * c.torque_per_work - friction_torque(n, c)
-    return math.sqrt(c.two_pi_over_c * max(torque, 0.0)), torque, cyc
+    return speed_of_torque(torque, c), torque, cyc
+
+
+@jit
+def engine_block_at_speed(x1: float, x4: float, T1: float, V1: float, n: float, c) -> tuple:
+    """Σ2 at a given engine speed n [rev/s] (no load law): (torque [N m], p6, T6, p_max [Pa], m1 [kg]).
+
+    The same cycle and friction as one sweep of :func:`engine_block`; the steady-state solver of
+    :mod:`marine_fdi_env.operating_point` uses it with the speed as an unknown or prescribed.
+    """
+    m1 = x4 * V1 / (c.R_a_J_per_kgK * T1)
+    q = (c.eta_comb * c.h_L_J_per_kg) * x1 / m1
+    X_ct = c.X_ct_nom * x1 / c.x1_nom_kg
+    X_cv = constant_volume_portion(n, X_ct, c)
+    cyc = seiliger_cycle(x4, T1, q, X_cv, X_ct, c)
+    torque = m1 * cyc[6] * c.torque_per_work - friction_torque(n, c)
+    return torque, cyc[5], cyc[3], cyc[4], m1
 
 
 @jit

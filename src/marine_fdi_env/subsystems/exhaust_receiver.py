@@ -30,9 +30,10 @@ from __future__ import annotations
 import math
 
 from .._jit import jit
+from .air_intake import bsr_factor
 
 __all__ = ["scavenge_flow_function", "slip_ratio", "turbine_mass_flow", "receiver_forcing", "turbine_expansion",
-           "turbine_outlet_temperature", "receiver_and_turbine"]
+           "turbine_outlet_temperature", "receiver_and_turbine", "turbine_efficiency", "turbine_outlet_from_expansion"]
 
 
 @jit
@@ -68,10 +69,23 @@ def turbine_expansion(x3: float, c) -> float:
 
 
 @jit
+def turbine_efficiency(T_in: float, Pi: float, x4: float, c) -> float:
+    """η_turbo(x4) = a + b x4 + c x4² (eq. 3.26), or with the ``turbocharger_map`` submodel the map's η_TC / (η_c
+    η_com); times the ``turbine_efficiency_bsr`` factor when that submodel is on."""
+    if c.tm_on != 0.0:
+        dx = x4 / c.p1_nom_Pa - 1.0
+        eta_t = c.tm_s * c.tm_eta0 * (1.0 - c.tm_w * dx * dx) * (c.a_turbo / c.c_eta)
+    else:
+        eta_t = c.a_turbo + c.b_turbo_per_Pa * x4 + c.c_turbo_per_Pa2 * x4 * x4
+    if c.bsr_on != 0.0:
+        eta_t = eta_t * bsr_factor(x4, T_in, Pi, c)
+    return eta_t
+
+
+@jit
 def turbine_outlet_from_expansion(T_in: float, Pi: float, x4: float, c) -> float:
     """z2 = ψ4 z1 = z1 (1 - η_turbo(x4) (1 - Π_turbo)) [K] (eq. 3.24, 3.26)."""
-    eta_t = c.a_turbo + c.b_turbo_per_Pa * x4 + c.c_turbo_per_Pa2 * x4 * x4
-    return T_in * (1.0 - eta_t * (1.0 - Pi))
+    return T_in * (1.0 - turbine_efficiency(T_in, Pi, x4, c) * (1.0 - Pi))
 
 
 @jit

@@ -18,7 +18,21 @@ Sidecar ``FILE.meta.json`` (a JSON object)
     ``columns``         description per column; ``source`` (provenance), ``kind``, ``notes``;
     ``rated_power_kW``  reference of ``load_fraction`` (default: the parameter set's ``P_nom_W``);
     ``column_quantities`` optional {column: quantity} to resolve ambiguous columns (see columns.py);
-    ``fuel_rack_at_nominal`` optional rack position at fuel setting 1 (for rack matching).
+    ``fuel_rack_at_nominal`` optional rack position at fuel setting 1 (for rack matching);
+    ``pressure_reference`` optional {column: "gauge" | "absolute"} for pressures whose unit does not say;
+    ``tolerances`` optional {column: value in its units}.
+
+Roles (:mod:`.columns`): every column is a comparison channel, a set point, a per-row boundary
+condition (ambient pressure, compressor inlet temperature, exhaust back pressure: the model runs at the
+row's value), a member of a per-cylinder group (the group's spread per row is the measurement spread of
+the engine-mean channel) or recorded but not modelled (listed with the reason).  Nothing is dropped
+silently: :attr:`MeasuredDataset.column_role` and :meth:`MeasuredDataset.column_inventory` say what
+happens to each column.
+
+Boundary readings are checked for outliers across rows (robust z-score of the deviation from the
+other rows' median): a reading like a compressor inlet temperature of 0 C among rows at 28-36 C is a
+recording error.  It is reported (:attr:`MeasuredDataset.boundary_outliers`), left out, and the row runs
+at the median of the other rows' readings.
 
 :func:`load_dataset` checks units, columns and values and collects *every* problem with its row and
 column; errors raise one :class:`DatasetError` (a ``ValueError``) listing all of them, suspicious but
@@ -29,11 +43,12 @@ Row numbers are 1-based data rows; the CSV line is row + 1 (the header is line 1
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import json
 import math
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 from typing import Any, Iterable, Mapping
@@ -41,13 +56,19 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 
 from ..params import EngineParams, list_parameter_sets, load_params
-from .columns import COLUMNS, ID_COLUMNS, QUANTITIES, ColumnSpec, column_problem, resolve_quantity
+from .columns import COLUMNS, ID_COLUMNS, QUANTITIES, ColumnSpec, column_problem, lookup_column, resolve_quantity
 
 __all__ = [
     "MeasuredDataset", "DatasetError", "DataWarning", "Problem", "load_dataset", "load_shipped",
     "list_shipped", "shipped_path", "write_dataset", "parse_ambient", "normalise_load_law", "MISSING_TOKENS",
-    "ENVELOPE",
+    "ENVELOPE", "BOUNDARY_OUTLIER_Z",
 ]
+
+BOUNDARY_OUTLIER_Z = 5.0  # robust z-score above which a boundary reading is a recording error
+# resolution floors of the robust scale of boundary readings (a MAD of 0 must not flag 0.5 K differences)
+_BOUNDARY_FLOOR = {"ambient_temperature_K": 1.0, "ambient_pressure_Pa": 200.0, "exhaust_back_pressure_Pa": 300.0}
+_BOUNDARY_KEY = {"ambient_pressure_Pa": "p_amb_Pa", "ambient_temperature_K": "T_amb_K",
+                 "exhaust_back_pressure_Pa": "dp_ex_Pa"}
 
 MISSING_TOKENS = frozenset({"", "na", "nan", "n/a", "none", "null"})
 
@@ -111,7 +132,15 @@ class MeasuredDataset:
         point; NaN where the cell was empty.  raw : the columns in the file's units.
     column_quantity : quantity of each data column (after resolving ambiguous columns).
     engines : engine id per point (``None`` when the file has no ``engine`` column).
-    ambient : ``{"p_amb_Pa", "T_amb_K", "recorded"}``; p_amb_Pa is the pressure used for gauge columns.
+    ambient : ``{"p_amb_Pa", "T_amb_K", "recorded"}``; p_amb_Pa is the pressure used for gauge columns
+        (an array per point when the file records it per row).
+    boundary : per-point boundary conditions the model runs at, ``{"p_amb_Pa", "T_amb_K", "p_ex_Pa"}``
+        (arrays; NaN = the parameter set's value); boundary_outliers : the readings left out of them.
+    column_role : role of every data column; column_spec : its spec (with the dataset's gauge decision);
+    groups : per-cylinder groups ``{group: {"columns", "mean_column", "spread" (per point, in the mean
+        column's units), "n"}}``.
+    suspect : readings the loader flags without any model (an engine far from the others at the same set
+        point): kept in the data; hold-out errors are reported with and without them.
     load_law : normalised stated load law (``propeller`` | ``constant_speed`` | ``independent`` | ``None``).
     quality : data-quality summary (points, engines, missing cells per column with their rows).
     """
@@ -133,6 +162,12 @@ class MeasuredDataset:
     warnings: tuple[Problem, ...] = ()
     notes: tuple[str, ...] = ()
     path: str | None = None
+    column_role: dict[str, str] = field(default_factory=dict)
+    column_spec: dict[str, ColumnSpec] = field(default_factory=dict)
+    boundary: dict[str, np.ndarray] = field(default_factory=dict)
+    boundary_outliers: tuple[dict[str, Any], ...] = ()
+    groups: dict[str, dict[str, Any]] = field(default_factory=dict)
+    suspect: tuple[dict[str, Any], ...] = ()
 
     @property
     def n_points(self) -> int:
@@ -143,7 +178,29 @@ class MeasuredDataset:
         return load_params(self.params_name)
 
     def spec(self, column: str) -> ColumnSpec:
-        return COLUMNS[column]
+        return self.column_spec.get(column) or lookup_column(column)
+
+    def columns_with_role(self, *roles: str) -> list[str]:
+        return [c for c in self.columns if self.column_role.get(c) in roles]
+
+    def column_inventory(self) -> list[dict[str, Any]]:
+        """What happens to every column: ``{column, role, quantity, what}``."""
+        out = []
+        for c in self.columns:
+            role = self.column_role.get(c, "channel")
+            q = QUANTITIES.get(self.column_quantity.get(c, ""))
+            if role == "channel":
+                what = "compared with the model's " + (q.description if q else "value")
+            elif role == "setpoint":
+                what = "set point (fixes the operating point, or compared when something else fixes it)"
+            elif role == "member":
+                g = next((k for k, v in self.groups.items() if c in v["columns"]), "")
+                what = f"one cylinder of group {g!r}: its spread is the measurement spread of " \
+                       f"{self.groups[g]['mean_column'] if g else 'the mean'}"
+            else:
+                what = q.reason if q else ""
+            out.append({"column": c, "role": role, "quantity": self.column_quantity.get(c), "what": what})
+        return out
 
     def has(self, quantity: str) -> bool:
         return quantity in self.values
@@ -156,10 +213,10 @@ class MeasuredDataset:
         return None
 
     def to_si(self, column: str, values) -> np.ndarray:
-        return COLUMNS[column].to_si(values, self.ambient["p_amb_Pa"])
+        return self.spec(column).to_si(values, self.ambient["p_amb_Pa"])
 
     def from_si(self, column: str, values) -> np.ndarray:
-        return COLUMNS[column].from_si(values, self.ambient["p_amb_Pa"])
+        return self.spec(column).from_si(values, self.ambient["p_amb_Pa"])
 
     def engine_ids(self) -> list[str]:
         """Distinct engine ids in order of appearance (``[]`` without an engine column)."""
@@ -183,14 +240,21 @@ class MeasuredDataset:
             m = np.zeros(self.n_points, dtype=bool)
             m[idx] = True
         eng = None if self.engines is None else tuple(e for e, k in zip(self.engines, m) if k)
+        amb = dict(self.ambient)
+        if np.ndim(amb["p_amb_Pa"]):
+            amb["p_amb_Pa"] = np.asarray(amb["p_amb_Pa"])[m]
+        groups = {g: dict(v, spread=v["spread"][m], n=v["n"][m]) for g, v in self.groups.items()}
         return MeasuredDataset(
             name=self.name, params_name=self.params_name, meta=self.meta, columns=self.columns,
             column_quantity=self.column_quantity, values={k: v[m] for k, v in self.values.items()},
             raw={k: v[m] for k, v in self.raw.items()}, engines=eng, provenance=self.provenance,
-            ambient=self.ambient, load_law=self.load_law, load_law_text=self.load_law_text,
+            ambient=amb, load_law=self.load_law, load_law_text=self.load_law_text,
             rated_power_W=self.rated_power_W, quality=_quality(self.columns, {k: v[m] for k, v in self.raw.items()},
                                                                eng, self.warnings),
-            warnings=self.warnings, notes=self.notes, path=self.path,
+            warnings=self.warnings, notes=self.notes, path=self.path, column_role=self.column_role,
+            column_spec=self.column_spec, boundary={k: v[m] for k, v in self.boundary.items()},
+            boundary_outliers=tuple(o for o in self.boundary_outliers if m[o["row"] - 1]), groups=groups,
+            suspect=tuple(dict(x, row=int(np.sum(m[:x["row"]]))) for x in self.suspect if m[x["row"] - 1]),
         )
 
     def quality_report(self) -> str:
@@ -375,23 +439,53 @@ def load_dataset(
             continue
         known.append((j, h))
     column_quantity: dict[str, str] = {}
+    column_role: dict[str, str] = {}
+    column_spec: dict[str, ColumnSpec] = {}
     notes: list[str] = []
     by_quantity: dict[str, str] = {}
+    pref = meta_d.get("pressure_reference") or {}
+    if not isinstance(pref, Mapping):
+        err("sidecar key 'pressure_reference' must be an object {column: \"gauge\" | \"absolute\"}")
+        pref = {}
+    assumed_gauge: list[str] = []
     for j, h in known:
         if h in ID_COLUMNS:
             continue
+        spec = lookup_column(h)
         try:
-            q, note = resolve_quantity(h, COLUMNS[h], meta_d)
+            q, note, assumed = resolve_quantity(h, spec, meta_d)
         except ValueError as e:
             err(str(e), column=h)
             continue
         if note:
-            notes.append(note)
-        if q in by_quantity:
-            err(f"duplicated column: holds the same quantity ({q}) as column {by_quantity[q]!r}", column=h)
-            continue
-        by_quantity[q] = h
+            (warn(note, column=h) if assumed else notes.append(note))
+        if h in pref:
+            ref = pref[h]
+            if ref not in ("gauge", "absolute"):
+                err(f"sidecar pressure_reference[{h!r}] must be \"gauge\" or \"absolute\", got {ref!r}", column=h)
+                continue
+            if not q.endswith("_Pa"):
+                err(f"sidecar pressure_reference names a column that is not a pressure", column=h)
+                continue
+            spec = dataclasses.replace(spec, gauge=ref == "gauge", gauge_assumed=False)
+            notes.append(f"{h}: {ref} pressure (sidecar pressure_reference)")
+        elif spec.gauge_assumed:
+            assumed_gauge.append(h)
+        role = spec.effective_role
+        if role != "member":
+            if q in by_quantity:
+                err(f"duplicated column: holds the same quantity ({q}) as column {by_quantity[q]!r}", column=h)
+                continue
+            by_quantity[q] = h
         column_quantity[h] = q
+        column_role[h] = role
+        column_spec[h] = spec
+
+    if assumed_gauge:
+        warn(f"{', '.join(assumed_gauge)}: the unit does not say gauge or absolute and the source does not state it: "
+             "taken as gauge (the convention of the other pressures of a shop-test protocol); the difference is the "
+             "ambient pressure (about 1 bar, 0.5 % of a maximum cylinder pressure). Set \"pressure_reference\" in "
+             "the sidecar to decide", column=assumed_gauge[0])
 
     # cells
     n = len(data)
@@ -416,19 +510,38 @@ def load_dataset(
             else:
                 raw[h][i - 1] = v
 
-    # ---- ambient, rated power, load law
+    # ---- ambient, rated power, load law, per-row boundary conditions
     if p is not None:
         ambient, amb_notes = parse_ambient(meta_d, p)
-        notes.extend(amb_notes)
         rated = float(meta_d["rated_power_kW"]) * 1e3 if "rated_power_kW" in meta_d else p.P_nom_W
     else:
-        ambient, rated = {"p_amb_Pa": 1.013e5, "T_amb_K": None, "coolant_T_K": None, "recorded": False}, math.nan
+        ambient, amb_notes = {"p_amb_Pa": 1.013e5, "T_amb_K": None, "coolant_T_K": None, "recorded": False}, []
+        rated = math.nan
+    boundary, b_outliers = _boundary(raw, column_quantity, column_role, column_spec, n, warn)
+    if np.any(np.isfinite(boundary["p_amb_Pa"])):
+        fill = ambient["p_amb_Pa"]
+        ambient["p_amb_Pa"] = np.where(np.isfinite(boundary["p_amb_Pa"]), boundary["p_amb_Pa"], fill)
+        ambient["recorded"] = True
+        amb_notes = [x for x in amb_notes if not x.startswith("ambient pressure")]
+        notes.append("ambient pressure recorded per row: a boundary condition of each row (gauge readings and the "
+                     "model's compressor inlet)")
+    if np.any(np.isfinite(boundary["T_amb_K"])):
+        ambient["recorded"] = True
+        amb_notes = [x for x in amb_notes if not x.startswith("recorded ambient temperature")]
+        notes.append("compressor inlet temperature recorded per row: a boundary condition of each row")
+    notes.extend(amb_notes)
+    p_amb_rows = ambient["p_amb_Pa"]
+    boundary["p_ex_Pa"] = np.broadcast_to(p_amb_rows, (n,)) + boundary.pop("dp_ex_Pa")  # NaN where not recorded
 
-    values = {column_quantity[h]: COLUMNS[h].to_si(raw[h], ambient["p_amb_Pa"]) for h in column_quantity}
+    values = {column_quantity[h]: column_spec[h].to_si(raw[h], p_amb_rows) for h in column_quantity
+              if column_role[h] != "member"}
+    groups = _groups(raw, column_quantity, column_role, column_spec, n, p_amb_rows, warn)
+    suspect: list[dict[str, Any]] = []
     if p is not None:
-        _check_values(raw, values, column_quantity, p, rated, ambient, engines, err, warn)
+        _check_values(raw, values, {c: q for c, q in column_quantity.items() if column_role[c] != "member"}, p,
+                      rated, ambient, engines, err, warn)
         _check_duplicates(raw, column_quantity, engines, err)
-        _check_across_engines(raw, column_quantity, engines, warn)
+        _check_across_engines(raw, column_quantity, engines, warn, suspect)
     for h in column_quantity:
         if n and not np.any(np.isfinite(raw[h])):
             warn("every value is missing", column=h)
@@ -464,7 +577,86 @@ def load_dataset(
         warnings=warns,
         notes=tuple(notes),
         path=str(path),
+        column_role=column_role,
+        column_spec=column_spec,
+        boundary=boundary,
+        boundary_outliers=tuple(b_outliers),
+        groups=groups,
+        suspect=tuple(suspect),
     )
+
+
+def _boundary(raw, column_quantity, column_role, column_spec, n, warn) -> tuple[dict[str, np.ndarray], list[dict]]:
+    """Per-row boundary conditions (SI, NaN where not recorded) with recording errors left out.
+
+    A reading is a recording error when its robust z-score against the other rows (deviation from their
+    median over 1.4826 x their median absolute deviation, floored at the reading's resolution) exceeds
+    ``BOUNDARY_OUTLIER_Z``; it is replaced by the median of the other rows and reported.
+    """
+    out = {k: np.full(n, np.nan) for k in ("p_amb_Pa", "T_amb_K", "dp_ex_Pa")}
+    outliers: list[dict] = []
+    for h, q in column_quantity.items():
+        if column_role.get(h) != "boundary" or q not in _BOUNDARY_KEY:
+            continue
+        spec = column_spec[h]
+        si = spec.to_si(raw[h], 0.0) if spec.gauge else spec.to_si(raw[h])
+        key = _BOUNDARY_KEY[q]
+        fin = np.flatnonzero(np.isfinite(si))
+        clean = si.copy()
+        if fin.size >= 4:
+            for i in fin:
+                others = si[np.setdiff1d(fin, [i])]
+                med = float(np.median(others))
+                scale = max(1.4826 * float(np.median(np.abs(others - med))), _BOUNDARY_FLOOR.get(q, 0.0))
+                z = abs(si[i] - med) / scale if scale > 0 else math.inf
+                if z > BOUNDARY_OUTLIER_Z:
+                    clean[i] = med
+                    outliers.append({"column": h, "row": int(i) + 1, "value": float(raw[h][i]),
+                                     "replacement": float(spec.from_si(med, 0.0) if spec.gauge else spec.from_si(med)),
+                                     "robust_z": float(z)})
+                    warn(f"boundary reading {raw[h][i]:g} is {z:.0f} robust standard deviations from the other rows' "
+                         f"median {spec.from_si(med, 0.0) if spec.gauge else spec.from_si(med):g}: a recording error; "
+                         "left out, the row runs at that median", rows=(int(i) + 1,), column=h)
+        out[key] = clean
+    return out, outliers
+
+
+def _groups(raw, column_quantity, column_role, column_spec, n, p_amb, warn) -> dict[str, dict[str, Any]]:
+    """Per-cylinder groups: members, the engine-mean column, the per-row spread (sample standard deviation
+    of the members, in the mean column's units) and the member count; checks the recorded mean."""
+    out: dict[str, dict[str, Any]] = {}
+    for h, role in column_role.items():
+        if role != "member":
+            continue
+        g = column_spec[h].group
+        out.setdefault(g, {"columns": [], "quantity": column_quantity[h]})["columns"].append(h)
+    for g, d in out.items():
+        mean_col = next((c for c, q in column_quantity.items()
+                         if q == d["quantity"] and column_role.get(c) != "member"), None)
+        members = np.column_stack([column_spec[c].to_si(raw[c], p_amb) for c in d["columns"]])
+        cnt = np.sum(np.isfinite(members), axis=1)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            mean_si = np.nanmean(members, axis=1)
+            spread_si = np.nanstd(members, axis=1, ddof=1)
+        spread_si = np.where(cnt >= 2, spread_si, np.nan)
+        d["mean_column"] = mean_col
+        d["n"] = cnt
+        if mean_col is not None:
+            spec = column_spec[mean_col]
+            d["spread"] = spread_si / spec.scale
+            rec = spec.to_si(raw[mean_col], p_amb)
+            dev = np.abs(rec - mean_si)
+            bad = np.isfinite(dev) & (dev > np.maximum(0.01 * np.abs(mean_si) if QUANTITIES[d["quantity"]].kind != "temperature"
+                                                       else 2.0, 1e-9))
+            if np.any(bad):
+                warn(f"the recorded mean differs from the mean of {', '.join(d['columns'])} (kept as recorded)",
+                     rows=_rows_where(bad), column=mean_col)
+        else:
+            d["spread"] = spread_si
+            warn(f"per-cylinder group {g!r} has no engine-mean column: its members are listed, not compared",
+                 column=d["columns"][0])
+    return out
 
 
 def _rows_where(mask) -> list[int]:
@@ -501,8 +693,21 @@ def _check_values(raw, values, column_quantity, p: EngineParams, rated, ambient,
                  " outside the engine envelope)")
         elif q == "fuel_setting":
             flag((v < 0) | (v > ENVELOPE["fuel_setting_max"]), f"fuel setting outside [0, {ENVELOPE['fuel_setting_max']}]")
+        elif q in ("exhaust_back_pressure_Pa", "cooler_pressure_drop_Pa"):
+            flag(v < -5e3, "pressure difference below -50 mbar (suspicious, kept)", warn)
+            flag(v > 1e5, "pressure difference above 1 bar (outside any engine's exhaust or cooler)")
+        elif q == "ambient_pressure_Pa":
+            flag(v <= 0, "ambient pressure not positive")
+            flag((v > 0) & ((v < 850e2) | (v > 1100e2)), "ambient pressure outside [850, 1100] hPa (suspicious, kept)",
+                 warn)
+        elif q == "ambient_temperature_K":
+            flag(v < 0, "temperature below absolute zero")
+            flag((v >= 0) & ((v < 243.15) | (v > 333.15)), "intake temperature outside [-30, 60] C (suspicious, kept)",
+                 warn)
+        elif q == "relative_humidity":
+            flag((v < 0) | (v > 1), "relative humidity outside [0, 100] %")
         elif q.endswith("_Pa"):
-            spec = COLUMNS[col]
+            spec = lookup_column(col)
             flag(v <= 0, "negative absolute pressure" + (" (gauge reading below -ambient)" if spec.gauge else ""))
             if spec.gauge:
                 flag((v > 0) & (raw[col] < 0), "gauge pressure below ambient (suspicious, kept)", warn)
@@ -566,7 +771,7 @@ def _check_duplicates(raw, column_quantity, engines, err) -> None:
             err(f"duplicate operating point ({eng}{what})", rows=rws)
 
 
-def _check_across_engines(raw, column_quantity, engines, warn) -> None:
+def _check_across_engines(raw, column_quantity, engines, warn, suspect=None) -> None:
     """With three or more engines at the same set point, a value far from the others' median is suspicious."""
     if engines is None or len(set(engines)) < 3:
         return
@@ -597,6 +802,9 @@ def _check_across_engines(raw, column_quantity, engines, warn) -> None:
                     others = ", ".join(f"{engines[k]}: {_fmt(raw[col][k])}" for k in idx if k != i)
                     warn(f"engine {engines[i]} reads {_fmt(xi)} where the other engines at the same set point read "
                          f"{others} (suspicious, kept)", rows=(i + 1,), column=col)
+                    if suspect is not None:
+                        suspect.append({"row": i + 1, "column": col, "value": float(xi), "median_of_others": med,
+                                        "why": "far from the other engines at the same set point"})
 
 
 # --------------------------------------------------------------------------------------- writer

@@ -44,12 +44,12 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 from scipy import stats
 
-from .columns import COLUMNS, QUANTITIES
+from .columns import QUANTITIES
 from .matching import MatchResult
 
 __all__ = [
     "ChannelDiscrepancy", "DiscrepancyReport", "analyse_discrepancies", "linear_trend", "change_point",
-    "robust_zscores", "operating_variables", "default_tolerance", "KINDS", "VARIABLES",
+    "robust_zscores", "operating_variables", "default_tolerance", "column_tolerance", "KINDS", "VARIABLES",
 ]
 
 KINDS = ("bias", "trend", "change_point", "outlier")
@@ -297,8 +297,14 @@ def operating_variables(match: MatchResult) -> dict[str, np.ndarray]:
 def default_tolerance(match: MatchResult, column: str, rel_tol: float = REL_TOL,
                       temperature_tol_K: float = TEMPERATURE_TOL_K, load_tol: float = LOAD_TOL) -> float:
     """Smallest discrepancy worth naming on ``column``, in the column's units."""
-    ds = match.dataset
-    spec = COLUMNS[column]
+    return column_tolerance(match.dataset, column, rel_tol, temperature_tol_K, load_tol)
+
+
+def column_tolerance(ds, column: str, rel_tol: float = REL_TOL, temperature_tol_K: float = TEMPERATURE_TOL_K,
+                     load_tol: float = LOAD_TOL) -> float:
+    """Smallest discrepancy worth naming on a dataset's ``column``, in the column's units: 1 % of the mean measured
+    value (ratio quantities), 5 K (temperatures), 0.01 (load fraction)."""
+    spec = ds.spec(column)
     q = QUANTITIES[ds.column_quantity[column]]
     if q.kind == "temperature":
         return temperature_tol_K / spec.scale
@@ -349,7 +355,7 @@ def analyse_discrepancies(
         n = int(r.size)
         tol = float(tolerances.get(col, default_tolerance(match, col, rel_tol, temperature_tol_K)))
         q = ds.column_quantity[col]
-        unit = COLUMNS[col].unit
+        unit = ds.spec(col).unit
         if n == 0:
             out[col] = ChannelDiscrepancy(col, q, unit, 0, int(ds.n_points), math.nan, math.nan, math.nan, math.nan,
                                           math.nan, tol, math.nan)

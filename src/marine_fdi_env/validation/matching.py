@@ -32,7 +32,7 @@ from scipy.optimize import brentq
 from ..model import EngineModel
 from ..params import EngineParams
 from ..steady_state import steady_state
-from .columns import COLUMNS, QUANTITIES, ModelContext
+from .columns import QUANTITIES, ModelContext, lookup_column
 from .dataset import MeasuredDataset
 
 __all__ = [
@@ -165,7 +165,7 @@ def load_law_of(ds: MeasuredDataset) -> LoadLaw:
 
 # --------------------------------------------------------------------------------------- predictions
 def _context(params: EngineParams, rated_power_W: float | None) -> ModelContext:
-    return ModelContext(rated_power_W=rated_power_W or params.P_nom_W, T_c_K=params.T_c_K)
+    return ModelContext(rated_power_W=rated_power_W or params.P_nom_W)
 
 
 def predict_columns(summaries: Sequence[Mapping[str, float] | None], columns: Sequence[str], params: EngineParams,
@@ -180,7 +180,9 @@ def predict_columns(summaries: Sequence[Mapping[str, float] | None], columns: Se
     p_amb = params.p_amb_Pa if p_amb_Pa is None else p_amb_Pa
     out = {}
     for col in columns:
-        spec = COLUMNS[col]
+        spec = lookup_column(col)
+        if spec is None or spec.effective_role == "member":
+            continue
         q = QUANTITIES.get((column_quantity or {}).get(col, spec.quantity))
         if q is None or q.model is None:
             continue
@@ -409,7 +411,7 @@ def match_operating_points(
                      "propeller law (eq. 3.11) cannot honour; its speed residual measures that mismatch")
 
     for c in ds.columns:
-        if ds.column_quantity[c] == "charge_air_cooler_outlet_temperature_K":
+        if ds.column_quantity[c] == "charge_air_cooler_outlet_temperature_K" and params.submodels.intercooler is None:
             notes.append(f"{c}: the base model's value is the constant parameter T_c_K "
                          f"({params.T_c_K - 273.15:g} C), not a prediction")
     predicted = predict_columns(summaries, ds.columns, params, rated_power_W=ds.rated_power_W,

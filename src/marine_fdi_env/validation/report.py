@@ -1,26 +1,28 @@
-"""The validation report: what the model gets wrong on a dataset, the named cause, the gain (and plots).
+"""The validation report: what the model gets wrong on a dataset, the named causes, the gain (and plots).
 
 :func:`run_validation` loads the data (and an optional hold-out set), runs :func:`~.selection.select_causes`
 and assembles a JSON-serialisable report; :func:`write_plots` draws model against measurement before
-and after the extension; :func:`validate_main` is the command line ``marine-fdi validate``::
+and after the extension; :func:`fitted_engine` turns the result into an engine (parameter set +
+submodels) that the simulator, the steady-state solver, the environment and the diagnoser run;
+:func:`validate_main` is the command line ``marine-fdi validate``::
 
     marine-fdi validate --data FILE.csv [--holdout FILE.csv | --holdout-engine ID] --out report.json
-                        [--plots DIR] [--params NAME] [--target auto|power|fuel_flow|speed|fuel_rack]
-                        [--max-causes N] [--alpha A] [--screen] [--markdown FILE.md]
+                        [--plots DIR] [--params NAME|FILE.json] [--target auto|power|fuel_flow|speed|fuel_rack]
+                        [--max-causes N] [--alpha A] [--save-params ENGINE.json] [--markdown FILE.md]
 
-``--data`` also takes the name of a shipped dataset (``birka_6l46_shop_test``, ``man_12v32_40_fpp_iso``).
-``--holdout-engine ID`` leaves one engine of ``--data`` out of everything (fit and cross-validation)
-and reports the fitted model on it.  Every candidate is cross-validated (``--screen``: only those whose
-in-sample score can still win, faster on large datasets; ``--cv-all`` is accepted and is the default).
+``--data`` also takes the name of a shipped dataset (``birka_6l46_shop_test``, ``birka_me1_test_protocol``,
+``man_12v32_40_fpp_iso``).  ``--holdout-engine ID`` leaves one engine of ``--data`` out of everything
+(fit and cross-validation) and reports the fitted model on it.
 
-Report keys: ``dataset``, ``model``, ``settings``, ``channels`` (per channel: tolerance, base bias /
-RMSE, ``cv_rmse_base``, ``cv_rmse_extended``, and with a hold-out ``holdout_rmse_base`` /
-``holdout_rmse_extended``), ``discrepancies`` (the base model's, ranked), ``candidates`` (each mechanism
-with its in-sample and cross-validated score, penalised score, p-value), ``steps`` (the greedy
-decisions), ``selected_causes`` (mechanism ids; ``selected_labels`` with the channel of a sensor
-calibration), ``parameters`` (fitted values with standard errors per selected cause), ``unexplained``
-(family-significant discrepancies left: channel, kind, region), ``outliers`` (single readings),
-``explained`` (base discrepancies the extension removed), ``cv`` (scheme, scores, per fold), ``holdout``.
+Report keys: ``dataset`` (with ``columns``: what happens to every column, ``boundary_outliers``),
+``model``, ``settings``, ``channels`` (per channel: tolerance, the base model's bias / RMSE as it is,
+``cv_rmse_base`` of the base calibrated within its uncertainty, ``cv_rmse_extended``, ``cv_gain`` against
+the base as it is, and with a hold-out ``holdout_rmse_*``), ``discrepancies`` (the base model's, ranked),
+``candidates``, ``steps``, ``selected_causes`` / ``selected_labels``, ``parameters`` (fitted values with
+standard errors), ``nuisance`` (the calibration within uncertainty), ``activity`` (per valve-type cause:
+the diverted flow fraction at every measured point, file row order, 0 where it does not act),
+``openings`` and ``schedules`` of the valves, ``unexplained`` (channel, kind, region), ``outliers``,
+``explained``, ``cv``, ``holdout``, ``fitted_engine`` (the engine file's content).
 """
 
 from __future__ import annotations
@@ -30,21 +32,22 @@ import json
 import math
 import sys
 import warnings
+from datetime import date
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from ..params import list_parameter_sets
-from .columns import COLUMNS
+from ..params import EngineParams, engine_file_dict, list_parameter_sets, load_params
 from .dataset import DatasetError, DataWarning, MeasuredDataset, list_shipped, load_dataset, load_shipped
-from .extended_model import NO_HOOKS
+from .fitting import channel_rmse, predict_setting
 from .matching import TARGETS
-from .mechanisms import PHYSICAL_MECHANISMS, Mechanism
-from .selection import Problem, Selection, channel_rmse, family_significant, select_causes
+from .mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
+from .problem import BASE_SETTING, Problem
+from .selection import Selection, family_significant, select_causes
 
 __all__ = ["run_validation", "build_report", "write_plots", "validate_main", "load_data_arg", "split_engine",
-           "markdown_summary", "holdout_evaluation"]
+           "markdown_summary", "holdout_evaluation", "fitted_engine"]
 
 
 # --------------------------------------------------------------------------------------- helpers
@@ -95,38 +98,65 @@ def _touches(mechs: Sequence[Mechanism], quantity: str, column: str) -> bool:
     return any(quantity in m.touches or column in m.touches for m in mechs)
 
 
+def fitted_engine(sel: Selection, name: str | None = None) -> EngineParams:
+    """The engine the selection describes: the parameter set with the nuisance calibration, the re-matched turbine
+    and the selected submodels, valve openings as schedules over the fuel setting (at the parameter set's ambient
+    state; sensor calibrations and ambient offsets belong to the measurement, not the engine)."""
+    pr = sel.problem
+    s = sel.fit.schedule_setting(pr).replace(dT_amb_K=0.0, dp_amb_Pa=0.0, sensors={})
+    eng = pr.engine(s)
+    label = name or f"{pr.params.name}+fit:{pr.ds.name}"
+    return eng.replace(name=label)
+
+
+def _engine_file(sel: Selection, eng: EngineParams, command: str | None) -> dict[str, Any]:
+    pr = sel.problem
+    base = pr.params.name if pr.params.name in list_parameter_sets() else pr.ds.params_name
+    measurement = {"sensor_calibration": {m.channel: v for m, v in sel.fit.combination.unpack(sel.fit.x)
+                                          if isinstance(m, SensorCalibration)}}
+    amb = [v for m, v in sel.fit.combination.unpack(sel.fit.x) if m.id == "ambient_conditions"]
+    if amb:
+        measurement["ambient_offsets"] = amb[0]
+    prov = {"dataset": pr.ds.name, "data_source": pr.ds.provenance, "date": date.today().isoformat(),
+            "command": command or "", "selected_causes": sel.selected_labels,
+            "nuisance": sel.fit.nuisance_values(), "cv": {"scheme": sel.cv_scheme, "score_base": sel.base_score,
+                                                          "score_extended": sel.cv_score},
+            "measurement": measurement,
+            "note": "valve openings are schedules over the fuel setting through the fitted points; sensor "
+                    "calibrations and ambient offsets describe the measurements and are not part of the engine"}
+    return _clean(engine_file_dict(eng, base, prov))
+
+
 # --------------------------------------------------------------------------------------- report
-def build_report(sel: Selection, holdout: Mapping[str, Any] | None = None, notes: Sequence[str] = ()) -> dict[str, Any]:
+def build_report(sel: Selection, holdout: Mapping[str, Any] | None = None, notes: Sequence[str] = (),
+                 command: str | None = None) -> dict[str, Any]:
     """Assemble the JSON report of a selection (``holdout``: a :func:`holdout_evaluation` of its fitted model)."""
     pr = sel.problem
     ds = pr.ds
-    hooks = sel.hooks
     mechs = sel.selected.mechanisms
-    ext_in, _ = pr.predict(hooks)
-    rm_base = channel_rmse(pr, sel.base_pred)
+    ext_in = predict_setting(pr, sel.fit, np.arange(pr.n_points))
     rm_ext_in = channel_rmse(pr, ext_in)
     cv = sel.cv_rmse()
     channels: dict[str, Any] = {}
     for j, c in enumerate(pr.channels):
         cd = sel.base_report.channels.get(c)
         q = ds.column_quantity[c]
-        b, e = cv[c]["cv_rmse_base"], cv[c]["cv_rmse_extended"]
+        r, b, e = cv[c]["rmse_raw"], cv[c]["cv_rmse_base"], cv[c]["cv_rmse_extended"]
         channels[c] = {
-            "quantity": q, "unit": COLUMNS[c].unit, "tolerance": float(pr.tolerance[j]),
+            "quantity": q, "unit": ds.spec(c).unit, "tolerance": float(pr.tolerance[j]),
             "n": int(pr.measured_mask[:, j].sum()),
-            "bias_base": cd.bias if cd else None, "rmse_base": rm_base[c],
+            "bias_base": cd.bias if cd else None, "rmse_base": r,
             "mean_abs_rel_error_base": cd.mean_abs_rel_error if cd else None,
-            "rmse_extended_in_sample": rm_ext_in[c],
-            "cv_rmse_base": b, "cv_rmse_extended": e,
-            "cv_gain": (b - e) / b if b and math.isfinite(b) and b > 0 else None,
+            "cv_rmse_base": b, "cv_rmse_extended": e, "rmse_extended_in_sample": rm_ext_in[c],
+            "cv_gain": (r - e) / r if r and math.isfinite(r) and r > 0 and math.isfinite(e) else None,
+            "cv_gain_vs_calibrated": (b - e) / b if b and math.isfinite(b) and b > 0 and math.isfinite(e) else None,
             "touched_by_selected": _touches(mechs, q, c),
         }
-    # per fold: the left-out engine(s)/point(s)
-    scheme, folds = pr.folds()
+    scheme, folds = pr.folds(sel.settings.get("max_folds"))
     fold_rows = []
     if len(ds.engine_ids()) >= 2:
         for name, rows in folds:
-            fb = channel_rmse(pr, sel.base_pred, rows)
+            fb = channel_rmse(pr, sel.raw_pred, rows)
             fe = channel_rmse(pr, sel.cv_pred, rows)
             fold_rows.append({"fold": name, "points": [int(i) + 1 for i in rows],
                               "channels": {c: {"rmse_base": fb[c], "rmse_extended": fe[c]} for c in pr.channels}})
@@ -134,9 +164,8 @@ def build_report(sel: Selection, holdout: Mapping[str, Any] | None = None, notes
                    and family_significant(d, sel.base_report, sel.settings["alpha"])]
     left = {(u["channel"], u["kind"]) for u in sel.unexplained}
     explained = [dict({k: d[k] for k in ("channel", "kind", "region", "magnitude", "score")},
-                      cv_rmse_base=cv[d["channel"]]["cv_rmse_base"],
-                      cv_rmse_extended=cv[d["channel"]]["cv_rmse_extended"])
-                 for d in base_family if (d["channel"], d["kind"]) not in left] if sel.selected.n_params else []
+                      rmse_base=cv[d["channel"]]["rmse_raw"], cv_rmse_extended=cv[d["channel"]]["cv_rmse_extended"])
+                 for d in base_family if (d["channel"], d["kind"]) not in left] if sel.selected.mechanisms else []
     discrepancies = []
     for d in sel.base_report.discrepancies:
         e = {k: d[k] for k in ("rank", "channel", "kind", "region", "magnitude", "score", "p_value", "unit") if k in d}
@@ -144,25 +173,37 @@ def build_report(sel: Selection, holdout: Mapping[str, Any] | None = None, notes
             e["variable"] = d["variable"]
         e["family_significant"] = family_significant(d, sel.base_report, sel.settings["alpha"], sel.base_outliers)
         discrepancies.append(e)
+    eng = fitted_engine(sel)
+    inventory = ds.column_inventory()
     report: dict[str, Any] = {
         "dataset": {"name": ds.name, "path": ds.path, "provenance": ds.provenance, "n_points": ds.n_points,
                     "engines": ds.engine_ids(), "params": pr.params.name, "warnings": [str(w) for w in ds.warnings],
-                    "notes": list(ds.notes)},
+                    "notes": list(ds.notes), "columns": inventory,
+                    "boundary_outliers": list(ds.boundary_outliers),
+                    "groups": {g: {"columns": v["columns"], "mean_column": v["mean_column"],
+                                   "spread": v["spread"]} for g, v in ds.groups.items()}},
         "model": {"params": pr.params.name, "target": pr.target, "target_columns": list(pr.target_columns),
                   "load_law": pr.law.describe()},
         "settings": sel.settings,
         "channels": channels,
+        "not_compared": [r for r in inventory if r["role"] in ("boundary", "not_modelled", "member")],
         "discrepancies": discrepancies,
         "candidates": sel.candidates(),
         "steps": [_step_dict(pr, s) for s in sel.steps],
         "selected_causes": sel.selected_causes,
         "selected_labels": sel.selected_labels,
+        "alternatives": sel.alternatives,
         "parameters": sel.fit.parameters(),
+        "nuisance": {"base_calibrated": sel.base_fit.nuisance_values(), "extended": sel.fit.nuisance_values()},
+        "activity": sel.activity(),
+        "openings": sel.openings(),
+        "schedules": {k: v.as_dict() for k, v in sel.fit.schedules().items()},
         "unexplained": sel.unexplained,
         "outliers": sel.outliers,
         "explained": explained,
         "cv": {"scheme": scheme, "n_folds": len(folds), "score_base": sel.base_score, "score_extended": sel.cv_score,
                "folds": fold_rows},
+        "fitted_engine": _engine_file(sel, eng, command),
         "mechanism_library": [m.describe() for m in PHYSICAL_MECHANISMS],
         "notes": list(notes),
         "seconds": sel.seconds,
@@ -187,29 +228,65 @@ def _step_dict(pr: Problem, step: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def holdout_evaluation(sel: Selection, holdout: MeasuredDataset) -> dict[str, Any]:
-    """RMSE per channel of the base and the fitted extended model on data the fit did not see."""
+    """RMSE per channel of the base model (as it is) and of the fitted engine on data the fit did not see.
+
+    The fitted engine predicts with its valve schedules (the hold-out's points are not among the fitted ones);
+    sensor calibrations apply where the hold-out has the same column."""
     pr = sel.problem
-    ho = Problem(holdout, params=pr.params, target=pr.target)
-    pb, _ = ho.predict(NO_HOOKS)
-    pe, conv = ho.predict(sel.hooks)
+    ho = Problem(holdout, params=pr.params, target=pr.target if pr.target in ("power", "fuel_flow") else "auto")
+    pb, _, _ = ho.predict(BASE_SETTING)
+    s = sel.fit.schedule_setting(pr)
+    s = s.replace(sensors={c: v for c, v in s.sensors.items() if c in ho.channels})
+    pe, conv, vals = ho.predict(s)
     rb, re_ = channel_rmse(ho, pb), channel_rmse(ho, pe)
-    return {"dataset": holdout.name, "engines": holdout.engine_ids(), "n_points": holdout.n_points,
-            "not_converged": [int(i) + 1 for i in np.flatnonzero(~conv)],
-            "channels": {c: {"holdout_rmse_base": rb[c], "holdout_rmse_extended": re_[c],
-                             "tolerance": float(ho.tolerance[j]), "n": int(ho.measured_mask[:, j].sum()),
-                             "touched_by_selected": _touches(sel.selected.mechanisms, holdout.column_quantity[c], c)}
-                         for j, c in enumerate(ho.channels)},
-            "_problem": ho, "_pred_base": pb, "_pred_extended": pe}
+    # the same without the readings the loader flags on its own (no model involved)
+    pb_c, pe_c = pb.copy(), pe.copy()
+    for x in holdout.suspect:
+        if x["column"] in ho.channels:
+            j = ho.channels.index(x["column"])
+            pb_c[x["row"] - 1, j] = pe_c[x["row"] - 1, j] = np.nan
+    keep = np.isfinite(pb_c) | ~ho.measured_mask
+    rb_c = {c: _rmse_masked(ho, pb_c, keep, j) for j, c in enumerate(ho.channels)}
+    re_c = {c: _rmse_masked(ho, pe_c, keep, j) for j, c in enumerate(ho.channels)}
+    out = {"dataset": holdout.name, "engines": holdout.engine_ids(), "n_points": holdout.n_points,
+           "not_converged": [int(i) + 1 for i in np.flatnonzero(~conv)],
+           "suspect_readings": list(holdout.suspect),
+           "channels": {c: {"holdout_rmse_base": rb[c], "holdout_rmse_extended": re_[c],
+                            "holdout_rmse_base_without_suspect": rb_c[c],
+                            "holdout_rmse_extended_without_suspect": re_c[c],
+                            "tolerance": float(ho.tolerance[j]), "n": int(ho.measured_mask[:, j].sum()),
+                            "touched_by_selected": _touches(sel.selected.mechanisms, holdout.column_quantity[c], c)}
+                        for j, c in enumerate(ho.channels)},
+           "_problem": ho, "_pred_base": pb, "_pred_extended": pe}
+    if holdout.engine_ids():
+        e = np.array(holdout.engines)
+        out["per_engine"] = {
+            x: {c: {"holdout_rmse_base": channel_rmse(ho, pb, np.flatnonzero(e == x))[c],
+                    "holdout_rmse_extended": channel_rmse(ho, pe, np.flatnonzero(e == x))[c],
+                    "holdout_rmse_base_without_suspect": _rmse_masked(ho, pb_c, keep, j, np.flatnonzero(e == x)),
+                    "holdout_rmse_extended_without_suspect": _rmse_masked(ho, pe_c, keep, j, np.flatnonzero(e == x))}
+                for j, c in enumerate(ho.channels)}
+            for x in holdout.engine_ids()}
+    return out
+
+
+def _rmse_masked(pr: Problem, pred: np.ndarray, keep: np.ndarray, j: int, rows=None) -> float | None:
+    rows = np.arange(pr.n_points) if rows is None else np.asarray(rows, int)
+    e = pred[rows, j] - pr.Y[rows, j]
+    m = pr.measured_mask[rows, j] & keep[rows, j]
+    return float(np.sqrt(np.mean(e[m] ** 2))) if m.any() else None
 
 
 def run_validation(ds: MeasuredDataset, *, holdout: MeasuredDataset | None = None, target: str = "auto",
-                   max_causes: int = 2, alpha: float = 0.01, cv_all: bool = False, progress=None,
-                   notes: Sequence[str] = ()) -> tuple[dict[str, Any], Selection, dict | None]:
+                   params: str | EngineParams | None = None, max_causes: int = 4, alpha: float = 0.01,
+                   cv_all: bool = False, max_folds: int | None = None, progress=None, notes: Sequence[str] = (),
+                   command: str | None = None) -> tuple[dict[str, Any], Selection, dict | None]:
     """Run the pipeline; returns (JSON report, selection, hold-out evaluation with predictions or None)."""
-    pr = Problem(ds, target=target)
-    sel = select_causes(pr, max_causes=max_causes, alpha=alpha, cv_all=cv_all, progress=progress)
+    pr = Problem(ds, target=target, params=params)
+    sel = select_causes(pr, max_causes=max_causes, alpha=alpha, cv_all=cv_all, max_folds=max_folds, progress=progress)
+    sel.settings["max_folds"] = max_folds
     ho = holdout_evaluation(sel, holdout) if holdout is not None else None
-    return build_report(sel, ho, notes), sel, ho
+    return build_report(sel, ho, notes, command), sel, ho
 
 
 # --------------------------------------------------------------------------------------- plots
@@ -224,99 +301,121 @@ def _load_axis(pr: Problem) -> tuple[np.ndarray, str]:
     return np.arange(pr.n_points, dtype=float), "point"
 
 
-def write_plots(sel: Selection, directory: str | Path, holdout: Mapping[str, Any] | None = None,
-                prefix: str | None = None) -> list[Path]:
-    """Model against measurement before (base) and after (fitted extension) per channel, the
-    cross-validated RMSE per channel, and the hold-out engine if any.  Returns the files written."""
-    import matplotlib
-
+def _pyplot():
+    try:
+        import matplotlib
+    except ImportError:
+        raise RuntimeError("plots need matplotlib: pip install 'marine-fdi-env[plots]'") from None
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    return plt
+
+
+def write_plots(sel: Selection, directory: str | Path, holdout: Mapping[str, Any] | None = None,
+                prefix: str | None = None) -> list[Path]:
+    """Model against measurement per channel (base as it is, calibrated base, fitted extension, cross-validated
+    predictions), the valve activity, the cross-validated RMSE per channel, and the hold-out if any."""
+    plt = _pyplot()
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
     pr = sel.problem
     name = prefix or pr.ds.name
     cause = ", ".join(sel.selected_labels) or "none selected"
-    ext, _ = pr.predict(sel.hooks)
+    ext = predict_setting(pr, sel.fit, np.arange(pr.n_points))
+    calib = predict_setting(pr, sel.base_fit, np.arange(pr.n_points))
     files = []
 
-    def panel_grid(n):
+    def panel_grid(n, w=4.4, h=3.2):
         cols = min(3, n)
         rows = int(math.ceil(n / cols))
-        fig, axes = plt.subplots(rows, cols, figsize=(4.6 * cols, 3.4 * rows), squeeze=False)
+        fig, axes = plt.subplots(rows, cols, figsize=(w * cols, h * rows), squeeze=False)
         for ax in axes.flat[n:]:
             ax.set_visible(False)
         return fig, axes.flat
 
-    # the best candidate of the last step when it was rejected (what the data would have bought)
-    rejected = None
-    if sel.steps and not sel.steps[-1]["accepted"]:
-        best = [c for c in sel.steps[-1]["candidates"] if c.added == sel.steps[-1].get("best") and c.cross_validated]
-        if best:
-            rejected = (" + ".join(best[0].combination.labels), pr.predict(best[0].fit.hooks(pr.params))[0])
-
-    def draw(ax, x, meas, base, extd, cvp, eng, col, unit, rej=None, ext_label="extended (fit on all)"):
+    def draw(ax, x, meas, base, extd, cvp, eng, col, unit, calibrated=None, ext_label="extended (fit on all)",
+             spread=None):
         order = np.argsort(x, kind="stable")
         if eng is None:
-            ax.plot(x, meas, "ko", ms=4, label="measured")
+            if spread is not None:
+                ax.errorbar(x, meas, yerr=spread, fmt="ko", ms=4, capsize=2, elinewidth=0.8,
+                            label="measured (± cylinder spread)")
+            else:
+                ax.plot(x, meas, "ko", ms=4, label="measured")
         else:
             for k, e in enumerate(dict.fromkeys(eng)):
                 m = np.array([z == e for z in eng])
                 ax.plot(x[m], meas[m], "o", ms=4, color=f"C{k + 2}", label=f"measured {e}")
-        ax.plot(x[order], base[order], "--", color="C0", lw=1.4, label="base model")
+        ax.plot(x[order], base[order], "--", color="C0", lw=1.3, label="base model")
+        if calibrated is not None:
+            ax.plot(x[order], calibrated[order], ":", color="C0", lw=1.3, label="base, calibrated within ±6 %")
         if extd is not None:
             ax.plot(x[order], extd[order], "-", color="C3", lw=1.6, label=ext_label)
-        if rej is not None:
-            ax.plot(x[order], rej[1][order], ":", color="C7", lw=1.6,
-                    label=f"best candidate, rejected: {rej[0]}\n(fit on all)")
         if cvp is not None:
-            ax.plot(x, cvp, "x", color="C3", ms=5, label="extended, cross-validated")
-        ax.set_title(col, fontsize=9)
+            ax.plot(x, cvp, "x", color="C3", ms=6, mew=1.5, label="extended, cross-validated")
+        ax.set_title(col.replace("_", " "), fontsize=9)
         ax.set_ylabel(unit, fontsize=8)
         ax.tick_params(labelsize=8)
         ax.grid(alpha=0.3)
 
     x, xlabel = _load_axis(pr)
-    fig, axes = panel_grid(len(pr.channels))
+    spreads = {g["mean_column"]: g["spread"] for g in pr.ds.groups.values() if g.get("mean_column")}
+    n_panels = len(pr.channels) + (1 if sel.selected.valves else 0)
+    fig, axes = panel_grid(n_panels)
+    axes = list(axes)
     for j, (ax, c) in enumerate(zip(axes, pr.channels)):
-        draw(ax, x, pr.Y[:, j], sel.base_pred[:, j], ext[:, j] if sel.selected.n_params else None,
-             sel.cv_pred[:, j] if sel.selected.n_params else None, pr.ds.engines, c, COLUMNS[c].unit,
-             None if rejected is None else (rejected[0], rejected[1][:, j]))
+        has = bool(sel.selected.mechanisms)
+        draw(ax, x, pr.Y[:, j], sel.raw_pred[:, j], ext[:, j] if has else None, sel.cv_pred[:, j] if has else None,
+             pr.ds.engines, c, pr.ds.spec(c).unit, calib[:, j], spread=spreads.get(c))
         ax.set_xlabel(xlabel, fontsize=8)
-    axes[0].legend(fontsize=7)
-    fig.suptitle(f"{pr.ds.name} ({pr.params.name}): model vs measurement, before (base) and after (extension: "
-                 f"{cause})", fontsize=10)
-    fig.tight_layout()
+    if sel.selected.valves:
+        ax = axes[len(pr.channels)]
+        act = sel.activity()
+        w = 0.8 / max(len(act), 1)
+        for k, (mid, a) in enumerate(act.items()):
+            ax.bar(np.asarray(x) + (k - (len(act) - 1) / 2) * w * np.ptp(x) / max(len(x), 1), a,
+                   width=w * np.ptp(x) / max(len(x), 1), label=f"{mid}: diverted flow fraction", color=f"C{4 + k}")
+        ax.set_title("valve activity per measured point", fontsize=9)
+        ax.set_xlabel(xlabel, fontsize=8)
+        ax.set_ylabel("fraction of the flow", fontsize=8)
+        ax.tick_params(labelsize=8)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=min(5, len(labels)), fontsize=8, frameon=False)
+    fig.suptitle(f"{pr.ds.name} ({pr.params.name}): model vs measurement; extension: {cause}", fontsize=10)
+    fig.tight_layout(rect=(0, 0.06, 1, 0.97))
     f = d / f"{name}_model_vs_measured.png"
-    fig.savefig(f, dpi=110)
+    fig.savefig(f, dpi=100)
     plt.close(fig)
     files.append(f)
 
-    # cross-validated RMSE per channel in tolerance units
     cv = sel.cv_rmse()
-    fig, ax = plt.subplots(figsize=(max(6.0, 1.1 * len(pr.channels)), 3.8))
+    fig, ax = plt.subplots(figsize=(max(7.0, 0.9 * len(pr.channels)), 4.2))
     idx = np.arange(len(pr.channels))
     tol = pr.tolerance
+    r = np.array([cv[c]["rmse_raw"] for c in pr.channels]) / tol
     b = np.array([cv[c]["cv_rmse_base"] for c in pr.channels]) / tol
     e = np.array([cv[c]["cv_rmse_extended"] for c in pr.channels]) / tol
-    w = 0.38
-    ax.bar(idx - w / 2, b, w, label="base model", color="C0")
-    ax.bar(idx + w / 2, e, w, label=f"extended ({cause}), {sel.cv_scheme}", color="C3")
+    w = 0.27
+    ax.bar(idx - w, r, w, label="base model", color="C0")
+    ax.bar(idx, b, w, label="base calibrated within ±6 %, cross-validated", color="C9")
+    ax.bar(idx + w, e, w, label=f"extended ({cause}), cross-validated", color="C3")
     if holdout is not None:
         hb = [holdout["channels"].get(c, {}).get("holdout_rmse_base", np.nan) for c in pr.channels]
         he = [holdout["channels"].get(c, {}).get("holdout_rmse_extended", np.nan) for c in pr.channels]
-        ax.plot(idx - w / 2, np.array(hb, float) / tol, "k_", ms=14, mew=2, label="hold-out, base")
-        ax.plot(idx + w / 2, np.array(he, float) / tol, "k_", ms=14, mew=2, alpha=0.5, label="hold-out, extended")
+        ax.plot(idx - w, np.array(hb, float) / tol, "k_", ms=12, mew=2, label="hold-out, base")
+        ax.plot(idx + w, np.array(he, float) / tol, "k_", ms=12, mew=2, alpha=0.5, label="hold-out, extended")
     ax.set_xticks(idx)
-    ax.set_xticklabels([c.replace("_", " ") for c in pr.channels], rotation=25, ha="right", fontsize=7)
+    ax.set_xticklabels([c.replace("_", " ") for c in pr.channels], rotation=30, ha="right", fontsize=7)
     ax.set_ylabel("RMSE / tolerance")
-    ax.set_title(f"{pr.ds.name}: cross-validated error per channel", fontsize=10)
-    ax.legend(fontsize=7)
+    ax.set_title(f"{pr.ds.name}: error per channel ({sel.cv_scheme})", fontsize=10)
+    ax.legend(fontsize=7, loc="upper right")
     ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
     f = d / f"{name}_cv_rmse.png"
-    fig.savefig(f, dpi=110)
+    fig.savefig(f, dpi=100)
     plt.close(fig)
     files.append(f)
 
@@ -324,16 +423,18 @@ def write_plots(sel: Selection, directory: str | Path, holdout: Mapping[str, Any
         ho: Problem = holdout["_problem"]
         xh, xlh = _load_axis(ho)
         fig, axes = panel_grid(len(ho.channels))
+        axes = list(axes)
         for j, (ax, c) in enumerate(zip(axes, ho.channels)):
-            draw(ax, xh, ho.Y[:, j], holdout["_pred_base"][:, j], holdout["_pred_extended"][:, j], None, ho.ds.engines,
-                 c, COLUMNS[c].unit, ext_label="extended (fitted without these data)")
+            draw(ax, xh, ho.Y[:, j], holdout["_pred_base"][:, j], holdout["_pred_extended"][:, j], None,
+                 ho.ds.engines, c, ho.ds.spec(c).unit, ext_label="fitted engine (fitted without these data)")
             ax.set_xlabel(xlh, fontsize=8)
-        axes[0].legend(fontsize=7)
-        fig.suptitle(f"hold-out {ho.ds.name} {', '.join(ho.ds.engine_ids())}: model fitted on the other data "
+        handles, labels = axes[0].get_legend_handles_labels()
+        fig.legend(handles, labels, loc="lower center", ncol=min(5, len(labels)), fontsize=8, frameon=False)
+        fig.suptitle(f"hold-out {ho.ds.name} {', '.join(ho.ds.engine_ids())}: engine fitted on {pr.ds.name} "
                      f"({cause})", fontsize=10)
-        fig.tight_layout()
+        fig.tight_layout(rect=(0, 0.08, 1, 0.95))
         f = d / f"{name}_holdout.png"
-        fig.savefig(f, dpi=110)
+        fig.savefig(f, dpi=100)
         plt.close(fig)
         files.append(f)
     return files
@@ -353,8 +454,22 @@ def markdown_summary(rep: Mapping[str, Any], title: str | None = None) -> str:
              + f"; operating points matched on {rep['model']['target']} ({', '.join(rep['model']['target_columns'])}); "
              f"cross-validation: {rep['cv']['scheme']} ({rep['cv']['n_folds']} folds).")
     L.append("")
-    L.append("Base model errors (residual = model - measured, in the column's unit; tolerance = the residual "
-             "scale of the fit):")
+    nc = rep.get("not_compared") or []
+    if nc:
+        L.append("Columns not compared (every column of the file is either a channel below or listed here):")
+        L.append("")
+        L.append("| column | role | why |")
+        L.append("|---|---|---|")
+        for r in nc:
+            L.append(f"| `{r['column']}` | {r['role']} | {r['what']} |")
+        L.append("")
+    for o in ds.get("boundary_outliers") or []:
+        L.append(f"* Recording error left out: `{o['column']}` row {o['row']} reads {_g(o['value'])} (robust z = "
+                 f"{_g(o['robust_z'], '.1f')}); the row runs at {_g(o['replacement'])}.")
+    if ds.get("boundary_outliers"):
+        L.append("")
+    L.append("Base model errors (residual = model - measured, column units; tolerance = the residual scale of the "
+             "fit):")
     L.append("")
     L.append("| channel | n | tolerance | bias | RMSE | mean rel. error |")
     L.append("|---|---|---|---|---|---|")
@@ -372,63 +487,87 @@ def markdown_summary(rep: Mapping[str, Any], title: str | None = None) -> str:
         L.append("|---|---|---|---|---|---|")
         for d in fam:
             L.append(f"| `{d['channel']}` | {d['kind']} | {d['region']} | {_g(d['magnitude'], '+.4g')} "
-                     f"{d.get('unit', '')} "
-                     f"| {_g(d['score'], '.1f')} | {_g(d['p_value'], '.2g')} |")
+                     f"{d.get('unit', '')} | {_g(d['score'], '.1f')} | {_g(d['p_value'], '.2g')} |")
     else:
         L.append("none")
     L.append("")
-    L.append("Candidates (S = mean robust loss per measured cell, about the mean squared error in tolerances; "
-             "p = F-test of the cross-validated gain, to be compared with alpha / number of candidates):")
+    L.append("Candidates (S = mean robust loss per measured cell, about the mean squared error in tolerances; p = "
+             "F-test of the cross-validated gain, to be compared with alpha / number of candidates; every fit "
+             "includes the calibration of the base within ±6 %):")
     L.append("")
-    L.append("| step | mechanism | parameters | S in-sample | S cross-validated | gain vs current | p |")
-    L.append("|---|---|---|---|---|---|---|")
-    L.append(f"| 0 | base model | 0 | {_g(rep['cv']['score_base'])} | {_g(rep['cv']['score_base'])} | | |")
-    for c in sorted(rep["candidates"],
-                    key=lambda c: (c["step"], c["cv_score"] if c["cv_score"] is not None else 1e300)):
+    L.append("| step | combination | free parameters | S in-sample | S cross-validated | gain vs current | p | note |")
+    L.append("|---|---|---|---|---|---|---|---|")
+    L.append(f"| 0 | base model, calibrated | 0 | | {_g(rep['cv']['score_base'])} | | | |")
+    for c in sorted(rep["candidates"], key=lambda c: (c["step"], c["cv_score"] if c["cv_score"] is not None else 1e300)):
+        if c["cv_score"] is None and not str(c.get("screened", "")).startswith("not eligible"):
+            continue
         L.append(f"| {c['step']} | {' + '.join(f'`{x}`' for x in c['combination'])} | {c['n_params']} | "
                  f"{_g(c['in_sample_score'])} | {_g(c['cv_score'])} | "
                  f"{_g(100 * c['gain_vs_current'] if c['gain_vs_current'] is not None else None, '+.1f')} % | "
-                 f"{_g(c['p_value'], '.2g')} |")
+                 f"{_g(c['p_value'], '.2g')} | {c.get('screened', '')} |")
+    L.append("")
+    L.append("(Candidates whose in-sample fit could not beat the current model by 10 % were not cross-validated; "
+             "all are in the JSON report.)")
     L.append("")
     for s in rep["steps"]:
-        L.append(f"* step {s['step']}: best `{s['best']}`, {s['decision']}")
+        best = f"best `{s['best']}`" if s.get("best") else "no eligible candidate"
+        L.append(f"* step {s['step']}: {best}, {s['decision']}")
     L.append("")
-    rejected = [s for s in rep["steps"] if not s["accepted"] and s.get("best_cv_rmse")]
-    for s in rejected:
-        ps = "; ".join(f"{k} = {_g(v['value'])} ± {_g(v['stderr'], '.2g')}"
-                       for lab, pp in s["best_parameters"].items() for k, v in pp.items())
-        L.append(f"The rejected best candidate of step {s['step']}, `{s['best']}` ({ps}), would give these "
-                 "cross-validated RMSE (for information; it is not part of the extended model):")
-        L.append("")
-        L.append("| channel | current model | with `" + s["best"] + "` |")
-        L.append("|---|---|---|")
-        for c, v in ch.items():
-            L.append(f"| `{c}` | {_g(v['cv_rmse_extended'])} | {_g(s['best_cv_rmse'][c])} |")
-        L.append("")
     L.append(f"**Selected causes: {', '.join(f'`{x}`' for x in rep['selected_labels']) or 'none'}.**")
     L.append("")
+    for lab, alts in (rep.get("alternatives") or {}).items():
+        if alts:
+            L.append(f"* `{lab}`: the data hardly tell it from " + ", ".join(
+                f"`{a['mechanism']}` ({a['why']})" for a in alts) + ".")
+    if any(rep.get("alternatives", {}).values()):
+        L.append("")
     if rep["parameters"]:
-        L.append("| cause | parameter | value | standard error | unit | note |")
-        L.append("|---|---|---|---|---|---|")
+        L.append("| cause | parameter | value | standard error | unit |")
+        L.append("|---|---|---|---|---|")
         for lab, ps in rep["parameters"].items():
             for k, v in ps.items():
-                L.append(f"| `{lab}` | `{k}` | {_g(v['value'])} | {_g(v['stderr'], '.2g')} | {v['unit']} | "
-                         f"{'at the bound of its plausible range ' + str(v['bounds']) if v['at_bound'] else ''} |")
+                L.append(f"| `{lab}` | `{k}` | {_g(v['value'])} | {_g(v['stderr'], '.2g')} | {v['unit']} |")
+        L.append("")
+    if rep.get("activity"):
+        L.append("Where the valve-type causes act (diverted flow fraction per measured point, file row order; "
+                 "0 = shut):")
+        L.append("")
+        L.append("| cause | " + " | ".join(f"point {i + 1}" for i in range(ds["n_points"])) + " |")
+        L.append("|---|" + "---|" * ds["n_points"])
+        for mid, a in rep["activity"].items():
+            L.append(f"| `{mid}` | " + " | ".join(_g(x, '.3f') for x in a) + " |")
+        L.append("")
+    nuis = rep.get("nuisance", {}).get("extended") or {}
+    if nuis:
+        L.append("Calibration within the base model's uncertainty (multipliers, prior 1 ± 0.03, box ±0.06): "
+                 + ", ".join(f"{k} {_g(v, '.3f')}" for k, v in nuis.items()) + ".")
         L.append("")
     ho = "holdout" in rep
-    L.append("Cross-validated RMSE per channel (column units)" + (" and on the hold-out data" if ho else "") + ":")
+    L.append("RMSE per channel (column units): base model as it is; base calibrated within ±6 %, cross-validated; "
+             "extended, cross-validated" + ("; and on the hold-out data" if ho else "") + ":")
     L.append("")
-    L.append("| channel | touched by the cause | CV RMSE base | CV RMSE extended | gain |"
-             + (" hold-out RMSE base | hold-out RMSE extended |" if ho else ""))
-    L.append("|---|---|---|---|---|" + ("---|---|" if ho else ""))
+    L.append("| channel | touched by a cause | base | base calibrated (CV) | extended (CV) | gain vs base |"
+             + (" hold-out base | hold-out extended |" if ho else ""))
+    L.append("|---|---|---|---|---|---|" + ("---|---|" if ho else ""))
     for c, v in ch.items():
-        row = (f"| `{c}` | {'yes' if v['touched_by_selected'] else ''} | {_g(v['cv_rmse_base'])} | "
-               f"{_g(v['cv_rmse_extended'])} | "
+        row = (f"| `{c}` | {'yes' if v['touched_by_selected'] else ''} | {_g(v['rmse_base'])} | "
+               f"{_g(v['cv_rmse_base'])} | {_g(v['cv_rmse_extended'])} | "
                f"{_g(100 * v['cv_gain'] if v['cv_gain'] is not None else None, '+.0f')} % |")
         if ho:
             row += f" {_g(v.get('holdout_rmse_base'))} | {_g(v.get('holdout_rmse_extended'))} |"
         L.append(row)
     L.append("")
+    if ho and rep["holdout"].get("per_engine"):
+        pe = rep["holdout"]["per_engine"]
+        cs = list(next(iter(pe.values())).keys())
+        L.append(f"Hold-out `{rep['holdout']['dataset']}` per engine, RMSE base → fitted engine:")
+        L.append("")
+        L.append("| engine | " + " | ".join(f"`{c}`" for c in cs) + " |")
+        L.append("|---|" + "---|" * len(cs))
+        for e, v in pe.items():
+            L.append(f"| {e} | " + " | ".join(
+                f"{_g(v[c]['holdout_rmse_base'])} → {_g(v[c]['holdout_rmse_extended'])}" for c in cs) + " |")
+        L.append("")
     if rep["cv"]["folds"]:
         cs = [c for c, v in ch.items() if v["touched_by_selected"]] or list(ch)
         L.append("Per left-out engine (model fitted on the other engines), RMSE base → extended:")
@@ -461,7 +600,7 @@ class _ArgError(Exception):
 
 def build_parser(prog: str = "marine-fdi validate") -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog=prog, description="Validate the engine model against measured data: "
-                                 "discrepancies, named cause, cross-validated gain.")
+                                 "discrepancies, named causes, cross-validated gain, the fitted engine.")
     ap.add_argument("--data", required=True, metavar="FILE.csv",
                     help="measured data (CSV with sidecar FILE.meta.json) or a shipped dataset name "
                          f"({', '.join(list_shipped())})")
@@ -469,15 +608,18 @@ def build_parser(prog: str = "marine-fdi validate") -> argparse.ArgumentParser:
     g.add_argument("--holdout", metavar="FILE.csv", help="data the fit does not see; the report gives its RMSE")
     g.add_argument("--holdout-engine", metavar="ID", help="leave this engine of --data out and predict it")
     ap.add_argument("--out", required=True, metavar="report.json", help="JSON report")
-    ap.add_argument("--plots", metavar="DIR", help="write model-vs-measurement plots here")
-    ap.add_argument("--params", metavar="NAME", help="parameter set overriding the sidecar's ("
-                    + ", ".join(list_parameter_sets()) + ")")
+    ap.add_argument("--plots", metavar="DIR", help="write model-vs-measurement plots here (needs matplotlib)")
+    ap.add_argument("--params", metavar="NAME|FILE.json", help="parameter set overriding the sidecar's ("
+                    + ", ".join(list_parameter_sets()) + ") or a fitted-engine file")
+    ap.add_argument("--save-params", metavar="ENGINE.json",
+                    help="write the fitted engine (parameter set + selected submodels) for operating-point, simulate, "
+                         "the environment and --params")
     ap.add_argument("--target", default="auto", help="what fixes each operating point: " + ", ".join(TARGETS))
-    ap.add_argument("--max-causes", type=int, default=2, help="most mechanisms to combine (default 2)")
+    ap.add_argument("--max-causes", type=int, default=4, help="most mechanisms to combine (default 4)")
+    ap.add_argument("--max-folds", type=int, default=None,
+                    help="cross-validate single-engine data with at most this many folds (default: leave one out)")
     ap.add_argument("--alpha", type=float, default=0.01, help="significance level (default 0.01)")
-    ap.add_argument("--cv-all", action="store_true", help="cross-validate every candidate (the default)")
-    ap.add_argument("--screen", action="store_true",
-                    help="faster: cross-validate only candidates whose in-sample score can still win")
+    ap.add_argument("--cv-all", action="store_true", help="cross-validate every candidate (slower)")
     ap.add_argument("--markdown", metavar="FILE.md", help="also write the report's tables as Markdown")
     ap.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     return ap
@@ -487,14 +629,19 @@ def _summary_lines(rep: Mapping[str, Any]) -> list[str]:
     lines = [f"{rep['dataset']['name']} ({rep['model']['params']}, matched on {rep['model']['target']}, "
              f"{rep['cv']['scheme']}): selected causes: {', '.join(rep['selected_labels']) or 'none'}"]
     for lab, ps in rep["parameters"].items():
-        lines.append("  " + lab + ": " + ", ".join(f"{k} = {v['value']:.4g} ± {v['stderr']:.2g}"
+        lines.append("  " + lab + ": " + ", ".join(f"{k} = {_f(v['value'])} ± {_f(v['stderr'])}"
                                                    for k, v in ps.items()))
-    lines.append(f"  {'channel':40s} {'cv_rmse_base':>13s} {'cv_rmse_ext':>13s}"
-                 + (f" {'holdout_base':>13s} {'holdout_ext':>13s}" if "holdout" in rep else ""))
+    for lab, alts in (rep.get("alternatives") or {}).items():
+        if alts:
+            lines.append(f"  {lab}: hardly told from " + ", ".join(a["mechanism"] for a in alts))
+    for mid, a in (rep.get("activity") or {}).items():
+        lines.append(f"  {mid} acts at points " + ", ".join(f"{i + 1} ({x:.3f})" for i, x in enumerate(a) if x))
+    lines.append(f"  {'channel':40s} {'rmse_base':>11s} {'cv_rmse_ext':>11s}"
+                 + (f" {'holdout_base':>12s} {'holdout_ext':>12s}" if "holdout" in rep else ""))
     for c, v in rep["channels"].items():
-        row = f"  {c:40s} {_f(v['cv_rmse_base']):>13s} {_f(v['cv_rmse_extended']):>13s}"
+        row = f"  {c:40s} {_f(v['rmse_base']):>11s} {_f(v['cv_rmse_extended']):>11s}"
         if "holdout" in rep:
-            row += f" {_f(v.get('holdout_rmse_base')):>13s} {_f(v.get('holdout_rmse_extended')):>13s}"
+            row += f" {_f(v.get('holdout_rmse_base')):>12s} {_f(v.get('holdout_rmse_extended')):>12s}"
         lines.append(row)
     for u in rep["unexplained"]:
         lines.append("  " + u["text"])
@@ -507,37 +654,53 @@ def _f(x) -> str:
     return "-" if x is None else f"{x:.4g}"
 
 
+def _out_path(text: str, option: str) -> Path:
+    p = Path(text)
+    if p.parent != Path("") and not p.parent.parent.exists():
+        raise ValueError(f"{option}: directory {str(p.parent.parent)!r} does not exist (the parent of --out is "
+                         "created, never more)")
+    return p
+
+
 def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi validate") -> int:
-    """Command line ``marine-fdi validate``: 0 on success, 2 on bad input (message on stderr)."""
+    """Command line ``marine-fdi validate``: 0 on success, 2 on bad input (message on stderr), 130 on Ctrl-C."""
     ap = build_parser(prog)
 
     def error(message):
         raise _ArgError(message)
 
     ap.error = error  # type: ignore[method-assign]
+    argv = list(argv) if argv is not None else sys.argv[1:]
     try:
-        args = ap.parse_args(list(argv) if argv is not None else None)
+        args = ap.parse_args(argv)
     except _ArgError as e:
         print(f"{prog}: error: {e}", file=sys.stderr)
         return 2
     except SystemExit as e:  # --help
         return int(e.code or 0)
-    say = None if args.quiet else (lambda s: print(s, file=sys.stderr))
+    say = None if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
     try:
-        if args.params is not None and args.params not in list_parameter_sets():
-            raise ValueError(f"--params: unknown parameter set {args.params!r}; allowed: "
-                             f"{', '.join(list_parameter_sets())}")
+        params = None
+        if args.params is not None:
+            try:
+                params = load_params(args.params)
+            except ValueError as e:
+                raise ValueError(f"--params: {e}") from None
         if args.target not in TARGETS:
             raise ValueError(f"--target: unknown target {args.target!r}; allowed: {', '.join(TARGETS)}")
         if args.max_causes < 0:
             raise ValueError(f"--max-causes must be >= 0, got {args.max_causes}")
+        if args.max_folds is not None and args.max_folds < 2:
+            raise ValueError(f"--max-folds must be >= 2, got {args.max_folds}")
         if not 0.0 < args.alpha < 1.0:
             raise ValueError(f"--alpha must lie in (0, 1), got {args.alpha}")
-        out = Path(args.out)
-        if not out.parent.exists():
-            raise ValueError(f"--out: directory {str(out.parent)!r} does not exist")
+        out = _out_path(args.out, "--out")
+        save = _out_path(args.save_params, "--save-params") if args.save_params else None
+        md = _out_path(args.markdown, "--markdown") if args.markdown else None
+        if args.plots:
+            _pyplot()
         try:
-            ds = load_data_arg(args.data, args.params)
+            ds = load_data_arg(args.data, args.params if args.params in list_parameter_sets() else None)
         except DatasetError as e:
             raise ValueError(f"--data: {e}") from None
         holdout = None
@@ -548,25 +711,38 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
                          "it is the hold-out")
         elif args.holdout is not None:
             try:
-                holdout = load_data_arg(args.holdout, args.params or ds.params_name)
+                holdout = load_data_arg(args.holdout, args.params if args.params in list_parameter_sets() else
+                                        ds.params_name)
             except DatasetError as e:
                 raise ValueError(f"--holdout: {e}") from None
-        rep, sel, ho = run_validation(ds, holdout=holdout, target=args.target, max_causes=args.max_causes,
-                                      alpha=args.alpha, cv_all=not args.screen, progress=say, notes=notes)
+        rep, sel, ho = run_validation(ds, holdout=holdout, target=args.target, params=params,
+                                      max_causes=args.max_causes, alpha=args.alpha, cv_all=args.cv_all,
+                                      max_folds=args.max_folds, progress=say, notes=notes,
+                                      command="marine-fdi validate " + " ".join(argv))
+    except RuntimeError as e:  # a missing optional extra
+        print(f"{prog}: error: {e}", file=sys.stderr)
+        return 2
     except ValueError as e:
         print(f"{prog}: error: {e}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr)
+        return 130
+    for p in (out, save, md):
+        if p is not None:
+            p.parent.mkdir(exist_ok=True)
     out.write_text(json.dumps(rep, indent=1) + "\n")
-    if args.markdown:
+    if save is not None:
+        save.write_text(json.dumps(rep["fitted_engine"], indent=1) + "\n")
+    if md is not None:
         title = ds.name + (f" without {args.holdout_engine} (hold-out)" if args.holdout_engine else "")
-        Path(args.markdown).write_text(markdown_summary(rep, title) + "\n")
+        md.write_text(markdown_summary(rep, title) + "\n")
     if args.plots:
         prefix = ds.name + (f"_without_{args.holdout_engine}" if args.holdout_engine else "")
         files = write_plots(sel, args.plots, ho, prefix=prefix)
-        rep_files = ", ".join(str(f) for f in files)
-        print(f"plots: {rep_files}")
+        print("plots: " + ", ".join(str(f) for f in files))
     print("\n".join(_summary_lines(rep)))
-    print(f"report: {out}")
+    print(f"report: {out}" + (f"; fitted engine: {save}" if save is not None else ""))
     return 0
 
 

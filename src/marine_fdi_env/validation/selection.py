@@ -1,451 +1,86 @@
-"""Model selection: which named mechanism (or combination) explains the discrepancies, and by how much.
+"""Model selection: which named mechanisms explain the discrepancies, where and by how much.
 
-Pipeline (:func:`select_causes`):
+Pipeline (:func:`select_causes`), on a :class:`~.problem.Problem`:
 
-1. **Problem.**  A measured dataset prepared for repeated evaluation of the extended model
-   (:class:`Problem`): what fixes each operating point (power, fuel flow, speed or fuel rack, as in
-   :mod:`.matching`), the comparison channels, the measurements and a tolerance per channel (the
-   sidecar's ``tolerances``, else :func:`~.discrepancy.default_tolerance`: 1 % of the mean value,
-   5 K for temperatures).  Residuals are ``(model - measured) / tolerance``.
-2. **Fit.**  Each candidate (a combination of mechanisms) is fitted with
-   :func:`scipy.optimize.least_squares` (trust-region reflective within the mechanisms' plausible
-   ranges, multi-start where a mechanism lists extra starts) under the robust ``soft_l1`` loss with
-   a scale of 3 tolerances, so that a single bad reading (Birka ME2's 1.3 bar at 25 % load) bends
-   the fit little; nothing is removed from the data.  Parameter uncertainty: the covariance
-   ``s^2 (J^T J)^-1`` of the Gauss-Newton approximation at the optimum with ``s^2`` the robust cost
-   per degree of freedom (standard errors in the mechanisms' units).
-3. **Cross-validation.**  Leave-one-engine-out when the dataset has several engines, else
-   leave-one-point-out: every fold refits the candidate on the other engines/points (warm-started
-   at the full-data fit) and predicts the left-out ones.  The base model has nothing to fit: its
-   cross-validated prediction is its prediction.
-4. **Score.**  ``S`` = mean robust loss per measured cell of the cross-validated residuals (about
-   the mean squared normalised error; 1 = errors at the tolerance); penalised score
-   ``S exp(2 k / M)`` with ``k`` free parameters and ``M`` measured cells (the AIC penalty of 2 per
-   parameter on ``M ln S``).
-5. **Greedy forward selection.**  Starting from the base model, every remaining mechanism is
-   added in turn (refitting all parameters); the best penalised score is accepted when it is
-   (a) better than the current model's penalised score, (b) at least ``min_gain`` (10 %) lower in
-   ``S`` and (c) significant: the one-sided F-test of the drop of the cross-validated loss per added
-   parameter against the candidate's loss per residual degree of freedom (the likelihood-ratio test
-   of nested least squares, here on cross-validated residuals) gives ``p < alpha / (number of
-   candidates tried in the step)`` (Bonferroni, alpha = 0.01).  A paired t-test of the per-point
-   losses is reported too (``p_value_points``); it is not used to decide because an effect confined
-   to a few points (a bypass opening near full load) can never reach a small p over points as units.
-   Selection stops at the first step where nothing qualifies.
-6. **Unexplained.**  The discrepancy analysis of :mod:`.discrepancy` runs on the final model's
-   residuals (the base model's if nothing was selected).  Its significant findings are reported as
-   ``unexplained: channel, kind, region``; outliers need ``p x (number of tested points) < alpha``
-   (Bonferroni over the points of the channel) since every point is tested.
+1. **Base model.**  The parameter set as it is (its errors are reported per channel), and the base
+   model calibrated within its uncertainty: every fit adjusts the model-error nuisance of
+   :mod:`.nuisance` (prior σ = 3 % on the turbine area, turbocharger and compressor efficiencies,
+   combustion efficiency and heat-release shape).  The calibrated base is what a cause must beat:
+   a named mechanism has to explain more than model error of a few per cent can.
+2. **Fit** (:mod:`.fitting`).  Each candidate combination is fitted with the robust soft-L1 loss;
+   valve-type mechanisms select the points where they act by relaxation with a sparsity penalty, then
+   confirmation.
+3. **Cross-validation.**  Leave-one-engine-out with several engines, else leave-one-point-out (interleaved
+   k-fold when ``max_folds`` is smaller than the number of points): every fold refits everything,
+   nuisance and valve supports included, on the other engines/points and predicts the left-out ones.
+4. **Score.**  ``S`` = mean robust loss per measured cell of the cross-validated residuals (1 = errors at
+   the tolerance); penalised ``S exp(2 k / M)`` with k free parameters (valve openings count one each)
+   and M measured cells.
+5. **Greedy forward selection.**  Starting from the calibrated base, every remaining mechanism is added in
+   turn (refitting all parameters); the best penalised score is accepted when it is (a) better than the
+   current model's, (b) at least ``min_gain`` (10 %) lower in S and (c) significant: the one-sided F-test
+   of the drop of the cross-validated loss per added parameter against the candidate's loss per
+   residual degree of freedom gives ``p < alpha / (number of candidates tried in the step)``
+   (Bonferroni, alpha = 0.01).  Selection stops at the first step where nothing qualifies.
+6. **Unexplained.**  Each channel is judged against the final model refitted *without that channel*
+   (:func:`~.fitting.loco_predictions`): an anomaly of one sensor bends a fit that includes it and would
+   hide.  The discrepancy analysis of :mod:`.discrepancy` (bias, trend, change point) and a scan for local
+   excess (:func:`window_excess`: contiguous windows of points in load order whose mean residual departs
+   from the rest) run on these residuals; what is family-significant after a Bonferroni correction over the
+   channels is reported as ``unexplained: channel, kind, region``; single readings as ``outliers``.
+   A sensor calibration is only eligible when the gain and offset it fits on the model without its channel
+   leave no such local departure: a gain and an offset are a complete explanation of a sensor or none.
+   A candidate whose fit sits at a bound of its plausible range that is not a natural limit is not eligible
+   either (the data want more than it can physically give).
 """
 
 from __future__ import annotations
 
 import math
 import time
-import warnings
 from dataclasses import dataclass, field
-from types import SimpleNamespace
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 from scipy import stats
-from scipy.optimize import least_squares
 
-from ..params import EngineParams, load_params
-from .columns import COLUMNS, QUANTITIES
-from .dataset import MeasuredDataset
-from .discrepancy import (_VAR_QUANTITY, DiscrepancyReport, _replicate_groups, analyse_discrepancies, theil_sen_detrend,
-                          default_tolerance, operating_variables)
-from .extended_model import MODE_F, MODE_P, MODE_U, NO_HOOKS, SUMMARY_KEYS, ExtendedModel, Hooks
-from .matching import MatchResult, _rack_settings, _resolve_target, _target_values, load_law_of
-from .mechanisms import Mechanism, library, sensor_reference
+from .columns import QUANTITIES
+from .discrepancy import (_VAR_QUANTITY, DiscrepancyReport, _replicate_groups, analyse_discrepancies, operating_variables,
+                          theil_sen_detrend)
+from .fitting import (Combination, FitResult, ROBUST_SCALE, FoldData, cell_losses, channel_rmse, cross_validate,
+                      fit_combination, fit_sensor, fold_data, loco_predictions, predict_setting, robust_loss)
+from .matching import MatchResult
+from .mechanisms import Mechanism, SensorCalibration, equivalents, library, sensor_reference
+from .problem import BASE_SETTING, Problem, Setting
 
 __all__ = [
-    "Problem", "Combination", "FitResult", "CandidateScore", "Selection", "fit_combination", "cross_validate",
-    "cell_losses", "select_causes", "channel_rmse", "point_outliers", "family_significant", "ROBUST_SCALE",
+    "CandidateScore", "Selection", "select_causes", "point_outliers", "family_significant", "match_result",
+    "local_excess", "ROBUST_SCALE",
 ]
 
-ROBUST_SCALE = 3.0  # soft_l1 scale in tolerance units
-FAIL_RESIDUAL = 50.0  # normalised residual of a cell whose point has no steady state
+
+def match_result(problem: Problem, setting: Setting = BASE_SETTING, pred_fn=None) -> MatchResult:
+    """A :class:`~.matching.MatchResult` of a model setting at every point (for the discrepancy analysis)."""
+    ds = problem.ds
+    rows = np.arange(problem.n_points)
+    vals, conv = problem.solve(setting, rows)
+    pred = problem.readings(setting, vals, conv, rows, problem.predicted_columns)
+    if pred_fn is not None:  # e.g. a fit's own openings at its rows
+        ch = pred_fn()
+        for j, c in enumerate(problem.channels):
+            pred[:, problem.predicted_columns.index(c)] = ch[:, j]
+    status = tuple("ok" if ok else ("missing target" if not math.isfinite(problem.target_si[i])
+                                    else "no steady state of the model") for i, ok in enumerate(conv))
+    return MatchResult(
+        dataset=ds, params=problem.params, law=problem.law, target=problem.target,
+        target_columns=problem.target_columns, u=np.where(conv, vals["fuel_setting"], np.nan), status=status,
+        predicted={c: pred[:, j] for j, c in enumerate(problem.predicted_columns)},
+        measured={c: ds.raw[c].copy() for c in ds.columns},
+        model_si={k: np.where(conv, v, np.nan) for k, v in vals.items()},
+        channels=problem.channels, notes=tuple(ds.notes))
 
 
-def robust_loss(r: np.ndarray) -> np.ndarray:
-    """Per-cell soft_l1 loss ``2 f^2 (sqrt(1 + (r/f)^2) - 1)`` (≈ r^2 for |r| << f = ROBUST_SCALE)."""
-    f = ROBUST_SCALE
-    return 2.0 * f * f * (np.sqrt(1.0 + (r / f) ** 2) - 1.0)
-
-
-# --------------------------------------------------------------------------------------- problem
-def _read_quantity(q: str, V: Mapping[str, np.ndarray], rated_W: float) -> np.ndarray:
-    """SI values of quantity ``q`` from steady-state arrays (keys: SUMMARY_KEYS)."""
-    if q in V:
-        return np.asarray(V[q], float)
-    P = np.asarray(V["power_W"], float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        if q == "load_fraction":
-            return P / rated_W
-        if q == "specific_air_flow_kg_per_J":
-            return np.where(P > 0, V["air_mass_flow_kg_s"] / P, np.nan)
-        if q == "specific_exhaust_flow_kg_per_J":
-            return np.where(P > 0, V["exhaust_mass_flow_kg_s"] / P, np.nan)
-    raise KeyError(f"the extended model has no quantity {q!r}")
-
-
-class Problem:
-    """A measured dataset prepared for fitting the extended model (see module docstring).
-
-    ds : the dataset.  params : parameter set (name or :class:`EngineParams`; default the sidecar's).
-    target : what fixes each point (as :func:`~.matching.match_operating_points`).
-    tolerances : per column in its units (default: sidecar ``tolerances``, else the defaults).
-    """
-
-    def __init__(self, ds: MeasuredDataset, *, params: str | EngineParams | None = None, target: str = "auto",
-                 tolerances: Mapping[str, float] | None = None):
-        self.ds = ds
-        if isinstance(params, str):
-            params = load_params(params)
-        self.params: EngineParams = params if params is not None else ds.params
-        self.target = _resolve_target(ds, target)
-        self.law = load_law_of(ds)
-        n = ds.n_points
-        self.n_points = n
-        nan = np.full(n, np.nan)
-        self.speed_measured = ds.values.get("engine_speed_rev_s", nan).astype(float)
-        if self.target == "fuel_rack":
-            self.target_si, _ = _rack_settings(ds)
-            self.target_columns: tuple[str, ...] = (ds.column_of("fuel_rack"),)
-        else:
-            _, self.target_si, self.target_columns = _target_values(ds, self.target)
-        self.predicted_columns = tuple(c for c in ds.columns if QUANTITIES[ds.column_quantity[c]].model is not None)
-        redundant = {ds.column_of("load_fraction")} if "power_W" in ds.values else set()
-        self.channels = tuple(c for c in self.predicted_columns if c not in self.target_columns and c not in redundant)
-        if not self.channels:
-            raise ValueError(f"{ds.name}: no channel to compare (every predicted column fixes the operating point)")
-        self.Y = np.column_stack([ds.raw[c] for c in self.channels]).astype(float)
-        self.measured_mask = np.isfinite(self.Y)
-        if tolerances is None:
-            tolerances = ds.meta.get("tolerances") if isinstance(ds.meta.get("tolerances"), Mapping) else {}
-        shim = SimpleNamespace(dataset=ds)
-        self.tolerance = np.array([float(tolerances.get(c, default_tolerance(shim, c))) for c in self.channels])
-        self.references = {c: sensor_reference(c, self.Y[:, j]) for j, c in enumerate(self.channels)}
-        self._state = np.full((n, 3), np.nan)
-        self.n_evaluations = 0
-        self.eval_seconds = 0.0
-
-    # ---- model evaluation
-    def model(self, hooks: Hooks = NO_HOOKS) -> ExtendedModel:
-        return ExtendedModel(self.params, hooks)
-
-    def _inputs(self, model: ExtendedModel, rows: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
-        t = self.target_si[rows]
-        n_meas = self.speed_measured[rows]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            if self.target == "power":
-                n = model.speed_of_power(t, n_meas) if model.hooks.speed_law != "prescribed" else n_meas
-                a0, a1, mode = t, n, MODE_P
-            elif self.target == "speed":
-                try:
-                    P = model.power_of_speed(t)
-                except ValueError:
-                    P = np.full(t.size, np.nan)
-                a0, a1, mode = P, t, MODE_P
-            elif self.target == "fuel_flow":
-                a0, a1, mode = t, n_meas, MODE_F
-            else:
-                a0, a1, mode = t, n_meas, MODE_U
-            a0 = np.where(np.isfinite(a0) & (a0 > 0), a0, np.nan)
-            if mode == MODE_P:
-                a1 = np.where(np.isfinite(a1) & (a1 > 0), a1, np.nan)
-            else:
-                a1 = np.where(np.isfinite(a1), a1, 0.0)
-        return mode, np.asarray(a0, float), np.asarray(a1, float)
-
-    def solve(self, hooks: Hooks = NO_HOOKS, rows=None):
-        """Steady states at the rows' operating points: (model, SteadyPoints, rows)."""
-        rows = np.arange(self.n_points) if rows is None else np.asarray(rows, dtype=int)
-        t0 = time.perf_counter()
-        model = self.model(hooks)
-        mode, a0, a1 = self._inputs(model, rows)
-        guess = self._state[rows]
-        pts = model.solve(mode, a0, a1, guess=guess)
-        conv = pts.converged
-        if np.any(conv):
-            st = self._state[rows]
-            st[conv] = pts.state[conv]
-            self._state[rows] = st
-        self.n_evaluations += 1
-        self.eval_seconds += time.perf_counter() - t0
-        return model, pts, rows
-
-    def predict_columns(self, model: ExtendedModel, pts, columns: Sequence[str]) -> np.ndarray:
-        """Model readings of ``columns`` (their units, sensor hooks applied), NaN where not converged."""
-        ds = self.ds
-        out = np.empty((len(pts), len(columns)))
-        p_amb = ds.ambient["p_amb_Pa"] + model.hooks.dp_amb_Pa  # a gauge reads against the actual ambient
-        for j, col in enumerate(columns):
-            si = _read_quantity(ds.column_quantity[col], pts.values, ds.rated_power_W)
-            v = model.sensor_reading(col, COLUMNS[col].from_si(si, p_amb))
-            out[:, j] = np.where(pts.converged, v, np.nan)
-        return out
-
-    def predict(self, hooks: Hooks = NO_HOOKS, rows=None) -> tuple[np.ndarray, np.ndarray]:
-        """(predictions (rows x channels) in the channels' units, converged per row)."""
-        model, pts, rows = self.solve(hooks, rows)
-        return self.predict_columns(model, pts, self.channels), pts.converged
-
-    def normalised_residuals(self, pred: np.ndarray, rows=None) -> np.ndarray:
-        """``(pred - measured)/tolerance`` on the measured cells of ``rows`` (FAIL_RESIDUAL where the model has
-        no value), NaN on cells without a measurement."""
-        rows = np.arange(self.n_points) if rows is None else np.asarray(rows, dtype=int)
-        r = (pred - self.Y[rows]) / self.tolerance
-        m = self.measured_mask[rows]
-        r = np.where(m & ~np.isfinite(r), FAIL_RESIDUAL, r)
-        return np.where(m, r, np.nan)
-
-    def rows_with_data(self) -> np.ndarray:
-        return np.flatnonzero(self.measured_mask.any(axis=1) & np.isfinite(self.target_si))
-
-    def folds(self) -> tuple[str, list[tuple[str, np.ndarray]]]:
-        """Cross-validation folds: leave-one-engine-out with several engines, else leave-one-point-out."""
-        rows = self.rows_with_data()
-        eng = self.ds.engine_ids()
-        if len(eng) >= 2:
-            e = np.array(self.ds.engines)
-            return "leave-one-engine-out", [(str(x), np.array([i for i in rows if e[i] == x], dtype=int))
-                                            for x in eng]
-        return "leave-one-point-out", [(f"point {i + 1}", np.array([i], dtype=int)) for i in rows]
-
-    def match_result(self, hooks: Hooks = NO_HOOKS) -> MatchResult:
-        """A :class:`~.matching.MatchResult` of the (extended) model, for the discrepancy analysis."""
-        ds = self.ds
-        model, pts, rows = self.solve(hooks)
-        pred = self.predict_columns(model, pts, self.predicted_columns)
-        status = tuple("ok" if ok else ("missing target" if not math.isfinite(self.target_si[i])
-                                        else "no steady state of the extended model")
-                       for i, ok in enumerate(pts.converged))
-        V = pts.values
-        return MatchResult(
-            dataset=ds, params=self.params, law=self.law, target=self.target, target_columns=self.target_columns,
-            u=np.where(pts.converged, V["fuel_setting"], np.nan), status=status,
-            predicted={c: pred[:, j] for j, c in enumerate(self.predicted_columns)},
-            measured={c: ds.raw[c].copy() for c in ds.columns},
-            model_si={k: np.where(pts.converged, V[k], np.nan) for k in SUMMARY_KEYS},
-            channels=self.channels, notes=tuple(ds.notes))
-
-
-# --------------------------------------------------------------------------------------- combinations
-@dataclass(frozen=True)
-class Combination:
-    """A set of mechanisms fitted together; its parameter vector concatenates theirs."""
-
-    mechanisms: tuple[Mechanism, ...] = ()
-
-    @property
-    def labels(self) -> tuple[str, ...]:
-        return tuple(m.label for m in self.mechanisms)
-
-    @property
-    def ids(self) -> tuple[str, ...]:
-        return tuple(m.id for m in self.mechanisms)
-
-    @property
-    def names(self) -> list[str]:
-        return [f"{m.label}.{p.name}" for m in self.mechanisms for p in m.params]
-
-    @property
-    def n_params(self) -> int:
-        return sum(len(m.params) for m in self.mechanisms)
-
-    def plus(self, m: Mechanism) -> "Combination":
-        return Combination(self.mechanisms + (m,))
-
-    def unpack(self, x) -> list[tuple[Mechanism, dict[str, float]]]:
-        out, k = [], 0
-        for m in self.mechanisms:
-            vals = {}
-            for p in m.params:
-                vals[p.name] = float(x[k])
-                k += 1
-            out.append((m, vals))
-        return out
-
-    def hooks(self, x, params: EngineParams) -> Hooks:
-        h = NO_HOOKS
-        for m, v in self.unpack(x):
-            h = m.apply(h, v, params)
-        return h
-
-    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        lo = np.array([p.bounds[0] for m in self.mechanisms for p in m.params], float)
-        hi = np.array([p.bounds[1] for m in self.mechanisms for p in m.params], float)
-        return lo, hi
-
-    def starts(self, known: Mapping[str, float] | None = None) -> list[np.ndarray]:
-        """Starting vectors: defaults (or ``known`` values by name), then each extra start of each parameter."""
-        known = known or {}
-        x0 = np.array([known.get(f"{m.label}.{p.name}", p.default) for m in self.mechanisms for p in m.params], float)
-        out = [x0]
-        k = 0
-        for m in self.mechanisms:
-            for p in m.params:
-                if f"{m.label}.{p.name}" not in known:
-                    for s in p.starts:
-                        x = x0.copy()
-                        x[k] = s
-                        out.append(x)
-                k += 1
-        return out
-
-
-@dataclass
-class FitResult:
-    """Fitted parameters of a combination on some rows."""
-
-    combination: Combination
-    x: np.ndarray
-    stderr: np.ndarray
-    cov: np.ndarray
-    cost: float  # robust cost 0.5 sum(loss)
-    n_cells: int
-    success: bool
-    at_bound: np.ndarray
-    nfev: int
-    message: str = ""
-
-    def values(self) -> dict[str, float]:
-        return dict(zip(self.combination.names, map(float, self.x)))
-
-    def hooks(self, params: EngineParams) -> Hooks:
-        return self.combination.hooks(self.x, params)
-
-    def parameters(self) -> dict[str, dict[str, dict[str, Any]]]:
-        """``{mechanism label: {param: {value, stderr, unit, at_bound, bounds}}}``."""
-        out: dict[str, dict[str, dict[str, Any]]] = {}
-        k = 0
-        for m in self.combination.mechanisms:
-            d = {}
-            for p in m.params:
-                d[p.name] = {"value": float(self.x[k]), "stderr": float(self.stderr[k]), "unit": p.unit,
-                             "at_bound": bool(self.at_bound[k]), "bounds": [float(b) for b in p.bounds],
-                             "description": p.description}
-                k += 1
-            out[m.label] = d
-        return out
-
-
-def _clip_into(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """Starting values at least 0.1 % of the range inside the bounds: the trust-region reflective method
-    stalls (terminates on xtol without moving) when it starts on a bound."""
-    span = hi - lo
-    return np.minimum(np.maximum(x, lo + 1e-3 * span), hi - 1e-3 * span)
-
-
-def fit_combination(problem: Problem, comb: Combination, rows=None, starts: Sequence[np.ndarray] | None = None,
-                    max_nfev: int | None = None, uncertainty: bool = True) -> FitResult:
-    """Fit ``comb`` on ``rows`` (default all) with :func:`scipy.optimize.least_squares` from each start
-    (``uncertainty``: also the parameter covariance)."""
-    rows = problem.rows_with_data() if rows is None else np.asarray(rows, dtype=int)
-    k = comb.n_params
-    mask = problem.measured_mask[rows]
-    m = int(mask.sum())
-    if k == 0:
-        pred, _ = problem.predict(NO_HOOKS, rows)
-        r = problem.normalised_residuals(pred, rows)[mask]
-        return FitResult(comb, np.zeros(0), np.zeros(0), np.zeros((0, 0)), float(0.5 * robust_loss(r).sum()), m,
-                         True, np.zeros(0, bool), 1)
-    lo, hi = comb.bounds()
-    params = problem.params
-
-    def fun(x):
-        pred, _ = problem.predict(comb.hooks(x, params), rows)
-        return problem.normalised_residuals(pred, rows)[mask]
-
-    best = None
-    for x0 in (starts if starts is not None else comb.starts()):
-        x0 = _clip_into(np.asarray(x0, float), lo, hi)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            res = least_squares(fun, x0, bounds=(lo, hi), x_scale=hi - lo, loss="soft_l1", f_scale=ROBUST_SCALE,
-                                diff_step=1e-6, xtol=1e-10, ftol=1e-10, max_nfev=max_nfev or 60 * (k + 1))
-        if best is None or res.cost < best.cost:
-            best = res
-    res = best
-    x = np.asarray(res.x, float)
-    if uncertainty:
-        cov = _covariance(fun, x, np.asarray(res.fun, float), lo, hi, m)
-    else:
-        cov = np.full((k, k), np.nan)
-    stderr = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    return FitResult(comb, x, stderr, cov, float(res.cost), m, bool(res.success),
-                     np.asarray(res.active_mask) != 0, int(res.nfev), str(res.message))
-
-
-def _covariance(fun, x: np.ndarray, r0: np.ndarray, lo: np.ndarray, hi: np.ndarray, m: int) -> np.ndarray:
-    """Parameter covariance ``s^2 (J^T W J)^-1`` at the optimum: J by forward differences of the raw
-    normalised residuals, W the soft_l1 weights ``1/sqrt(1 + (r/f)^2)`` (iteratively reweighted least
-    squares), s^2 the weighted residual sum of squares per degree of freedom."""
-    k = x.size
-    J = np.empty((r0.size, k))
-    for j in range(k):
-        h = 1e-6 * max(abs(x[j]), 1e-3 * (hi[j] - lo[j]))
-        if x[j] + h > hi[j]:
-            h = -h
-        xj = x.copy()
-        xj[j] += h
-        J[:, j] = (fun(xj) - r0) / h
-    w = 1.0 / np.sqrt(1.0 + (r0 / ROBUST_SCALE) ** 2)
-    s2 = float(np.sum(w * r0 * r0)) / max(m - k, 1)
-    A = J.T @ (w[:, None] * J)
-    try:
-        return s2 * np.linalg.pinv(A)
-    except np.linalg.LinAlgError:
-        return np.full((k, k), np.nan)
-
-
-def cross_validate(problem: Problem, comb: Combination, full: FitResult | None = None) -> tuple[np.ndarray, list]:
-    """Cross-validated predictions (points x channels) of ``comb`` and the fold fits."""
-    n, C = problem.n_points, len(problem.channels)
-    pred = np.full((n, C), np.nan)
-    _, folds = problem.folds()
-    if comb.n_params == 0:
-        p, _ = problem.predict(NO_HOOKS)
-        return p, []
-    if full is None:
-        full = fit_combination(problem, comb)
-    all_rows = problem.rows_with_data()
-    fits = []
-    for name, test in folds:
-        train = np.setdiff1d(all_rows, test)
-        if train.size == 0 or not problem.measured_mask[train].any():
-            continue
-        f = fit_combination(problem, comb, train, starts=[full.x], max_nfev=30 * (comb.n_params + 1),
-                            uncertainty=False)
-        p, _ = problem.predict(f.hooks(problem.params), test)
-        pred[test] = p
-        fits.append((name, f))
-    return pred, fits
-
-
-def cell_losses(problem: Problem, pred: np.ndarray) -> tuple[np.ndarray, int]:
-    """Robust loss per point (sum over its measured cells) and the number of measured cells."""
-    r = problem.normalised_residuals(pred)
-    L = np.where(problem.measured_mask, robust_loss(np.nan_to_num(r)), 0.0)
-    return L.sum(axis=1), int(problem.measured_mask.sum())
-
-
-def channel_rmse(problem: Problem, pred: np.ndarray, rows=None) -> dict[str, float]:
-    """RMSE per channel (channel units) over the measured cells of ``rows``."""
-    rows = np.arange(problem.n_points) if rows is None else np.asarray(rows, int)
-    out = {}
-    for j, c in enumerate(problem.channels):
-        e = pred[rows, j] - problem.Y[rows, j]
-        m = problem.measured_mask[rows, j]
-        e = e[m]
-        out[c] = float(np.sqrt(np.mean(np.where(np.isfinite(e), e, np.inf) ** 2))) if e.size else math.nan
-    return out
-
-
-# --------------------------------------------------------------------------------------- selection
+# --------------------------------------------------------------------------------------- candidates
 @dataclass
 class CandidateScore:
     """A candidate combination scored against the current model of its greedy step.
@@ -461,11 +96,12 @@ class CandidateScore:
     cv_pred: np.ndarray | None = None
     cv_score: float = math.nan
     penalised: float = math.nan
-    gain: float = math.nan  # relative drop of the CV score against the current model
-    p_value: float = math.nan  # one-sided F-test of the CV loss drop (decides significance)
-    p_value_points: float = math.nan  # one-sided paired t-test of the per-point CV losses (information)
+    gain: float = math.nan
+    p_value: float = math.nan
+    p_value_points: float = math.nan
     point_losses: np.ndarray | None = None
     screened: str = ""
+    folds: list | None = None
 
     @property
     def cross_validated(self) -> bool:
@@ -473,12 +109,15 @@ class CandidateScore:
 
     def as_dict(self) -> dict[str, Any]:
         d = {"mechanism": self.added, "id": self.combination.mechanisms[-1].id,
-             "combination": list(self.combination.labels),
-             "n_params": self.combination.n_params, "in_sample_score": self.in_sample_score,
-             "cv_score": _num(self.cv_score), "penalised_score": _num(self.penalised),
-             "gain_vs_current": _num(self.gain), "p_value": _num(self.p_value),
-             "p_value_points": _num(self.p_value_points),
-             "fit": self.fit.values(), "fit_stderr": dict(zip(self.combination.names, map(float, self.fit.stderr)))}
+             "combination": list(self.combination.labels), "n_params": self.fit.k,
+             "in_sample_score": self.in_sample_score, "cv_score": _num(self.cv_score),
+             "penalised_score": _num(self.penalised), "gain_vs_current": _num(self.gain),
+             "p_value": _num(self.p_value), "p_value_points": _num(self.p_value_points),
+             "fit": self.fit.values(), "fit_stderr": dict(zip(self.combination.names, map(float, self.fit.stderr))),
+             "nuisance": self.fit.nuisance_values()}
+        if self.combination.valves:
+            d["openings"] = {k: [None if not math.isfinite(x) else float(x) for x in v]
+                             for k, v in self.fit.openings.items()}
         if self.screened:
             d["screened"] = self.screened
         return d
@@ -490,10 +129,16 @@ def _num(x: float) -> float | None:
 
 @dataclass
 class Selection:
-    """Outcome of :func:`select_causes`."""
+    """Outcome of :func:`select_causes`.
+
+    raw_pred : the parameter set as it is (no nuisance).  base_* : the calibrated base (nuisance only,
+    cross-validated).  fit / cv_pred / cv_score : the selected combination.
+    """
 
     problem: Problem
     cv_scheme: str
+    raw_pred: np.ndarray
+    base_fit: FitResult
     base_pred: np.ndarray
     base_score: float
     base_report: DiscrepancyReport
@@ -508,6 +153,7 @@ class Selection:
     base_outliers: list[dict[str, Any]]
     seconds: float
     settings: dict[str, Any] = field(default_factory=dict)
+    alternatives: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
 
     @property
     def selected_causes(self) -> list[str]:
@@ -517,9 +163,8 @@ class Selection:
     def selected_labels(self) -> list[str]:
         return list(self.selected.labels)
 
-    @property
-    def hooks(self) -> Hooks:
-        return self.fit.hooks(self.problem.params)
+    def setting(self) -> Setting:
+        return self.fit.setting(self.problem)
 
     def candidates(self) -> list[dict[str, Any]]:
         """Every candidate of every step with its CV score (first step: each mechanism alone)."""
@@ -532,9 +177,25 @@ class Selection:
         return out
 
     def cv_rmse(self) -> dict[str, dict[str, float]]:
+        r = channel_rmse(self.problem, self.raw_pred)
         b = channel_rmse(self.problem, self.base_pred)
         e = channel_rmse(self.problem, self.cv_pred)
-        return {c: {"cv_rmse_base": b[c], "cv_rmse_extended": e[c]} for c in self.problem.channels}
+        return {c: {"rmse_raw": r[c], "cv_rmse_base": b[c], "cv_rmse_extended": e[c]} for c in self.problem.channels}
+
+    def activity(self) -> dict[str, list[float]]:
+        """Per selected valve: the diverted flow fraction at every measured point (file row order, 0 where shut)."""
+        out = {}
+        if not self.selected.valves:
+            return out
+        vals, conv = self.problem.solve(self.setting())
+        for m in self.selected.valves:
+            frac = np.where(conv, vals[m.activity_key()], np.nan)
+            o = self.fit.openings[m.id]
+            out[m.id] = [0.0 if (math.isfinite(oi) and oi == 0.0) else float(f) for f, oi in zip(frac, o)]
+        return out
+
+    def openings(self) -> dict[str, list[float]]:
+        return {m.id: [float(x) for x in self.fit.openings[m.id]] for m in self.selected.valves}
 
 
 def _f_test_p(S_current: float, S_cand: float, k_current: int, k_cand: int, M: int) -> float:
@@ -615,8 +276,8 @@ def point_outliers(match: MatchResult, tolerances: Mapping[str, float], alpha: f
                 label = ds.point_label(i)
                 out.append({"channel": col, "kind": "outlier", "region": label, "point": i + 1,
                             "magnitude": float(d[k]), "residual": float(r_all[i]), "studentized": float(t),
-                            "p_value": p, "score": abs(float(d[k])) / tol, "unit": COLUMNS[col].unit,
-                            "text": f"outlier: {col}, {label} (deviation {d[k]:+.4g} {COLUMNS[col].unit} from the "
+                            "p_value": p, "score": abs(float(d[k])) / tol, "unit": ds.spec(col).unit,
+                            "text": f"outlier: {col}, {label} (deviation {d[k]:+.4g} {ds.spec(col).unit} from the "
                                     f"local structure, studentized {t:.3g})"})
     out.sort(key=lambda d: -d["score"])
     return out
@@ -653,58 +314,245 @@ def _unexplained(report: DiscrepancyReport, alpha: float) -> list[dict[str, Any]
     return out
 
 
+
+
+ALTERNATIVE_MARGIN = 0.05
+
+
+def _alternatives(best: CandidateScore, cv: Sequence[CandidateScore], margin: float) -> list[dict[str, Any]]:
+    """Other candidates of the step the data hardly tell from the accepted one: cross-validated within ``margin``
+    (relative) of its score, and the members of its structural-equivalence class (:mod:`.mechanisms`)."""
+    out = []
+    eq = equivalents(best.combination.mechanisms[-1].id)
+    for c in cv:
+        if c is best:
+            continue
+        close = c.cv_score <= best.cv_score * (1.0 + margin)
+        struct = c.combination.mechanisms[-1].id in eq
+        if close or struct:
+            out.append({"mechanism": c.added, "cv_score": c.cv_score, "relative": c.cv_score / best.cv_score - 1.0,
+                        "why": "structurally equivalent on steady-state data" if struct else
+                               f"cross-validated score within {margin:.0%}"})
+    for m in sorted(eq - {c.combination.mechanisms[-1].id for c in cv}):
+        out.append({"mechanism": m, "cv_score": None, "relative": None,
+                    "why": "structurally equivalent on steady-state data"})
+    return out
+
+
+CALIBRATION_EXPLAINS = 0.75
+
+
+def _structure_left(problem: Problem, loco: np.ndarray, mech: SensorCalibration, alpha: float) -> str:
+    """A description of what a gain and an offset leave unexplained on the sensor's channel, judged against the model
+    fitted without that channel (``loco``, :func:`~.fitting.loco_predictions`); "" when the calibration is an
+    explanation.
+
+    A sensor's gain and offset explain its channel when what they leave looks like noise (no significant local
+    departure), or when they remove at least ``CALIBRATION_EXPLAINS`` (75 %) of the channel's RMS discrepancy (a
+    large calibration error with a smaller structure left, which is then reported as unexplained).  A local effect
+    that a gain and offset only bend towards (a bump, a step) passes neither."""
+    j = problem.channels.index(mech.channel)
+    tol = float(problem.tolerance[j])
+    rows = np.flatnonzero(np.isfinite(loco[:, j]) & problem.measured_mask[:, j])
+    g, o = fit_sensor(problem, j, loco[rows], rows, [p.bounds for p in mech.params])
+    before = loco[rows, j] - problem.Y[rows, j]
+    after = g * loco[rows, j] + o - problem.Y[rows, j]
+    best = window_excess(g * loco[:, j] + o - problem.Y[:, j], problem.load_axis(), tol)
+    if best is not None and best["p"] < alpha and abs(best["d"]) >= tol:
+        rms_b, rms_a = float(np.sqrt(np.mean(before ** 2))), float(np.sqrt(np.mean(after ** 2)))
+        if rms_a <= (1.0 - CALIBRATION_EXPLAINS) * rms_b:
+            return ""
+        lo, hi = best["load_range"]
+        return (f"load {lo:.3g}-{hi:.3g}, {best['d']:+.3g}, p = {best['p']:.2g}; the calibration removes only "
+                f"{1 - rms_a / rms_b:.0%} of the channel's error")
+    return ""
+
+
+def _pinned(fit: FitResult) -> list[str]:
+    """Why a fitted combination cannot be named: parameters at a bound of their plausible range that is not natural
+    (the data want more than the mechanism can physically give), parameters the data do not determine (standard
+    error above half the plausible range), a valve that acts at no point (then it is not a valve)."""
+    vals = fit.values()
+    se = dict(zip(fit.combination.names, fit.stderr))
+    out = []
+    for m in fit.combination.mechanisms:
+        for p in m.params:
+            key = f"{m.label}.{p.name}"
+            side = p.pinned(vals[key])
+            if side:
+                out.append(f"{key} at its {side} bound {p.bounds[0 if side == 'lower' else 1]:g}")
+            elif math.isfinite(se.get(key, math.nan)) and se[key] > 0.5 * (p.bounds[1] - p.bounds[0]):
+                out.append(f"{key} not determined by the data (standard error {se[key]:.3g})")
+        if m.pointwise and not fit.support.get(m.id):
+            out.append(f"{m.label} opens at no measured point")
+    return out
+
+
+def _sensor_candidate(problem: Problem, current: FitResult, in_pred: np.ndarray, folds: FoldData,
+                      mech: SensorCalibration) -> tuple[FitResult, np.ndarray]:
+    """``current`` plus a sensor calibration, fitted on ``current``'s readings (in-sample and per fold):
+    (the fit, its cross-validated predictions)."""
+    j = problem.channels.index(mech.channel)
+    bounds = [p.bounds for p in mech.params]
+    rows = current.rows
+    g, o = fit_sensor(problem, j, in_pred[rows], rows, bounds)
+    comb = current.combination.plus(mech)
+    pred = in_pred.copy()
+    pred[:, j] = g * in_pred[:, j] + o
+    r = problem.normalised_residuals(pred)[rows][problem.measured_mask[rows]]
+    fit = FitResult(comb, current.nuisance.copy(), np.concatenate([current.x, [g, o]]),
+                    np.concatenate([current.stderr, [np.nan, np.nan]]), dict(current.openings), dict(current.support),
+                    current.cost, 0.5 * float(np.sum(robust_loss(r))), current.n_cells, current.k + 2, rows, current.u,
+                    at_bound=np.concatenate([current.at_bound, [False, False]]))
+    cvp = np.full_like(in_pred, np.nan)
+    for _, train, test, p_train, p_test in folds.folds:
+        gf, of = fit_sensor(problem, j, p_train, train, bounds)
+        cvp[test] = p_test
+        cvp[test, j] = gf * p_test[:, j] + of
+    return fit, cvp
+
+
+def window_excess(r: np.ndarray, load: np.ndarray, tol: float, max_width: int | None = None) -> dict[str, Any] | None:
+    """The most significant window of 2 .. n/2 consecutive points (in load order) whose mean residual departs from
+    the rest: ``d = mean(window) - mean(rest)``, ``z = d / (σ sqrt(1/w + 1/(n - w)))`` with ``σ = max(tol, s_rest)``,
+    s_rest the scatter of the residuals outside the window (the window's own scatter is part of a bump, not noise;
+    the tolerance is the floor).  Returns ``{p (Bonferroni over the windows), d, load_range, positions}`` or None."""
+    ok = np.isfinite(r) & np.isfinite(load)
+    idx = np.flatnonzero(ok)
+    n = idx.size
+    if n < 4:
+        return None
+    order = idx[np.argsort(load[idx], kind="stable")]
+    rr, x = r[order], load[order]
+    wmax = max_width or n // 2
+    wins = [(a, w) for w in range(2, wmax + 1) for a in range(0, n - w + 1)]
+    best = None
+    for a, w in wins:
+        inside = np.zeros(n, bool)
+        inside[a:a + w] = True
+        rest = rr[~inside]
+        d = float(rr[inside].mean() - rest.mean())
+        s_rest = float(np.std(rest, ddof=1)) if rest.size >= 3 else 0.0
+        sigma = max(tol, s_rest)
+        z = abs(d) / (sigma * math.sqrt(1.0 / w + 1.0 / (n - w)))
+        p = float(2 * stats.norm.sf(z))
+        if best is None or p < best["p_raw"]:
+            best = {"p_raw": p, "d": d, "sigma": sigma, "load_range": [float(x[a]), float(x[a + w - 1])],
+                    "positions": order[a:a + w]}
+    if best is None:
+        return None
+    best["p"] = min(1.0, best["p_raw"] * len(wins))
+    return best
+
+
+def local_excess(match: MatchResult, tolerances: Mapping[str, float], alpha: float, max_width: int | None = None,
+                 channels: Sequence[str] | None = None) -> list[dict[str, Any]]:
+    """Per channel, the most significant window of :func:`window_excess` when ``p < alpha`` and ``|d|`` exceeds the
+    tolerance: ``{channel, kind: "local", region: "load a-b", load_range, points, magnitude, ...}``."""
+    ds = match.dataset
+    load = operating_variables(match)["load"]
+    out = []
+    for col in (channels or match.channels):
+        tol = float(tolerances[col])
+        best = window_excess(match.residual(col), load, tol, max_width)
+        if best is None or not (best["p"] < alpha and abs(best["d"]) >= tol):
+            continue
+        lo, hi = best["load_range"]
+        lf = load[np.isfinite(load)]
+        if lo <= lf.min() + 1e-9 and hi < lf.max():  # a window at an end splits the loads in two
+            region = f"load <= {hi:.3g} (against the loads above)"
+        elif hi >= lf.max() - 1e-9 and lo > lf.min():
+            region = f"load >= {lo:.3g} (against the loads below)"
+        else:
+            region = f"load {lo:.3g}-{hi:.3g}"
+        unit = ds.spec(col).unit
+        out.append({"channel": col, "kind": "local", "region": region, "load_range": [lo, hi],
+                    "points": sorted(int(i) + 1 for i in best["positions"]), "magnitude": best["d"],
+                    "score": abs(best["d"]) / tol, "p_value": best["p"], "noise": best["sigma"], "unit": unit,
+                    "significant": True,
+                    "text": f"unexplained: {col}, {region} (local, magnitude {best['d']:+.4g} {unit})"})
+    return out
+
+
+def _unexplained_all(match: MatchResult, report: DiscrepancyReport, tol: Mapping[str, float], alpha: float
+                     ) -> list[dict[str, Any]]:
+    """Family-significant region findings and local excesses (Bonferroni over the channels)."""
+    out = _unexplained(report, alpha)
+    n_ch = max(len(report.channels), 1)
+    have = {u["channel"] for u in out}
+    for f in local_excess(match, tol, alpha / n_ch):
+        if f["channel"] not in have or all(u["kind"] != "local" for u in out if u["channel"] == f["channel"]):
+            out.append(f)
+    return out
+
+
 def select_causes(
     problem: Problem,
     mechanisms: Sequence[Mechanism] | None = None,
     *,
-    max_causes: int = 2,
+    max_causes: int = 4,
     alpha: float = 0.01,
     min_gain: float = 0.10,
     penalty: float = 2.0,
     cv_all: bool = False,
+    max_folds: int | None = None,
     progress=None,
 ) -> Selection:
     """Greedy forward selection of named mechanisms (see the module docstring).
 
     mechanisms : candidates (default: :func:`~.mechanisms.library` with one sensor calibration per channel).
     cv_all : cross-validate every candidate.  By default a candidate is cross-validated only if it can
-        still win: its in-sample penalised score (a lower bound of its cross-validated one: a fit
-        predicts the data it saw better than data it did not) is below the best cross-validated
-        penalised score of the step so far and improves the current model by ``min_gain`` in-sample.
+        still win: its in-sample penalised score (a lower bound of its cross-validated one: a fit predicts
+        the data it saw better than data it did not) is below the best cross-validated penalised score of
+        the step so far and improves the current model by ``min_gain`` in-sample.
+    max_folds : at most this many cross-validation folds (interleaved k-fold) for single-engine data.
     progress : optional callable receiving one-line status messages.
     """
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
     if mechanisms is None:
-        mechanisms = library(problem.channels, problem.references)
-    scheme, folds = problem.folds()
+        refs = {c: sensor_reference(c, problem.Y[:, j], QUANTITIES[problem.ds.column_quantity[c]].kind)
+                for j, c in enumerate(problem.channels)}
+        mechanisms = library(problem.channels, refs)
+    scheme, folds = problem.folds(max_folds)
     rows = problem.rows_with_data()
     tol = dict(zip(problem.channels, problem.tolerance))
-    base_match = problem.match_result(NO_HOOKS)
+    raw_pred, _, _ = problem.predict(BASE_SETTING)
+    base_match = match_result(problem, BASE_SETTING)
     base_report = analyse_discrepancies(base_match, alpha=alpha, tolerances=tol)
     base_outliers = point_outliers(base_match, tol, alpha)
-    base_pred, _ = problem.predict(NO_HOOKS)
-    L_base, M = cell_losses(problem, base_pred)
-    S_base = float(L_base.sum() / M)
     current = Combination()
     current_fit = fit_combination(problem, current)
+    base_pred, base_folds = cross_validate(problem, current, current_fit, max_folds=max_folds)
+    current_folds = fold_data(problem, base_folds, max_folds)
+    L_base, M = cell_losses(problem, base_pred)
+    S_base = float(L_base.sum() / M)
+    base_fit = current_fit
     current_pred, current_L, current_S, current_pen = base_pred, L_base, S_base, S_base
     steps: list[dict[str, Any]] = []
-    say(f"base model: S = {S_base:.4g} over {M} cells ({scheme}, {len(folds)} folds)")
+    alternatives: dict[str, list[dict[str, Any]]] = {}
+    say(f"calibrated base model: S = {S_base:.4g} over {M} cells ({scheme}, {len(folds)} folds)")
     for step in range(1, max_causes + 1):
         pool = [m for m in mechanisms if m.label not in current.labels]
         if not pool:
             break
         known = current_fit.values()
         scored: list[CandidateScore] = []
+        in_pred = predict_setting(problem, current_fit, np.arange(problem.n_points))
+        loco_cur = loco_predictions(problem, current_fit)
+        sensor_cv: dict[str, np.ndarray] = {}
         for mech in pool:
             comb = current.plus(mech)
-            full = fit_combination(problem, comb, starts=comb.starts(known))
-            scored.append(CandidateScore(comb, mech.label, full, 2.0 * full.cost / M))
-        scored.sort(key=lambda c: c.in_sample_score * math.exp(penalty * c.combination.n_params / M))
+            if isinstance(mech, SensorCalibration):
+                full, sensor_cv[mech.label] = _sensor_candidate(problem, current_fit, in_pred, current_folds, mech)
+            else:
+                full = fit_combination(problem, comb, start=current_fit, known=known, support=current_fit.support)
+            scored.append(CandidateScore(comb, mech.label, full, 2.0 * full.data_cost / M))
+            say(f"step {step}: fitted {mech.label:48s} in-sample {scored[-1].in_sample_score:9.4g} (k = {full.k})")
+        scored.sort(key=lambda c: c.in_sample_score * math.exp(penalty * c.fit.k / M))
         best_pen = math.inf
         for c in scored:
-            in_pen = c.in_sample_score * math.exp(penalty * c.combination.n_params / M)
+            in_pen = c.in_sample_score * math.exp(penalty * c.fit.k / M)
             in_gain = (current_S - c.in_sample_score) / current_S if current_S > 0 else 0.0
             if not cv_all:
                 if in_gain < min_gain:
@@ -714,62 +562,86 @@ def select_causes(
                     c.screened = (f"not cross-validated: in-sample penalised score {in_pen:.4g} already above the best "
                                   f"cross-validated one {best_pen:.4g}")
                     continue
-            pred, _ = cross_validate(problem, c.combination, c.fit)
+            if c.added in sensor_cv:
+                pred, c_folds = sensor_cv[c.added], None
+            else:
+                pred, c_folds = cross_validate(problem, c.combination, c.fit, max_folds=max_folds)
+            c.folds = c_folds
             L, _ = cell_losses(problem, pred)
             c.cv_pred, c.point_losses = pred, L
             c.cv_score = float(L.sum() / M)
-            c.penalised = c.cv_score * math.exp(penalty * c.combination.n_params / M)
+            c.penalised = c.cv_score * math.exp(penalty * c.fit.k / M)
             c.gain = (current_S - c.cv_score) / current_S if current_S > 0 else 0.0
-            c.p_value = _f_test_p(current_S, c.cv_score, current.n_params, c.combination.n_params, M)
+            c.p_value = _f_test_p(current_S, c.cv_score, current_fit.k, c.fit.k, M)
             c.p_value_points = _paired_p(current_L, L, rows)
             best_pen = min(best_pen, c.penalised)
+            say(f"step {step}: {c.added:48s} CV {c.cv_score:9.4g}  gain {c.gain:+.1%}  p = {c.p_value:.2g}")
         for c in scored:
-            say(f"step {step}: {c.added:48s} in-sample {c.in_sample_score:9.4g}  CV {c.cv_score:9.4g}  "
-                f"gain {c.gain:+.1%}  p = {c.p_value:.2g}")
-        cv = sorted((c for c in scored if c.cross_validated), key=lambda c: c.penalised)
+            if c.cross_validated:
+                pins = _pinned(c.fit)
+                if pins:
+                    c.screened = "not eligible: " + "; ".join(pins)
+                elif isinstance(c.combination.mechanisms[-1], SensorCalibration):
+                    left = _structure_left(problem, loco_cur, c.combination.mechanisms[-1], alpha)
+                    if left:
+                        c.screened = ("not eligible: the calibrated channel keeps a local departure (" + left +
+                                      "): a gain and an offset do not explain it")
+        cv = sorted((c for c in scored if c.cross_validated and not c.screened), key=lambda c: c.penalised)
         threshold = alpha / len(scored)
         if not cv:
             steps.append({"step": step, "best": None, "accepted": False, "threshold_p": threshold,
                           "current_score": current_S, "candidates": scored,
-                          "decision": f"rejected: no candidate improves the in-sample score by {min_gain:.0%}"})
+                          "decision": f"rejected: no candidate improves the in-sample score by {min_gain:.0%} "
+                                      "without being pinned at the limit of its plausible range"})
             say(f"step {step}: {steps[-1]['decision']}")
             break
         best = cv[0]
-        accept = best.penalised < current_pen and best.gain >= min_gain and best.p_value < threshold
+        pinned = _pinned(best.fit)  # (never: pinned candidates are not eligible)
+        accept = best.penalised < current_pen and best.gain >= min_gain and best.p_value < threshold and not pinned
         why = ("accepted" if accept else
                "rejected: " + "; ".join(s for s, bad in (
                    (f"penalised score {best.penalised:.4g} not below the current {current_pen:.4g}",
                     best.penalised >= current_pen),
                    (f"gain {best.gain:.1%} below {min_gain:.0%}", best.gain < min_gain),
                    (f"p = {best.p_value:.2g} not below alpha/{len(scored)} = {threshold:.2g}",
-                    best.p_value >= threshold)) if bad))
+                    best.p_value >= threshold),
+                   ("pinned at the limit of its plausible range (" + ", ".join(pinned) + "): the data want more than "
+                    "this mechanism can physically give, so it is not the cause", bool(pinned))) if bad))
         steps.append({"step": step, "best": best.added, "accepted": accept, "decision": why, "threshold_p": threshold,
                       "current_score": current_S, "candidates": scored})
         say(f"step {step}: best {best.added}: {why}")
         if not accept:
             break
+        alternatives[best.added] = _alternatives(best, cv, ALTERNATIVE_MARGIN)
         current, current_fit = best.combination, best.fit
         current_pred, current_L, current_S, current_pen = best.cv_pred, best.point_losses, best.cv_score, best.penalised
-    final_hooks = current_fit.hooks(problem.params)
-    final_match = problem.match_result(final_hooks)
-    final_report = analyse_discrepancies(final_match, alpha=alpha, tolerances=tol) if current.n_params else base_report
-    unexplained = _unexplained(final_report, alpha)
-    if current.n_params:
-        # a base discrepancy on a channel the extension did not improve (cross-validated) stays unexplained even
-        # if it lost significance after the fit
-        cv_b, cv_e = channel_rmse(problem, base_pred), channel_rmse(problem, current_pred)
-        have = {(u["channel"], u["kind"]) for u in unexplained}
-        for u in _unexplained(base_report, alpha):
-            c = u["channel"]
-            if (c, u["kind"]) not in have and not cv_e[c] < cv_b[c]:
-                u = dict(u, note="base-model discrepancy; the extension did not reduce this channel's cross-validated "
-                                 "error")
-                unexplained.append(u)
+        if best.folds is not None:
+            current_folds = fold_data(problem, best.folds, max_folds)
+        else:  # a sensor calibration on the previous model's folds: apply it to their readings
+            j = problem.channels.index(best.combination.mechanisms[-1].channel)
+            bounds = [p.bounds for p in best.combination.mechanisms[-1].params]
+            new = []
+            for name, train, test, p_tr, p_te in current_folds.folds:
+                gf, of = fit_sensor(problem, j, p_tr, train, bounds)
+                p_tr, p_te = p_tr.copy(), p_te.copy()
+                p_tr[:, j] = gf * p_tr[:, j] + of
+                p_te[:, j] = gf * p_te[:, j] + of
+                new.append((name, train, test, p_tr, p_te))
+            current_folds = FoldData(new)
+    final_setting = current_fit.setting(problem)
+    # what is left is judged channel by channel against the model fitted without that channel: an anomaly of one
+    # sensor would otherwise bend the fit towards it and hide
+    final_loco = loco_predictions(problem, current_fit)
+    final_match = match_result(problem, final_setting, pred_fn=lambda: final_loco)
+    final_report = analyse_discrepancies(final_match, alpha=alpha, tolerances=tol)
+    unexplained = _unexplained_all(final_match, final_report, tol, alpha)
     return Selection(
-        problem=problem, cv_scheme=scheme, base_pred=base_pred, base_score=S_base, base_report=base_report, steps=steps,
-        selected=current, fit=current_fit, cv_pred=current_pred, cv_score=current_S, final_report=final_report,
-        unexplained=unexplained, outliers=point_outliers(final_match, tol, alpha), base_outliers=base_outliers,
-        seconds=time.perf_counter() - t0,
+        problem=problem, cv_scheme=scheme, raw_pred=raw_pred, base_fit=base_fit, base_pred=base_pred,
+        base_score=S_base, base_report=base_report, steps=steps, selected=current, fit=current_fit,
+        cv_pred=current_pred, cv_score=current_S, final_report=final_report, unexplained=unexplained,
+        outliers=point_outliers(final_match, tol, alpha), base_outliers=base_outliers,
+        seconds=time.perf_counter() - t0, alternatives=alternatives,
         settings={"max_causes": max_causes, "alpha": alpha, "min_gain": min_gain, "penalty": penalty,
-                  "robust_scale": ROBUST_SCALE, "cv": scheme, "n_folds": len(folds), "n_cells": M, "cv_all": cv_all},
+                  "robust_scale": ROBUST_SCALE, "cv": scheme, "n_folds": len(folds), "n_cells": M, "cv_all": cv_all,
+                  "nuisance_sigma": 0.03},
     )

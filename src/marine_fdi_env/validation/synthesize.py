@@ -1,21 +1,29 @@
-"""Synthetic "measured" data from the (extended) model with hidden mechanisms.
+"""Synthetic "measured" data from the engine model with hidden effects, and the open-world study.
 
-:func:`synthesize` draws random operating points (load fractions uniform in a range, sorted), runs
-the extended model with the hidden mechanisms at those powers (the speed from the propeller law,
-or from the combinator line when ``cpp_load`` is hidden) and adds relative measurement noise:
-every column except the set points (``load_fraction``, ``power_kW``) gets Gaussian noise of standard
-deviation ``noise x`` the column's mean absolute value over the generated points, in the column's own
-unit (°C for temperatures, bar for pressures): an accuracy stated as a fraction of the typical
-reading, the same for every point of a channel (the discrepancy tests of :mod:`.discrepancy` assume
-equal noise along a channel).
-Mechanism parameters not given are drawn with the seed from the mechanism's ``draw`` ranges
-(:mod:`.mechanisms`).  The CSV follows the measured-data conventions of ``shared/data``
-(``charge_air_pressure_bar_abs``, ``turbine_outlet_temperature_C``, ...); the sidecar names the
-parameter set, the seed and the noise but not the mechanisms (the load law and ambient conditions
-are "not stated"/"not recorded", as they would give the mechanism away).  The truth goes to a
-separate file only when asked for (``--truth``).
+:func:`synthesize` draws random operating points (load fractions uniform in a range, sorted), runs the
+one engine model (:mod:`marine_fdi_env.operating_point`) with the hidden mechanisms at those powers (the
+speed from the propeller law, or from the combinator line when ``cpp_load`` is hidden) and adds
+measurement noise.  What makes the data *open world* is optional:
 
-``synthesize_main(argv)`` is the command line ``marine-fdi synthesize-measurements``.
+* ``perturb`` (model error): the true engine's efficiencies, areas and heat fractions differ from the
+  parameter set by a relative N(0, perturb²) each (clipped at ±2 perturb), and so does one parameter the
+  pipeline's nuisance does not cover (the nominal scavenging slip s_sl_nom);
+* ``noise_model="reading"``: noise proportional to each reading instead of to the channel's typical value,
+  while the pipeline keeps its own tolerances (1 %, 5 K), which then do not equal the noise;
+* several hidden mechanisms at once;
+* ``effects``: effects outside the library (:data:`EFFECT_KINDS`) on one channel: a bump around a load, a
+  step above a load, a bend of the trend, of 4-7 of the pipeline's tolerances (20-35 K; 4-7 % of the
+  channel's mean reading); :func:`effect_region` gives the load range where they act.
+
+Load points are stratified (one per equal slice of the load range, uniform inside it), as a test programme
+covers its range.  Valve-type mechanisms open at the points above (waste gate) or below (bypass) a drawn
+load, with openings growing away from it.  The CSV follows the measured-data conventions of ``shared/data`` with the
+protocol's channels (:data:`DEFAULT_COLUMNS`); the sidecar names the parameter set, the seed and the
+noise but not the hidden effects.  The truth goes to a separate file only when asked for (``--truth``).
+
+The study (``python -m marine_fdi_env.validation.synthesize study``) runs conditions (a) closed world,
+(b) model error, (c) reading-proportional noise, (d) two mechanisms, (e) out-of-library effects, each
+with its negative control (the same data without the hidden effect), and reports identification rates.
 """
 
 from __future__ import annotations
@@ -24,31 +32,46 @@ import argparse
 import json
 import math
 import sys
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
-from ..params import list_parameter_sets, load_params
-from .columns import COLUMNS, QUANTITIES, column_problem
+from ..operating_point import MODE_P, solve_points, speed_of_power
+from ..params import EngineParams, list_parameter_sets, load_params
+from .columns import QUANTITIES, column_problem, lookup_column
 from .dataset import write_dataset
-from .extended_model import ExtendedModel
-from .mechanisms import (MECHANISM_IDS, Mechanism, SensorCalibration, get_mechanism, parse_mechanism_spec,
-                         sensor_reference)
-from .selection import _read_quantity
+from .mechanisms import (MECHANISM_IDS, PHYSICAL_MECHANISMS, Mechanism, SensorCalibration, ValveMechanism,
+                         equivalents, get_mechanism, parse_mechanism_spec, sensor_reference)
+from .problem import BASE_SETTING, Setting, _quantity
+from .columns import ModelContext
 
-__all__ = ["DEFAULT_COLUMNS", "SET_POINT_COLUMNS", "Synthesis", "synthesize", "write_synthesis", "synthesize_main",
-           "identification_trial", "identification_study", "study_main"]
+__all__ = ["DEFAULT_COLUMNS", "SET_POINT_COLUMNS", "EFFECT_KINDS", "PERTURBED_FIELDS", "Synthesis", "synthesize",
+           "write_synthesis", "synthesize_main", "trial", "study", "study_main", "CONDITIONS", "effect_region"]
 
 DEFAULT_COLUMNS = (
-    "load_fraction", "power_kW", "speed_rpm", "fuel_flow_kg_per_h", "charge_air_pressure_bar_abs",
-    "exhaust_receiver_pressure_bar_abs", "max_cylinder_pressure_bar_abs", "compressor_outlet_temperature_C",
-    "charge_air_cooler_outlet_temperature_C", "turbine_inlet_temperature_C", "turbine_outlet_temperature_C",
-    "air_flow_kg_per_h",
+    "load_fraction", "power_kW", "speed_rpm", "fuel_flow_kg_per_h", "turbocharger_speed_rpm",
+    "charge_air_pressure_bar_gauge", "compressor_outlet_temperature_C", "charge_air_cooler_outlet_temperature_C",
+    "turbine_inlet_pressure_bar_gauge", "turbine_inlet_temperature_C", "turbine_outlet_temperature_C",
+    "cylinder_exhaust_temperature_mean_C", "max_cylinder_pressure_bar_gauge",
 )
 SET_POINT_COLUMNS = ("load_fraction", "power_kW", "power_W", "power_MW", "load_percent")
-LOAD_RANGE = (0.25, 1.05)
+LOAD_RANGE = (0.25, 1.1)
+# the true engine's model error (condition b): efficiencies, areas and heat fractions, and the scavenging
+# slip, which the pipeline's nuisance does not cover
+PERTURBED_FIELDS = (("A_eff_m2",), ("a_eta_per_Pa2", "b_eta_per_Pa", "c_eta", "a_turbo", "b_turbo_per_Pa",
+                                   "c_turbo_per_Pa2"), ("eta_com",), ("eta_comb",), ("X_cv_nom",), ("X_ct_nom",),
+                    ("s_sl_nom",))
+EFFECT_KINDS = ("bump", "step", "bend")
+FAMILIES = {
+    "pressure": ("charge_air_pressure_bar_gauge", "turbine_inlet_pressure_bar_gauge", "max_cylinder_pressure_bar_gauge"),
+    "temperature": ("compressor_outlet_temperature_C", "turbine_inlet_temperature_C", "turbine_outlet_temperature_C",
+                    "cylinder_exhaust_temperature_mean_C", "charge_air_cooler_outlet_temperature_C"),
+    "flow": ("fuel_flow_kg_per_h",),
+    "speed": ("turbocharger_speed_rpm",),
+}
 
 
 @dataclass
@@ -61,6 +84,8 @@ class Synthesis:
     truth: list[dict[str, Any]]
     engines: list[str] | None = None
     settings: dict[str, Any] = field(default_factory=dict)
+    effects: list[dict[str, Any]] = field(default_factory=list)
+    activity: dict[str, list[float]] = field(default_factory=dict)
 
     def write(self, path: str | Path, truth_path: str | Path | None = None) -> Path:
         return write_synthesis(self, path, truth_path)
@@ -71,20 +96,73 @@ def _check_columns(columns: Sequence[str]) -> None:
         msg = column_problem(c)
         if msg is not None or c == "engine":
             raise ValueError(f"--columns: {msg or 'engine is written with --engines'}")
-        q = COLUMNS[c].quantity
+        q = lookup_column(c).quantity
         if q not in QUANTITIES or QUANTITIES[q].model is None:
             raise ValueError(f"--columns: {c!r} has no model counterpart (quantity {q}); it cannot be synthesised")
-    if not any(COLUMNS[c].quantity in ("power_W", "load_fraction") for c in columns):
+    if not any(lookup_column(c).quantity in ("power_W", "load_fraction") for c in columns):
         raise ValueError("--columns: need a power or load_fraction column (the set point of every row)")
     if len(set(columns)) != len(columns):
         raise ValueError("--columns: duplicated column")
 
 
+def _perturbed(p: EngineParams, rng: np.random.Generator, sigma: float) -> tuple[EngineParams, dict[str, float]]:
+    """The parameter set with each group of :data:`PERTURBED_FIELDS` scaled by 1 + N(0, sigma²), clipped at ±2 sigma."""
+    if sigma <= 0:
+        return p, {}
+    ch, scales = {}, {}
+    for group in PERTURBED_FIELDS:
+        s = 1.0 + float(np.clip(rng.normal(0.0, sigma), -2 * sigma, 2 * sigma))
+        scales[group[0]] = s
+        for f in group:
+            ch[f] = getattr(p, f) * s
+    return p.replace(**ch), scales
+
+
+def effect_region(effect: dict[str, Any], lo: float = LOAD_RANGE[0], hi: float = LOAD_RANGE[1]) -> tuple[float, float]:
+    """Load range (within the study's load range) where an out-of-library effect exceeds half its largest magnitude
+    there."""
+    x = np.linspace(lo, hi, 2001)
+    y = np.abs(_effect_shape(effect, x))
+    on = x[y >= 0.5 * y.max()] if y.max() > 0 else x[:0]
+    return (float(on.min()), float(on.max())) if on.size else (math.nan, math.nan)
+
+
+def _effect_shape(effect: dict[str, Any], load: np.ndarray) -> np.ndarray:
+    k, c, w = effect["kind"], effect["center"], effect["width"]
+    if k == "bump":
+        return np.exp(-0.5 * ((load - c) / w) ** 2)
+    if k == "step":
+        return 0.5 * (1.0 + np.tanh((load - c) / (0.25 * w)))
+    if k == "bend":  # a kink: zero below the centre, growing linearly above, the amplitude at the top of the range
+        return np.maximum(load - c, 0.0) / max(LOAD_RANGE[1] - c, 1e-3)
+    raise ValueError(f"unknown effect kind {k!r}; known: {', '.join(EFFECT_KINDS)}")
+
+
+def draw_effect(rng: np.random.Generator, columns: Sequence[str], family: str | None = None) -> dict[str, Any]:
+    """An out-of-library effect on one channel: kind, channel, centre load, width, amplitude (column units)."""
+    fams = [f for f, cs in FAMILIES.items() if any(c in columns for c in cs)]
+    fam = family or str(rng.choice(fams))
+    chans = [c for c in FAMILIES[fam] if c in columns]
+    col = str(rng.choice(chans))
+    kind = str(rng.choice(EFFECT_KINDS))
+    center = float(rng.uniform(0.45, 0.85))
+    width = float(rng.uniform(0.08, 0.14))
+    sign = float(rng.choice([-1.0, 1.0]))
+    q = QUANTITIES[lookup_column(col).quantity]
+    # 4-7 tolerances of the pipeline (5 K, 1 % of the channel's mean reading)
+    if q.kind == "temperature":
+        amp = sign * float(rng.uniform(20.0, 35.0))
+    else:
+        amp = sign * float(rng.uniform(0.04, 0.07))  # times the channel's mean reading
+    return {"kind": kind, "family": fam, "channel": col, "center": center, "width": width, "amplitude": amp,
+            "relative": q.kind != "temperature"}
+
+
 def synthesize(
-    params: str,
+    params: str | EngineParams,
     mechanisms: Sequence[str | tuple[str, dict[str, float], str | None]] = ("none",),
     *,
-    points: int = 30,
+    points: int = 8,
     noise: float = 0.01,
     seed: int = 0,
     columns: Sequence[str] = DEFAULT_COLUMNS,
@@ -92,20 +170,22 @@ def synthesize(
     engines: int = 0,
     noise_model: str = "typical",
     full_range: bool = False,
+    perturb: float = 0.0,
+    effects: Sequence[dict[str, Any]] = (),
 ) -> Synthesis:
     """Generate a dataset (see the module docstring).
 
-    mechanisms : specs ``ID[:param=value,...]`` (or parsed tuples); ``none`` for the base model.
-    engines : 0 = no engine column; K >= 1 = K engines E1..EK sharing the same load points
-        (``points`` per engine) with independent noise.
-    noise_model : ``typical`` (standard deviation noise x the channel's mean absolute value) or
-        ``reading`` (noise x |value|, a relative accuracy of the reading).
-    full_range : draw parameters not given uniformly over the whole plausible range of each
-        parameter instead of its ``draw`` range (effects may then be too small to detect).
+    mechanisms : specs ``ID[:param=value,...]`` (or parsed tuples); ``none`` for the base model.  A valve takes
+        ``above=L`` (waste gate) / ``below=L`` (bypass) and ``opening=A`` (default: drawn).
+    engines : 0 = no engine column; K >= 1 = K engines E1..EK sharing the same load points.
+    noise_model : ``typical`` (standard deviation noise x the channel's mean absolute value) or ``reading``
+        (noise x |value|, a relative accuracy of the reading).
+    perturb : relative model error of the true engine (condition b of the study).
+    effects : out-of-library effects (:func:`draw_effect`) added to the clean readings.
     """
     if noise_model not in ("typical", "reading"):
         raise ValueError(f"noise model must be 'typical' or 'reading', got {noise_model!r}")
-    if params not in list_parameter_sets():
+    if isinstance(params, str) and params not in list_parameter_sets():
         raise ValueError(f"--params: unknown parameter set {params!r}; allowed: {', '.join(list_parameter_sets())}")
     if int(points) != points or points < 3:
         raise ValueError(f"--points must be an integer >= 3, got {points!r}")
@@ -116,9 +196,12 @@ def synthesize(
         raise ValueError(f"--load-range must satisfy 0.05 <= LO < HI <= 1.15, got {lo}, {hi}")
     if int(engines) != engines or engines < 0:
         raise ValueError(f"--engines must be an integer >= 0, got {engines!r}")
+    if not (math.isfinite(perturb) and 0.0 <= perturb <= 0.2):
+        raise ValueError(f"--perturb must lie in [0, 0.2], got {perturb!r}")
     columns = tuple(columns)
     _check_columns(columns)
-    p = load_params(params)
+    p0 = load_params(params)
+    pname = p0.name
     rng = np.random.default_rng(seed)
     parsed = [parse_mechanism_spec(s) if isinstance(s, str) else s for s in mechanisms]
     ids = [m[0] for m in parsed]
@@ -129,38 +212,62 @@ def synthesize(
     dup = {x for x in labels if labels.count(x) > 1 and not x.endswith("[None]")}
     if dup:
         raise ValueError(f"--mechanism given twice: {', '.join(sorted(dup))}")
-    loads = np.sort(rng.uniform(lo, hi, int(points)))
-    P = loads * p.P_nom_W
-    channel_cols = [c for c in columns if c not in SET_POINT_COLUMNS]
+    # stratified: one load per equal slice of the range, uniform inside it (a test programme covers the range)
+    edges = np.linspace(lo, hi, int(points) + 1)
+    loads = np.sort(rng.uniform(edges[:-1], edges[1:]))
+    p_true, scales = _perturbed(p0, rng, perturb)
 
-    # physical mechanisms first (their hooks), sensor calibrations after the clean readings
-    phys: list[tuple[Mechanism, dict[str, float]]] = []
+    # physical mechanisms first (the engine), sensor calibrations after the clean readings
+    setting: Setting = BASE_SETTING
+    truth: list[dict[str, Any]] = []
     sensors: list[tuple[str, dict[str, float], str | None]] = []
+    openings: dict[str, np.ndarray] = {}
     for mid, given, channel in parsed:
         if mid == SensorCalibration.id:
             sensors.append((mid, given, channel))
             continue
         m = get_mechanism(mid)
-        vals = m.values(given)
+        vals = m.values({k: v for k, v in given.items() if k in m.param_names})
         for prm in m.params:
             if prm.name not in given:
                 vals[prm.name] = prm.sample(rng, full_range)
-        phys.append((m, vals))
-    hooks = ExtendedModel(p).hooks
-    for m, v in phys:
-        hooks = m.apply(hooks, v, p)
-    model = ExtendedModel(p, hooks)
-    pts = model.at_power(P)
-    if not np.all(pts.converged):
-        bad = ", ".join(f"{x:.3f}" for x in loads[~pts.converged])
+        setting = m.apply(setting, vals, p_true)
+        entry = {"id": m.id, "label": m.label, "values": vals}
+        if isinstance(m, ValveMechanism):
+            o, rule = _valve_openings(m, loads, given, rng)
+            openings[m.id] = o
+            setting = m.with_openings(setting, o)
+            entry["openings"] = o.tolist()
+            entry["rule"] = rule
+        truth.append(entry)
+    eng = _engine(p_true, setting)
+    P = loads * p0.P_nom_W
+    valves = None
+    if openings:
+        valves = np.full((loads.size, 2), np.nan)
+        for j, name in enumerate(("waste_gate", "bypass_valve")):
+            if name in openings:
+                valves[:, j] = openings[name]
+    op = solve_points(eng, MODE_P, P, speed_of_power(eng, P), valves=valves)
+    if not np.all(op.converged):
+        bad = ", ".join(f"{x:.3f}" for x in loads[~op.converged])
         raise ValueError(f"the model with these mechanisms has no steady state at load fraction(s) {bad}; "
                          "choose other parameters or another load range")
+    ctx = ModelContext(rated_power_W=p0.P_nom_W)
     clean: dict[str, np.ndarray] = {}
+    p_amb = p0.p_amb_Pa + setting.dp_amb_Pa  # a gauge reads against the actual ambient
     for c in columns:
-        q = COLUMNS[c].quantity
-        si = _read_quantity(q, pts.values, p.P_nom_W)
-        clean[c] = COLUMNS[c].from_si(si, p.p_amb_Pa + hooks.dp_amb_Pa)
-    truth = [{"id": m.id, "label": m.label, "values": v} for m, v in phys]
+        spec = lookup_column(c)
+        if c in SET_POINT_COLUMNS:  # the set points as commanded (the model meets them to ~1e-15)
+            si = loads if spec.quantity == "load_fraction" else P
+        else:
+            si = _quantity(spec.quantity, op.values, ctx)
+        clean[c] = spec.from_si(si, p_amb)
+    activity = {}
+    for m_id in openings:
+        key = "waste_gate_fraction" if m_id == "waste_gate" else "bypass_fraction"
+        activity[m_id] = [float(x) for x in op.values[key]]
+    channel_cols = [c for c in columns if c not in SET_POINT_COLUMNS]
     for mid, given, channel in sensors:
         if channel is None:
             channel = str(rng.choice(channel_cols))
@@ -176,33 +283,69 @@ def synthesize(
                 vals[prm.name] = drawn[prm.name]
         clean[channel] = vals["gain"] * clean[channel] + vals["offset"]
         truth.append({"id": m.id, "label": m.label, "channel": channel, "reference": ref, "values": vals})
+    for e in effects:
+        if e["channel"] not in clean:
+            raise ValueError(f"effect on {e['channel']!r}, which is not a written column")
+        shape = _effect_shape(e, loads)
+        base = float(np.mean(np.abs(clean[e["channel"]]))) if e.get("relative") else 1.0
+        clean[e["channel"]] = clean[e["channel"]] + e["amplitude"] * base * shape
     k = max(int(engines), 1)
     out: dict[str, np.ndarray] = {}
     for c in columns:
         v = np.tile(clean[c], k)
         if c not in SET_POINT_COLUMNS and noise > 0:
-            typical = noise_model == "typical"
-            scale = float(np.mean(np.abs(clean[c]))) if typical else np.abs(v)
+            scale = float(np.mean(np.abs(clean[c]))) if noise_model == "typical" else np.abs(v)
             v = v + rng.normal(0.0, 1.0, v.size) * noise * scale
         out[c] = v
-    eng = [f"E{j + 1}" for j in range(k) for _ in range(int(points))] if engines else None
+    eng_ids = [f"E{j + 1}" for j in range(k) for _ in range(int(points))] if engines else None
     meta = {
-        "engine_params": params,
+        "engine_params": pname,
         "kind": "synthetic: generated by marine_fdi_env (synthesize-measurements) from the engine model, possibly "
-                "with hidden extensions that are not named here",
-        "source": f"marine_fdi_env synthesize-measurements --params {params} --points {int(points)} --noise {noise:g} "
-                  f"--seed {seed}" + (f" --engines {engines}" if engines else "") + " (mechanisms hidden)",
+                "with hidden effects that are not named here",
+        "source": f"marine_fdi_env synthesize-measurements --params {pname} --points {int(points)} --noise {noise:g} "
+                  f"--seed {seed}" + (f" --engines {engines}" if engines else "") + " (hidden effects not stated)",
         "load_law": "not stated",
-        "ambient": "not recorded",
-        "noise": f"Gaussian noise of standard deviation {noise:g} x the column's mean absolute value (column units) on "
-                 "every column except the set points",
-        "columns": {c: QUANTITIES[COLUMNS[c].quantity].description for c in columns},
+        "ambient_pressure_bar": p0.p_amb_Pa / 1e5,
+        "ambient_temperature_C": p0.T_amb_K - 273.15,
+        "noise": (f"Gaussian noise of standard deviation {noise:g} x the column's mean absolute value" if
+                  noise_model == "typical" else f"Gaussian noise of standard deviation {noise:g} x the reading") +
+                 " (column units) on every column except the set points",
+        "columns": {c: QUANTITIES[lookup_column(c).quantity].description for c in columns},
     }
     return Synthesis(columns=out, clean={c: np.tile(v, k) for c, v in clean.items()}, meta=meta, truth=truth,
-                     engines=eng, settings={"params": params, "points": int(points), "noise": noise, "seed": seed,
-                                            "load_range": [lo, hi], "engines": int(engines), "noise_model": noise_model,
-                                            "full_range": full_range,
-                                            "columns": list(columns)})
+                     engines=eng_ids, effects=list(effects), activity=activity,
+                     settings={"params": pname, "points": int(points), "noise": noise, "seed": seed,
+                               "load_range": [lo, hi], "engines": int(engines), "noise_model": noise_model,
+                               "full_range": full_range, "perturb": perturb, "model_error": scales,
+                               "loads": loads.tolist(), "columns": list(columns)})
+
+
+def _valve_openings(m: ValveMechanism, loads: np.ndarray, given: dict[str, float], rng
+                    ) -> tuple[np.ndarray, dict[str, float]]:
+    """Openings per point and the rule: a waste gate opens above a load, a bypass below one, growing away from it."""
+    a_max = float(given.get("opening", rng.uniform(*m.draw_range)))
+    if m.id == "waste_gate":
+        thr = float(given.get("above", rng.uniform(0.6, 0.85)))
+        ramp = np.clip((loads - thr) / max(1.1 - thr, 0.05), 0.0, 1.0)
+        return np.where(loads > thr, a_max * (0.4 + 0.6 * ramp), 0.0), {"above": thr, "opening": a_max}
+    thr = float(given.get("below", rng.uniform(0.45, 0.7)))
+    ramp = np.clip((thr - loads) / max(thr - 0.25, 0.05), 0.0, 1.0)
+    return np.where(loads < thr, a_max * (0.4 + 0.6 * ramp), 0.0), {"below": thr, "opening": a_max}
+
+
+def _engine(p: EngineParams, setting: Setting) -> EngineParams:
+    """The engine of a setting (scales, area re-match, submodels, ambient offsets) from parameter set ``p``."""
+    ch: dict[str, Any] = {k: getattr(p, k) * v for k, v in setting.scales.items() if v != 1.0}
+    if setting.area_scale != 1.0:
+        ch["A_eff_m2"] = ch.get("A_eff_m2", p.A_eff_m2) * setting.area_scale
+    if setting.submodels.any:
+        ch["submodels"] = setting.submodels
+    if setting.dT_amb_K:
+        ch["T_amb_K"] = p.T_amb_K + setting.dT_amb_K
+    if setting.dp_amb_Pa:
+        ch["p_amb_Pa"] = p.p_amb_Pa + setting.dp_amb_Pa
+        ch["p_ex_Pa"] = p.p_ex_Pa + setting.dp_amb_Pa
+    return p.replace(**ch) if ch else p
 
 
 def write_synthesis(syn: Synthesis, path: str | Path, truth_path: str | Path | None = None) -> Path:
@@ -210,7 +353,9 @@ def write_synthesis(syn: Synthesis, path: str | Path, truth_path: str | Path | N
     path = Path(path)
     write_dataset(path, syn.columns, syn.meta, engines=syn.engines, digits=7)
     if truth_path is not None:
-        Path(truth_path).write_text(json.dumps({"mechanisms": syn.truth, "settings": syn.settings}, indent=2) + "\n")
+        Path(truth_path).write_text(json.dumps({"mechanisms": syn.truth, "effects": syn.effects,
+                                                "activity": syn.activity, "settings": syn.settings},
+                                               indent=2, default=float) + "\n")
     return path
 
 
@@ -220,14 +365,17 @@ def build_parser(prog: str = "marine-fdi synthesize-measurements") -> argparse.A
         prog=prog, description="Write synthetic measured data from the model with hidden mechanisms.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="mechanisms: none, " + ", ".join(MECHANISM_IDS) + "\n"
-               "  e.g. --mechanism turbocharger_map:eta_scale=1.05,curvature=0.1 --mechanism bypass_valve\n"
+               "  e.g. --mechanism turbocharger_map:eta_scale=1.1,curvature=0.1 --mechanism waste_gate:above=0.8\n"
                "  sensor_calibration:channel=turbine_outlet_temperature_C,gain=1.05,offset=-3\n"
                "parameters not given are drawn from the mechanism's range with the seed.")
     ap.add_argument("--params", required=True, help="parameter set (" + ", ".join(list_parameter_sets()) + ")")
     ap.add_argument("--mechanism", action="append", default=None, metavar="ID[:param=value,...]",
                     help="hidden mechanism (repeatable; default none)")
-    ap.add_argument("--points", type=int, default=30, help="operating points (per engine), default 30")
+    ap.add_argument("--points", type=int, default=8, help="operating points (per engine), default 8")
     ap.add_argument("--noise", type=float, default=0.01, help="relative measurement noise, default 0.01")
+    ap.add_argument("--noise-model", default="typical", choices=("typical", "reading"),
+                    help="noise relative to the channel's typical value (default) or to each reading")
+    ap.add_argument("--perturb", type=float, default=0.0, help="relative model error of the true engine, default 0")
     ap.add_argument("--seed", type=int, default=0, help="random seed, default 0")
     ap.add_argument("--load-range", default=f"{LOAD_RANGE[0]},{LOAD_RANGE[1]}", metavar="LO,HI",
                     help="load fractions are drawn uniformly in [LO, HI], default %(default)s")
@@ -269,9 +417,8 @@ def synthesize_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi s
             raise ValueError(f"--load-range must be LO,HI, got {args.load_range!r}") from None
         columns = DEFAULT_COLUMNS if args.columns is None else \
             tuple(c.strip() for c in args.columns.split(",") if c.strip())
-        specs = args.mechanism or ["none"]
         parsed = []
-        for s in specs:
+        for s in args.mechanism or ["none"]:
             try:
                 parsed.append(parse_mechanism_spec(s))
             except ValueError as e:
@@ -279,10 +426,12 @@ def synthesize_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi s
         out = Path(args.out)
         if not out.name.endswith(".csv"):
             raise ValueError(f"--out must name a .csv file, got {args.out!r}")
-        if not out.parent.exists():
-            raise ValueError(f"--out: directory {str(out.parent)!r} does not exist")
+        if not out.parent.parent.exists():
+            raise ValueError(f"--out: directory {str(out.parent.parent)!r} does not exist")
         syn = synthesize(args.params, parsed, points=args.points, noise=args.noise, seed=args.seed, columns=columns,
-                         load_range=(lo, hi), engines=args.engines)
+                         load_range=(lo, hi), engines=args.engines, noise_model=args.noise_model,
+                         perturb=args.perturb)
+        out.parent.mkdir(exist_ok=True)
         syn.write(out, args.truth)
     except ValueError as e:
         print(f"{prog}: error: {e}", file=sys.stderr)
@@ -293,132 +442,245 @@ def synthesize_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi s
     return 0
 
 
-# --------------------------------------------------------------------------------------- identification study
-def identification_trial(seed: int, *, params: str | None = None, mechanism: str | None = None, points: int = 30,
-                         noise: float = 0.01, workdir: str | Path | None = None,
-                         full_range: bool = False) -> dict[str, Any]:
-    """One hidden-effect trial: draw a parameter set and a mechanism with ``seed`` (unless given), synthesise
-    data with random parameters, points and noise, write and reload them as a measured dataset, run the
-    selection and compare with the truth.
+# --------------------------------------------------------------------------------------- the open-world study
+CONDITIONS = {
+    "a": {"title": "closed world: base model + one library mechanism, noise 1 % of the typical reading",
+          "perturb": 0.0, "noise_model": "typical", "noise": 0.01, "n_mech": 1},
+    "b": {"title": "model error: the true engine's efficiencies, areas and heat fractions off by N(0, 3 %) each",
+          "perturb": 0.03, "noise_model": "typical", "noise": 0.01, "n_mech": 1},
+    "c": {"title": "noise 1.5 % of each reading (the fit keeps its 1 % / 5 K tolerances)",
+          "perturb": 0.0, "noise_model": "reading", "noise": 0.015, "n_mech": 1},
+    "d": {"title": "two library mechanisms at once (model error 1 %)",
+          "perturb": 0.01, "noise_model": "typical", "noise": 0.01, "n_mech": 2},
+    "e": {"title": "an effect outside the library on one channel (model error 1 %)",
+          "perturb": 0.01, "noise_model": "typical", "noise": 0.01, "n_mech": 0},
+}
 
-    ``identified``: the selected causes are exactly the hidden mechanism (for a sensor calibration, on
-    the right channel); ``outcome``: ``identified``, ``none`` (no cause named) or ``wrong`` (another cause
-    named); ``skipped`` (with ``why``) when the drawn parameters leave the model without a steady state or
-    the data outside the loader's envelope (possible with ``full_range``).  Per parameter:
-    ``within_tolerance`` (|fit - true| <= the mechanism's stated tolerance) and ``within_uncertainty``
-    (<= max(tolerance, 3 standard errors)); ``recovered``: identified and every parameter within
-    max(tolerance, 3 standard errors).
-    """
+
+def _draw_mechanisms(rng: np.random.Generator, n: int) -> list[str]:
+    """``n`` distinct mechanism ids (a sensor calibration at most once)."""
+    ids = list(MECHANISM_IDS)
+    return [str(x) for x in rng.choice(ids, size=n, replace=False)]
+
+
+def trial(condition: str, seed: int, *, control: bool = False, params: str = "wartsila-6l46", points: int = 8,
+          max_folds: int | None = None, workdir: str | Path | None = None) -> dict[str, Any]:
+    """One trial of the study: synthesise with the condition's hidden effects (none when ``control``), write and
+    reload the data, run the selection and compare with the truth."""
     import tempfile
-    import time
     import warnings
 
     from .dataset import DatasetError, DataWarning, load_dataset
-    from .selection import Problem, select_causes
+    from .problem import Problem
+    from .selection import select_causes
 
     t0 = time.perf_counter()
-    rng = np.random.default_rng([int(seed), 7919])
-    params = params or str(rng.choice(list_parameter_sets()))
-    mechanism = mechanism or str(rng.choice(MECHANISM_IDS))
-    def skipped(why: str) -> dict[str, Any]:
-        return {"seed": int(seed), "params": params, "mechanism": mechanism, "label": mechanism, "truth": {},
-                "selected": [], "identified": False, "outcome": "skipped", "why": why, "recovered": False,
-                "recovered_strict": False, "recovery": {}, "unexplained": [], "seconds": time.perf_counter() - t0}
-
+    cond = CONDITIONS[condition]
+    rng = np.random.default_rng([int(seed), ord(condition), 7919])
+    mechs = [] if control else _draw_mechanisms(rng, cond["n_mech"])
+    effects = []
+    if condition == "e" and not control:
+        effects = [draw_effect(rng, DEFAULT_COLUMNS, family=list(FAMILIES)[int(seed) % len(FAMILIES)])]
+    base = {"condition": condition, "control": bool(control), "seed": int(seed), "mechanisms": mechs,
+            "effects": effects}
     try:
-        syn = synthesize(params, [mechanism], points=points, noise=noise, seed=int(seed), full_range=full_range)
+        syn = synthesize(params, mechs or ["none"], points=points, noise=cond["noise"], seed=int(seed) * 31 + 7,
+                         noise_model=cond["noise_model"], perturb=cond["perturb"], effects=effects)
     except ValueError as e:
-        if "no steady state" not in str(e):
-            raise
-        return skipped("no steady state with the drawn parameters")
+        return {**base, "outcome": "skipped", "why": str(e)[:300], "seconds": time.perf_counter() - t0}
     with tempfile.TemporaryDirectory(dir=workdir) as d:
-        path = Path(d) / f"hidden_{seed}.csv"
+        path = Path(d) / f"hidden_{condition}_{seed}.csv"
         syn.write(path)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DataWarning)
             try:
                 ds = load_dataset(path)
-            except DatasetError as e:  # e.g. a combinator speed beyond the engine's envelope
-                return skipped("the loader rejects the data: " + " ".join(str(e).split())[:300])
-    sel = select_causes(Problem(ds))
-    truth = syn.truth[0]
-    identified = sel.selected_labels == [truth["label"]]
-    recovery = {}
-    if truth["label"] in sel.selected_labels:
-        fitted = sel.fit.parameters()[truth["label"]]
-        m = get_mechanism(truth["id"], truth.get("channel"), truth.get("reference", 1.0))
-        for prm in m.params:
-            v, se, tv = fitted[prm.name]["value"], fitted[prm.name]["stderr"], truth["values"][prm.name]
-            err = abs(v - tv)
-            recovery[prm.name] = {"true": tv, "fit": v, "stderr": se, "tolerance": prm.tolerance,
-                                  "within_tolerance": bool(err <= prm.tolerance),
-                                  "within_uncertainty": bool(err <= max(prm.tolerance, 3.0 * se))}
-    return {"seed": int(seed), "params": params, "mechanism": mechanism, "label": truth["label"],
-            "truth": truth["values"], "selected": sel.selected_labels, "identified": bool(identified),
-            "outcome": "identified" if identified else ("none" if not sel.selected_labels else "wrong"),
-            "recovered": bool(identified and all(r["within_uncertainty"] for r in recovery.values())),
-            "recovered_strict": bool(identified and all(r["within_tolerance"] for r in recovery.values())),
-            "recovery": recovery, "unexplained": [u["text"] for u in sel.unexplained],
-            "seconds": time.perf_counter() - t0}
+            except DatasetError as e:
+                return {**base, "outcome": "skipped", "why": "loader: " + " ".join(str(e).split())[:300],
+                        "seconds": time.perf_counter() - t0}
+    sel = select_causes(Problem(ds), max_folds=max_folds)
+    truth_labels = sorted(t["label"] for t in syn.truth)
+    named = sorted(sel.selected_labels)
+    res = {**base, "truth": syn.truth, "selected": named, "model_error": syn.settings["model_error"],
+           "seconds": time.perf_counter() - t0, "unexplained": [
+               {k: u.get(k) for k in ("channel", "kind", "region", "load_range", "magnitude")} for u in sel.unexplained]}
+    res["named_any"] = bool(named)
+    res["exact"] = named == truth_labels
+    res["alternatives"] = {k: [a["mechanism"] for a in v] for k, v in sel.alternatives.items()}
+    res["exact_up_to_equivalence"] = len(named) == len(truth_labels) and all(
+        any(t == n or t in equivalents(n) for n in named) for t in truth_labels)
+    if syn.activity:
+        act = sel.activity()
+        res["activity_truth"] = syn.activity
+        res["activity_found"] = act
+        res["activity_support_match"] = {
+            k: bool(k in act and [x > 0 for x in act[k]] == [x > 0 for x in v]) for k, v in syn.activity.items()}
+    if effects:
+        e = effects[0]
+        lo, hi = effect_region(e)
+        found = list(sel.unexplained) + [dict(o, load_range=[float(syn.settings["loads"][o["point"] - 1])] * 2,
+                                              kind="local") for o in sel.outliers]
+        hits = [u for u in found if u["channel"] == e["channel"]]
+        region_ok = False
+        loads_s = np.array(syn.settings["loads"])
+        for u in hits:
+            if u["kind"] == "local" and u.get("load_range"):
+                a, b = u["load_range"]
+                region_ok |= (a <= hi + 0.05) and (b >= lo - 0.05)
+                # a window at either end of the loads splits them in two: its complement is the same finding
+                if a <= loads_s.min() + 1e-9 and b < loads_s.max():
+                    nxt = loads_s[loads_s > b + 1e-9].min()
+                    region_ok |= hi + 0.05 >= nxt
+                elif b >= loads_s.max() - 1e-9 and a > loads_s.min():
+                    prv = loads_s[loads_s < a - 1e-9].max()
+                    region_ok |= lo - 0.05 <= prv
+            elif u["region"].startswith("load >"):
+                x0 = float(u["region"].split(">")[1])
+                region_ok |= x0 <= hi + 0.05
+        res["effect_region"] = [lo, hi]
+        res["found_on_channel"] = [{k: u.get(k) for k in ("kind", "region", "load_range")} for u in hits]
+        res["unexplained_right_channel"] = bool(hits)
+        res["unexplained_right_region"] = bool(region_ok)
+        res["named_other"] = bool(named)
+    res["outcome"] = ("control" if control else
+                      "identified" if res["exact"] and not effects else
+                      "unexplained" if effects and res["unexplained_right_channel"] else
+                      "none" if not named else "wrong")
+    return res
 
 
-def identification_study(seeds: Sequence[int], *, workers: int = 1, **kw) -> dict[str, Any]:
-    """Run :func:`identification_trial` over ``seeds`` (in ``workers`` processes) and summarise the rates."""
-    seeds = [int(s) for s in seeds]
-    if workers > 1:
-        from concurrent.futures import ProcessPoolExecutor
-        from functools import partial
+def study(conditions: Sequence[str], seeds: Sequence[int], *, controls: bool = True, workers: int = 1,
+          progress: bool = True, checkpoint: str | Path | None = None, **kw) -> dict[str, Any]:
+    """Run :func:`trial` for every condition x seed (and its control) and summarise per condition.
 
-        with ProcessPoolExecutor(max_workers=workers) as ex:
-            trials = list(ex.map(partial(identification_trial, **kw), seeds))
+    ``checkpoint`` (a JSON-lines file) keeps every finished trial; a rerun with the same file resumes
+    where the last one stopped (trials are deterministic in their seed, so nothing changes)."""
+    jobs = [(c, int(s), False) for c in conditions for s in seeds]
+    if controls:
+        jobs += [(c, int(s), True) for c in conditions for s in seeds]
+    results: list[dict[str, Any]] = []
+    sink = None
+    if checkpoint is not None:
+        checkpoint = Path(checkpoint)
+        if checkpoint.exists():
+            want = set(jobs)
+            for line in checkpoint.read_text().splitlines():
+                if line.strip():
+                    r = json.loads(line)
+                    key = (r["condition"], int(r["seed"]), bool(r["control"]))
+                    if key in want:
+                        want.discard(key)
+                        results.append(r)
+            jobs = [j for j in jobs if j in want]
+            if results and progress:
+                print(f"study: resuming at {len(results)}/{len(results) + len(jobs)} trials ({checkpoint})",
+                      file=sys.stderr)
+        checkpoint.parent.mkdir(parents=True, exist_ok=True)
+        sink = checkpoint.open("a")
+
+    def done(r: dict[str, Any]) -> None:
+        results.append(r)
+        if sink is not None:
+            sink.write(json.dumps(r, default=float) + "\n")
+            sink.flush()
+        if bar:
+            bar.update(1)
+
+    bar = None
+    if progress:
+        try:
+            from tqdm import tqdm
+
+            bar = tqdm(total=len(jobs) + len(results), initial=len(results), desc="study", unit="trial")
+        except ImportError:  # pragma: no cover
+            bar = None
+    try:
+        if workers > 1:
+            from concurrent.futures import ProcessPoolExecutor, as_completed
+
+            with ProcessPoolExecutor(max_workers=workers) as ex:
+                futs = [ex.submit(trial, c, s, control=ctl, **kw) for c, s, ctl in jobs]
+                for f in as_completed(futs):
+                    done(f.result())
+        else:
+            for c, s, ctl in jobs:
+                done(trial(c, s, control=ctl, **kw))
+    finally:
+        if sink is not None:
+            sink.close()
+    if bar:
+        bar.close()
+    results.sort(key=lambda r: (r["condition"], r["control"], r["seed"]))
+    return {"conditions": {c: dict(CONDITIONS[c], **summarise(results, c)) for c in conditions}, "trials": results,
+            "settings": {k: (str(v) if isinstance(v, Path) else v) for k, v in kw.items()}}
+
+
+def summarise(results: Sequence[dict[str, Any]], condition: str) -> dict[str, Any]:
+    """Rates of one condition: identification (exact set), controls naming a cause, out-of-library detection."""
+    tr = [r for r in results if r["condition"] == condition and not r["control"] and r["outcome"] != "skipped"]
+    ct = [r for r in results if r["condition"] == condition and r["control"] and r["outcome"] != "skipped"]
+    out: dict[str, Any] = {"n_trials": len(tr), "n_controls": len(ct),
+                           "skipped": sum(r["outcome"] == "skipped" for r in results if r["condition"] == condition),
+                           "control_named_rate": (sum(r["named_any"] for r in ct) / len(ct)) if ct else None}
+    if condition == "e":
+        out["unexplained_right_channel_rate"] = sum(r["unexplained_right_channel"] for r in tr) / len(tr) if tr else None
+        out["unexplained_right_region_rate"] = sum(r["unexplained_right_region"] for r in tr) / len(tr) if tr else None
+        out["named_a_cause_rate"] = sum(r["named_any"] for r in tr) / len(tr) if tr else None
     else:
-        trials = [identification_trial(s, **kw) for s in seeds]
-    skipped = [t for t in trials if t["outcome"] == "skipped"]
-    trials = [t for t in trials if t["outcome"] != "skipped"]
-    n = len(trials)
-    by_mech: dict[str, dict[str, int]] = {}
-    for t in trials:
-        b = by_mech.setdefault(t["mechanism"], {"n": 0, "identified": 0, "recovered": 0})
-        b["n"] += 1
-        b["identified"] += t["identified"]
-        b["recovered"] += t["recovered"]
-    return {"n": n, "identification_rate": sum(t["identified"] for t in trials) / n if n else math.nan,
-            "recovery_rate": sum(t["recovered"] for t in trials) / n if n else math.nan,
-            "strict_recovery_rate": sum(t["recovered_strict"] for t in trials) / n if n else math.nan,
-            "wrong_cause_rate": sum(t["outcome"] == "wrong" for t in trials) / n if n else math.nan,
-            "no_cause_rate": sum(t["outcome"] == "none" for t in trials) / n if n else math.nan,
-            "skipped": [{"seed": t["seed"], "mechanism": t["mechanism"], "why": t["why"]} for t in skipped],
-            "by_mechanism": by_mech, "trials": trials}
+        out["identification_rate"] = sum(r["exact"] for r in tr) / len(tr) if tr else None
+        out["identification_rate_up_to_equivalence"] = \
+            sum(r.get("exact_up_to_equivalence", r["exact"]) for r in tr) / len(tr) if tr else None
+        out["wrong_rate"] = sum(r["outcome"] == "wrong" for r in tr) / len(tr) if tr else None
+        out["none_rate"] = sum(r["outcome"] == "none" for r in tr) / len(tr) if tr else None
+        valves = [r for r in tr if r.get("activity_support_match")]
+        if valves:
+            out["valve_support_exact"] = f"{sum(all(r['activity_support_match'].values()) for r in valves)}/{len(valves)}"
+    by: dict[str, list[int]] = {}
+    for r in tr:
+        for m in r.get("mechanisms") or [r["effects"][0]["family"] if r.get("effects") else "none"]:
+            b = by.setdefault(m, [0, 0])
+            b[0] += 1
+            b[1] += bool(r["exact"] if condition != "e" else r.get("unexplained_right_channel"))
+    out["by_mechanism"] = {k: f"{v[1]}/{v[0]}" for k, v in sorted(by.items())}
+    return out
 
 
 def study_main(argv: Sequence[str] | None = None) -> int:
-    """``python -m marine_fdi_env.validation.synthesize study --seeds A:B [--workers K] [--out FILE.json]``:
-    the identification rate over hidden-effect trials with seeds A..B-1."""
-    ap = argparse.ArgumentParser(prog="python -m marine_fdi_env.validation.synthesize study")
-    ap.add_argument("--seeds", default="0:100", help="A:B, the seeds A..B-1 (default 0:100)")
+    """``python -m marine_fdi_env.validation.synthesize study [--conditions abcde] [--seeds A:B] [--workers K]
+    [--out FILE.json]``: the open-world hidden-effect study."""
+    ap = argparse.ArgumentParser(prog="python -m marine_fdi_env.validation.synthesize study",
+                                 description="Open-world hidden-effect study: " + "; ".join(
+                                     f"({k}) {v['title']}" for k, v in CONDITIONS.items()))
+    ap.add_argument("--conditions", default="abcde", help="which conditions (letters), default abcde")
+    ap.add_argument("--seeds", default="0:20", help="A:B, the seeds A..B-1 (default 0:20)")
+    ap.add_argument("--no-controls", action="store_true", help="skip the negative controls")
     ap.add_argument("--workers", type=int, default=1)
-    ap.add_argument("--points", type=int, default=30)
-    ap.add_argument("--noise", type=float, default=0.01)
-    ap.add_argument("--full-range", action="store_true",
-                    help="draw parameters over the whole plausible range (not only the detectable draw range)")
-    ap.add_argument("--out", default=None, help="write every trial as JSON here")
+    ap.add_argument("--points", type=int, default=8)
+    ap.add_argument("--out", default=None, help="write every trial as JSON here; finished trials are kept in "
+                    "OUT.trials.jsonl and a rerun resumes from it")
     args = ap.parse_args(list(argv) if argv is not None else None)
+    bad = set(args.conditions) - set(CONDITIONS)
+    if bad:
+        print(f"study: error: unknown condition(s) {''.join(sorted(bad))}; known: {''.join(CONDITIONS)}",
+              file=sys.stderr)
+        return 2
     a, _, b = args.seeds.partition(":")
-    res = identification_study(range(int(a), int(b)), workers=args.workers, points=args.points, noise=args.noise,
-                               full_range=args.full_range)
-    for t in res["trials"]:
-        print(f"seed {t['seed']:4d} {t['params']:14s} {t['label']:56s} -> {', '.join(t['selected']) or 'none':56s} "
-              f"{t['outcome']}{'' if t['recovered'] or not t['identified'] else ', parameters off'}")
-    for mech, b_ in sorted(res["by_mechanism"].items()):
-        print(f"{mech:28s} identified {b_['identified']}/{b_['n']}, recovered {b_['recovered']}/{b_['n']}")
-    print(f"identification rate {res['identification_rate']:.1%} over {res['n']} trials; parameters recovered "
-          f"(within max(tolerance, 3 s.e.)) {res['recovery_rate']:.1%}; within the stated tolerance "
-          f"{res['strict_recovery_rate']:.1%}; another cause named {res['wrong_cause_rate']:.1%}, no cause named "
-          f"{res['no_cause_rate']:.1%}")
-    for sk in res["skipped"]:
-        print(f"skipped seed {sk['seed']} ({sk['mechanism']}): {sk['why']}")
+    try:
+        res = study(list(args.conditions), range(int(a), int(b)), controls=not args.no_controls, workers=args.workers,
+                    points=args.points,
+                    checkpoint=(Path(args.out).with_suffix(".trials.jsonl") if args.out else None))
+    except KeyboardInterrupt:
+        print("study: interrupted", file=sys.stderr)
+        return 130
+    for c, s in res["conditions"].items():
+        print(f"({c}) {s['title']}")
+        print("    " + ", ".join(f"{k} {v}" for k, v in s.items() if k not in ("title", "by_mechanism", "perturb",
+                                                                              "noise_model", "noise", "n_mech")))
+        print("    by mechanism/family: " + ", ".join(f"{k} {v}" for k, v in s["by_mechanism"].items()))
     if args.out:
-        Path(args.out).write_text(json.dumps(res, indent=1, default=float) + "\n")
+        out = Path(args.out)
+        out.parent.mkdir(exist_ok=True)
+        out.write_text(json.dumps(res, indent=1, default=float) + "\n")
     return 0
 
 
