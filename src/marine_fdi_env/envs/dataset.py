@@ -50,10 +50,19 @@ def export_dataset(scenarios: list[ScenarioSpec], out_dir: Path, env_kwargs: dic
         from tqdm import tqdm
 
         bar = tqdm(total=len(scenarios), desc="dataset", unit="episode", file=sys.stderr)
-    for start in range(0, len(scenarios), batch_size):
-        chunk = scenarios[start:start + batch_size]
+    groups: dict[float, list[int]] = {}  # one batched engine set per sensor-noise scale
+    for i, sc in enumerate(scenarios):
+        groups.setdefault(float(sc.noise_scale), []).append(i)
+    chunks = [(ns, idx[k:k + batch_size]) for ns, idx in groups.items() for k in range(0, len(idx), batch_size)]
+    for noise_scale, part in chunks:
+        chunk = [scenarios[i] for i in part]
         n = len(chunk)
-        venv = MarineFDIVectorEnv(num_envs=n, **env_kwargs)
+        kw = dict(env_kwargs)
+        if noise_scale != get_preset(kw.get("scenario_config", "default")).noise_scale:
+            from dataclasses import replace
+
+            kw["scenario_config"] = replace(get_preset(kw.get("scenario_config", "default")), noise_scale=noise_scale)
+        venv = MarineFDIVectorEnv(num_envs=n, **kw)
         obs, infos = venv.reset(options={"scenarios": chunk})
         if obs_all is None:
             D = obs.shape[1]
@@ -65,14 +74,15 @@ def export_dataset(scenarios: list[ScenarioSpec], out_dir: Path, env_kwargs: dic
         live = np.ones(n, dtype=bool)
         k = 0
         col = {f: j for j, f in enumerate(FAULT_IDS)}
+        rows_of = np.asarray(part, dtype=np.int64)
         while live.any() and k < T:
-            rows = start + np.flatnonzero(live)
+            rows = rows_of[live]
             obs_all[rows, k] = obs[live]
             valid[rows, k] = True
             for i in np.flatnonzero(live):
-                t_all[start + i, k] = infos["t_s"][i]
+                t_all[rows_of[i], k] = infos["t_s"][i]
                 for f in infos["active_faults"][i]:
-                    active[start + i, k, col[f]] = True
+                    active[rows_of[i], k, col[f]] = True
             obs, _, term, trunc, infos = venv.step(np.zeros((n, 28), dtype=np.float32))
             live &= ~(term | trunc)
             k += 1

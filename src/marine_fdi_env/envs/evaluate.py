@@ -13,7 +13,14 @@ agent's own randomness is seeded per episode from the scenario id and the seed o
 wall-clock fields (``compute_s``) vary from run to run.
 
 ``compute_s`` of an episode = the time spent making its observations (the residual generators
-run for every agent) + its share of the agent's ``act`` time.
+run for every agent) + its share of the agent's ``act`` time; the two parts are also recorded
+apart (``feature_compute_s``, ``agent_compute_s``; ``n_decisions``), since the features dominate
+and are the same for every agent.  Both depend on the batch size (``--batch-size``, default 32).
+
+Reward: the results record the environment id and reward they score (``env_id``, ``env.reward``):
+the suite's ``env.reward`` if it fixes one, else ``--reward`` (default ``v1``).  The reward
+changes the ``return`` of an episode, never a metric.  A suite whose scenarios use another sensor
+noise scale than 1 (``transfer-v2``) runs them in batches of equal noise scale.
 """
 
 from __future__ import annotations
@@ -32,13 +39,17 @@ import numpy as np
 
 from .. import __version__
 from .agent_api import load_agent
-from .fdi_env import ENV_ID
+from .fdi_env import env_id_for
 from .metrics import compute_metrics
-from .scenario_sampler import ScenarioSpec
+from .reward import make_reward_config
+from .scenario_sampler import ScenarioConfig, ScenarioSpec
 from .suites import load_suite
 from .vector import MarineFDIVectorEnv
 
-__all__ = ["run_episodes", "evaluate", "evaluate_main", "episode_seed"]
+__all__ = ["run_episodes", "evaluate", "evaluate_main", "episode_seed", "WALL_CLOCK_FIELDS"]
+
+# the fields of an episode record that are wall-clock measurements (everything else reproduces)
+WALL_CLOCK_FIELDS = ("compute_s", "feature_compute_s", "agent_compute_s")
 
 _MAX_SEED = 2**63 - 1
 
@@ -63,12 +74,20 @@ def run_episodes(agent, scenarios: list[ScenarioSpec], env_kwargs: dict | None =
     """
     env_kwargs = dict(env_kwargs or {})
     records: dict[int, dict] = {}
-    for start in range(0, len(scenarios), batch_size):
-        chunk = [_offset(s, seed_offset) for s in scenarios[start:start + batch_size]]
-        for j, rec in enumerate(_run_batch(agent, chunk, env_kwargs, suite, seed_offset)):
-            records[start + j] = rec
-            if on_episode is not None:
-                on_episode(rec)
+    groups: dict[float, list[int]] = {}  # one batched engine set per sensor-noise scale
+    for i, s in enumerate(scenarios):
+        groups.setdefault(float(s.noise_scale), []).append(i)
+    for noise_scale, idx in groups.items():
+        kw = dict(env_kwargs)
+        if noise_scale != 1.0 and "scenario_config" not in kw:
+            kw["scenario_config"] = ScenarioConfig(name="suite", noise_scale=noise_scale)
+        for start in range(0, len(idx), batch_size):
+            part = idx[start:start + batch_size]
+            chunk = [_offset(scenarios[i], seed_offset) for i in part]
+            for i, rec in zip(part, _run_batch(agent, chunk, kw, suite, seed_offset)):
+                records[i] = rec
+                if on_episode is not None:
+                    on_episode(rec)
     return [records[i] for i in range(len(scenarios))]
 
 
@@ -120,7 +139,8 @@ def _run_batch(agent, scenarios, env_kwargs, suite, seed_offset):
                     "faults": sc.truth(), "declared_changes": trace[i], "belief_on_truth": share[i],
                     "terminated": bool(term[i]), "failure_reason": reason or None,
                     "compute_s": float(feature_s[i] + agent_s[i]), "return": float(ret[i]),
-                    "reward_terms": terms[i],
+                    "reward_terms": terms[i], "feature_compute_s": float(feature_s[i]),
+                    "agent_compute_s": float(agent_s[i]), "n_decisions": int(steps[i]),
                 }
     return out
 
@@ -132,8 +152,11 @@ def _worker(agent_spec, scenarios_dicts, env_kwargs, suite, seed_offset, batch_s
 
 
 def evaluate(agent_spec: str, suite_name: str, out: Path, *, workers: int = 1, seed_offset: int = 0,
-             batch_size: int = 32, progress: bool = True) -> dict:
-    """Evaluate an agent on a suite, resumably; returns the results object written to ``out``."""
+             batch_size: int = 32, progress: bool = True, reward: "str | dict | None" = None) -> dict:
+    """Evaluate an agent on a suite, resumably; returns the results object written to ``out``.
+
+    ``reward``: the reward to score (``v0``, ``v1`` or a config dict); default: the suite's
+    ``env.reward``, else ``v1``.  A suite that fixes its reward refuses another one."""
     if not isinstance(workers, int) or workers < 1:
         raise ValueError(f"--workers must be a positive integer, got {workers!r}")
     if not isinstance(batch_size, int) or batch_size < 1:
@@ -141,8 +164,13 @@ def evaluate(agent_spec: str, suite_name: str, out: Path, *, workers: int = 1, s
     suite = load_suite(suite_name)
     agent = load_agent(agent_spec)  # fail early on a bad agent
     env_kwargs = {k: v for k, v in suite["env"].items()}
+    fixed = env_kwargs.get("reward")
+    if fixed is not None and reward is not None and make_reward_config(reward) != make_reward_config(fixed):
+        raise ValueError(f"suite {suite.name} is scored with reward {fixed!r}; got --reward {reward!r}")
+    reward_cfg = make_reward_config(fixed if fixed is not None else (reward if reward is not None else "v1"))
+    env_kwargs["reward"] = reward_cfg.to_dict()
     header = {"agent": agent.name, "agent_spec": str(agent_spec), "suite": suite.name,
-              "suite_version": suite["version"], "seed_offset": int(seed_offset), "env_id": ENV_ID,
+              "suite_version": suite["version"], "seed_offset": int(seed_offset), "env_id": env_id_for(reward_cfg),
               "env": env_kwargs}
     out = Path(out)
     partial = out.with_name(out.name + ".partial.jsonl")
@@ -216,6 +244,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--workers", type=int, default=1, help="processes (default 1)")
     ap.add_argument("--seed-offset", type=int, default=0, help="shift every noise seed (new noise, same scenarios)")
     ap.add_argument("--batch-size", type=int, default=32, help="episodes advanced together (default 32)")
+    ap.add_argument("--reward", choices=("v0", "v1"), default=None,
+                    help="reward scored in the results' return (default: the suite's, else v1 = MarineFDI-v1)")
     ap.add_argument("--no-progress", action="store_true")
     return ap
 
@@ -231,7 +261,7 @@ def evaluate_main(argv=None) -> int:
         name = Path(args.agent).name if Path(args.agent).exists() else args.agent
         out = args.out or Path("results") / f"{name}_{Path(args.suite).stem}.json"
         result = evaluate(args.agent, args.suite, out, workers=args.workers, seed_offset=args.seed_offset,
-                          batch_size=args.batch_size, progress=not args.no_progress)
+                          batch_size=args.batch_size, progress=not args.no_progress, reward=args.reward)
     except ValueError as e:
         print(f"marine-fdi evaluate: error: {e}", file=sys.stderr)
         return 2

@@ -65,6 +65,9 @@ class RewardConfig:
         if self.tau_s <= 0:
             raise ValueError(f"reward config field 'tau_s' must be > 0, got {self.tau_s!r}")
 
+    def to_dict(self) -> dict:
+        return dict(asdict(self), version="v0")
+
 
 def score(cfg: RewardConfig, declared: np.ndarray, alarm: np.ndarray, active: np.ndarray, first_onset: np.ndarray,
           last_onset: np.ndarray, t: np.ndarray) -> dict[str, np.ndarray]:
