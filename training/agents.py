@@ -81,6 +81,12 @@ class SB3Agent:
         self.recurrent = cfg["algo"] == "ppo_lstm"
         self.obs_size = int(cfg["observation"]["size"])
         self.with_reference = bool(cfg["observation"].get("reference_features", False))
+        # the agent's own input preprocessing (training/features.py), for models trained with it
+        self.features = None
+        if cfg.get("features") is not None:
+            from .features import AgentFeatures
+
+            self.features = AgentFeatures.from_dict(cfg["features"], feature_names(False))
 
     @classmethod
     def from_dir(cls, path, **kwargs) -> "SB3Agent":
@@ -109,6 +115,8 @@ class SB3Agent:
 
         extra = N_REFERENCE_FEATURES if cfg["observation"].get("reference_features") else 0
         want = ((int(cfg["observation"]["size"]) + extra) * int(cfg.get("frame_stack", 1)),)
+        if cfg.get("features") is not None:
+            want = (len(cfg["features"]["mean"]),)
         if tuple(model.observation_space.shape) != want:
             raise ValueError(f"{f}: model made for another observation space (shape "
                              f"{tuple(model.observation_space.shape)}, this environment gives {want})")
@@ -120,6 +128,7 @@ class SB3Agent:
         self.state = None
         self.episode_start = np.ones(n, dtype=bool)
         self.n = n
+        self.feature_state = self.features.initial_state(n) if self.features is not None else None
 
     def _stacked(self, obs: np.ndarray) -> np.ndarray:
         if self.frame_stack == 1:
@@ -135,6 +144,8 @@ class SB3Agent:
         from .vec_adapter import reference_features, to_belief
 
         x = _check_batch(obs, self.obs_size, self.where)
+        if self.features is not None:
+            x = self.features(x, self.feature_state)
         if self.with_reference:
             x = np.concatenate([x, reference_features(infos["reference"], len(x))], axis=1)
         x = self._stacked(x)
@@ -144,7 +155,12 @@ class SB3Agent:
             self.episode_start[:] = False
         else:
             a, _ = self.model.predict(x, deterministic=True)
-        return to_belief(a, self.action_mode)
+        beliefs = to_belief(a, self.action_mode)
+        if self.features is not None:
+            from .replay import declaration_masks
+
+            self.features.set_alarm(self.feature_state, declaration_masks(beliefs)[1])
+        return beliefs
 
 
 class ClassifierAgent:
