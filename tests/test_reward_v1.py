@@ -135,10 +135,10 @@ def test_v1_vector_equals_single_and_record_rescoring_equals_the_env():
         for k in REWARD_TERMS_V1:
             assert again[k] == pytest.approx(terms[k], abs=1e-12), (sc.scenario_id, k)
     by = {r["scenario_id"]: r for r in recs}
-    assert by["free"]["reward_terms"]["false_alarm"] == -10.0  # one rising edge, two decisions
+    assert by["free"]["reward_terms"]["false_alarm"] == -40.0  # one rising edge, two decisions
     assert by["s42"]["reward_terms"]["final_isolation"] == 1.0
     assert by["pair"]["reward_terms"]["detection_delay"] == 0.0  # alarm up at the first onset
-    assert by["stall"]["terminated"] and by["stall"]["reward_terms"]["missed_detection"] == -2.0
+    assert by["stall"]["terminated"] and by["stall"]["reward_terms"]["missed_detection"] == -1.0
 
 
 def _alarm_only(rec: dict) -> dict:
@@ -224,7 +224,7 @@ def test_return_order_agrees_with_metric_order_on_constructed_cases(faults):
 
 def test_no_false_alarm_pays_for_itself_up_to_max_episode_length():
     cfg = RewardConfigV1()
-    assert cfg.max_episode_s() == pytest.approx(350.0)
+    assert cfg.max_episode_s() == pytest.approx(38.0 / 0.11)
     # the best episode with a false alarm (raised at the first decision, exact from the onset on)
     # against the worst without one (never detected), onset just after the first decision
     faults = [("S4.2", 1.5)]

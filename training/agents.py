@@ -164,13 +164,20 @@ class SB3Agent:
 
 
 class ClassifierAgent:
-    """The GRU diagnoser of :mod:`training.classifier` with its calibrated declaration rule."""
+    """The GRU diagnoser of :mod:`training.classifier` with its calibrated declaration rule.
+
+    ``use_reference`` (default: the model's ``declaration.use_reference``): ``False``, the
+    classifier alone (its own latched alarm and faults; the row ``classifier``); ``"first"`` or
+    ``"fallback"``, a hybrid that also takes the reference diagnoser's alarm and isolation (the row
+    ``classifier+reference``; see :meth:`act`).  An agent directory can point at a model elsewhere:
+    ``agent.json`` ``{"class": "training.agents:ClassifierAgent", "kwargs": {"model": "../classifier",
+    "use_reference": "first"}}`` (``training/models/classifier+reference``).
+    """
 
     def __init__(self, model, cfg: dict, where: Path, use_reference: bool | None = None) -> None:
         self.model = model
         self.cfg = cfg
         self.where = where
-        self.name = cfg.get("name", "classifier")
         d = cfg["declaration"]
         self.alarm_threshold = float(d["alarm_threshold"])
         self.isolation_threshold = float(d.get("isolation_threshold", 0.5))
@@ -181,10 +188,14 @@ class ClassifierAgent:
         if self.use_reference not in (False, "fallback", "first"):
             raise ValueError(f"{where / 'config.json'}: declaration.use_reference must be false, 'fallback' or "
                              f"'first', got {self.use_reference!r}")
+        base = cfg.get("name", "classifier")
+        self.name = f"{base}+reference" if self.use_reference else base
         self.obs_size = int(cfg["observation"]["size"])
 
     @classmethod
-    def from_dir(cls, path, **kwargs) -> "ClassifierAgent":
+    def from_dir(cls, path, model: str | None = None, **kwargs) -> "ClassifierAgent":
+        if model is not None:  # an agent directory that uses a model stored elsewhere
+            path = (Path(path) / model).resolve()
         path, cfg, f = _open_model_dir(path, "model.pt")
         if "declaration" not in cfg or "architecture" not in cfg:
             raise ValueError(f"{path / 'config.json'}: not a classifier config (needs 'declaration' and "

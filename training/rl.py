@@ -56,10 +56,15 @@ def evaluate_on_episodes(model, episodes: dict, features: AgentFeatures, action_
             if int(ep_before[i]) not in done_eps:
                 done_eps[int(ep_before[i])] = infos[i]["episode"]
     faulty = np.isfinite(episodes["first_onset"])
+    last = episodes["valid"].sum(axis=1) - 1
+    n_faults = episodes["active"][np.arange(n), last].sum(axis=1)
     r = [done_eps[e] for e in range(n)]
     terms = {t: np.array([x["terms"][t] for x in r]) for t in REWARD_TERMS_V1}
+    iso = terms["final_isolation"] > 0
+    by = {f"val_isolation_accuracy_{k}_faults": float(np.mean(iso[n_faults == k])) if np.any(n_faults == k) else None
+          for k in (1, 2)}
     return {"val_return": float(np.mean([x["r"] for x in r])),
-            "val_isolation_accuracy": float(np.mean(terms["final_isolation"][faulty] > 0)) if faulty.any() else None,
+            "val_isolation_accuracy": float(np.mean(iso[faulty])) if faulty.any() else None, **by,
             "val_detection_rate": float(np.mean(terms["missed_detection"][faulty] == 0)) if faulty.any() else None,
             "val_false_alarm_episodes": int(np.sum(terms["false_alarm"] < 0)),
             "val_false_alarm_episodes_fault_free": int(np.sum(terms["false_alarm"][~faulty] < 0)),
@@ -88,6 +93,8 @@ def train_ppo_replay(seed: int, hp: dict, out: Path | None, use_cache: bool = Tr
     val_fraction = float(hp.pop("validation_fraction", 0.1))
     eval_every = int(hp.pop("eval_every", 10))
     norm_reward = bool(hp.pop("normalize_reward", True))
+    alarm_logit = hp.pop("initial_alarm_logit", None)
+    single_logit = hp.pop("initial_single_logit", None)
     reward = make_reward_config(hp.pop("reward", "v1"))
     policy = hp.pop("policy")
     pk = hp.pop("policy_kwargs", None)
@@ -117,6 +124,20 @@ def train_ppo_replay(seed: int, hp: dict, out: Path | None, use_cache: bool = Tr
     venv = VecNormalize(env, norm_obs=False, norm_reward=norm_reward, gamma=float(hp.get("gamma", 0.99))) \
         if norm_reward else env
     model = PPO(policy, venv, seed=seed, device="cpu", verbose=0, policy_kwargs=policy_kwargs, **hp)
+    if alarm_logit is not None:  # start from a quiet policy: P(alarm on) = sigmoid(initial_alarm_logit)
+        if action_mode != "gated":
+            raise ValueError("initial_alarm_logit needs action_mode 'gated'")
+        import torch
+
+        with torch.no_grad():
+            model.policy.action_net.bias[1] += float(alarm_logit)
+    if single_logit is not None:  # start by naming one fault: the second-fault head prefers "none"
+        if action_mode != "gated":
+            raise ValueError("initial_single_logit needs action_mode 'gated'")
+        import torch
+
+        with torch.no_grad():
+            model.policy.action_net.bias[2 + 27] += float(single_logit)
     curve: list[dict] = []
 
     class Curve(BaseCallback):
@@ -147,7 +168,9 @@ def train_ppo_replay(seed: int, hp: dict, out: Path | None, use_cache: bool = Tr
             curve.append(row)
             f = lambda v: "–" if v is None else f"{v:.3f}"  # noqa: E731
             log(f"{row['timesteps']:9d} steps  return {f(row['train_return'])}  val iso "
-                f"{f(row.get('val_isolation_accuracy'))}  val FA episodes {row.get('val_false_alarm_episodes')}  "
+                f"{f(row.get('val_isolation_accuracy'))} (1 fault {f(row.get('val_isolation_accuracy_1_faults'))}, "
+                f"2 faults {f(row.get('val_isolation_accuracy_2_faults'))})  val detection "
+                f"{f(row.get('val_detection_rate'))}  val FA episodes {row.get('val_false_alarm_episodes')}  "
                 f"val return {f(row.get('val_return'))}  cpu {row['cpu_s']:.0f} s")
 
     model.learn(total_timesteps=n_timesteps, callback=Curve())
@@ -157,7 +180,8 @@ def train_ppo_replay(seed: int, hp: dict, out: Path | None, use_cache: bool = Tr
            "n_timesteps": n_timesteps, "action_mode": action_mode, "frame_stack": 1,
            "scenario_config": "replay of the datasets below", "policy": policy, "policy_kwargs": pk,
            "hyperparams": dict(hp, normalize_reward=norm_reward, validation_fraction=val_fraction,
-                               eval_every=eval_every),
+                               eval_every=eval_every, initial_alarm_logit=alarm_logit,
+                               initial_single_logit=single_logit),
            "reward": reward.to_dict(), "datasets": datasets, "training_episodes": int(len(train["obs"])),
            "validation_episodes": n_val, "validation": final,
            "features": features.to_dict(), "observation": dict(_observation_meta(), reference_features=False),

@@ -75,8 +75,8 @@ class MarineFDIEnv(gym.Env):
     +0.5 exp(-delay/30 s) for an alarm while a fault is active; +1 exp(-delay/30 s) when the
     declared set equals the active set; -0.25 for a declared set that is wrong; -0.02 per
     decision that misses an active fault.  ``MarineFDI-v1`` (``reward="v1"``), derived from the
-    metrics: -10 per false alarm (rising alarm edge before the first onset), -0.01 per second of
-    detection delay, -2 once for a fault never detected, +0.01 per second of exact isolation, +1
+    metrics: -40 per false alarm (rising alarm edge before the first onset), -0.01 per second of
+    detection delay, -1 once for a fault never detected, +0.1 per second of exact isolation, +1
     when the last declared set is exact.
     Each term is in ``info["reward_terms"]``.
 
