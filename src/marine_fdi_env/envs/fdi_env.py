@@ -1,4 +1,5 @@
-"""``MarineFDI-v0``: fault detection and isolation on a simulated marine diesel engine."""
+"""``MarineFDI-v0`` and ``MarineFDI-v1`` (this class with another reward): fault detection and
+isolation on a simulated marine diesel engine."""
 
 from __future__ import annotations
 
