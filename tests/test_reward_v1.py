@@ -146,7 +146,7 @@ def _alarm_only(rec: dict) -> dict:
     return dict(rec, declared_changes=[[t, [], a] for t, _, a in rec["declared_changes"]])
 
 
-@pytest.mark.parametrize("suite", ["thesis-v1", "single-v1", "multi-v1", "incipient-v1", "transfer-v1"])
+@pytest.mark.parametrize("suite", ["thesis-v1", "single-v1", "multi-v1", "incipient-v1", "transfer-v1", "transfer-v2"])
 def test_recorded_traces_rank_oracle_reference_alarm_only_null(suite):
     recs = {}
     for a in ("oracle", "reference", "null"):

@@ -1,10 +1,10 @@
-"""Train a learned diagnoser for ``MarineFDI-v0`` (RL Zoo style).
+"""Train a learned diagnoser for ``MarineFDI-v1`` / ``MarineFDI-v0`` (RL Zoo style).
 
-    python -m training.train --algo ppo --seed 0                 # PPO on the batched env
+    python -m training.train --algo ppo --env MarineFDI-v1 --seed 0   # the shipped PPO: replayed v1 episodes
+    python -m training.train --algo ppo --seed 0                 # PPO on the live batched env (v0 entry)
     python -m training.train --algo ppo_lstm --seed 0            # RecurrentPPO (sb3-contrib)
     python -m training.train --algo classifier --seed 0          # supervised GRU diagnoser
     python -m training.train --algo ppo --seed -1                # draw a seed (logged and saved)
-    python -m training.train --algo ppo --env MarineFDI-v1 --seed 0   # PPO on replayed MarineFDI-v1 episodes
 
 Hyperparameters: ``training/hyperparams/ALGO.yml``, keyed by env id; ``--params key=value ...``
 overrides entries (values parsed as YAML), ``--n-timesteps`` the PPO budget.  The run directory
@@ -14,7 +14,9 @@ and ``agent.json``, so ``marine-fdi evaluate --agent DIR`` runs it.  The shipped
 ``training/models/`` were made with the command recorded in their ``config.json``.
 
 CPU time is the process CPU time (all threads; simulation, features and learning together,
-including the data generation of the classifier, cached or not).
+including the data generation of the classifier and of the replayed PPO, cached or not).
+An entry with ``replay: true`` (``ppo.yml``, ``MarineFDI-v1``) trains on recorded episodes
+(:mod:`training.rl`); the others on the live environment.
 """
 
 from __future__ import annotations

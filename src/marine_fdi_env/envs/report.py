@@ -183,7 +183,8 @@ def plot_detection_delays(results: Sequence[Mapping], path: Path) -> Path:
         data = [[d for d in (episode_outcome(e)["detection_delay_s"] for e in r["episodes"])
                  if d is not None] for r in rs]
         ax.boxplot(data, showfliers=True)
-        ax.set_xticks(range(1, len(rs) + 1), [f"{r['agent']}\n(n={len(d)})" for r, d in zip(rs, data)])
+        ax.set_xticks(range(1, len(rs) + 1), [f"{r['agent']}\n(n={len(d)})" for r, d in zip(rs, data)],
+                      rotation=30, ha="right")
         ax.set_title(f"suite {suite}: detection delay")
         ax.set_ylabel("delay [s]")
         ax.set_ylim(bottom=0)
@@ -208,7 +209,7 @@ def plot_summary(results: Sequence[Mapping], path: Path) -> Path:
         for j, (key, label) in enumerate(_BARS):
             vals = [100 * (r["metrics"].get(key) or 0.0) for r in rs]
             ax.bar([i + (j - 1) * width for i in range(len(rs))], vals, width, label=label)
-        ax.set_xticks(range(len(rs)), [r["agent"] for r in rs])
+        ax.set_xticks(range(len(rs)), [r["agent"] for r in rs], rotation=30, ha="right")
         ax.set_xlim(-0.6, max(len(rs), 2) - 0.4)
         ax.set_ylim(0, 105)
         ax.set_ylabel("%")
