@@ -434,6 +434,37 @@ def write_readme(path: Path = README) -> bool:
     return True
 
 
+def transfer_v2_probe(agent: str = "reference", log=print) -> dict:
+    """What makes transfer-v2 hard for an agent: its scenarios as in the suite, at the training noise
+    (1.0x), and with a constant profile at the suite's noise (0.7x); detection, isolation, false alarms."""
+    import re
+    from dataclasses import replace
+
+    from marine_fdi_env.envs.agent_api import load_agent
+    from marine_fdi_env.envs.evaluate import run_episodes
+    from marine_fdi_env.envs.metrics import compute_metrics
+    from marine_fdi_env.envs.suites import load_suite
+
+    scs = load_suite("transfer-v2").scenarios
+
+    def level(p: str) -> float:
+        m = re.search(r"u_mean=([0-9.]+)", p)
+        return float(m.group(1)) if m else 0.65
+
+    variants = {"as in the suite (held-out profiles, noise 0.7x)": scs,
+                "the same profiles at noise 1.0x": [replace(s, noise_scale=1.0) for s in scs],
+                "constant profile at the mean level, noise 0.7x": [replace(s, profile=f"constant:u0={level(s.profile)}")
+                                                                   for s in scs]}
+    spec = str(ROOT / AGENTS[agent]) if "/" in AGENTS.get(agent, "") else agent
+    out = {}
+    for name, v in variants.items():
+        m = compute_metrics(run_episodes(load_agent(spec), v, {"reward": REWARD}, suite="transfer-v2-probe"))
+        out[name] = m
+        log(f"{agent} | {name} | detection {_fmt(m['detection_rate'], 'pct')} | isolation "
+            f"{_fmt(m['isolation_accuracy'], 'pct')} | false alarms {m['n_false_alarms']}")
+    return out
+
+
 NOTES_FILE = Path(__file__).resolve().parent / "NOTES.md"
 
 
@@ -445,7 +476,13 @@ def main(argv=None) -> int:
     ap.add_argument("--force-baselines", action="store_true", help="re-evaluate null/random/reference/oracle too")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--report-only", action="store_true")
+    ap.add_argument("--transfer-v2-probe", action="store_true",
+                    help="only print what makes transfer-v2 hard for the --agents (noise vs profiles)")
     args = ap.parse_args(argv)
+    if args.transfer_v2_probe:
+        for a in args.agents:
+            transfer_v2_probe(a)
+        return 0
     if not args.report_only:
         run({a: AGENTS[a] for a in args.agents}, args.suites, force=args.force,
             force_baselines=args.force_baselines, workers=args.workers)

@@ -266,7 +266,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=None, help="run directory (default training/logs/ALGO_sSEED)")
     ap.add_argument("--n-timesteps", type=int, default=None, help="override the PPO budget")
     ap.add_argument("--params", nargs="*", default=[], help="hyperparameter overrides key=value")
-    ap.add_argument("--no-cache", action="store_true", help="re-export the classifier's datasets")
+    ap.add_argument("--no-cache", action="store_true", help="simulate the training datasets again (classifier, replayed PPO) instead of using training/.cache")
     args = ap.parse_args(argv)
     seed = args.seed
     if seed < 0:
@@ -292,7 +292,8 @@ def main(argv=None) -> int:
     else:
         _, cfg = train_sb3(args.algo, seed, hp, out)
         agent_class = "training.agents:SB3Agent"
-    cmd = ["python", "-m", "training.train"] + [a for a in argv]
+    # the command that makes the model (--no-cache only re-exports the same data: not recorded)
+    cmd = ["python", "-m", "training.train"] + [a for a in argv if a != "--no-cache"]
     if args.seed < 0:
         cmd = [a if a != str(args.seed) else str(seed) for a in cmd]
     cfg.update(command=shlex.join(cmd), seed_drawn=args.seed < 0, cpu_minutes=round(cfg["cpu_s"] / 60.0, 2),
