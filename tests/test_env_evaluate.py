@@ -9,7 +9,7 @@ import pytest
 
 from marine_fdi_env.cli import main as cli_main
 from marine_fdi_env.envs.agent_api import BUILTIN_AGENTS, load_agent
-from marine_fdi_env.envs.evaluate import evaluate, run_episodes
+from marine_fdi_env.envs.evaluate import WALL_CLOCK_FIELDS, evaluate, run_episodes
 from marine_fdi_env.envs.scenario_sampler import ScenarioSpec
 from marine_fdi_env.envs.suites import SUITE_NAMES, build_suite, load_suite
 
@@ -33,7 +33,7 @@ def suite_file(tmp_path):
 
 
 def _strip(episodes):
-    return [{k: v for k, v in e.items() if k != "compute_s"} for e in episodes]
+    return [{k: v for k, v in e.items() if k not in WALL_CLOCK_FIELDS} for e in episodes]
 
 
 def test_oracle_is_the_ceiling_and_null_the_floor(suite_file, tmp_path):

@@ -26,6 +26,7 @@ from marine_fdi_env.envs.scenario_sampler import ScenarioConfig, ScenarioSpec
 from marine_fdi_env.envs.vector import MarineFDIVectorEnv
 from marine_fdi_env.faults import (FAULT_IDS, PROCESS_FAULT_DEFAULTS, PROCESS_FAULT_IDS, SENSOR_FAULT_KINDS,
                                    FaultSpec)
+from marine_fdi_env.envs.scenario_sampler import SAMPLER_PROFILES
 from marine_fdi_env.profiles import PROFILE_NAMES
 from marine_fdi_env.sensors import SENSOR_IDS
 
@@ -46,7 +47,7 @@ weights = st.floats(0.05, 1.0, allow_nan=False)
 @st.composite
 def scenario_configs(draw) -> ScenarioConfig:
     D = draw(durations)
-    fams = draw(st.lists(st.sampled_from(PROFILE_NAMES), min_size=1, max_size=len(PROFILE_NAMES), unique=True))
+    fams = draw(st.lists(st.sampled_from(SAMPLER_PROFILES), min_size=1, max_size=len(SAMPLER_PROFILES), unique=True))
     lo = draw(st.floats(0.31, 1.1))
     hi = draw(st.floats(lo, 1.1))
     cw = list(draw(st.tuples(st.sampled_from([0.0, 0.2, 1.0]), st.sampled_from([0.0, 0.5, 1.0]),
@@ -90,6 +91,11 @@ def profiles(draw, D: float) -> str:
     if fam == "random":
         a, b = sorted((draw(_u()), draw(_u())))
         return f"random:seed={draw(st.integers(0, 2**31))},u_min={a},u_max={b}"
+    if fam == "harbour":  # the transfer-v2 families: explicit scenarios may use them
+        return f"harbour:seed={draw(st.integers(0, 2**31))},dwell={round(draw(st.floats(5.0, 60.0)), 2)}"
+    if fam == "seastate":
+        return (f"seastate:seed={draw(st.integers(0, 2**31))},u_mean={draw(_u())},"
+                f"amplitude={round(draw(st.floats(0.0, 0.09)), 4)},period={round(draw(st.floats(2.0, 20.0)), 2)}")
     return f"manoeuvring:scale={round(draw(st.floats(0.35, 1.1)), 4)}"
 
 
@@ -265,7 +271,7 @@ def test_engine_failure_terminates_with_reason_and_refuses_step(spec, period, ob
 def test_vector_env_fuzz_autoreset_and_failures(data, n, period, observe, seed):
     specs = [data.draw(st.one_of(scenario_specs(), stalling_specs())) for _ in range(n)]
     cfg = ScenarioConfig(name="fuzz", duration_s=12.0, onset_range_s=(1.0, 6.0),
-                         profiles=tuple((f, 1.0) for f in PROFILE_NAMES))
+                         profiles=tuple((f, 1.0) for f in SAMPLER_PROFILES))
     env = MarineFDIVectorEnv(num_envs=n, scenario_config=cfg, decision_period_s=period, observe_sensors=observe)
     rng = np.random.default_rng(seed)
     obs, infos = env.reset(seed=seed, options={"scenarios": specs})

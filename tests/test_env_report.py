@@ -22,6 +22,7 @@ def episode(agent: str, suite: str, delay: float | None, sid: str = "e") -> dict
         "faults": [{"id": "S1.1", "class": "sensor", "onset_s": 5.0, "magnitude": 1.0, "end_s": None}],
         "declared_changes": changes, "terminated": False, "failure_reason": None,
         "compute_s": 0.0125, "return": 0.0, "reward_terms": {},
+        "feature_compute_s": 0.0100, "agent_compute_s": 0.0025, "n_decisions": 10,
     }
 
 
@@ -57,7 +58,7 @@ def test_table_rows_order_and_formatting(result_files):
     table = markdown_table(load_results(result_files))
     lines = table.strip().splitlines()
     assert lines[0].startswith("| Suite | Agent | Episodes | Detection |")
-    assert "Compute [µs/sample]" in lines[0]
+    assert "Features [µs/sample]" in lines[0] and "Agent [µs/decision]" in lines[0]
     rows = [[c.strip() for c in line.strip("|").split("|")] for line in lines[2:]]
     assert [(r[0], r[1]) for r in rows] == [
         ("a", "null"), ("a", "reference"), ("a", "alpha"), ("a", "zeta"), ("a", "oracle"),
@@ -67,7 +68,8 @@ def test_table_rows_order_and_formatting(result_files):
     assert ref["Detection"] == "50.0 %"
     assert ref["Median det. delay [s]"] == "2.0"
     assert ref["False alarms [1/h]"] == "0.00"
-    assert ref["Compute [µs/sample]"] == "12.5"
+    assert ref["Features [µs/sample]"] == "10.0" and ref["Agent [µs/decision]"] == "250.0"
+    assert ref["Censored median det. delay [s]"] == "–"  # one of two detected: half not reached
     null = dict(zip([c.strip() for c in lines[0].strip("|").split("|")], rows[0]))
     assert null["Detection"] == "0.0 %" and null["Median det. delay [s]"] == "–"
 

@@ -18,7 +18,7 @@ from marine_fdi_env.envs import agent_registry
 from marine_fdi_env.envs.agent_api import load_agent
 from marine_fdi_env.envs.cliutil import prepare_out
 from marine_fdi_env.envs.dataset import load_dataset
-from marine_fdi_env.envs.evaluate import evaluate
+from marine_fdi_env.envs.evaluate import WALL_CLOCK_FIELDS, WALL_CLOCK_METRICS, evaluate
 from marine_fdi_env.envs.metrics import compute_metrics
 from marine_fdi_env.envs.records import read_records, read_results_parquet
 from marine_fdi_env.envs.suites import load_suite
@@ -50,9 +50,9 @@ def tiny(tmp_path):
 
 
 def _no_clock(x):
-    """Records or metrics without the wall-clock fields (compute_s, compute_s_per_sample)."""
+    """Records or metrics without the wall-clock fields (compute times and the metrics made of them)."""
     if isinstance(x, dict):
-        return {k: _no_clock(v) for k, v in x.items() if k not in ("compute_s", "compute_s_per_sample")}
+        return {k: _no_clock(v) for k, v in x.items() if k not in WALL_CLOCK_FIELDS + WALL_CLOCK_METRICS}
     if isinstance(x, list):
         return [_no_clock(v) for v in x]
     return x

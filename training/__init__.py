@@ -1,10 +1,13 @@
-"""Learned diagnosers for ``MarineFDI-v0`` (needs the ``train`` extra: torch, stable-baselines3, pyyaml).
+"""Learned diagnosers for ``MarineFDI-v1`` (needs the ``train`` extra: torch, stable-baselines3, pyyaml).
 
-* :mod:`training.train` - ``python -m training.train --algo ppo|ppo_lstm|classifier --seed N``
+* :mod:`training.train` - ``python -m training.train --algo ppo|ppo_lstm|classifier [--env ID] --seed N``
   (hyperparameters in ``training/hyperparams/ALGO.yml``, keyed by env id);
-* :mod:`training.vec_adapter` - SB3 ``VecEnv`` over the batched vector environment;
+* :mod:`training.rl`, :mod:`training.replay`, :mod:`training.features` - PPO on recorded
+  MarineFDI-v1 episodes (bit-equal to the live env), with the agent's own input preprocessing;
+* :mod:`training.vec_adapter` - SB3 ``VecEnv`` over the batched vector environment, action modes;
 * :mod:`training.classifier` - the supervised GRU diagnoser and its threshold calibration;
 * :mod:`training.agents` - trained models as benchmark agents (``marine-fdi evaluate --agent
   training/models/NAME``);
-* :mod:`training.compare` - every agent on every frozen suite, ``docs/learned_agents.md``.
+* :mod:`training.compare` - every agent on every frozen suite, ``docs/learned_agents.md`` and
+  the README's result tables.
 """

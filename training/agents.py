@@ -81,6 +81,12 @@ class SB3Agent:
         self.recurrent = cfg["algo"] == "ppo_lstm"
         self.obs_size = int(cfg["observation"]["size"])
         self.with_reference = bool(cfg["observation"].get("reference_features", False))
+        # the agent's own input preprocessing (training/features.py), for models trained with it
+        self.features = None
+        if cfg.get("features") is not None:
+            from .features import AgentFeatures
+
+            self.features = AgentFeatures.from_dict(cfg["features"], feature_names(False))
 
     @classmethod
     def from_dir(cls, path, **kwargs) -> "SB3Agent":
@@ -109,6 +115,8 @@ class SB3Agent:
 
         extra = N_REFERENCE_FEATURES if cfg["observation"].get("reference_features") else 0
         want = ((int(cfg["observation"]["size"]) + extra) * int(cfg.get("frame_stack", 1)),)
+        if cfg.get("features") is not None:
+            want = (len(cfg["features"]["mean"]),)
         if tuple(model.observation_space.shape) != want:
             raise ValueError(f"{f}: model made for another observation space (shape "
                              f"{tuple(model.observation_space.shape)}, this environment gives {want})")
@@ -120,6 +128,7 @@ class SB3Agent:
         self.state = None
         self.episode_start = np.ones(n, dtype=bool)
         self.n = n
+        self.feature_state = self.features.initial_state(n) if self.features is not None else None
 
     def _stacked(self, obs: np.ndarray) -> np.ndarray:
         if self.frame_stack == 1:
@@ -135,6 +144,8 @@ class SB3Agent:
         from .vec_adapter import reference_features, to_belief
 
         x = _check_batch(obs, self.obs_size, self.where)
+        if self.features is not None:
+            x = self.features(x, self.feature_state)
         if self.with_reference:
             x = np.concatenate([x, reference_features(infos["reference"], len(x))], axis=1)
         x = self._stacked(x)
@@ -144,17 +155,29 @@ class SB3Agent:
             self.episode_start[:] = False
         else:
             a, _ = self.model.predict(x, deterministic=True)
-        return to_belief(a, self.action_mode)
+        beliefs = to_belief(a, self.action_mode)
+        if self.features is not None:
+            from .replay import declaration_masks
+
+            self.features.set_alarm(self.feature_state, declaration_masks(beliefs)[1])
+        return beliefs
 
 
 class ClassifierAgent:
-    """The GRU diagnoser of :mod:`training.classifier` with its calibrated declaration rule."""
+    """The GRU diagnoser of :mod:`training.classifier` with its calibrated declaration rule.
+
+    ``use_reference`` (default: the model's ``declaration.use_reference``): ``False``, the
+    classifier alone (its own latched alarm and faults; the row ``classifier``); ``"first"`` or
+    ``"fallback"``, a hybrid that also takes the reference diagnoser's alarm and isolation (the row
+    ``classifier+reference``; see :meth:`act`).  An agent directory can point at a model elsewhere:
+    ``agent.json`` ``{"class": "training.agents:ClassifierAgent", "kwargs": {"model": "../classifier",
+    "use_reference": "first"}}`` (``training/models/classifier+reference``).
+    """
 
     def __init__(self, model, cfg: dict, where: Path, use_reference: bool | None = None) -> None:
         self.model = model
         self.cfg = cfg
         self.where = where
-        self.name = cfg.get("name", "classifier")
         d = cfg["declaration"]
         self.alarm_threshold = float(d["alarm_threshold"])
         self.isolation_threshold = float(d.get("isolation_threshold", 0.5))
@@ -165,10 +188,14 @@ class ClassifierAgent:
         if self.use_reference not in (False, "fallback", "first"):
             raise ValueError(f"{where / 'config.json'}: declaration.use_reference must be false, 'fallback' or "
                              f"'first', got {self.use_reference!r}")
+        base = cfg.get("name", "classifier")
+        self.name = f"{base}+reference" if self.use_reference else base
         self.obs_size = int(cfg["observation"]["size"])
 
     @classmethod
-    def from_dir(cls, path, **kwargs) -> "ClassifierAgent":
+    def from_dir(cls, path, model: str | None = None, **kwargs) -> "ClassifierAgent":
+        if model is not None:  # an agent directory that uses a model stored elsewhere
+            path = (Path(path) / model).resolve()
         path, cfg, f = _open_model_dir(path, "model.pt")
         if "declaration" not in cfg or "architecture" not in cfg:
             raise ValueError(f"{path / 'config.json'}: not a classifier config (needs 'declaration' and "

@@ -1,6 +1,7 @@
-"""Train a learned diagnoser for ``MarineFDI-v0`` (RL Zoo style).
+"""Train a learned diagnoser for ``MarineFDI-v1`` / ``MarineFDI-v0`` (RL Zoo style).
 
-    python -m training.train --algo ppo --seed 0                 # PPO on the batched env
+    python -m training.train --algo ppo --env MarineFDI-v1 --seed 0   # the shipped PPO: replayed v1 episodes
+    python -m training.train --algo ppo --seed 0                 # PPO on the live batched env (v0 entry)
     python -m training.train --algo ppo_lstm --seed 0            # RecurrentPPO (sb3-contrib)
     python -m training.train --algo classifier --seed 0          # supervised GRU diagnoser
     python -m training.train --algo ppo --seed -1                # draw a seed (logged and saved)
@@ -13,7 +14,9 @@ and ``agent.json``, so ``marine-fdi evaluate --agent DIR`` runs it.  The shipped
 ``training/models/`` were made with the command recorded in their ``config.json``.
 
 CPU time is the process CPU time (all threads; simulation, features and learning together,
-including the data generation of the classifier, cached or not).
+including the data generation of the classifier and of the replayed PPO, cached or not).
+An entry with ``replay: true`` (``ppo.yml``, ``MarineFDI-v1``) trains on recorded episodes
+(:mod:`training.rl`); the others on the live environment.
 """
 
 from __future__ import annotations
@@ -141,36 +144,52 @@ def train_sb3(algo: str, seed: int, hp: dict, out: Path | None, log=print) -> tu
 
 
 # ----------------------------------------------------------------------------- supervised
-def _dataset(spec: dict, use_cache: bool, log=print) -> tuple[dict, float, bool]:
-    """Export (or load from the cache) a preset dataset; returns (arrays, CPU s of the export, fresh)."""
-    from marine_fdi_env import __version__
-    from marine_fdi_env.envs.dataset import export_dataset
-    from marine_fdi_env.envs.scenario_sampler import get_preset
+def scenario_config_of(spec: dict):
+    """(name, ScenarioConfig) of a dataset spec: ``{"preset": NAME}`` or ``{"config": {...}}``."""
+    from marine_fdi_env.envs.scenario_sampler import ScenarioConfig, get_preset
 
-    from .classifier import load_dataset
-
-    n, s = int(spec["episodes"]), int(spec["seed"])
     if "config" in spec:  # a scenario config (dict) instead of a named preset
-        from marine_fdi_env.envs.scenario_sampler import ScenarioConfig
-
         cfg = ScenarioConfig.from_dict({k: (tuple(tuple(x) if isinstance(x, list) else x for x in v)
                                             if isinstance(v, list) else v) for k, v in spec["config"].items()})
-        preset = cfg.name
-    else:
-        preset = spec["preset"]
-        cfg = get_preset(preset)
+        return cfg.name, cfg
+    return spec["preset"], get_preset(spec["preset"])
+
+
+def dataset_scenarios(spec: dict) -> list:
+    """The scenarios of a dataset spec (``episodes`` drawn from ``SeedSequence(seed)``), as
+    ``marine-fdi dataset --preset P --episodes N --seed S`` draws them."""
+    _, cfg = scenario_config_of(spec)
+    n, s = int(spec["episodes"]), int(spec["seed"])
+    ent = np.random.default_rng(np.random.SeedSequence(s)).integers(0, 2**63 - 1, size=n)
+    return [cfg.sample(int(e), scenario_id=f"{cfg.name}/{s}/{i}") for i, e in enumerate(ent)]
+
+
+def _ensure_dataset(spec: dict, use_cache: bool, log=print) -> tuple[Path, float, bool]:
+    """Export a dataset spec (or find it in the cache); returns (directory, CPU s of the export, fresh)."""
+    from marine_fdi_env import __version__
+    from marine_fdi_env.envs.dataset import export_dataset
+
+    preset, cfg = scenario_config_of(spec)
+    n, s = int(spec["episodes"]), int(spec["seed"])
     d = CACHE / f"{preset}_{n}_{s}_v{__version__}"
     meta = d / "cpu.json"
     if use_cache and meta.is_file() and (d / "dataset.npz").is_file():
-        return load_dataset(d), float(json.loads(meta.read_text())["cpu_s"]), False
+        return d, float(json.loads(meta.read_text())["cpu_s"]), False
     c0 = time.process_time()
-    log(f"exporting dataset: marine-fdi dataset --preset {preset} --episodes {n} --seed {s}")
-    ent = np.random.default_rng(np.random.SeedSequence(s)).integers(0, 2**63 - 1, size=n)
-    scenarios = [cfg.sample(int(e), scenario_id=f"{cfg.name}/{s}/{i}") for i, e in enumerate(ent)]
-    export_dataset(scenarios, d, {"scenario_config": cfg}, progress=False)
+    if log:
+        log(f"exporting dataset: marine-fdi dataset --preset {preset} --episodes {n} --seed {s}")
+    export_dataset(dataset_scenarios(spec), d, {"scenario_config": cfg}, progress=False)
     cpu = time.process_time() - c0
     meta.write_text(json.dumps({"cpu_s": cpu}))
-    return load_dataset(d), cpu, True
+    return d, cpu, True
+
+
+def _dataset(spec: dict, use_cache: bool, log=print) -> tuple[dict, float, bool]:
+    """Export (or load from the cache) a preset dataset; returns (arrays, CPU s of the export, fresh)."""
+    from .classifier import load_dataset
+
+    d, cpu, fresh = _ensure_dataset(spec, use_cache, log)
+    return load_dataset(d), cpu, fresh
 
 
 def train_classifier_run(seed: int, hp: dict, out: Path | None, use_cache: bool = True, log=print):
@@ -247,7 +266,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=None, help="run directory (default training/logs/ALGO_sSEED)")
     ap.add_argument("--n-timesteps", type=int, default=None, help="override the PPO budget")
     ap.add_argument("--params", nargs="*", default=[], help="hyperparameter overrides key=value")
-    ap.add_argument("--no-cache", action="store_true", help="re-export the classifier's datasets")
+    ap.add_argument("--no-cache", action="store_true", help="simulate the training datasets again (classifier, replayed PPO) instead of using training/.cache")
     args = ap.parse_args(argv)
     seed = args.seed
     if seed < 0:
@@ -265,10 +284,16 @@ def main(argv=None) -> int:
     if args.algo == "classifier":
         _, cfg = train_classifier_run(seed, hp, out, use_cache=not args.no_cache)
         agent_class = "training.agents:ClassifierAgent"
+    elif hp.get("replay"):  # PPO on recorded MarineFDI-v1 episodes (training/rl.py)
+        from .rl import train_ppo_replay
+
+        _, cfg = train_ppo_replay(seed, hp, out, use_cache=not args.no_cache)
+        agent_class = "training.agents:SB3Agent"
     else:
         _, cfg = train_sb3(args.algo, seed, hp, out)
         agent_class = "training.agents:SB3Agent"
-    cmd = ["python", "-m", "training.train"] + [a for a in argv]
+    # the command that makes the model (--no-cache only re-exports the same data: not recorded)
+    cmd = ["python", "-m", "training.train"] + [a for a in argv if a != "--no-cache"]
     if args.seed < 0:
         cmd = [a if a != str(args.seed) else str(seed) for a in cmd]
     cfg.update(command=shlex.join(cmd), seed_drawn=args.seed < 0, cpu_minutes=round(cfg["cpu_s"] / 60.0, 2),

@@ -1,6 +1,6 @@
 """marine_fdi_env: a fault detection and isolation benchmark on an MVFP marine diesel engine model.
 
-Importing the package registers the Gymnasium environment ``MarineFDI-v0``.
+Importing the package registers the Gymnasium environments ``MarineFDI-v0`` and ``MarineFDI-v1``.
 """
 
 from .envs import ENV_ID, register_envs

@@ -62,6 +62,7 @@ PROFILE_HELP = """\
 profile: a constant fuel setting (e.g. 0.8) or NAME[:key=value,...] with NAME one of
   constant:u0=1.0   step:u0=0.8,u1=1.0,t=100   ramp:u0=0.6,u1=1.0,t0=50,t1=150
   manoeuvring[:scale=1]   random:seed=0,u_min=0.4,u_max=1.05,dwell=40,rate=0.02
+  harbour:seed=0,u_min=0.3,u_max=1.0,dwell=30,rate=0.1   seastate:seed=0,u_mean=0.8,amplitude=0.05,period=9
 """
 
 

@@ -14,6 +14,18 @@ Named profiles (``make_profile``), with optional ``key=value`` overrides, e.g.
                  full ahead (ramps at 2 %/s, a governor-like rate limit), repeating every 300 s.
 ``random``       seeded random piecewise-linear setpoints (``seed``, ``u_min``, ``u_max``,
                  ``dwell`` mean seconds between setpoint changes, ``rate`` limit per second).
+``harbour``      harbour manoeuvring as random engine-telegraph orders: seeded steps between the
+                 telegraph levels (dead slow 0.3, slow 0.45, half 0.6, full 0.8, navigation full
+                 1.0) that lie in [``u_min``, ``u_max``], held ``dwell`` seconds on average
+                 (exponential, at least 5 s), each reached at ``rate`` per second (default 0.1/s:
+                 five times the governor rate of ``manoeuvring`` and ``random``).
+``seastate``     sea-state load fluctuation around a mean: u = ``u_mean`` (1 + e(t)), e the sum of
+                 five seeded sinusoids with periods in [0.6, 1.6] x ``period`` s (wave encounter)
+                 and random phases, scaled to peak relative amplitude ``amplitude``; breakpoints
+                 every 0.5 s.
+
+``harbour`` and ``seastate`` belong to the ``transfer-v2`` suite only: no scenario preset and no
+training configuration draws them (tested).
 """
 
 from __future__ import annotations
@@ -28,7 +40,8 @@ from .steady_state import check_fuel_setting
 
 __all__ = ["Profile", "make_profile", "PROFILE_NAMES", "ProfileTable"]
 
-PROFILE_NAMES = ("constant", "step", "ramp", "manoeuvring", "random")
+PROFILE_NAMES = ("constant", "step", "ramp", "manoeuvring", "random", "harbour", "seastate")
+TELEGRAPH_LEVELS = (0.3, 0.45, 0.6, 0.8, 1.0)  # dead slow, slow, half, full, navigation full
 
 
 @dataclass(frozen=True)
@@ -196,6 +209,8 @@ def make_profile(spec: "str | Profile | float", duration_s: float = 300.0) -> Pr
         "ramp": {"u0", "u1", "t0", "t1"},
         "manoeuvring": {"scale"},
         "random": {"seed", "u_min", "u_max", "dwell", "rate"},
+        "harbour": {"seed", "u_min", "u_max", "dwell", "rate"},
+        "seastate": {"seed", "u_mean", "amplitude", "period"},
     }
     if name not in allowed:
         raise ValueError(f"unknown profile {name!r}; allowed: {', '.join(PROFILE_NAMES)}")
@@ -230,6 +245,10 @@ def make_profile(spec: "str | Profile | float", duration_s: float = 300.0) -> Pr
             if k * period > duration_s:
                 break
         return Profile(name, tuple(float(x) for x in times), tuple(vals))
+    if name == "harbour":
+        return _harbour(o, duration_s)
+    if name == "seastate":
+        return _seastate(o, duration_s)
     # random
     rng = np.random.default_rng(int(o.get("seed", 0)))
     lo, hi = o.get("u_min", 0.4), o.get("u_max", 1.05)
@@ -246,3 +265,41 @@ def make_profile(spec: "str | Profile | float", duration_s: float = 300.0) -> Pr
         times.append(t)
         vals.append(u)
     return Profile(name, tuple(times), tuple(vals))
+
+
+def _harbour(o: dict[str, float], duration_s: float) -> Profile:
+    """Random engine-telegraph orders (module docstring, ``harbour``)."""
+    rng = np.random.default_rng(int(o.get("seed", 0)))
+    lo, hi = o.get("u_min", 0.3), o.get("u_max", 1.0)
+    dwell, rate = o.get("dwell", 30.0), o.get("rate", 0.1)
+    levels = [v for v in TELEGRAPH_LEVELS if lo - 1e-9 <= v <= hi + 1e-9]
+    if len(levels) < 2 or rate <= 0 or dwell <= 0:
+        raise ValueError(f"profile 'harbour' needs at least two telegraph levels {TELEGRAPH_LEVELS} in "
+                         f"[u_min, u_max] = [{lo}, {hi}] and dwell, rate > 0")
+    u = float(levels[int(rng.integers(len(levels)))])
+    t, times, vals = 0.0, [0.0], [u]
+    while t < duration_s:
+        t += max(5.0, float(rng.exponential(dwell)))
+        times.append(t)
+        vals.append(u)
+        u_new = float(rng.choice([v for v in levels if v != u]))
+        t += abs(u_new - u) / rate
+        u = u_new
+        times.append(t)
+        vals.append(u)
+    return Profile("harbour", tuple(times), tuple(vals))
+
+
+def _seastate(o: dict[str, float], duration_s: float) -> Profile:
+    """Wave-induced load fluctuation around a mean (module docstring, ``seastate``)."""
+    rng = np.random.default_rng(int(o.get("seed", 0)))
+    mean, amp, period = o.get("u_mean", 0.8), o.get("amplitude", 0.05), o.get("period", 9.0)
+    if period <= 0 or not 0 <= amp < 1:
+        raise ValueError(f"profile 'seastate' needs period > 0 and 0 <= amplitude < 1, got {period}, {amp}")
+    periods = rng.uniform(0.6, 1.6, size=5) * period
+    phases = rng.uniform(0.0, 2 * np.pi, size=5)
+    weights = rng.uniform(0.5, 1.0, size=5)
+    t = np.arange(0.0, duration_s + 0.5, 0.5)
+    e = (weights[:, None] * np.sin(2 * np.pi * t[None, :] / periods[:, None] + phases[:, None])).sum(axis=0)
+    e *= amp / weights.sum()
+    return Profile("seastate", tuple(float(x) for x in t), tuple(float(x) for x in mean * (1.0 + e)))

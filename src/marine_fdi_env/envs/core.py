@@ -20,7 +20,7 @@ from ..params import EngineParams, load_params
 from ..simulator import Simulator
 from .hypotheses import DECLARE_THRESHOLD, N_FAULTS, UNKNOWN
 from .observation import module_features, observation_size, sensor_features
-from .reward import REWARD_TERMS, RewardConfig, score
+from .reward import REWARD_TERMS, REWARD_TERMS_V1, RewardConfig, RewardConfigV1, RewardV1, score
 from .scenario_sampler import ScenarioSpec, nominal_reading
 
 __all__ = ["EpisodeBatch", "StepOutcome"]
@@ -49,7 +49,7 @@ class EpisodeBatch:
     """Episodes of N engines, advanced one decision period at a time."""
 
     def __init__(self, n: int, params: "str | EngineParams" = "thesis-12v28", decision_period_s: float = 1.0,
-                 dt: float = 0.01, observe_sensors: bool = False, reward: RewardConfig | None = None,
+                 dt: float = 0.01, observe_sensors: bool = False, reward: RewardConfig | RewardConfigV1 | None = None,
                  noise_scale: float = 1.0) -> None:
         self.n = int(n)
         self.params = load_params(params) if isinstance(params, str) else params
@@ -66,6 +66,9 @@ class EpisodeBatch:
         self.decision_period_s = self.period_samples * self.dt
         self.observe_sensors = bool(observe_sensors)
         self.reward_cfg = reward or RewardConfig()
+        # MarineFDI-v1: the reward keeps per-slot state (previous alarm, detected); v0 is stateless
+        self.reward_v1 = RewardV1(self.reward_cfg, self.n) if isinstance(self.reward_cfg, RewardConfigV1) else None
+        self.reward_terms = REWARD_TERMS_V1 if self.reward_v1 is not None else REWARD_TERMS
         self.noise_scale = float(noise_scale)
         self.obs_size = observation_size(self.observe_sensors)
         self.sim: Simulator | None = None
@@ -124,6 +127,8 @@ class EpisodeBatch:
             self.failed[s] = False
             self.compute_s[s] = 0.0
             self._set_fault_windows(s, sc.faults)
+            if self.reward_v1 is not None:
+                self.reward_v1.start(s, min((f.onset_s for f in sc.faults), default=math.inf))
         for f in self.sim.failures[n_before:]:  # engines outside their physical range at t = 0
             self._fail(f)
         self._failures_seen = len(self.sim.failures)
@@ -194,8 +199,11 @@ class EpisodeBatch:
         decl = beliefs[:, :N_FAULTS] >= DECLARE_THRESHOLD
         alarm = decl.any(axis=1) | (beliefs[:, UNKNOWN] >= DECLARE_THRESHOLD)
         act, first, last = self.active_matrix(slots)
-        terms = score(self.reward_cfg, decl, alarm, act, first, last, self.t[slots])
-        reward = sum(terms[k] for k in REWARD_TERMS)
+        if self.reward_v1 is None:
+            terms = score(self.reward_cfg, decl, alarm, act, first, last, self.t[slots])
+        else:
+            terms = self.reward_v1.score(slots, decl, alarm, act, self.t[slots], self.decision_period_s)
+        reward = sum(terms[k] for k in self.reward_terms)
         total = beliefs.sum(axis=1, dtype=np.float64)
         on_truth = np.where(act, beliefs[:, :N_FAULTS], 0.0).sum(axis=1, dtype=np.float64)
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -203,6 +211,17 @@ class EpisodeBatch:
         share = np.where(act.any(axis=1), share, np.nan)
         declared = [tuple(FAULT_IDS[k] for k in ks) for ks in _row_members(decl)]
         return StepOutcome(reward, terms, declared, alarm, share)
+
+    def end_terms(self, outcome: StepOutcome, slots, ended) -> None:
+        """Add the one-off end-of-episode terms (v1: ``missed_detection``, ``final_isolation``) of the
+        ``ended`` slots to ``outcome`` (scored over ``slots``); nothing for v0."""
+        if self.reward_v1 is None or not len(ended):
+            return
+        pos = {int(s): j for j, s in enumerate(np.asarray(slots))}
+        rows = np.array([pos[int(s)] for s in ended], dtype=np.int64)
+        for k, extra in self.reward_v1.end(np.asarray(ended, dtype=np.int64)).items():
+            outcome.terms[k][rows] += extra
+            outcome.reward[rows] += extra
 
     def reference_declaration(self, slot: int) -> dict:
         """The reference diagnoser's current conclusion for a slot (the ``reference`` agent's input)."""

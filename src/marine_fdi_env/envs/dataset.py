@@ -45,7 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from ..faults import FAULT_IDS
-from .scenario_sampler import ScenarioSpec, get_preset
+from .scenario_sampler import ScenarioSpec, get_preset, with_noise_scale
 from .suites import load_suite
 from .vector import MarineFDIVectorEnv
 
@@ -63,7 +63,10 @@ def dataset_chunk(scenario_dicts: list[dict], env_kwargs: dict, T: int, progress
     """One task: observations, labels and decision times of a chunk of episodes (arrays over the chunk)."""
     chunk = [ScenarioSpec.from_dict(d) for d in scenario_dicts]
     n = len(chunk)
-    venv = MarineFDIVectorEnv(num_envs=n, **env_kwargs)
+    scales = {float(s.noise_scale) for s in chunk}
+    if len(scales) != 1:
+        raise ValueError(f"a dataset chunk must share one sensor-noise scale, got {sorted(scales)}")
+    venv = MarineFDIVectorEnv(num_envs=n, **with_noise_scale(env_kwargs, scales.pop()))
     obs, infos = venv.reset(options={"scenarios": chunk})
     D = obs.shape[1]
     obs_all = np.zeros((n, T, D), dtype=np.float32)
@@ -120,7 +123,10 @@ def export_dataset(scenarios: list[ScenarioSpec], out_dir: Path, env_kwargs: dic
         done[idx] = True
     todo = np.flatnonzero(~done)
     per = chunk_size(len(todo), batch_size, backend.workers)
-    plan = [todo[i:i + per] for i in range(0, len(todo), per)]
+    groups: dict[float, list[int]] = {}  # one batched engine set per sensor-noise scale
+    for j in todo:
+        groups.setdefault(float(scenarios[j].noise_scale), []).append(int(j))
+    plan = [np.asarray(idx[i:i + per], dtype=np.int64) for idx in groups.values() for i in range(0, len(idx), per)]
     tasks = [([scenarios[j].to_dict() for j in idx], env_kwargs, T) for idx in plan]
     bar = progress_bar(E, int(done.sum()), "dataset", progress)
     in_flight: dict[int, float] = {}

@@ -20,6 +20,14 @@ most ``batch_size`` episodes, one task each; results, every metric and every epi
 except ``compute_s``, are the same bit for bit whichever backend and number of workers run them
 (tested).  ``--out`` ending in ``.parquet`` writes the episode records as a Parquet table
 (:mod:`.records`) with the header and metrics in its metadata instead of JSON.
+
+The two parts of ``compute_s`` are also recorded apart (``feature_compute_s``, ``agent_compute_s``; ``n_decisions``), since the features dominate
+and are the same for every agent.  Both depend on the batch size (``--batch-size``, default 32).
+
+Reward: the results record the environment id and reward they score (``env_id``, ``env.reward``):
+the suite's ``env.reward`` if it fixes one, else ``--reward`` (default ``v1``).  The reward
+changes the ``return`` of an episode, never a metric.  A suite whose scenarios use another sensor
+noise scale than 1 (``transfer-v2``) runs them in batches of equal noise scale.
 """
 
 from __future__ import annotations
@@ -38,13 +46,20 @@ import numpy as np
 from .. import __version__
 from .agent_api import load_agent, resolve_agent_spec
 from .backends import Backend, chunk_size, run_tasks
-from .fdi_env import ENV_ID
+from .fdi_env import env_id_for
 from .metrics import compute_metrics
-from .scenario_sampler import ScenarioSpec
+from .reward import make_reward_config
+from .scenario_sampler import ScenarioSpec, with_noise_scale
 from .suites import load_suite
 from .vector import MarineFDIVectorEnv
 
-__all__ = ["run_episodes", "evaluate", "evaluate_main", "episode_seed", "evaluate_chunk"]
+__all__ = ["run_episodes", "evaluate", "evaluate_main", "episode_seed", "evaluate_chunk", "suite_env_kwargs",
+           "WALL_CLOCK_FIELDS", "WALL_CLOCK_METRICS"]
+
+# the fields of an episode record that are wall-clock measurements (everything else reproduces)
+WALL_CLOCK_FIELDS = ("compute_s", "feature_compute_s", "agent_compute_s")
+# the metrics computed from them
+WALL_CLOCK_METRICS = ("compute_s_per_sample", "feature_compute_s_per_sample", "agent_compute_s_per_decision")
 
 _MAX_SEED = 2**63 - 1
 
@@ -74,12 +89,18 @@ def run_episodes(agent, scenarios: list[ScenarioSpec], env_kwargs: dict | None =
     """
     env_kwargs = dict(env_kwargs or {})
     records: dict[int, dict] = {}
-    for start in range(0, len(scenarios), batch_size):
-        chunk = [_offset(s, seed_offset) for s in scenarios[start:start + batch_size]]
-        for j, rec in enumerate(_run_batch(agent, chunk, env_kwargs, suite, seed_offset, progress, on_decision)):
-            records[start + j] = rec
-            if on_episode is not None:
-                on_episode(rec)
+    groups: dict[float, list[int]] = {}  # one batched engine set per sensor-noise scale
+    for i, s in enumerate(scenarios):
+        groups.setdefault(float(s.noise_scale), []).append(i)
+    for noise_scale, idx in groups.items():
+        kw = with_noise_scale(env_kwargs, noise_scale)
+        for start in range(0, len(idx), batch_size):
+            part = idx[start:start + batch_size]
+            chunk = [_offset(scenarios[i], seed_offset) for i in part]
+            for i, rec in zip(part, _run_batch(agent, chunk, kw, suite, seed_offset, progress, on_decision)):
+                records[i] = rec
+                if on_episode is not None:
+                    on_episode(rec)
     return [records[i] for i in range(len(scenarios))]
 
 
@@ -141,7 +162,8 @@ def _run_batch(agent, scenarios, env_kwargs, suite, seed_offset, progress=None, 
                     "faults": sc.truth(), "declared_changes": trace[i], "belief_on_truth": share[i],
                     "terminated": bool(term[i]), "failure_reason": reason or None,
                     "compute_s": float(feature_s[i] + agent_s[i]), "return": float(ret[i]),
-                    "reward_terms": terms[i],
+                    "reward_terms": terms[i], "feature_compute_s": float(feature_s[i]),
+                    "agent_compute_s": float(agent_s[i]), "n_decisions": int(steps[i]),
                 }
         if progress is not None:
             done = float(np.where(live, steps / n_decisions, 1.0).clip(0.0, 1.0).sum())
@@ -184,13 +206,27 @@ def evaluate_chunk(agent_spec, scenarios_dicts, env_kwargs, suite, seed_offset, 
                         progress=progress)
 
 
+def suite_env_kwargs(suite, reward: "str | dict | None" = None) -> tuple[dict, object]:
+    """The environment arguments a suite is scored with and its reward config: the suite's own
+    ``env.reward`` if it fixes one (another ``reward`` is refused), else ``reward``, else ``v1``."""
+    env_kwargs = {k: v for k, v in suite["env"].items()}
+    fixed = env_kwargs.get("reward")
+    if fixed is not None and reward is not None and make_reward_config(reward) != make_reward_config(fixed):
+        raise ValueError(f"suite {suite.name} is scored with reward {fixed!r}; got --reward {reward!r}")
+    reward_cfg = make_reward_config(fixed if fixed is not None else (reward if reward is not None else "v1"))
+    env_kwargs["reward"] = reward_cfg.to_dict()
+    return env_kwargs, reward_cfg
+
+
 def evaluate(agent_spec: str, suite_name: str, out: Path, *, workers: int = 1, seed_offset: int = 0,
              batch_size: int = 32, progress: bool = True, backend: "Backend | str | None" = None,
-             ray_address: str | None = None) -> dict:
+             ray_address: str | None = None, reward: "str | dict | None" = None) -> dict:
     """Evaluate an agent on a suite, resumably; returns the results object written to ``out``.
 
     ``backend``: a :class:`~.backends.Backend` or its name (default: ``process`` if
-    ``workers > 1``, else ``serial``).
+    ``workers > 1``, else ``serial``).  ``reward``: the reward to score (``v0``, ``v1`` or a config
+    dict); default: the suite's ``env.reward``, else ``v1``.  A suite that fixes its reward refuses
+    another one.
     """
     if not isinstance(backend, Backend):
         backend = Backend.make(backend, workers, ray_address)
@@ -200,9 +236,9 @@ def evaluate(agent_spec: str, suite_name: str, out: Path, *, workers: int = 1, s
     suite = load_suite(suite_name)
     spec = resolve_agent_spec(agent_spec)  # names stay names, paths become absolute (workers may run elsewhere)
     agent = cached_agent(spec)  # fail early on a bad agent
-    env_kwargs = {k: v for k, v in suite["env"].items()}
+    env_kwargs, reward_cfg = suite_env_kwargs(suite, reward)
     header = {"agent": agent.name, "agent_spec": str(agent_spec), "suite": suite.name,
-              "suite_version": suite["version"], "seed_offset": int(seed_offset), "env_id": ENV_ID,
+              "suite_version": suite["version"], "seed_offset": int(seed_offset), "env_id": env_id_for(reward_cfg),
               "env": env_kwargs}
     out = Path(out)
     partial = out.with_name(out.name + ".partial.jsonl")
@@ -281,6 +317,8 @@ def build_parser() -> argparse.ArgumentParser:
     from .cliutil import add_backend_args
 
     add_backend_args(ap)
+    ap.add_argument("--reward", choices=("v0", "v1"), default=None,
+                    help="reward scored in the results' return (default: the suite's, else v1 = MarineFDI-v1)")
     ap.add_argument("--no-progress", action="store_true")
     return ap
 
@@ -299,7 +337,8 @@ def evaluate_main(argv=None) -> int:
         backend = backend_from_args(args)
         out = args.out or Path("results") / f"{agent_file_stem(args.agent)}_{Path(args.suite).stem}.json"
         result = evaluate(args.agent, args.suite, out, seed_offset=args.seed_offset, batch_size=args.batch_size,
-                          progress=not args.no_progress, backend=backend)
+                          progress=not args.no_progress, backend=backend,
+                          reward=args.reward)
     except ValueError as e:
         print(f"marine-fdi evaluate: error: {e}", file=sys.stderr)
         return 2

@@ -1,4 +1,5 @@
-"""``MarineFDI-v0``: fault detection and isolation on a simulated marine diesel engine."""
+"""``MarineFDI-v0`` and ``MarineFDI-v1`` (this class with another reward): fault detection and
+isolation on a simulated marine diesel engine."""
 
 from __future__ import annotations
 
@@ -11,12 +12,18 @@ from gymnasium import spaces
 from .core import EpisodeBatch
 from .hypotheses import HYPOTHESES, N_HYPOTHESES, check_action
 from .observation import feature_names, observation_bounds
-from .reward import RewardConfig
+from .reward import RewardConfig, RewardConfigV1, make_reward_config
 from .scenario_sampler import ScenarioConfig, ScenarioSpec, get_preset
 
-__all__ = ["MarineFDIEnv", "ENV_ID"]
+__all__ = ["MarineFDIEnv", "ENV_ID", "ENV_ID_V1", "env_id_for"]
 
 ENV_ID = "MarineFDI-v0"
+ENV_ID_V1 = "MarineFDI-v1"
+
+
+def env_id_for(reward) -> str:
+    """The registered id whose reward this is (``MarineFDI-v0`` or ``MarineFDI-v1``)."""
+    return ENV_ID_V1 if isinstance(make_reward_config(reward), RewardConfigV1) else ENV_ID
 
 
 def _scenario_from_options(options) -> ScenarioSpec | None:
@@ -64,10 +71,15 @@ class MarineFDIEnv(gym.Env):
     ``env.unwrapped.feature_names`` the names).
 
     ## Rewards
-    Per decision (:mod:`marine_fdi_env.envs.reward`): -1 for an alarm while no fault is active;
+    ``MarineFDI-v0`` (``reward="v0"``, default of this class), per decision
+    (:mod:`marine_fdi_env.envs.reward`): -1 for an alarm while no fault is active;
     +0.5 exp(-delay/30 s) for an alarm while a fault is active; +1 exp(-delay/30 s) when the
     declared set equals the active set; -0.25 for a declared set that is wrong; -0.02 per
-    decision that misses an active fault.  Each term is in ``info["reward_terms"]``.
+    decision that misses an active fault.  ``MarineFDI-v1`` (``reward="v1"``), derived from the
+    metrics: -40 per false alarm (rising alarm edge before the first onset), -0.01 per second of
+    detection delay, -1 once for a fault never detected, +0.1 per second of exact isolation, +1
+    when the last declared set is exact.
+    Each term is in ``info["reward_terms"]``.
 
     ## Starting state
     The engine at the steady state of the profile's initial fuel setting; the first observation
@@ -81,7 +93,7 @@ class MarineFDIEnv(gym.Env):
     ## Arguments
     ``gymnasium.make("marine_fdi_env:MarineFDI-v0", scenario_config="default",
     decision_period_s=1.0, observe_sensors=False, reward=RewardConfig(), params="thesis-12v28",
-    dt=0.01)``; ``scenario_config`` is a preset name (``default``, ``single``, ``multi``,
+    dt=0.01)`` (``MarineFDI-v1``: ``reward="v1"``, or a ``RewardConfigV1``); ``scenario_config`` is a preset name (``default``, ``single``, ``multi``,
     ``nominal``, ``incipient``, ``transfer``, ``sensor-kinds``), a
     :class:`~marine_fdi_env.envs.scenario_sampler.ScenarioConfig` or its dict.
     ``reset(options={"scenario": ScenarioSpec | dict})`` runs a given scenario instead of a drawn
@@ -99,16 +111,16 @@ class MarineFDIEnv(gym.Env):
 
     ## Version history
     * v0: first release (simulator, reference diagnoser and suites of marine-fdi-env 0.1).
+    * v1: the reward derived from the metrics (docs/environment.md); everything else as v0.
     """
 
     metadata = {"render_modes": ["ansi"], "render_fps": 1}
 
     def __init__(self, scenario_config: "str | ScenarioConfig | dict" = "default", decision_period_s: float = 1.0,
-                 observe_sensors: bool = False, reward: RewardConfig | dict | None = None,
+                 observe_sensors: bool = False, reward: "RewardConfig | RewardConfigV1 | dict | str | None" = None,
                  params: str = "thesis-12v28", dt: float = 0.01, render_mode: str | None = None) -> None:
         self.scenario_config = get_preset(scenario_config)
-        if isinstance(reward, dict):
-            reward = RewardConfig(**reward)
+        reward = make_reward_config(reward)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.render_mode = render_mode
@@ -162,6 +174,8 @@ class MarineFDIEnv(gym.Env):
         else:
             failed = b.advance()
             terminated = len(failed) > 0
+        if terminated or truncated:
+            b.end_terms(out, [0], [0])  # v1: a missed detection is charged at the last decision
         info = b.info(0)
         info.update(declared=list(out.declared[0]), alarm=bool(out.alarm[0]),
                     belief_on_truth=None if math.isnan(out.belief_on_truth[0]) else float(out.belief_on_truth[0]),

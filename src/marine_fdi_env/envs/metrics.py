@@ -16,6 +16,8 @@ One JSON-ready dict per scenario (written by ``marine-fdi evaluate``)::
     belief_on_truth: [[t_s, share], ...]          (optional)
     terminated: bool, failure_reason: str|None, compute_s: float,
     return: float, reward_terms: {name: float}
+    feature_compute_s, agent_compute_s: float, n_decisions: int   (optional: compute_s split into
+                             the shared observation features and the agent's own decisions)
 
 ``declared_changes`` is the decision trace as change points: the first entry is at the first
 decision time ``t0``; a new entry whenever the declared set or the alarm flag changes.  Decisions
@@ -56,7 +58,10 @@ Definitions
   end); ``None`` when that is not reached (the middle rank is an undetected episode) or there is
   no faulty episode.  Unlike ``median_detection_delay_s`` it does not improve when an agent
   detects fewer of the hard faults.
-* ``compute_s_per_sample`` = sum ``compute_s`` / sum ``n_samples``; ``mean_return`` = mean
+* ``compute_s_per_sample`` = sum ``compute_s`` / sum ``n_samples``;
+  ``feature_compute_s_per_sample`` = sum ``feature_compute_s`` / sum ``n_samples`` and
+  ``agent_compute_s_per_decision`` = sum ``agent_compute_s`` / sum ``n_decisions`` over the
+  records that carry them (``None`` if none does); ``mean_return`` = mean
   ``return``; ``engine_failures`` = number of episodes with ``terminated`` true;
   ``isolation_rate`` = share of faulty episodes with an isolation time.
 * A ratio with an empty denominator is ``None`` (never NaN).
@@ -216,6 +221,9 @@ class EpisodeOutcome:
     episode_return: float
     terminated: bool
     failure_reason: str | None
+    feature_compute_s: float | None = None
+    agent_compute_s: float | None = None
+    n_decisions: int | None = None
 
     @property
     def faulty(self) -> bool:
@@ -345,7 +353,20 @@ def _outcome(rec: Mapping) -> EpisodeOutcome:
         isolation_correct=(final_declared == final_true) if faults else None,
         belief_on_truth=bot, n_samples=int(rec["n_samples"]), compute_s=float(rec["compute_s"]),
         episode_return=float(rec["return"]), terminated=bool(rec["terminated"]),
-        failure_reason=rec["failure_reason"])
+        failure_reason=rec["failure_reason"], **_compute_split(rec))
+
+
+def _compute_split(rec: Mapping) -> dict:
+    """The optional split of ``compute_s`` (features / agent) of a record; checked when present."""
+    keys = ("feature_compute_s", "agent_compute_s", "n_decisions")
+    if not any(k in rec for k in keys):
+        return {}
+    sid = rec.get("scenario_id")
+    for k in keys[:2]:
+        _num(rec, k, sid, nonneg=True)
+    _typed(rec, "n_decisions", int, sid)
+    return {"feature_compute_s": float(rec["feature_compute_s"]), "agent_compute_s": float(rec["agent_compute_s"]),
+            "n_decisions": int(rec["n_decisions"])}
 
 
 def episode_outcome(record: Mapping) -> dict:
@@ -384,6 +405,7 @@ def aggregate(outcomes: Sequence[EpisodeOutcome]) -> dict:
     n_fa = sum(o.false_alarms for o in outcomes)
     fa_rate = _ratio(n_fa, ff_hours)
     bots = [o.belief_on_truth for o in faulty if o.belief_on_truth is not None]
+    split = [o for o in outcomes if o.n_decisions is not None]
     return {
         "n_episodes": len(outcomes),
         "n_faulty": len(faulty),
@@ -403,6 +425,10 @@ def aggregate(outcomes: Sequence[EpisodeOutcome]) -> dict:
         "belief_on_truth": sum(bots) / len(bots) if bots else None,
         "compute_s_per_sample": _ratio(sum(o.compute_s for o in outcomes),
                                        sum(o.n_samples for o in outcomes)),
+        "feature_compute_s_per_sample": _ratio(sum(o.feature_compute_s for o in split),
+                                               sum(o.n_samples for o in split)) if split else None,
+        "agent_compute_s_per_decision": _ratio(sum(o.agent_compute_s for o in split),
+                                               sum(o.n_decisions for o in split)) if split else None,
         "mean_return": (sum(o.episode_return for o in outcomes) / len(outcomes)) if outcomes else None,
         "engine_failures": sum(o.terminated for o in outcomes),
     }

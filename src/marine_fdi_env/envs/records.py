@@ -41,6 +41,10 @@ def pyarrow():
     return pa, pq
 
 
+# record fields that older results do not have (null in the table, left out of a record read back)
+_OPTIONAL = {"feature_compute_s": "float64", "agent_compute_s": "float64", "n_decisions": "int64"}
+
+
 def _schema(pa, extra: Iterable[str] = ()):
     fault = pa.struct([("id", pa.string()), ("class", pa.string()), ("onset_s", pa.float64()),
                        ("magnitude", pa.float64()), ("end_s", pa.float64())])
@@ -52,7 +56,8 @@ def _schema(pa, extra: Iterable[str] = ()):
               ("decision_period_s", pa.float64()), ("n_samples", pa.int64()), ("faults", pa.list_(fault)),
               ("declared_changes", pa.list_(change)), ("belief_on_truth", pa.list_(share)),
               ("terminated", pa.bool_()), ("failure_reason", pa.string()), ("compute_s", pa.float64()),
-              ("return", pa.float64()), ("reward_terms", pa.map_(pa.string(), pa.float64()))]
+              ("return", pa.float64()), ("reward_terms", pa.map_(pa.string(), pa.float64())),
+              *((k, getattr(pa, t)()) for k, t in _OPTIONAL.items())]
     return pa.schema(fields)
 
 
@@ -92,6 +97,9 @@ def table_to_records(table, keep_extra: bool = False) -> list[dict]:
             rec["belief_on_truth"] = [[b["t_s"], b["share"]] for b in bot]
         rec["reward_terms"] = dict(row["reward_terms"])
         rec["faults"] = [dict(f) for f in row["faults"]]
+        for k in _OPTIONAL:
+            if rec.get(k, 0) is None:
+                rec.pop(k)
         if not keep_extra:
             for k in _EXTRA:
                 rec.pop(k, None)

@@ -139,6 +139,7 @@ COLUMNS: tuple[_Col, ...] = (
     _Col("Episodes", "n_episodes", _int),
     _Col("Detection", "detection_rate", _pct),
     _Col("Median det. delay [s]", "median_detection_delay_s", _sec),
+    _Col("Censored median det. delay [s]", "median_detection_delay_censored_s", _sec),
     _Col("P90 det. delay [s]", "p90_detection_delay_s", _sec),
     _Col("Isolation acc.", "isolation_accuracy", _pct),
     _Col("Belief on truth", "belief_on_truth", _pct),
@@ -146,11 +147,14 @@ COLUMNS: tuple[_Col, ...] = (
     _Col("P90 iso. delay [s]", "p90_isolation_delay_s", _sec),
     _Col("False alarms [1/h]", "false_alarm_rate", _rate),
     _Col("FA episodes", "false_alarm_episode_rate", _pct),
-    _Col("Compute [µs/sample]", "compute_s_per_sample", _usps),
+    _Col("Mean return", "mean_return", _rate),
+    _Col("Features [µs/sample]", "feature_compute_s_per_sample", _usps),
+    _Col("Agent [µs/decision]", "agent_compute_s_per_decision", _usps),
 )
 _FA_COLUMNS = tuple(c for c in COLUMNS if c.key in ("n_episodes", "false_alarm_rate",
-                                                    "false_alarm_episode_rate",
-                                                    "compute_s_per_sample"))
+                                                    "false_alarm_episode_rate", "mean_return",
+                                                    "feature_compute_s_per_sample",
+                                                    "agent_compute_s_per_decision"))
 
 
 def _table(rows: Sequence[tuple[str, str, Mapping]], cols: Sequence[_Col]) -> str:
@@ -205,7 +209,8 @@ def plot_detection_delays(results: Sequence[Mapping], path: Path) -> Path:
         data = [[d for d in (episode_outcome(e)["detection_delay_s"] for e in r["episodes"])
                  if d is not None] for r in rs]
         ax.boxplot(data, showfliers=True)
-        ax.set_xticks(range(1, len(rs) + 1), [f"{r['agent']}\n(n={len(d)})" for r, d in zip(rs, data)])
+        ax.set_xticks(range(1, len(rs) + 1), [f"{r['agent']}\n(n={len(d)})" for r, d in zip(rs, data)],
+                      rotation=30, ha="right")
         ax.set_title(f"suite {suite}: detection delay")
         ax.set_ylabel("delay [s]")
         ax.set_ylim(bottom=0)
@@ -230,7 +235,7 @@ def plot_summary(results: Sequence[Mapping], path: Path) -> Path:
         for j, (key, label) in enumerate(_BARS):
             vals = [100 * (r["metrics"].get(key) or 0.0) for r in rs]
             ax.bar([i + (j - 1) * width for i in range(len(rs))], vals, width, label=label)
-        ax.set_xticks(range(len(rs)), [r["agent"] for r in rs])
+        ax.set_xticks(range(len(rs)), [r["agent"] for r in rs], rotation=30, ha="right")
         ax.set_xlim(-0.6, max(len(rs), 2) - 0.4)
         ax.set_ylim(0, 105)
         ax.set_ylabel("%")
@@ -266,8 +271,12 @@ def write_report(paths: Iterable[str | Path], out_dir: str | Path, *, plots: boo
         plot_summary(results, out / "summary.png")
         parts += ["## Plots\n", "![detection delay](detection_delay.png)\n",
                   "![summary](summary.png)\n"]
-    parts.append("Rates in %, delays in s, false alarms per fault-free hour, compute in µs per "
-                 "sensor sample; – = undefined. Definitions: `marine_fdi_env.envs.metrics`.\n")
+    envs = sorted({str(r.get("env_id", "?")) for r in results})
+    parts.append("Rates in %, delays in s (censored median: a missed fault counts as never detected; – when "
+                 "fewer than half are detected), false alarms per fault-free hour; mean return of the reward "
+                 f"scored ({', '.join(envs)}); features: the observation features every agent shares, in µs per "
+                 "sensor sample; agent: the agent's own decision, in µs per decision and engine (both measured "
+                 "at the evaluation's batch size); – = undefined. Definitions: `marine_fdi_env.envs.metrics`.\n")
     report = out / "report.md"
     report.write_text("\n".join(parts), encoding="utf-8")
     return report

@@ -37,9 +37,15 @@ from functools import lru_cache
 import numpy as np
 
 from ..faults import FAULT_IDS, PROCESS_FAULT_IDS, SENSOR_FAULT_KINDS, FaultSpec, fault_class
-from ..profiles import PROFILE_NAMES, make_profile
+from ..profiles import make_profile
 
-__all__ = ["ScenarioSpec", "ScenarioConfig", "PRESETS", "get_preset", "SAMPLER_COMPONENTS"]
+__all__ = ["ScenarioSpec", "ScenarioConfig", "PRESETS", "get_preset", "with_noise_scale", "SAMPLER_COMPONENTS", "SAMPLER_PROFILES",
+           "HELD_OUT_PROFILES"]
+
+# the profile families a ScenarioConfig can draw; ``harbour`` and ``seastate`` are held out for the
+# transfer-v2 suite (built by its own code in :mod:`.suites`), so no training configuration can draw them
+SAMPLER_PROFILES = ("constant", "step", "ramp", "random", "manoeuvring")
+HELD_OUT_PROFILES = ("harbour", "seastate")
 
 SAMPLER_COMPONENTS = ("profile", "fault_count", "fault_ids", "sensor_kind", "onsets", "magnitudes", "noise")
 _MAX_SEED = 2**63 - 1
@@ -183,7 +189,8 @@ class ScenarioConfig:
     """The distribution of episodes (a preset name or a custom config; all fields validated).
 
     duration_s : episode length [s].
-    profiles : (family, weight) pairs; families: constant, step, ramp, random, manoeuvring.
+    profiles : (family, weight) pairs; families: constant, step, ramp, random, manoeuvring
+        (``harbour`` and ``seastate`` are held out for the ``transfer-v2`` suite).
     load_range : fuel settings [-] of the profiles are drawn uniformly in this range.
     fault_count_weights : weights of 0, 1 and 2 faults.
     fault_ids : the faults that may be drawn.
@@ -209,7 +216,11 @@ class ScenarioConfig:
     def __post_init__(self) -> None:
         if not (isinstance(self.duration_s, (int, float)) and math.isfinite(self.duration_s) and self.duration_s > 0):
             raise ValueError(f"scenario config field 'duration_s' must be > 0, got {self.duration_s!r}")
-        object.__setattr__(self, "profiles", _check_weights("profiles", self.profiles, PROFILE_NAMES))
+        for item in _as_tuple("scenario config", "profiles", self.profiles):
+            if isinstance(item, (tuple, list)) and item and item[0] in HELD_OUT_PROFILES:
+                raise ValueError(f"scenario config field 'profiles': {item[0]!r} is held out for the transfer-v2 "
+                                 f"suite (never drawn by a scenario config); allowed: {', '.join(SAMPLER_PROFILES)}")
+        object.__setattr__(self, "profiles", _check_weights("profiles", self.profiles, SAMPLER_PROFILES))
         object.__setattr__(self, "sensor_kinds", _check_weights("sensor_kinds", self.sensor_kinds, SENSOR_FAULT_KINDS))
         lr = _check_pair("load_range", self.load_range)
         if lr[0] <= 0 or lr[1] > 1.2:
@@ -361,6 +372,17 @@ PRESETS: dict[str, ScenarioConfig] = {
                        sensor_kinds=tuple((k, 1.0) for k in SENSOR_FAULT_KINDS)),
     )
 }
+
+
+def with_noise_scale(env_kwargs: dict, noise_scale: float) -> dict:
+    """``env_kwargs`` whose scenario config has sensor-noise scale ``noise_scale`` (a batched engine set
+    shares one scale, so episodes of another scale run in batches of their own)."""
+    cfg = get_preset(env_kwargs.get("scenario_config", "default"))
+    if float(cfg.noise_scale) == float(noise_scale):
+        return dict(env_kwargs)
+    from dataclasses import replace
+
+    return dict(env_kwargs, scenario_config=replace(cfg, noise_scale=float(noise_scale)))
 
 
 def get_preset(name: "str | ScenarioConfig | dict") -> ScenarioConfig:

@@ -25,7 +25,17 @@ suite              content
 ``transfer-v1``    60 episodes of the ``transfer`` preset: manoeuvring and random profiles,
                    which no training preset uses
 ``nominal-v1``     48 fault-free episodes over all profile families (4 fault-free hours)
+``transfer-v2``    64 episodes in operating conditions no training or calibration data
+                   contains: the held-out profile families ``harbour`` (random engine-telegraph
+                   steps) and ``seastate`` (wave load fluctuation around a mean), and sensor
+                   noise at 0.7x table 6.3 (everything else is drawn at 1.0x); 0-2 faults as
+                   the ``default`` preset; scored with the ``MarineFDI-v1`` reward
 =================  =========================================================================
+
+``transfer-v2``'s noise is *below* the table bounds because the reference diagnoser's adaptive
+thresholds are worst-case bounds over exactly that noise: at 1.05x it raised a false alarm in 16 of
+16 fault-free harbour and sea-state episodes (0 of 16 at 1.0x and at 0.75x; measured when the suite
+was made), so a noisier suite would only measure that broken assumption.
 """
 
 from __future__ import annotations
@@ -46,7 +56,7 @@ from .jsonfile import read_json
 
 __all__ = ["SUITE_NAMES", "load_suite", "build_suite", "Suite"]
 
-SUITE_NAMES = ("thesis-v1", "single-v1", "multi-v1", "incipient-v1", "transfer-v1", "nominal-v1")
+SUITE_NAMES = ("thesis-v1", "single-v1", "multi-v1", "incipient-v1", "transfer-v1", "nominal-v1", "transfer-v2")
 _ENV = {"decision_period_s": 1.0, "params": "thesis-12v28", "observe_sensors": False}
 
 
@@ -158,6 +168,30 @@ def _nominal() -> list[ScenarioSpec]:
     return [cfg.sample(e, scenario_id=f"nominal-v1/{i:03d}") for i, e in enumerate(_seeds("nominal-v1", 48))]
 
 
+TRANSFER_V2_NOISE_SCALE = 0.7
+
+
+def _transfer_v2() -> list[ScenarioSpec]:
+    """64 episodes: faults as the ``default`` preset draws them, the profile from a held-out family
+    (``harbour`` for even, ``seastate`` for odd indices), noise at 0.7x."""
+    from dataclasses import replace
+
+    faults = ScenarioConfig(name="transfer-v2", noise_scale=TRANSFER_V2_NOISE_SCALE)
+    seeds = _seeds("transfer-v2", 2 * 64)
+    out = []
+    for i in range(64):
+        sc = faults.sample(seeds[2 * i], scenario_id=f"transfer-v2/{i:03d}")
+        r = np.random.default_rng(seeds[2 * i + 1])
+        if i % 2 == 0:
+            prof = (f"harbour:seed={int(r.integers(0, 2**31))},u_min=0.3,u_max=1.0,"
+                    f"dwell={round(float(r.uniform(15.0, 45.0)), 1)}")
+        else:
+            prof = (f"seastate:seed={int(r.integers(0, 2**31))},u_mean={round(float(r.uniform(0.6, 0.95)), 3)},"
+                    f"amplitude={round(float(r.uniform(0.03, 0.08)), 3)},period={round(float(r.uniform(6.0, 12.0)), 2)}")
+        out.append(replace(sc, profile=prof))
+    return out
+
+
 _BUILDERS = {
     "thesis-v1": (_thesis, "the four multiple-fault examples of thesis section 6.4 x 5 noise seeds"),
     "single-v1": (_single, "each of the 26 faults alone at 1x, 2x, 4x its detectability limit x 2 seeds"),
@@ -166,7 +200,11 @@ _BUILDERS = {
     "transfer-v1": (lambda: _sampled("transfer-v1", "transfer", 60),
                     "manoeuvring and random profiles (never used by the training presets), 0-2 faults"),
     "nominal-v1": (_nominal, "48 fault-free episodes over all profile families"),
+    "transfer-v2": (_transfer_v2, "held-out profile families (harbour telegraph steps, sea-state load fluctuation) "
+                    "and sensor noise 0.7x, never in training or calibration data; 0-2 faults"),
 }
+# the env block of a suite; transfer-v2 also fixes the reward it is scored with
+_SUITE_ENV = {"transfer-v2": dict(_ENV, reward="v1")}
 
 
 def build_suite(name: str) -> dict:
@@ -175,7 +213,7 @@ def build_suite(name: str) -> dict:
         raise ValueError(f"unknown suite {name!r}; allowed: {', '.join(_BUILDERS)}")
     fn, desc = _BUILDERS[name]
     return {"name": name, "version": int(name.rsplit("-v", 1)[1]), "description": desc,
-            "built_with": f"python -m marine_fdi_env.envs.suites build {name}", "env": dict(_ENV),
+            "built_with": f"python -m marine_fdi_env.envs.suites build {name}", "env": dict(_SUITE_ENV.get(name, _ENV)),
             "scenarios": [s.to_dict() for s in fn()]}
 
 

@@ -33,7 +33,7 @@ from pathlib import Path
 
 from .. import __version__
 from .backends import Backend, chunk_size, run_tasks
-from .evaluate import cached_agent, evaluate_chunk
+from .evaluate import cached_agent, evaluate_chunk, suite_env_kwargs
 from .metrics import compute_metrics
 from .suites import SUITE_NAMES, load_suite
 
@@ -131,7 +131,7 @@ def run_sweep(agents: list[str], suites: list[str], seed_offsets: list[int], out
         todo = [sc for sc in suite.scenarios if (a, suite.name, k, sc.scenario_id) not in done]
         per = chunk_size(len(todo), batch_size, backend.workers)
         for i in range(0, len(todo), per):
-            tasks.append((resolve_agent_spec(a), [sc.to_dict() for sc in todo[i:i + per]], dict(suite["env"]),
+            tasks.append((resolve_agent_spec(a), [sc.to_dict() for sc in todo[i:i + per]], suite_env_kwargs(suite)[0],
                           suite.name, k, batch_size))
             plan.append((a, k))
     n_before = len(done)

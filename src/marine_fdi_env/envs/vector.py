@@ -20,7 +20,7 @@ from gymnasium.vector.utils import batch_space
 from .core import EpisodeBatch
 from .hypotheses import HYPOTHESES, N_HYPOTHESES, check_action
 from .observation import feature_names, observation_bounds
-from .reward import RewardConfig
+from .reward import RewardConfig, RewardConfigV1, make_reward_config
 from .scenario_sampler import ScenarioConfig, ScenarioSpec, get_preset
 
 __all__ = ["MarineFDIVectorEnv"]
@@ -38,7 +38,8 @@ class MarineFDIVectorEnv(VectorEnv):
 
     def __init__(self, num_envs: int = 1, scenario_config: "str | ScenarioConfig | dict" = "default",
                  decision_period_s: float = 1.0, observe_sensors: bool = False,
-                 reward: RewardConfig | dict | None = None, params: str = "thesis-12v28", dt: float = 0.01,
+                 reward: "RewardConfig | RewardConfigV1 | dict | str | None" = None, params: str = "thesis-12v28",
+                 dt: float = 0.01,
                  render_mode: str | None = None) -> None:
         if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
@@ -46,8 +47,7 @@ class MarineFDIVectorEnv(VectorEnv):
             raise ValueError("the vector environment does not render; use render_mode=None")
         self.num_envs = int(num_envs)
         self.scenario_config = get_preset(scenario_config)
-        if isinstance(reward, dict):
-            reward = RewardConfig(**reward)
+        reward = make_reward_config(reward)
         self.batch = EpisodeBatch(self.num_envs, params, decision_period_s, dt, observe_sensors, reward,
                                   noise_scale=self.scenario_config.noise_scale)
         low, high = observation_bounds(observe_sensors)
@@ -131,6 +131,8 @@ class MarineFDIVectorEnv(VectorEnv):
         for i in failed:
             if live_mask[i] and not (terminated[i] or truncated[i]):
                 terminated[i] = True
+        b.end_terms(out, live, live[(terminated | truncated)[live]])  # v1: missed detections
+        rewards[live] = out.reward
         infos = _scatter(n, [(ended, final), (advancing, b.info_arrays(advancing))])
         declared = _objects([list(d) for d in out.declared])
         infos.update(_scatter(n, [(live, {"declared": declared, "alarm": out.alarm,
