@@ -241,12 +241,9 @@ def cmd_simulate(args: argparse.Namespace, argv: Sequence[str]) -> int:
     profile = _make_profile(args.profile if args.profile is not None else (scen.profile if scen else "constant"),
                             duration)
 
-    out = Path(args.out)
-    if out.is_dir():
-        raise CliError(f"--out must be a file path (.npz), got the directory {str(out)!r}")
-    parent = out.parent if str(out.parent) else Path(".")
-    if not parent.is_dir():
-        raise CliError(f"--out: directory {str(parent)!r} does not exist")
+    from .envs.cliutil import prepare_out
+
+    out = prepare_out(args.out, "--out", is_dir=False)
 
     sim = Simulator(params, n_engines=args.engines, seeds=args.seed, faults=specs, profiles=profile,
                     dt=dt, noise_scale=args.noise_scale)
@@ -360,6 +357,15 @@ def cmd_info(args: argparse.Namespace) -> int:
 
 
 def _cmd_diagnose(args: argparse.Namespace) -> int:
+    from .envs.cliutil import prepare_out, require_extra
+
+    if args.plots:  # before any work: a missing extra or a bad folder costs nothing
+        require_extra("matplotlib", "--plots")
+    if not Path(args.run).is_file():
+        raise CliError(f"--run: run file {args.run!r} does not exist")
+    args.out = str(prepare_out(args.out, "--out", is_dir=False))
+    if args.plots:
+        args.plots = str(prepare_out(args.plots, "--plots", is_dir=True))
     from .diagnosis.cli_diagnose import cmd_diagnose
 
     return cmd_diagnose(args)
@@ -414,7 +420,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--engines", type=int, default=1, metavar="N", help="number of engines (default 1)")
     p.add_argument("--scenario", default=None, metavar="NAME",
                    help=f"thesis scenario: {', '.join(SCENARIOS)} (its faults are added to --fault)")
-    p.add_argument("--out", required=True, metavar="FILE.npz", help="output run file")
+    p.add_argument("--out", required=True, metavar="FILE.npz", help="output run file (its folder is created if missing, never more levels)")
     p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
                    help=f"progress bar on stderr (default: when stderr is a terminal or the run has "
                         f">= {LONG_RUN_STEPS} samples)")
@@ -437,8 +443,11 @@ def build_parser() -> argparse.ArgumentParser:
         description="Run the thesis's reference diagnoser (19 monitoring modules, adaptive thresholds, "
                     "minimal diagnoses) on one engine of a run written by 'marine-fdi simulate'.")
     p.add_argument("--run", required=True, metavar="FILE", help="run file (.npz)")
-    p.add_argument("--out", required=True, metavar="FILE.json", help="JSON report")
-    p.add_argument("--plots", default=None, metavar="DIR", help="write residual/threshold figures per agent")
+    p.add_argument("--out", required=True, metavar="FILE.json",
+                   help="JSON report (its folder is created if missing, never more levels)")
+    p.add_argument("--plots", default=None, metavar="DIR",
+                   help="write one figure per subsystem Σ1-Σ4: each monitoring module's residual against its adaptive "
+                        "threshold, detections and fault onsets (needs matplotlib)")
     p.add_argument("--engine", type=int, default=0, metavar="I", help="engine of the run (default 0)")
     p.add_argument("--exoneration", choices=("sure", "none", "all"), default="sure",
                    help="sure (default): a silent module clears the faults it surely sees; none: plain "
@@ -484,22 +493,38 @@ _ENV_COMMANDS = {
 }
 
 
+_OWN_PARSER_COMMANDS = {
+    **_ENV_COMMANDS,
+    "validate": ("marine_fdi_env.validation.report", "validate_main"),
+    "synthesize-measurements": ("marine_fdi_env.validation.synthesize", "synthesize_main"),
+}
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the CLI; returns the exit code (0 ok, 2 invalid input, 1 I/O error)."""
+    """Run the CLI; returns the exit code (0 ok, 2 invalid input, 1 I/O error, 130 interrupted).
+
+    Every command: Ctrl-C prints "interrupted" and returns 130 (commands that write
+    incrementally keep their finished work and resume when rerun); a cold numba cache prints one
+    line before the first compilation (:mod:`._coldstart`).
+    """
     argv = list(sys.argv[1:] if argv is None else argv)
-    if argv and argv[0] == "validate":
-        from .validation.report import validate_main
+    try:
+        from . import _coldstart
 
-        return validate_main(argv[1:])
-    if argv and argv[0] in _ENV_COMMANDS:
-        import importlib
+        _coldstart.enable(PROG)
+        if argv and argv[0] in _OWN_PARSER_COMMANDS:
+            import importlib
 
-        mod, fn = _ENV_COMMANDS[argv[0]]
-        return getattr(importlib.import_module(mod), fn)(argv[1:])
-    if argv and argv[0] == "synthesize-measurements":
-        from .validation.synthesize import synthesize_main
+            mod, fn = _OWN_PARSER_COMMANDS[argv[0]]
+            return getattr(importlib.import_module(mod), fn)(argv[1:])
+        return _main(argv)
+    except KeyboardInterrupt:  # a command without its own handler, or Ctrl-C while importing
+        print(f"{PROG}{' ' + argv[0] if argv and not argv[0].startswith('-') else ''}: interrupted",
+              file=sys.stderr)
+        return 130
 
-        return synthesize_main(argv[1:])
+
+def _main(argv: list[str]) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

@@ -256,6 +256,10 @@ def predict_raw(agent_spec: str, data_dir: "str | Path", out_dir: "str | Path", 
     out.mkdir(exist_ok=True)
     agent = load_agent(agent_spec)
     todo = [e for e in entries if not (out / e["output_file"]).is_file()]
+    if todo:
+        from .evaluate import warm_up
+
+        warm_up(dict(suite["env"]))  # compilation stays out of the computation_time column
     bar = progress_bar(len(entries), len(entries) - len(todo), f"predict-raw {agent.name}", progress, "scenario")
     try:
         for start in range(0, len(todo), batch_size):
@@ -292,7 +296,7 @@ def export_raw_main(argv=None) -> int:
     ap.add_argument("--suite", required=True, help="suite name or JSON path")
     ap.add_argument("--out", type=Path, required=True, help="output folder (its parent is created if missing)")
     ap.add_argument("--seed-offset", type=int, default=0, help="shift every noise seed (new noise, same scenarios)")
-    ap.add_argument("--no-progress", action="store_true")
+    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     try:
         args = ap.parse_args(argv)
     except SystemExit as e:
@@ -327,7 +331,7 @@ def predict_raw_main(argv=None) -> int:
     ap.add_argument("--data", type=Path, required=True, help="raw suite folder (marine-fdi export-raw --out)")
     ap.add_argument("--out", type=Path, required=True, help="predictions folder (its parent is created if missing)")
     ap.add_argument("--batch-size", type=int, default=32, help="episodes advanced together (default 32)")
-    ap.add_argument("--no-progress", action="store_true")
+    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     try:
         args = ap.parse_args(argv)
     except SystemExit as e:
