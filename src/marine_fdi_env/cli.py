@@ -363,9 +363,10 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         require_extra("matplotlib", "--plots")
     if not Path(args.run).is_file():
         raise CliError(f"--run: run file {args.run!r} does not exist")
-    args.out = str(prepare_out(args.out, "--out", is_dir=False))
+    # checked here, created when written (a run that fails to load leaves no new folder)
+    args.out = str(prepare_out(args.out, "--out", is_dir=False, create=False))
     if args.plots:
-        args.plots = str(prepare_out(args.plots, "--plots", is_dir=True))
+        args.plots = str(prepare_out(args.plots, "--plots", is_dir=True, create=False))
     from .diagnosis.cli_diagnose import cmd_diagnose
 
     return cmd_diagnose(args)

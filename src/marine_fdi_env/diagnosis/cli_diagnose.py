@@ -85,7 +85,7 @@ def plot_residuals(run: RunData, block, out_dir: Path, report: dict) -> list[Pat
 
     sensor = {s.id: s for s in SENSORS}
     spec = {m.id: m for m in MODULES}
-    out_dir.mkdir(exist_ok=True)
+    out_dir.mkdir(parents=True, exist_ok=True)
     t = run.t
     R = block.residuals[0]
     THR = block.thresholds[0]
@@ -154,6 +154,7 @@ def cmd_diagnose(args) -> int:
         return o
 
     text = json.dumps(clean(report), indent=2)
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(text + "\n")
     first = report["first_detection_time_s"]
     print(f"detected: {report['detected']}" + (f" at {first:.2f} s" if first is not None else ""))

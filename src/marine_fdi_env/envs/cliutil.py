@@ -45,21 +45,27 @@ def require_extra(module: str, what: str) -> None:
         raise ValueError(f"{what} needs {module.split('.')[0]}: pip install 'marine-fdi-env[{extra}]'") from None
 
 
-def prepare_out(path: "str | Path", option: str = "--out", *, is_dir: bool = True) -> Path:
-    """Create the parent of ``path`` if missing (one level only) and, for a folder, ``path`` itself."""
+def prepare_out(path: "str | Path", option: str = "--out", *, is_dir: bool = True, create: bool = True) -> Path:
+    """Create the parent of ``path`` if missing (one level only) and, for a folder, ``path`` itself.
+
+    ``create=False`` only checks (``ValueError`` naming ``option``): a command that still has to
+    validate other input checks its output path first and creates it when it writes, so a
+    failing command leaves no new folder behind."""
     p = Path(path)
     parent = p.parent
     if not parent.exists():
-        if not parent.parent.exists():
+        if not parent.parent.is_dir():
             raise ValueError(f"{option}: folder {str(parent.parent)!r} does not exist (only the parent of "
                              f"{option} is created)")
-        parent.mkdir()
+        if create:
+            parent.mkdir()
     elif not parent.is_dir():
         raise ValueError(f"{option}: {str(parent)!r} is not a folder")
     if is_dir:
         if p.exists() and not p.is_dir():
             raise ValueError(f"{option} must be a folder, got the file {str(p)!r}")
-        p.mkdir(exist_ok=True)
+        if create:
+            p.mkdir(exist_ok=True)
     elif p.is_dir():
         raise ValueError(f"{option} must be a file path, got the folder {str(p)!r}")
     return p
@@ -79,7 +85,7 @@ class _Bar:
             bar.n = bar.total
             return
         bar.n = n
-        bar.refresh()
+        bar.update(0)  # redraws when tqdm's mininterval has passed
 
     def advance(self, x: float) -> None:
         if self.bar is not None and x:
@@ -104,8 +110,9 @@ def _isatty(stream) -> bool:
 
 def progress_bar(total: int, done: int, desc: str, enabled: bool = True, unit: str = "episode") -> _Bar:
     """A progress bar on stderr counting episodes, starting at ``done``; says "resuming at
-    done/total" when done > 0.  Off a terminal (a log file) it redraws at most every 10 s."""
-    if done and enabled:
+    done/total" when done > 0 (also without a bar).  Off a terminal (a log file) it redraws at
+    most every 10 s."""
+    if done:
         print(f"{desc}: resuming at {done}/{total}", file=sys.stderr)
     if not enabled:
         return _Bar(None)

@@ -119,8 +119,8 @@ def export_dataset(scenarios: list[ScenarioSpec], out_dir: Path, env_kwargs: dic
     scen_json = [dict(s.to_dict(), truth=s.truth()) for s in scenarios]
     key = hashlib.sha256(json.dumps({"env": env_json, "scenarios": scen_json}, sort_keys=True).encode()).hexdigest()
     part_dir = out_dir / "dataset.partial"
-    head = {"key": key, "env": env_json, "n_episodes": E,
-            "scenario_ids": [s.scenario_id for s in scenarios]}
+    head = json.loads(json.dumps({"key": key, "env": env_json, "n_episodes": E,  # as stored (lists, not tuples)
+                                  "scenario_ids": [s.scenario_id for s in scenarios]}))
     if force:
         _discard_other(part_dir, key)
     stored = _stored_chunks(part_dir, head)

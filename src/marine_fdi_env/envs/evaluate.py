@@ -246,7 +246,7 @@ def evaluate(agent_spec: str, suite_name: str, out: Path, *, workers: int = 1, s
                 continue
             done[rec["scenario_id"]] = rec
     else:
-        out.parent.mkdir(parents=True, exist_ok=True)
+        out.parent.mkdir(parents=True, exist_ok=True)  # the CLI checked that at most this one level is new
         partial.write_text(json.dumps(header) + "\n")
     todo = [s for s in suite.scenarios if s.scenario_id not in done]
     from .cliutil import progress_bar
@@ -329,7 +329,7 @@ def evaluate_main(argv=None) -> int:
         out = args.out or Path("results") / f"{agent_file_stem(args.agent)}_{Path(args.suite).stem}.json"
         if out.suffix == ".parquet":
             require_extra("pyarrow", "--out *.parquet")
-        out = prepare_out(out, "--out", is_dir=False)
+        out = prepare_out(out, "--out", is_dir=False, create=False)  # evaluate() creates it after its checks
         partial = out.with_name(out.name + ".partial.jsonl")
         if out.exists() and not partial.exists() and not args.force:
             raise ValueError(f"--out {out} already holds results; pass --force to recompute and overwrite them, "

@@ -253,8 +253,8 @@ def predict_raw(agent_spec: str, data_dir: "str | Path", out_dir: "str | Path", 
         raise ValueError(f"{data_dir}/manifest.json: scenarios not in suite {suite.name}: {missing[:5]}")
     dt = float(man["sample_time_s"])
     out = Path(out_dir)
-    out.mkdir(exist_ok=True)
     agent = load_agent(agent_spec)
+    out.mkdir(parents=True, exist_ok=True)
     todo = [e for e in entries if not (out / e["output_file"]).is_file()]
     if todo:
         from .evaluate import warm_up
@@ -303,7 +303,7 @@ def export_raw_main(argv=None) -> int:
         return e.code if isinstance(e.code, int) else 0
     t0 = time.perf_counter()
     try:
-        out = prepare_out(args.out)
+        out = prepare_out(args.out, create=False)  # export_raw creates it after checking the suite
         man = export_raw(args.suite, out, seed_offset=args.seed_offset, progress=not args.no_progress)
     except ValueError as e:
         print(f"marine-fdi export-raw: error: {e}", file=sys.stderr)
@@ -339,7 +339,7 @@ def predict_raw_main(argv=None) -> int:
     try:
         if args.batch_size < 1:
             raise ValueError(f"--batch-size must be a positive integer, got {args.batch_size}")
-        out = prepare_out(args.out)
+        out = prepare_out(args.out, create=False)  # predict_raw creates it after checking data and agent
         predict_raw(args.agent, args.data, out, batch_size=args.batch_size, progress=not args.no_progress)
     except ValueError as e:
         print(f"marine-fdi predict-raw: error: {e}", file=sys.stderr)

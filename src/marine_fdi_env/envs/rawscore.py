@@ -332,10 +332,11 @@ def score_raw_main(argv=None) -> int:
         if args.out is not None:
             if args.out.suffix == ".parquet":
                 require_extra("pyarrow", "--out *.parquet")
-            prepare_out(args.out, is_dir=False)
+            prepare_out(args.out, is_dir=False, create=False)
         res = score_raw(args.suite, args.predictions, data_dir=args.data, agent=args.name,
                         progress=not args.no_progress)
         if args.out is not None:
+            prepare_out(args.out, is_dir=False)
             if args.out.suffix == ".parquet":
                 from .records import write_results_parquet
 

@@ -532,7 +532,7 @@ def report_main(argv: Sequence[str] | None = None) -> int:
 
         if not args.no_plots:
             _pyplot()
-        out = prepare_out(args.out, "--out", is_dir=True)
+        out = prepare_out(args.out, "--out", is_dir=True, create=False)  # write_report creates it
         path = write_report(args.results, out, plots=not args.no_plots)
     except (ValueError, RuntimeError, OSError) as e:
         print(f"marine-fdi report: error: {e}", file=sys.stderr)

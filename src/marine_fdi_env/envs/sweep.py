@@ -231,7 +231,7 @@ def sweep_main(argv=None) -> int:
     try:
         backend = backend_from_args(args)
         require_extra("pyarrow", "sweep (its table episodes.parquet)")
-        out = prepare_out(args.out)
+        out = prepare_out(args.out, create=False)  # run_sweep creates it after checking agents and suites
         res = run_sweep(args.agents, args.suites, args.seed_offsets, out, backend=backend,
                         batch_size=args.batch_size, progress=not args.no_progress)
     except ValueError as e:
