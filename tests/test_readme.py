@@ -4,8 +4,8 @@ The commands are read from README.md itself (its ```bash and ```python blocks; n
 copy of them), and run in order in a temporary folder that looks like a fresh clone: symlinks to
 the repository's tracked top-level entries (``training/``, ``docs/``, ...) and nothing else, so
 the output folders the commands name (``runs/``, ``results/``, ``report/``, ``data/``) do not
-exist yet.  ``marine-fdi`` commands run in-process (``marine_fdi_env.cli.main``, the console
-script's entry point, checked below), with the current directory set to that folder; the
+exist yet.  ``marine-fdi`` commands run in-process (``marine_fdi_env.cli.main``, which the console
+script's entry point ``console_main`` calls, checked below), with the current directory set to that folder; the
 Python blocks run with ``exec``.
 
 What is not run, and why:
@@ -139,7 +139,7 @@ def fresh_clone(folder: Path) -> None:
 
 def test_the_console_script_is_the_cli_entry_point():
     eps = metadata.entry_points(group="console_scripts")
-    assert [e.value for e in eps if e.name == "marine-fdi"] == ["marine_fdi_env.cli:main"]
+    assert [e.value for e in eps if e.name == "marine-fdi"] == ["marine_fdi_env.cli:console_main"]
 
 
 def test_readme_commands_run_from_a_fresh_clone(tmp_path, monkeypatch, capsys):

@@ -556,5 +556,23 @@ def _main(argv: list[str]) -> int:
         return 130
 
 
+def console_main() -> None:
+    """The ``marine-fdi`` script: :func:`main`, then exit with its code.
+
+    After Ctrl-C in a run that used Ray, the process leaves at once (``os._exit``, after
+    flushing stdout and stderr): the finished work is on disk and Ray was shut down, but Ray's
+    C++ core worker can crash while the interpreter tears down after an interrupted
+    ``ray.wait`` (a segfault instead of exit code 130)."""
+    code = main()
+    if code == 130 and "ray" in sys.modules:
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        os._exit(code)
+    sys.exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    console_main()

@@ -81,7 +81,7 @@ class _Bar:
     def _set(self, n: float) -> None:
         bar = self.bar
         n = min(max(float(n), 0.0), float(bar.total))
-        if n >= bar.total:   # the final line is printed once, by close()
+        if n >= bar.total - 1e-6:   # done (up to rounding): the final line is printed once, by close()
             bar.n = bar.total
             return
         bar.n = n

@@ -150,7 +150,8 @@ def export_dataset(scenarios: list[ScenarioSpec], out_dir: Path, env_kwargs: dic
         tmp.replace(f)
         stored.append((idx, f))
         done[idx] = True
-        bar.set_done(float(done.sum()) + sum(in_flight.values()) - in_flight.pop(i, 0.0))
+        in_flight.pop(i, None)  # this chunk now counts as done; the others as far as they got
+        bar.set_done(float(done.sum()) + sum(in_flight.values()))
 
     try:
         run_tasks(backend, dataset_chunk, tasks, on_result=keep, on_progress=advance)

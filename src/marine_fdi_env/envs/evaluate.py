@@ -264,7 +264,8 @@ def evaluate(agent_spec: str, suite_name: str, out: Path, *, workers: int = 1, s
             for rec in recs:
                 fh.write(json.dumps(rec) + "\n")
                 done[rec["scenario_id"]] = rec
-        bar.set_done(len(done) + sum(in_flight.values()) - in_flight.pop(i, 0.0))
+        in_flight.pop(i, None)  # this chunk now counts as done; the others as far as they got
+        bar.set_done(len(done) + sum(in_flight.values()))
 
     in_flight: dict[int, float] = {}
 

@@ -155,7 +155,8 @@ def run_sweep(agents: list[str], suites: list[str], seed_offsets: list[int], out
                 rec = dict(rec, agent_spec=a, seed_offset=k)
                 fh.write(json.dumps(rec) + "\n")
                 done[_key(rec)] = rec
-        bar.set_done(len(done) + sum(in_flight.values()) - in_flight.pop(i, 0.0))
+        in_flight.pop(i, None)  # this chunk now counts as done; the others as far as they got
+        bar.set_done(len(done) + sum(in_flight.values()))
 
     load0, t0 = os.getloadavg(), time.perf_counter()
     try:
