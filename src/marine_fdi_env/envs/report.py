@@ -6,7 +6,7 @@
   (single-fault episodes: detection rate, isolation accuracy, median detection delay of each
   fault for each agent) and per suite and agent a confusion matrix of the final declaration
   against the truth (its non-zero cells, one row per true label);
-* ``DIR/confusion.json``: the full confusion matrices (labels, counts);
+* ``DIR/confusion.json``: the full confusion matrices (labels, counts, episodes per true label);
 * with matplotlib: ``DIR/summary.png`` (detection rate, isolation accuracy and false-alarm
   episode rate per agent, one panel per suite), ``DIR/detection_delay.png`` (detection delays
   per agent, one panel per suite with faulty episodes) and ``DIR/confusion_<suite>.png`` (the
@@ -259,11 +259,14 @@ def _label_order(labels: Iterable[str], extra: Sequence[str]) -> list[str]:
 
 def confusion_matrix(result: Mapping, rows: Sequence[str] | None = None,
                      cols: Sequence[str] | None = None) -> dict:
-    """``{"true": [...], "declared": [...], "counts": [[...]]}``: counts[i][j] = episodes (module
-    docstring) with true label ``true[i]`` and declared label ``declared[j]``.  ``rows``/``cols``
-    fix the labels (default: those that occur, faults in FAULT_IDS order)."""
+    """``{"true": [...], "declared": [...], "counts": [[...]], "episodes": [...]}``: counts[i][j] =
+    episodes (module docstring) with true label ``true[i]`` and declared label ``declared[j]``;
+    episodes[i] = episodes with true label ``true[i]`` (a row of ``counts`` sums to more when
+    episodes declared several faults).  ``rows``/``cols`` fix the labels (default: those that
+    occur, faults in FAULT_IDS order)."""
+    labels = _result_labels(result)
     pairs = []
-    for t, d in _result_labels(result):
+    for t, d in labels:
         pairs += [(a, b) for a in t for b in d]
     rows = list(rows) if rows is not None else _label_order((a for a, _ in pairs), [NO_FAULT_LABEL])
     cols = list(cols) if cols is not None else _label_order((b for _, b in pairs), [UNKNOWN_LABEL, NOTHING_LABEL])
@@ -271,7 +274,11 @@ def confusion_matrix(result: Mapping, rows: Sequence[str] | None = None,
     counts = [[0] * len(cols) for _ in rows]
     for a, b in pairs:
         counts[ri[a]][ci[b]] += 1
-    return {"true": rows, "declared": cols, "counts": counts}
+    episodes = [0] * len(rows)
+    for t, _ in labels:
+        for a in set(t):
+            episodes[ri[a]] += 1
+    return {"true": rows, "declared": cols, "counts": counts, "episodes": episodes}
 
 
 def _suite_labels(rs: Sequence[Mapping]) -> tuple[list[str], list[str]]:
@@ -285,15 +292,16 @@ def _suite_labels(rs: Sequence[Mapping]) -> tuple[list[str], list[str]]:
 
 
 def confusion_markdown(cm: Mapping) -> str:
-    """A confusion matrix as a Markdown table of its non-zero cells: one row per true label,
-    "declared x count" entries, the correct one in bold."""
-    lines = ["| True | Count | Declared at the end (count) |", "| --- | ---: | --- |"]
+    """A confusion matrix as a Markdown table of its non-zero cells: one row per true label with
+    its number of episodes and "declared count" entries, the correct one in bold."""
+    lines = ["| True | Episodes | Declared at the end (episodes) |", "| --- | ---: | --- |"]
     for i, t in enumerate(cm["true"]):
         row = cm["counts"][i]
+        n = cm["episodes"][i] if "episodes" in cm else sum(row)
         cells = sorted(((c, d) for d, c in zip(cm["declared"], row) if c), key=lambda x: -x[0])
         text = ", ".join((f"**{d}** {c}" if d == t or (t == NO_FAULT_LABEL and d == NOTHING_LABEL) else f"{d} {c}")
                          for c, d in cells)
-        lines.append(f"| {t} | {sum(row)} | {text} |")
+        lines.append(f"| {t} | {n} | {text} |")
     return "\n".join(lines) + "\n"
 
 
@@ -483,8 +491,10 @@ def _write_report(paths, out_dir, plots: bool) -> Path:
     parts += ["## Confusion matrices\n",
               "Final declaration against the truth, per suite and agent: for each true label (the faults "
               "active at the end, or `no fault`) the declared labels (the final declared faults, `unknown`: "
-              "alarm on and no fault named, `nothing`: no alarm) with their counts; the correct one in bold.  An "
-              "episode counts once per (true, declared) pair, so an episode with two faults adds to two rows.  "
+              "alarm on and no fault named, `nothing`: no alarm) with the number of episodes; the correct one in bold.  An "
+              "episode counts once per (true, declared) pair: an episode with two true faults is in two rows, one "
+              "that declared two faults adds to two entries of its row (so a row's entries may sum to more than "
+              "its episodes).  "
               "Full matrices: `confusion.json`" + (", heat maps: `confusion_<suite>.png`" if plots else "") + ".\n"]
     matrices = []
     for suite, rs in groups.items():
