@@ -59,21 +59,29 @@ def test_one_rule_for_output_folders(tmp_path, monkeypatch, capsys, tiny):
         ["diagnose", "--run", "runs/run.npz", "--out", "a/b/d.json"],
         ["export-raw", "--suite", str(tiny), "--out", "a/b/raw"],
         ["score-raw", "--suite", str(tiny), "--predictions", "p", "--out", "a/b/s.json"],
+        ["validate", "--data", "man_12v32_40_fpp_iso", "--out", "a/b/v.json"],
+        ["validate", "--data", "man_12v32_40_fpp_iso", "--out", "v.json", "--plots", "a/b/plots"],
+        ["synthesize-measurements", "--params", "thesis-12v28", "--out", "a/b/m.csv"],
     ]
     for argv in cases:
         assert cli_main(argv) == 2, argv
         err = capsys.readouterr().err
-        assert "--out" in err and "'a' does not exist" in err and "Traceback" not in err, (argv, err)
+        opt = "--plots" if "--plots" in argv else "--out"
+        assert opt in err and "'a' does not exist" in err and "Traceback" not in err, (argv, err)
         assert _no_new_entries(tmp_path, before), argv
     # bad input after a valid --out: no folder is left behind either
     assert cli_main(["evaluate", "--agent", "null", "--suite", "no-such-suite", "--out", "new/x.json"]) == 2
     assert cli_main(["sweep", "--agents", "nobody", "--suites", str(tiny), "--out", "new/sw"]) == 2
     assert cli_main(["diagnose", "--run", "runs/missing.npz", "--out", "new/d.json"]) == 2
+    assert cli_main(["validate", "--data", "no-such-data", "--out", "new/v.json", "--plots", "new2/p"]) == 2
+    assert cli_main(["synthesize-measurements", "--params", "nobody", "--out", "new/m.csv"]) == 2
     assert _no_new_entries(tmp_path, before)
     capsys.readouterr()
     # one level is created
     assert cli_main(["evaluate", "--agent", "null", "--suite", str(tiny), "--out", "res/x.json", "--no-progress"]) == 0
     assert (tmp_path / "res" / "x.json").is_file()
+    assert cli_main(["synthesize-measurements", "--params", "thesis-12v28", "--points", "3", "--out", "syn/m.csv"]) == 0
+    assert (tmp_path / "syn" / "m.csv").is_file()
     with pytest.raises(ValueError, match="--plots must be a folder"):
         prepare_out(tmp_path / "runs" / "run.npz", "--plots", is_dir=True)
 
@@ -104,6 +112,8 @@ def test_existing_results_and_datasets_are_not_overwritten_silently(tmp_path, ca
 @pytest.mark.parametrize("module,argv,extra", [
     ("matplotlib", ["diagnose", "--run", "{run}", "--out", "{tmp}/d.json", "--plots", "{tmp}/plots"], "plots"),
     ("matplotlib", ["report", "{result}", "--out", "{tmp}/rep"], "plots"),
+    ("matplotlib", ["validate", "--data", "man_12v32_40_fpp_iso", "--out", "{tmp}/v.json", "--plots", "{tmp}/vp"],
+     "plots"),
     ("pyarrow", ["evaluate", "--agent", "null", "--suite", "{tiny}", "--out", "{tmp}/x.parquet"], "parquet"),
     ("pyarrow", ["dataset", "--suite", "{tiny}", "--out", "{tmp}/ds", "--format", "parquet"], "parquet"),
     ("pyarrow", ["sweep", "--agents", "null", "--suites", "{tiny}", "--out", "{tmp}/sw"], "parquet"),
@@ -129,6 +139,9 @@ def test_a_missing_extra_is_one_line_before_any_work(module, argv, extra, tmp_pa
     for mod in (backends, ev, sw):
         monkeypatch.setattr(mod, "run_tasks", no_work)
     monkeypatch.setattr(report, "load_results", no_work)
+    import marine_fdi_env.validation.report as vreport
+
+    monkeypatch.setattr(vreport, "run_validation", no_work)
     monkeypatch.setitem(sys.modules, module, None)  # as if not installed: import raises ImportError
     args = [a.format(run=run, tmp=tmp_path, result=result, tiny=tiny) for a in argv]
     before = set(os.listdir(tmp_path))
@@ -196,11 +209,19 @@ def test_the_warm_up_episode_changes_no_number(tiny, tmp_path, monkeypatch):
 
 
 # ----------------------------------------------------------------------------- Ctrl-C
+def ctrl_c_enabled() -> None:
+    """In the child before exec: SIGINT at its default, so Python turns it into KeyboardInterrupt
+    even when the tests run in a shell's background job (which starts with SIGINT ignored, and
+    children inherit that)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_ctrl_c_in_dataset_keeps_chunks_and_the_rerun_resumes(tmp_path):
     out = tmp_path / "ds"
     cmd = [sys.executable, "-m", "marine_fdi_env.cli", "dataset", "--preset", "default", "--episodes", "4",
            "--seed", "1", "--batch-size", "1", "--out", str(out), "--no-progress"]
-    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=ctrl_c_enabled)
     part = out / "dataset.partial"
     deadline = time.monotonic() + 240
     while time.monotonic() < deadline and proc.poll() is None:
@@ -323,6 +344,7 @@ def test_confusion_matrix_and_per_fault_tables(tmp_path):
     assert cell == {("S1.1", "S1.1"): 2, ("S1.1", "S2.1"): 1, ("S1.1", "bore_damage"): 1,
                     ("bore_damage", UNKNOWN_LABEL): 1, ("bore_damage", NOTHING_LABEL): 1,
                     ("bore_damage", "S1.1"): 1, ("bore_damage", "bore_damage"): 1, ("no fault", NOTHING_LABEL): 1}
+    assert cm["episodes"] == [3, 3, 1]  # the pair is one episode in each of its two rows
     # on single-fault episodes the diagonal is the isolation accuracy
     single = [e for e in eps if len(e["faults"]) == 1]
     m = compute_metrics(single)
@@ -344,7 +366,7 @@ def test_confusion_matrix_and_per_fault_tables(tmp_path):
     out = tmp_path / "rep"
     text = write_report(files, out).read_text()
     assert "## Per fault" in text and "| S1.1 | 2 | 100 / 50 / 2.5 | 100 / 50 / 2.5 |" in text
-    assert "### Suite s, agent a" in text and "| S1.1 | 4 | **S1.1** 2, S2.1 1, bore_damage 1 |" in text
+    assert "### Suite s, agent a" in text and "| S1.1 | 3 | **S1.1** 2, S2.1 1, bore_damage 1 |" in text
     assert "### Suite nominal-test, agent a" in text and "| no fault | 3 | **nothing** 3 |" in text
     saved = json.loads((out / "confusion.json").read_text())
     assert {(m["suite"], m["agent"]) for m in saved} == {("s", "a"), ("s", "b"), ("nominal-test", "a")}

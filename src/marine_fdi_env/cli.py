@@ -500,6 +500,66 @@ _OWN_PARSER_COMMANDS = {
     "synthesize-measurements": ("marine_fdi_env.validation.synthesize", "synthesize_main"),
 }
 
+# the output options of the validation commands: option -> (argparse dest, is a folder)
+_VALIDATION_OUTPUTS = {
+    "validate": {"--out": ("out", False), "--markdown": ("markdown", False), "--plots": ("plots", True)},
+    "synthesize-measurements": {"--out": ("out", False), "--truth": ("truth", False)},
+}
+
+
+def _run_validation_command(command: str, argv: list[str]) -> int:
+    """``validate`` and ``synthesize-measurements`` under the conventions of the other commands
+    (:mod:`.envs.cliutil`): ``--plots`` without matplotlib is one line before any work; the parent
+    of each output path is created when missing (one level, never more) and removed again when
+    the command fails, so a failing command leaves no new folder."""
+    import importlib
+
+    from .envs.cliutil import USAGE_ERROR, prepare_out, require_extra
+
+    mod_name, fn = _OWN_PARSER_COMMANDS[command]
+    mod = importlib.import_module(mod_name)
+    run = getattr(mod, fn)
+    if any(a in ("-h", "--help") for a in argv):
+        return run(argv)
+    parser = mod.build_parser(f"{PROG} {command}")
+
+    def error(message):
+        raise ValueError(message)
+
+    parser.error = error  # type: ignore[method-assign]
+    try:
+        args = parser.parse_args(argv)
+    except ValueError:
+        return run(argv)  # the command prints its own usage error
+    created: list[Path] = []
+    try:
+        if getattr(args, "plots", None):
+            require_extra("matplotlib", "--plots")
+        for option, (dest, is_dir) in _VALIDATION_OUTPUTS[command].items():
+            value = getattr(args, dest, None)
+            if value:
+                prepare_out(value, option, is_dir=is_dir, create=False)
+        for option, (dest, _) in _VALIDATION_OUTPUTS[command].items():
+            value = getattr(args, dest, None)
+            parent = Path(value).parent if value else None
+            if parent is not None and not parent.exists():
+                parent.mkdir()
+                created.append(parent)
+    except ValueError as e:
+        print(f"{PROG} {command}: error: {e}", file=sys.stderr)
+        return USAGE_ERROR
+    rc = 1
+    try:
+        rc = run(argv)
+        return rc
+    finally:
+        if rc != 0:
+            for folder in reversed(created):
+                try:
+                    folder.rmdir()  # only if still empty
+                except OSError:
+                    pass
+
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; returns the exit code (0 ok, 2 invalid input, 1 I/O error, 130 interrupted).
@@ -513,6 +573,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         from . import _coldstart
 
         _coldstart.enable(PROG)
+        if argv and argv[0] in _VALIDATION_OUTPUTS:
+            return _run_validation_command(argv[0], argv[1:])
         if argv and argv[0] in _OWN_PARSER_COMMANDS:
             import importlib
 
