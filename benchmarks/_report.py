@@ -4,6 +4,10 @@ from __future__ import annotations
 
 import json
 
+from marine_fdi_env import _coldstart
+
+_coldstart.enable("benchmark")  # one line when numba compiles a cold cache (the timings exclude it)
+
 
 def emit(out: dict, as_json: bool) -> None:
     if as_json:

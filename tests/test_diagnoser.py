@@ -114,7 +114,7 @@ def test_diagnose_cli_report_keys_and_plots(tmp_path):
     assert set(rep["module_detection_times_s"]) == set(MODULE_IDS)
     assert rep["true_faults"][0]["id"] == "S3.4"
     assert ["S3.4"] in rep["final_minimal_diagnoses"]
-    assert sorted(p.name for p in (tmp_path / "plots").iterdir()) == [f"agent_{i}.png" for i in (1, 2, 3, 4)]
+    assert sorted(p.name for p in (tmp_path / "plots").iterdir()) == [f"subsystem_{i}.png" for i in (1, 2, 3, 4)]
 
 
 @pytest.mark.parametrize("name", ["thesis-6.4.1", "thesis-6.4.2", "thesis-6.4.3", "thesis-6.4.4"])

@@ -200,12 +200,20 @@ def test_sweep_table_equals_evaluate_and_report_reads_it(tiny, tmp_path, capsys)
         prepare_out(tmp_path / "x" / "y" / "z")
 
 
+def ctrl_c_enabled() -> None:
+    """In the child before exec: SIGINT at its default, so Python turns it into KeyboardInterrupt
+    even when the tests run in a shell's background job (which starts with SIGINT ignored, and
+    children inherit that)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_sweep_resumes_after_ctrl_c_without_losing_or_redoing_work(tiny, tmp_path, capsys):
     out = tmp_path / "sw"
     cmd = [sys.executable, "-m", "marine_fdi_env.cli", "sweep", "--agents", SLOW_AGENT, "--suites", str(tiny),
            "--out", str(out), "--batch-size", "1", "--backend", "serial", "--no-progress"]
     env = dict(os.environ, SLOW_AGENT_SLEEP_S="0.1")  # 20 decisions: 2 s per chunk
-    proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=ctrl_c_enabled)
     partial = out / "sweep.partial.jsonl"
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and proc.poll() is None:

@@ -13,7 +13,11 @@ from __future__ import annotations
 
 import numba
 
+from . import _coldstart
+
 __all__ = ["jit"]
+
+_coldstart.install()  # one line on stderr at a cold compilation, when the command asked for it
 
 # nogil: compiled loops release the GIL, so halves of a large batch can run on two threads
 jit = numba.njit(cache=True, error_model="numpy", nogil=True)

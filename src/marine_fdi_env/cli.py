@@ -242,12 +242,9 @@ def cmd_simulate(args: argparse.Namespace, argv: Sequence[str]) -> int:
     profile = _make_profile(args.profile if args.profile is not None else (scen.profile if scen else "constant"),
                             duration)
 
-    out = Path(args.out)
-    if out.is_dir():
-        raise CliError(f"--out must be a file path (.npz), got the directory {str(out)!r}")
-    parent = out.parent if str(out.parent) else Path(".")
-    if not parent.is_dir():
-        raise CliError(f"--out: directory {str(parent)!r} does not exist")
+    from .envs.cliutil import prepare_out
+
+    out = prepare_out(args.out, "--out", is_dir=False)
 
     sim = Simulator(params, n_engines=args.engines, seeds=args.seed, faults=specs, profiles=profile,
                     dt=dt, noise_scale=args.noise_scale)
@@ -375,6 +372,16 @@ def cmd_info(args: argparse.Namespace) -> int:
 
 
 def _cmd_diagnose(args: argparse.Namespace) -> int:
+    from .envs.cliutil import prepare_out, require_extra
+
+    if args.plots:  # before any work: a missing extra or a bad folder costs nothing
+        require_extra("matplotlib", "--plots")
+    if not Path(args.run).is_file():
+        raise CliError(f"--run: run file {args.run!r} does not exist")
+    # checked here, created when written (a run that fails to load leaves no new folder)
+    args.out = str(prepare_out(args.out, "--out", is_dir=False, create=False))
+    if args.plots:
+        args.plots = str(prepare_out(args.plots, "--plots", is_dir=True, create=False))
     from .diagnosis.cli_diagnose import cmd_diagnose
 
     return cmd_diagnose(args)
@@ -431,7 +438,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--engines", type=int, default=1, metavar="N", help="number of engines (default 1)")
     p.add_argument("--scenario", default=None, metavar="NAME",
                    help=f"thesis scenario: {', '.join(SCENARIOS)} (its faults are added to --fault)")
-    p.add_argument("--out", required=True, metavar="FILE.npz", help="output run file")
+    p.add_argument("--out", required=True, metavar="FILE.npz", help="output run file (its folder is created if missing, never more levels)")
     p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
                    help=f"progress bar on stderr (default: when stderr is a terminal or the run has "
                         f">= {LONG_RUN_STEPS} samples)")
@@ -454,8 +461,11 @@ def build_parser() -> argparse.ArgumentParser:
         description="Run the thesis's reference diagnoser (19 monitoring modules, adaptive thresholds, "
                     "minimal diagnoses) on one engine of a run written by 'marine-fdi simulate'.")
     p.add_argument("--run", required=True, metavar="FILE", help="run file (.npz)")
-    p.add_argument("--out", required=True, metavar="FILE.json", help="JSON report")
-    p.add_argument("--plots", default=None, metavar="DIR", help="write residual/threshold figures per agent")
+    p.add_argument("--out", required=True, metavar="FILE.json",
+                   help="JSON report (its folder is created if missing, never more levels)")
+    p.add_argument("--plots", default=None, metavar="DIR",
+                   help="write one figure per subsystem Σ1-Σ4: each monitoring module's residual against its adaptive "
+                        "threshold, detections and fault onsets (needs matplotlib)")
     p.add_argument("--engine", type=int, default=0, metavar="I", help="engine of the run (default 0)")
     p.add_argument("--exoneration", choices=("sure", "none", "all"), default="sure",
                    help="sure (default): a silent module clears the faults it surely sees; none: plain "
@@ -501,22 +511,100 @@ _ENV_COMMANDS = {
 }
 
 
+_OWN_PARSER_COMMANDS = {
+    **_ENV_COMMANDS,
+    "validate": ("marine_fdi_env.validation.report", "validate_main"),
+    "synthesize-measurements": ("marine_fdi_env.validation.synthesize", "synthesize_main"),
+}
+
+# the output options of the validation commands: option -> (argparse dest, is a folder)
+_VALIDATION_OUTPUTS = {
+    "validate": {"--out": ("out", False), "--markdown": ("markdown", False), "--plots": ("plots", True)},
+    "synthesize-measurements": {"--out": ("out", False), "--truth": ("truth", False)},
+}
+
+
+def _run_validation_command(command: str, argv: list[str]) -> int:
+    """``validate`` and ``synthesize-measurements`` under the conventions of the other commands
+    (:mod:`.envs.cliutil`): ``--plots`` without matplotlib is one line before any work; the parent
+    of each output path is created when missing (one level, never more) and removed again when
+    the command fails, so a failing command leaves no new folder."""
+    import importlib
+
+    from .envs.cliutil import USAGE_ERROR, prepare_out, require_extra
+
+    mod_name, fn = _OWN_PARSER_COMMANDS[command]
+    mod = importlib.import_module(mod_name)
+    run = getattr(mod, fn)
+    if any(a in ("-h", "--help") for a in argv):
+        return run(argv)
+    parser = mod.build_parser(f"{PROG} {command}")
+
+    def error(message):
+        raise ValueError(message)
+
+    parser.error = error  # type: ignore[method-assign]
+    try:
+        args = parser.parse_args(argv)
+    except ValueError:
+        return run(argv)  # the command prints its own usage error
+    created: list[Path] = []
+    try:
+        if getattr(args, "plots", None):
+            require_extra("matplotlib", "--plots")
+        for option, (dest, is_dir) in _VALIDATION_OUTPUTS[command].items():
+            value = getattr(args, dest, None)
+            if value:
+                prepare_out(value, option, is_dir=is_dir, create=False)
+        for option, (dest, _) in _VALIDATION_OUTPUTS[command].items():
+            value = getattr(args, dest, None)
+            parent = Path(value).parent if value else None
+            if parent is not None and not parent.exists():
+                parent.mkdir()
+                created.append(parent)
+    except ValueError as e:
+        print(f"{PROG} {command}: error: {e}", file=sys.stderr)
+        return USAGE_ERROR
+    rc = 1
+    try:
+        rc = run(argv)
+        return rc
+    finally:
+        if rc != 0:
+            for folder in reversed(created):
+                try:
+                    folder.rmdir()  # only if still empty
+                except OSError:
+                    pass
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the CLI; returns the exit code (0 ok, 2 invalid input, 1 I/O error)."""
+    """Run the CLI; returns the exit code (0 ok, 2 invalid input, 1 I/O error, 130 interrupted).
+
+    Every command: Ctrl-C prints "interrupted" and returns 130 (commands that write
+    incrementally keep their finished work and resume when rerun); a cold numba cache prints one
+    line before the first compilation (:mod:`._coldstart`).
+    """
     argv = list(sys.argv[1:] if argv is None else argv)
-    if argv and argv[0] == "validate":
-        from .validation.report import validate_main
+    try:
+        from . import _coldstart
 
-        return validate_main(argv[1:])
-    if argv and argv[0] in _ENV_COMMANDS:
-        import importlib
+        _coldstart.enable(PROG)
+        if argv and argv[0] in _VALIDATION_OUTPUTS:
+            return _run_validation_command(argv[0], argv[1:])
+        if argv and argv[0] in _OWN_PARSER_COMMANDS:
+            import importlib
 
-        mod, fn = _ENV_COMMANDS[argv[0]]
-        return getattr(importlib.import_module(mod), fn)(argv[1:])
-    if argv and argv[0] == "synthesize-measurements":
-        from .validation.synthesize import synthesize_main
+            mod, fn = _OWN_PARSER_COMMANDS[argv[0]]
+            return getattr(importlib.import_module(mod), fn)(argv[1:])
+        return _main(argv)
+    except KeyboardInterrupt:  # a command without its own handler, or Ctrl-C while importing
+        print(f"{PROG}{' ' + argv[0] if argv and not argv[0].startswith('-') else ''}: interrupted",
+              file=sys.stderr)
+        return 130
 
-        return synthesize_main(argv[1:])
+
+def _main(argv: list[str]) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -547,5 +635,23 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
 
 
+def console_main() -> None:
+    """The ``marine-fdi`` script: :func:`main`, then exit with its code.
+
+    After Ctrl-C in a run that used Ray, the process leaves at once (``os._exit``, after
+    flushing stdout and stderr): the finished work is on disk and Ray was shut down, but Ray's
+    C++ core worker can crash while the interpreter tears down after an interrupted
+    ``ray.wait`` (a segfault instead of exit code 130)."""
+    code = main()
+    if code == 130 and "ray" in sys.modules:
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        os._exit(code)
+    sys.exit(code)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    console_main()

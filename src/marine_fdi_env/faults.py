@@ -101,7 +101,9 @@ def fault_class(fault_id: str) -> str:
         return "sensor"
     if fault_id in PROCESS_FAULT_IDS:
         return "process"
-    raise ValueError(f"unknown fault id {fault_id!r}; allowed: {', '.join(FAULT_IDS)}")
+    from .suggest import did_you_mean
+
+    raise ValueError(f"unknown fault id {fault_id!r}{did_you_mean(fault_id, FAULT_IDS)}; allowed: {', '.join(FAULT_IDS)}")
 
 
 def _check_number(name: str, value, *, positive: bool = False, nonneg: bool = False, allow_inf: bool = False):

@@ -84,4 +84,7 @@ def get_scenario(name: str) -> Scenario:
     try:
         return SCENARIOS[name]
     except (KeyError, TypeError):
-        raise ValueError(f"unknown scenario {name!r}; allowed: {', '.join(SCENARIOS)}") from None
+        from .suggest import did_you_mean
+
+        raise ValueError(f"unknown scenario {name!r}{did_you_mean(name, SCENARIOS)}; allowed: {', '.join(SCENARIOS)}") \
+            from None

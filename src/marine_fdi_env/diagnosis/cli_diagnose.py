@@ -62,38 +62,74 @@ def diagnose_run(run: RunData, engine: int = 0, exoneration: str = "sure") -> tu
     return rep, block
 
 
+SUBSYSTEMS = {1: "Σ1 fuel pump", 2: "Σ2 engine block (cylinder)", 3: "Σ3 exhaust receiver and turbine",
+              4: "Σ4 air intake (compressor, intercooler)"}
+# residuals are in the checked sensor's SI unit; plotted in a unit of their size: (factor, unit)
+_PLOT_UNITS = {"Pa": (1e-3, "kPa"), "kg": (1e6, "mg"), "N m": (1e-3, "kN m"), "K": (1.0, "K")}
+
+
 def plot_residuals(run: RunData, block, out_dir: Path, report: dict) -> list[Path]:
-    """One figure per monitoring agent: |residual| against its adaptive threshold (figs. 6.1-6.34)."""
+    """One figure per subsystem Σ1-Σ4: each monitoring module's residual (its checked sensor
+    minus the model's estimate, in the sensor's unit) against its adaptive threshold, with the
+    module's detection and the labelled fault onsets (figs. 6.1-6.34).  Files
+    ``subsystem_<l>.png``; the thesis calls the four groups of modules "agents" M1-M4, which are
+    not the benchmark's agents."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.transforms import blended_transform_factory
 
+    from ..sensors import SENSORS
+    from .modules import MODULES
+
+    sensor = {s.id: s for s in SENSORS}
+    spec = {m.id: m for m in MODULES}
     out_dir.mkdir(parents=True, exist_ok=True)
     t = run.t
     R = block.residuals[0]
     THR = block.thresholds[0]
-    onsets = [f["onset_s"] for f in report["true_faults"]]
+    onsets = [(f["id"], f["onset_s"]) for f in report["true_faults"] if f["onset_s"] <= t[-1]]
     paths = []
-    for agent_no, modules in AGENTS.items():
-        fig, axes = plt.subplots(len(modules), 1, figsize=(9, 1.9 * len(modules)), sharex=True, squeeze=False)
+    for sub, modules in AGENTS.items():
+        fig, axes = plt.subplots(len(modules), 1, figsize=(10, 1.95 * len(modules) + 0.7), sharex=True,
+                                 squeeze=False)
         for ax, m in zip(axes[:, 0], modules):
             j = MODULE_IDS.index(m)
-            r = np.where(np.isfinite(R[:, j]), R[:, j], np.nan)
-            ax.plot(t, r, lw=0.6, color="C0", label="residual")
-            ax.plot(t, THR[:, j], lw=0.9, color="C3", label="threshold")
-            ax.plot(t, -THR[:, j], lw=0.9, color="C3")
+            sen = sensor[spec[m].checked_sensor]
+            k, unit = _PLOT_UNITS.get(sen.unit, (1.0, sen.unit))
+            r = np.where(np.isfinite(R[:, j]), R[:, j], np.nan) * k
+            ax.plot(t, r, lw=0.5, color="C0", label="residual")
+            ax.plot(t, THR[:, j] * k, lw=1.0, color="C3", label="± adaptive threshold")
+            ax.plot(t, -THR[:, j] * k, lw=1.0, color="C3")
             td = report["module_detection_times_s"][m]
             if td is not None:
-                ax.axvline(td, color="k", ls="--", lw=0.8, label=f"detection {td:.2f} s")
-            for on in onsets:
-                ax.axvline(on, color="C2", ls=":", lw=0.8)
-            ax.set_ylabel(m)
-            ax.legend(loc="upper left", fontsize=7, ncol=3)
+                ax.axvline(td, color="k", ls="--", lw=0.9, label="detection by the module")
+            lo, hi = ax.get_ylim()
+            ax.set_ylim(lo, hi + 0.25 * (hi - lo))  # headroom for the onset labels
+            tr = blended_transform_factory(ax.transData, ax.transAxes)
+            for fid, on in onsets:
+                ax.axvline(on, color="C2", ls=":", lw=1.2, label="fault onset")
+                ax.text(on, 0.96, f" {fid} onset {on:g} s", transform=tr, color="C2", fontsize=7, va="top",
+                        ha="left", bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.85, "pad": 1})
+            det = f"detected at {td:.2f} s" if td is not None else "no detection"
+            ax.set_title(f"module {m} ({SUBSYSTEMS[sub].split(' (')[0]}): {sen.id} {sen.description} - {det}",
+                         fontsize=8.5, loc="left")
+            ax.set_ylabel(f"residual [{unit}]", fontsize=8)
+            ax.tick_params(labelsize=7)
         axes[-1, 0].set_xlabel("time [s]")
-        fig.suptitle(f"agent M{agent_no}: residuals and adaptive thresholds (dotted: fault onsets)")
-        fig.tight_layout()
-        path = out_dir / f"agent_{agent_no}.png"
+        handles, labels = [], []
+        for ax in axes[:, 0]:
+            for h, lab in zip(*ax.get_legend_handles_labels()):
+                if lab not in labels:
+                    handles.append(h)
+                    labels.append(lab)
+        fig.suptitle(f"{SUBSYSTEMS[sub]}: residuals of its monitoring modules (sensor - model) and their adaptive "
+                     "thresholds", fontsize=10)
+        fig.legend(handles, labels, loc="upper center", ncol=len(labels), fontsize=8, frameon=False,
+                   bbox_to_anchor=(0.5, 1 - 0.32 / fig.get_figheight()))
+        fig.tight_layout(rect=(0, 0, 1, 1 - 0.45 / fig.get_figheight()))
+        path = out_dir / f"subsystem_{sub}.png"
         fig.savefig(path, dpi=110)
         plt.close(fig)
         paths.append(path)

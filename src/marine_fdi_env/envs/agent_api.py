@@ -148,8 +148,12 @@ def load_agent(spec: str) -> Agent:
 
                 raise ValueError(f"agent {spec!r} needs {', '.join(entry.needs)}: {TRAIN_EXTRA_HINT}")
         else:
-            names = ", ".join(e.name for e in list_agents())
-            raise ValueError(f"unknown agent {spec!r}: not a name ({names}; see 'marine-fdi agents'), "
+            from ..suggest import did_you_mean
+
+            known = [e.name for e in list_agents()]
+            names = ", ".join(known)
+            raise ValueError(f"unknown agent {spec!r}{did_you_mean(spec, known)}: not a name ({names}; see 'marine-fdi "
+                             "agents'), "
                              "no such path, and not path/to/file.py:ClassName")
     meta_file = path / "agent.json" if path.is_dir() else path
     if not meta_file.is_file():

@@ -154,7 +154,8 @@ def _run_process(backend, fn, tasks, on_result, report) -> None:
 
     ctx = mp.get_context()
     queue = ctx.Queue()
-    pool = ctx.Pool(min(backend.workers, len(tasks)), initializer=_process_init, initargs=(queue,))
+    with _sigint_blocked_for_children():  # the workers start with SIGINT blocked (and then ignore it)
+        pool = ctx.Pool(min(backend.workers, len(tasks)), initializer=_process_init, initargs=(queue,))
     try:
         pending = {i: pool.apply_async(_process_task, (fn, i, args)) for i, args in enumerate(tasks)}
         while pending:
@@ -201,9 +202,36 @@ def ray_connect(backend: Backend):
     else:
         # address="local": a new instance even if `ray start` left one on this machine (plain
         # ray.init() would join that one); join it with --ray-address auto
-        ray.init(address="local", num_cpus=backend.workers, include_dashboard=False, logging_level=logging.WARNING,
-                 log_to_driver=False)
+        try:
+            with _sigint_blocked_for_children():
+                ray.init(address="local", num_cpus=backend.workers, include_dashboard=False,
+                         logging_level=logging.WARNING, log_to_driver=False)
+        except KeyboardInterrupt:  # Ctrl-C while Ray was starting: delivered once it had started
+            if ray.is_initialized():
+                ray.shutdown()
+            raise
     return ray, True
+
+
+class _sigint_blocked_for_children:
+    """Block SIGINT while Ray (or the process pool) starts its processes, which inherit the signal mask.
+
+    Ctrl-C in a terminal signals the whole process group: without this Ray's own processes
+    (GCS, raylet, workers) died with it and the driver sometimes crashed at exit (a C++ stack
+    trace, exit code 1, or a segfault) instead of stopping the tasks, keeping the finished chunks
+    and exiting with 130.  A Ctrl-C during the start stays pending and reaches this process as
+    ``KeyboardInterrupt`` when the mask is restored (nothing is lost)."""
+
+    def __enter__(self):
+        self.old = None
+        if hasattr(signal, "pthread_sigmask"):
+            self.old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        return self
+
+    def __exit__(self, *exc):
+        if self.old is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, self.old)
+        return False
 
 
 def _ray_task(fn, i, args, queue):
@@ -232,11 +260,12 @@ def _run_ray(backend, fn, tasks, on_result, report) -> None:
                 _drain_ray(queue, report)
                 on_result(refs.pop(ref), res)
     except BaseException:
-        for ref in refs:
-            try:
-                ray.cancel(ref, force=True)
-            except Exception:  # noqa: BLE001 - already finished or gone
-                pass
+        if not started:  # on a shared cluster stop our tasks; a local instance is shut down below
+            for ref in refs:
+                try:
+                    ray.cancel(ref, force=True)
+                except Exception:  # noqa: BLE001 - already finished or gone
+                    pass
         raise
     finally:
         if started:

@@ -98,8 +98,13 @@ def _env_json(env_kwargs: dict) -> dict:
 
 
 def export_dataset(scenarios: list[ScenarioSpec], out_dir: Path, env_kwargs: dict | None = None,
-                   batch_size: int = 64, progress: bool = True, backend=None, fmt: str = "npz") -> Path:
-    """Write the dataset of ``scenarios`` to ``out_dir`` (resumably); returns the dataset file."""
+                   batch_size: int = 64, progress: bool = True, backend=None, fmt: str = "npz",
+                   force: bool = False) -> Path:
+    """Write the dataset of ``scenarios`` to ``out_dir`` (resumably); returns the dataset file.
+
+    ``force``: discard the kept chunks of another export in ``out_dir`` instead of refusing
+    (a finished dataset in ``out_dir`` is the caller's to check: :func:`dataset_main` asks for
+    ``--force``)."""
     from .backends import Backend, chunk_size, run_tasks
     from .cliutil import progress_bar
 
@@ -117,7 +122,11 @@ def export_dataset(scenarios: list[ScenarioSpec], out_dir: Path, env_kwargs: dic
     scen_json = [dict(s.to_dict(), truth=s.truth()) for s in scenarios]
     key = hashlib.sha256(json.dumps({"env": env_json, "scenarios": scen_json}, sort_keys=True).encode()).hexdigest()
     part_dir = out_dir / "dataset.partial"
-    stored = _stored_chunks(part_dir, key)
+    head = json.loads(json.dumps({"key": key, "env": env_json, "n_episodes": E,  # as stored (lists, not tuples)
+                                  "scenario_ids": [s.scenario_id for s in scenarios]}))
+    if force:
+        _discard_other(part_dir, key)
+    stored = _stored_chunks(part_dir, head)
     done = np.zeros(E, dtype=bool)
     for idx, _ in stored:
         done[idx] = True
@@ -128,6 +137,10 @@ def export_dataset(scenarios: list[ScenarioSpec], out_dir: Path, env_kwargs: dic
         groups.setdefault(float(scenarios[j].noise_scale), []).append(int(j))
     plan = [np.asarray(idx[i:i + per], dtype=np.int64) for idx in groups.values() for i in range(0, len(idx), per)]
     tasks = [([scenarios[j].to_dict() for j in idx], env_kwargs, T) for idx in plan]
+    if len(todo):
+        from .evaluate import warm_up
+
+        warm_up(env_kwargs)  # compile a cold cache once, here, before the bar and the workers
     bar = progress_bar(E, int(done.sum()), "dataset", progress)
     in_flight: dict[int, float] = {}
 
@@ -143,7 +156,8 @@ def export_dataset(scenarios: list[ScenarioSpec], out_dir: Path, env_kwargs: dic
         tmp.replace(f)
         stored.append((idx, f))
         done[idx] = True
-        bar.set_done(float(done.sum()) + sum(in_flight.values()) - in_flight.pop(i, 0.0))
+        in_flight.pop(i, None)  # this chunk now counts as done; the others as far as they got
+        bar.set_done(float(done.sum()) + sum(in_flight.values()))
 
     try:
         run_tasks(backend, dataset_chunk, tasks, on_result=keep, on_progress=advance)
@@ -161,17 +175,45 @@ def export_dataset(scenarios: list[ScenarioSpec], out_dir: Path, env_kwargs: dic
     return path
 
 
-def _stored_chunks(part_dir: Path, key: str) -> list[tuple[np.ndarray, Path]]:
+def _read_head(part_dir: Path) -> dict | None:
+    try:
+        old = json.loads((part_dir / "header.json").read_text())
+    except (OSError, json.JSONDecodeError):
+        return None
+    return old if isinstance(old, dict) else None
+
+
+def _discard_other(part_dir: Path, key: str) -> None:
+    """Remove the kept chunks of an export of other scenarios (``--force``)."""
+    if part_dir.is_dir() and (_read_head(part_dir) or {}).get("key") != key:
+        shutil.rmtree(part_dir)
+
+
+def _mismatch(old: dict | None, new: dict) -> str:
+    """What differs between the kept export's header and this one's, naming the field."""
+    from .cliutil import differing_fields
+
+    if old is None or "env" not in old:
+        return "an unreadable or older header"
+    if old.get("env") != new["env"]:
+        return differing_fields(old["env"], new["env"], "env")
+    if old.get("n_episodes") != new["n_episodes"]:
+        return f"number of episodes: {old.get('n_episodes')} there, {new['n_episodes']} here"
+    ids_old, ids_new = old.get("scenario_ids") or [], new["scenario_ids"]
+    for i, (a, b) in enumerate(zip(ids_old, ids_new)):
+        if a != b:
+            return f"scenario {i}: {a!r} there, {b!r} here"
+    return "the scenarios (same ids, other faults, profiles or seeds)"
+
+
+def _stored_chunks(part_dir: Path, head_now: dict) -> list[tuple[np.ndarray, Path]]:
     """Chunks kept by an interrupted export of the same scenarios (a new export starts the folder)."""
     head = part_dir / "header.json"
     if part_dir.is_dir() and head.is_file():
-        try:
-            same = json.loads(head.read_text()).get("key") == key
-        except (OSError, json.JSONDecodeError):
-            same = False
-        if not same:
-            raise ValueError(f"{part_dir} belongs to another export (other scenarios or environment); remove it or "
-                             "choose another --out")
+        old = _read_head(part_dir)
+        if (old or {}).get("key") != head_now["key"]:
+            raise ValueError(f"{part_dir} holds the unfinished export of other episodes ({_mismatch(old, head_now)}); "
+                             "rerun that command to finish it, pass --force to discard it, or choose another --out")
         out = []
         for f in sorted(part_dir.glob("chunk_*.npz")):
             if f.name.endswith(".tmp.npz"):
@@ -183,7 +225,7 @@ def _stored_chunks(part_dir: Path, key: str) -> list[tuple[np.ndarray, Path]]:
                 continue
         return out
     part_dir.mkdir(exist_ok=True)
-    head.write_text(json.dumps({"key": key}) + "\n")
+    head.write_text(json.dumps(head_now) + "\n")
     return []
 
 
@@ -270,47 +312,107 @@ def load_dataset(path: "str | Path") -> dict:
             "fault_ids": np.array(fids)}
 
 
-def dataset_main(argv=None) -> int:
-    from .cliutil import INTERRUPTED, add_backend_args, backend_from_args
+_HELP = """\
+Runs the episodes of a frozen suite (--suite) or of a scenario preset (--preset, --episodes,
+--seed) through the environment with a silent agent and writes, in the folder --out:
 
-    ap = argparse.ArgumentParser(prog="marine-fdi dataset", description=__doc__.splitlines()[0])
+  dataset.npz      (--format npz, default) dense arrays, E episodes x T decisions x D features:
+                     obs (E, T, D) float32    the observation at each decision
+                     active (E, T, 26) bool   faults active at the decision time
+                     valid (E, T) bool        False after an episode ended early (engine failure)
+                     t_s (E, T) float64       decision times [s]
+                     feature_names (D,), fault_ids (26,)
+  dataset.parquet  (--format parquet) the same in long format: one row per valid decision with
+                   the columns episode, scenario_id, step, t_s, one column per feature and one
+                   bool column active.<fault id> per fault, plus no_fault
+  scenarios.json   the scenarios with their ground truth, in episode order
+
+Load either file with marine_fdi_env.envs.dataset.load_dataset(path) (the same arrays, bit for
+bit).  Training data must not come from the evaluation suites: use --preset for training.
+
+Finished chunks are kept in OUT/dataset.partial/ until the dataset is written: after Ctrl-C
+(or a lost worker) the same command resumes where it stopped.  A folder that already holds a
+finished dataset is not overwritten without --force.
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from .cliutil import add_backend_args
+    from .scenario_sampler import PRESETS
+    from .suites import SUITE_NAMES
+
+    ap = argparse.ArgumentParser(prog="marine-fdi dataset", formatter_class=argparse.RawDescriptionHelpFormatter,
+                                 description="Export observations, fault labels and ground truth of episodes for "
+                                             "offline learning.", epilog=_HELP)
     src = ap.add_mutually_exclusive_group(required=True)
-    src.add_argument("--suite", help="a frozen suite (evaluation data)")
-    src.add_argument("--preset", help="a scenario preset (training data), with --episodes and --seed")
-    ap.add_argument("--episodes", type=int, default=256)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--out", type=Path, required=True, help="output directory")
+    src.add_argument("--suite", metavar="NAME|FILE.json",
+                     help=f"a frozen evaluation suite: {', '.join(SUITE_NAMES)}, or a suite JSON file")
+    src.add_argument("--preset", metavar="NAME",
+                     help=f"a scenario preset (training data): {', '.join(PRESETS)}; with --episodes and --seed")
+    ap.add_argument("--episodes", type=int, default=None, metavar="N",
+                    help="episodes drawn from --preset (default 256; not with --suite)")
+    ap.add_argument("--seed", type=int, default=None, metavar="S",
+                    help="seed of the episodes drawn from --preset (default 0; not with --suite)")
+    ap.add_argument("--out", type=Path, required=True, metavar="DIR",
+                    help="output folder (created, and its parent if missing; never more levels)")
     ap.add_argument("--format", choices=FORMATS, default="npz",
-                    help="npz (dense arrays, default) or parquet (long format, one row per decision)")
-    ap.add_argument("--observe-sensors", action="store_true", help="append the normalised sensor features")
+                    help="npz (dense arrays, default) or parquet (long format, one row per decision; needs pyarrow)")
+    ap.add_argument("--observe-sensors", action="store_true",
+                    help="append the normalised sensor readings to the features")
+    ap.add_argument("--force", action="store_true",
+                    help="overwrite a finished dataset in --out, or discard another export's kept chunks there")
     add_backend_args(ap, default_batch=64)
-    ap.add_argument("--no-progress", action="store_true")
+    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
+    return ap
+
+
+def dataset_main(argv=None) -> int:
+    from .cliutil import INTERRUPTED, backend_from_args, prepare_out, require_extra
+
+    ap = build_parser()
     try:
         args = ap.parse_args(argv)
     except SystemExit as e:
         return e.code if isinstance(e.code, int) else 0
     try:
         backend = backend_from_args(args)
+        if args.suite and (args.episodes is not None or args.seed is not None):
+            raise ValueError("--episodes and --seed draw episodes from a --preset; a --suite has its own episodes")
+        episodes = 256 if args.episodes is None else args.episodes
+        seed = 0 if args.seed is None else args.seed
+        if args.format == "parquet":
+            require_extra("pyarrow", "--format parquet")
         if args.suite:
             suite = load_suite(args.suite)
             scenarios, env_kwargs = suite.scenarios, dict(suite["env"])
         else:
-            if args.episodes < 1:
-                raise ValueError(f"--episodes must be >= 1, got {args.episodes}")
+            if episodes < 1:
+                raise ValueError(f"--episodes must be >= 1, got {episodes}")
+            if seed < 0:
+                raise ValueError(f"--seed must be >= 0, got {seed}")
             cfg = get_preset(args.preset)
-            ss = np.random.SeedSequence(args.seed)
-            ent = np.random.default_rng(ss).integers(0, 2**63 - 1, size=args.episodes)
-            scenarios = [cfg.sample(int(e), scenario_id=f"{cfg.name}/{args.seed}/{i}") for i, e in enumerate(ent)]
+            ss = np.random.SeedSequence(seed)
+            ent = np.random.default_rng(ss).integers(0, 2**63 - 1, size=episodes)
+            scenarios = [cfg.sample(int(e), scenario_id=f"{cfg.name}/{seed}/{i}") for i, e in enumerate(ent)]
             env_kwargs = {"scenario_config": cfg}
         if args.observe_sensors:
             env_kwargs["observe_sensors"] = True
-        path = export_dataset(scenarios, args.out, env_kwargs, batch_size=args.batch_size,
-                              progress=not args.no_progress, backend=backend, fmt=args.format)
+        out = prepare_out(args.out, "--out", is_dir=True)
+        finished = [f.name for f in (out / "dataset.npz", out / "dataset.parquet") if f.is_file()]
+        if finished and not (out / "dataset.partial").is_dir() and not args.force:
+            raise ValueError(f"--out {out} already holds a dataset ({', '.join(finished)}); pass --force to overwrite "
+                             "it, or choose another --out")
+        if args.force:
+            for name in finished:
+                (out / name).unlink()
+        path = export_dataset(scenarios, out, env_kwargs, batch_size=args.batch_size,
+                              progress=not args.no_progress, backend=backend, fmt=args.format, force=args.force)
     except ValueError as e:
         print(f"marine-fdi dataset: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("marine-fdi dataset: interrupted; rerun the same command to resume", file=sys.stderr)
+        print("marine-fdi dataset: interrupted; finished chunks are kept, rerun the same command to resume",
+              file=sys.stderr)
         return INTERRUPTED
-    print(f"wrote {path} and {args.out / 'scenarios.json'} ({len(scenarios)} episodes)")
+    print(f"wrote {path} and {out / 'scenarios.json'} ({len(scenarios)} episodes)")
     return 0

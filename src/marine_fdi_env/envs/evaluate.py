@@ -13,7 +13,9 @@ agent's own randomness is seeded per episode from the scenario id and the seed o
 wall-clock fields (``compute_s``) vary from run to run.
 
 ``compute_s`` of an episode = the time spent making its observations (the residual generators
-run for every agent) + its share of the agent's ``act`` time.
+run for every agent) + its share of the agent's ``act`` time.  Every process warms up first
+(:func:`warm_up`: one throw-away episode of one engine), so numba's compilation of a cold cache
+(about a minute) or its cache loading never counts.
 
 Backends (``--backend serial|process|ray``, :mod:`.backends`): the suite is cut into chunks of at
 most ``batch_size`` episodes, one task each; results, every metric and every episode record
@@ -76,6 +78,24 @@ def _offset(sc: ScenarioSpec, seed_offset: int) -> ScenarioSpec:
     return replace(sc, noise_seed=(int(sc.noise_seed) + int(seed_offset)) % _MAX_SEED)
 
 
+_WARM = {"done": False}
+
+
+def warm_up(env_kwargs: dict | None = None) -> None:
+    """Run one short episode of one engine (its numbers are thrown away), once per process, so
+    that numba's compilation or cache loading of the simulator, the residual generators and the
+    features is over before anything is timed: ``compute_s`` never includes it.  The episodes'
+    numbers do not change (compiled code has no state; every episode seeds its own streams)."""
+    if _WARM["done"]:
+        return
+    sc = ScenarioSpec(profile="constant:u0=1.0", noise_seed=0, duration_s=2.0, scenario_id="warm-up")
+    venv = MarineFDIVectorEnv(num_envs=1, **dict(env_kwargs or {}))
+    venv.reset(options={"scenarios": [sc]})
+    venv.step(np.zeros((1, venv.single_action_space.shape[0]), dtype=np.float32))
+    venv.close()
+    _WARM["done"] = True
+
+
 def run_episodes(agent, scenarios: list[ScenarioSpec], env_kwargs: dict | None = None, *, suite: str = "",
                  seed_offset: int = 0, batch_size: int = 32, on_episode=None, progress=None,
                  on_decision=None) -> list[dict]:
@@ -88,6 +108,7 @@ def run_episodes(agent, scenarios: list[ScenarioSpec], env_kwargs: dict | None =
     its observation and its share of the agent's ``act``).
     """
     env_kwargs = dict(env_kwargs or {})
+    warm_up(env_kwargs)  # compile time stays out of compute_s
     records: dict[int, dict] = {}
     groups: dict[float, list[int]] = {}  # one batched engine set per sensor-noise scale
     for i, s in enumerate(scenarios):
@@ -250,7 +271,10 @@ def evaluate(agent_spec: str, suite_name: str, out: Path, *, workers: int = 1, s
         except json.JSONDecodeError:
             old = None
         if old != header:
-            raise ValueError(f"{partial} belongs to another evaluation ({old}); remove it or choose another --out")
+            from .cliutil import differing_fields
+
+            raise ValueError(f"{partial} belongs to another evaluation ({differing_fields(old, header)}); rerun "
+                             "that command to finish it, remove the file, or choose another --out")
         for ln in lines[1:]:
             try:
                 rec = json.loads(ln)
@@ -258,10 +282,13 @@ def evaluate(agent_spec: str, suite_name: str, out: Path, *, workers: int = 1, s
                 continue
             done[rec["scenario_id"]] = rec
     else:
-        out.parent.mkdir(parents=True, exist_ok=True)
+        out.parent.mkdir(parents=True, exist_ok=True)  # the CLI checked that at most this one level is new
         partial.write_text(json.dumps(header) + "\n")
     todo = [s for s in suite.scenarios if s.scenario_id not in done]
     from .cliutil import progress_bar
+
+    if todo:
+        warm_up(env_kwargs)  # before the bar (and before forking workers, which inherit the compiled code)
 
     bar = progress_bar(len(suite.scenarios), len(done), f"{agent.name} on {suite.name}", progress)
     per = chunk_size(len(todo), batch_size, workers)
@@ -273,7 +300,8 @@ def evaluate(agent_spec: str, suite_name: str, out: Path, *, workers: int = 1, s
             for rec in recs:
                 fh.write(json.dumps(rec) + "\n")
                 done[rec["scenario_id"]] = rec
-        bar.set_done(len(done) + sum(in_flight.values()) - in_flight.pop(i, 0.0))
+        in_flight.pop(i, None)  # this chunk now counts as done; the others as far as they got
+        bar.set_done(len(done) + sum(in_flight.values()))
 
     in_flight: dict[int, float] = {}
 
@@ -314,12 +342,14 @@ def build_parser() -> argparse.ArgumentParser:
                     help="results file: .json, or .parquet for the episode records as a table "
                          "(default: results/AGENT_SUITE.json)")
     ap.add_argument("--seed-offset", type=int, default=0, help="shift every noise seed (new noise, same scenarios)")
+    ap.add_argument("--force", action="store_true",
+                    help="recompute and overwrite --out when it already holds results (without it: an error)")
     from .cliutil import add_backend_args
 
     add_backend_args(ap)
     ap.add_argument("--reward", choices=("v0", "v1"), default=None,
                     help="reward scored in the results' return (default: the suite's, else v1 = MarineFDI-v1)")
-    ap.add_argument("--no-progress", action="store_true")
+    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     return ap
 
 
@@ -332,10 +362,17 @@ def evaluate_main(argv=None) -> int:
         return e.code if isinstance(e.code, int) else 0
     try:
         from .agent_api import agent_file_stem
-        from .cliutil import backend_from_args
+        from .cliutil import backend_from_args, prepare_out, require_extra
 
         backend = backend_from_args(args)
         out = args.out or Path("results") / f"{agent_file_stem(args.agent)}_{Path(args.suite).stem}.json"
+        if out.suffix == ".parquet":
+            require_extra("pyarrow", "--out *.parquet")
+        out = prepare_out(out, "--out", is_dir=False, create=False)  # evaluate() creates it after its checks
+        partial = out.with_name(out.name + ".partial.jsonl")
+        if out.exists() and not partial.exists() and not args.force:
+            raise ValueError(f"--out {out} already holds results; pass --force to recompute and overwrite them, "
+                             "or choose another --out")
         result = evaluate(args.agent, args.suite, out, seed_offset=args.seed_offset, batch_size=args.batch_size,
                           progress=not args.no_progress, backend=backend,
                           reward=args.reward)

@@ -253,9 +253,13 @@ def predict_raw(agent_spec: str, data_dir: "str | Path", out_dir: "str | Path", 
         raise ValueError(f"{data_dir}/manifest.json: scenarios not in suite {suite.name}: {missing[:5]}")
     dt = float(man["sample_time_s"])
     out = Path(out_dir)
-    out.mkdir(exist_ok=True)
     agent = load_agent(agent_spec)
+    out.mkdir(parents=True, exist_ok=True)
     todo = [e for e in entries if not (out / e["output_file"]).is_file()]
+    if todo:
+        from .evaluate import warm_up
+
+        warm_up(dict(suite["env"]))  # compilation stays out of the computation_time column
     bar = progress_bar(len(entries), len(entries) - len(todo), f"predict-raw {agent.name}", progress, "scenario")
     try:
         for start in range(0, len(todo), batch_size):
@@ -292,14 +296,14 @@ def export_raw_main(argv=None) -> int:
     ap.add_argument("--suite", required=True, help="suite name or JSON path")
     ap.add_argument("--out", type=Path, required=True, help="output folder (its parent is created if missing)")
     ap.add_argument("--seed-offset", type=int, default=0, help="shift every noise seed (new noise, same scenarios)")
-    ap.add_argument("--no-progress", action="store_true")
+    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     try:
         args = ap.parse_args(argv)
     except SystemExit as e:
         return e.code if isinstance(e.code, int) else 0
     t0 = time.perf_counter()
     try:
-        out = prepare_out(args.out)
+        out = prepare_out(args.out, create=False)  # export_raw creates it after checking the suite
         man = export_raw(args.suite, out, seed_offset=args.seed_offset, progress=not args.no_progress)
     except ValueError as e:
         print(f"marine-fdi export-raw: error: {e}", file=sys.stderr)
@@ -327,7 +331,7 @@ def predict_raw_main(argv=None) -> int:
     ap.add_argument("--data", type=Path, required=True, help="raw suite folder (marine-fdi export-raw --out)")
     ap.add_argument("--out", type=Path, required=True, help="predictions folder (its parent is created if missing)")
     ap.add_argument("--batch-size", type=int, default=32, help="episodes advanced together (default 32)")
-    ap.add_argument("--no-progress", action="store_true")
+    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     try:
         args = ap.parse_args(argv)
     except SystemExit as e:
@@ -335,7 +339,7 @@ def predict_raw_main(argv=None) -> int:
     try:
         if args.batch_size < 1:
             raise ValueError(f"--batch-size must be a positive integer, got {args.batch_size}")
-        out = prepare_out(args.out)
+        out = prepare_out(args.out, create=False)  # predict_raw creates it after checking data and agent
         predict_raw(args.agent, args.data, out, batch_size=args.batch_size, progress=not args.no_progress)
     except ValueError as e:
         print(f"marine-fdi predict-raw: error: {e}", file=sys.stderr)

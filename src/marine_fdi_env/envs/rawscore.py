@@ -309,7 +309,7 @@ def dx_table(results: list[dict]) -> str:
 
 
 def score_raw_main(argv=None) -> int:
-    from .cliutil import INTERRUPTED, prepare_out
+    from .cliutil import INTERRUPTED, prepare_out, require_extra
     from .report import markdown_table
 
     ap = argparse.ArgumentParser(prog="marine-fdi score-raw", formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -323,17 +323,20 @@ def score_raw_main(argv=None) -> int:
                                                   "folder name)")
     ap.add_argument("--out", type=Path, default=None, help="write the results (.json or .parquet; readable by "
                                                            "'marine-fdi report')")
-    ap.add_argument("--no-progress", action="store_true")
+    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     try:
         args = ap.parse_args(argv)
     except SystemExit as e:
         return e.code if isinstance(e.code, int) else 0
     try:
         if args.out is not None:
-            prepare_out(args.out, is_dir=False)
+            if args.out.suffix == ".parquet":
+                require_extra("pyarrow", "--out *.parquet")
+            prepare_out(args.out, is_dir=False, create=False)
         res = score_raw(args.suite, args.predictions, data_dir=args.data, agent=args.name,
                         progress=not args.no_progress)
         if args.out is not None:
+            prepare_out(args.out, is_dir=False)
             if args.out.suffix == ".parquet":
                 from .records import write_results_parquet
 

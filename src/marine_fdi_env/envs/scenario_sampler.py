@@ -392,5 +392,7 @@ def get_preset(name: "str | ScenarioConfig | dict") -> ScenarioConfig:
     if isinstance(name, dict):
         return ScenarioConfig.from_dict(name)
     if name not in PRESETS:
-        raise ValueError(f"unknown scenario preset {name!r}; allowed: {', '.join(PRESETS)}")
+        from ..suggest import did_you_mean
+
+        raise ValueError(f"unknown scenario preset {name!r}{did_you_mean(name, PRESETS)}; allowed: {', '.join(PRESETS)}")
     return PRESETS[name]

@@ -102,7 +102,10 @@ def load_suite(name_or_path: str) -> Suite:
         return _load_builtin(name_or_path)
     p = Path(name_or_path)
     if not p.is_file():
-        raise ValueError(f"unknown suite {name_or_path!r}; shipped: {', '.join(SUITE_NAMES)} (or a JSON path)")
+        from ..suggest import did_you_mean
+
+        raise ValueError(f"unknown suite {name_or_path!r}{did_you_mean(name_or_path, SUITE_NAMES)}; shipped: "
+                         f"{', '.join(SUITE_NAMES)} (or a JSON path)")
     data = read_json(p, "suite file")
     return _validate(data, str(p))
 

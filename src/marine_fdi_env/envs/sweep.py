@@ -74,9 +74,11 @@ def _load_partial(path: Path, header: dict) -> dict[tuple, dict]:
     except json.JSONDecodeError:
         old = None
     if old is None or old.get("grid") != header["grid"]:
-        grid = (old or {}).get("grid", {})
-        raise ValueError(f"{path} belongs to another sweep (agents {grid.get('agents')}, suites {grid.get('suites')}, "
-                         f"seed offsets {grid.get('seed_offsets')}); rerun that command to finish it, or remove the file")
+        from .cliutil import differing_fields
+
+        what = differing_fields((old or {}).get("grid"), header["grid"], "grid" if old is None else "")
+        raise ValueError(f"{path} belongs to another sweep ({what}); rerun that command to finish it, or remove the "
+                         "file")
     done = {}
     for ln in lines[1:]:
         try:
@@ -135,6 +137,10 @@ def run_sweep(agents: list[str], suites: list[str], seed_offsets: list[int], out
                           suite.name, k, batch_size))
             plan.append((a, k))
     n_before = len(done)
+    if tasks:
+        from .evaluate import warm_up
+
+        warm_up(tasks[0][2])  # compile a cold cache once, here, before the bar and the workers
     bar = progress_bar(total, n_before, "sweep", progress)
     in_flight: dict[int, float] = {}
 
@@ -149,7 +155,8 @@ def run_sweep(agents: list[str], suites: list[str], seed_offsets: list[int], out
                 rec = dict(rec, agent_spec=a, seed_offset=k)
                 fh.write(json.dumps(rec) + "\n")
                 done[_key(rec)] = rec
-        bar.set_done(len(done) + sum(in_flight.values()) - in_flight.pop(i, 0.0))
+        in_flight.pop(i, None)  # this chunk now counts as done; the others as far as they got
+        bar.set_done(len(done) + sum(in_flight.values()))
 
     load0, t0 = os.getloadavg(), time.perf_counter()
     try:
@@ -203,7 +210,7 @@ def sweep_results(records: list[dict], source: str = "") -> list[dict]:
 
 
 def sweep_main(argv=None) -> int:
-    from .cliutil import INTERRUPTED, add_backend_args, backend_from_args, prepare_out
+    from .cliutil import INTERRUPTED, add_backend_args, backend_from_args, prepare_out, require_extra
     from .report import markdown_table
 
     ap = argparse.ArgumentParser(prog="marine-fdi sweep", description=__doc__.splitlines()[0],
@@ -217,14 +224,15 @@ def sweep_main(argv=None) -> int:
                     help="noise seed offsets (default 0): each reruns the suite's scenarios with new noise")
     ap.add_argument("--out", type=Path, required=True, help="sweep folder (its parent is created if missing)")
     add_backend_args(ap)
-    ap.add_argument("--no-progress", action="store_true")
+    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     try:
         args = ap.parse_args(argv)
     except SystemExit as e:
         return e.code if isinstance(e.code, int) else 0
     try:
         backend = backend_from_args(args)
-        out = prepare_out(args.out)
+        require_extra("pyarrow", "sweep (its table episodes.parquet)")
+        out = prepare_out(args.out, create=False)  # run_sweep creates it after checking agents and suites
         res = run_sweep(args.agents, args.suites, args.seed_offsets, out, backend=backend,
                         batch_size=args.batch_size, progress=not args.no_progress)
     except ValueError as e:
