@@ -167,9 +167,11 @@ def test_threaded_batch_equals_single_thread_loop():
         THR = np.empty((n, 30, 19))
         st = a.state.copy()
         if threaded:
-            rs.compute_residuals_batch(a.c, Y, U, a.dt, a.noise_bounds, rs._SIDE_COLS, rs._T_OUT_COL, R, THR, st)
+            rs.compute_residuals_batch(a.c, Y, U, a.dt, a.noise_bounds, rs._SIDE_COLS, rs._T_OUT_COL, R, THR, st,
+                                       a._table)
         else:
-            rs._batch_range(a.c, Y, U, a.dt, a.noise_bounds, rs._SIDE_COLS, rs._T_OUT_COL, R, THR, st, 0, n)
+            rs._batch_range(a.c, Y, U, a.dt, a.noise_bounds, rs._SIDE_COLS, rs._T_OUT_COL, R, THR, st, a._table, True,
+                            0, n)
         outs.append((R, THR, st))
     for x, y in zip(*outs):
         assert np.array_equal(x, y)
@@ -178,7 +180,7 @@ def test_threaded_batch_equals_single_thread_loop():
 def test_linearised_perturbed_speeds_match_full_solves():
     # the cycle table's perturbed points (one sweep + linearisation in the speed) against the
     # speed loop solved in full at each point: the inclusion terms agree within 1 % (measured 0.2 %)
-    from marine_fdi_env.diagnosis import residuals as rs
+    from marine_fdi_env.diagnosis import sigma2 as rs
     from marine_fdi_env.subsystems.engine_block import engine_block
 
     Y, U = _block(4, 200, seed=3)

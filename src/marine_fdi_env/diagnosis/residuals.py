@@ -138,20 +138,48 @@ def _compressor_forcing(x4, d_f, T_in, Pi_turbo, c):
 
 
 @jit
-def _point(c, x1, x3, x4, T1, n, psi, Pi, T_in, T_out, T6, p6, out, j):
+def _h3(mdot, T_in, c):
+    """h3 = sqrt(p_ex² + R_g z1 ṁ²/(α_z A_eff)²)/τ_pd (eq. 3.16, ``receiver_forcing``: the same
+    operations)."""
+    return math.sqrt(c.p_ex_Pa * c.p_ex_Pa + c.gamma_coeff * mdot * mdot * T_in) / c.tau_pd_s
+
+
+@jit
+def _mixing(x1, m1, s_sl, mdot, T6, p6, c):
+    """Turbine inlet temperature z1 of eq. 3.20-3.23 with the fault-free slip-air temperature:
+    ``receiver_and_turbine(...)[1]``, the same operations, given ṁ_g (computed once per point)."""
+    psi2 = c.c_p_a_J_per_kgK * s_sl * m1
+    psi3 = c.c_p_g_J_per_kgK * (x1 + m1)
+    inv = 1.0 / (psi2 + psi3)
+    alpha = (psi2 * c.T_sl_K + psi3 * T6 / c.n_bld) * inv
+    beta = psi3 * T6 * (c.n_bld - 1.0) / (c.n_bld * p6) * inv
+    gamma = c.gamma_coeff * mdot * mdot
+    gb = gamma * beta
+    P = 0.5 * (gb + math.sqrt(gb * gb + 4.0 * (c.p_ex_Pa * c.p_ex_Pa + gamma * alpha)))
+    return alpha + beta * P
+
+
+@jit
+def _point(c, x1, x3, x4, m1, n, psi, Pi, T_in, T_out, T6, p6, out, j):
     """h3, h4, T_in(model), T_co(model) at one point of the (x1, x3, x4, T1, n) box into out[j],
-    sharing m1, s_sl, ṁ_g, δ_f; psi = Ψ_sc(x3/x4) and Pi = Π_turbo(x3) are passed in (they depend
-    on x3, x4 only, so most points reuse the centre's).  The same operations as ``slip_ratio``,
+    sharing s_sl, ṁ_g, δ_f; m1 = x4 V1/(R_a T1), psi = Ψ_sc(x3/x4) and Pi = Π_turbo(x3) are passed
+    in (most points reuse the centre's).  The same operations as ``slip_ratio``,
     ``receiver_forcing``, ... in the same order, so the numbers equal the direct calls bit for bit."""
-    m1 = x4 * c.V1_m3 / (c.R_a_J_per_kgK * T1)
     s_sl = c.slip_coeff * x4 * psi / (n * m1)
-    mdot = turbine_mass_flow(x1, m1, s_sl, n, c)
-    df = delta_f(x1, m1, s_sl)
-    out[j, 0] = receiver_forcing(mdot, T_in, c)
+    opm = (1.0 + s_sl) * m1
+    mdot = (opm + x1) * n * c.cycles_per_rev
+    df = 1.0 + x1 / opm
+    out[j, 0] = _h3(mdot, T_in, c)
     out[j, 1] = _compressor_forcing(x4, df, T_in, Pi, c)
-    out[j, 2] = receiver_and_turbine(x1, x3, x4, m1, s_sl, n, T6, p6, c.T_sl_K, c)[1]
+    out[j, 2] = _mixing(x1, m1, s_sl, mdot, T6, p6, c)
     out[j, 3] = compressor_outlet_temperature(df, T_in, T_out, 0.0, c)
-    return m1, s_sl, mdot, df
+    return s_sl, mdot, df
+
+
+@jit
+def _charge_mass(x4, T1, c):
+    """m1 = x4 V1 / (R_a T1), the trapped charge mass [kg] (as ``engine_block``)."""
+    return x4 * c.V1_m3 / (c.R_a_J_per_kgK * T1)
 
 
 @jit
@@ -185,6 +213,11 @@ def _all_finite(y, idx):
 
 
 SPEED_MARGIN_FACTOR = 2.0  # the speed sensitivity may change over the noise box (a few %): generous
+# ... except where a perturbed point crosses a kink of the model (Ψ_sc clipped at x3/x4 = 1: no slip,
+# δ_f then independent of n) while the centre does not: there |∂g/∂n| at the perturbed point is
+# bounded by the model's speed elasticity |n ∂g/∂n| / |g| (below 4 for h3, h4, T_in, T_co by their
+# forms: ṁ_g ∝ n at most, h4 ∝ base^3.5 with base - 1 ∝ δ_f; measured below 1.2 in the envelope)
+SPEED_ELASTICITY = 4.0
 
 
 @jit
@@ -216,18 +249,19 @@ def _dev_margin(dl, mg, q):
 
 
 @jit
-def _speed_margins(c, x1, x3, x4, T1, n0, psi, Pi, T_in, T_out, T6m, p6m, G, mg, spm):
+def _speed_margins(c, x1, x3, x4, m1, n0, psi, Pi, T_in, T_out, T6m, p6m, G, mg, spm):
     """Margins spm (4,) of the M3/M4 model values h3, h4, T_in, T_co for the tabulated speeds of
     the x1, x4, T1 points: each is off by at most its certified margin e_n, which moves a model
     value by at most |∂g/∂n| e_n (mean value theorem); ∂g/∂n by a forward difference at the centre
-    (row 17 of G), times SPEED_MARGIN_FACTOR for its change over the noise box."""
+    (row 17 of G), times SPEED_MARGIN_FACTOR for its change over the noise box, and at least the
+    elasticity bound SPEED_ELASTICITY |g| / n (a perturbed point across a kink)."""
     hn = SLOPE_STEP * n0
-    _point(c, x1, x3, x4, T1, n0 + hn, psi, Pi, T_in, T_out, T6m, p6m, G, 17)
+    _point(c, x1, x3, x4, m1, n0 + hn, psi, Pi, T_in, T_out, T6m, p6m, G, 17)
     en = 0.0
     for i in range(3):
         en += max(mg[2 * i, 0], mg[2 * i + 1, 0])
     for q in range(4):
-        spm[q] = SPEED_MARGIN_FACTOR * abs(G[17, q] - G[0, q]) / hn * en
+        spm[q] = max(SPEED_MARGIN_FACTOR * abs(G[17, q] - G[0, q]) / hn, SPEED_ELASTICITY * abs(G[0, q]) / n0) * en
 
 
 _NO_TABLE = (np.zeros(18), np.zeros(18), np.zeros(1, dtype=np.bool_), np.zeros((1, 2, 3)),
@@ -426,25 +460,28 @@ def _kernel(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_tabl
                     dT6 = dbar[cT6]
                     psi = scavenge_flow_function(x3 / x4, c)
                     Pi = turbine_expansion(x3, c)
-                    m1, s_sl, mdot, df = _point(c, x1, x3, x4, T1, n0, psi, Pi, T_in, T_out, T6m, p6m, G, 0)
-                    for j in range(1, 9, step):
-                        a = d1 if j == 1 else (-d1 if j == 2 else 0.0)
-                        e = d3 if j == 3 else (-d3 if j == 4 else 0.0)
-                        f = d4 if j == 5 else (-d4 if j == 6 else 0.0)
-                        g = dT1 if j == 7 else (-dT1 if j == 8 else 0.0)
-                        psi_j, Pi_j = psi, Pi
-                        if j == 3 or j == 4:
-                            psi_j = scavenge_flow_function((x3 + e) / x4, c)
-                            Pi_j = turbine_expansion(x3 + e, c)
-                        elif j == 5 or j == 6:
-                            psi_j = scavenge_flow_function(x3 / (x4 + f), c)
-                        n_j = t[j, 0] if j < 3 else (n0 if j < 5 else t[j - 2, 0])
-                        _point(c, x1 + a, x3 + e, x4 + f, T1 + g, n_j, psi_j, Pi_j, T_in, T_out, T6m, p6m, G, j)
+                    m1 = _charge_mass(x4, T1, c)
+                    s_sl, mdot, df = _point(c, x1, x3, x4, m1, n0, psi, Pi, T_in, T_out, T6m, p6m, G, 0)
+                    # the x1, x3, x4, T1 points, unrolled (x + 0.0 and x + (-d) equal x and x - d exactly)
+                    _point(c, x1 + d1, x3, x4, m1, t[1, 0], psi, Pi, T_in, T_out, T6m, p6m, G, 1)
+                    _point(c, x1 - d1, x3, x4, m1, t[2, 0], psi, Pi, T_in, T_out, T6m, p6m, G, 2)
+                    _point(c, x1, x3 + d3, x4, m1, n0, scavenge_flow_function((x3 + d3) / x4, c),
+                           turbine_expansion(x3 + d3, c), T_in, T_out, T6m, p6m, G, 3)
+                    _point(c, x1, x3 - d3, x4, m1, n0, scavenge_flow_function((x3 - d3) / x4, c),
+                           turbine_expansion(x3 - d3, c), T_in, T_out, T6m, p6m, G, 4)
+                    _point(c, x1, x3, x4 + d4, _charge_mass(x4 + d4, T1, c), t[3, 0],
+                           scavenge_flow_function(x3 / (x4 + d4), c), Pi, T_in, T_out, T6m, p6m, G, 5)
+                    _point(c, x1, x3, x4 - d4, _charge_mass(x4 - d4, T1, c), t[4, 0],
+                           scavenge_flow_function(x3 / (x4 - d4), c), Pi, T_in, T_out, T6m, p6m, G, 6)
+                    _point(c, x1, x3, x4, _charge_mass(x4, T1 + dT1, c), t[5, 0], psi, Pi, T_in, T_out, T6m, p6m,
+                           G, 7)
+                    _point(c, x1, x3, x4, _charge_mass(x4, T1 - dT1, c), t[6, 0], psi, Pi, T_in, T_out, T6m, p6m,
+                           G, 8)
                     for j in range(9, 17, step):
                         sg = 1.0 if j % 2 == 1 else -1.0
                         Ti = T_in + sg * dTin if j < 11 else T_in
                         if j < 11:  # T_in: h3, h4, T_co
-                            G[j, 0] = receiver_forcing(mdot, Ti, c)
+                            G[j, 0] = _h3(mdot, Ti, c)
                             G[j, 1] = _compressor_forcing(x4, df, Ti, Pi, c)
                             G[j, 3] = compressor_outlet_temperature(df, Ti, T_out, 0.0, c)
                         elif j >= 15:  # T_out: T_co only
@@ -452,13 +489,13 @@ def _kernel(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_tabl
                         else:  # p6 or T6: T_in
                             pp = p6m + sg * dp6 if j < 13 else p6m
                             TT = T6m + sg * dT6 if j >= 13 else T6m
-                            G[j, 2] = receiver_and_turbine(x1, x3, x4, m1, s_sl, n0, TT, pp, c.T_sl_K, c)[1]
+                            G[j, 2] = _mixing(x1, m1, s_sl, mdot, TT, pp, c)
                     if ONE_SIDED:
                         for j in range(2, 17, 2):
                             for q in range(4):
                                 G[j, q] = G[0, q]
                     if tabd[side]:
-                        _speed_margins(c, x1, x3, x4, T1, n0, psi, Pi, T_in, T_out, T6m, p6m, G, mg[side], spm)
+                        _speed_margins(c, x1, x3, x4, m1, n0, psi, Pi, T_in, T_out, T6m, p6m, G, mg[side], spm)
                 # ---------------------------------------------------------------- M3.q (receiver observer)
                 m = 8 + side
                 F, H = 0.0, 0.0
