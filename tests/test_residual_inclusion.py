@@ -104,12 +104,34 @@ def test_reference_diagnoser_inclusion_option():
         ReferenceDiagnoser(n_engines=1, inclusion="fast")
 
 
+def test_no_false_alarm_where_the_pressure_ratio_straddles_one():
+    """At fuel settings about 0.43 the receiver/charge pressure ratio is just below 1 while its
+    measured value often exceeds 1: the slip flow then vanishes at every coordinate-wise point of the
+    inclusion but not at the corner (x3 - d, x4 + d); without the corner term M3.3/M3.4 fired in 7
+    of 128 fault-free runs of all profile families at loads 0.3-1.1 (e.g. these seeds)."""
+    sim = Simulator("thesis-12v28", 4, seeds=[11, 12, 13, 14], profiles="constant:u0=0.43")
+    agent = ReferenceDiagnoser(n_engines=4, dt=sim.dt)
+    agent.observe(sim.y[:, None, :], sim.u[:, None])
+    for _ in range(12):
+        blk = sim.advance(1000)
+        agent.observe(blk.measurements, blk.u)
+    assert not agent.detected.any(), [agent.module_detection_times(i) for i in range(4)]
+
+
 @pytest.mark.slow
 def test_exact_inclusion_equals_the_kernel_before_restructuring(batch):
     """The interleaved, chunked kernel gives the serial kernel's numbers bit for bit (a separate
-    compilation of about a minute, hence slow)."""
+    compilation of about a minute, hence slow), except that thresholds of M3.x/M4.x grow where the
+    (x3, x4) noise box straddles a kink of the scavenge flow function (engines 2 and 6, whose fuel
+    settings go below 0.5)."""
     from tests import residuals_serial as S
 
     Y, U = batch
-    for a, b in zip(_run(S, Y, U), _run(R, Y, U)):
-        assert np.array_equal(a, b, equal_nan=True)
+    old, new = _run(S, Y, U), _run(R, Y, U)
+    smooth = [0, 1, 3, 4, 5, 7]
+    for a, b in zip(old, new):
+        assert np.array_equal(a[smooth], b[smooth], equal_nan=True)
+    assert np.array_equal(old[0], new[0], equal_nan=True)  # residuals
+    for e in (2, 6):
+        grown = new[1][e] > old[1][e]
+        assert grown.any() and np.array_equal(new[1][e][~grown], old[1][e][~grown], equal_nan=True)

@@ -177,6 +177,39 @@ def _point(c, x1, x3, x4, m1, n, psi, Pi, T_in, T_out, T6, p6, out, j):
 
 
 @jit
+def _straddles_kink(x3, x4, d3, d4, c):
+    """Whether the pressure ratio x3/x4 over the noise box reaches across r_crit or 1, where
+    Ψ_sc (eq. 3.19, clipped to [r_crit, 1]) has a kink."""
+    r_lo = (x3 - d3) / (x4 + d4)
+    r_hi = (x3 + d3) / (x4 - d4)
+    return (r_lo <= 1.0 <= r_hi) or (r_lo <= c.r_crit <= r_hi)
+
+
+@jit
+def _kink_corners(c, x1, x3, x4, T1, d3, d4, n_x4p, n_x4m, T_in, T_out, T6m, p6m, G, kc):
+    """The model values at the 4 corners (x3 ± d3, x4 ± d4) into G[18:22] and, per output q, how
+    much their largest deviation from the centre exceeds the sum of the x3 and x4 coordinate terms
+    (kc[q] >= 0): the mixed term that the coordinate-wise inclusion neglects, which is not small
+    where Ψ_sc has a kink inside the box (Ψ_sc depends on x3/x4 only and is monotone on each side
+    of the kink, so its extremes over the box are at the corners).  The speed of a corner is that
+    of its x4 point (x3 does not enter Σ2)."""
+    row = 18
+    for e in (d3, -d3):
+        for f in (d4, -d4):
+            x3c = x3 + e
+            x4c = x4 + f
+            _point(c, x1, x3c, x4c, _charge_mass(x4c, T1, c), n_x4p if f > 0.0 else n_x4m,
+                   scavenge_flow_function(x3c / x4c, c), turbine_expansion(x3c, c), T_in, T_out, T6m, p6m, G, row)
+            row += 1
+    for q in range(4):
+        g0 = G[0, q]
+        corner = 0.0
+        for r in range(18, 22):
+            corner = max(corner, abs(G[r, q] - g0))
+        kc[q] = max(0.0, corner - (_dev(g0, G[3, q], G[4, q]) + _dev(g0, G[5, q], G[6, q])))
+
+
+@jit
 def _charge_mass(x4, T1, c):
     """m1 = x4 V1 / (R_a T1), the trapped charge mass [kg] (as ``engine_block``)."""
     return x4 * c.V1_m3 / (c.R_a_J_per_kgK * T1)
@@ -353,10 +386,13 @@ def _kernel(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_tabl
     mgs = np.zeros((CHUNK, 2, 6, 3))
     tabulated = np.zeros((CHUNK, 2), dtype=np.bool_)
     spm = np.zeros(4)  # margins of h3, h4, T_in, T_co for the tabulated perturbed speeds
+    kc = np.zeros(4)  # kink corrections of h3, h4, T_in, T_co (see _kink_corners)
+    kinked = False
     # model values at the points of the (x1, x3, x4, T1) box, columns h3, h4, T_in, T_co; rows:
     # 0 centre, 1/2 x1+-, 3/4 x3+-, 5/6 x4+-, 7/8 T1+-, 9/10 T_in+-, 11/12 p6+-, 13/14 T6+-, 15/16 T_out+-,
-    # 17 centre at speed n0 + h (tabulated mode: the speed sensitivity for the margin of the perturbed speeds)
-    G = np.empty((18, 4))
+    # 17 centre at speed n0 + h (tabulated mode: the speed sensitivity for the margin of the perturbed speeds),
+    # 18-21 the (x3, x4) corners where the box straddles a kink of Ψ_sc
+    G = np.empty((22, 4))
     step = 2 if ONE_SIDED else 1
     for k0 in range(0, T, CHUNK):
         k1 = min(T, k0 + CHUNK)
@@ -455,6 +491,7 @@ def _kernel(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_tabl
                     THR[kk, m] = dbar[ctq]
                 # ------------------------------------------------- model values of M3.q, M3.(3,4), M4.q, M4.(5,6)
                 ok = base_ok and math.isfinite(x3) and math.isfinite(T_in)
+                kinked = False
                 if ok:
                     dp6 = dbar[cp6]
                     dT6 = dbar[cT6]
@@ -477,6 +514,13 @@ def _kernel(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_tabl
                            G, 7)
                     _point(c, x1, x3, x4, _charge_mass(x4, T1 - dT1, c), t[6, 0], psi, Pi, T_in, T_out, T6m, p6m,
                            G, 8)
+                    # where the (x3, x4) box straddles a kink of Ψ_sc (x3/x4 clipped to [r_crit, 1]) the
+                    # coordinate-wise terms miss the range of the slip flow (e.g. measured x3/x4 > 1, no
+                    # slip at any coordinate-wise point, but slip at the corner x3 - d, x4 + d): take
+                    # the larger of the two coordinate terms' sum and the corners' deviation
+                    kinked = _straddles_kink(x3, x4, d3, d4, c)
+                    if kinked:
+                        _kink_corners(c, x1, x3, x4, T1, d3, d4, t[3, 0], t[4, 0], T_in, T_out, T6m, p6m, G, kc)
                     for j in range(9, 17, step):
                         sg = 1.0 if j % 2 == 1 else -1.0
                         Ti = T_in + sg * dTin if j < 11 else T_in
@@ -505,6 +549,8 @@ def _kernel(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_tabl
                                   + _dev(F, G[7, 0], G[8, 0]) + _dev(F, G[9, 0], G[10, 0]))
                     if tabd[side]:
                         H += SAFETY * spm[0]
+                    if kinked:
+                        H += SAFETY * kc[0]
                 R[kk, m], THR[kk, m] = _observer_update(st, 2, first, ok, x3, F, H, E3, q3, r3, Ld3, d3)
                 # ---------------------------------------------------------------- M3.(3,4): T_in
                 m = 10 + side
@@ -516,6 +562,8 @@ def _kernel(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_tabl
                     b += _dev(g0, G[13, 2], G[14, 2])
                     if tabd[side]:
                         b += spm[2]
+                    if kinked:
+                        b += kc[2]
                     R[kk, m] = T_in - g0
                     THR[kk, m] = dbar[cTin] + SAFETY * b + MODEL_MARGIN * abs(g0)
                 else:
@@ -530,6 +578,8 @@ def _kernel(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_tabl
                                   + _dev(F, G[7, 1], G[8, 1]) + _dev(F, G[9, 1], G[10, 1]))
                     if tabd[side]:
                         H += SAFETY * spm[1]
+                    if kinked:
+                        H += SAFETY * kc[1]
                 R[kk, m], THR[kk, m] = _observer_update(st, 7, first, ok, x4, F, H, E4, q4, r4, Ld4, d4)
                 # ---------------------------------------------------------------- M4.(3,4): T1
                 m = 15 + side
@@ -545,6 +595,8 @@ def _kernel(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_tabl
                     b += _dev(g0, G[15, 3], G[16, 3])
                     if tabd[side]:
                         b += spm[3]
+                    if kinked:
+                        b += kc[3]
                     R[kk, m] = T_co - g0
                     THR[kk, m] = dbar[cTco] + SAFETY * b + MODEL_MARGIN * abs(g0)
                 else:
