@@ -24,6 +24,7 @@ from marine_fdi_env._jit import jit
 from marine_fdi_env.constants import model_constants
 from marine_fdi_env.diagnosis.decision import DiagnosisState, candidate_classes, sorted_diagnoses
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
+from marine_fdi_env.diagnosis.sure_cells import SURE_CELLS_FILE, load_sure_cells
 from marine_fdi_env.diagnosis.residuals import (
     _SIDE_COLS, _T_OUT_COL, INCLUSIONS, N_STATE, compute_residuals_batch, inclusion_arrays, new_state)
 from marine_fdi_env.params import EngineParams, load_params
@@ -80,21 +81,22 @@ class ReferenceDiagnoser:
     noise_bounds : (19,) sensor noise bounds (default: table 6.3).
     max_cardinality : largest diagnosis considered by the hitting-set search.
     exoneration : ``"sure"`` (default): a module that has not fired clears the faults it surely
-        detects (measured cells, :mod:`marine_fdi_env.diagnosis.certainty`; the thesis's '1'
-        cells), with the temporal check that a fault explains a module only if its sure modules
-        fired no later than shortly after it; ``"none"``: plain consistency-based diagnosis;
+        detects (measured cells, :mod:`marine_fdi_env.diagnosis.certainty`, read from
+        ``sure_cells_file`` in data/diagnosis; the thesis's '1' cells), with the temporal check
+        that a fault explains a module only if its sure modules fired no later than shortly after
+        it; ``"none"``: plain consistency-based diagnosis;
         ``"all"``: every structural sensitivity counts as sure.
     inclusion : ``"tabulated"`` (default): the Σ2 inclusion terms of the adaptive thresholds
-        interpolated from a table with a certified margin (never below ``"exact"``'s; about 2x
-        faster, :mod:`marine_fdi_env.diagnosis.inclusion_table`); ``"exact"``: computed at every
-        sample (the scheme as first built, kept bit for bit).
+        interpolated from a table with a certified margin (never below ``"exact"``'s, at most 1 %
+        above; :mod:`marine_fdi_env.diagnosis.inclusion_table`); ``"exact"``: computed at every
+        sample.
     """
 
     name = "reference"
 
     def __init__(self, params: "str | EngineParams" = "thesis-12v28", n_engines: int = 1, dt: float = 0.01,
                  noise_bounds=None, max_cardinality: int = 2, exoneration: str = "sure",
-                 inclusion: str = "tabulated") -> None:
+                 inclusion: str = "tabulated", sure_cells_file: str = SURE_CELLS_FILE) -> None:
         self.params = load_params(params) if isinstance(params, str) else params
         if not isinstance(n_engines, (int, np.integer)) or n_engines < 1:
             raise ValueError(f"n_engines must be a positive integer, got {n_engines!r}")
@@ -111,6 +113,7 @@ class ReferenceDiagnoser:
         if exoneration not in ("sure", "none", "all", None):
             raise ValueError(f"exoneration must be 'sure', 'none' or 'all', got {exoneration!r}")
         self.exoneration = "none" if exoneration is None else exoneration
+        self.sure_cells_file = sure_cells_file
         if inclusion not in INCLUSIONS:
             raise ValueError(f"inclusion must be one of {', '.join(INCLUSIONS)}, got {inclusion!r}")
         self.inclusion = inclusion
@@ -147,9 +150,8 @@ class ReferenceDiagnoser:
     def _new_decision(self) -> DiagnosisState:
         settle, grace = None, 0.0
         if self.exoneration == "sure":
-            from .certainty import grace_times, settle_times, sure_cells
-
-            ex, temporal, settle, grace = sure_cells(), True, settle_times(), grace_times()
+            sc = load_sure_cells(self.sure_cells_file)
+            ex, temporal, settle, grace = sc.sure, True, sc.settle_times(), sc.grace_times()
         else:
             ex, temporal = (True if self.exoneration == "all" else None), False
         return DiagnosisState(exoneration=ex, max_cardinality=self.max_cardinality, temporal=temporal,

@@ -1,15 +1,17 @@
-"""Key performance indicators of the reference diagnoser (thesis section 6.5) and its checks.
+"""Key performance indicators of the diagnosers (thesis section 6.5) and their checks.
 
-    python -m marine_fdi_env.diagnosis.kpis false-alarms --seeds 100        # zero false alarms?
+    python -m marine_fdi_env.diagnosis.kpis false-alarms --hours 200        # fault-free, all profile families
     python -m marine_fdi_env.diagnosis.kpis delays --seeds 100              # single faults, delays
     python -m marine_fdi_env.diagnosis.kpis scenarios --seeds 100           # the 4 examples of 6.4
-    python -m marine_fdi_env.diagnosis.kpis min-detectable --seeds 5        # KPI 6.5.2, bisection
+    python -m marine_fdi_env.diagnosis.kpis min-detectable --seeds 20       # KPI 6.5.2, bisection
     python -m marine_fdi_env.diagnosis.kpis min-detectable --all --seeds 4  # all 26 faults -> env table
     python -m marine_fdi_env.diagnosis.kpis seal-leak-snr --seeds 16        # why turbine_seal_leak is missed
     python -m marine_fdi_env.diagnosis.kpis render                          # docs/diagnosis_results.md
 
-Each writes a JSON file under ``docs/data/`` (``--out`` to change) and prints a Markdown table.
-Engines are simulated in batches and diagnosed with :class:`ReferenceDiagnoser`.
+``--diagnoser sequential`` measures the ``sequential`` diagnoser instead of the reference.  Each
+writes a JSON file under ``docs/data/`` (``diagnoser_*.json`` for the reference, ``sequential_*.json``;
+``--out`` to change) and prints where.  Engines are simulated in batches and diagnosed as they
+run (:func:`marine_fdi_env.diagnosis.batch.diagnose_batch`).
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from ..scenarios import SCENARIOS, get_scenario
 from ..sensors import SENSORS, sensor_index
 from ..simulator import Simulator
 from .agent import ReferenceDiagnoser
+from .batch import BATCH, DIAGNOSERS, diagnose_batch
 from .modules import MODULE_IDS
 from .residuals import residuals_for_run
 
@@ -39,7 +42,6 @@ SENSOR_ONSET_S = 30.0
 EXTENDED_S = 3600.0  # horizon of the second pass for faults missed within DURATION_S
 LIMIT_SENSOR_ONSET_S = 50.0  # onset of the sensor offsets in the detectability-limit bisection
 ENV_TABLE = Path(__file__).resolve().parents[1] / "data" / "env" / "detectability.json"
-BATCH = 256  # engines per simulated batch (two threads from 256 on)
 # Detection times the thesis states for its examples (section 6.4) and KPI table 6.10.
 THESIS_DELAYS_S = {
     "thesis-6.4.2": {"bore_damage": 146.1, "valve_seizing (M2)": 201.6, "valve_seizing (M1)": 207.1},
@@ -53,53 +55,69 @@ THESIS_MIN_DETECTABLE = {
 }
 
 
-def diagnose_batch(schedules, seeds, profile="constant", duration_s=DURATION_S, exoneration="sure",
-                   block_samples: int = 1000, params: str = PARAMS):
-    """Simulate and diagnose engines in batches; returns one report dict per engine.
-
-    Streams the readings (the t = 0 reading, then blocks of ``block_samples``) from the simulator
-    into the diagnoser, so memory does not grow with the run length; the same numbers as
-    diagnosing a recorded ``Simulator.run`` (both stream equalities are tested)."""
-    reports = []
-    for a in range(0, len(schedules), BATCH):
-        sch = schedules[a:a + BATCH]
-        sd = seeds[a:a + BATCH]
-        sim = Simulator(params, len(sch), seeds=sd, faults=sch, profiles=profile)
-        agent = ReferenceDiagnoser(params, n_engines=len(sch), dt=sim.dt, exoneration=exoneration)
-        agent.observe(sim.y[:, None, :], sim.u[:, None])
-        steps, done = int(round(duration_s / sim.dt)), 0
-        while done < steps:
-            m = min(block_samples, steps - done)
-            blk = sim.advance(m)
-            agent.observe(blk.measurements, blk.u)
-            done += m
-        for i in range(len(sch)):
-            rep = agent.report(i)
-            rep["failures"] = [f.to_dict() for f in sim.failures if f.engine == i]
-            reports.append(rep)
-    return reports
+FA_ENTROPY0 = 9_000_000_000  # fault-free runs of the false-alarm KPI (disjoint from the calibration sets)
 
 
-def false_alarms(n_seeds: int, profiles=("constant", "manoeuvring"), first_seed: int = 50_000) -> dict:
-    out = {}
-    for prof in profiles:
-        seeds = [first_seed + i for i in range(n_seeds)]
-        reps = diagnose_batch([[] for _ in seeds], seeds, prof)
-        alarms = [(s, r["first_detection_time_s"], [m for m, t in r["module_detection_times_s"].items() if t is not None])
-                  for s, r in zip(seeds, reps) if r["detected"]]
-        out[prof] = {"runs": n_seeds, "duration_s": DURATION_S, "runs_with_false_alarm": len(alarms), "alarms": alarms}
-    return out
+def false_alarms(hours: float, diagnoser: str = "reference", entropy0: int = FA_ENTROPY0, progress: bool = True) -> dict:
+    """Fault-free 300 s runs over all profile families (fuel settings 0.3-1.1, as
+    :func:`~marine_fdi_env.diagnosis.sequential_calibration.profile_for` draws them; seeds disjoint
+    from the sequential diagnoser's calibration and validation sets): runs with an alarm."""
+    from .sequential_calibration import FAMILIES, profile_for
+
+    n = int(math.ceil(hours * 3600.0 / DURATION_S))
+    drawn = [profile_for(entropy0 + i) for i in range(n)]
+    profiles = [p for p, _ in drawn]
+    seeds = [sd for _, sd in drawn]
+    reps = []
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=n, desc=f"false alarms ({diagnoser})", unit="run", file=sys.stderr)
+    for a in range(0, n, 4 * BATCH):
+        reps += diagnose_batch([[] for _ in seeds[a:a + 4 * BATCH]], seeds[a:a + 4 * BATCH], profiles[a:a + 4 * BATCH],
+                               diagnoser=diagnoser)
+        if bar is not None:
+            bar.update(len(reps) - bar.n)
+    if bar is not None:
+        bar.close()
+    fam = [p.split(":")[0] for p in profiles]
+    alarms = [{"run": i, "profile": profiles[i], "seed": seeds[i], "first_detection_s": r["first_detection_time_s"],
+               "modules": [m for m, t in r["module_detection_times_s"].items() if t is not None]}
+              for i, r in enumerate(reps) if r["detected"]]
+    return {"runs": n, "duration_s": DURATION_S, "engine_hours": n * DURATION_S / 3600.0, "entropy0": entropy0,
+            "runs_with_false_alarm": len(alarms),
+            "per_family": {f: {"runs": fam.count(f), "runs_with_false_alarm": sum(1 for x in alarms if
+                                                                                  x["profile"].startswith(f))}
+                           for f in FAMILIES},
+            "alarms": alarms}
 
 
 def _onset(f: str) -> float:
     return PROCESS_FAULT_DEFAULTS[f].onset_s if f in PROCESS_FAULT_DEFAULTS else SENSOR_ONSET_S
 
 
-def _delay_stats(rs: list[dict], f: str, on: float) -> dict:
+def _isolation_delays(rs: list[dict], f: str, on: float, diagnoser: str) -> list[float | None]:
+    """Per run: time after the onset from which the diagnoser declares exactly {f} (to the end of
+    the run), None if it does not at the end: the decision logic replayed on the module firing
+    times, as the streaming diagnoser meets them (:func:`certainty.replay_declarations`)."""
+    from .certainty import SURE_FILES, replay_declarations
+    from .sure_cells import load_sure_cells
+
+    sc = load_sure_cells(SURE_FILES[diagnoser])
+    out = []
+    for r in rs:
+        t = np.array([np.nan if v is None else v for v in r["module_detection_times_s"].values()])
+        rep = replay_declarations(t, f, sc, DURATION_S)
+        out.append(None if rep["isolated_from_s"] is None else rep["isolated_from_s"] - on)
+    return out
+
+
+def _delay_stats(rs: list[dict], f: str, on: float, diagnoser: str | None = None) -> dict:
     delays = [r["first_detection_time_s"] - on for r in rs if r["detected"]]
     contains = [any(d == [f] or f in d for d in r["final_minimal_diagnoses"]) for r in rs]
     single = [[f] in r["final_minimal_diagnoses"] for r in rs]
-    return {
+    out = {
         "runs": len(rs), "detected": sum(r["detected"] for r in rs),
         "early_alarms": sum(1 for r in rs if r["detected"] and r["first_detection_time_s"] < on),
         "contains_fault": int(sum(contains)), "single_fault_diagnosis": int(sum(single)),
@@ -108,11 +126,17 @@ def _delay_stats(rs: list[dict], f: str, on: float) -> dict:
         "p90_delay_s": float(np.percentile(delays, 90)) if delays else None,
         "std_delay_s": float(np.std(delays)) if delays else None,
     }
+    if diagnoser is not None:
+        iso = [x for x in _isolation_delays(rs, f, on, diagnoser) if x is not None]
+        out.update({"isolated": len(iso), "median_isolation_delay_s": float(np.median(iso)) if iso else None,
+                    "p90_isolation_delay_s": float(np.percentile(iso, 90)) if iso else None})
+    return out
 
 
 def single_fault_delays(n_seeds: int, first_seed: int = 10_000, fault_ids=FAULT_IDS,
-                        extended_s: float = EXTENDED_S) -> dict:
-    """Every single fault at its default magnitude, n_seeds noise seeds, constant fuel setting.
+                        extended_s: float = EXTENDED_S, diagnoser: str = "reference") -> dict:
+    """Every single fault at its default magnitude, n_seeds noise seeds, constant fuel setting:
+    detection delays, isolation delays (the diagnoser declares exactly the fault) and diagnoses.
 
     A fault missed in some seed within the 300 s runs is run again, same seeds, for ``extended_s``
     (with the same seeds fault-free as the false-alarm check of that horizon): ``extended``
@@ -124,7 +148,7 @@ def single_fault_delays(n_seeds: int, first_seed: int = 10_000, fault_ids=FAULT_
             schedules.append([FaultSpec(f, _onset(f))])
             seeds.append(first_seed + 1000 * j + s)
             labels.append(f)
-    reps = diagnose_batch(schedules, seeds)
+    reps = diagnose_batch(schedules, seeds, diagnoser=diagnoser)
     out = {}
     for f in fault_ids:
         rs = [r for r, lab in zip(reps, labels) if lab == f]
@@ -134,19 +158,20 @@ def single_fault_delays(n_seeds: int, first_seed: int = 10_000, fault_ids=FAULT_
             t = [r["module_detection_times_s"][m] - on for r in rs if r["module_detection_times_s"][m] is not None]
             if t:
                 per_module[m] = {"n": len(t), "median_s": float(np.median(t)), "std_s": float(np.std(t))}
-        out[f] = {"onset_s": on, **_delay_stats(rs, f, on),
+        out[f] = {"onset_s": on, **_delay_stats(rs, f, on, diagnoser),
                   "n_diagnoses_median": float(np.median([len(r["final_minimal_diagnoses"]) for r in rs])),
                   "modules": per_module}
         if extended_s > DURATION_S and out[f]["detected"] < len(rs):
             f_seeds = [s for s, lab in zip(seeds, labels) if lab == f]
-            long = diagnose_batch([[FaultSpec(f, on)] for _ in f_seeds], f_seeds, duration_s=extended_s)
-            healthy = diagnose_batch([[] for _ in f_seeds], f_seeds, duration_s=extended_s)
+            long = diagnose_batch([[FaultSpec(f, on)] for _ in f_seeds], f_seeds, duration_s=extended_s,
+                                  diagnoser=diagnoser)
+            healthy = diagnose_batch([[] for _ in f_seeds], f_seeds, duration_s=extended_s, diagnoser=diagnoser)
             out[f]["extended"] = {"duration_s": extended_s, **_delay_stats(long, f, on),
                                   "healthy_runs_with_alarm": sum(r["detected"] for r in healthy)}
     return out
 
 
-def scenario_checks(n_seeds: int, first_seed: int = 20_000) -> dict:
+def scenario_checks(n_seeds: int, first_seed: int = 20_000, diagnoser: str = "reference") -> dict:
     """The four thesis examples (section 6.4) over n_seeds noise seeds."""
     thesis_counts = {"thesis-6.4.1": 4, "thesis-6.4.2": 1, "thesis-6.4.3": 1, "thesis-6.4.4": 9}
     out = {}
@@ -154,7 +179,7 @@ def scenario_checks(n_seeds: int, first_seed: int = 20_000) -> dict:
         sc = get_scenario(name)
         specs = sc.fault_specs()
         seeds = [first_seed + i for i in range(n_seeds)]
-        reps = diagnose_batch([specs] * n_seeds, seeds, sc.profile, sc.duration_s)
+        reps = diagnose_batch([specs] * n_seeds, seeds, sc.profile, sc.duration_s, diagnoser=diagnoser)
         injected = sorted(f.fault_id for f in specs)
         first_onset = min(f.onset_s for f in specs)
         rows = []
@@ -180,30 +205,20 @@ def scenario_checks(n_seeds: int, first_seed: int = 20_000) -> dict:
     return out
 
 
-def min_detectable(n_seeds: int, iters: int = 8, first_seed: int = 30_000, fault_ids=PROCESS_FAULT_IDS) -> dict:
-    """KPI 6.5.2: smallest magnitude of each process fault detected within 300 s in every seed
-    (bisection on a log scale between 1e-4 and 2 times the table 6.4 value)."""
+def min_detectable(n_seeds: int, first_seed: int = 30_000, fault_ids=PROCESS_FAULT_IDS,
+                   diagnoser: str = "reference", rtol: float = 1.1) -> dict:
+    """KPI 6.5.2: smallest magnitude of each process fault detected within 300 s (at or after
+    the onset) in every one of ``n_seeds`` seeds, constant fuel setting 1.0: the bracketing
+    log-space bisection of :func:`detectability_limits` (from the table 6.4 value, halving or
+    doubling up to 16x, then bisecting to ``rtol``)."""
+    lim = detectability_limits(n_seeds, fault_ids=fault_ids, first_seed=first_seed, rtol=rtol, diagnoser=diagnoser)
     out = {}
-    seeds = [first_seed + i for i in range(n_seeds)]
-    for f in fault_ids:
-        default = PROCESS_FAULT_DEFAULTS[f].magnitude
-        lo, hi = default * 1e-4, default * 2.0
-
-        def all_detected(mag):
-            reps = diagnose_batch([[FaultSpec(f, _onset(f), magnitude=mag)]] * n_seeds, seeds)
-            return all(r["detected"] for r in reps)
-
-        if not all_detected(hi):
-            out[f] = {"min_detectable": None, "note": f"not detected in every seed even at {hi:g}"}
-            continue
-        for _ in range(iters):
-            mid = math.sqrt(lo * hi)
-            if all_detected(mid):
-                hi = mid
-            else:
-                lo = mid
-        out[f] = {"min_detectable": hi, "bracket": [lo, hi], "unit": PROCESS_FAULT_DEFAULTS[f].unit,
-                  "thesis_table_6_10": THESIS_MIN_DETECTABLE[f], "seeds": n_seeds}
+    for f, v in lim.items():
+        d = {"min_detectable": v["limit"], "bracket": v["bracket"], "unit": PROCESS_FAULT_DEFAULTS[f].unit,
+             "thesis_table_6_10": THESIS_MIN_DETECTABLE[f], "seeds": n_seeds, "evaluations": v["evaluations"]}
+        if v.get("note"):
+            d["note"] = v["note"]
+        out[f] = d
     return out
 
 
@@ -220,7 +235,7 @@ def _limit_spec(f: str, magnitude: float, sensor_onset_s: float) -> FaultSpec:
 def detectability_limits(n_seeds: int, fault_ids=FAULT_IDS, first_seed: int = 30_000, factor: float = 2.0,
                          rtol: float = 1.05, max_up: int = 4, max_down: int = 20,
                          sensor_onset_s: float = LIMIT_SENSOR_ONSET_S, duration_s: float = DURATION_S,
-                         log=None) -> dict:
+                         log=None, diagnoser: str = "reference") -> dict:
     """Smallest magnitude of every fault detected (any module violated, first at or after the onset)
     before ``duration_s`` in each of ``n_seeds`` noise seeds, at constant fuel setting 1.0.
 
@@ -251,7 +266,7 @@ def detectability_limits(n_seeds: int, fault_ids=FAULT_IDS, first_seed: int = 30
             break
         it += 1
         schedules = [[_limit_spec(f, m, sensor_onset_s)] for f, m in todo for _ in seeds]
-        reps = diagnose_batch(schedules, seeds * len(todo), duration_s=duration_s)
+        reps = diagnose_batch(schedules, seeds * len(todo), duration_s=duration_s, diagnoser=diagnoser)
         for k, (f, m) in enumerate(todo):
             st = state[f]
             onset = schedules[k * n_seeds][0].onset_s
@@ -478,11 +493,17 @@ def render(data_dir: Path = Path("docs/data")) -> str:
     return "\n".join(lines)
 
 
+_PREFIX = {"reference": "diagnoser", "sequential": "sequential"}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("what", choices=("false-alarms", "delays", "scenarios", "min-detectable", "seal-leak-snr",
                                      "render"))
     ap.add_argument("--seeds", type=int, default=10)
+    ap.add_argument("--hours", type=float, default=200.0, help="false-alarms: fault-free engine-hours (default 200)")
+    ap.add_argument("--diagnoser", choices=DIAGNOSERS, default="reference",
+                    help="reference (the thesis scheme, default) or sequential (CUSUM tests on its residuals)")
     ap.add_argument("--out", type=Path, default=None)
     ap.add_argument("--all", action="store_true",
                     help="min-detectable: all 26 faults (sensor offsets too) with a bracketing log-space "
@@ -513,12 +534,22 @@ def main(argv=None) -> int:
             print(f"| {f} | {lim} | {v['unit']} | {v['table_magnitude']:g} | {v['ratio_to_table']:.3g} |")
         print(f"wrote {out}")
         return 0
-    fn = {"false-alarms": false_alarms, "delays": single_fault_delays, "scenarios": scenario_checks,
-          "min-detectable": min_detectable, "seal-leak-snr": seal_leak_snr}[args.what]
-    data = {"what": args.what, "seeds": args.seeds, "params": PARAMS,
-            "command": f"python -m marine_fdi_env.diagnosis.kpis {args.what} --seeds {args.seeds}",
-            "result": fn(args.seeds)}
-    out = args.out or Path("docs/data") / f"diagnoser_{args.what}.json"
+    if args.what == "seal-leak-snr" and args.diagnoser != "reference":
+        ap.error("seal-leak-snr looks at the reference's residuals and thresholds: no --diagnoser")
+    extra = "" if args.diagnoser == "reference" else f" --diagnoser {args.diagnoser}"
+    if args.what == "false-alarms":
+        if not args.hours > 0:
+            ap.error("--hours must be > 0")
+        size = f"--hours {args.hours:g}"
+        result = false_alarms(args.hours, diagnoser=args.diagnoser)
+    else:
+        size = f"--seeds {args.seeds}"
+        fn = {"delays": single_fault_delays, "scenarios": scenario_checks, "min-detectable": min_detectable,
+              "seal-leak-snr": seal_leak_snr}[args.what]
+        result = fn(args.seeds) if args.what == "seal-leak-snr" else fn(args.seeds, diagnoser=args.diagnoser)
+    data = {"what": args.what, "diagnoser": args.diagnoser, "seeds": args.seeds, "params": PARAMS,
+            "command": f"python -m marine_fdi_env.diagnosis.kpis {args.what} {size}{extra}", "result": result}
+    out = args.out or Path("docs/data") / f"{_PREFIX[args.diagnoser]}_{args.what}.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(data, indent=1, default=lambda o: None if isinstance(o, float) else str(o)) + "\n")
     print(f"wrote {out}")

@@ -62,6 +62,7 @@ def run_episodes(agent, scenarios: list[ScenarioSpec], env_kwargs: dict | None =
     ``on_episode(record)`` is called as soon as an episode's record is complete.
     """
     env_kwargs = dict(env_kwargs or {})
+    env_kwargs.update(getattr(agent, "env_kwargs", {}))  # options the agent needs (e.g. observe_sequential)
     records: dict[int, dict] = {}
     for start in range(0, len(scenarios), batch_size):
         chunk = [_offset(s, seed_offset) for s in scenarios[start:start + batch_size]]
@@ -141,6 +142,7 @@ def evaluate(agent_spec: str, suite_name: str, out: Path, *, workers: int = 1, s
     suite = load_suite(suite_name)
     agent = load_agent(agent_spec)  # fail early on a bad agent
     env_kwargs = {k: v for k, v in suite["env"].items()}
+    env_kwargs.update(getattr(agent, "env_kwargs", {}))  # options the agent needs (e.g. observe_sequential)
     header = {"agent": agent.name, "agent_spec": str(agent_spec), "suite": suite.name,
               "suite_version": suite["version"], "seed_offset": int(seed_offset), "env_id": ENV_ID,
               "env": env_kwargs}
@@ -210,7 +212,8 @@ def build_parser() -> argparse.ArgumentParser:
         description="Run an agent on a frozen evaluation suite and print its metrics. With no arguments: the "
                     "reference diagnoser on thesis-v1.")
     ap.add_argument("--agent", default="reference",
-                    help="null | random | reference | oracle, or a directory with agent.json (default: reference)")
+                    help="null | random | reference | sequential | oracle, or a directory with agent.json "
+                         "(default: reference)")
     ap.add_argument("--suite", default="thesis-v1", help="suite name or JSON path (default: thesis-v1)")
     ap.add_argument("--out", type=Path, default=None, help="results JSON (default: results/AGENT_SUITE.json)")
     ap.add_argument("--workers", type=int, default=1, help="processes (default 1)")
