@@ -37,6 +37,8 @@ prints one JSON object:
                                   ``cpu_us_per_engine_sample`` the CPU time (both threads) of each
                                   part per engine-sample: less sensitive to other load than wall
                                   time (but not immune: a shared core also runs slower).
+``vector_*_n1024_sequential``     with ``--observe-sequential``: the first run with the sequential
+                                  diagnoser's observation features (its cost is part of ``features``).
 ``single_env_decision_steps_per_s``  one ``MarineFDIEnv(scenario_config="default")``: decisions per
                                   second of wall time over ``--episodes`` full 300-decision episodes
                                   with random actions, resets included (after one warm-up reset).
@@ -112,8 +114,8 @@ def _staggered_scenarios(env: MarineFDIVectorEnv, seed: int, first_end: int, ste
 
 
 def vector_throughput(n: int, steps: int, repeats: int, seed: int = 0, profile: bool = False,
-                      autoresets_per_step: int = 0) -> dict:
-    env = MarineFDIVectorEnv(num_envs=n, scenario_config=PRESET)
+                      autoresets_per_step: int = 0, observe_sequential: bool = False) -> dict:
+    env = MarineFDIVectorEnv(num_envs=n, scenario_config=PRESET, observe_sequential=observe_sequential)
     env.action_space.seed(seed)
     warm = 2  # steps before timing: the first scoring and infos
     options = None
@@ -140,7 +142,7 @@ def vector_throughput(n: int, steps: int, repeats: int, seed: int = 0, profile: 
         if best is None or wall < best[0]:
             best = (wall, dict(timers.seconds), dict(timers.cpu), cpu_total)
     wall, sec, cpu, cpu_total = best
-    tag = f"n{n}" + ("_autoreset" if autoresets_per_step else "")
+    tag = f"n{n}" + ("_autoreset" if autoresets_per_step else "") + ("_sequential" if observe_sequential else "")
     parts = {
         "simulator": sec["simulator"],
         "diagnoser": sec["diagnoser"],
@@ -207,6 +209,8 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--episodes", type=int, default=3, help="full single-env episodes timed")
     ap.add_argument("--profile", action="store_true", help="cProfile one vector step (to stderr)")
+    ap.add_argument("--observe-sequential", action="store_true",
+                    help="also time the vector env with observe_sequential=True (the sequential diagnoser's features)")
     ap.add_argument("--autoresets-per-step", type=int, default=4,
                     help="slots autoreset in each step of the steady-state run (N / 300 s episodes: 3.4 at N=1024)")
     args = ap.parse_args(argv)
@@ -215,6 +219,8 @@ def main(argv=None) -> int:
     out.update(vector_throughput(args.num_envs, args.vector_steps, args.repeats, profile=args.profile))
     out.update(vector_throughput(args.num_envs, args.vector_steps, args.repeats,
                                  autoresets_per_step=args.autoresets_per_step))
+    if args.observe_sequential:
+        out.update(vector_throughput(args.num_envs, args.vector_steps, args.repeats, observe_sequential=True))
     out.update(single_env_throughput(args.episodes))
     out.update({
         "preset": PRESET,

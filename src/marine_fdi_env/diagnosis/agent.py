@@ -22,6 +22,7 @@ import numpy as np
 
 from marine_fdi_env._jit import jit
 from marine_fdi_env.constants import model_constants
+from marine_fdi_env.integrators import THREADED_MIN_ENGINES, _executor
 from marine_fdi_env.diagnosis.decision import DiagnosisState, candidate_classes, sorted_diagnoses
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
 from marine_fdi_env.diagnosis.sure_cells import SURE_CELLS_FILE, load_sure_cells
@@ -48,16 +49,27 @@ class BlockOutput:
     violations: np.ndarray  # (N, B, 19) bool
     detected: np.ndarray  # (N,) bool, at the end of the block
     features: np.ndarray  # (N, 19 * N_FEATURES_PER_MODULE) float32
+    stats: np.ndarray | None = None  # (N, 19, 4) the environment observation's period statistics
+
+
+RATIO_CAP = PEAK_CAP  # the observation's ratio cap (envs.observation.RATIO_CAP)
 
 
 @jit
-def _violations_and_peaks(R, THR, viol, peak):
-    """viol = not |R| <= THR (inf/nan residuals violate); peak[i, m] = max over the block of
-    |R|/THR, where a ratio that is not finite or THR <= 0 counts as the cap 1e3, capped at 1e3."""
+def _violations_and_peaks(R, THR, viol, peak, stats, i0, i1):
+    """For engines i0..i1-1: viol = not |R| <= THR (inf/nan residuals violate); peak[i, m] = max over
+    the block of |R|/THR, where a ratio that is not finite or THR <= 0 counts as the cap 1e3,
+    capped at 1e3; and the observation's period statistics of the block (one pass, in sample
+    order, as ``envs.observation``'s numpy definition): stats[i, m] = (max ratio, mean ratio, mean
+    signed ratio, share of ratios > 1) of the signed ratio r/thr clipped to ±RATIO_CAP (NaN: +cap)."""
     N, B, M = R.shape
-    for i in range(N):
+    for i in range(i0, i1):
         for m in range(M):
             peak[i, m] = 0.0
+            stats[i, m, 0] = 0.0
+            stats[i, m, 1] = 0.0
+            stats[i, m, 2] = 0.0
+            stats[i, m, 3] = 0.0
         for k in range(B):
             for m in range(M):
                 r = abs(R[i, k, m])
@@ -68,6 +80,35 @@ def _violations_and_peaks(R, THR, viol, peak):
                     q = PEAK_CAP
                 if q > peak[i, m]:
                     peak[i, m] = q
+                s = R[i, k, m] / thr
+                if s != s:
+                    s = RATIO_CAP
+                elif s > RATIO_CAP:
+                    s = RATIO_CAP
+                elif s < -RATIO_CAP:
+                    s = -RATIO_CAP
+                a = abs(s)
+                if a > stats[i, m, 0]:
+                    stats[i, m, 0] = a
+                stats[i, m, 1] += a
+                stats[i, m, 2] += s
+                if a > 1.0:
+                    stats[i, m, 3] += 1.0
+        for m in range(M):
+            stats[i, m, 1] /= B
+            stats[i, m, 2] /= B
+            stats[i, m, 3] /= B
+
+
+def _post_process(R, THR, viol, peak, stats) -> None:
+    """:func:`_violations_and_peaks` for all engines, on the two worker threads for large batches."""
+    n = R.shape[0]
+    if n < THREADED_MIN_ENGINES:
+        _violations_and_peaks(R, THR, viol, peak, stats, 0, n)
+        return
+    edges = np.linspace(0, n, 9).astype(np.int64)
+    list(_executor().map(lambda r: _violations_and_peaks(R, THR, viol, peak, stats, r[0], r[1]),
+                         list(zip(edges[:-1], edges[1:]))))
 
 
 class ReferenceDiagnoser:
@@ -181,7 +222,8 @@ class ReferenceDiagnoser:
                                 self._table)
         viol = np.empty((N, B, N_MODULES), dtype=np.bool_)
         peak = np.empty((N, N_MODULES))
-        _violations_and_peaks(R, THR, viol, peak)
+        stats = np.empty((N, N_MODULES, 4))
+        _post_process(R, THR, viol, peak, stats)
         tt = (self.samples - self._offset[:, None] + np.arange(B)[None, :]) * self.dt  # (N, B) engine clocks
         t_end_all = tt[:, -1]
         # Only engines where a module fires for the first time, or a grace period of the decision
@@ -214,7 +256,8 @@ class ReferenceDiagnoser:
                 self._next_expiry[i] = st._next_expiry
         self.samples += B
         feats = self._features(peak)
-        return BlockOutput(residuals=R, thresholds=THR, violations=viol, detected=self.detected.copy(), features=feats)
+        return BlockOutput(residuals=R, thresholds=THR, violations=viol, detected=self.detected.copy(), features=feats,
+                           stats=stats)
 
     def _features(self, peak: np.ndarray) -> np.ndarray:
         """peak: (N, 19) max |r|/threshold over the block, capped at 1e3 (see _violations_and_peaks)."""

@@ -11,16 +11,19 @@ wrong one is declared (single-v1: every detected S3.4 episode declared S3.2).  S
 property of (module, fault, size); the diagnoser does not know the size, so a cell counts as sure
 only if it fires for every size it may meet:
 
-    python -m marine_fdi_env.diagnosis.certainty measure --diagnoser reference     # the grid (~15 min)
-    python -m marine_fdi_env.diagnosis.certainty derive --diagnoser reference      # -> data/diagnosis/sure_cells.json
-    python -m marine_fdi_env.diagnosis.certainty validate --diagnoser reference    # held-out grid (~10 min)
+    python -m marine_fdi_env.diagnosis.certainty measure                        # the grid, both diagnosers
+    python -m marine_fdi_env.diagnosis.certainty derive --diagnoser reference   # -> data/diagnosis/sure_cells.json
+    python -m marine_fdi_env.diagnosis.certainty derive --diagnoser sequential  # -> .../sequential_sure_cells.json
+    python -m marine_fdi_env.diagnosis.certainty validate                       # the held-out runs
+    python -m marine_fdi_env.diagnosis.certainty report --diagnoser reference   # -> docs/data/certainty_reference.json
 
 **Measurement grid** (``measure``): every fault at 5 magnitudes log-spaced from 0.5x its
 detectability limit (``data/env/detectability.json``, the smallest magnitude the reference
 detects at nominal load in every seed; the suites go down to 0.5x) to its table 6.3/6.4 size,
 sensor offsets of both signs, profiles ``constant`` (fuel setting drawn in [0.6, 1.0]) and
-``manoeuvring``, ``--seeds`` noise seeds each (seeds 1e6 + ...); 300 s runs, sensor onsets at 30 s,
-process faults at their table onsets.
+``manoeuvring``, ``--seeds`` (6) noise seeds each (seeds 1e6 + ...); 300 s runs, sensor onsets at
+30 s, process faults at their table onsets; the reference's and the sequential diagnoser's module
+firing times from the same runs.
 
 **Rule** (``derive``): among the runs where the fault was detected (some module of its support
 fired at or after the onset; a run where nothing fired cannot be misdiagnosed), cell (m, f) is sure
@@ -29,8 +32,9 @@ delay of a sure module after the fault's first fired module; ``spread_s`` = the 
 a fault's sure modules' firing times.  (The first version required firing in all runs at the
 table size and, for sensor faults, within 30 s of the first sure module.)
 
-**Validation** (``validate``): held-out magnitudes (the geometric midpoints of the grid), seeds
-(2e6 + ...) and profiles (``step`` and ``ramp`` at fuel settings 0.6-1.0, ``random``); the
+**Validation** (``validate``, ``report``): held-out magnitudes (the geometric midpoints of the
+grid), seeds (2e6 + ..., 3 per cell) and profiles (``step`` and ``ramp`` at fuel settings 0.6-1.0,
+``random``); the
 decision logic is replayed on the measured module firing times with the old and the new sure
 cells (the module decisions do not depend on the decision logic), and the runs where the true
 fault is ruled out (in no minimal diagnosis) while the diagnoser declares another are counted per
@@ -49,7 +53,9 @@ from pathlib import Path
 import numpy as np
 
 from ..faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, FaultSpec
-from .batch import DIAGNOSERS, as_array, diagnose_batch
+from ..simulator import Simulator
+from .batch import BATCH, DIAGNOSERS, PARAMS
+from .sequential import SequentialDiagnoser
 from .decision import DiagnosisState, declared_faults
 from .modules import MODULE_IDS
 from .structure import fault_signature_matrix
@@ -123,38 +129,47 @@ def _runs(held_out: bool, n_seeds: int) -> list[dict]:
     return runs
 
 
-def measure(diagnoser: str = "reference", n_seeds: int = 8, held_out: bool = False, progress: bool = True) -> dict:
-    """Module firing times of every run of the grid (or the held-out grid): (runs, 19) seconds
-    after the fault's onset (NaN: never), with each run's fault, magnitude, profile and seed."""
+def measure(n_seeds: int = 8, held_out: bool = False, progress: bool = True) -> dict:
+    """Module firing times of every run of the grid (or the held-out grid) for both diagnosers at
+    once (the sequential diagnoser runs the reference's residual generators and worst-case tests):
+    {"reference": (runs, 19), "sequential": (runs, 19)} seconds after the fault's onset (NaN:
+    never), with each run's fault, magnitude, profile and seed."""
     runs = _runs(held_out, n_seeds)
     schedules = [[FaultSpec(r["fault"], _onset(r["fault"]), magnitude=r["magnitude"],
                             kind=None if r["fault"] in PROCESS_FAULT_DEFAULTS else "offset")] for r in runs]
     seeds = [r["seed"] for r in runs]
     profiles = [r["profile"] for r in runs]
+    ref_t = np.full((len(runs), len(MODULE_IDS)), np.nan)
+    seq_t = np.full((len(runs), len(MODULE_IDS)), np.nan)
     bar = None
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(runs), desc=f"{diagnoser} {'held-out' if held_out else 'grid'}", unit="run",
-                   file=sys.stderr)
-    reps = []
-    step = 512
-    for a in range(0, len(runs), step):
-        reps += diagnose_batch(schedules[a:a + step], seeds[a:a + step], profiles[a:a + step], DURATION_S,
-                               exoneration="none", diagnoser=diagnoser)
+        bar = tqdm(total=len(runs), desc="held-out" if held_out else "grid", unit="run", file=sys.stderr)
+    for a in range(0, len(runs), BATCH):
+        b = min(len(runs), a + BATCH)
+        sim = Simulator(PARAMS, b - a, seeds=seeds[a:b], faults=schedules[a:b], profiles=profiles[a:b])
+        agent = SequentialDiagnoser(PARAMS, n_engines=b - a, dt=sim.dt, exoneration="none")
+        agent.observe(sim.y[:, None, :], sim.u[:, None])
+        for _ in range(int(round(DURATION_S / sim.dt / 1000))):
+            blk = sim.advance(1000)
+            agent.observe(blk.measurements, blk.u)
+        ref_t[a:b] = agent.ref.first_violation
+        seq_t[a:b] = agent.stage.first
         if bar is not None:
-            bar.update(len(reps) - bar.n)
+            bar.update(b - a)
     if bar is not None:
         bar.close()
-    times = as_array(reps) - np.array([_onset(r["fault"]) for r in runs])[:, None]
-    return {"diagnoser": diagnoser, "held_out": held_out, "n_seeds": n_seeds, "runs": runs,
-            "times_after_onset_s": times.tolist(), "duration_s": DURATION_S, "sensor_onset_s": SENSOR_ONSET_S}
+    on = np.array([_onset(r["fault"]) for r in runs])[:, None]
+    return {"held_out": held_out, "n_seeds": n_seeds, "runs": runs, "duration_s": DURATION_S,
+            "sensor_onset_s": SENSOR_ONSET_S,
+            "times_after_onset_s": {"reference": (ref_t - on).tolist(), "sequential": (seq_t - on).tolist()}}
 
 
-def derive_sure_cells(grid: dict) -> dict:
-    """The sure-cell file content from a measured grid (rule in the module docstring)."""
+def derive_sure_cells(grid: dict, diagnoser: str) -> dict:
+    """The sure-cell file content of a diagnoser from a measured grid (rule in the module docstring)."""
     runs = grid["runs"]
-    times = np.asarray(grid["times_after_onset_s"], dtype=float)
+    times = np.asarray(grid["times_after_onset_s"][diagnoser], dtype=float)
     fired = ~np.isnan(times) & (times >= 0.0)
     sure = np.zeros((len(MODULE_IDS), len(FAULT_IDS)), dtype=bool)
     lag = np.zeros(sure.shape)
@@ -182,14 +197,14 @@ def derive_sure_cells(grid: dict) -> dict:
         "format": 2, "module_ids": list(MODULE_IDS), "fault_ids": list(FAULT_IDS),
         "sure": sure.astype(int).tolist(), "lag_s": lag.round(3).tolist(), "spread_s": spread.round(3).tolist(),
         "detected_runs": detected_runs.tolist(), "runs": total_runs.tolist(),
-        "settings": {"diagnoser": grid["diagnoser"], "grid": f"{N_GRID} magnitudes log-spaced from {LOWEST_SCALE}x the "
+        "settings": {"diagnoser": diagnoser, "grid": f"{N_GRID} magnitudes log-spaced from {LOWEST_SCALE}x the "
                      "detectability limit (data/env/detectability.json) to the table 6.3/6.4 size; sensor offsets "
                      "of both signs", "profiles": list(GRID_PROFILES), "seeds_per_cell": grid["n_seeds"],
                      "first_seed": GRID_SEED0, "duration_s": grid["duration_s"],
                      "sensor_onset_s": grid["sensor_onset_s"],
                      "rule": "sure = fired in every run where the fault was detected (any module of its support "
                              "fired at or after the onset), at every magnitude, sign and profile of the grid"},
-        "command": f"python -m marine_fdi_env.diagnosis.certainty derive --diagnoser {grid['diagnoser']}",
+        "command": f"python -m marine_fdi_env.diagnosis.certainty derive --diagnoser {diagnoser}",
     }
 
 
@@ -248,11 +263,11 @@ def _old_sure_cells() -> SureCells:
     return load_sure_cells("sure_cells_table_magnitudes.json")
 
 
-def validate(held: dict, new: SureCells, old: SureCells | None = None) -> dict:
+def validate(held: dict, diagnoser: str, new: SureCells, old: SureCells | None = None) -> dict:
     """Wrong isolations (true fault ruled out, another declared) per fault on a measured run set,
     with the new and (if given) the old sure cells."""
     runs = held["runs"]
-    times = np.asarray(held["times_after_onset_s"], dtype=float)
+    times = np.asarray(held["times_after_onset_s"][diagnoser], dtype=float)
     res = {}
     for name, sc in (("new", new), ("old", old)):
         if sc is None:
@@ -275,47 +290,46 @@ def validate(held: dict, new: SureCells, old: SureCells | None = None) -> dict:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description="Measure, derive and validate the sure cells of a diagnoser.")
-    ap.add_argument("what", choices=("measure", "derive", "validate"))
-    ap.add_argument("--diagnoser", choices=DIAGNOSERS, default="reference")
-    ap.add_argument("--seeds", type=int, default=None, help="seeds per grid cell (measure 8, validate 4)")
+    ap = argparse.ArgumentParser(description="Measure, derive and validate the sure cells of the diagnosers.")
+    ap.add_argument("what", choices=("measure", "derive", "validate", "report"))
+    ap.add_argument("--diagnoser", choices=DIAGNOSERS, default="reference", help="derive / report: which one")
+    ap.add_argument("--seeds", type=int, default=None, help="seeds per grid cell (measure 6, validate 3)")
     ap.add_argument("--work-dir", type=Path, default=Path("results/certainty"))
-    ap.add_argument("--report", type=Path, default=None,
-                    help="validate: report (default docs/data/certainty_DIAGNOSER.json)")
     args = ap.parse_args(argv)
-    grid_file = args.work_dir / f"{args.diagnoser}_grid.json"
-    held_file = args.work_dir / f"{args.diagnoser}_held_out.json"
+    grid_file = args.work_dir / "grid.json"
+    held_file = args.work_dir / "held_out.json"
     data_dir = Path(__file__).resolve().parents[1] / "data" / "diagnosis"
-    if args.what == "measure":
-        n = args.seeds or 8
+    if args.what in ("measure", "validate"):
+        n = args.seeds or (6 if args.what == "measure" else 3)
         if n < 1:
             ap.error("--seeds must be >= 1")
-        grid = measure(args.diagnoser, n)
+        data = measure(n, held_out=args.what == "validate")
         args.work_dir.mkdir(parents=True, exist_ok=True)
-        grid_file.write_text(json.dumps(grid) + "\n")
-        print(f"wrote {grid_file} ({len(grid['runs'])} runs)")
+        out = grid_file if args.what == "measure" else held_file
+        out.write_text(json.dumps(data) + "\n")
+        print(f"wrote {out} ({len(data['runs'])} runs)")
         return 0
     if args.what == "derive":
         if not grid_file.exists():
             ap.error(f"{grid_file} not found: run 'measure' first")
         out = data_dir / SURE_FILES[args.diagnoser]
-        data = derive_sure_cells(json.loads(grid_file.read_text()))
+        data = derive_sure_cells(json.loads(grid_file.read_text()), args.diagnoser)
         out.write_text(json.dumps(data) + "\n")
         load_sure_cells.cache_clear()
         print(f"wrote {out}: {int(np.sum(data['sure']))} sure cells")
         return 0
-    n = args.seeds or 4
-    held = measure(args.diagnoser, n, held_out=True)
-    args.work_dir.mkdir(parents=True, exist_ok=True)
-    held_file.write_text(json.dumps(held) + "\n")
+    if not held_file.exists():
+        ap.error(f"{held_file} not found: run 'validate' first")
+    held = json.loads(held_file.read_text())
     new = load_sure_cells(SURE_FILES[args.diagnoser])
     old = _old_sure_cells() if args.diagnoser == "reference" else None
     res = {"diagnoser": args.diagnoser, "runs": len(held["runs"]),
            "held_out": {"magnitudes": "geometric midpoints of the grid", "profiles": list(HELD_OUT_PROFILES),
-                        "first_seed": HELD_OUT_SEED0, "seeds_per_cell": n},
-           "command": f"python -m marine_fdi_env.diagnosis.certainty validate --diagnoser {args.diagnoser}",
-           "result": validate(held, new, old)}
-    report = args.report or Path("docs/data") / f"certainty_{args.diagnoser}.json"
+                        "first_seed": HELD_OUT_SEED0, "seeds_per_cell": held["n_seeds"]},
+           "command": f"python -m marine_fdi_env.diagnosis.certainty validate --seeds {held['n_seeds']} && "
+                      f"python -m marine_fdi_env.diagnosis.certainty report --diagnoser {args.diagnoser}",
+           "result": validate(held, args.diagnoser, new, old)}
+    report = Path("docs/data") / f"certainty_{args.diagnoser}.json"
     report.parent.mkdir(parents=True, exist_ok=True)
     report.write_text(json.dumps(res, indent=1) + "\n")
     for name, per in res["result"].items():

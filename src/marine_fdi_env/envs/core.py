@@ -162,7 +162,8 @@ class EpisodeBatch:
         t_first = (self.diag.samples - self.diag._offset) * self.dt  # each engine's time of the period's first sample
         out = self.diag.observe(blk.measurements, blk.u)
         t_now = self.t = self.sim.local_time
-        feats = module_features(out.residuals, out.thresholds, self.diag.first_violation, t_now, self.durations)
+        feats = module_features(out.residuals, out.thresholds, self.diag.first_violation, t_now, self.durations,
+                                out.stats)
         if self.observe_sensors:
             feats = np.concatenate([feats, sensor_features(blk.measurements, blk.u, self._nominal)], axis=1)
         if self.seq is not None:

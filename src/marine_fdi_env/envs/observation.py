@@ -128,16 +128,19 @@ def _period_stats(R, THR, stats):
 
 
 def module_features(R: np.ndarray, THR: np.ndarray, first_violation: np.ndarray, t_now: np.ndarray,
-                    duration_s: np.ndarray) -> np.ndarray:
+                    duration_s: np.ndarray, stats: np.ndarray | None = None) -> np.ndarray:
     """Features (N, 19 * 6 + 1) from residuals and thresholds (N, B, 19) of one period.
 
     first_violation : (N, 19) time of each module's first violation this episode (NaN: never).
     t_now : (N,) each engine's time at the end of the period [s]; duration_s : (N,) episode lengths.
+    stats : (N, 19, 4) the period statistics if already computed (the reference diagnoser's
+    ``BlockOutput.stats``, the same numbers as :func:`_period_stats`); else computed here.
     """
     duration_s = np.broadcast_to(np.asarray(duration_s, dtype=float), t_now.shape)
     N = R.shape[0]
-    stats = np.empty((N, N_MODULES, 4))
-    _period_stats(np.ascontiguousarray(R, dtype=np.float64), np.ascontiguousarray(THR, dtype=np.float64), stats)
+    if stats is None:
+        stats = np.empty((N, N_MODULES, 4))
+        _period_stats(np.ascontiguousarray(R, dtype=np.float64), np.ascontiguousarray(THR, dtype=np.float64), stats)
     out = np.empty((N, N_MODULES, len(MODULE_FEATURES)))
     out[:, :, 0] = np.log1p(stats[:, :, 0])
     out[:, :, 1] = np.log1p(stats[:, :, 1])
