@@ -33,6 +33,7 @@ AGENTS = {
     "null": "null",
     "random": "random",
     "reference": "reference",
+    "sequential": "sequential",
     "ppo": "training/models/ppo",
     "classifier": "training/models/classifier",
     "oracle": "oracle",

@@ -278,7 +278,8 @@ def detectability_limits(n_seeds: int, fault_ids=FAULT_IDS, first_seed: int = 30
             break
         it += 1
         schedules = [[_limit_spec(f, m, sensor_onset_s)] for f, m in todo for _ in seeds]
-        reps = diagnose_batch(schedules, seeds * len(todo), duration_s=duration_s, diagnoser=diagnoser)
+        extra = {} if diagnoser == "reference" else {"diagnoser": diagnoser}
+        reps = diagnose_batch(schedules, seeds * len(todo), duration_s=duration_s, **extra)
         for k, (f, m) in enumerate(todo):
             st = state[f]
             onset = schedules[k * n_seeds][0].onset_s
