@@ -8,7 +8,8 @@ fault magnitudes, profiles and seeds); this module only reads them, so that the 
 
 File format (JSON): ``module_ids``, ``fault_ids``; ``sure`` (19 x 26 bool) and ``lag_s``
 (19 x 26, the largest delay of a sure module after the fault's first fired module over the
-measured runs); ``spread_s`` (26,), the largest spread of a fault's sure modules' firing times;
+measured runs); ``spread_s`` (26,), the settle time's basis: the largest delay of a fault's sure
+modules after its first fired module (the first format: their spread among themselves);
 ``settings`` and ``command`` say how it was measured.  The first file of the project
 (``format`` absent) held fire counts at the table magnitudes only: ``fire_counts``,
 ``runs_per_fault``, ``sure_lag_s``, ``sure_spread_s``; it is still read.
@@ -49,10 +50,9 @@ class SureCells:
     data: dict
 
     def settle_times(self, margin_s: float = 2.0, factor: float = 1.5) -> np.ndarray:
-        """Per-fault settle times (26,) for the temporal check: the largest spread measured between
-        the first and the last of a fault's sure modules, times ``factor`` plus ``margin_s``;
-        process faults (incipient, their spread grows with the fault's size) get no temporal
-        constraint (inf)."""
+        """Per-fault settle times (26,) for the temporal check: ``spread_s`` (see the module
+        docstring) times ``factor`` plus ``margin_s``; process faults (incipient, their spread grows
+        with the fault's size) get no temporal constraint (inf)."""
         out = factor * self.spread_s + margin_s
         return np.where(_IS_SENSOR, out, np.inf)
 
