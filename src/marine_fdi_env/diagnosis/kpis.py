@@ -467,7 +467,9 @@ def render(data_dir: Path = Path("docs/data")) -> str:
     sfa = data_dir / "sequential_false_alarms.json"
     if sfa.exists():
         v = json.loads(sfa.read_text())
-        lines += [f"The sequential tests' own check on the validation runs (`{v['command']}`, {v['runs']} runs, "
+        lines += [f"The sequential tests' own check on the validation runs (`python -m "
+                  f"marine_fdi_env.diagnosis.sequential_calibration record --set validation --hours {v['hours']:g}`, "
+                  f"then `{v['command']}`; {v['runs']} runs, "
                   f"{v['hours']:.0f} engine-hours, disjoint from the {v.get('calibration_hours', 100):.0f} h of "
                   f"calibration runs): {v['runs_with_alarm']} runs with an alarm ({v['runs_with_cusum_alarm']} by a "
                   f"CUSUM test, {v['runs_with_worst_case_alarm']} by a worst-case threshold).", ""]
@@ -576,6 +578,11 @@ def render(data_dir: Path = Path("docs/data")) -> str:
     return "\n".join(lines)
 
 
+# main before issue #13 (sure cells measured at the table magnitudes only): the "before" of the
+# single-v1 wrong-isolation counts
+BEFORE_COMMIT = "ecfb703"
+
+
 def render_robustness(data_dir: Path = Path("docs/data")) -> str:
     """Wrong isolations before/after the magnitude-grid sure cells: held-out grid (certainty
     validate) and single-v1 (the results files)."""
@@ -608,7 +615,12 @@ def render_robustness(data_dir: Path = Path("docs/data")) -> str:
     if p.exists():
         v = json.loads(p.read_text())
         keys = list(v["agents"])
-        lines += ["### Wrong isolations on single-v1", "", v["description"], "",
+        lines += ["### Wrong isolations on single-v1", "", v["description"]]
+        if any(k.startswith("before_") for k in keys):
+            lines.append(f"`before_*`: the agent's single-v1 results before issue #13, from the repository's history "
+                         f"(`mkdir -p results && git show {BEFORE_COMMIT}:docs/data/results/reference_single-v1.json > "
+                         f"results/before_reference_single-v1.json`).")
+        lines += ["",
                   "| fault | episodes | " + " | ".join(f"{k}: ever / at the end" for k in keys) + " |",
                   "|---|---|" + "---|" * len(keys)]
         tot = {k: [0, 0] for k in keys}
