@@ -1,5 +1,6 @@
-"""Non-learned agents of the benchmark: null, random, oracle and the reference diagnoser.
+"""Non-learned agents of the benchmark: null, random, oracle, the reference diagnoser and the
+sequential diagnoser.
 
-``marine-fdi evaluate --agent null|random|reference|oracle`` loads them by name
+``marine-fdi evaluate --agent null|random|reference|sequential|oracle`` loads them by name
 (:mod:`marine_fdi_env.envs.agent_api`).
 """

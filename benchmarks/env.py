@@ -33,7 +33,12 @@ prints one JSON object:
                                     truncation checks, 1024 info dicts merged by Gymnasium's
                                     ``_add_info``);
 
-                                  ``seconds`` holds the absolute time per step of each part.
+                                  ``seconds`` holds the absolute time per step of each part,
+                                  ``cpu_us_per_engine_sample`` the CPU time (both threads) of each
+                                  part per engine-sample: less sensitive to other load than wall
+                                  time (but not immune: a shared core also runs slower).
+``vector_*_n1024_sequential``     with ``--observe-sequential``: the first run with the sequential
+                                  diagnoser's observation features (its cost is part of ``features``).
 ``single_env_decision_steps_per_s``  one ``MarineFDIEnv(scenario_config="default")``: decisions per
                                   second of wall time over ``--episodes`` full 300-decision episodes
                                   with random actions, resets included (after one warm-up reset).
@@ -69,26 +74,30 @@ PRESET = "default"
 
 
 class _Timers:
-    """Wraps bound methods of an instance with accumulating wall-clock timers."""
+    """Wraps bound methods of an instance with accumulating wall-clock and CPU-time timers (CPU
+    time of the whole process, so both worker threads count)."""
 
     def __init__(self) -> None:
         self.seconds: dict[str, float] = defaultdict(float)
+        self.cpu: dict[str, float] = defaultdict(float)
 
     def wrap(self, obj, method: str, key: str) -> None:
         inner = getattr(obj, method)
-        seconds = self.seconds
+        seconds, cpu = self.seconds, self.cpu
 
         def timed(*args, **kwargs):
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             try:
                 return inner(*args, **kwargs)
             finally:
                 seconds[key] += time.perf_counter() - t0
+                cpu[key] += time.process_time() - c0
 
         setattr(obj, method, timed)
 
     def reset(self) -> None:
         self.seconds.clear()
+        self.cpu.clear()
 
 
 def _staggered_scenarios(env: MarineFDIVectorEnv, seed: int, first_end: int, steps: int, per_step: int) -> list:
@@ -105,8 +114,8 @@ def _staggered_scenarios(env: MarineFDIVectorEnv, seed: int, first_end: int, ste
 
 
 def vector_throughput(n: int, steps: int, repeats: int, seed: int = 0, profile: bool = False,
-                      autoresets_per_step: int = 0) -> dict:
-    env = MarineFDIVectorEnv(num_envs=n, scenario_config=PRESET)
+                      autoresets_per_step: int = 0, observe_sequential: bool = False) -> dict:
+    env = MarineFDIVectorEnv(num_envs=n, scenario_config=PRESET, observe_sequential=observe_sequential)
     env.action_space.seed(seed)
     warm = 2  # steps before timing: the first scoring and infos
     options = None
@@ -126,14 +135,14 @@ def vector_throughput(n: int, steps: int, repeats: int, seed: int = 0, profile: 
     for _ in range(repeats):
         actions = [env.action_space.sample() for _ in range(steps)]
         timers.reset()
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         for a in actions:
             env.step(a)
-        wall = time.perf_counter() - t0
+        wall, cpu_total = time.perf_counter() - t0, time.process_time() - c0
         if best is None or wall < best[0]:
-            best = (wall, dict(timers.seconds))
-    wall, sec = best
-    tag = f"n{n}" + ("_autoreset" if autoresets_per_step else "")
+            best = (wall, dict(timers.seconds), dict(timers.cpu), cpu_total)
+    wall, sec, cpu, cpu_total = best
+    tag = f"n{n}" + ("_autoreset" if autoresets_per_step else "") + ("_sequential" if observe_sequential else "")
     parts = {
         "simulator": sec["simulator"],
         "diagnoser": sec["diagnoser"],
@@ -141,6 +150,14 @@ def vector_throughput(n: int, steps: int, repeats: int, seed: int = 0, profile: 
         "scoring": sec["scoring"],
     }
     parts["infos"] = wall - sum(parts.values())
+    cpu_parts = {
+        "simulator": cpu["simulator"],
+        "diagnoser": cpu["diagnoser"],
+        "features": cpu["batch_advance"] - cpu["simulator"] - cpu["diagnoser"],
+        "scoring": cpu["scoring"],
+    }
+    cpu_parts["infos"] = cpu_total - sum(cpu_parts.values())
+    per_sample = n * samples * steps
     out = {
         f"vector_engine_samples_per_s_{tag}": round(n * samples * steps / wall, 1),
         f"vector_decision_steps_per_s_{tag}": round(n * steps / wall, 1),
@@ -148,6 +165,7 @@ def vector_throughput(n: int, steps: int, repeats: int, seed: int = 0, profile: 
         f"vector_breakdown_{tag}": {
             "share": {k: round(v / wall, 3) for k, v in parts.items()},
             "seconds": {k: round(v / steps, 4) for k, v in parts.items()},
+            "cpu_us_per_engine_sample": {k: round(1e6 * v / per_sample, 3) for k, v in cpu_parts.items()},
         },
     }
     if profile:
@@ -191,6 +209,8 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--episodes", type=int, default=3, help="full single-env episodes timed")
     ap.add_argument("--profile", action="store_true", help="cProfile one vector step (to stderr)")
+    ap.add_argument("--observe-sequential", action="store_true",
+                    help="also time the vector env with observe_sequential=True (the sequential diagnoser's features)")
     ap.add_argument("--autoresets-per-step", type=int, default=4,
                     help="slots autoreset in each step of the steady-state run (N / 300 s episodes: 3.4 at N=1024)")
     args = ap.parse_args(argv)
@@ -199,6 +219,8 @@ def main(argv=None) -> int:
     out.update(vector_throughput(args.num_envs, args.vector_steps, args.repeats, profile=args.profile))
     out.update(vector_throughput(args.num_envs, args.vector_steps, args.repeats,
                                  autoresets_per_step=args.autoresets_per_step))
+    if args.observe_sequential:
+        out.update(vector_throughput(args.num_envs, args.vector_steps, args.repeats, observe_sequential=True))
     out.update(single_env_throughput(args.episodes))
     out.update({
         "preset": PRESET,

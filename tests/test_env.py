@@ -300,3 +300,9 @@ def test_compiled_period_statistics_equal_the_numpy_reductions():
         got = np.empty((20, 19, 4))
         _period_stats(R, THR, got)
         assert np.array_equal(got, want)
+        # the same statistics from the reference diagnoser's one post-processing pass
+        from marine_fdi_env.diagnosis.agent import _violations_and_peaks
+
+        viol, peak, fused = np.empty((20, B, 19), dtype=bool), np.empty((20, 19)), np.empty((20, 19, 4))
+        _violations_and_peaks(R, THR, viol, peak, fused, 0, 20)
+        assert np.array_equal(fused, want)

@@ -44,6 +44,7 @@ AGENTS = {
     "null": "null",
     "random": "random",
     "reference": "reference",
+    "sequential": "sequential",
     "ppo": "training/models/ppo",
     "classifier": "training/models/classifier",
     "classifier+reference": "training/models/classifier+reference",

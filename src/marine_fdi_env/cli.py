@@ -470,6 +470,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--exoneration", choices=("sure", "none", "all"), default="sure",
                    help="sure (default): a silent module clears the faults it surely sees; none: plain "
                         "consistency-based diagnosis; all: every structural sensitivity counts as sure")
+    p.add_argument("--diagnoser", choices=("reference", "sequential"), default="reference",
+                   help="reference (the thesis's scheme, default) or sequential (CUSUM tests on its residuals)")
     p.set_defaults(func=_cmd_diagnose)
 
     # implemented in marine_fdi_env.validation (own argument parsers; see main())

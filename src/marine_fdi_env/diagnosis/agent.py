@@ -22,9 +22,12 @@ import numpy as np
 
 from marine_fdi_env._jit import jit
 from marine_fdi_env.constants import model_constants
+from marine_fdi_env.integrators import THREADED_MIN_ENGINES, _executor
 from marine_fdi_env.diagnosis.decision import DiagnosisState, candidate_classes, sorted_diagnoses
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
-from marine_fdi_env.diagnosis.residuals import _SIDE_COLS, _T_OUT_COL, N_STATE, compute_residuals_batch, new_state
+from marine_fdi_env.diagnosis.sure_cells import SURE_CELLS_FILE, load_sure_cells
+from marine_fdi_env.diagnosis.residuals import (
+    _SIDE_COLS, _T_OUT_COL, INCLUSIONS, N_STATE, compute_residuals_batch, inclusion_arrays, new_state)
 from marine_fdi_env.params import EngineParams, load_params
 from marine_fdi_env.sensors import NOISE_BOUNDS, N_SENSORS
 
@@ -46,16 +49,27 @@ class BlockOutput:
     violations: np.ndarray  # (N, B, 19) bool
     detected: np.ndarray  # (N,) bool, at the end of the block
     features: np.ndarray  # (N, 19 * N_FEATURES_PER_MODULE) float32
+    stats: np.ndarray | None = None  # (N, 19, 4) the environment observation's period statistics
+
+
+RATIO_CAP = PEAK_CAP  # the observation's ratio cap (envs.observation.RATIO_CAP)
 
 
 @jit
-def _violations_and_peaks(R, THR, viol, peak):
-    """viol = not |R| <= THR (inf/nan residuals violate); peak[i, m] = max over the block of
-    |R|/THR, where a ratio that is not finite or THR <= 0 counts as the cap 1e3, capped at 1e3."""
+def _violations_and_peaks(R, THR, viol, peak, stats, i0, i1):
+    """For engines i0..i1-1: viol = not |R| <= THR (inf/nan residuals violate); peak[i, m] = max over
+    the block of |R|/THR, where a ratio that is not finite or THR <= 0 counts as the cap 1e3,
+    capped at 1e3; and the observation's period statistics of the block (one pass, in sample
+    order, as ``envs.observation``'s numpy definition): stats[i, m] = (max ratio, mean ratio, mean
+    signed ratio, share of ratios > 1) of the signed ratio r/thr clipped to ±RATIO_CAP (NaN: +cap)."""
     N, B, M = R.shape
-    for i in range(N):
+    for i in range(i0, i1):
         for m in range(M):
             peak[i, m] = 0.0
+            stats[i, m, 0] = 0.0
+            stats[i, m, 1] = 0.0
+            stats[i, m, 2] = 0.0
+            stats[i, m, 3] = 0.0
         for k in range(B):
             for m in range(M):
                 r = abs(R[i, k, m])
@@ -66,6 +80,35 @@ def _violations_and_peaks(R, THR, viol, peak):
                     q = PEAK_CAP
                 if q > peak[i, m]:
                     peak[i, m] = q
+                s = R[i, k, m] / thr
+                if s != s:
+                    s = RATIO_CAP
+                elif s > RATIO_CAP:
+                    s = RATIO_CAP
+                elif s < -RATIO_CAP:
+                    s = -RATIO_CAP
+                a = abs(s)
+                if a > stats[i, m, 0]:
+                    stats[i, m, 0] = a
+                stats[i, m, 1] += a
+                stats[i, m, 2] += s
+                if a > 1.0:
+                    stats[i, m, 3] += 1.0
+        for m in range(M):
+            stats[i, m, 1] /= B
+            stats[i, m, 2] /= B
+            stats[i, m, 3] /= B
+
+
+def _post_process(R, THR, viol, peak, stats) -> None:
+    """:func:`_violations_and_peaks` for all engines, on the two worker threads for large batches."""
+    n = R.shape[0]
+    if n < THREADED_MIN_ENGINES:
+        _violations_and_peaks(R, THR, viol, peak, stats, 0, n)
+        return
+    edges = np.linspace(0, n, 9).astype(np.int64)
+    list(_executor().map(lambda r: _violations_and_peaks(R, THR, viol, peak, stats, r[0], r[1]),
+                         list(zip(edges[:-1], edges[1:]))))
 
 
 class ReferenceDiagnoser:
@@ -79,16 +122,22 @@ class ReferenceDiagnoser:
     noise_bounds : (19,) sensor noise bounds (default: table 6.3).
     max_cardinality : largest diagnosis considered by the hitting-set search.
     exoneration : ``"sure"`` (default): a module that has not fired clears the faults it surely
-        detects (measured cells, :mod:`marine_fdi_env.diagnosis.certainty`; the thesis's '1'
-        cells), with the temporal check that a fault explains a module only if its sure modules
-        fired no later than shortly after it; ``"none"``: plain consistency-based diagnosis;
+        detects (measured cells, :mod:`marine_fdi_env.diagnosis.certainty`, read from
+        ``sure_cells_file`` in data/diagnosis; the thesis's '1' cells), with the temporal check
+        that a fault explains a module only if its sure modules fired no later than shortly after
+        it; ``"none"``: plain consistency-based diagnosis;
         ``"all"``: every structural sensitivity counts as sure.
+    inclusion : ``"tabulated"`` (default): the Σ2 inclusion terms of the adaptive thresholds
+        interpolated from a table with a certified margin (never below ``"exact"``'s, at most 1 %
+        above; :mod:`marine_fdi_env.diagnosis.inclusion_table`); ``"exact"``: computed at every
+        sample.
     """
 
     name = "reference"
 
     def __init__(self, params: "str | EngineParams" = "thesis-12v28", n_engines: int = 1, dt: float = 0.01,
-                 noise_bounds=None, max_cardinality: int = 2, exoneration: str = "sure") -> None:
+                 noise_bounds=None, max_cardinality: int = 2, exoneration: str = "sure",
+                 inclusion: str = "tabulated", sure_cells_file: str = SURE_CELLS_FILE) -> None:
         self.params = load_params(params) if isinstance(params, str) else params
         if not isinstance(n_engines, (int, np.integer)) or n_engines < 1:
             raise ValueError(f"n_engines must be a positive integer, got {n_engines!r}")
@@ -105,6 +154,11 @@ class ReferenceDiagnoser:
         if exoneration not in ("sure", "none", "all", None):
             raise ValueError(f"exoneration must be 'sure', 'none' or 'all', got {exoneration!r}")
         self.exoneration = "none" if exoneration is None else exoneration
+        self.sure_cells_file = sure_cells_file
+        if inclusion not in INCLUSIONS:
+            raise ValueError(f"inclusion must be one of {', '.join(INCLUSIONS)}, got {inclusion!r}")
+        self.inclusion = inclusion
+        self._table = inclusion_arrays(self.c, self.noise_bounds, inclusion)
         self.reset()
 
     def reset(self) -> None:
@@ -137,9 +191,8 @@ class ReferenceDiagnoser:
     def _new_decision(self) -> DiagnosisState:
         settle, grace = None, 0.0
         if self.exoneration == "sure":
-            from .certainty import grace_times, settle_times, sure_cells
-
-            ex, temporal, settle, grace = sure_cells(), True, settle_times(), grace_times()
+            sc = load_sure_cells(self.sure_cells_file)
+            ex, temporal, settle, grace = sc.sure, True, sc.settle_times(), sc.grace_times()
         else:
             ex, temporal = (True if self.exoneration == "all" else None), False
         return DiagnosisState(exoneration=ex, max_cardinality=self.max_cardinality, temporal=temporal,
@@ -165,10 +218,12 @@ class ReferenceDiagnoser:
         U = np.ascontiguousarray(U)
         R = np.empty((N, B, N_MODULES))
         THR = np.empty((N, B, N_MODULES))
-        compute_residuals_batch(self.c, Y, U, self.dt, self.noise_bounds, _SIDE_COLS, _T_OUT_COL, R, THR, self.state)
+        compute_residuals_batch(self.c, Y, U, self.dt, self.noise_bounds, _SIDE_COLS, _T_OUT_COL, R, THR, self.state,
+                                self._table)
         viol = np.empty((N, B, N_MODULES), dtype=np.bool_)
         peak = np.empty((N, N_MODULES))
-        _violations_and_peaks(R, THR, viol, peak)
+        stats = np.empty((N, N_MODULES, 4))
+        _post_process(R, THR, viol, peak, stats)
         tt = (self.samples - self._offset[:, None] + np.arange(B)[None, :]) * self.dt  # (N, B) engine clocks
         t_end_all = tt[:, -1]
         # Only engines where a module fires for the first time, or a grace period of the decision
@@ -201,7 +256,8 @@ class ReferenceDiagnoser:
                 self._next_expiry[i] = st._next_expiry
         self.samples += B
         feats = self._features(peak)
-        return BlockOutput(residuals=R, thresholds=THR, violations=viol, detected=self.detected.copy(), features=feats)
+        return BlockOutput(residuals=R, thresholds=THR, violations=viol, detected=self.detected.copy(), features=feats,
+                           stats=stats)
 
     def _features(self, peak: np.ndarray) -> np.ndarray:
         """peak: (N, 19) max |r|/threshold over the block, capped at 1e3 (see _violations_and_peaks)."""

@@ -1,157 +1,347 @@
-"""Which cells of the fault signature matrix *surely* fire: the thesis's '1' versus '*'.
+"""Which cells of the fault signature matrix *surely* fire, measured over fault sizes: the thesis's
+'1' versus '*', made robust to the size of the fault.
 
 The structure (:mod:`marine_fdi_env.diagnosis.structure`) tells which faults *can* violate each
 ARR.  Exoneration ("a module that has not fired clears the faults it would surely have seen") also
-needs the cells that fire for sure.  The thesis marks them '1' in tables 6.5-6.8 from its
-simulations; we measure them the same way, reproducibly: every single fault at its default
-magnitude (tables 6.3, 6.4), ``n_seeds`` noise seeds, a constant and a manoeuvring profile, 300 s
-after onset; a cell is sure when the module fired in every run.  The result is shipped as
-``data/diagnosis/sure_cells.json`` with the settings that produced it; regenerate with
+needs the cells that fire for sure.  The thesis marks them '1' in tables 6.5-6.8 from simulations
+at its table 6.3/6.4 magnitudes, and the first version of this module measured them the same
+way.  At the suites' sizes (0.5-4x the detectability limit) that misleads: a cell that fires in
+every run at the table size stays silent for a smaller fault, the true fault is exonerated, and a
+wrong one is declared (single-v1: every detected S3.4 episode declared S3.2).  Sureness is a
+property of (module, fault, size); the diagnoser does not know the size, so a cell counts as sure
+only if it fires for every size it may meet:
 
-    python -m marine_fdi_env.diagnosis.certainty --seeds 50
+    python -m marine_fdi_env.diagnosis.certainty measure                        # the grid, both diagnosers
+    python -m marine_fdi_env.diagnosis.certainty derive --diagnoser reference   # -> data/diagnosis/sure_cells.json
+    python -m marine_fdi_env.diagnosis.certainty derive --diagnoser sequential  # -> .../sequential_sure_cells.json
+    python -m marine_fdi_env.diagnosis.certainty validate                       # the held-out runs
+    python -m marine_fdi_env.diagnosis.certainty report --diagnoser reference   # -> docs/data/certainty_reference.json
 
-The cells are valid for faults at least as large as those defaults; a smaller fault can leave a
-"sure" module silent and be exonerated by mistake (the same limitation as the thesis's tables).
+**Measurement grid** (``measure``): every fault at 5 magnitudes log-spaced from 0.5x its
+detectability limit (``data/env/detectability.json``, the smallest magnitude the reference
+detects at nominal load in every seed; the suites go down to 0.5x) to its table 6.3/6.4 size,
+sensor offsets of both signs, profiles ``constant`` (fuel setting drawn in [0.6, 1.0]) and
+``manoeuvring``, ``--seeds`` (6) noise seeds each (seeds 1e6 + ...); 300 s runs, sensor onsets at
+30 s, process faults at their table onsets; the reference's and the sequential diagnoser's module
+firing times from the same runs.
+
+**Rule** (``derive``): among the runs where the fault was detected (some module of its support
+fired at or after the onset; a run where nothing fired cannot be misdiagnosed), cell (m, f) is sure
+when m fired in every one of them, at every magnitude, sign and profile.  ``lag_s`` = the largest
+delay of a sure module after the fault's first fired module (any module of its support; the
+grace periods); ``spread_s`` = the largest of these lags per fault (the settle time of the
+time-order check: at small sizes a module that is not sure often fires before the sure ones).  (The first version required firing in all runs at the
+table size and, for sensor faults, within 30 s of the first sure module.)
+
+**Validation** (``validate``, ``report``): held-out magnitudes (the geometric midpoints of the
+grid), seeds (2e6 + ..., 3 per cell) and profiles (``step`` and ``ramp`` at fuel settings 0.6-1.0,
+``random``); the
+decision logic is replayed on the measured module firing times with the old and the new sure
+cells (the module decisions do not depend on the decision logic), and the runs where the true
+fault is ruled out (in no minimal diagnosis) while the diagnoser declares another are counted per
+fault.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
-from functools import lru_cache
 from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
 from ..faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, FaultSpec
+from ..simulator import Simulator
+from .batch import BATCH, DIAGNOSERS, PARAMS
+from .sequential import SequentialDiagnoser
+from .decision import DiagnosisState, declared_faults
 from .modules import MODULE_IDS
 from .structure import fault_signature_matrix
+from .sure_cells import (SURE_CELLS_FILE, SureCells, grace_times, load_sure_cells, settle_times,  # noqa: F401
+                         sure_cells)
 
-__all__ = ["sure_cells", "settle_times", "grace_times", "measure_sure_cells", "SURE_CELLS_FILE"]
+__all__ = ["grid_magnitudes", "measure", "derive_sure_cells", "replay_declarations", "validate",
+           "sure_cells", "settle_times", "grace_times", "SENSOR_ONSET_S", "N_GRID", "SURE_FILES"]
 
-SURE_CELLS_FILE = "sure_cells.json"
 SENSOR_ONSET_S = 30.0
-PROFILES = ("constant", "manoeuvring")
+DURATION_S = 300.0
+N_GRID = 5
+LOWEST_SCALE = 0.5  # x detectability limit
+GRID_PROFILES = ("constant", "manoeuvring")
+HELD_OUT_PROFILES = ("step", "ramp", "random")
+SURE_FILES = {"reference": SURE_CELLS_FILE, "sequential": "sequential_sure_cells.json"}
+GRID_SEED0 = 1_000_000
+HELD_OUT_SEED0 = 2_000_000
+_SUPPORT = fault_signature_matrix()[0]
 
 
 def _onset(fault_id: str) -> float:
     return PROCESS_FAULT_DEFAULTS[fault_id].onset_s if fault_id in PROCESS_FAULT_DEFAULTS else SENSOR_ONSET_S
 
 
-def measure_sure_cells(n_seeds: int = 50, duration_s: float = 300.0, params: str = "thesis-12v28",
-                       first_seed: int = 1000, progress: bool = True) -> dict:
-    """Fire counts of every (module, fault) cell over single-fault runs; see module docstring."""
-    from .kpis import diagnose_batch
+def _limits() -> dict:
+    path = resources.files("marine_fdi_env") / "data" / "env" / "detectability.json"
+    faults = json.loads(path.read_text())["faults"]
+    return {f: (float(v["limit"]), float(v["table_magnitude"])) for f, v in faults.items()}
 
-    counts = np.zeros((len(MODULE_IDS), len(FAULT_IDS)), dtype=int)
-    times = [[[] for _ in FAULT_IDS] for _ in MODULE_IDS]  # detection delays per cell
-    runs = 0
-    iterator = PROFILES
+
+def grid_magnitudes(fault_id: str, held_out: bool = False) -> list[float]:
+    """The grid's magnitudes of a fault (positive; see module docstring), or with ``held_out`` the
+    geometric midpoints between them."""
+    limit, table = _limits()[fault_id]
+    lo = LOWEST_SCALE * limit
+    hi = max(table, lo)
+    x = np.exp(np.linspace(math.log(lo), math.log(hi), N_GRID))
+    if held_out:
+        x = np.sqrt(x[:-1] * x[1:])
+    return [float(v) for v in x]
+
+
+def _profile(name: str, rng: np.random.Generator) -> str:
+    u0, u1 = (round(float(v), 4) for v in rng.uniform(0.6, 1.0, size=2))
+    if name == "constant":
+        return f"constant:u0={u0}"
+    if name == "step":
+        return f"step:u0={u0},u1={u1},t={round(float(rng.uniform(40.0, 260.0)), 2)}"
+    if name == "ramp":
+        a, b = sorted(float(v) for v in rng.uniform(15.0, 285.0, size=2))
+        return f"ramp:u0={u0},u1={u1},t0={round(a, 2)},t1={round(max(b, a + 10.0), 2)}"
+    if name == "random":
+        return f"random:seed={int(rng.integers(0, 2**31))},u_min=0.6,u_max=1.0"
+    return name
+
+
+def _runs(held_out: bool, n_seeds: int) -> list[dict]:
+    profiles = HELD_OUT_PROFILES if held_out else GRID_PROFILES
+    seed0 = HELD_OUT_SEED0 if held_out else GRID_SEED0
+    rng = np.random.default_rng(seed0)
+    runs = []
+    for f in FAULT_IDS:
+        signs = (1.0,) if f in PROCESS_FAULT_DEFAULTS else (1.0, -1.0)
+        for j, mag in enumerate(grid_magnitudes(f, held_out)):
+            for sign in signs:
+                for prof in profiles:
+                    for s in range(n_seeds):
+                        runs.append({"fault": f, "magnitude": sign * mag, "grid_index": j, "profile": _profile(prof, rng),
+                                     "family": prof, "seed": seed0 + len(runs)})
+    return runs
+
+
+def measure(n_seeds: int = 8, held_out: bool = False, progress: bool = True) -> dict:
+    """Module firing times of every run of the grid (or the held-out grid) for both diagnosers at
+    once (the sequential diagnoser runs the reference's residual generators and worst-case tests):
+    {"reference": (runs, 19), "sequential": (runs, 19)} seconds after the fault's onset (NaN:
+    never), with each run's fault, magnitude, profile and seed."""
+    runs = _runs(held_out, n_seeds)
+    schedules = [[FaultSpec(r["fault"], _onset(r["fault"]), magnitude=r["magnitude"],
+                            kind=None if r["fault"] in PROCESS_FAULT_DEFAULTS else "offset")] for r in runs]
+    seeds = [r["seed"] for r in runs]
+    profiles = [r["profile"] for r in runs]
+    ref_t = np.full((len(runs), len(MODULE_IDS)), np.nan)
+    seq_t = np.full((len(runs), len(MODULE_IDS)), np.nan)
+    bar = None
     if progress:
         from tqdm import tqdm
 
-        iterator = tqdm(PROFILES, desc="sure cells", unit="profile")
-    for prof in iterator:
-        seeds = [first_seed + s * len(FAULT_IDS) + j for s in range(n_seeds) for j in range(len(FAULT_IDS))]
-        sched = [[FaultSpec(f, _onset(f))] for _ in range(n_seeds) for f in FAULT_IDS]
-        # module firing times do not depend on the decision logic: plain consistency, no sure cells
-        reps = diagnose_batch(sched, seeds, prof, duration_s, exoneration="none", params=params)
-        for k, rep in enumerate(reps):
-            j = k % len(FAULT_IDS)
-            for i, m in enumerate(MODULE_IDS):
-                t = rep["module_detection_times_s"][m]
-                if t is not None:
-                    counts[i, j] += 1
-                    times[i][j].append(float(t) - _onset(FAULT_IDS[j]))
-        runs += n_seeds
-    # spread of the firing times of the sure modules of each fault, per run: the settle time the
-    # temporal check of the diagnosis must allow
-    spread = []
-    lag = np.zeros((len(MODULE_IDS), len(FAULT_IDS)))  # max delay of a sure module after the first one
-    for j in range(len(FAULT_IDS)):
-        sure = [i for i in range(len(MODULE_IDS)) if counts[i, j] == runs]
-        if len(sure) < 2:
-            spread.append(0.0)
+        bar = tqdm(total=len(runs), desc="held-out" if held_out else "grid", unit="run", file=sys.stderr)
+    for a in range(0, len(runs), BATCH):
+        b = min(len(runs), a + BATCH)
+        sim = Simulator(PARAMS, b - a, seeds=seeds[a:b], faults=schedules[a:b], profiles=profiles[a:b])
+        agent = SequentialDiagnoser(PARAMS, n_engines=b - a, dt=sim.dt, exoneration="none")
+        agent.observe(sim.y[:, None, :], sim.u[:, None])
+        for _ in range(int(round(DURATION_S / sim.dt / 1000))):
+            blk = sim.advance(1000)
+            agent.observe(blk.measurements, blk.u)
+        ref_t[a:b] = agent.ref.first_violation
+        seq_t[a:b] = agent.stage.first
+        if bar is not None:
+            bar.update(b - a)
+    if bar is not None:
+        bar.close()
+    on = np.array([_onset(r["fault"]) for r in runs])[:, None]
+    return {"held_out": held_out, "n_seeds": n_seeds, "runs": runs, "duration_s": DURATION_S,
+            "sensor_onset_s": SENSOR_ONSET_S,
+            "times_after_onset_s": {"reference": (ref_t - on).tolist(), "sequential": (seq_t - on).tolist()}}
+
+
+def derive_sure_cells(grid: dict, diagnoser: str) -> dict:
+    """The sure-cell file content of a diagnoser from a measured grid (rule in the module docstring)."""
+    runs = grid["runs"]
+    times = np.asarray(grid["times_after_onset_s"][diagnoser], dtype=float)
+    fired = ~np.isnan(times) & (times >= 0.0)
+    sure = np.zeros((len(MODULE_IDS), len(FAULT_IDS)), dtype=bool)
+    lag = np.zeros(sure.shape)
+    spread = np.zeros(len(FAULT_IDS))
+    detected_runs = np.zeros(len(FAULT_IDS), dtype=int)
+    total_runs = np.zeros(len(FAULT_IDS), dtype=int)
+    fault_of = np.array([FAULT_IDS.index(r["fault"]) for r in runs])
+    for j, f in enumerate(FAULT_IDS):
+        sel = fault_of == j
+        total_runs[j] = sel.sum()
+        sup = _SUPPORT[:, j]
+        det = sel & (fired[:, sup].any(axis=1))
+        detected_runs[j] = det.sum()
+        if not det.any():
             continue
-        t = np.array([times[i][j] for i in sure])  # (sure modules, runs)
-        spread.append(float((t.max(axis=0) - t.min(axis=0)).max()))
-        lag[sure, j] = (t - t.min(axis=0)).max(axis=1)
+        sure[:, j] = sup & fired[det].all(axis=0)
+        t = np.where(fired[det][:, sup], times[det][:, sup], np.inf)
+        first = t.min(axis=1)
+        idx = np.flatnonzero(sure[:, j])
+        if len(idx):
+            ts = times[det][:, idx]
+            lag[idx, j] = (ts - first[:, None]).max(axis=0)
+            # the time-order check allows a fault to explain a module only if its sure modules fired
+            # by then plus the settle time: at the grid's small sizes another module of the fault
+            # often fires first, so the settle time must cover the sure modules' lag behind the
+            # fault's first fired module, not only their spread among themselves (the first format)
+            spread[j] = float(lag[idx, j].max())
     return {
-        "module_ids": list(MODULE_IDS),
-        "fault_ids": list(FAULT_IDS),
-        "runs_per_fault": runs,
-        "fire_counts": counts.tolist(),
-        "sure_spread_s": spread,
-        "sure_lag_s": lag.tolist(),
-        "settings": {"n_seeds": n_seeds, "profiles": list(PROFILES), "duration_s": duration_s, "params": params,
-                     "first_seed": first_seed, "sensor_onset_s": SENSOR_ONSET_S,
-                     "magnitudes": "defaults of tables 6.3 (sensor offsets) and 6.4 (process faults)"},
-        "command": "python -m marine_fdi_env.diagnosis.certainty --seeds %d" % n_seeds,
+        "format": 2, "module_ids": list(MODULE_IDS), "fault_ids": list(FAULT_IDS),
+        "sure": sure.astype(int).tolist(), "lag_s": lag.round(3).tolist(), "spread_s": spread.round(3).tolist(),
+        "detected_runs": detected_runs.tolist(), "runs": total_runs.tolist(),
+        "settings": {"diagnoser": diagnoser, "grid": f"{N_GRID} magnitudes log-spaced from {LOWEST_SCALE}x the "
+                     "detectability limit (data/env/detectability.json) to the table 6.3/6.4 size; sensor offsets "
+                     "of both signs", "profiles": list(GRID_PROFILES), "seeds_per_cell": grid["n_seeds"],
+                     "first_seed": GRID_SEED0, "duration_s": grid["duration_s"],
+                     "sensor_onset_s": grid["sensor_onset_s"],
+                     "rule": "sure = fired in every run where the fault was detected (any module of its support "
+                             "fired at or after the onset), at every magnitude, sign and profile of the grid"},
+        "command": f"python -m marine_fdi_env.diagnosis.certainty derive --diagnoser {diagnoser}",
     }
 
 
-@lru_cache(maxsize=1)
-def _data() -> dict:
-    path = resources.files("marine_fdi_env") / "data" / "diagnosis" / SURE_CELLS_FILE
-    data = json.loads(path.read_text())
-    if data["module_ids"] != list(MODULE_IDS) or data["fault_ids"] != list(FAULT_IDS):
-        raise ValueError(f"{SURE_CELLS_FILE} does not match the current module or fault ids; regenerate it")
-    return data
+def replay_declarations(times, fault: str, sc: SureCells, duration_s: float = DURATION_S,
+                        onset_s: float = 0.0) -> dict:
+    """Replay the decision logic on one run's module firing times (19,) [s from the run's start,
+    NaN: never]: the events where the fired set changes and the grace expiries, as the streaming
+    diagnoser meets them.  Returns whether the true ``fault`` was ever ruled out while another was
+    declared (``wrong``), at which time, the final declaration, and since when the diagnoser has
+    declared exactly {fault} if it does at the end (``isolated_from_s``)."""
+    st = DiagnosisState(exoneration=sc.sure, max_cardinality=2, temporal=True, settle_s=sc.settle_times(),
+                        grace_s=sc.grace_times())
+    t = np.asarray(times, dtype=float)
+    order = sorted(set(float(x) for x in t[~np.isnan(t)]))
+    out = {"wrong": False, "wrong_at_s": None, "declared_end": [], "ruled_out_end": False, "detected": bool(order),
+           "isolated_from_s": None}
+    history = []
 
+    def look(now):
+        cand = set().union(*st.diagnoses) if st.detected else set()
+        decl = declared_faults(st.diagnoses) if st.detected else []
+        if st.detected and fault not in cand and decl and not out["wrong"]:
+            out["wrong"], out["wrong_at_s"] = True, now
+        history.append((now, decl))
 
-# An abrupt sensor fault surely fires a module only if it does so promptly: a module that fired in
-# every run but up to minutes after the others did so by chance of the noise (e.g. M3.3 for S2.1,
-# which may as well stay silent in a shorter run).
-SENSOR_MAX_LAG_S = 30.0
-
-
-def sure_cells() -> np.ndarray:
-    """Bool (19, 26): cells that fired in every measured run, within the structural support; for
-    sensor faults also within ``SENSOR_MAX_LAG_S`` of the fault's first sure module in every run."""
-    data = _data()
-    counts = np.asarray(data["fire_counts"])
-    support, _, _ = fault_signature_matrix()
-    sure = (counts == data["runs_per_fault"]) & support
-    lag = np.asarray(data.get("sure_lag_s", np.zeros(sure.shape)), dtype=float)
-    is_sensor = np.array([f not in PROCESS_FAULT_DEFAULTS for f in FAULT_IDS])
-    return sure & ~(is_sensor[None, :] & (lag > SENSOR_MAX_LAG_S))
-
-
-def grace_times(margin_s: float = 2.0, factor: float = 1.5) -> np.ndarray:
-    """Grace periods (19, 26): how long after a fault's first fired module a silent sure module is
-    still awaited before it exonerates the fault (its measured largest lag behind the fault's first
-    sure module x ``factor`` + ``margin_s``)."""
-    data = _data()
-    lag = np.asarray(data.get("sure_lag_s", np.zeros((len(MODULE_IDS), len(FAULT_IDS)))), dtype=float)
-    return factor * lag + margin_s
-
-
-def settle_times(margin_s: float = 2.0, factor: float = 1.5) -> np.ndarray:
-    """Per-fault settle times (26,) for the temporal check: the largest spread measured between the
-    first and the last of a fault's sure modules, times ``factor`` plus ``margin_s``; process faults
-    (incipient, their spread grows with the fault's size) get no temporal constraint (inf)."""
-    spread = np.asarray(_data().get("sure_spread_s", [0.0] * len(FAULT_IDS)), dtype=float)
-    out = factor * spread + margin_s
-    for j, f in enumerate(FAULT_IDS):
-        if f in PROCESS_FAULT_DEFAULTS:
-            out[j] = np.inf
+    for ev in order:
+        # grace periods that end before this event
+        while st.temporal and st.fired.any() and st._next_expiry < ev:
+            te = st._next_expiry + 1e-9
+            st.advance(te)
+            look(te)
+        st.update(~np.isnan(t) & (t <= ev), ev)
+        look(ev)
+    while st.fired.any() and st._next_expiry < duration_s:
+        te = st._next_expiry + 1e-9
+        st.advance(te)
+        look(te)
+    st.advance(duration_s)
+    look(duration_s)
+    cand = set().union(*st.diagnoses) if st.detected else set()
+    out["declared_end"] = declared_faults(st.diagnoses) if st.detected else []
+    out["ruled_out_end"] = bool(st.detected and fault not in cand)
+    if out["declared_end"] == [fault]:
+        since = duration_s
+        for now, decl in reversed(history):
+            if decl != [fault]:
+                break
+            since = now
+        out["isolated_from_s"] = since
     return out
 
 
+def _old_sure_cells() -> SureCells:
+    """The sure cells shipped before the grid measurement (table magnitudes only), kept for the
+    before/after comparison: ``data/diagnosis/sure_cells_table_magnitudes.json``."""
+    return load_sure_cells("sure_cells_table_magnitudes.json")
+
+
+def validate(held: dict, diagnoser: str, new: SureCells, old: SureCells | None = None) -> dict:
+    """Wrong isolations (true fault ruled out, another declared) per fault on a measured run set,
+    with the new and (if given) the old sure cells."""
+    runs = held["runs"]
+    times = np.asarray(held["times_after_onset_s"][diagnoser], dtype=float)
+    res = {}
+    for name, sc in (("new", new), ("old", old)):
+        if sc is None:
+            continue
+        per = {f: {"runs": 0, "detected": 0, "wrong": 0, "wrong_examples": []} for f in FAULT_IDS}
+        for r, tt in zip(runs, times):
+            f = r["fault"]
+            on = _onset(f)
+            rep = replay_declarations(tt + on, f, sc, held["duration_s"], on)
+            p = per[f]
+            p["runs"] += 1
+            p["detected"] += int(rep["detected"])
+            if rep["wrong"]:
+                p["wrong"] += 1
+                if len(p["wrong_examples"]) < 3:
+                    p["wrong_examples"].append({"magnitude": r["magnitude"], "profile": r["profile"], "seed": r["seed"],
+                                                "at_s": rep["wrong_at_s"], "declared_end": rep["declared_end"]})
+        res[name] = per
+    return res
+
+
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description="Measure which signature cells surely fire and write the data file.")
-    ap.add_argument("--seeds", type=int, default=50, help="noise seeds per profile (default 50)")
-    ap.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[1] / "data" / "diagnosis"
-                    / SURE_CELLS_FILE)
+    ap = argparse.ArgumentParser(description="Measure, derive and validate the sure cells of the diagnosers.")
+    ap.add_argument("what", choices=("measure", "derive", "validate", "report"))
+    ap.add_argument("--diagnoser", choices=DIAGNOSERS, default="reference", help="derive / report: which one")
+    ap.add_argument("--seeds", type=int, default=None, help="seeds per grid cell (measure 6, validate 3)")
+    ap.add_argument("--work-dir", type=Path, default=Path("results/certainty"))
     args = ap.parse_args(argv)
-    if args.seeds < 1:
-        ap.error("--seeds must be >= 1")
-    data = measure_sure_cells(args.seeds)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(data, indent=1) + "\n")
-    print(f"wrote {args.out}")
+    grid_file = args.work_dir / "grid.json"
+    held_file = args.work_dir / "held_out.json"
+    data_dir = Path(__file__).resolve().parents[1] / "data" / "diagnosis"
+    if args.what in ("measure", "validate"):
+        n = args.seeds or (6 if args.what == "measure" else 3)
+        if n < 1:
+            ap.error("--seeds must be >= 1")
+        data = measure(n, held_out=args.what == "validate")
+        args.work_dir.mkdir(parents=True, exist_ok=True)
+        out = grid_file if args.what == "measure" else held_file
+        out.write_text(json.dumps(data) + "\n")
+        print(f"wrote {out} ({len(data['runs'])} runs)")
+        return 0
+    if args.what == "derive":
+        if not grid_file.exists():
+            ap.error(f"{grid_file} not found: run 'measure' first")
+        out = data_dir / SURE_FILES[args.diagnoser]
+        data = derive_sure_cells(json.loads(grid_file.read_text()), args.diagnoser)
+        out.write_text(json.dumps(data) + "\n")
+        load_sure_cells.cache_clear()
+        print(f"wrote {out}: {int(np.sum(data['sure']))} sure cells")
+        return 0
+    if not held_file.exists():
+        ap.error(f"{held_file} not found: run 'validate' first")
+    held = json.loads(held_file.read_text())
+    new = load_sure_cells(SURE_FILES[args.diagnoser])
+    old = _old_sure_cells() if args.diagnoser == "reference" else None
+    res = {"diagnoser": args.diagnoser, "runs": len(held["runs"]),
+           "held_out": {"magnitudes": "geometric midpoints of the grid", "profiles": list(HELD_OUT_PROFILES),
+                        "first_seed": HELD_OUT_SEED0, "seeds_per_cell": held["n_seeds"]},
+           "command": f"python -m marine_fdi_env.diagnosis.certainty validate --seeds {held['n_seeds']} && "
+                      f"python -m marine_fdi_env.diagnosis.certainty report --diagnoser {args.diagnoser}",
+           "result": validate(held, args.diagnoser, new, old)}
+    report = Path("docs/data") / f"certainty_{args.diagnoser}.json"
+    report.parent.mkdir(parents=True, exist_ok=True)
+    report.write_text(json.dumps(res, indent=1) + "\n")
+    for name, per in res["result"].items():
+        print(name, "wrong isolations:", sum(p["wrong"] for p in per.values()), "of",
+              sum(p["detected"] for p in per.values()), "detected runs;",
+              {f: p["wrong"] for f, p in per.items() if p["wrong"]})
+    print(f"wrote {report}")
     return 0
 
 

@@ -15,7 +15,6 @@ import numpy as np
 
 from ..runio import RunData, load_run
 from ..sensors import SENSOR_IDS
-from .agent import ReferenceDiagnoser
 from .modules import AGENTS, MODULE_IDS
 
 __all__ = ["diagnose_run", "check_dropouts", "plot_residuals"]
@@ -40,19 +39,25 @@ def check_dropouts(run: RunData, engine: int) -> dict[str, float]:
     return out
 
 
-def diagnose_run(run: RunData, engine: int = 0, exoneration: str = "sure") -> tuple[dict, object]:
-    """Diagnose one engine of a run; returns (JSON-ready report, the residual block output)."""
+def diagnose_run(run: RunData, engine: int = 0, exoneration: str = "sure",
+                 diagnoser: str = "reference") -> tuple[dict, object]:
+    """Diagnose one engine of a run; returns (JSON-ready report, the residual block output).
+    ``diagnoser``: ``reference`` (the thesis's scheme) or ``sequential`` (CUSUM tests on the same
+    residuals, :mod:`marine_fdi_env.diagnosis.sequential`)."""
+    from .batch import make_diagnoser
+
     if not 0 <= engine < run.n_engines:
         raise ValueError(f"--engine must lie in [0, {run.n_engines - 1}], got {engine}")
     dropouts = check_dropouts(run, engine)
-    agent = ReferenceDiagnoser(run.params_name or "thesis-12v28", n_engines=1, dt=run.dt, exoneration=exoneration)
+    agent = make_diagnoser(diagnoser, run.params_name or "thesis-12v28", 1, run.dt, exoneration=exoneration)
     u = run.truth_of("u", engine)
     block = agent.observe(run.measurements[:, engine, :], u)
     rep = agent.report(0)
     rep.update({
         "params": run.params_name,
         "engine": engine,
-        "diagnoser": {"name": agent.name, "exoneration": exoneration, "max_cardinality": agent.max_cardinality},
+        "diagnoser": {"name": agent.name, "exoneration": exoneration,
+                      "max_cardinality": getattr(agent, "max_cardinality", None) or agent.stage.max_cardinality},
         "sensor_dropouts_s": dropouts,
         "true_faults": [{k: f[k] for k in ("id", "class", "kind", "onset_s", "magnitude", "unit", "first_active_s")}
                         for f in run.true_faults(engine)],
@@ -140,7 +145,8 @@ def cmd_diagnose(args) -> int:
     import json
 
     run = load_run(args.run, allow_nonfinite=True)
-    report, block = diagnose_run(run, engine=args.engine, exoneration=args.exoneration)
+    report, block = diagnose_run(run, engine=args.engine, exoneration=args.exoneration,
+                                 diagnoser=getattr(args, "diagnoser", "reference"))
     if args.plots:
         report["plots"] = [str(p) for p in plot_residuals(run, block, Path(args.plots), report)]
 

@@ -49,6 +49,7 @@ __all__ = [
     "minimal_diagnoses",
     "brute_force_diagnoses",
     "candidates",
+    "declared_faults",
     "candidate_classes",
     "sorted_diagnoses",
     "ThesisGlobalDiagnosis",
@@ -397,6 +398,20 @@ def candidates(diagnoses: Iterable[Iterable[str]]) -> tuple[str, ...]:
     """Faults appearing in at least one diagnosis, in ``FAULT_IDS`` order."""
     u = set().union(*[set(d) for d in diagnoses]) if diagnoses else set()
     return tuple(f for f in FAULT_IDS if f in u)
+
+
+def declared_faults(diagnoses: Iterable[Iterable[str]]) -> list[str]:
+    """The faults a diagnoser declares from its minimal diagnoses (the rule of the ``reference``
+    and ``sequential`` agents): among the diagnoses of smallest cardinality (one fault is likelier
+    than two at once), those in more than half of them (a tie is not a declaration); ``FAULT_IDS``
+    order.  No diagnosis, or none in a majority: nothing declared (the agent then says
+    ``unknown`` if anything was detected)."""
+    ds = [frozenset(d) for d in diagnoses]
+    if not ds:
+        return []
+    k = min(len(d) for d in ds)
+    ds = [d for d in ds if len(d) == k]
+    return [f for f in FAULT_IDS if 2 * sum(f in d for d in ds) > len(ds)]
 
 
 def candidate_classes(diagnoses: Iterable[Iterable[str]]) -> dict[str, str]:

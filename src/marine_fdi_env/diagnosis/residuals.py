@@ -69,18 +69,17 @@ from ..subsystems.exhaust_receiver import (
     turbine_outlet_temperature,
 )
 from .modules import MODULE_IDS
+from .inclusion_table import interpolate_rows, sigma2_table
+from .sigma2 import ONE_SIDED, SLOPE_STEP, _centre_speed, _centre_speed2, _perturbed_rows, _perturbed_rows2
 
 __all__ = ["OBSERVER_GAINS", "compute_residuals", "compute_residuals_batch", "ResidualTrace", "SAFETY",
-           "MODEL_MARGIN", "new_state", "N_STATE", "residuals_for_run"]
+           "MODEL_MARGIN", "new_state", "N_STATE", "residuals_for_run", "INCLUSIONS", "inclusion_arrays", "table_arrays"]
 
 # Observer gains L [1/s] of table 6.1 for M(1,q), M(3,q), M(4,q).
 OBSERVER_GAINS = (33.3833, 1.25, 0.3764)
 SAFETY = 1.05
+CHUNK = 32  # samples per Σ2 pass (see _kernel)
 MODEL_MARGIN = 1e-6  # η̄ per step, relative to the state, and relative margin of algebraic ARRs
-SPEED_SWEEPS = 4
-ONE_SIDED = False  # measured and rejected (see the module docstring)
-LINEAR_SPEED = True  # perturbed points: one sweep + linearisation in the speed (see _cycle_table)
-SLOPE_STEP = 1e-5  # relative step of the centre's speed slope
 
 # sensor columns
 S = {sid: i for i, sid in enumerate(SENSOR_IDS)}
@@ -92,81 +91,6 @@ _SIDE_COLS = np.array([
 _T_OUT_COL = S["S3.5"]
 # module column of each module id (for output arrays)
 _M = {m: i for i, m in enumerate(MODULE_IDS)}
-
-
-@jit
-def _centre_speed(c, x1, x4, T1, n_guess):
-    """Σ2's speed loop at the centre from the previous sample's speed: two sweeps and an Aitken
-    extrapolation (as ``engine_block``), one sweep and a second extrapolation with the slope of
-    the first two sweeps, and the output sweep; returns (n, p6, T6).  Four sweeps where
-    ``engine_block(..., SPEED_SWEEPS=4)`` takes five; same result to ~1e-12 (measured)."""
-    V1 = c.V1_m3
-    m1 = x4 * V1 / (c.R_a_J_per_kgK * T1)
-    q = (c.eta_comb * c.h_L_J_per_kg) * x1 / m1
-    X_ct = c.X_ct_nom * x1 / c.x1_nom_kg
-    n0 = n_guess
-    n1, torque, cyc = _sweep(n0, x4, T1, q, m1, X_ct, c)
-    n2, torque, cyc = _sweep(n1, x4, T1, q, m1, X_ct, c)
-    den = (n2 - n1) - (n1 - n0)
-    k = (n2 - n1) / (n1 - n0) if n1 != n0 else 0.0
-    a = n2 - (n2 - n1) ** 2 / den if den != 0.0 else n2
-    b, torque, cyc = _sweep(a, x4, T1, q, m1, X_ct, c)
-    if math.isfinite(k) and abs(k) < 0.5:
-        a = a + (b - a) / (1.0 - k)
-    else:
-        a = b
-    n, torque, cyc = _sweep(a, x4, T1, q, m1, X_ct, c)
-    return n, cyc[5], cyc[3]
-
-
-@jit
-def _cycle_table(c, x1, x4, T1, dx1, dx4, dT1, n_guess, tab):
-    """Σ2 at the centre and at +d̄ (and -d̄ unless ``ONE_SIDED``) of x1, x4, T1: rows (n, p6, T6) in
-    the order centre, x1+, x1-, x4+, x4-, T1+, T1- (fills tab 7x3; skipped rows repeat the centre).
-
-    The centre is solved to ~1e-12 relative by :func:`_centre_speed` (from the previous sample's speed).
-    A perturbed point is one sweep from the centre's speed n_c, linearised in the speed with the
-    centre's slopes (one more sweep at n_c + h)::
-
-        n_p  = n_c + (f_p(n_c) - n_c) / (1 - f_c'(n_c))
-        p6_p = p6_p(n_c) + p6_c'(n_c) (n_p - n_c)           (T6 alike)
-
-    exact to first order in the perturbation; the neglected terms are second order (the slope's
-    change over the noise box times the speed change, and the curvature in n), the same order as
-    the mixed terms the coordinate-wise inclusion neglects (see the module docstring).  Where the
-    slope is not a contraction (never seen in the envelope) every point is solved in full.
-    """
-    V1 = c.V1_m3
-    n_c, p6, T6 = _centre_speed(c, x1, x4, T1, n_guess)
-    tab[0, 0] = n_c
-    tab[0, 1] = p6
-    tab[0, 2] = T6
-    for p in range(1, 7):
-        tab[p, 0] = n_c
-        tab[p, 1] = p6
-        tab[p, 2] = T6
-    step = 2 if ONE_SIDED else 1
-    h = SLOPE_STEP * n_c
-    n_h, tq, p6_h, T6_h, p_max, m1 = engine_block(x1, x4, T1, V1, n_c + h, c, 1)
-    k = (n_h - n_c) / h
-    linear = LINEAR_SPEED and math.isfinite(k) and abs(k) < 0.5
-    s_p6 = (p6_h - p6) / h
-    s_T6 = (T6_h - T6) / h
-    for p in range(1, 7, step):
-        a = dx1 if p == 1 else (-dx1 if p == 2 else 0.0)
-        b = dx4 if p == 3 else (-dx4 if p == 4 else 0.0)
-        d = dT1 if p == 5 else (-dT1 if p == 6 else 0.0)
-        if linear:
-            f_p, tq, p6_p, T6_p, p_max, m1 = engine_block(x1 + a, x4 + b, T1 + d, V1, n_c, c, 1)
-            dn = (f_p - n_c) / (1.0 - k)
-            tab[p, 0] = n_c + dn
-            tab[p, 1] = p6_p + s_p6 * dn
-            tab[p, 2] = T6_p + s_T6 * dn
-        else:
-            n, tq, p6_p, T6_p, p_max, m1 = engine_block(x1 + a, x4 + b, T1 + d, V1, n_c, c, SPEED_SWEEPS)
-            tab[p, 0] = n
-            tab[p, 1] = p6_p
-            tab[p, 2] = T6_p
 
 
 @jit
@@ -214,20 +138,95 @@ def _compressor_forcing(x4, d_f, T_in, Pi_turbo, c):
 
 
 @jit
-def _point(c, x1, x3, x4, T1, n, psi, Pi, T_in, T_out, T6, p6, out, j):
+def _h3(mdot, T_in, c):
+    """h3 = sqrt(p_ex² + R_g z1 ṁ²/(α_z A_eff)²)/τ_pd (eq. 3.16, ``receiver_forcing``: the same
+    operations)."""
+    return math.sqrt(c.p_ex_Pa * c.p_ex_Pa + c.gamma_coeff * mdot * mdot * T_in) / c.tau_pd_s
+
+
+@jit
+def _mixing(x1, m1, s_sl, mdot, T6, p6, c):
+    """Turbine inlet temperature z1 of eq. 3.20-3.23 with the fault-free slip-air temperature:
+    ``receiver_and_turbine(...)[1]``, the same operations, given ṁ_g (computed once per point)."""
+    psi2 = c.c_p_a_J_per_kgK * s_sl * m1
+    psi3 = c.c_p_g_J_per_kgK * (x1 + m1)
+    inv = 1.0 / (psi2 + psi3)
+    alpha = (psi2 * c.T_sl_K + psi3 * T6 / c.n_bld) * inv
+    beta = psi3 * T6 * (c.n_bld - 1.0) / (c.n_bld * p6) * inv
+    gamma = c.gamma_coeff * mdot * mdot
+    gb = gamma * beta
+    P = 0.5 * (gb + math.sqrt(gb * gb + 4.0 * (c.p_ex_Pa * c.p_ex_Pa + gamma * alpha)))
+    return alpha + beta * P
+
+
+@jit
+def _point(c, x1, x3, x4, m1, n, psi, Pi, T_in, T_out, T6, p6, out, j):
     """h3, h4, T_in(model), T_co(model) at one point of the (x1, x3, x4, T1, n) box into out[j],
-    sharing m1, s_sl, ṁ_g, δ_f; psi = Ψ_sc(x3/x4) and Pi = Π_turbo(x3) are passed in (they depend
-    on x3, x4 only, so most points reuse the centre's).  The same operations as ``slip_ratio``,
+    sharing s_sl, ṁ_g, δ_f; m1 = x4 V1/(R_a T1), psi = Ψ_sc(x3/x4) and Pi = Π_turbo(x3) are passed
+    in (most points reuse the centre's).  The same operations as ``slip_ratio``,
     ``receiver_forcing``, ... in the same order, so the numbers equal the direct calls bit for bit."""
-    m1 = x4 * c.V1_m3 / (c.R_a_J_per_kgK * T1)
     s_sl = c.slip_coeff * x4 * psi / (n * m1)
-    mdot = turbine_mass_flow(x1, m1, s_sl, n, c)
-    df = delta_f(x1, m1, s_sl)
-    out[j, 0] = receiver_forcing(mdot, T_in, c)
+    opm = (1.0 + s_sl) * m1
+    mdot = (opm + x1) * n * c.cycles_per_rev
+    df = 1.0 + x1 / opm
+    out[j, 0] = _h3(mdot, T_in, c)
     out[j, 1] = _compressor_forcing(x4, df, T_in, Pi, c)
-    out[j, 2] = receiver_and_turbine(x1, x3, x4, m1, s_sl, n, T6, p6, c.T_sl_K, c)[1]
+    out[j, 2] = _mixing(x1, m1, s_sl, mdot, T6, p6, c)
     out[j, 3] = compressor_outlet_temperature(df, T_in, T_out, 0.0, c)
-    return m1, s_sl, mdot, df
+    return s_sl, mdot, df
+
+
+# Near a kink of Ψ_sc (x3/x4 clipped to [r_crit, 1]; Ψ_sc ∝ sqrt(1 - x3/x4) below 1, so its
+# curvature grows without bound towards 1) the coordinate-wise inclusion misses the mixed term of
+# x3 and x4 (the corner term of _kink_corners covers it) and the mixed terms of the slip flow with
+# the other coordinates (their sensitivities at the centre differ from those at the true point):
+# there the whole inclusion of M3.x/M4.x is enlarged by KINK_SAFETY.  "Near": the box's largest
+# ratio reaches R_NEAR_KINK (steady state: fuel settings below about 0.5) or its smallest comes
+# within 0.05 of r_crit.  Measured: with the corner term only where the box straddles 1, 2 of 2400
+# fault-free runs (200 h, all profile families, fuel settings 0.3-1.1) violated M3.4 by up to
+# 3.5 % of the threshold on load increases from 0.3 (box ratios 0.90-0.9997); with both, none
+# (docs/diagnosis.md, "Where the model has a kink").
+R_NEAR_KINK = 0.9
+KINK_SAFETY = 1.25
+
+
+@jit
+def _straddles_kink(x3, x4, d3, d4, c):
+    """Whether the pressure ratio x3/x4 over the noise box comes near (see R_NEAR_KINK) or across
+    r_crit or 1, where Ψ_sc (eq. 3.19, clipped to [r_crit, 1]) has a kink."""
+    r_lo = (x3 - d3) / (x4 + d4)
+    r_hi = (x3 + d3) / (x4 - d4)
+    return r_hi >= R_NEAR_KINK or r_lo <= c.r_crit + 0.05
+
+
+@jit
+def _kink_corners(c, x1, x3, x4, T1, d3, d4, n_x4p, n_x4m, T_in, T_out, T6m, p6m, G, kc):
+    """The model values at the 4 corners (x3 ± d3, x4 ± d4) into G[18:22] and, per output q, how
+    much their largest deviation from the centre exceeds the sum of the x3 and x4 coordinate terms
+    (kc[q] >= 0): the mixed term that the coordinate-wise inclusion neglects, which is not small
+    where Ψ_sc has a kink inside the box (Ψ_sc depends on x3/x4 only and is monotone on each side
+    of the kink, so its extremes over the box are at the corners).  The speed of a corner is that
+    of its x4 point (x3 does not enter Σ2)."""
+    row = 18
+    for e in (d3, -d3):
+        for f in (d4, -d4):
+            x3c = x3 + e
+            x4c = x4 + f
+            _point(c, x1, x3c, x4c, _charge_mass(x4c, T1, c), n_x4p if f > 0.0 else n_x4m,
+                   scavenge_flow_function(x3c / x4c, c), turbine_expansion(x3c, c), T_in, T_out, T6m, p6m, G, row)
+            row += 1
+    for q in range(4):
+        g0 = G[0, q]
+        corner = 0.0
+        for r in range(18, 22):
+            corner = max(corner, abs(G[r, q] - g0))
+        kc[q] = max(0.0, corner - (_dev(g0, G[3, q], G[4, q]) + _dev(g0, G[5, q], G[6, q])))
+
+
+@jit
+def _charge_mass(x4, T1, c):
+    """m1 = x4 V1 / (R_a T1), the trapped charge mass [kg] (as ``engine_block``)."""
+    return x4 * c.V1_m3 / (c.R_a_J_per_kgK * T1)
 
 
 @jit
@@ -260,6 +259,97 @@ def _all_finite(y, idx):
     return True
 
 
+SPEED_MARGIN_FACTOR = 2.0  # the speed sensitivity may change over the noise box (a few %): generous
+# ... except where a perturbed point crosses a kink of the model (Ψ_sc clipped at x3/x4 = 1: no slip,
+# δ_f then independent of n) while the centre does not: there |∂g/∂n| at the perturbed point is
+# bounded by the model's speed elasticity |n ∂g/∂n| / |g| (below 4 for h3, h4, T_in, T_co by their
+# forms: ṁ_g ∝ n at most, h4 ∝ base^3.5 with base - 1 ∝ δ_f; measured below 1.2 in the envelope)
+SPEED_ELASTICITY = 4.0
+
+
+@jit
+def _tabulate(table, ti, x1, x4, T1, t, dl, mg):
+    """Rows 1-6 of a chain's cycle table t (7, 3) from table ``ti`` of the tabulated differences
+    (t[0] holds the exactly solved centre): t[p] = t[0] + Δ_p; dl (6, 3) gets the interpolated
+    differences and mg (6, 3) their certified margins.  False (t, dl, mg untouched) outside the
+    table or in an invalid cell, where the rows are computed exactly."""
+    delta, margin, valid, grid, dims, tside = table
+    cell = interpolate_rows(delta, dims, grid, valid, ti, x1, x4, T1, dl)
+    if cell < 0:
+        return False
+    base = np.uint64((ti * ((dims[0] - 1) * (dims[1] - 1) * (dims[2] - 1)) + cell) * 18)
+    for p in range(6):
+        for q in range(3):
+            mg[p, q] = margin[base + np.uint64(3 * p + q)]
+            t[p + 1, q] = t[0, q] + dl[p, q]
+    return True
+
+
+@jit
+def _dev_margin(dl, mg, q):
+    """Tabulated-mode inclusion term of M2.1-M2.4 for column q (1: p6, 2: T6): Σ over x1, x4, T1 of max(|Δ+| + e+, |Δ-| + e-),
+    never below the exact Σ max(|Δ+|, |Δ-|) (each interpolated Δ is within its margin e)."""
+    b = 0.0
+    for i in range(3):
+        b += max(abs(dl[2 * i, q]) + mg[2 * i, q], abs(dl[2 * i + 1, q]) + mg[2 * i + 1, q])
+    return b
+
+
+@jit
+def _speed_margins(c, x1, x3, x4, m1, n0, psi, Pi, T_in, T_out, T6m, p6m, G, mg, spm):
+    """Margins spm (4,) of the M3/M4 model values h3, h4, T_in, T_co for the tabulated speeds of
+    the x1, x4, T1 points: each is off by at most its certified margin e_n, which moves a model
+    value by at most |∂g/∂n| e_n (mean value theorem); ∂g/∂n by a forward difference at the centre
+    (row 17 of G), times SPEED_MARGIN_FACTOR for its change over the noise box, and at least the
+    elasticity bound SPEED_ELASTICITY |g| / n (a perturbed point across a kink)."""
+    hn = SLOPE_STEP * n0
+    _point(c, x1, x3, x4, m1, n0 + hn, psi, Pi, T_in, T_out, T6m, p6m, G, 17)
+    en = 0.0
+    for i in range(3):
+        en += max(mg[2 * i, 0], mg[2 * i + 1, 0])
+    for q in range(4):
+        spm[q] = max(SPEED_MARGIN_FACTOR * abs(G[17, q] - G[0, q]) / hn, SPEED_ELASTICITY * abs(G[0, q]) / n0) * en
+
+
+_NO_TABLE = (np.zeros(18), np.zeros(18), np.zeros(1, dtype=np.bool_), np.zeros((1, 2, 3)),
+             np.full(3, 2, dtype=np.int64), np.zeros(2, dtype=np.int64))
+
+
+INCLUSIONS = ("tabulated", "exact")
+
+
+def inclusion_arrays(c, dbar, inclusion: str):
+    """The kernel's ``table`` argument for an inclusion mode: None for ``"exact"``, the tables for
+    ``"tabulated"``."""
+    if inclusion == "exact":
+        return None
+    if inclusion == "tabulated":
+        return table_arrays(c, dbar)
+    raise ValueError(f"inclusion must be one of {', '.join(INCLUSIONS)}, got {inclusion!r}")
+
+
+def table_arrays(c, dbar, side_cols=None) -> tuple:
+    """The tabulated Σ2 inclusion terms for both sensor chains in the kernel's layout: (delta,
+    margin, valid (flat), grid (ntab, 2, 3): first node and 1/step, dims (3,): nodes per axis,
+    chain -> table index (2,)), one table per distinct noise-bound triple (x1, x4, T1) of the
+    chains (one for table 6.3's bounds)."""
+    cols = _SIDE_COLS if side_cols is None else side_cols
+    keys, tables, index = [], [], []
+    for side in range(2):
+        key = (float(dbar[cols[side, 0]]), float(dbar[cols[side, 6]]), float(dbar[cols[side, 7]]))
+        if key not in keys:
+            keys.append(key)
+            tables.append(sigma2_table(c, *key))
+        index.append(keys.index(key))
+
+    def flat(name):
+        arrs = [getattr(t, name).reshape(-1) for t in tables]
+        return arrs[0] if len(arrs) == 1 else np.concatenate(arrs)
+
+    return (flat("delta"), flat("margin"), flat("valid"), np.stack([np.stack([t.lo, 1.0 / t.step]) for t in tables]),
+            np.array(tables[0].shape, dtype=np.int64), np.array(index, dtype=np.int64))
+
+
 # Observer state of one engine, one row per side (0: odd sensors, 1: even sensors):
 # columns of ST: 0 x̂1, 1 ē1, 2 x̂3, 3 ē3, 4 F3(prev), 5 H3(prev), 6 ok3(prev), 7 x̂4, 8 ē4, 9 F4(prev),
 # 10 H4(prev), 11 ok4(prev), 12 speed warm start, 13 u(prev), 14 samples seen
@@ -274,14 +364,26 @@ def new_state(n_engines: int, n_nom: float) -> np.ndarray:
 
 
 @jit
-def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST):
+def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table=None):
     """Residuals R (T, 19) and thresholds THR (T, 19) of all modules for samples Y (T, 19) of one
     engine, continuing from the observer state ST (2, N_STATE), which is updated in place.
 
     U : (T,) applied fuel setting (the known control input); dbar : (19,) noise bounds.
     Module columns follow ``MODULE_IDS``.  A module whose inputs are not finite gets R = inf
     (its ARR is violated).
+    table : None (exact inclusion) or :func:`table_arrays` (the tabulated Σ2 inclusion terms with
+    their certified margins, :mod:`marine_fdi_env.diagnosis.inclusion_table`).
     """
+    if table is None:
+        _kernel(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, _NO_TABLE, False)
+    else:
+        _kernel(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, True)
+
+
+@jit
+def _kernel(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_table):
+    """:func:`compute_residuals` (``use_table`` False: exact inclusion, ``table`` unused)."""
+    tside = table[5]
     T = Y.shape[0]
     L1, L3, L4 = OBSERVER_GAINS
     E1, q1, r1 = _etd_scalar(-1.0 / c.tau_X_s, dt)
@@ -290,205 +392,302 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST):
     Ld1, Ld3, Ld4 = -math.expm1(-L1 * dt), -math.expm1(-L3 * dt), -math.expm1(-L4 * dt)
     fuel_gain = c.x1_nom_kg / c.tau_X_s
     T1_model = inlet_air_temperature(0.0, c)
-    tab = np.empty((2, 7, 3))
+    # per sample of a chunk and chain: Σ2's cycle table (centre and perturbed rows); tabulated
+    # mode: interpolated differences row - centre (6 rows x n/p6/T6), their certified margins, and
+    # whether the chain's sample was tabulated (else computed exactly)
+    tabs = np.empty((CHUNK, 2, 7, 3))
+    dls = np.zeros((CHUNK, 2, 6, 3))
+    mgs = np.zeros((CHUNK, 2, 6, 3))
+    tabulated = np.zeros((CHUNK, 2), dtype=np.bool_)
+    spm = np.zeros(4)  # margins of h3, h4, T_in, T_co for the tabulated perturbed speeds
+    kc = np.zeros(4)  # kink corrections of h3, h4, T_in, T_co (see _kink_corners)
+    kinked = False
     # model values at the points of the (x1, x3, x4, T1) box, columns h3, h4, T_in, T_co; rows:
-    # 0 centre, 1/2 x1+-, 3/4 x3+-, 5/6 x4+-, 7/8 T1+-, 9/10 T_in+-, 11/12 p6+-, 13/14 T6+-, 15/16 T_out+-
-    G = np.empty((17, 4))
+    # 0 centre, 1/2 x1+-, 3/4 x3+-, 5/6 x4+-, 7/8 T1+-, 9/10 T_in+-, 11/12 p6+-, 13/14 T6+-, 15/16 T_out+-,
+    # 17 centre at speed n0 + h (tabulated mode: the speed sensitivity for the margin of the perturbed speeds),
+    # 18-21 the (x3, x4) corners where the box straddles a kink of Ψ_sc
+    G = np.empty((22, 4))
     step = 2 if ONE_SIDED else 1
-    for kk in range(T):
+    for k0 in range(0, T, CHUNK):
+        k1 = min(T, k0 + CHUNK)
+        # Σ2 of both chains for the chunk first (a small loop, separate from the modules' code:
+        # the whole per-sample body does not fit the instruction cache), the same numbers
+        _sigma2_chunk(c, Y, dbar, side_cols, ST, table, use_table, k0, k1, tabs, dls, mgs, tabulated)
+        for kk in range(k0, k1):
+            tab = tabs[kk - k0]
+            dl = dls[kk - k0]
+            mg = mgs[kk - k0]
+            tabd = tabulated[kk - k0]
+            y = Y[kk]
+            T_out = y[t_out_col]
+            dTo = dbar[t_out_col]
+            for side in range(2):
+                st = ST[side]
+                first = st[14] == 0.0
+                cols = side_cols[side]
+                cx1, cp6, cT6, ctq, cx3, cTin, cx4, cT1, cTco = (cols[0], cols[1], cols[2], cols[3], cols[4], cols[5],
+                                                                   cols[6], cols[7], cols[8])
+                x1, p6m, T6m, tqm, x3, T_in, x4, T1, T_co = (y[cx1], y[cp6], y[cT6], y[ctq], y[cx3], y[cTin], y[cx4],
+                                                             y[cT1], y[cTco])
+                d1, d3, d4, dT1, dTin = dbar[cx1], dbar[cx3], dbar[cx4], dbar[cT1], dbar[cTin]
+                base_ok = math.isfinite(x1) and math.isfinite(x4) and math.isfinite(T1)
+                t = tab[side]
+                n0 = t[0, 0]
+                # ---------------------------------------------------------------- M1.q (fuel observer)
+                m = 0 + side
+                if first:
+                    st[0] = x1
+                    st[1] = d1
+                    R[kk, m] = 0.0 if math.isfinite(x1) else math.inf
+                else:
+                    # prior from the exact model step with the known input (u linear within the step)
+                    F0 = fuel_gain * st[13]
+                    F1 = fuel_gain * U[kk]
+                    prior = E1 * st[0] + q1 * F0 + r1 * (F1 - F0)
+                    eta = r1 * abs(F1 - F0) + MODEL_MARGIN * abs(prior)
+                    st[1] = E1 * ((1.0 - Ld1) * st[1] + Ld1 * d1) + eta
+                    if math.isfinite(x1):
+                        R[kk, m] = x1 - prior
+                        st[0] = prior + Ld1 * (x1 - prior)
+                    else:
+                        R[kk, m] = math.inf
+                        st[0] = prior
+                THR[kk, m] = st[1] + d1
+                # ---------------------------------------------------------------- M2.(1,2): p6, M2.(3,4): T6
+                for j in range(2):
+                    m = 2 + 2 * j + side
+                    col = cp6 if j == 0 else cT6
+                    if base_ok and math.isfinite(y[col]):
+                        g0 = t[0, 1 + j]
+                        if tabd[side]:
+                            b = _dev_margin(dl[side], mg[side], 1 + j)
+                        else:
+                            b = _dev(g0, t[1, 1 + j], t[2, 1 + j]) + _dev(g0, t[3, 1 + j], t[4, 1 + j]) + \
+                                _dev(g0, t[5, 1 + j], t[6, 1 + j])
+                        R[kk, m] = y[col] - g0
+                        THR[kk, m] = dbar[col] + SAFETY * b + MODEL_MARGIN * abs(g0)
+                    else:
+                        R[kk, m] = math.inf
+                        THR[kk, m] = dbar[col]
+                # ---------------------------------------------------------------- M2.(5,6): torque
+                m = 6 + side
+                if base_ok and math.isfinite(tqm) and math.isfinite(T6m) and tqm > 0.0:
+                    n_t = math.sqrt(c.two_pi_over_c * tqm)
+                    dq = dbar[ctq]
+                    dT6 = dbar[cT6]
+                    pc = _torque_cycle(x1, x4, T1, n_t, c)
+                    g0 = _torque_from(pc, T6m, c)
+                    r0 = tqm - g0
+                    n_p = math.sqrt(c.two_pi_over_c * (tqm + dq))
+                    rp = (tqm + dq) - _torque_from(_torque_cycle(x1, x4, T1, n_p, c), T6m, c)
+                    rm = r0
+                    if not ONE_SIDED:
+                        n_m = math.sqrt(c.two_pi_over_c * max(tqm - dq, 0.0))
+                        rm = (tqm - dq) - _torque_from(_torque_cycle(x1, x4, T1, n_m, c), T6m, c)
+                    b = _dev(r0, rp, rm)
+                    b += _dev(r0, tqm - _torque_from(pc, T6m + dT6, c), tqm - _torque_from(pc, T6m - dT6, c))
+                    rp = tqm - _torque_from(_torque_cycle(x1 + d1, x4, T1, n_t, c), T6m, c)
+                    if not ONE_SIDED:
+                        rm = tqm - _torque_from(_torque_cycle(x1 - d1, x4, T1, n_t, c), T6m, c)
+                    b += _dev(r0, rp, rm)
+                    rp = tqm - _torque_from(_torque_cycle(x1, x4 + d4, T1, n_t, c), T6m, c)
+                    if not ONE_SIDED:
+                        rm = tqm - _torque_from(_torque_cycle(x1, x4 - d4, T1, n_t, c), T6m, c)
+                    b += _dev(r0, rp, rm)
+                    rp = tqm - _torque_from(_torque_cycle(x1, x4, T1 + dT1, n_t, c), T6m, c)
+                    if not ONE_SIDED:
+                        rm = tqm - _torque_from(_torque_cycle(x1, x4, T1 - dT1, n_t, c), T6m, c)
+                    b += _dev(r0, rp, rm)
+                    R[kk, m] = r0
+                    THR[kk, m] = SAFETY * b + MODEL_MARGIN * abs(g0)
+                else:
+                    R[kk, m] = math.inf
+                    THR[kk, m] = dbar[ctq]
+                # ------------------------------------------------- model values of M3.q, M3.(3,4), M4.q, M4.(5,6)
+                ok = base_ok and math.isfinite(x3) and math.isfinite(T_in)
+                kinked = False
+                if ok:
+                    dp6 = dbar[cp6]
+                    dT6 = dbar[cT6]
+                    psi = scavenge_flow_function(x3 / x4, c)
+                    Pi = turbine_expansion(x3, c)
+                    m1 = _charge_mass(x4, T1, c)
+                    s_sl, mdot, df = _point(c, x1, x3, x4, m1, n0, psi, Pi, T_in, T_out, T6m, p6m, G, 0)
+                    # the x1, x3, x4, T1 points, unrolled (x + 0.0 and x + (-d) equal x and x - d exactly)
+                    _point(c, x1 + d1, x3, x4, m1, t[1, 0], psi, Pi, T_in, T_out, T6m, p6m, G, 1)
+                    _point(c, x1 - d1, x3, x4, m1, t[2, 0], psi, Pi, T_in, T_out, T6m, p6m, G, 2)
+                    _point(c, x1, x3 + d3, x4, m1, n0, scavenge_flow_function((x3 + d3) / x4, c),
+                           turbine_expansion(x3 + d3, c), T_in, T_out, T6m, p6m, G, 3)
+                    _point(c, x1, x3 - d3, x4, m1, n0, scavenge_flow_function((x3 - d3) / x4, c),
+                           turbine_expansion(x3 - d3, c), T_in, T_out, T6m, p6m, G, 4)
+                    _point(c, x1, x3, x4 + d4, _charge_mass(x4 + d4, T1, c), t[3, 0],
+                           scavenge_flow_function(x3 / (x4 + d4), c), Pi, T_in, T_out, T6m, p6m, G, 5)
+                    _point(c, x1, x3, x4 - d4, _charge_mass(x4 - d4, T1, c), t[4, 0],
+                           scavenge_flow_function(x3 / (x4 - d4), c), Pi, T_in, T_out, T6m, p6m, G, 6)
+                    _point(c, x1, x3, x4, _charge_mass(x4, T1 + dT1, c), t[5, 0], psi, Pi, T_in, T_out, T6m, p6m,
+                           G, 7)
+                    _point(c, x1, x3, x4, _charge_mass(x4, T1 - dT1, c), t[6, 0], psi, Pi, T_in, T_out, T6m, p6m,
+                           G, 8)
+                    # near a kink of Ψ_sc (x3/x4 clipped to [r_crit, 1]) the coordinate-wise terms miss
+                    # the range of the slip flow (e.g. measured x3/x4 > 1, no slip at any coordinate-wise
+                    # point, but slip at the corner x3 - d, x4 + d): take the larger of the two
+                    # coordinate terms' sum and the corners' deviation, and enlarge (KINK_SAFETY)
+                    kinked = _straddles_kink(x3, x4, d3, d4, c)
+                    if kinked:
+                        _kink_corners(c, x1, x3, x4, T1, d3, d4, t[3, 0], t[4, 0], T_in, T_out, T6m, p6m, G, kc)
+                    for j in range(9, 17, step):
+                        sg = 1.0 if j % 2 == 1 else -1.0
+                        Ti = T_in + sg * dTin if j < 11 else T_in
+                        if j < 11:  # T_in: h3, h4, T_co
+                            G[j, 0] = _h3(mdot, Ti, c)
+                            G[j, 1] = _compressor_forcing(x4, df, Ti, Pi, c)
+                            G[j, 3] = compressor_outlet_temperature(df, Ti, T_out, 0.0, c)
+                        elif j >= 15:  # T_out: T_co only
+                            G[j, 3] = compressor_outlet_temperature(df, T_in, T_out + sg * dTo, 0.0, c)
+                        else:  # p6 or T6: T_in
+                            pp = p6m + sg * dp6 if j < 13 else p6m
+                            TT = T6m + sg * dT6 if j >= 13 else T6m
+                            G[j, 2] = _mixing(x1, m1, s_sl, mdot, TT, pp, c)
+                    if ONE_SIDED:
+                        for j in range(2, 17, 2):
+                            for q in range(4):
+                                G[j, q] = G[0, q]
+                    if tabd[side]:
+                        _speed_margins(c, x1, x3, x4, m1, n0, psi, Pi, T_in, T_out, T6m, p6m, G, mg[side], spm)
+                # ---------------------------------------------------------------- M3.q (receiver observer)
+                m = 8 + side
+                F, H = 0.0, 0.0
+                if ok:
+                    F = G[0, 0]
+                    H = SAFETY * (_dev(F, G[1, 0], G[2, 0]) + _dev(F, G[3, 0], G[4, 0]) + _dev(F, G[5, 0], G[6, 0])
+                                  + _dev(F, G[7, 0], G[8, 0]) + _dev(F, G[9, 0], G[10, 0]))
+                    if tabd[side]:
+                        H += SAFETY * spm[0]
+                    if kinked:
+                        H = (H + SAFETY * kc[0]) * KINK_SAFETY
+                R[kk, m], THR[kk, m] = _observer_update(st, 2, first, ok, x3, F, H, E3, q3, r3, Ld3, d3)
+                # ---------------------------------------------------------------- M3.(3,4): T_in
+                m = 10 + side
+                if ok and math.isfinite(p6m) and math.isfinite(T6m):
+                    g0 = G[0, 2]
+                    b = _dev(g0, G[1, 2], G[2, 2]) + _dev(g0, G[3, 2], G[4, 2]) + _dev(g0, G[5, 2], G[6, 2])
+                    b += _dev(g0, G[7, 2], G[8, 2])
+                    b += _dev(g0, G[11, 2], G[12, 2])
+                    b += _dev(g0, G[13, 2], G[14, 2])
+                    if tabd[side]:
+                        b += spm[2]
+                    if kinked:
+                        b = (b + kc[2]) * KINK_SAFETY
+                    R[kk, m] = T_in - g0
+                    THR[kk, m] = dbar[cTin] + SAFETY * b + MODEL_MARGIN * abs(g0)
+                else:
+                    R[kk, m] = math.inf
+                    THR[kk, m] = dbar[cTin]
+                # ---------------------------------------------------------------- M4.q (charge observer)
+                m = 13 + side
+                F, H = 0.0, 0.0
+                if ok:
+                    F = G[0, 1]
+                    H = SAFETY * (_dev(F, G[1, 1], G[2, 1]) + _dev(F, G[3, 1], G[4, 1]) + _dev(F, G[5, 1], G[6, 1])
+                                  + _dev(F, G[7, 1], G[8, 1]) + _dev(F, G[9, 1], G[10, 1]))
+                    if tabd[side]:
+                        H += SAFETY * spm[1]
+                    if kinked:
+                        H = (H + SAFETY * kc[1]) * KINK_SAFETY
+                R[kk, m], THR[kk, m] = _observer_update(st, 7, first, ok, x4, F, H, E4, q4, r4, Ld4, d4)
+                # ---------------------------------------------------------------- M4.(3,4): T1
+                m = 15 + side
+                R[kk, m] = T1 - T1_model if math.isfinite(T1) else math.inf
+                THR[kk, m] = dT1 + MODEL_MARGIN * T1_model
+                # ---------------------------------------------------------------- M4.(5,6): compressor outlet
+                m = 17 + side
+                if ok and math.isfinite(T_co) and math.isfinite(T_out):
+                    g0 = G[0, 3]
+                    b = _dev(g0, G[1, 3], G[2, 3]) + _dev(g0, G[3, 3], G[4, 3]) + _dev(g0, G[5, 3], G[6, 3])
+                    b += _dev(g0, G[7, 3], G[8, 3])
+                    b += _dev(g0, G[9, 3], G[10, 3])
+                    b += _dev(g0, G[15, 3], G[16, 3])
+                    if tabd[side]:
+                        b += spm[3]
+                    if kinked:
+                        b = (b + kc[3]) * KINK_SAFETY
+                    R[kk, m] = T_co - g0
+                    THR[kk, m] = dbar[cTco] + SAFETY * b + MODEL_MARGIN * abs(g0)
+                else:
+                    R[kk, m] = math.inf
+                    THR[kk, m] = dbar[cTco]
+                st[13] = U[kk]
+                st[14] += 1.0
+            # ---------------------------------------------------------------- M3.5: turbine outlet
+            m = 12
+            x3e, Tine, x4e = y[side_cols[1, 4]], y[side_cols[1, 5]], y[side_cols[1, 6]]
+            if math.isfinite(x3e) and math.isfinite(Tine) and math.isfinite(x4e) and math.isfinite(T_out):
+                dTi, dx3, dx4 = dbar[side_cols[1, 5]], dbar[side_cols[1, 4]], dbar[side_cols[1, 6]]
+                Pi = turbine_expansion(x3e, c)
+                g0 = turbine_outlet_from_expansion(Tine, Pi, x4e, c)
+                gp = turbine_outlet_from_expansion(Tine + dTi, Pi, x4e, c)
+                gm = g0 if ONE_SIDED else turbine_outlet_from_expansion(Tine - dTi, Pi, x4e, c)
+                b = _dev(g0, gp, gm)
+                gp = turbine_outlet_temperature(Tine, x3e + dx3, x4e, c)
+                gm = g0 if ONE_SIDED else turbine_outlet_temperature(Tine, x3e - dx3, x4e, c)
+                b += _dev(g0, gp, gm)
+                gp = turbine_outlet_from_expansion(Tine, Pi, x4e + dx4, c)
+                gm = g0 if ONE_SIDED else turbine_outlet_from_expansion(Tine, Pi, x4e - dx4, c)
+                b += _dev(g0, gp, gm)
+                R[kk, m] = T_out - g0
+                THR[kk, m] = dTo + SAFETY * b + MODEL_MARGIN * abs(g0)
+            else:
+                R[kk, m] = math.inf
+                THR[kk, m] = dTo
+
+
+
+@jit
+def _sigma2_chunk(c, Y, dbar, side_cols, ST, table, use_table, k0, k1, tabs, dls, mgs, tabulated):
+    """Σ2 of both chains for samples k0..k1-1 into tabs[k - k0] (rows as :func:`_cycle_table`):
+    the centre speeds in sample order (each from the previous sample's speed, ST[:, 12]), then the
+    perturbed rows, from the table or exactly.  A chain whose x1, x4 or T1 is not finite gets no
+    rows (its modules do not use them then) and keeps its warm start."""
+    tside = table[5]
+    ca = side_cols[0]
+    cb = side_cols[1]
+    for kk in range(k0, k1):
         y = Y[kk]
-        T_out = y[t_out_col]
-        dTo = dbar[t_out_col]
-        for side in range(2):
-            st = ST[side]
-            first = st[14] == 0.0
-            cols = side_cols[side]
-            cx1, cp6, cT6, ctq, cx3, cTin, cx4, cT1, cTco = (cols[0], cols[1], cols[2], cols[3], cols[4], cols[5],
-                                                               cols[6], cols[7], cols[8])
-            x1, p6m, T6m, tqm, x3, T_in, x4, T1, T_co = (y[cx1], y[cp6], y[cT6], y[ctq], y[cx3], y[cTin], y[cx4],
-                                                         y[cT1], y[cTco])
-            d1, d3, d4, dT1, dTin = dbar[cx1], dbar[cx3], dbar[cx4], dbar[cT1], dbar[cTin]
-            base_ok = math.isfinite(x1) and math.isfinite(x4) and math.isfinite(T1)
-            if base_ok:
-                _cycle_table(c, x1, x4, T1, d1, d4, dT1, st[12], tab[side])
-                if math.isfinite(tab[side, 0, 0]):
-                    st[12] = tab[side, 0, 0]
-            t = tab[side]
-            n0 = t[0, 0]
-            # ---------------------------------------------------------------- M1.q (fuel observer)
-            m = 0 + side
-            if first:
-                st[0] = x1
-                st[1] = d1
-                R[kk, m] = 0.0 if math.isfinite(x1) else math.inf
-            else:
-                # prior from the exact model step with the known input (u linear within the step)
-                F0 = fuel_gain * st[13]
-                F1 = fuel_gain * U[kk]
-                prior = E1 * st[0] + q1 * F0 + r1 * (F1 - F0)
-                eta = r1 * abs(F1 - F0) + MODEL_MARGIN * abs(prior)
-                st[1] = E1 * ((1.0 - Ld1) * st[1] + Ld1 * d1) + eta
-                if math.isfinite(x1):
-                    R[kk, m] = x1 - prior
-                    st[0] = prior + Ld1 * (x1 - prior)
-                else:
-                    R[kk, m] = math.inf
-                    st[0] = prior
-            THR[kk, m] = st[1] + d1
-            # ---------------------------------------------------------------- M2.(1,2): p6, M2.(3,4): T6
-            for j in range(2):
-                m = 2 + 2 * j + side
-                col = cp6 if j == 0 else cT6
-                if base_ok and math.isfinite(y[col]):
-                    g0 = t[0, 1 + j]
-                    b = _dev(g0, t[1, 1 + j], t[2, 1 + j]) + _dev(g0, t[3, 1 + j], t[4, 1 + j]) + \
-                        _dev(g0, t[5, 1 + j], t[6, 1 + j])
-                    R[kk, m] = y[col] - g0
-                    THR[kk, m] = dbar[col] + SAFETY * b + MODEL_MARGIN * abs(g0)
-                else:
-                    R[kk, m] = math.inf
-                    THR[kk, m] = dbar[col]
-            # ---------------------------------------------------------------- M2.(5,6): torque
-            m = 6 + side
-            if base_ok and math.isfinite(tqm) and math.isfinite(T6m) and tqm > 0.0:
-                n_t = math.sqrt(c.two_pi_over_c * tqm)
-                dq = dbar[ctq]
-                dT6 = dbar[cT6]
-                pc = _torque_cycle(x1, x4, T1, n_t, c)
-                g0 = _torque_from(pc, T6m, c)
-                r0 = tqm - g0
-                n_p = math.sqrt(c.two_pi_over_c * (tqm + dq))
-                rp = (tqm + dq) - _torque_from(_torque_cycle(x1, x4, T1, n_p, c), T6m, c)
-                rm = r0
-                if not ONE_SIDED:
-                    n_m = math.sqrt(c.two_pi_over_c * max(tqm - dq, 0.0))
-                    rm = (tqm - dq) - _torque_from(_torque_cycle(x1, x4, T1, n_m, c), T6m, c)
-                b = _dev(r0, rp, rm)
-                b += _dev(r0, tqm - _torque_from(pc, T6m + dT6, c), tqm - _torque_from(pc, T6m - dT6, c))
-                rp = tqm - _torque_from(_torque_cycle(x1 + d1, x4, T1, n_t, c), T6m, c)
-                if not ONE_SIDED:
-                    rm = tqm - _torque_from(_torque_cycle(x1 - d1, x4, T1, n_t, c), T6m, c)
-                b += _dev(r0, rp, rm)
-                rp = tqm - _torque_from(_torque_cycle(x1, x4 + d4, T1, n_t, c), T6m, c)
-                if not ONE_SIDED:
-                    rm = tqm - _torque_from(_torque_cycle(x1, x4 - d4, T1, n_t, c), T6m, c)
-                b += _dev(r0, rp, rm)
-                rp = tqm - _torque_from(_torque_cycle(x1, x4, T1 + dT1, n_t, c), T6m, c)
-                if not ONE_SIDED:
-                    rm = tqm - _torque_from(_torque_cycle(x1, x4, T1 - dT1, n_t, c), T6m, c)
-                b += _dev(r0, rp, rm)
-                R[kk, m] = r0
-                THR[kk, m] = SAFETY * b + MODEL_MARGIN * abs(g0)
-            else:
-                R[kk, m] = math.inf
-                THR[kk, m] = dbar[ctq]
-            # ------------------------------------------------- model values of M3.q, M3.(3,4), M4.q, M4.(5,6)
-            ok = base_ok and math.isfinite(x3) and math.isfinite(T_in)
-            if ok:
-                dp6 = dbar[cp6]
-                dT6 = dbar[cT6]
-                psi = scavenge_flow_function(x3 / x4, c)
-                Pi = turbine_expansion(x3, c)
-                m1, s_sl, mdot, df = _point(c, x1, x3, x4, T1, n0, psi, Pi, T_in, T_out, T6m, p6m, G, 0)
-                for j in range(1, 9, step):
-                    a = d1 if j == 1 else (-d1 if j == 2 else 0.0)
-                    e = d3 if j == 3 else (-d3 if j == 4 else 0.0)
-                    f = d4 if j == 5 else (-d4 if j == 6 else 0.0)
-                    g = dT1 if j == 7 else (-dT1 if j == 8 else 0.0)
-                    psi_j, Pi_j = psi, Pi
-                    if j == 3 or j == 4:
-                        psi_j = scavenge_flow_function((x3 + e) / x4, c)
-                        Pi_j = turbine_expansion(x3 + e, c)
-                    elif j == 5 or j == 6:
-                        psi_j = scavenge_flow_function(x3 / (x4 + f), c)
-                    n_j = t[j, 0] if j < 3 else (n0 if j < 5 else t[j - 2, 0])
-                    _point(c, x1 + a, x3 + e, x4 + f, T1 + g, n_j, psi_j, Pi_j, T_in, T_out, T6m, p6m, G, j)
-                for j in range(9, 17, step):
-                    sg = 1.0 if j % 2 == 1 else -1.0
-                    Ti = T_in + sg * dTin if j < 11 else T_in
-                    if j < 11:  # T_in: h3, h4, T_co
-                        G[j, 0] = receiver_forcing(mdot, Ti, c)
-                        G[j, 1] = _compressor_forcing(x4, df, Ti, Pi, c)
-                        G[j, 3] = compressor_outlet_temperature(df, Ti, T_out, 0.0, c)
-                    elif j >= 15:  # T_out: T_co only
-                        G[j, 3] = compressor_outlet_temperature(df, T_in, T_out + sg * dTo, 0.0, c)
-                    else:  # p6 or T6: T_in
-                        pp = p6m + sg * dp6 if j < 13 else p6m
-                        TT = T6m + sg * dT6 if j >= 13 else T6m
-                        G[j, 2] = receiver_and_turbine(x1, x3, x4, m1, s_sl, n0, TT, pp, c.T_sl_K, c)[1]
-                if ONE_SIDED:
-                    for j in range(2, 17, 2):
-                        for q in range(4):
-                            G[j, q] = G[0, q]
-            # ---------------------------------------------------------------- M3.q (receiver observer)
-            m = 8 + side
-            F, H = 0.0, 0.0
-            if ok:
-                F = G[0, 0]
-                H = SAFETY * (_dev(F, G[1, 0], G[2, 0]) + _dev(F, G[3, 0], G[4, 0]) + _dev(F, G[5, 0], G[6, 0])
-                              + _dev(F, G[7, 0], G[8, 0]) + _dev(F, G[9, 0], G[10, 0]))
-            R[kk, m], THR[kk, m] = _observer_update(st, 2, first, ok, x3, F, H, E3, q3, r3, Ld3, d3)
-            # ---------------------------------------------------------------- M3.(3,4): T_in
-            m = 10 + side
-            if ok and math.isfinite(p6m) and math.isfinite(T6m):
-                g0 = G[0, 2]
-                b = _dev(g0, G[1, 2], G[2, 2]) + _dev(g0, G[3, 2], G[4, 2]) + _dev(g0, G[5, 2], G[6, 2])
-                b += _dev(g0, G[7, 2], G[8, 2])
-                b += _dev(g0, G[11, 2], G[12, 2])
-                b += _dev(g0, G[13, 2], G[14, 2])
-                R[kk, m] = T_in - g0
-                THR[kk, m] = dbar[cTin] + SAFETY * b + MODEL_MARGIN * abs(g0)
-            else:
-                R[kk, m] = math.inf
-                THR[kk, m] = dbar[cTin]
-            # ---------------------------------------------------------------- M4.q (charge observer)
-            m = 13 + side
-            F, H = 0.0, 0.0
-            if ok:
-                F = G[0, 1]
-                H = SAFETY * (_dev(F, G[1, 1], G[2, 1]) + _dev(F, G[3, 1], G[4, 1]) + _dev(F, G[5, 1], G[6, 1])
-                              + _dev(F, G[7, 1], G[8, 1]) + _dev(F, G[9, 1], G[10, 1]))
-            R[kk, m], THR[kk, m] = _observer_update(st, 7, first, ok, x4, F, H, E4, q4, r4, Ld4, d4)
-            # ---------------------------------------------------------------- M4.(3,4): T1
-            m = 15 + side
-            R[kk, m] = T1 - T1_model if math.isfinite(T1) else math.inf
-            THR[kk, m] = dT1 + MODEL_MARGIN * T1_model
-            # ---------------------------------------------------------------- M4.(5,6): compressor outlet
-            m = 17 + side
-            if ok and math.isfinite(T_co) and math.isfinite(T_out):
-                g0 = G[0, 3]
-                b = _dev(g0, G[1, 3], G[2, 3]) + _dev(g0, G[3, 3], G[4, 3]) + _dev(g0, G[5, 3], G[6, 3])
-                b += _dev(g0, G[7, 3], G[8, 3])
-                b += _dev(g0, G[9, 3], G[10, 3])
-                b += _dev(g0, G[15, 3], G[16, 3])
-                R[kk, m] = T_co - g0
-                THR[kk, m] = dbar[cTco] + SAFETY * b + MODEL_MARGIN * abs(g0)
-            else:
-                R[kk, m] = math.inf
-                THR[kk, m] = dbar[cTco]
-            st[13] = U[kk]
-            st[14] += 1.0
-        # ---------------------------------------------------------------- M3.5: turbine outlet
-        m = 12
-        x3e, Tine, x4e = y[side_cols[1, 4]], y[side_cols[1, 5]], y[side_cols[1, 6]]
-        if math.isfinite(x3e) and math.isfinite(Tine) and math.isfinite(x4e) and math.isfinite(T_out):
-            dTi, dx3, dx4 = dbar[side_cols[1, 5]], dbar[side_cols[1, 4]], dbar[side_cols[1, 6]]
-            Pi = turbine_expansion(x3e, c)
-            g0 = turbine_outlet_from_expansion(Tine, Pi, x4e, c)
-            gp = turbine_outlet_from_expansion(Tine + dTi, Pi, x4e, c)
-            gm = g0 if ONE_SIDED else turbine_outlet_from_expansion(Tine - dTi, Pi, x4e, c)
-            b = _dev(g0, gp, gm)
-            gp = turbine_outlet_temperature(Tine, x3e + dx3, x4e, c)
-            gm = g0 if ONE_SIDED else turbine_outlet_temperature(Tine, x3e - dx3, x4e, c)
-            b += _dev(g0, gp, gm)
-            gp = turbine_outlet_from_expansion(Tine, Pi, x4e + dx4, c)
-            gm = g0 if ONE_SIDED else turbine_outlet_from_expansion(Tine, Pi, x4e - dx4, c)
-            b += _dev(g0, gp, gm)
-            R[kk, m] = T_out - g0
-            THR[kk, m] = dTo + SAFETY * b + MODEL_MARGIN * abs(g0)
-        else:
-            R[kk, m] = math.inf
-            THR[kk, m] = dTo
+        x1a, x4a, T1a = y[ca[0]], y[ca[6]], y[ca[7]]
+        x1b, x4b, T1b = y[cb[0]], y[cb[6]], y[cb[7]]
+        oka = math.isfinite(x1a) and math.isfinite(x4a) and math.isfinite(T1a)
+        okb = math.isfinite(x1b) and math.isfinite(x4b) and math.isfinite(T1b)
+        ta = tabs[kk - k0, 0]
+        tb = tabs[kk - k0, 1]
+        if oka and okb:
+            ta[0, 0], ta[0, 1], ta[0, 2], tb[0, 0], tb[0, 1], tb[0, 2] = _centre_speed2(
+                c, x1a, x4a, T1a, ST[0, 12], x1b, x4b, T1b, ST[1, 12])
+        elif oka:
+            ta[0, 0], ta[0, 1], ta[0, 2] = _centre_speed(c, x1a, x4a, T1a, ST[0, 12])
+        elif okb:
+            tb[0, 0], tb[0, 1], tb[0, 2] = _centre_speed(c, x1b, x4b, T1b, ST[1, 12])
+        if oka and math.isfinite(ta[0, 0]):
+            ST[0, 12] = ta[0, 0]
+        if okb and math.isfinite(tb[0, 0]):
+            ST[1, 12] = tb[0, 0]
+        exa = oka
+        exb = okb
+        tabulated[kk - k0, 0] = False
+        tabulated[kk - k0, 1] = False
+        if use_table:
+            tabulated[kk - k0, 0] = oka and _tabulate(table, tside[0], x1a, x4a, T1a, ta, dls[kk - k0, 0],
+                                                      mgs[kk - k0, 0])
+            tabulated[kk - k0, 1] = okb and _tabulate(table, tside[1], x1b, x4b, T1b, tb, dls[kk - k0, 1],
+                                                      mgs[kk - k0, 1])
+            exa = oka and not tabulated[kk - k0, 0]
+            exb = okb and not tabulated[kk - k0, 1]
+        if exa and exb:
+            _perturbed_rows2(c, x1a, x4a, T1a, dbar[ca[0]], dbar[ca[6]], dbar[ca[7]], ta,
+                             x1b, x4b, T1b, dbar[cb[0]], dbar[cb[6]], dbar[cb[7]], tb)
+        elif exa:
+            _perturbed_rows(c, x1a, x4a, T1a, dbar[ca[0]], dbar[ca[6]], dbar[ca[7]], ta)
+        elif exb:
+            _perturbed_rows(c, x1b, x4b, T1b, dbar[cb[0]], dbar[cb[6]], dbar[cb[7]], tb)
 
 
 class ResidualTrace:
@@ -508,8 +707,9 @@ class ResidualTrace:
 
 
 def residuals_for_run(constants, measurements: np.ndarray, u: np.ndarray, dt: float,
-                      noise_bounds: np.ndarray | None = None) -> ResidualTrace:
-    """Run all 19 modules over one engine's measurements (T, 19) with the applied fuel setting (T,)."""
+                      noise_bounds: np.ndarray | None = None, inclusion: str = "tabulated") -> ResidualTrace:
+    """Run all 19 modules over one engine's measurements (T, 19) with the applied fuel setting (T,);
+    ``inclusion`` as :class:`~marine_fdi_env.diagnosis.agent.ReferenceDiagnoser`'s."""
     Y = np.ascontiguousarray(measurements, dtype=np.float64)
     U = np.ascontiguousarray(u, dtype=np.float64)
     db = np.array(NOISE_BOUNDS if noise_bounds is None else noise_bounds, dtype=np.float64)
@@ -517,17 +717,18 @@ def residuals_for_run(constants, measurements: np.ndarray, u: np.ndarray, dt: fl
     R = np.zeros((T, len(MODULE_IDS)))
     THR = np.zeros((T, len(MODULE_IDS)))
     st = new_state(1, constants.n_nom_rev_s)[0]
-    compute_residuals(constants, Y, U, float(dt), db, _SIDE_COLS, _T_OUT_COL, R, THR, st)
+    table = inclusion_arrays(constants, db, inclusion)
+    compute_residuals(constants, Y, U, float(dt), db, _SIDE_COLS, _T_OUT_COL, R, THR, st, table)
     return ResidualTrace(R, THR)
 
 
 @jit
-def _batch_range(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, i0, i1):
+def _batch_range(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_table, i0, i1):
     for i in range(i0, i1):
-        compute_residuals(c, Y[i], U[i], dt, dbar, side_cols, t_out_col, R[i], THR[i], ST[i])
+        _kernel(c, Y[i], U[i], dt, dbar, side_cols, t_out_col, R[i], THR[i], ST[i], table, use_table)
 
 
-def compute_residuals_batch(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST):
+def compute_residuals_batch(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table=None):
     """:func:`compute_residuals` for N engines: Y (N, B, 19), U (N, B), R/THR (N, B, 19), ST (N, 2, N_STATE).
 
     Batches of at least ``THREADED_MIN_ENGINES`` engines run on the simulator's two worker
@@ -536,7 +737,8 @@ def compute_residuals_batch(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST)
     results equal the single-thread loop bit for bit.
     """
     n = Y.shape[0]
-    args = (c, Y, U, float(dt), dbar, side_cols, t_out_col, R, THR, ST)
+    args = (c, Y, U, float(dt), dbar, side_cols, t_out_col, R, THR, ST,
+            _NO_TABLE if table is None else table, table is not None)
     if n < THREADED_MIN_ENGINES:
         _batch_range(*args, 0, n)
         return
@@ -545,3 +747,4 @@ def compute_residuals_batch(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST)
 
 
 THREAD_CHUNKS = 8
+

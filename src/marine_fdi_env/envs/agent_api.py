@@ -11,10 +11,12 @@ An agent diagnoses N episodes at once (the vector environment's batch)::
 key, Gymnasium's vector convention: ``infos["reference"]["diagnoses"][i]`` ...).  Agents that
 read ground truth (``true_faults``, ``active_faults``) are oracles and say so in their name.
 
-NAME is one of :data:`BUILTIN_AGENTS` (``null``, ``random``, ``reference``, ``oracle``, from
-``baselines/``) or a shipped model (``classifier``, ``ppo``, ...: every folder of
-``training/models/``, see :mod:`.agent_registry` and ``marine-fdi agents``).  PATH is a
-directory holding ``agent.json``::
+NAME is one of :data:`BUILTIN_AGENTS` (``null``, ``random``, ``reference``, ``sequential``,
+``oracle``, from ``baselines/``) or a shipped model (``classifier``, ``ppo``, ...: every folder of
+``training/models/``, see :mod:`.agent_registry` and ``marine-fdi agents``).  An agent may name
+environment options it needs in an ``env_kwargs`` attribute (``sequential``:
+``{"observe_sequential": True}``); ``evaluate`` adds them to the suite's.  PATH is a directory
+holding ``agent.json``::
 
     {"class": "package.module:ClassName", "kwargs": {...}}
 
@@ -47,6 +49,7 @@ BUILTIN_AGENTS = {
     "null": "baselines.null_agent:NullAgent",
     "random": "baselines.random_agent:RandomAgent",
     "reference": "baselines.reference_agent:ReferenceAgent",
+    "sequential": "baselines.sequential_agent:SequentialAgent",
     "oracle": "baselines.oracle_agent:OracleAgent",
 }
 

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..diagnosis.agent import ReferenceDiagnoser
+from ..diagnosis.sequential import SequentialStage, pressure_ratio
 from ..faults import FAULT_IDS, _window_time
 from ..params import EngineParams, load_params
 from ..simulator import Simulator
@@ -50,7 +51,7 @@ class EpisodeBatch:
 
     def __init__(self, n: int, params: "str | EngineParams" = "thesis-12v28", decision_period_s: float = 1.0,
                  dt: float = 0.01, observe_sensors: bool = False, reward: RewardConfig | RewardConfigV1 | None = None,
-                 noise_scale: float = 1.0) -> None:
+                 noise_scale: float = 1.0, observe_sequential: bool = False) -> None:
         self.n = int(n)
         self.params = load_params(params) if isinstance(params, str) else params
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
@@ -70,9 +71,12 @@ class EpisodeBatch:
         self.reward_v1 = RewardV1(self.reward_cfg, self.n) if isinstance(self.reward_cfg, RewardConfigV1) else None
         self.reward_terms = REWARD_TERMS_V1 if self.reward_v1 is not None else REWARD_TERMS
         self.noise_scale = float(noise_scale)
-        self.obs_size = observation_size(self.observe_sensors)
+        self.observe_sequential = bool(observe_sequential)
+        self.obs_size = observation_size(self.observe_sensors, self.observe_sequential)
         self.sim: Simulator | None = None
         self.diag = ReferenceDiagnoser(self.params, n_engines=self.n, dt=self.dt)
+        # the sequential diagnoser's tests on the same residuals (observe_sequential only)
+        self.seq = SequentialStage(self.n, dt=self.dt) if self.observe_sequential else None
         self.scenarios: list[ScenarioSpec | None] = [None] * self.n
         self._truth: list[list[dict]] = [[] for _ in range(self.n)]  # per slot, computed once per episode
         self.durations = np.ones(self.n)  # episode lengths [s]
@@ -117,6 +121,8 @@ class EpisodeBatch:
         else:
             self.sim.restart_engines(slots, seeds, faults, profiles)
         self.diag.reset_engines(slots, first_sample_index=1)
+        if self.seq is not None:
+            self.seq.reset_engines(slots)
         self.t = self.sim.local_time
         for s, sc in zip(slots, scenarios):
             self.scenarios[s] = sc
@@ -158,11 +164,16 @@ class EpisodeBatch:
         """
         blk = self.sim.advance(self.period_samples)
         t0 = time.perf_counter()
+        t_first = (self.diag.samples - self.diag._offset) * self.dt  # each engine's time of the period's first sample
         out = self.diag.observe(blk.measurements, blk.u)
         t_now = self.t = self.sim.local_time
-        feats = module_features(out.residuals, out.thresholds, self.diag.first_violation, t_now, self.durations)
+        feats = module_features(out.residuals, out.thresholds, self.diag.first_violation, t_now, self.durations,
+                                out.stats)
         if self.observe_sensors:
             feats = np.concatenate([feats, sensor_features(blk.measurements, blk.u, self._nominal)], axis=1)
+        if self.seq is not None:
+            self.seq.update(out.residuals, blk.u, pressure_ratio(blk.measurements), out.violations, t_first)
+            feats = np.concatenate([feats, self.seq.features()], axis=1)
         elapsed = time.perf_counter() - t0
         sel = np.arange(self.n) if slots is None else np.asarray(slots, dtype=np.int64)
         self.obs[sel] = feats[sel]
@@ -229,10 +240,20 @@ class EpisodeBatch:
         return {"detected": bool(st.detected),
                 "diagnoses": [sorted(d) for d in st.diagnoses] if st.detected else []}
 
+    def sequential_declaration(self, slot: int) -> dict:
+        """The sequential diagnoser's current conclusion for a slot (``observe_sequential`` only)."""
+        st = self.seq.decisions[slot]
+        return {"detected": bool(st.detected),
+                "diagnoses": [sorted(d) for d in st.diagnoses] if st.detected else []}
+
     def info(self, slot: int) -> dict:
         """The info of one slot now (the single environment's ``info``)."""
         parts = self.info_arrays([slot])
         fail = self.failure[slot]
+        extra = {}
+        if self.seq is not None:
+            extra["sequential"] = {"detected": bool(parts["sequential"]["detected"][0]),
+                                   "diagnoses": parts["sequential"]["diagnoses"][0]}
         return {
             "t_s": float(parts["t_s"][0]),
             "scenario_id": parts["scenario_id"][0],
@@ -242,6 +263,7 @@ class EpisodeBatch:
             "engine_failure": None if fail is None else dict(fail),
             "reference": {"detected": bool(parts["reference"]["detected"][0]),
                           "diagnoses": parts["reference"]["diagnoses"][0]},
+            **extra,
         }
 
     def info_arrays(self, slots) -> dict:
@@ -268,6 +290,14 @@ class EpisodeBatch:
                 engine[j], fail_t[j], reason[j] = fail["engine"], fail["time_s"], fail["reason"]
             ref = self.reference_declaration(s)
             detected[j], diagnoses[j] = ref["detected"], ref["diagnoses"]
-        return {"t_s": self.t[slots].astype(float), "scenario_id": sid, "profile": prof, "true_faults": truth,
-                "active_faults": act_ids, "engine_failure": {"engine": engine, "time_s": fail_t, "reason": reason},
-                "reference": {"detected": detected, "diagnoses": diagnoses}}
+        out = {"t_s": self.t[slots].astype(float), "scenario_id": sid, "profile": prof, "true_faults": truth,
+               "active_faults": act_ids, "engine_failure": {"engine": engine, "time_s": fail_t, "reason": reason},
+               "reference": {"detected": detected, "diagnoses": diagnoses}}
+        if self.seq is not None:
+            sdet = np.zeros(k, dtype=bool)
+            sdiag = np.empty(k, dtype=object)
+            for j, s in enumerate(slots):
+                d = self.sequential_declaration(s)
+                sdet[j], sdiag[j] = d["detected"], d["diagnoses"]
+            out["sequential"] = {"detected": sdet, "diagnoses": sdiag}
+        return out

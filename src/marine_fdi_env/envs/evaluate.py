@@ -108,6 +108,7 @@ def run_episodes(agent, scenarios: list[ScenarioSpec], env_kwargs: dict | None =
     its observation and its share of the agent's ``act``).
     """
     env_kwargs = dict(env_kwargs or {})
+    env_kwargs.update(getattr(agent, "env_kwargs", {}))  # options the agent needs (e.g. observe_sequential)
     warm_up(env_kwargs)  # compile time stays out of compute_s
     records: dict[int, dict] = {}
     groups: dict[float, list[int]] = {}  # one batched engine set per sensor-noise scale
@@ -258,6 +259,7 @@ def evaluate(agent_spec: str, suite_name: str, out: Path, *, workers: int = 1, s
     spec = resolve_agent_spec(agent_spec)  # names stay names, paths become absolute (workers may run elsewhere)
     agent = cached_agent(spec)  # fail early on a bad agent
     env_kwargs, reward_cfg = suite_env_kwargs(suite, reward)
+    env_kwargs.update(getattr(agent, "env_kwargs", {}))  # options the agent needs (e.g. observe_sequential)
     header = {"agent": agent.name, "agent_spec": str(agent_spec), "suite": suite.name,
               "suite_version": suite["version"], "seed_offset": int(seed_offset), "env_id": env_id_for(reward_cfg),
               "env": env_kwargs}
@@ -335,7 +337,8 @@ def build_parser() -> argparse.ArgumentParser:
         description="Run an agent on a frozen evaluation suite and print its metrics. With no arguments: the "
                     "reference diagnoser on thesis-v1.")
     ap.add_argument("--agent", default="reference",
-                    help="an agent name (see 'marine-fdi agents': null, random, reference, oracle, the shipped "
+                    help="an agent name (see 'marine-fdi agents': null, random, reference, sequential, oracle,
+                         the shipped "
                          "models), a directory with agent.json, or path/to/file.py:ClassName (default: reference)")
     ap.add_argument("--suite", default="thesis-v1", help="suite name or JSON path (default: thesis-v1)")
     ap.add_argument("--out", type=Path, default=None,

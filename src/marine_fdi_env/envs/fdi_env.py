@@ -63,7 +63,8 @@ class MarineFDIEnv(gym.Env):
     turns this into ``Discrete(28)`` (one hypothesis at a time).
 
     ## Observation space
-    ``Box(low, high, (115,), float32)`` (135 with ``observe_sensors=True``); per module, over the
+    ``Box(low, high, (115,), float32)`` (135 with ``observe_sensors=True``, 76 more with
+    ``observe_sequential=True``: the ``sequential`` diagnoser's CUSUM states); per module, over the
     period: log(1 + max |r|/threshold), log(1 + mean |r|/threshold), the signed mean of
     r/threshold (log-compressed), share of samples violating, fired-this-episode flag, time since
     first violation / episode length; then the episode's
@@ -93,7 +94,7 @@ class MarineFDIEnv(gym.Env):
     ## Arguments
     ``gymnasium.make("marine_fdi_env:MarineFDI-v0", scenario_config="default",
     decision_period_s=1.0, observe_sensors=False, reward=RewardConfig(), params="thesis-12v28",
-    dt=0.01)`` (``MarineFDI-v1``: ``reward="v1"``, or a ``RewardConfigV1``); ``scenario_config`` is a preset name (``default``, ``single``, ``multi``,
+    dt=0.01, observe_sequential=False)`` (``MarineFDI-v1``: ``reward="v1"``, or a ``RewardConfigV1``); ``scenario_config`` is a preset name (``default``, ``single``, ``multi``,
     ``nominal``, ``incipient``, ``transfer``, ``sensor-kinds``), a
     :class:`~marine_fdi_env.envs.scenario_sampler.ScenarioConfig` or its dict.
     ``reset(options={"scenario": ScenarioSpec | dict})`` runs a given scenario instead of a drawn
@@ -104,7 +105,8 @@ class MarineFDIEnv(gym.Env):
     ``active_faults``, ``engine_failure`` (None, or ``engine``, ``time_s``, ``reason``; ``engine`` is
     0 here and the sub-env index in the vector env, whose slots without a failure carry engine -1,
     time NaN, reason ""), ``reference`` (the reference diagnoser's detection and
-    minimal diagnoses), and after a step ``decision_time_s``, ``declared``, ``alarm``,
+    minimal diagnoses), ``sequential`` (the same for the ``sequential`` diagnoser, with
+    ``observe_sequential=True`` only), and after a step ``decision_time_s``, ``declared``, ``alarm``,
     ``belief_on_truth``, ``reward_terms``.  (Wall-clock numbers are kept out of ``info`` so that
     equal seeds give equal infos; ``env.unwrapped.feature_compute_s`` has the time spent on the
     observation features this episode.)
@@ -118,20 +120,22 @@ class MarineFDIEnv(gym.Env):
 
     def __init__(self, scenario_config: "str | ScenarioConfig | dict" = "default", decision_period_s: float = 1.0,
                  observe_sensors: bool = False, reward: "RewardConfig | RewardConfigV1 | dict | str | None" = None,
-                 params: str = "thesis-12v28", dt: float = 0.01, render_mode: str | None = None) -> None:
+                 params: str = "thesis-12v28", dt: float = 0.01, render_mode: str | None = None,
+                 observe_sequential: bool = False) -> None:
         self.scenario_config = get_preset(scenario_config)
         reward = make_reward_config(reward)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.render_mode = render_mode
         self._init_kwargs = dict(scenario_config=self.scenario_config, decision_period_s=decision_period_s,
-                                 observe_sensors=observe_sensors, reward=reward, params=params, dt=dt)
+                                 observe_sensors=observe_sensors, reward=reward, params=params, dt=dt,
+                                 observe_sequential=observe_sequential)
         self.batch = EpisodeBatch(1, params, decision_period_s, dt, observe_sensors, reward,
-                                  noise_scale=self.scenario_config.noise_scale)
-        low, high = observation_bounds(observe_sensors)
+                                  noise_scale=self.scenario_config.noise_scale, observe_sequential=observe_sequential)
+        low, high = observation_bounds(observe_sensors, observe_sequential)
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
         self.action_space = spaces.Box(0.0, 1.0, (N_HYPOTHESES,), dtype=np.float32)
-        self.feature_names = feature_names(observe_sensors)
+        self.feature_names = feature_names(observe_sensors, observe_sequential)
         self.hypotheses = HYPOTHESES
         self._done = True
         self._last_info: dict = {}

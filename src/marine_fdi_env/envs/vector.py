@@ -40,7 +40,7 @@ class MarineFDIVectorEnv(VectorEnv):
                  decision_period_s: float = 1.0, observe_sensors: bool = False,
                  reward: "RewardConfig | RewardConfigV1 | dict | str | None" = None, params: str = "thesis-12v28",
                  dt: float = 0.01,
-                 render_mode: str | None = None) -> None:
+                 render_mode: str | None = None, observe_sequential: bool = False) -> None:
         if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         if render_mode is not None:
@@ -49,13 +49,13 @@ class MarineFDIVectorEnv(VectorEnv):
         self.scenario_config = get_preset(scenario_config)
         reward = make_reward_config(reward)
         self.batch = EpisodeBatch(self.num_envs, params, decision_period_s, dt, observe_sensors, reward,
-                                  noise_scale=self.scenario_config.noise_scale)
-        low, high = observation_bounds(observe_sensors)
+                                  noise_scale=self.scenario_config.noise_scale, observe_sequential=observe_sequential)
+        low, high = observation_bounds(observe_sensors, observe_sequential)
         self.single_observation_space = spaces.Box(low, high, dtype=np.float32)
         self.single_action_space = spaces.Box(0.0, 1.0, (N_HYPOTHESES,), dtype=np.float32)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self.feature_names = feature_names(observe_sensors)
+        self.feature_names = feature_names(observe_sensors, observe_sequential)
         self.hypotheses = HYPOTHESES
         self._rngs: list[np.random.Generator | None] = [None] * self.num_envs
         self._autoreset = np.zeros(self.num_envs, dtype=bool)

@@ -1,0 +1,30 @@
+"""The ``sequential`` diagnoser as a benchmark agent: CUSUM tests on the reference diagnoser's
+residuals with the same structural isolation logic (:mod:`marine_fdi_env.diagnosis.sequential`).
+
+The environment runs the tests when asked (``observe_sequential=True``, which this agent's
+``env_kwargs`` request from ``marine-fdi evaluate``) and reports their conclusion in
+``info["sequential"]``; the agent declares from its minimal diagnoses exactly as the ``reference``
+agent does from the reference's (:func:`baselines.reference_agent.belief_from_diagnoses`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from baselines.reference_agent import belief_from_diagnoses
+
+__all__ = ["SequentialAgent"]
+
+
+class SequentialAgent:
+    name = "sequential"
+    env_kwargs = {"observe_sequential": True}
+
+    def reset(self, seeds: list[int]) -> None:
+        self.n = len(seeds)
+
+    def act(self, obs: np.ndarray, infos: dict) -> np.ndarray:
+        if "sequential" not in infos:
+            raise ValueError("the sequential agent needs the environment made with observe_sequential=True")
+        seq = infos["sequential"]
+        return np.stack([belief_from_diagnoses(bool(d), g) for d, g in zip(seq["detected"], seq["diagnoses"])])

@@ -1,0 +1,108 @@
+"""The shipped sure cells of a diagnoser: which modules surely fire for which fault (the thesis's
+'1' versus '*'), how far their firing times spread (the settle times of the time-order check) and
+how long a silent sure module is still awaited (the grace periods).
+
+The files are written by :mod:`marine_fdi_env.diagnosis.certainty` (the measurement over a grid of
+fault magnitudes, profiles and seeds); this module only reads them, so that the diagnosers
+(:mod:`.agent`, :mod:`.sequential`) do not depend on the simulation code that measures them.
+
+File format (JSON): ``module_ids``, ``fault_ids``; ``sure`` (19 x 26 bool) and ``lag_s``
+(19 x 26, the largest delay of a sure module after the fault's first fired module over the
+measured runs); ``spread_s`` (26,), the settle time's basis: the largest delay of a fault's sure
+modules after its first fired module (the first format: their spread among themselves);
+``settings`` and ``command`` say how it was measured.  The first file of the project
+(``format`` absent) held fire counts at the table magnitudes only: ``fire_counts``,
+``runs_per_fault``, ``sure_lag_s``, ``sure_spread_s``; it is still read.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from functools import lru_cache
+from importlib import resources
+
+import numpy as np
+
+from ..faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS
+from .modules import MODULE_IDS
+from .structure import fault_signature_matrix
+
+__all__ = ["SureCells", "load_sure_cells", "sure_cells", "settle_times", "grace_times", "SURE_CELLS_FILE",
+           "SENSOR_MAX_LAG_S"]
+
+SURE_CELLS_FILE = "sure_cells.json"
+# An abrupt sensor fault surely fires a module only if it does so promptly: a module that fired in
+# every run but up to minutes after the others did so by chance of the noise (e.g. M3.3 for S2.1,
+# which may as well stay silent in a shorter run).  Applies to the first file format; the grid
+# measurement decides with its own rule (certainty.derive_sure_cells).
+SENSOR_MAX_LAG_S = 30.0
+_IS_SENSOR = np.array([f not in PROCESS_FAULT_DEFAULTS for f in FAULT_IDS])
+
+
+@dataclass(frozen=True)
+class SureCells:
+    """sure (19, 26) bool; lag_s (19, 26); spread_s (26,); data: the file's content."""
+
+    sure: np.ndarray
+    lag_s: np.ndarray
+    spread_s: np.ndarray
+    data: dict
+
+    def settle_times(self, margin_s: float = 2.0, factor: float = 1.5) -> np.ndarray:
+        """Per-fault settle times (26,) for the temporal check: ``spread_s`` (see the module
+        docstring) times ``factor`` plus ``margin_s``; process faults (incipient, their spread grows
+        with the fault's size) get no temporal constraint (inf)."""
+        out = factor * self.spread_s + margin_s
+        return np.where(_IS_SENSOR, out, np.inf)
+
+    def grace_times(self, margin_s: float = 2.0, factor: float = 1.5) -> np.ndarray:
+        """Grace periods (19, 26): how long after a fault's first fired module a silent sure module
+        is still awaited before it exonerates the fault (its measured largest lag behind the
+        fault's first fired module x ``factor`` + ``margin_s``)."""
+        return factor * self.lag_s + margin_s
+
+
+def _read(name: str) -> dict:
+    path = resources.files("marine_fdi_env") / "data" / "diagnosis" / name
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise ValueError(f"no sure-cell file {name!r} in marine_fdi_env/data/diagnosis") from None
+    if data["module_ids"] != list(MODULE_IDS) or data["fault_ids"] != list(FAULT_IDS):
+        raise ValueError(f"{name} does not match the current module or fault ids; regenerate it")
+    return data
+
+
+@lru_cache(maxsize=None)
+def load_sure_cells(name: str = SURE_CELLS_FILE) -> SureCells:
+    """The sure cells of ``data/diagnosis/<name>`` (cached)."""
+    data = _read(name)
+    support, _, _ = fault_signature_matrix()
+    if "sure" in data:
+        sure = np.asarray(data["sure"], dtype=bool) & support
+        lag = np.asarray(data["lag_s"], dtype=float)
+        spread = np.asarray(data["spread_s"], dtype=float)
+    else:  # the first format: fire counts at the table magnitudes
+        counts = np.asarray(data["fire_counts"])
+        lag = np.asarray(data.get("sure_lag_s", np.zeros(counts.shape)), dtype=float)
+        sure = (counts == data["runs_per_fault"]) & support & ~(_IS_SENSOR[None, :] & (lag > SENSOR_MAX_LAG_S))
+        spread = np.asarray(data.get("sure_spread_s", [0.0] * len(FAULT_IDS)), dtype=float)
+    for a in (sure, lag, spread):
+        a.setflags(write=False)
+    return SureCells(sure, lag, spread, data)
+
+
+def sure_cells(name: str = SURE_CELLS_FILE) -> np.ndarray:
+    """Bool (19, 26): the cells that surely fire (within the structural support)."""
+    return load_sure_cells(name).sure.copy()
+
+
+def settle_times(margin_s: float = 2.0, factor: float = 1.5, name: str = SURE_CELLS_FILE) -> np.ndarray:
+    """See :meth:`SureCells.settle_times`."""
+    return load_sure_cells(name).settle_times(margin_s, factor)
+
+
+def grace_times(margin_s: float = 2.0, factor: float = 1.5, name: str = SURE_CELLS_FILE) -> np.ndarray:
+    """See :meth:`SureCells.grace_times`."""
+    return load_sure_cells(name).grace_times(margin_s, factor)
