@@ -311,7 +311,7 @@ def test_validate_and_synthesize_are_wired(tmp_path, capsys):
     assert main(["synthesize-measurements", "--params", "man-12v32-40", "--mechanism", "none", "--points", "6",
                  "--noise", "0.005", "--seed", "3", "--out", str(data)]) == 0
     out = tmp_path / "report.json"
-    assert main(["validate", "--data", str(data), "--out", str(out), "--screen"]) == 0
+    assert main(["validate", "--data", str(data), "--out", str(out), "--max-folds", "3"]) == 0
     rep = json.loads(out.read_text())
     for key in ("channels", "discrepancies", "candidates", "selected_causes", "unexplained", "parameters"):
         assert key in rep
