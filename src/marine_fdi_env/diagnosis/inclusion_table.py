@@ -251,7 +251,8 @@ _CACHE: dict = {}
 def sigma2_table(c, dx1: float, dx4: float, dT1: float) -> Sigma2Table:
     """The table for model constants ``c`` and one chain's noise bounds, built on first use
     (about 0.5 s) and kept for the process."""
-    key = (tuple(c), float(dx1), float(dx4), float(dT1))
+    # the constants hold arrays (submodel schedules): key them by their bytes
+    key = (tuple(v.tobytes() if isinstance(v, np.ndarray) else v for v in c), float(dx1), float(dx4), float(dT1))
     if key in _CACHE:
         return _CACHE[key]
     x1_nom = c.x1_nom_kg
