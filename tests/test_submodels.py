@@ -259,3 +259,32 @@ def test_turbocharger_speed_law_on_the_protocol():
     assert abs(rel[4]) < 1e-3  # the calibration row
     assert np.max(np.abs(rel)) < 0.025
     assert float(turbocharger_speed_rpm(p, 1.025e5 + 3.08e5, 1.025e5, 307.15)) == pytest.approx(22142.0, rel=1e-12)
+
+
+def test_reference_diagnoser_plant_runs_with_the_submodels():
+    """The diagnoser's residual generators use the engine's submodels (waste gate, bypass valve, flow law,
+    heat loss, intercooler, BSR, friction, heat loss in the cylinders, combinator speed): on noise-free,
+    fault-free data of such an engine every module stays inside its threshold, while a diagnoser that
+    assumed the base engine would see the submodels as faults (its Σ3/Σ4 modules cross their thresholds)."""
+    from marine_fdi_env.diagnosis.agent import ReferenceDiagnoser
+    from marine_fdi_env.diagnosis.modules import MODULE_IDS
+    from marine_fdi_env.diagnosis.residuals import residuals_for_run
+
+    p = load_params("thesis-12v28")
+    eng = p.replace(name="with-submodels", submodels=ALL_ON)
+    sim = Simulator(eng, n_engines=2, seeds=[0, 1], profiles=["constant:u0=0.95", "constant:u0=0.45"],
+                    noise_scale=0.0)
+    res = sim.run(60.0)
+    assert not res.failures
+    settled = slice(int(10.0 / sim.dt), None)  # after the observers' start-up
+    own, base = ReferenceDiagnoser(eng).c, ReferenceDiagnoser(p).c
+    worst_base = 0.0
+    for i in range(2):
+        y, u = res.measurements[:, i], res.truth_of("u")[:, i]
+        tr = residuals_for_run(own, y, u, sim.dt)
+        ratio = np.abs(tr.residuals[settled]) / tr.thresholds[settled]
+        worst = ratio.max(axis=0)
+        assert np.all(worst < 1.0), {m: round(float(w), 3) for m, w in zip(MODULE_IDS, worst) if w >= 1.0}
+        tb = residuals_for_run(base, y, u, sim.dt)
+        worst_base = max(worst_base, float((np.abs(tb.residuals[settled]) / tb.thresholds[settled]).max()))
+    assert worst_base > 1.0

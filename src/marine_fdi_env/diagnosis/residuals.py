@@ -56,9 +56,17 @@ import numpy as np
 from .._jit import jit
 from ..integrators import THREADED_MIN_ENGINES, _etd_scalar, _executor
 from ..sensors import NOISE_BOUNDS, SENSOR_IDS
-from ..subsystems.air_intake import compressor_outlet_temperature, delta_f, eta_tc, inlet_air_temperature
+from ..subsystems.air_intake import (
+    compressor_forcing,
+    compressor_outlet_temperature,
+    cooler_outlet_temperature,
+    delta_f,
+    eta_tc,
+    inlet_air_temperature,
+    inlet_air_temperature_at,
+)
 from ..seiliger import seiliger_cycle
-from ..subsystems.engine_block import _sweep, constant_volume_portion, engine_block, friction_torque
+from ..subsystems.engine_block import _sweep, constant_volume_portion, engine_block, friction_torque, speed_of_torque
 from ..subsystems.exhaust_receiver import (
     receiver_and_turbine,
     receiver_forcing,
@@ -68,6 +76,7 @@ from ..subsystems.exhaust_receiver import (
     turbine_outlet_from_expansion,
     turbine_outlet_temperature,
 )
+from ..subsystems.gas_path import flow_law_pressure, extended_gas_path, valve_opening
 from .modules import MODULE_IDS
 from .inclusion_table import interpolate_rows, sigma2_table
 from .sigma2 import ONE_SIDED, SLOPE_STEP, _centre_speed, _centre_speed2, _perturbed_rows, _perturbed_rows2
@@ -166,6 +175,8 @@ def _point(c, x1, x3, x4, m1, n, psi, Pi, T_in, T_out, T6, p6, out, j):
     in (most points reuse the centre's).  The same operations as ``slip_ratio``,
     ``receiver_forcing``, ... in the same order, so the numbers equal the direct calls bit for bit."""
     s_sl = c.slip_coeff * x4 * psi / (n * m1)
+    if c.sm_on != 0.0:
+        return _point_sm(c, x1, x3, x4, m1, n, s_sl, Pi, T_in, T_out, T6, p6, out, j)
     opm = (1.0 + s_sl) * m1
     mdot = (opm + x1) * n * c.cycles_per_rev
     df = 1.0 + x1 / opm
@@ -174,6 +185,103 @@ def _point(c, x1, x3, x4, m1, n, psi, Pi, T_in, T_out, T6, p6, out, j):
     out[j, 2] = _mixing(x1, m1, s_sl, mdot, T6, p6, c)
     out[j, 3] = compressor_outlet_temperature(df, T_in, T_out, 0.0, c)
     return s_sl, mdot, df
+
+
+# ------------------------------------------------------------------------------------------------
+# The plant with the gas-path submodels (waste gate, bypass valve, turbine flow law, efficiency vs
+# blade-speed ratio, exhaust heat loss, intercooler; ``c.sm_on``): the same module structure, with
+# the equations of :func:`~marine_fdi_env.subsystems.gas_path.extended_gas_path` given the measured
+# turbine-inlet and -outlet temperatures.  Valve openings follow their schedules over the measured
+# fuel setting u = x1/x1_nom.  The base model (``sm_on`` 0) never enters these functions, so its
+# residuals are unchanged bit for bit.
+@jit
+def _sm_flows(c, x1, x3, x4, m1, s_sl, n, T_c):
+    """(ṁ_g, ṁ_bp, waste-gate opening a, compressor air ṁ_c) of the extended gas path."""
+    mdot_g = turbine_mass_flow(x1, m1, s_sl, n, c)
+    u = x1 / c.x1_nom_kg
+    a_wg = 0.0
+    if c.wg_on != 0.0:
+        a_wg = valve_opening(u, c.wg_u, c.wg_a)
+    mdot_bp = 0.0
+    if c.bp_on != 0.0 and x4 > x3:
+        b = valve_opening(u, c.bp_u, c.bp_b)
+        rho = x4 / (c.R_a_J_per_kgK * T_c)
+        mdot_bp = c.alpha_z * c.A_eff_m2 * b * math.sqrt(2.0 * rho * (x4 - x3))
+    m_c = (1.0 + s_sl) * m1 * n * c.cycles_per_rev + mdot_bp
+    return mdot_g, mdot_bp, a_wg, m_c
+
+
+@jit
+def _sm_turbine_gas(c, T_in, mdot_g, mdot_bp, T_c):
+    """Gas temperature entering the turbine from the turbine-inlet reading: the reading itself, or,
+    with a bypass that joins at the turbine (the thermocouple sits before the junction), its mixture
+    with the bypass air."""
+    if c.bp_on != 0.0 and c.bp_junction_turbine != 0.0 and mdot_bp > 0.0:
+        cg = c.c_p_g_J_per_kgK * mdot_g
+        ca = c.c_p_a_J_per_kgK * mdot_bp
+        return (cg * T_in + ca * T_c) / (cg + ca)
+    return T_in
+
+
+@jit
+def _sm_h3(c, mdot_t, a_wg, T_t):
+    """h3 = P/τ_pd with P from the generalised flow law through turbine and waste gate."""
+    area = c.tf_s * (1.0 + a_wg)
+    gam = c.gamma_coeff * mdot_t * mdot_t / (area * area)
+    return flow_law_pressure(gam, T_t, 0.0, c) / c.tau_pd_s
+
+
+@jit
+def _sm_tco(c, d_f, T_t, T_out):
+    """Compressor outlet temperature T_co = T_amb + η_com χ_g δ (T_t - T_out) (fault-free)."""
+    return c.T_amb_K + c.eta_com * c.chi_g * d_f * (T_t - T_out)
+
+
+@jit
+def _point_sm(c, x1, x3, x4, m1, n, s_sl, Pi, T_in, T_out, T6, p6, out, j):
+    """:func:`_point` with the gas-path submodels; returns (s_sl, ṁ through the receiver, δ)."""
+    T_c = cooler_outlet_temperature(x4, c)
+    mdot_g, mdot_bp, a_wg, m_c = _sm_flows(c, x1, x3, x4, m1, s_sl, n, T_c)
+    mdot_t = mdot_g + mdot_bp
+    d_f = mdot_t / ((1.0 + a_wg) * m_c)
+    T_t = _sm_turbine_gas(c, T_in, mdot_g, mdot_bp, T_c)
+    out[j, 0] = _sm_h3(c, mdot_t, a_wg, T_t)
+    out[j, 1] = compressor_forcing(x4, d_f, T_t, Pi, c)
+    out[j, 2] = extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, c.T_sl_K, T_c, 0.0, c, math.nan, math.nan)[1]
+    out[j, 3] = _sm_tco(c, d_f, T_t, T_out)
+    return s_sl, mdot_t, d_f
+
+
+@jit
+def _sm_perturbed(c, x1, x3, x4, m1, n, s_sl, Pi, T_in, T_out, dTin, dTo, T6m, p6m, dp6, dT6, G, step):
+    """Rows 9-16 of the inclusion box (T_in, p6, T6, T_out perturbed) with the gas-path submodels."""
+    T_c = cooler_outlet_temperature(x4, c)
+    mdot_g, mdot_bp, a_wg, m_c = _sm_flows(c, x1, x3, x4, m1, s_sl, n, T_c)
+    mdot_t = mdot_g + mdot_bp
+    d_f = mdot_t / ((1.0 + a_wg) * m_c)
+    for j in range(9, 17, step):
+        sg = 1.0 if j % 2 == 1 else -1.0
+        if j < 11:
+            T_t = _sm_turbine_gas(c, T_in + sg * dTin, mdot_g, mdot_bp, T_c)
+            G[j, 0] = _sm_h3(c, mdot_t, a_wg, T_t)
+            G[j, 1] = compressor_forcing(x4, d_f, T_t, Pi, c)
+            G[j, 3] = _sm_tco(c, d_f, T_t, T_out)
+        elif j >= 15:
+            G[j, 3] = _sm_tco(c, d_f, _sm_turbine_gas(c, T_in, mdot_g, mdot_bp, T_c), T_out + sg * dTo)
+        else:
+            pp = p6m + sg * dp6 if j < 13 else p6m
+            TT = T6m + sg * dT6 if j >= 13 else T6m
+            G[j, 2] = extended_gas_path(x1, x3, x4, m1, s_sl, n, TT, pp, c.T_sl_K, T_c, 0.0, c, math.nan,
+                                        math.nan)[1]
+
+
+@jit
+def _speed_of(tq, c):
+    """Engine speed at brake torque tq for the torque module: the propeller law (eq. 3.11) as the
+    thesis writes it, or the combinator line of the ``speed_law`` submodel."""
+    if c.sl_comb != 0.0:
+        return speed_of_torque(tq, c)
+    return math.sqrt(c.two_pi_over_c * tq)
 
 
 # Near a kink of Ψ_sc (x3/x4 clipped to [r_crit, 1]; Ψ_sc ∝ sqrt(1 - x3/x4) below 1, so its
@@ -472,17 +580,17 @@ def _kernel(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_tabl
                 # ---------------------------------------------------------------- M2.(5,6): torque
                 m = 6 + side
                 if base_ok and math.isfinite(tqm) and math.isfinite(T6m) and tqm > 0.0:
-                    n_t = math.sqrt(c.two_pi_over_c * tqm)
+                    n_t = _speed_of(tqm, c)
                     dq = dbar[ctq]
                     dT6 = dbar[cT6]
                     pc = _torque_cycle(x1, x4, T1, n_t, c)
                     g0 = _torque_from(pc, T6m, c)
                     r0 = tqm - g0
-                    n_p = math.sqrt(c.two_pi_over_c * (tqm + dq))
+                    n_p = _speed_of(tqm + dq, c)
                     rp = (tqm + dq) - _torque_from(_torque_cycle(x1, x4, T1, n_p, c), T6m, c)
                     rm = r0
                     if not ONE_SIDED:
-                        n_m = math.sqrt(c.two_pi_over_c * max(tqm - dq, 0.0))
+                        n_m = _speed_of(max(tqm - dq, 0.0), c)
                         rm = (tqm - dq) - _torque_from(_torque_cycle(x1, x4, T1, n_m, c), T6m, c)
                     b = _dev(r0, rp, rm)
                     b += _dev(r0, tqm - _torque_from(pc, T6m + dT6, c), tqm - _torque_from(pc, T6m - dT6, c))
@@ -536,6 +644,10 @@ def _kernel(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_tabl
                     if kinked:
                         _kink_corners(c, x1, x3, x4, T1, d3, d4, t[3, 0], t[4, 0], T_in, T_out, T6m, p6m, G, kc)
                     for j in range(9, 17, step):
+                        if c.sm_on != 0.0:
+                            _sm_perturbed(c, x1, x3, x4, m1, n0, s_sl, Pi, T_in, T_out, dTin, dTo, T6m, p6m, dp6, dT6,
+                                          G, step)
+                            break
                         sg = 1.0 if j % 2 == 1 else -1.0
                         Ti = T_in + sg * dTin if j < 11 else T_in
                         if j < 11:  # T_in: h3, h4, T_co
@@ -597,8 +709,11 @@ def _kernel(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_tabl
                 R[kk, m], THR[kk, m] = _observer_update(st, 7, first, ok, x4, F, H, E4, q4, r4, Ld4, d4)
                 # ---------------------------------------------------------------- M4.(3,4): T1
                 m = 15 + side
-                R[kk, m] = T1 - T1_model if math.isfinite(T1) else math.inf
-                THR[kk, m] = dT1 + MODEL_MARGIN * T1_model
+                T1m = T1_model
+                if c.ic_on != 0.0:  # intercooler submodel: the cooler outlet follows the charge pressure
+                    T1m = inlet_air_temperature_at(0.0, x4 if math.isfinite(x4) else c.p_amb_Pa, c)
+                R[kk, m] = T1 - T1m if math.isfinite(T1) else math.inf
+                THR[kk, m] = dT1 + MODEL_MARGIN * T1m
                 # ---------------------------------------------------------------- M4.(5,6): compressor outlet
                 m = 17 + side
                 if ok and math.isfinite(T_co) and math.isfinite(T_out):

@@ -56,7 +56,7 @@ def valve_opening(u: float, ku, kv) -> float:
 
 
 @jit
-def _flow_law_pressure(gam: float, A0: float, A1: float, c) -> float:
+def flow_law_pressure(gam: float, A0: float, A1: float, c) -> float:
     """P with ``P² (1 - (p_ex/P)^e) = gam (A0 + A1 P)``: closed form for e = 2, Newton steps otherwise."""
     pe = c.p_ex_Pa
     gb = gam * A1
@@ -124,7 +124,7 @@ def extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, T_c, dT_c, c, ov_wg
     mdot_t = mdot_g + mdot_bp
     area = c.tf_s * (1.0 + a_wg)
     gam = c.gamma_coeff * mdot_t * mdot_t / (area * area)
-    P = _flow_law_pressure(gam, A0, A1, c)
+    P = flow_law_pressure(gam, A0, A1, c)
     T_cyl = alpha + beta * P
     T_hl = (1.0 - E) * c.T_amb_K + E * T_cyl
     T_t = A0 + A1 * P
