@@ -24,7 +24,7 @@ import numpy as np
 
 from marine_fdi_env.diagnosis.agent import ReferenceDiagnoser
 from marine_fdi_env.scenarios import get_scenario
-from marine_fdi_env.simulator import Simulator
+from marine_fdi_env.engine.simulator import Simulator
 from _report import emit  # noqa: E402  (benchmarks/ is the script directory)
 
 

@@ -21,10 +21,10 @@ import time
 
 import numpy as np
 
-from marine_fdi_env import integrators
+from marine_fdi_env.engine import integrators
 from marine_fdi_env.diagnosis import agent as _agent, residuals as _residuals
 from marine_fdi_env.diagnosis.agent import ReferenceDiagnoser
-from marine_fdi_env.simulator import Simulator
+from marine_fdi_env.engine.simulator import Simulator
 from _report import emit  # noqa: E402  (benchmarks/ is the script directory)
 
 

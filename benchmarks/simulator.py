@@ -29,10 +29,10 @@ import time
 
 import numpy as np
 
-from marine_fdi_env.faults import FaultSpec, random_fault_schedule
-from marine_fdi_env.integrators import reference_solve
-from marine_fdi_env.sensors import VARIABLE_OF_SENSOR
-from marine_fdi_env.simulator import Simulator
+from marine_fdi_env.engine.faults import FaultSpec, random_fault_schedule
+from marine_fdi_env.engine.integrators import reference_solve
+from marine_fdi_env.engine.sensors import VARIABLE_OF_SENSOR
+from marine_fdi_env.engine.simulator import Simulator
 from _report import emit  # noqa: E402  (benchmarks/ is the script directory)
 
 PARAMS = "thesis-12v28"

@@ -13,12 +13,12 @@ import math
 import numpy as np
 
 from marine_fdi_env._jit import jit
-from marine_fdi_env.integrators import THREADED_MIN_ENGINES, _etd_scalar, _executor
-from marine_fdi_env.sensors import NOISE_BOUNDS, SENSOR_IDS
-from marine_fdi_env.subsystems.air_intake import compressor_outlet_temperature, delta_f, eta_tc, inlet_air_temperature
-from marine_fdi_env.seiliger import seiliger_cycle
-from marine_fdi_env.subsystems.engine_block import _sweep, constant_volume_portion, engine_block, friction_torque
-from marine_fdi_env.subsystems.exhaust_receiver import (
+from marine_fdi_env.engine.integrators import THREADED_MIN_ENGINES, _etd_scalar, _executor
+from marine_fdi_env.engine.sensors import NOISE_BOUNDS, SENSOR_IDS
+from marine_fdi_env.engine.subsystems.air_intake import compressor_outlet_temperature, delta_f, eta_tc, inlet_air_temperature
+from marine_fdi_env.engine.seiliger import seiliger_cycle
+from marine_fdi_env.engine.subsystems.engine_block import _sweep, constant_volume_portion, engine_block, friction_torque
+from marine_fdi_env.engine.subsystems.exhaust_receiver import (
     receiver_and_turbine,
     receiver_forcing,
     scavenge_flow_function,

@@ -9,7 +9,7 @@ from marine_fdi_env.diagnosis.certainty import derive_sure_cells, grid_magnitude
 from marine_fdi_env.diagnosis.decision import declared_faults
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
 from marine_fdi_env.diagnosis.sure_cells import SureCells, load_sure_cells
-from marine_fdi_env.faults import FAULT_IDS
+from marine_fdi_env.engine.faults import FAULT_IDS
 
 M = {m: i for i, m in enumerate(MODULE_IDS)}
 

@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from marine_fdi_env import cli
-from marine_fdi_env.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS
+from marine_fdi_env.engine.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS
 from marine_fdi_env.runio import REQUIRED_ARRAYS, load_run
 from marine_fdi_env.scenarios import SCENARIOS, get_scenario
-from marine_fdi_env.sensors import DEFAULT_FAULT_MAGNITUDES, SENSOR_IDS, sensor_index
-from marine_fdi_env.simulator import TRUTH_VARIABLES
+from marine_fdi_env.engine.sensors import DEFAULT_FAULT_MAGNITUDES, SENSOR_IDS, sensor_index
+from marine_fdi_env.engine.simulator import TRUTH_VARIABLES
 
 
 def run_cli(capsys, *argv):
@@ -270,7 +270,7 @@ def test_load_run_wrong_shapes_and_garbage(faulty_run, tmp_path):
 
 def test_save_run_roundtrip_in_process(tmp_path):
     from marine_fdi_env.runio import save_run
-    from marine_fdi_env.simulator import Simulator
+    from marine_fdi_env.engine.simulator import Simulator
 
     sim = Simulator("thesis-12v28", n_engines=1, seeds=3, faults=["S2.3@0.2,kind=stuck", "S1.1@0.1:1e-4,kind=drift"],
                     noise_scale=0.5)

@@ -10,10 +10,10 @@ import pytest
 from baselines.reference_diagnoser import ReferenceDiagnoser
 from marine_fdi_env.cli import main as cli_main
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
-from marine_fdi_env.faults import FaultSpec
+from marine_fdi_env.engine.faults import FaultSpec
 from marine_fdi_env.runio import load_run
 from marine_fdi_env.scenarios import get_scenario
-from marine_fdi_env.simulator import Simulator
+from marine_fdi_env.engine.simulator import Simulator
 
 
 def _diagnose(res, exoneration="sure", block=None):
@@ -125,7 +125,7 @@ def test_thesis_examples_one_seed(name):
     first_onset = min(f.onset_s for f in sc.fault_specs())
     assert rep["first_detection_time_s"] >= first_onset
     injected = sorted((f.fault_id for f in sc.fault_specs()), key=lambda f: __import__(
-        "marine_fdi_env.faults", fromlist=["FAULT_IDS"]).FAULT_IDS.index(f))
+        "marine_fdi_env.engine.faults", fromlist=["FAULT_IDS"]).FAULT_IDS.index(f))
     if name == "thesis-6.4.1":
         # S3.4's signature lies inside S4.2's; only the time order told them apart, and with sure
         # cells measured over fault sizes (issue #13) S4.2's sure module may lag its first module by
@@ -162,7 +162,7 @@ def _block(n, samples, seed=0, faults=None):
 
 def test_threaded_batch_equals_single_thread_loop():
     from marine_fdi_env.diagnosis import residuals as rs
-    from marine_fdi_env.integrators import THREADED_MIN_ENGINES
+    from marine_fdi_env.engine.integrators import THREADED_MIN_ENGINES
 
     n = THREADED_MIN_ENGINES + 3  # odd: unequal halves
     Y, U = _block(n, 30, seed=5)
@@ -187,7 +187,7 @@ def test_linearised_perturbed_speeds_match_full_solves():
     # the cycle table's perturbed points (one sweep + linearisation in the speed) against the
     # speed loop solved in full at each point: the inclusion terms agree within 1 % (measured 0.2 %)
     from marine_fdi_env.diagnosis import sigma2 as rs
-    from marine_fdi_env.subsystems.engine_block import engine_block
+    from marine_fdi_env.engine.subsystems.engine_block import engine_block
 
     Y, U = _block(4, 200, seed=3)
     a = ReferenceDiagnoser(n_engines=1)

@@ -12,7 +12,7 @@ import pytest
 from marine_fdi_env.diagnosis import decision as dc
 from marine_fdi_env.diagnosis import structure as st
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
-from marine_fdi_env.faults import FAULT_IDS
+from marine_fdi_env.engine.faults import FAULT_IDS
 
 FSM = st.fault_signature_matrix()[0]
 TH = st.thesis_signature_matrix()

@@ -10,8 +10,8 @@ import pytest
 
 from marine_fdi_env.diagnosis import structure as st
 from marine_fdi_env.diagnosis.modules import EQUATION_FAULTS, MODULE_IDS, MODULES
-from marine_fdi_env.faults import FAULT_IDS, PROCESS_FAULT_IDS
-from marine_fdi_env.sensors import SENSOR_IDS
+from marine_fdi_env.engine.faults import FAULT_IDS, PROCESS_FAULT_IDS
+from marine_fdi_env.engine.sensors import SENSOR_IDS
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "diagnosis_structure.md"
 

@@ -24,11 +24,11 @@ from marine_fdi_env.envs.fdi_env import MarineFDIEnv
 from marine_fdi_env.envs.hypotheses import N_HYPOTHESES, check_action
 from marine_fdi_env.envs.scenario_sampler import ScenarioConfig, ScenarioSpec
 from marine_fdi_env.envs.vector import MarineFDIVectorEnv
-from marine_fdi_env.faults import (FAULT_IDS, PROCESS_FAULT_DEFAULTS, PROCESS_FAULT_IDS, SENSOR_FAULT_KINDS,
+from marine_fdi_env.engine.faults import (FAULT_IDS, PROCESS_FAULT_DEFAULTS, PROCESS_FAULT_IDS, SENSOR_FAULT_KINDS,
                                    FaultSpec)
 from marine_fdi_env.envs.scenario_sampler import SAMPLER_PROFILES
-from marine_fdi_env.profiles import PROFILE_NAMES
-from marine_fdi_env.sensors import SENSOR_IDS
+from marine_fdi_env.engine.profiles import PROFILE_NAMES
+from marine_fdi_env.engine.sensors import SENSOR_IDS
 
 MAX_STEPS = 250  # per episode (a 30 s episode at 0.01 s decisions would be 3000)
 FUZZ = dict(deadline=None, phases=[Phase.explicit, Phase.reuse, Phase.generate, Phase.shrink],  # no explain: slow

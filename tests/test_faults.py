@@ -8,7 +8,7 @@ import re
 import numpy as np
 import pytest
 
-from marine_fdi_env.faults import (
+from marine_fdi_env.engine.faults import (
     FAULT_IDS,
     PROCESS_FAULT_DEFAULTS,
     PROCESS_FAULT_IDS,
@@ -16,8 +16,8 @@ from marine_fdi_env.faults import (
     FaultSpec,
     parse_fault_spec,
 )
-from marine_fdi_env.sensors import SENSOR_IDS, SENSORS, sensor_index
-from marine_fdi_env.simulator import Simulator
+from marine_fdi_env.engine.sensors import SENSOR_IDS, SENSORS, sensor_index
+from marine_fdi_env.engine.simulator import Simulator
 
 INF = math.inf
 

@@ -12,13 +12,13 @@ from importlib import resources
 import pytest
 
 from marine_fdi_env import EngineParams, list_parameter_sets, load_params
-from marine_fdi_env.calibration import INPUT_SETS, derive_parameters
-from marine_fdi_env.geometry import cylinder_geometry
-from marine_fdi_env.params import params_provenance
-from marine_fdi_env.constants import model_constants
-from marine_fdi_env.seiliger import seiliger_cycle
-from marine_fdi_env.subsystems import air_intake as s4
-from marine_fdi_env.subsystems import engine_block as s2
+from marine_fdi_env.engine.calibration import INPUT_SETS, derive_parameters
+from marine_fdi_env.engine.geometry import cylinder_geometry
+from marine_fdi_env.engine.params import params_provenance
+from marine_fdi_env.engine.constants import model_constants
+from marine_fdi_env.engine.seiliger import seiliger_cycle
+from marine_fdi_env.engine.subsystems import air_intake as s4
+from marine_fdi_env.engine.subsystems import engine_block as s2
 
 SHIPPED = ["man-12v32-40", "thesis-12v28", "wartsila-6l46"]
 FIELDS = [f.name for f in dataclasses.fields(EngineParams) if f.name not in ("name", "submodels")]

@@ -16,7 +16,7 @@ from marine_fdi_env.envs.evaluate import evaluate
 from marine_fdi_env.envs.rawdata import OUTPUT_COLUMNS, belief_to_dx
 from marine_fdi_env.envs.rawscore import score_raw
 from marine_fdi_env.envs.suites import load_suite
-from marine_fdi_env.simulator import Simulator
+from marine_fdi_env.engine.simulator import Simulator
 
 from test_env_evaluate import SCENARIOS
 from test_scale_out import _subset, _suite_file

@@ -6,15 +6,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from marine_fdi_env.constants import model_constants
+from marine_fdi_env.engine.constants import model_constants
 from marine_fdi_env.diagnosis import residuals as R
 from marine_fdi_env.diagnosis.agent import ReferenceDiagnoser
 from marine_fdi_env.diagnosis.inclusion_table import _node, interpolate_rows, sigma2_table
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
-from marine_fdi_env.faults import FaultSpec
-from marine_fdi_env.params import load_params
-from marine_fdi_env.sensors import NOISE_BOUNDS
-from marine_fdi_env.simulator import Simulator
+from marine_fdi_env.engine.faults import FaultSpec
+from marine_fdi_env.engine.params import load_params
+from marine_fdi_env.engine.sensors import NOISE_BOUNDS
+from marine_fdi_env.engine.simulator import Simulator
 
 C = model_constants(load_params("thesis-12v28"))
 DB = NOISE_BOUNDS.astype(float)

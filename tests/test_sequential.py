@@ -12,8 +12,8 @@ from marine_fdi_env.diagnosis.modules import MODULE_IDS
 from marine_fdi_env.diagnosis.sequential import (SEQUENTIAL_FEATURES, SequentialCalibration, SequentialDiagnoser,
                                                  cusum_blocks, load_calibration)
 from marine_fdi_env.diagnosis.sequential_calibration import cusum_offline, profile_for
-from marine_fdi_env.faults import FaultSpec
-from marine_fdi_env.simulator import Simulator
+from marine_fdi_env.engine.faults import FaultSpec
+from marine_fdi_env.engine.simulator import Simulator
 
 
 def test_calibration_file_is_consistent():

@@ -9,11 +9,11 @@ import re
 import numpy as np
 import pytest
 
-from marine_fdi_env.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, PROCESS_FAULT_IDS, FaultSpec, parse_fault_spec
-from marine_fdi_env.integrators import reference_solve
-from marine_fdi_env.params import load_params
-from marine_fdi_env.sensors import MEASURED_VARIABLES, N_SENSORS, NOISE_BOUNDS, SENSOR_IDS, VARIABLE_OF_SENSOR
-from marine_fdi_env.simulator import TRUTH_VARIABLES, Simulator
+from marine_fdi_env.engine.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, PROCESS_FAULT_IDS, FaultSpec, parse_fault_spec
+from marine_fdi_env.engine.integrators import reference_solve
+from marine_fdi_env.engine.params import load_params
+from marine_fdi_env.engine.sensors import MEASURED_VARIABLES, N_SENSORS, NOISE_BOUNDS, SENSOR_IDS, VARIABLE_OF_SENSOR
+from marine_fdi_env.engine.simulator import TRUTH_VARIABLES, Simulator
 
 EPS = np.finfo(float).eps
 _TRUTH_COL = np.array([TRUTH_VARIABLES.index(v) for v in MEASURED_VARIABLES])
@@ -502,7 +502,7 @@ def test_bad_limiter_setting():
 def test_threaded_batch_equals_single_runs(monkeypatch):
     # Large batches run as two halves on two threads; force that path for a small batch and check
     # bit-identity with single-engine runs (the halves are contiguous, the compiled code the same).
-    import marine_fdi_env.integrators as integrators
+    import marine_fdi_env.engine.integrators as integrators
 
     monkeypatch.setattr(integrators, "THREADED_MIN_ENGINES", 2)
     seeds = [31, 32, 33, 34, 35]
@@ -648,7 +648,7 @@ def test_profile_table_equals_profile_evaluation_bit_for_bit():
     # the simulator evaluates all engines' fuel profiles in one compiled call; it must give the
     # numbers of Profile.__call__ / left_limit (steps, breakpoints, before the first and after the
     # last breakpoint, every named profile family)
-    from marine_fdi_env.profiles import ProfileTable, make_profile
+    from marine_fdi_env.engine.profiles import ProfileTable, make_profile
 
     profiles = [make_profile(s).snapped(0.01) for s in
                 ("constant", "step:t=0.05", "ramp:t0=0.1,t1=0.5", "manoeuvring", "random:seed=3,dwell=0.2",

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from marine_fdi_env import list_parameter_sets, load_params
-from marine_fdi_env.model import EngineModel
-from marine_fdi_env.steady_state import steady_state
+from marine_fdi_env.engine.model import EngineModel
+from marine_fdi_env.engine.steady_state import steady_state
 
 SETS = ["thesis-12v28", "man-12v32-40", "wartsila-6l46"]
 U_SWEEP = np.linspace(0.2, 1.1, 19)
@@ -66,7 +66,7 @@ def test_thesis_nominal_point(thesis_nominal, key, target, rel):
     [("engine_speed_rev_s", 16.71), ("power_W", 5.4e6), ("charge_air_pressure_Pa", 4.1e5), ("p_max_Pa", 188e5)],
 )
 def test_thesis_nominal_point_is_exact(thesis_nominal, key, target):
-    # The calibration (marine_fdi_env.calibration) derives c_load, Q_loss_nom, X_cv_nom, A_eff and
+    # The calibration (marine_fdi_env.engine.calibration) derives c_load, Q_loss_nom, X_cv_nom, A_eff and
     # Psi_sc so that the steady state at u = 1 IS the nominal point; only the Newton solver's
     # tolerance (1e-13) and rounding separate them, so 1e-6 is a loose bound for exactness.
     assert thesis_nominal[key] == pytest.approx(target, rel=1e-6)

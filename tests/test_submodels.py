@@ -10,15 +10,15 @@ import math
 import numpy as np
 import pytest
 
-from marine_fdi_env.model import ALG_FIELDS, EngineModel
-from marine_fdi_env.operating_point import MODE_F, MODE_P, MODE_U, solve_points, speed_of_power
-from marine_fdi_env.params import engine_file_dict, load_params
-from marine_fdi_env.simulator import Simulator
-from marine_fdi_env.steady_state import steady_state
-from marine_fdi_env.submodels import (NO_SUBMODELS, BypassValve, CombinatorSpeed, CylinderHeatLoss, EngineSubmodels,
+from marine_fdi_env.engine.model import ALG_FIELDS, EngineModel
+from marine_fdi_env.engine.operating_point import MODE_F, MODE_P, MODE_U, solve_points, speed_of_power
+from marine_fdi_env.engine.params import engine_file_dict, load_params
+from marine_fdi_env.engine.simulator import Simulator
+from marine_fdi_env.engine.steady_state import steady_state
+from marine_fdi_env.engine.submodels import (NO_SUBMODELS, BypassValve, CombinatorSpeed, CylinderHeatLoss, EngineSubmodels,
                                       ExhaustHeatLoss, ExtraFriction, Intercooler, Schedule, TurbineEfficiencyBSR,
                                       TurbineFlowLaw, TurbochargerMap, WasteGate)
-from marine_fdi_env.turbocharger_speed import turbocharger_speed_rpm
+from marine_fdi_env.engine.turbocharger_speed import turbocharger_speed_rpm
 
 SETS = ("thesis-12v28", "man-12v32-40", "wartsila-6l46")
 U = np.array([0.3, 0.55, 0.8, 1.0, 1.1])
@@ -231,7 +231,7 @@ def test_fitted_engine_settles_where_the_steady_state_solver_says():
     assert not res.failures
     op = solve_points(eng, MODE_U, u_end)
     truth = res.truth[-1]  # (engines, variables) at the end
-    from marine_fdi_env.simulator import TRUTH_VARIABLES
+    from marine_fdi_env.engine.simulator import TRUTH_VARIABLES
 
     idx = {v: k for k, v in enumerate(TRUTH_VARIABLES)}
     pairs = {"x3": "exhaust_receiver_pressure_Pa", "x4": "charge_air_pressure_Pa", "n": "engine_speed_rev_s",

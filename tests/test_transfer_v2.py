@@ -13,8 +13,8 @@ from marine_fdi_env.envs.evaluate import evaluate, run_episodes
 from marine_fdi_env.envs.scenario_sampler import (HELD_OUT_PROFILES, PRESETS, SAMPLER_PROFILES, ScenarioConfig,
                                                   ScenarioSpec)
 from marine_fdi_env.envs.suites import TRANSFER_V2_NOISE_SCALE, load_suite
-from marine_fdi_env.profiles import TELEGRAPH_LEVELS, make_profile
-from marine_fdi_env.simulator import Simulator
+from marine_fdi_env.engine.profiles import TELEGRAPH_LEVELS, make_profile
+from marine_fdi_env.engine.simulator import Simulator
 
 HYPERPARAMS = Path(__file__).resolve().parent.parent / "training" / "hyperparams"
 

@@ -157,7 +157,7 @@ import sys
 import numpy as np
 from marine_fdi_env import _coldstart
 _coldstart.enable("probe")
-from marine_fdi_env.profiles import _value_right
+from marine_fdi_env.engine.profiles import _value_right
 _value_right(np.array([0.0, 1.0]), np.array([1.0, 2.0]), 2, 0.5)
 print("announced" if _coldstart.announced() else "silent")
 """
@@ -187,8 +187,8 @@ def test_the_notice_ignores_other_compilations():
     from numba.core.caching import NullCache
 
     assert not _coldstart._ours(Fake("someone_else.mod", object()))
-    assert not _coldstart._ours(Fake("marine_fdi_env.model", NullCache()))  # not cached: compiles every run
-    assert _coldstart._ours(Fake("marine_fdi_env.model", object()))
+    assert not _coldstart._ours(Fake("marine_fdi_env.engine.model", NullCache()))  # not cached: compiles every run
+    assert _coldstart._ours(Fake("marine_fdi_env.engine.model", object()))
     assert not _coldstart._ours(None)
 
 
@@ -242,7 +242,7 @@ def test_ctrl_c_in_dataset_keeps_chunks_and_the_rerun_resumes(tmp_path):
 
 
 def test_ctrl_c_in_a_command_without_its_own_handler(monkeypatch, capsys, tmp_path):
-    import marine_fdi_env.simulator as sim_mod
+    import marine_fdi_env.engine.simulator as sim_mod
 
     def interrupt(*a, **k):
         raise KeyboardInterrupt

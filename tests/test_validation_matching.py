@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from marine_fdi_env import load_params
-from marine_fdi_env.model import EngineModel
-from marine_fdi_env.steady_state import steady_state
+from marine_fdi_env.engine.model import EngineModel
+from marine_fdi_env.engine.steady_state import steady_state
 from marine_fdi_env.validation import DataWarning, load_dataset, load_shipped, write_dataset
 from marine_fdi_env.validation.columns import COLUMNS
 from marine_fdi_env.validation.discrepancy import analyse_discrepancies, change_point, linear_trend, robust_zscores

@@ -9,8 +9,8 @@ import warnings
 import numpy as np
 import pytest
 
-from marine_fdi_env.operating_point import MODE_P, solve_points
-from marine_fdi_env.params import load_params
+from marine_fdi_env.engine.operating_point import MODE_P, solve_points
+from marine_fdi_env.engine.params import load_params
 from marine_fdi_env.validation import DataWarning, load_dataset, load_shipped
 from marine_fdi_env.validation.fitting import Combination, fit_combination, predict_setting
 from marine_fdi_env.validation.mechanisms import (MECHANISM_IDS, PHYSICAL_MECHANISMS, BypassValveM, Param,

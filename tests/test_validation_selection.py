@@ -15,8 +15,8 @@ import warnings
 import numpy as np
 import pytest
 
-from marine_fdi_env.operating_point import MODE_U, solve_points
-from marine_fdi_env.params import load_params
+from marine_fdi_env.engine.operating_point import MODE_U, solve_points
+from marine_fdi_env.engine.params import load_params
 from marine_fdi_env.validation import DataWarning, load_dataset, load_shipped, write_dataset
 from marine_fdi_env.validation.problem import Problem
 from marine_fdi_env.validation.report import fitted_engine, run_validation, validate_main

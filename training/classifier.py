@@ -32,7 +32,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from marine_fdi_env.faults import FAULT_IDS
+from marine_fdi_env.engine.faults import FAULT_IDS
 
 __all__ = ["GRUDiagnoser", "TrainResult", "train_classifier", "calibrate_threshold", "load_dataset",
            "episode_scores"]

@@ -43,7 +43,7 @@ from gymnasium import spaces
 from stable_baselines3.common.vec_env import VecEnv
 
 from marine_fdi_env.envs.hypotheses import N_HYPOTHESES
-from marine_fdi_env.faults import FAULT_IDS
+from marine_fdi_env.engine.faults import FAULT_IDS
 from marine_fdi_env.envs.vector import MarineFDIVectorEnv
 
 __all__ = ["SB3VecEnv", "ACTION_MODES", "to_belief", "action_space", "reference_features", "N_REFERENCE_FEATURES"]

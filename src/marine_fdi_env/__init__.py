@@ -4,7 +4,7 @@ Importing the package registers the Gymnasium environments ``MarineFDI-v0`` and 
 """
 
 from .envs import ENV_ID, register_envs
-from .params import EngineParams, list_parameter_sets, load_params
+from .engine.params import EngineParams, list_parameter_sets, load_params
 
 __version__ = "0.1.0"
 __all__ = ["EngineParams", "load_params", "list_parameter_sets", "ENV_ID", "__version__"]

@@ -29,11 +29,11 @@ from typing import Sequence
 import numpy as np
 
 from . import __version__
-from .faults import PROCESS_FAULT_IDS, FaultSpec, parse_fault_spec
-from .params import list_parameter_sets, load_params, params_provenance
-from .profiles import Profile, make_profile
+from .engine.faults import PROCESS_FAULT_IDS, FaultSpec, parse_fault_spec
+from .engine.params import list_parameter_sets, load_params, params_provenance
+from .engine.profiles import Profile, make_profile
 from .scenarios import SCENARIOS, get_scenario
-from .steady_state import FUEL_SETTING_RANGE, check_fuel_setting
+from .engine.steady_state import FUEL_SETTING_RANGE, check_fuel_setting
 
 __all__ = ["main", "build_parser", "LONG_RUN_STEPS"]
 
@@ -134,8 +134,8 @@ def _split_unit(key: str) -> tuple[str, str]:
 def cmd_operating_point(args: argparse.Namespace) -> int:
     params = _field("--params", load_params, args.params)
     u = float(check_fuel_setting(args.fuel_setting, "--fuel-setting"))
-    from .model import EngineModel
-    from .steady_state import steady_state
+    from .engine.model import EngineModel
+    from .engine.steady_state import steady_state
 
     with np.errstate(all="ignore"):
         ss = steady_state(EngineModel(params), u)
@@ -207,7 +207,7 @@ def _want_progress(flag: bool | None, steps: int) -> bool:
 
 def cmd_simulate(args: argparse.Namespace, argv: Sequence[str]) -> int:
     from .runio import save_run
-    from .simulator import Simulator
+    from .engine.simulator import Simulator
 
     scen = _field("--scenario", get_scenario, args.scenario) if args.scenario is not None else None
     params = _field("--params", load_params, args.params or (scen.params if scen else DEFAULT_PARAMS))

@@ -40,9 +40,9 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, PROCESS_FAULT_IDS, FaultSpec
-from .profiles import Profile
-from .sensors import SENSOR_IDS, SENSORS
+from .engine.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, PROCESS_FAULT_IDS, FaultSpec
+from .engine.profiles import Profile
+from .engine.sensors import SENSOR_IDS, SENSORS
 
 __all__ = ["save_run", "load_run", "RunData", "fault_unit", "FORMAT_NAME", "FORMAT_VERSION", "REQUIRED_ARRAYS"]
 
@@ -119,7 +119,7 @@ def save_run(
     command_line: "str | Sequence[str] | None" = None,
     extra: dict | None = None,
 ) -> Path:
-    """Write a :class:`~marine_fdi_env.simulator.SimulationResult` to ``path`` (compressed ``.npz``).
+    """Write a :class:`~marine_fdi_env.engine.simulator.SimulationResult` to ``path`` (compressed ``.npz``).
 
     ``command_line`` (a string or an argv list) and ``extra`` (a JSON-able dict, e.g. the scenario
     name) go into the metadata.  The file is written to a temporary name and renamed, so an
@@ -127,7 +127,7 @@ def save_run(
     ``path``; no suffix is appended).
     """
     from . import __version__
-    from .simulator import TRUTH_VARIABLES
+    from .engine.simulator import TRUTH_VARIABLES
 
     path = Path(path)
     meas = np.asarray(result.measurements, dtype=float)

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .faults import FaultSpec, parse_fault_spec
+from .engine.faults import FaultSpec, parse_fault_spec
 
 __all__ = ["Scenario", "SCENARIOS", "get_scenario", "scenario_names"]
 

@@ -21,15 +21,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from marine_fdi_env._jit import jit
-from marine_fdi_env.constants import model_constants
-from marine_fdi_env.integrators import THREADED_MIN_ENGINES, _executor
+from marine_fdi_env.engine.constants import model_constants
+from marine_fdi_env.engine.integrators import THREADED_MIN_ENGINES, _executor
 from marine_fdi_env.diagnosis.decision import DiagnosisState, candidate_classes, sorted_diagnoses
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
 from marine_fdi_env.diagnosis.sure_cells import SURE_CELLS_FILE, load_sure_cells
 from marine_fdi_env.diagnosis.residuals import (
     _SIDE_COLS, _T_OUT_COL, INCLUSIONS, N_STATE, compute_residuals_batch, inclusion_arrays, new_state)
-from marine_fdi_env.params import EngineParams, load_params
-from marine_fdi_env.sensors import NOISE_BOUNDS, N_SENSORS
+from marine_fdi_env.engine.params import EngineParams, load_params
+from marine_fdi_env.engine.sensors import NOISE_BOUNDS, N_SENSORS
 
 __all__ = ["ReferenceDiagnoser", "BlockOutput", "N_FEATURES_PER_MODULE"]
 

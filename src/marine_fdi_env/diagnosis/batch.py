@@ -1,5 +1,5 @@
 """Simulate engines in batches and diagnose them as they run (the driver of the KPI and certainty
-measurements): the readings stream from :class:`~marine_fdi_env.simulator.Simulator` into a
+measurements): the readings stream from :class:`~marine_fdi_env.engine.simulator.Simulator` into a
 diagnoser block by block, so memory does not grow with the run length.
 
 Diagnosers by name (:data:`DIAGNOSERS`): ``reference`` (the thesis's scheme,
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..simulator import Simulator
+from ..engine.simulator import Simulator
 from .agent import ReferenceDiagnoser
 from .sequential import SequentialDiagnoser
 

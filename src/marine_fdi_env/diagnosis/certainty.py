@@ -53,8 +53,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, FaultSpec
-from ..simulator import Simulator
+from ..engine.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, FaultSpec
+from ..engine.simulator import Simulator
 from .batch import BATCH, DIAGNOSERS, PARAMS
 from .sequential import SequentialDiagnoser
 from .decision import DiagnosisState, declared_faults

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..runio import RunData, load_run
-from ..sensors import SENSOR_IDS
+from ..engine.sensors import SENSOR_IDS
 from .modules import AGENTS, MODULE_IDS
 
 __all__ = ["diagnose_run", "check_dropouts", "plot_residuals"]
@@ -85,7 +85,7 @@ def plot_residuals(run: RunData, block, out_dir: Path, report: dict) -> list[Pat
     import matplotlib.pyplot as plt
     from matplotlib.transforms import blended_transform_factory
 
-    from ..sensors import SENSORS
+    from ..engine.sensors import SENSORS
     from .modules import MODULES
 
     sensor = {s.id: s for s in SENSORS}

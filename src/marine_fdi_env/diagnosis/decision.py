@@ -33,7 +33,7 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from ..faults import FAULT_IDS
+from ..engine.faults import FAULT_IDS
 from .modules import AGENTS, MODULE_IDS
 from .structure import STAR, fault_agent, fault_class, fault_signature_matrix, thesis_signature_matrix
 

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._jit import jit
-from ..subsystems.engine_block import engine_block
+from ..engine.subsystems.engine_block import engine_block
 from .sigma2 import SLOPE_LIMIT, SLOPE_STEP, _cycle_table
 
 __all__ = ["Sigma2Table", "sigma2_table", "TABLE_STEPS", "N_ROWS", "interpolate_rows"]

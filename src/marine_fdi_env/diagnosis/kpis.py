@@ -24,10 +24,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, PROCESS_FAULT_IDS, FaultSpec
+from ..engine.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, PROCESS_FAULT_IDS, FaultSpec
 from ..scenarios import SCENARIOS, get_scenario
-from ..sensors import SENSORS, sensor_index
-from ..simulator import Simulator
+from ..engine.sensors import SENSORS, sensor_index
+from ..engine.simulator import Simulator
 from .agent import ReferenceDiagnoser
 from .batch import BATCH, DIAGNOSERS, PARAMS as _PARAMS, diagnose_batch  # noqa: F401
 from .modules import MODULE_IDS

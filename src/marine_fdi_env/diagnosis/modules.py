@@ -41,8 +41,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..faults import PROCESS_FAULT_IDS
-from ..sensors import SENSOR_IDS
+from ..engine.faults import PROCESS_FAULT_IDS
+from ..engine.sensors import SENSOR_IDS
 
 __all__ = ["ModuleSpec", "MODULES", "MODULE_IDS", "EQUATION_FAULTS", "module_index", "AGENTS"]
 

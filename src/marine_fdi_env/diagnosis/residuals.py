@@ -54,9 +54,9 @@ import math
 import numpy as np
 
 from .._jit import jit
-from ..integrators import THREADED_MIN_ENGINES, _etd_scalar, _executor
-from ..sensors import NOISE_BOUNDS, SENSOR_IDS
-from ..subsystems.air_intake import (
+from ..engine.integrators import THREADED_MIN_ENGINES, _etd_scalar, _executor
+from ..engine.sensors import NOISE_BOUNDS, SENSOR_IDS
+from ..engine.subsystems.air_intake import (
     compressor_forcing,
     compressor_outlet_temperature,
     cooler_outlet_temperature,
@@ -65,9 +65,9 @@ from ..subsystems.air_intake import (
     inlet_air_temperature,
     inlet_air_temperature_at,
 )
-from ..seiliger import seiliger_cycle
-from ..subsystems.engine_block import _sweep, constant_volume_portion, engine_block, friction_torque, speed_of_torque
-from ..subsystems.exhaust_receiver import (
+from ..engine.seiliger import seiliger_cycle
+from ..engine.subsystems.engine_block import _sweep, constant_volume_portion, engine_block, friction_torque, speed_of_torque
+from ..engine.subsystems.exhaust_receiver import (
     receiver_and_turbine,
     receiver_forcing,
     scavenge_flow_function,
@@ -76,7 +76,7 @@ from ..subsystems.exhaust_receiver import (
     turbine_outlet_from_expansion,
     turbine_outlet_temperature,
 )
-from ..subsystems.gas_path import flow_law_pressure, extended_gas_path, valve_opening
+from ..engine.subsystems.gas_path import flow_law_pressure, extended_gas_path, valve_opening
 from .modules import MODULE_IDS
 from .inclusion_table import interpolate_rows, sigma2_table
 from .sigma2 import ONE_SIDED, SLOPE_STEP, _centre_speed, _centre_speed2, _perturbed_rows, _perturbed_rows2
@@ -190,7 +190,7 @@ def _point(c, x1, x3, x4, m1, n, psi, Pi, T_in, T_out, T6, p6, out, j):
 # ------------------------------------------------------------------------------------------------
 # The plant with the gas-path submodels (waste gate, bypass valve, turbine flow law, efficiency vs
 # blade-speed ratio, exhaust heat loss, intercooler; ``c.sm_on``): the same module structure, with
-# the equations of :func:`~marine_fdi_env.subsystems.gas_path.extended_gas_path` given the measured
+# the equations of :func:`~marine_fdi_env.engine.subsystems.gas_path.extended_gas_path` given the measured
 # turbine-inlet and -outlet temperatures.  Valve openings follow their schedules over the measured
 # fuel setting u = x1/x1_nom.  The base model (``sm_on`` 0) never enters these functions, so its
 # residuals are unchanged bit for bit.

@@ -113,7 +113,7 @@ def load_calibration(name: str = CALIBRATION_FILE) -> SequentialCalibration:
 def pressure_ratio(measurements) -> np.ndarray:
     """(N, B) the mean of the two chains' measured receiver/charge pressure ratios x3/x4 (sensors
     S3.1/S4.1 and S3.2/S4.2): the operating-region indicator of the tests' pause region."""
-    from ..sensors import sensor_index
+    from ..engine.sensors import sensor_index
 
     Y = np.asarray(measurements, dtype=np.float64)
     with np.errstate(invalid="ignore", divide="ignore"):

@@ -36,8 +36,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..faults import FaultSpec
-from ..simulator import Simulator
+from ..engine.faults import FaultSpec
+from ..engine.simulator import Simulator
 from .agent import ReferenceDiagnoser
 from .modules import MODULE_IDS
 from .sequential import CALIBRATION_FILE, Z_CAP, pressure_ratio

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 
 from .._jit import jit
-from ..subsystems.engine_block import _sweep, engine_block
+from ..engine.subsystems.engine_block import _sweep, engine_block
 
 __all__ = ["SPEED_SWEEPS", "ONE_SIDED", "LINEAR_SPEED", "SLOPE_STEP", "SLOPE_LIMIT"]
 

@@ -40,8 +40,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, PROCESS_FAULT_IDS
-from ..sensors import SENSOR_IDS, SENSORS
+from ..engine.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, PROCESS_FAULT_IDS
+from ..engine.sensors import SENSOR_IDS, SENSORS
 from .modules import AGENTS, EQUATION_FAULTS, MODULE_IDS, MODULES, ModuleSpec
 
 __all__ = [

@@ -24,7 +24,7 @@ from importlib import resources
 
 import numpy as np
 
-from ..faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS
+from ..engine.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS
 from .modules import MODULE_IDS
 from .structure import fault_signature_matrix
 

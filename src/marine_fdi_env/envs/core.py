@@ -16,9 +16,9 @@ import numpy as np
 
 from ..diagnosis.agent import ReferenceDiagnoser
 from ..diagnosis.sequential import SequentialStage, pressure_ratio
-from ..faults import FAULT_IDS, _window_time
-from ..params import EngineParams, load_params
-from ..simulator import Simulator
+from ..engine.faults import FAULT_IDS, _window_time
+from ..engine.params import EngineParams, load_params
+from ..engine.simulator import Simulator
 from .hypotheses import DECLARE_THRESHOLD, N_FAULTS, UNKNOWN
 from .observation import module_features, observation_size, sensor_features
 from .reward import REWARD_TERMS, REWARD_TERMS_V1, RewardConfig, RewardConfigV1, RewardV1, score
@@ -91,7 +91,7 @@ class EpisodeBatch:
         self.compute_s = np.zeros(self.n)
         self._nominal = None
         if self.observe_sensors:
-            from ..sensors import SENSOR_IDS
+            from ..engine.sensors import SENSOR_IDS
 
             self._nominal = np.array([nominal_reading(s) for s in SENSOR_IDS])
 

@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..faults import FAULT_IDS
+from ..engine.faults import FAULT_IDS
 from .scenario_sampler import ScenarioSpec, get_preset, with_noise_scale
 from .suites import load_suite
 from .vector import MarineFDIVectorEnv

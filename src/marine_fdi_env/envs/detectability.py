@@ -31,7 +31,7 @@ import math
 from functools import lru_cache
 from importlib import resources
 
-from ..faults import FAULT_IDS
+from ..engine.faults import FAULT_IDS
 
 __all__ = ["detectability_limit", "detectability_table", "sampling_scale", "TABLE_RESOURCE", "SCALE_FLOOR"]
 

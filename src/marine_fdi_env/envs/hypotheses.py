@@ -1,7 +1,7 @@
 """The action of ``MarineFDI-v0``: a fault-hypothesis declaration.
 
 The action is a belief vector ``b`` over 28 hypotheses: the 26 fault ids of
-:data:`marine_fdi_env.faults.FAULT_IDS` (19 sensor faults ``S1.1`` ... ``S4.6``, then the 7 process
+:data:`marine_fdi_env.engine.faults.FAULT_IDS` (19 sensor faults ``S1.1`` ... ``S4.6``, then the 7 process
 faults), then ``no_fault``, then ``unknown``.  Each entry lies in [0, 1].
 
 * The **declared set** is the fault ids with ``b >= 0.5`` (several may be declared at once: a
@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..faults import FAULT_IDS
+from ..engine.faults import FAULT_IDS
 
 __all__ = ["HYPOTHESES", "N_HYPOTHESES", "NO_FAULT", "UNKNOWN", "DECLARE_THRESHOLD", "check_action",
            "one_hot"]

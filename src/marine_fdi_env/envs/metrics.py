@@ -80,7 +80,7 @@ from typing import Any, Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
-from ..faults import FAULT_IDS, fault_class
+from ..engine.faults import FAULT_IDS, fault_class
 
 __all__ = ["EpisodeOutcome", "validate_record", "episode_outcome", "compute_metrics", "aggregate",
            "FAULT_CLASSES"]

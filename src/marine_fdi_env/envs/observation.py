@@ -51,7 +51,7 @@ import numpy as np
 from .._jit import jit
 from ..diagnosis.modules import MODULE_IDS
 from ..diagnosis.sequential import SEQUENTIAL_FEATURES, Z_CAP
-from ..sensors import SENSOR_IDS
+from ..engine.sensors import SENSOR_IDS
 
 __all__ = ["MODULE_FEATURES", "RATIO_CAP", "observation_size", "observation_bounds", "feature_names",
            "module_features", "SEQUENTIAL_FEATURES"]

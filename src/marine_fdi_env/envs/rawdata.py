@@ -45,8 +45,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..faults import FAULT_IDS
-from ..sensors import SENSORS
+from ..engine.faults import FAULT_IDS
+from ..engine.sensors import SENSORS
 from .hypotheses import DECLARE_THRESHOLD, N_FAULTS, UNKNOWN
 from .scenario_sampler import ScenarioSpec
 from .suites import load_suite
@@ -129,7 +129,7 @@ def _write_csv(path: Path, header: tuple[str, ...], arr: np.ndarray, fmt: str) -
 # ----------------------------------------------------------------------------- export-raw
 def export_raw(suite_name: str, out_dir: "str | Path", *, seed_offset: int = 0, progress: bool = True) -> dict:
     """Write a suite's raw samples and ground truth (module docstring); resumable; returns the manifest."""
-    from ..simulator import Simulator
+    from ..engine.simulator import Simulator
     from .cliutil import progress_bar
 
     suite = load_suite(suite_name)

@@ -55,7 +55,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..faults import FAULT_IDS, _window_time, fault_class
+from ..engine.faults import FAULT_IDS, _window_time, fault_class
 from .metrics import compute_metrics
 from .rawdata import OUTPUT_COLUMNS, RANK_COLUMNS, read_manifest, scenario_stem
 from .suites import load_suite

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
-from ..faults import FAULT_IDS
+from ..engine.faults import FAULT_IDS
 from .jsonfile import read_json
 from .metrics import FAULT_CLASSES, compute_metrics, episode_outcome
 

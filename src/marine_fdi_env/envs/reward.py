@@ -222,7 +222,7 @@ def score_record_v1(record: dict, cfg: RewardConfigV1 | None = None) -> dict[str
 
 def score_records_v1(records: list[dict], cfg: RewardConfigV1 | None = None) -> list[dict[str, float]]:
     """:func:`score_record_v1` of many records at once (one :class:`RewardV1` slot per record)."""
-    from ..faults import FAULT_IDS
+    from ..engine.faults import FAULT_IDS
 
     cfg = cfg or RewardConfigV1()
     col = {f: k for k, f in enumerate(FAULT_IDS)}

@@ -36,8 +36,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..faults import FAULT_IDS, PROCESS_FAULT_IDS, SENSOR_FAULT_KINDS, FaultSpec, fault_class
-from ..profiles import make_profile
+from ..engine.faults import FAULT_IDS, PROCESS_FAULT_IDS, SENSOR_FAULT_KINDS, FaultSpec, fault_class
+from ..engine.profiles import make_profile
 
 __all__ = ["ScenarioSpec", "ScenarioConfig", "PRESETS", "get_preset", "with_noise_scale", "SAMPLER_COMPONENTS", "SAMPLER_PROFILES",
            "HELD_OUT_PROFILES"]
@@ -64,7 +64,7 @@ def _fault_from(obj) -> FaultSpec:
     if isinstance(obj, FaultSpec):
         return obj
     if isinstance(obj, str):
-        from ..faults import parse_fault_spec
+        from ..engine.faults import parse_fault_spec
 
         return parse_fault_spec(obj)
     if isinstance(obj, dict):
@@ -86,7 +86,7 @@ class ScenarioSpec:
     """One episode: fault schedule, fuel-setting profile, noise.
 
     faults : scheduled faults (at most one per fault id; onsets before ``duration_s``).
-    profile : fuel-setting profile spec (:func:`marine_fdi_env.profiles.make_profile`).
+    profile : fuel-setting profile spec (:func:`marine_fdi_env.engine.profiles.make_profile`).
     noise_seed : seed of the engine's sensor-noise stream.
     noise_scale : multiplier of the table 6.3 noise bounds.
     duration_s : episode length [s].
@@ -342,14 +342,14 @@ def _fault_at_scale(fault_id: str, kind: str, onset: float, scale: float, sign: 
 
 @lru_cache(maxsize=None)
 def _nominal_readings() -> np.ndarray:
-    from ..simulator import Simulator
+    from ..engine.simulator import Simulator
 
     return Simulator("thesis-12v28", noise_scale=0.0).y[0].copy()
 
 
 def nominal_reading(sensor_id: str) -> float:
     """Noise-free reading of a sensor at the thesis engine's nominal point (fuel setting 1)."""
-    from ..sensors import sensor_index
+    from ..engine.sensors import sensor_index
 
     return float(_nominal_readings()[sensor_index(sensor_id)])
 

@@ -49,7 +49,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..faults import FAULT_IDS, PROCESS_FAULT_IDS
+from ..engine.faults import FAULT_IDS, PROCESS_FAULT_IDS
 from ..scenarios import get_scenario
 from .scenario_sampler import PRESETS, ScenarioConfig, ScenarioSpec, _fault_at_scale
 from .jsonfile import read_json

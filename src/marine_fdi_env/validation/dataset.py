@@ -55,7 +55,7 @@ from typing import Any, Iterable, Mapping
 
 import numpy as np
 
-from ..params import EngineParams, list_parameter_sets, load_params
+from ..engine.params import EngineParams, list_parameter_sets, load_params
 from .columns import COLUMNS, ID_COLUMNS, QUANTITIES, ColumnSpec, column_problem, lookup_column, resolve_quantity
 
 __all__ = [

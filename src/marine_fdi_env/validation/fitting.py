@@ -46,7 +46,7 @@ import numpy as np
 from scipy import stats
 from scipy.optimize import least_squares
 
-from ..submodels import Schedule
+from ..engine.submodels import Schedule
 from .mechanisms import Mechanism, ValveMechanism
 from .nuisance import NUISANCE, nuisance_bounds, prior_residuals, scales_of
 from .problem import BASE_SETTING, Problem, Setting

@@ -15,7 +15,7 @@ For each point the fuel setting ``u`` is the root of ``model(u)[target] = measur
 about the load law, :func:`infer_load_law` infers it from speed against power.
 
 The model is reached through a *steady-state function* ``steady(u, point) -> summary`` (the SI dict of
-:meth:`marine_fdi_env.steady_state.SteadyState.summary`); ``point`` is the measured point (SI quantities)
+:meth:`marine_fdi_env.engine.steady_state.SteadyState.summary`); ``point`` is the measured point (SI quantities)
 so that an extended model can use e.g. the measured speed.  :func:`base_steady` wraps the base model.
 """
 
@@ -29,9 +29,9 @@ import numpy as np
 from scipy import stats
 from scipy.optimize import brentq
 
-from ..model import EngineModel
-from ..params import EngineParams
-from ..steady_state import steady_state
+from ..engine.model import EngineModel
+from ..engine.params import EngineParams
+from ..engine.steady_state import steady_state
 from .columns import QUANTITIES, ModelContext, lookup_column
 from .dataset import MeasuredDataset
 

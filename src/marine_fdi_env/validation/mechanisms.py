@@ -3,7 +3,7 @@
 Each mechanism is a small dataclass: a few parameters (name, unit, default, plausible range, the
 range synthetic data draw from, the tolerance within which a fit should recover it), a docstring
 with the physical explanation, the quantities it touches and :meth:`Mechanism.apply`, which switches on
-the engine submodel it stands for (:mod:`marine_fdi_env.submodels`) in a :class:`~.problem.Setting`.
+the engine submodel it stands for (:mod:`marine_fdi_env.engine.submodels`) in a :class:`~.problem.Setting`.
 A selected mechanism is therefore part of the one engine model: the fitted engine runs in the
 simulator, the steady-state solver, the environment and the diagnoser.
 
@@ -28,7 +28,7 @@ Valve-type mechanisms (:class:`ValveMechanism`) have one opening per measured po
 parameters: a valve acts at some operating points and not at others (a waste gate that opens near
 full load, a bypass opened at part load), and the points where it acts are part of the answer.  The
 fit (:mod:`.fitting`) selects them without enumerating subsets: a relaxation with a sparsity penalty,
-then a confirmation refit.  The openings become a :class:`~marine_fdi_env.submodels.Schedule` over the
+then a confirmation refit.  The openings become a :class:`~marine_fdi_env.engine.submodels.Schedule` over the
 fuel setting for the fitted engine.
 
 Ranges.  ``bounds`` is the plausible range (the fit stays inside it); ``draw`` is the part of it that
@@ -45,7 +45,7 @@ from typing import ClassVar, Mapping, Sequence
 
 import numpy as np
 
-from ..submodels import (BypassValve, CombinatorSpeed, CylinderHeatLoss, ExhaustHeatLoss, ExtraFriction, Intercooler,
+from ..engine.submodels import (BypassValve, CombinatorSpeed, CylinderHeatLoss, ExhaustHeatLoss, ExtraFriction, Intercooler,
                          Schedule, TurbineEfficiencyBSR, TurbineFlowLaw, TurbochargerMap, WasteGate)
 
 __all__ = [

@@ -1,7 +1,7 @@
 """Model-error nuisance: the base model's uncertain parameters, fitted within their uncertainty.
 
 No parameter set is exact.  The efficiencies, areas and heat fractions of a sibling engine's set are
-scaled or derived from the thesis engine (:mod:`marine_fdi_env.calibration`) and are uncertain by a few
+scaled or derived from the thesis engine (:mod:`marine_fdi_env.engine.calibration`) and are uncertain by a few
 per cent.  Every fit, the base model's included, therefore adjusts these parameters within a prior of
 ``σ`` = 3 % (a Gaussian penalty ``((s - 1)/σ)²`` added to the loss, and a hard box of ±2σ).  They are not
 causes and are never *named*; a named mechanism must explain more than model error of this size can.

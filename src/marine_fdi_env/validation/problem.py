@@ -5,7 +5,7 @@
 boundary conditions (ambient pressure, compressor inlet temperature, turbine back pressure).  A
 :class:`Setting` is one candidate model: parameter scales (the model-error nuisance of
 :mod:`.nuisance`), submodels, offsets of the ambient state, sensor gains/offsets and per-point valve
-openings.  :meth:`Problem.predict` runs the one engine model (:func:`marine_fdi_env.operating_point.solve_points`)
+openings.  :meth:`Problem.predict` runs the one engine model (:func:`marine_fdi_env.engine.operating_point.solve_points`)
 at every point and returns the readings in the columns' units.
 
 Tolerances (the residual scale; the smallest discrepancy worth naming): the sidecar's
@@ -25,12 +25,12 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from ..constants import model_constants
-from ..model import HEALTHY_PF, N_ALG
-from ..operating_point import (LAW_PARAMS, MODE_F, MODE_P, MODE_U, Summary, power_of_speed, solve_raw,
+from ..engine.constants import model_constants
+from ..engine.model import HEALTHY_PF, N_ALG
+from ..engine.operating_point import (LAW_PARAMS, MODE_F, MODE_P, MODE_U, Summary, power_of_speed, solve_raw,
                                speed_of_power)
-from ..params import EngineParams, load_params
-from ..submodels import NO_SUBMODELS, EngineSubmodels
+from ..engine.params import EngineParams, load_params
+from ..engine.submodels import NO_SUBMODELS, EngineSubmodels
 from .columns import QUANTITIES, ModelContext
 from .dataset import MeasuredDataset
 from .discrepancy import column_tolerance

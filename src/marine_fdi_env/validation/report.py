@@ -38,7 +38,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from ..params import EngineParams, engine_file_dict, list_parameter_sets, load_params
+from ..engine.params import EngineParams, engine_file_dict, list_parameter_sets, load_params
 from .dataset import DatasetError, DataWarning, MeasuredDataset, list_shipped, load_dataset, load_shipped
 from .fitting import channel_rmse, predict_setting
 from .matching import TARGETS

@@ -1,7 +1,7 @@
 """Synthetic "measured" data from the engine model with hidden effects, and the open-world study.
 
 :func:`synthesize` draws random operating points (load fractions uniform in a range, sorted), runs the
-one engine model (:mod:`marine_fdi_env.operating_point`) with the hidden mechanisms at those powers (the
+one engine model (:mod:`marine_fdi_env.engine.operating_point`) with the hidden mechanisms at those powers (the
 speed from the propeller law, or from the combinator line when ``cpp_load`` is hidden) and adds
 measurement noise.  What makes the data *open world* is optional:
 
@@ -39,8 +39,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..operating_point import MODE_P, solve_points, speed_of_power
-from ..params import EngineParams, list_parameter_sets, load_params
+from ..engine.operating_point import MODE_P, solve_points, speed_of_power
+from ..engine.params import EngineParams, list_parameter_sets, load_params
 from .columns import QUANTITIES, column_problem, lookup_column
 from .dataset import write_dataset
 from .mechanisms import (MECHANISM_IDS, PHYSICAL_MECHANISMS, Mechanism, SensorCalibration, ValveMechanism,

@@ -1,5 +1,5 @@
 """Σ3 and Σ4 with the gas-path submodels: waste gate, bypass valve, turbine flow law, turbine efficiency
-vs blade-speed ratio, turbocharger map and exhaust heat loss (:mod:`marine_fdi_env.submodels`).
+vs blade-speed ratio, turbocharger map and exhaust heat loss (:mod:`marine_fdi_env.engine.submodels`).
 
 The compiled model runs this path only when a gas-path submodel is on (``c.sm_on``); otherwise it
 runs the base functions of :mod:`.exhaust_receiver` and :mod:`.air_intake` unchanged.  With every
@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 
-from .._jit import jit
+from ..._jit import jit
 from .air_intake import compressor_forcing
 from .exhaust_receiver import turbine_expansion, turbine_mass_flow, turbine_outlet_from_expansion
 

@@ -2,7 +2,7 @@
 
 The thesis model (chapter 3) is the base.  Each submodel replaces or extends one piece of it and is
 ``None`` (off) by default; with every submodel off the compiled model runs the base code path, bit
-for bit.  The choice of submodels and their values is part of :class:`~marine_fdi_env.params.EngineParams`
+for bit.  The choice of submodels and their values is part of :class:`~marine_fdi_env.engine.params.EngineParams`
 (field ``submodels``), so the dynamic simulator, the steady-state solvers, the environment and the
 diagnoser all run the same extended engine (one model, optional submodels, as PyBaMM's
 ``BatteryModelOptions``).

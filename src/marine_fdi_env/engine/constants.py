@@ -18,7 +18,7 @@ cycles_per_rev               i_e / k_e
 chi_g                        c_p,g / c_p,a (eq. 3.35)
 comp_exp                     κa / (κa - 1) (eq. 3.31 as corrected)
 
-Submodel constants (:mod:`marine_fdi_env.submodels`; ``*_on`` = 1.0 when the submodel is on, else 0.0 and the
+Submodel constants (:mod:`marine_fdi_env.engine.submodels`; ``*_on`` = 1.0 when the submodel is on, else 0.0 and the
 values are inert).  ``sm_on`` is 1.0 when any submodel acting on the gas path (Σ3, Σ4) is on: the
 compiled model then runs the extended gas path, else the base code path, bit for bit.  Schedules are
 knot arrays (``wg_u``/``wg_a``, ``bp_u``/``bp_b``).

@@ -1,6 +1,6 @@
 """Steady operating points of the engine model (with its submodels) fixed by fuel, power or fuel flow.
 
-:func:`marine_fdi_env.steady_state.steady_state` solves the equilibrium for a fuel setting with the
+:func:`marine_fdi_env.engine.steady_state.steady_state` solves the equilibrium for a fuel setting with the
 speed from the load law inside the algebraic loop; the simulator starts from it.  Validation against
 measured data needs more ways to fix a point, and a prescribed speed:
 
@@ -11,7 +11,7 @@ measured data needs more ways to fix a point, and a prescribed speed:
 
 In every mode the pressures solve ``(1 + φ_tur) x3 = τ_pd h3`` and ``(1 + φ_int) x4 = τ_TC h4`` (the
 equilibrium of eq. 3.15 and 3.30) with the algebraic equations evaluated at the speed by
-:func:`marine_fdi_env.model.algebraic_at_speed`: the same compiled functions as the dynamic model,
+:func:`marine_fdi_env.engine.model.algebraic_at_speed`: the same compiled functions as the dynamic model,
 so a point found here is an equilibrium of the simulator (tested).  Load law ``law``: 0 = the
 parameter set's (propeller law, or the combinator of the ``speed_law`` submodel), 2 = prescribed
 (the measured speed; steady state only).
@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import root
 
-from ._jit import jit
+from .._jit import jit
 from .constants import model_constants
 from .model import ALG_FIELDS, HEALTHY_PF, N_ALG, algebraic_at_speed
 from .params import EngineParams
@@ -64,7 +64,7 @@ class Summary(Mapping):
     Built from the algebraic output matrix ``alg`` (rows x ``ALG_FIELDS``), the states and ``conv`` (NaN where a
     point did not converge); ``p_amb_Pa``/``T_amb_K`` (per point) override the parameter set's ambient state for the
     turbocharger speed.  The base keys are computed exactly as
-    :meth:`marine_fdi_env.steady_state.SteadyState.summary` computes them.
+    :meth:`marine_fdi_env.engine.steady_state.SteadyState.summary` computes them.
     """
 
     def __init__(self, params: EngineParams, x1, x3, x4, alg: np.ndarray, conv: np.ndarray | None = None,

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 
-from ._jit import jit
+from .._jit import jit
 
 __all__ = ["seiliger_cycle"]
 
@@ -44,7 +44,7 @@ def seiliger_cycle(p1: float, T1: float, q: float, X_cv: float, X_ct: float, c) 
     p1, T1 : pressure [Pa] and temperature [K] at inlet closure (point 1).
     q : heat released per kg of trapped charge [J/kg].
     X_cv, X_ct : fractions of q released at constant volume and constant temperature.
-    c : :class:`~marine_fdi_env.constants.ModelConstants`.
+    c : :class:`~marine_fdi_env.engine.constants.ModelConstants`.
 
     Returns
     -------

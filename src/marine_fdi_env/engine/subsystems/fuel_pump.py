@@ -6,7 +6,7 @@ valve-seizing fault ``f_u`` multiplying the setting ``u`` (table 3.2).
 
 from __future__ import annotations
 
-from .._jit import jit
+from ..._jit import jit
 
 __all__ = ["nominal_fuel_per_cycle", "fuel_pump_linear", "fuel_pump_forcing"]
 

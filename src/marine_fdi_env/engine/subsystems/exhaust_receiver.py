@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 
-from .._jit import jit
+from ..._jit import jit
 from .air_intake import bsr_factor
 
 __all__ = ["scavenge_flow_function", "slip_ratio", "turbine_mass_flow", "receiver_forcing", "turbine_expansion",

@@ -24,7 +24,7 @@ steady state at fuel setting 1.0 *is* that nominal point (``derive_parameters``)
    and the turbine effective area from the flow law (eq. 3.16)
    ``A_eff = ṁ_g sqrt(R_g z1^(3) / (p_d² - p_ex²)) / α_z``.
 
-8. Turbocharger speed (an output, :mod:`marine_fdi_env.turbocharger_speed`): the rated rotor speed
+8. Turbocharger speed (an output, :mod:`marine_fdi_env.engine.turbocharger_speed`): the rated rotor speed
    ``N_tc_nom_rpm`` at the isentropic compressor head ``dh_c_nom_J_per_kg``.  For wartsila-6l46 both
    come from one reading, the 100 % row of the Birka ME1 test protocol (the only turbocharger-speed
    record we have); the other sets scale it by similarity (same isentropic head coefficient, compressor
@@ -33,7 +33,7 @@ steady state at fuel setting 1.0 *is* that nominal point (``derive_parameters``)
 Choices that no data determines are passed in as inputs with their justification (the
 ``source`` text of the entry): η_com, η_c, Q_loss_grad, σ_f, T_sl, turbochargers per engine.
 
-Run ``python -m marine_fdi_env.calibration`` to rewrite the shipped parameter sets from the
+Run ``python -m marine_fdi_env.engine.calibration`` to rewrite the shipped parameter sets from the
 input tables below; ``tests/test_params.py`` checks that the shipped files match.
 """
 
@@ -292,7 +292,7 @@ def _turbocharger_speed_reference(name: str, v: dict[str, float], air_kg_s: floa
 
 def write_parameter_sets(directory: Path | None = None) -> list[Path]:
     """Derive every input set and write ``NAME.json`` files; returns their paths."""
-    directory = directory or Path(__file__).parent / "data" / "params"
+    directory = directory or Path(__file__).parent.parent / "data" / "params"
     written = []
     for name, inputs in INPUT_SETS.items():
         entries = derive_parameters(name, inputs)
@@ -310,7 +310,7 @@ def write_parameter_sets(directory: Path | None = None) -> list[Path]:
 
 _DESCRIPTIONS = {
     "thesis-12v28": "MAN 12V28/33D of the thesis (table 4.1), 5.4 MW at 16.71 rev/s; missing parameters derived "
-    "from the nominal point and X_cv_nom calibrated to p_max = 188 bar (marine_fdi_env.calibration).",
+    "from the nominal point and X_cv_nom calibrated to p_max = 188 bar (marine_fdi_env.engine.calibration).",
     "man-12v32-40": "MAN 12V32/40, 5.4 MW at 750 rpm: geometry, rating, SFC, charge pressure and ISO conditions from "
     "the project guide; everything else scaled from thesis-12v28 and re-derived at the nominal point.",
     "wartsila-6l46": "Wartsila 6L46, 5.89 MW at 500 rpm: geometry, rating, SFC and charge pressure from the Birka "

@@ -2,7 +2,7 @@
 
 A parameter set is a JSON file in ``marine_fdi_env/data/params/NAME.json``.  Every entry has a
 ``value``, a ``unit`` and a ``source`` (a thesis table, a data sheet, or the derivation in
-:mod:`marine_fdi_env.calibration` that produced it).  Field names carry their SI unit as a suffix
+:mod:`marine_fdi_env.engine.calibration` that produced it).  Field names carry their SI unit as a suffix
 where the quantity has one (``_Pa``, ``_K``, ``_m3``, ...).
 """
 
@@ -52,10 +52,10 @@ class EngineParams:
 
     Fuel pump (Σ1): tau_X_s, x1_nom_kg.
 
-    Turbocharger speed (an output only, :mod:`marine_fdi_env.turbocharger_speed`): N_tc_nom_rpm, the
+    Turbocharger speed (an output only, :mod:`marine_fdi_env.engine.turbocharger_speed`): N_tc_nom_rpm, the
     rotor speed at the isentropic compressor head dh_c_nom_J_per_kg.
 
-    submodels : the optional extensions of the base model (:mod:`marine_fdi_env.submodels`), all off by
+    submodels : the optional extensions of the base model (:mod:`marine_fdi_env.engine.submodels`), all off by
     default.
     """
 

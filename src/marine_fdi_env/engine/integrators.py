@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from ._jit import jit
+from .._jit import jit
 from .model import forcings, solve_algebraic
 
 __all__ = ["advance_batch", "reference_solve", "FAILURE_REASONS",

@@ -9,9 +9,9 @@ The algebraic part is solved in causal order, which the structure allows:
 Σ4 inlet temperature -> Σ2 cycle and speed (a contraction, :func:`engine_block`) -> Σ3 slip,
 receiver/turbine (closed form) -> Σ4 compressor.
 
-Submodels (:mod:`marine_fdi_env.submodels`) are part of the parameters: the speed law and friction act
+Submodels (:mod:`marine_fdi_env.engine.submodels`) are part of the parameters: the speed law and friction act
 in Σ2, the intercooler on the inlet temperature, the gas-path submodels replace Σ3/Σ4 by
-:func:`~marine_fdi_env.subsystems.gas_path.extended_gas_path`.  With none on, the code is the base
+:func:`~marine_fdi_env.engine.subsystems.gas_path.extended_gas_path`.  With none on, the code is the base
 model's, bit for bit.  The output fields after ``h4`` (``T_cyl`` ... ``T_exh``) exist for every engine;
 for the base model they repeat base quantities (T_cyl = T_t = T_in, T_exh = T_out, no bypass flow).
 
@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._jit import jit
+from .._jit import jit
 from .constants import ModelConstants, model_constants
 from .params import EngineParams
 from .subsystems.air_intake import (
@@ -189,7 +189,7 @@ def solve_algebraic(c, x1, x3, x4, pf, n_guess, sweeps, out):
 @jit
 def algebraic_at_speed(c, x1, x3, x4, n, pf, out, ov_wg=math.nan, ov_bp=math.nan):
     """The algebraic equations of Σ2-Σ4 at a given engine speed n [rev/s] (no load law), for the
-    steady-state solver of :mod:`marine_fdi_env.operating_point`; fills ``out`` (``ALG_FIELDS``).
+    steady-state solver of :mod:`marine_fdi_env.engine.operating_point`; fills ``out`` (``ALG_FIELDS``).
     ov_wg, ov_bp : valve openings overriding the schedules (NaN: the schedules)."""
     T1 = inlet_air_temperature_at(pf[5], x4, c)
     torque, p6, T6, p_max, m1_cyl = engine_block_at_speed(x1, x4, T1, c.V1_m3 + pf[1], n, c)

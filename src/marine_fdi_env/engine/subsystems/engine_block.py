@@ -2,7 +2,7 @@
 
 The algebraic variables are z1 = p6 (cylinder pressure at exhaust opening, Seiliger point 6),
 z2 = T6 (cylinder temperature at exhaust opening) and z3 = shaft torque.  They follow from the
-Seiliger cycle (:mod:`marine_fdi_env.seiliger`) fed with the trapped charge (p1 = x4, T1 = z1^(4),
+Seiliger cycle (:mod:`marine_fdi_env.engine.seiliger`) fed with the trapped charge (p1 = x4, T1 = z1^(4),
 V1 + f_V1) and the fuel x1.
 
 Engine speed closes an algebraic loop: the fixed-pitch propeller law ``P = c n^3`` gives
@@ -19,7 +19,7 @@ Decisions where the thesis is silent or garbled:
   ``z3 = m1 w i_e / (2π k_e) - Q_loss`` (eq. 3.10 rebuilt; the closed form is garbled).
 * ``X_cv`` is clipped to [0, 1 - X_ct] so that no heat fraction turns negative at extreme speeds.
 
-Submodels (:mod:`marine_fdi_env.submodels`): ``friction`` adds ``Δfmep = a + d (n/n_nom)^2`` to the
+Submodels (:mod:`marine_fdi_env.engine.submodels`): ``friction`` adds ``Δfmep = a + d (n/n_nom)^2`` to the
 friction torque; ``speed_law`` (combinator) replaces the propeller law in the speed loop by
 ``n = n_nom (s0 + (s1 - s0) P/P_nom)`` with ``P = 2π n z3``, i.e. the fixed point
 ``n <- n_nom s0 / (1 - 2π n_nom (s1 - s0) z3 / P_nom)``.  With both off the code is the base model's.
@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 
-from .._jit import jit
+from ..._jit import jit
 from ..seiliger import seiliger_cycle
 
 __all__ = ["constant_volume_portion", "friction_torque", "engine_block", "torque_given_speed", "speed_of_torque",
@@ -78,7 +78,7 @@ def engine_block_at_speed(x1: float, x4: float, T1: float, V1: float, n: float, 
     """Σ2 at a given engine speed n [rev/s] (no load law): (torque [N m], p6, T6, p_max [Pa], m1 [kg]).
 
     The same cycle and friction as one sweep of :func:`engine_block`; the steady-state solver of
-    :mod:`marine_fdi_env.operating_point` uses it with the speed as an unknown or prescribed.
+    :mod:`marine_fdi_env.engine.operating_point` uses it with the speed as an unknown or prescribed.
     """
     m1 = x4 * V1 / (c.R_a_J_per_kgK * T1)
     q = (c.eta_comb * c.h_L_J_per_kg) * x1 / m1

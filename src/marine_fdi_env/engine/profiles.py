@@ -35,7 +35,7 @@ from functools import cached_property
 
 import numpy as np
 
-from ._jit import jit
+from .._jit import jit
 from .steady_state import check_fuel_setting
 
 __all__ = ["Profile", "make_profile", "PROFILE_NAMES", "ProfileTable"]

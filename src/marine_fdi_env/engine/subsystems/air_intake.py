@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 
-from .._jit import jit
+from ..._jit import jit
 
 __all__ = ["inlet_air_temperature", "delta_f", "eta_tc", "compressor_forcing", "compressor_outlet_temperature",
            "air_excess_ratio", "cooler_outlet_temperature", "inlet_air_temperature_at", "bsr_factor"]

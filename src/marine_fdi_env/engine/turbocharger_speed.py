@@ -4,7 +4,7 @@ Law: a constant isentropic head coefficient of the compressor, ``Δh_c,is = ψ u
 ``u ∝ N``, so ``N = N_nom sqrt(Δh_c,is / Δh_c,is,nom)`` with
 ``Δh_c,is = c_p,a T_amb ((x4/p_amb)^((κa-1)/κa) - 1)`` (compressor inlet at the ambient state, outlet at
 the charge-air pressure; the cooler's pressure drop is neglected).  ``N_tc_nom_rpm`` and
-``dh_c_nom_J_per_kg`` are one calibration point of the parameter set (:mod:`marine_fdi_env.calibration`,
+``dh_c_nom_J_per_kg`` are one calibration point of the parameter set (:mod:`marine_fdi_env.engine.calibration`,
 step 8).
 
 Evidence for the law: on the Birka ME1 protocol, Δh_c,is / N² computed from the measured charge-air

@@ -9,7 +9,7 @@ Reproducibility: engine i draws its noise from ``SeedSequence(seeds[i])`` alone,
 fixed size, and every operation on the state is elementwise, so an engine gives the same numbers
 bit for bit whether it runs alone or in any batch.
 
-Accuracy: ETD2RK at the sample time (:mod:`marine_fdi_env.integrators`).  While the fuel pump is
+Accuracy: ETD2RK at the sample time (:mod:`marine_fdi_env.engine.integrators`).  While the fuel pump is
 far from its target (|x1 - x1_target| > 1e-3 x1_nom, i.e. for about 8 samples after a step of
 the fuel setting) the affected engines take ``substeps`` smaller steps, because the receiver
 pressure then follows a forcing that changes on the 15 ms time scale of the pump.

@@ -33,7 +33,7 @@ intercooler_blockage           f_z,Tc        ΔT_co = β R s [K]       1e-3     
 
 (s = time since the window opened.)  Table 6.4 gives φ_u = 25 "%"; we read it as the fraction
 0.25 (a multiplier 1 - 25 would be meaningless).  The seal leaks act as ``f_x = φ x`` on the state
-(table 3.2) and are subtracted, see :mod:`marine_fdi_env.subsystems.exhaust_receiver`.
+(table 3.2) and are subtracted, see :mod:`marine_fdi_env.engine.subsystems.exhaust_receiver`.
 
 Fault SPEC strings (CLI ``--fault``): ``ID@ONSET[:MAGNITUDE][,key=value...]`` e.g.
 ``S4.2@235:5e4``, ``S3.4@175``, ``bore_damage@5``, ``S2.1@20:3e4,kind=drift``,
@@ -101,7 +101,7 @@ def fault_class(fault_id: str) -> str:
         return "sensor"
     if fault_id in PROCESS_FAULT_IDS:
         return "process"
-    from .suggest import did_you_mean
+    from ..suggest import did_you_mean
 
     raise ValueError(f"unknown fault id {fault_id!r}{did_you_mean(fault_id, FAULT_IDS)}; allowed: {', '.join(FAULT_IDS)}")
 
