@@ -4,14 +4,14 @@ residuals with the same structural isolation logic (:mod:`marine_fdi_env.diagnos
 The environment runs the tests when asked (``observe_sequential=True``, which this agent's
 ``env_kwargs`` request from ``marine-fdi evaluate``) and reports their conclusion in
 ``info["sequential"]``; the agent declares from its minimal diagnoses exactly as the ``reference``
-agent does from the reference's (:func:`baselines.reference_agent.belief_from_diagnoses`).
+agent does from the reference's (:func:`marine_fdi_env.baselines.reference_agent.belief_from_diagnoses`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from baselines.reference_agent import belief_from_diagnoses
+from marine_fdi_env.baselines.reference_agent import belief_from_diagnoses
 
 __all__ = ["SequentialAgent"]
 

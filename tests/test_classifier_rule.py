@@ -11,7 +11,7 @@ torch = pytest.importorskip("torch")
 from marine_fdi_env.envs.hypotheses import HYPOTHESES, UNKNOWN  # noqa: E402
 from marine_fdi_env.envs.observation import observation_size  # noqa: E402
 from marine_fdi_env.engine.faults import FAULT_IDS  # noqa: E402
-from training.agents import ClassifierAgent  # noqa: E402
+from marine_fdi_env.training.agents import ClassifierAgent  # noqa: E402
 
 NF = observation_size(False)
 COL = {f: k for k, f in enumerate(FAULT_IDS)}

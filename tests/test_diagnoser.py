@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from baselines.reference_diagnoser import ReferenceDiagnoser
+from marine_fdi_env.baselines.reference_diagnoser import ReferenceDiagnoser
 from marine_fdi_env.cli import main as cli_main
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
 from marine_fdi_env.engine.faults import FaultSpec

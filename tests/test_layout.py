@@ -64,3 +64,68 @@ if __name__ == "__main__":  # regenerate the fixture with the code in this check
                                    "wall_clock_fields_left_out": ["compute_s", "feature_compute_s", "agent_compute_s"],
                                    "runs": runs}, separators=(",", ":")) + "\n")
     print(f"wrote {FIXTURE} ({FIXTURE.stat().st_size} bytes) from {commit}", file=sys.stderr)
+
+
+# ----------------------------------------------------------------------------- layers and names
+def test_info_imports_finds_no_circle_and_no_backward_import():
+    """``python -m marine_fdi_env.info --imports`` on the installed package: exit 0, and every
+    module of the package (engine, agents, training included) is in the graph."""
+    out = subprocess.run([sys.executable, "-m", "marine_fdi_env.info", "--imports"], capture_output=True,
+                         text=True, cwd=ROOT.parent)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert "no import circle, no backward import between layers" in out.stdout
+    from marine_fdi_env.info import layer_of, package_modules
+
+    mods = package_modules()
+    for name in ("marine_fdi_env.engine.simulator", "marine_fdi_env.engine.subsystems.gas_path",
+                 "marine_fdi_env.baselines.reference_agent", "marine_fdi_env.training.train"):
+        assert name in mods
+    assert layer_of("marine_fdi_env.engine.params") == "params" and layer_of("marine_fdi_env.engine.model") == "engine"
+    assert layer_of("marine_fdi_env.training.rl") == "agents" and layer_of("marine_fdi_env") == "top"
+
+
+def test_info_imports_reports_circles_and_backward_imports(tmp_path):
+    """The check can fail: a module-level circle, a circle through a function-level import, a
+    diagnosis module reaching the environments and an import of the CLI are all reported."""
+    from marine_fdi_env.info import check_imports, print_imports
+
+    src = {
+        "marine_fdi_env.engine.a": "from marine_fdi_env.engine import b\n",
+        "marine_fdi_env.engine.b": "def f():\n    from .a import x\n",
+        "marine_fdi_env.diagnosis.d": "from ..envs.e import y\n",
+        "marine_fdi_env.envs.e": "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from ..diagnosis import d\n"
+                                 "def g():\n    from marine_fdi_env import cli\n",
+        "marine_fdi_env.cli": "",
+    }
+    mods = {}
+    for name, text in src.items():
+        f = tmp_path / (name.replace(".", "_") + ".py")
+        f.write_text(text)
+        mods[name] = f
+    res = check_imports(mods)
+    assert res["cycles"] == [["marine_fdi_env.engine.a", "marine_fdi_env.engine.b"]]
+    back = {(e.importer, e.imported) for e in res["backward"]}
+    assert back == {("marine_fdi_env.diagnosis.d", "marine_fdi_env.envs.e"),
+                    ("marine_fdi_env.envs.e", "marine_fdi_env.cli")}  # not the TYPE_CHECKING import
+    assert print_imports(res, file=open(tmp_path / "out.txt", "w")) == 1
+
+
+def test_agents_and_models_are_named_under_the_namespace(tmp_path):
+    """Built-in agents, shipped model folders and the models package are under marine_fdi_env;
+    an agent.json with a pre-move class name fails with the new spelling in the message."""
+    from marine_fdi_env.envs.agent_api import BUILTIN_AGENTS, load_agent
+    from marine_fdi_env.envs.agent_registry import MODELS_PACKAGE, models_dir
+
+    assert all(t.startswith("marine_fdi_env.baselines.") for t in BUILTIN_AGENTS.values())
+    assert MODELS_PACKAGE == "marine_fdi_env.training"
+    for meta in Path(models_dir()).glob("*/agent.json"):
+        assert json.loads(meta.read_text())["class"].startswith("marine_fdi_env.training.agents:"), meta
+    d = tmp_path / "old"
+    d.mkdir()
+    (d / "agent.json").write_text(json.dumps({"class": "no_such_pkg_xyz.agents:SB3Agent", "kwargs": {}}))
+    with pytest.raises(ValueError, match="cannot import 'no_such_pkg_xyz.agents'"):
+        load_agent(str(d))
+    out = subprocess.run([sys.executable, "-c", "from marine_fdi_env.envs.agent_api import _import\n"
+                          "_import('training.agents:SB3Agent', 'old/agent.json')"],
+                         capture_output=True, text=True, cwd=tmp_path)  # outside the repository
+    assert "write 'marine_fdi_env.training.agents:SB3Agent' in the agent.json" in out.stderr

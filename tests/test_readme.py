@@ -13,7 +13,7 @@ What is not run, and why:
 * ``python -m pip install ...`` (the install CI has just done) and ``python -m pytest ...`` (this
   test suite);
 * commands in running text (backticks outside code blocks): synopses with placeholders such as
-  ``--data FILE.csv`` and the 20-minute ``python -m training.compare``.
+  ``--data FILE.csv`` and the 20-minute ``python -m marine_fdi_env.training.compare``.
 
 To keep the test within about a minute in CI, the arguments below are substituted (nothing
 else is changed):

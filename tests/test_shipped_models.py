@@ -30,6 +30,8 @@ def test_classifier_alone_is_the_shipped_rule_and_its_threshold_is_pinned():
     assert d["calibration"]["target_false_alarms_per_hour"] == 0.0
     assert cfg["hyperparams"]["drop_features"] == ["time_fraction"]
     assert cfg["architecture"]["ewma_taus"] == [5.0, 20.0, 60.0]
+    # the command that made the model, recorded before training/ moved under the namespace (issue 15);
+    # today's spelling is `python -m marine_fdi_env.training.train ...` (training/NOTES.md)
     assert cfg["command"] == "python -m training.train --algo classifier --seed 0 --out training/models/classifier"
     agent = load_agent(str(MODELS / "classifier"))
     assert agent.name == "classifier" and agent.use_reference is False
@@ -50,6 +52,8 @@ def test_ppo_is_pure_rl_on_v1_within_budget():
     assert cfg["action_mode"] == "gated" and cfg["features"]["drop"] == ["time_fraction"]
     assert cfg["features"]["previous_alarm"] is True and cfg["features"]["taus"] == [5.0, 20.0, 60.0]
     assert cfg["cpu_minutes"] <= 30.0 and cfg["machine"]["cpus"] == 2
+    # the command that made the model, recorded before training/ moved under the namespace (issue 15);
+    # today's spelling is `python -m marine_fdi_env.training.train ...` (training/NOTES.md)
     assert cfg["command"] == "python -m training.train --algo ppo --env MarineFDI-v1 --seed 0 --out training/models/ppo"
     assert (MODELS / "ppo" / "learning_curve.png").is_file()
     agent = load_agent(str(MODELS / "ppo"))

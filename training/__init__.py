@@ -1,13 +1,13 @@
 """Learned diagnosers for ``MarineFDI-v1`` (needs the ``train`` extra: torch, stable-baselines3, pyyaml).
 
-* :mod:`training.train` - ``python -m training.train --algo ppo|ppo_lstm|classifier [--env ID] --seed N``
+* :mod:`marine_fdi_env.training.train` - ``python -m marine_fdi_env.training.train --algo ppo|ppo_lstm|classifier [--env ID] --seed N``
   (hyperparameters in ``training/hyperparams/ALGO.yml``, keyed by env id);
-* :mod:`training.rl`, :mod:`training.replay`, :mod:`training.features` - PPO on recorded
+* :mod:`marine_fdi_env.training.rl`, :mod:`marine_fdi_env.training.replay`, :mod:`marine_fdi_env.training.features` - PPO on recorded
   MarineFDI-v1 episodes (bit-equal to the live env), with the agent's own input preprocessing;
-* :mod:`training.vec_adapter` - SB3 ``VecEnv`` over the batched vector environment, action modes;
-* :mod:`training.classifier` - the supervised GRU diagnoser and its threshold calibration;
-* :mod:`training.agents` - trained models as benchmark agents (``marine-fdi evaluate --agent
+* :mod:`marine_fdi_env.training.vec_adapter` - SB3 ``VecEnv`` over the batched vector environment, action modes;
+* :mod:`marine_fdi_env.training.classifier` - the supervised GRU diagnoser and its threshold calibration;
+* :mod:`marine_fdi_env.training.agents` - trained models as benchmark agents (``marine-fdi evaluate --agent
   training/models/NAME``);
-* :mod:`training.compare` - every agent on every frozen suite, ``docs/learned_agents.md`` and
+* :mod:`marine_fdi_env.training.compare` - every agent on every frozen suite, ``docs/learned_agents.md`` and
   the README's result tables.
 """

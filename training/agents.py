@@ -1,7 +1,7 @@
 """Trained models as benchmark agents (``marine-fdi evaluate --agent training/models/NAME``).
 
-A model directory holds ``agent.json`` (``{"class": "training.agents:SB3Agent"}`` or
-``"training.agents:ClassifierAgent"``), ``config.json`` (algorithm, hyperparameters, seed,
+A model directory holds ``agent.json`` (``{"class": "marine_fdi_env.training.agents:SB3Agent"}`` or
+``"marine_fdi_env.training.agents:ClassifierAgent"``), ``config.json`` (algorithm, hyperparameters, seed,
 observation size and feature names, the command that trained it, training CPU time), the
 weights (``model.zip`` for SB3, ``model.pt`` for the classifier) and ``learning_curve.csv``.
 
@@ -164,13 +164,13 @@ class SB3Agent:
 
 
 class ClassifierAgent:
-    """The GRU diagnoser of :mod:`training.classifier` with its calibrated declaration rule.
+    """The GRU diagnoser of :mod:`marine_fdi_env.training.classifier` with its calibrated declaration rule.
 
     ``use_reference`` (default: the model's ``declaration.use_reference``): ``False``, the
     classifier alone (its own latched alarm and faults; the row ``classifier``); ``"first"`` or
     ``"fallback"``, a hybrid that also takes the reference diagnoser's alarm and isolation (the row
     ``classifier+reference``; see :meth:`act`).  An agent directory can point at a model elsewhere:
-    ``agent.json`` ``{"class": "training.agents:ClassifierAgent", "kwargs": {"model": "../classifier",
+    ``agent.json`` ``{"class": "marine_fdi_env.training.agents:ClassifierAgent", "kwargs": {"model": "../classifier",
     "use_reference": "first"}}`` (``training/models/classifier+reference``).
     """
 
@@ -247,7 +247,7 @@ class ClassifierAgent:
         for i in np.flatnonzero(self.alarm):
             dec = p[i, :-1] >= self.isolation_threshold
             if ref is not None and bool(ref["detected"][i]):
-                from baselines.reference_agent import belief_from_diagnoses
+                from marine_fdi_env.baselines.reference_agent import belief_from_diagnoses
 
                 rb = belief_from_diagnoses(True, ref["diagnoses"][i])[:-2] >= 0.5
                 if rb.any() and (self.use_reference == "first" or not dec.any()):

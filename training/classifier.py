@@ -14,7 +14,7 @@ Training data: ``marine-fdi dataset`` exports of scenario *presets* (never of th
 suites); labels are the ``active`` arrays (a fault counts from its onset on).  Loss: binary cross
 entropy on every valid decision, the "fault active" logit weighted ``alarm_weight``.
 
-Declaration (:class:`training.agents.ClassifierAgent`): the alarm is raised when the "fault
+Declaration (:class:`marine_fdi_env.training.agents.ClassifierAgent`): the alarm is raised when the "fault
 active" probability passes ``alarm_threshold`` and then stays on (latched: faults do not go away
 by themselves in the suites, and a flickering alarm would count one false alarm per rising
 edge); the threshold is calibrated on fault-free episodes for a target false-alarm rate

@@ -7,15 +7,15 @@ into the policy's input, causally and per episode:
    it a policy learns "late in an episode there usually is a fault", see the classifier);
 2. exponentially weighted moving averages of the ``ewma_features`` (the 19 signed residual means)
    with time constants ``taus`` [decisions] are appended, started at 0 at each episode start:
-   the agent's accumulation of a small persistent residual bias (as :class:`training.classifier.GRUDiagnoser`);
+   the agent's accumulation of a small persistent residual bias (as :class:`marine_fdi_env.training.classifier.GRUDiagnoser`);
 3. with ``previous_alarm``, whether the agent's own previous declaration raised the alarm (0 at
    an episode start): the agent knows what it declared, and MarineFDI-v1 charges a false alarm
    when the alarm *rises*, so the value of raising it depends on it;
 4. everything is standardised with a fixed mean and scale (measured once on the training
    episodes, stored with the model) and clipped to +-10.
 
-The same object runs in training (:mod:`training.replay`, :mod:`training.vec_adapter`) and in
-the evaluated agent (:class:`training.agents.SB3Agent`), so both see identical inputs.
+The same object runs in training (:mod:`marine_fdi_env.training.replay`, :mod:`marine_fdi_env.training.vec_adapter`) and in
+the evaluated agent (:class:`marine_fdi_env.training.agents.SB3Agent`), so both see identical inputs.
 """
 
 from __future__ import annotations

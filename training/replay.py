@@ -15,7 +15,7 @@ the agent learns from is still only its reward and the observation features.
 
 :class:`ReplayVecEnv` is an SB3 ``VecEnv`` (same-step autoreset, ``terminal_observation``); each
 slot plays episodes drawn at random from the pool (seeded), and the agent's preprocessing
-(:class:`training.features.AgentFeatures`) is applied inside, with its per-episode state.
+(:class:`marine_fdi_env.training.features.AgentFeatures`) is applied inside, with its per-episode state.
 """
 
 from __future__ import annotations

@@ -1,12 +1,12 @@
-"""PPO on MarineFDI-v1, learning from recorded episodes (:mod:`training.replay`).
+"""PPO on MarineFDI-v1, learning from recorded episodes (:mod:`marine_fdi_env.training.replay`).
 
-``python -m training.train --algo ppo --env MarineFDI-v1 --seed 0`` runs :func:`train_ppo_replay`
+``python -m marine_fdi_env.training.train --algo ppo --env MarineFDI-v1 --seed 0`` runs :func:`train_ppo_replay`
 with the ``MarineFDI-v1`` entry of ``training/hyperparams/ppo.yml``:
 
 1. the training episodes are simulated once (``marine-fdi dataset`` exports of the ``datasets``
    specs: scenario presets or configs with their own seeds, never a suite; cached in
    ``training/.cache``, whose export CPU time still counts);
-2. the agent's input preprocessing (:class:`training.features.AgentFeatures`: EWMAs of the signed
+2. the agent's input preprocessing (:class:`marine_fdi_env.training.features.AgentFeatures`: EWMAs of the signed
    residual means, the previous alarm, no clock) is standardised on them;
 3. ``validation_fraction`` of the episodes are held out: every ``eval_every`` rollouts the
    deterministic policy is scored on them (isolation, false alarms, return), for the learning
@@ -79,7 +79,7 @@ def train_ppo_replay(seed: int, hp: dict, out: Path | None, use_cache: bool = Tr
     from stable_baselines3.common.utils import set_random_seed
     from stable_baselines3.common.vec_env import VecNormalize
 
-    from .train import _ensure_dataset
+    from .datasets import _ensure_dataset
 
     hp = dict(hp)
     c0, w0 = time.process_time(), time.perf_counter()
@@ -189,7 +189,7 @@ def train_ppo_replay(seed: int, hp: dict, out: Path | None, use_cache: bool = Tr
            "cpu_s_data": round(data_cpu, 1), "cpu_s": round(cpu_total, 1),
            "wall_s": round(time.perf_counter() - w0, 1)}
     if out is not None:
-        from .train import _write_curve
+        from .artifacts import _write_curve
 
         out.mkdir(parents=True, exist_ok=True)
         model.save(out / "model.zip")
@@ -200,7 +200,7 @@ def train_ppo_replay(seed: int, hp: dict, out: Path | None, use_cache: bool = Tr
 
 
 def _observation_meta() -> dict:
-    from .train import _observation_meta as meta
+    from .artifacts import _observation_meta as meta
 
     return meta()
 

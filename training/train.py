@@ -1,10 +1,10 @@
 """Train a learned diagnoser for ``MarineFDI-v1`` / ``MarineFDI-v0`` (RL Zoo style).
 
-    python -m training.train --algo ppo --env MarineFDI-v1 --seed 0   # the shipped PPO: replayed v1 episodes
-    python -m training.train --algo ppo --seed 0                 # PPO on the live batched env (v0 entry)
-    python -m training.train --algo ppo_lstm --seed 0            # RecurrentPPO (sb3-contrib)
-    python -m training.train --algo classifier --seed 0          # supervised GRU diagnoser
-    python -m training.train --algo ppo --seed -1                # draw a seed (logged and saved)
+    python -m marine_fdi_env.training.train --algo ppo --env MarineFDI-v1 --seed 0   # the shipped PPO: replayed v1 episodes
+    python -m marine_fdi_env.training.train --algo ppo --seed 0                 # PPO on the live batched env (v0 entry)
+    python -m marine_fdi_env.training.train --algo ppo_lstm --seed 0            # RecurrentPPO (sb3-contrib)
+    python -m marine_fdi_env.training.train --algo classifier --seed 0          # supervised GRU diagnoser
+    python -m marine_fdi_env.training.train --algo ppo --seed -1                # draw a seed (logged and saved)
 
 Hyperparameters: ``training/hyperparams/ALGO.yml``, keyed by env id; ``--params key=value ...``
 overrides entries (values parsed as YAML), ``--n-timesteps`` the PPO budget.  The run directory
@@ -16,7 +16,7 @@ and ``agent.json``, so ``marine-fdi evaluate --agent DIR`` runs it.  The shipped
 CPU time is the process CPU time (all threads; simulation, features and learning together,
 including the data generation of the classifier and of the replayed PPO, cached or not).
 An entry with ``replay: true`` (``ppo.yml``, ``MarineFDI-v1``) trains on recorded episodes
-(:mod:`training.rl`); the others on the live environment.
+(:mod:`marine_fdi_env.training.rl`); the others on the live environment.
 """
 
 from __future__ import annotations
@@ -37,11 +37,13 @@ import yaml
 from marine_fdi_env.envs.fdi_env import ENV_ID
 from marine_fdi_env.envs.observation import feature_names
 
+from .artifacts import _observation_meta, _save_meta, _write_curve  # noqa: F401 - used here and by tests
+from .datasets import _dataset, _ensure_dataset, dataset_scenarios, scenario_config_of  # noqa: F401
+
 __all__ = ["main", "load_hyperparams", "train_sb3", "train_classifier_run", "ALGOS"]
 
 ALGOS = ("ppo", "ppo_lstm", "classifier")
 HERE = Path(__file__).resolve().parent
-CACHE = HERE / ".cache"
 
 
 def load_hyperparams(algo: str, env_id: str = ENV_ID, overrides: dict | None = None) -> dict:
@@ -56,25 +58,6 @@ def load_hyperparams(algo: str, env_id: str = ENV_ID, overrides: dict | None = N
     return hp
 
 
-def _observation_meta(observe_sensors: bool = False) -> dict:
-    names = feature_names(observe_sensors)
-    return {"size": len(names), "observe_sensors": observe_sensors, "feature_names": names}
-
-
-def _write_curve(path: Path, rows: list[dict]) -> None:
-    keys = list(dict.fromkeys(k for r in rows for k in r))
-    with path.open("w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=keys)
-        w.writeheader()
-        w.writerows(rows)
-
-
-def _save_meta(out: Path, cfg: dict, agent_class: str) -> None:
-    (out / "config.json").write_text(json.dumps(cfg, indent=1) + "\n")
-    (out / "agent.json").write_text(json.dumps({"class": agent_class, "kwargs": {}}, indent=1) + "\n")
-
-
-# ----------------------------------------------------------------------------- reinforcement learning
 def train_sb3(algo: str, seed: int, hp: dict, out: Path | None, log=print) -> tuple[object, dict]:
     """Train PPO / RecurrentPPO on the batched env; returns (model, config)."""
     import torch
@@ -144,54 +127,6 @@ def train_sb3(algo: str, seed: int, hp: dict, out: Path | None, log=print) -> tu
 
 
 # ----------------------------------------------------------------------------- supervised
-def scenario_config_of(spec: dict):
-    """(name, ScenarioConfig) of a dataset spec: ``{"preset": NAME}`` or ``{"config": {...}}``."""
-    from marine_fdi_env.envs.scenario_sampler import ScenarioConfig, get_preset
-
-    if "config" in spec:  # a scenario config (dict) instead of a named preset
-        cfg = ScenarioConfig.from_dict({k: (tuple(tuple(x) if isinstance(x, list) else x for x in v)
-                                            if isinstance(v, list) else v) for k, v in spec["config"].items()})
-        return cfg.name, cfg
-    return spec["preset"], get_preset(spec["preset"])
-
-
-def dataset_scenarios(spec: dict) -> list:
-    """The scenarios of a dataset spec (``episodes`` drawn from ``SeedSequence(seed)``), as
-    ``marine-fdi dataset --preset P --episodes N --seed S`` draws them."""
-    _, cfg = scenario_config_of(spec)
-    n, s = int(spec["episodes"]), int(spec["seed"])
-    ent = np.random.default_rng(np.random.SeedSequence(s)).integers(0, 2**63 - 1, size=n)
-    return [cfg.sample(int(e), scenario_id=f"{cfg.name}/{s}/{i}") for i, e in enumerate(ent)]
-
-
-def _ensure_dataset(spec: dict, use_cache: bool, log=print) -> tuple[Path, float, bool]:
-    """Export a dataset spec (or find it in the cache); returns (directory, CPU s of the export, fresh)."""
-    from marine_fdi_env import __version__
-    from marine_fdi_env.envs.dataset import export_dataset
-
-    preset, cfg = scenario_config_of(spec)
-    n, s = int(spec["episodes"]), int(spec["seed"])
-    d = CACHE / f"{preset}_{n}_{s}_v{__version__}"
-    meta = d / "cpu.json"
-    if use_cache and meta.is_file() and (d / "dataset.npz").is_file():
-        return d, float(json.loads(meta.read_text())["cpu_s"]), False
-    c0 = time.process_time()
-    if log:
-        log(f"exporting dataset: marine-fdi dataset --preset {preset} --episodes {n} --seed {s}")
-    export_dataset(dataset_scenarios(spec), d, {"scenario_config": cfg}, progress=False)
-    cpu = time.process_time() - c0
-    meta.write_text(json.dumps({"cpu_s": cpu}))
-    return d, cpu, True
-
-
-def _dataset(spec: dict, use_cache: bool, log=print) -> tuple[dict, float, bool]:
-    """Export (or load from the cache) a preset dataset; returns (arrays, CPU s of the export, fresh)."""
-    from .classifier import load_dataset
-
-    d, cpu, fresh = _ensure_dataset(spec, use_cache, log)
-    return load_dataset(d), cpu, fresh
-
-
 def train_classifier_run(seed: int, hp: dict, out: Path | None, use_cache: bool = True, log=print):
     """Data export, GRU training and alarm-threshold calibration; returns (model, config)."""
     import torch
@@ -259,7 +194,7 @@ def _parse_params(items: list[str]) -> dict:
 
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    ap = argparse.ArgumentParser(prog="python -m training.train", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="python -m marine_fdi_env.training.train", description=__doc__.splitlines()[0])
     ap.add_argument("--algo", choices=ALGOS, required=True)
     ap.add_argument("--seed", type=int, default=0, help="random seed; negative: draw one (logged)")
     ap.add_argument("--env", default=ENV_ID)
@@ -278,22 +213,22 @@ def main(argv=None) -> int:
             over["n_timesteps"] = args.n_timesteps
         hp = load_hyperparams(args.algo, args.env, over)
     except ValueError as e:
-        print(f"training.train: error: {e}", file=sys.stderr)
+        print(f"marine_fdi_env.training.train: error: {e}", file=sys.stderr)
         return 2
     out = args.out or HERE / "logs" / f"{args.algo}_s{seed}"
     if args.algo == "classifier":
         _, cfg = train_classifier_run(seed, hp, out, use_cache=not args.no_cache)
-        agent_class = "training.agents:ClassifierAgent"
+        agent_class = "marine_fdi_env.training.agents:ClassifierAgent"
     elif hp.get("replay"):  # PPO on recorded MarineFDI-v1 episodes (training/rl.py)
         from .rl import train_ppo_replay
 
         _, cfg = train_ppo_replay(seed, hp, out, use_cache=not args.no_cache)
-        agent_class = "training.agents:SB3Agent"
+        agent_class = "marine_fdi_env.training.agents:SB3Agent"
     else:
         _, cfg = train_sb3(args.algo, seed, hp, out)
-        agent_class = "training.agents:SB3Agent"
+        agent_class = "marine_fdi_env.training.agents:SB3Agent"
     # the command that makes the model (--no-cache only re-exports the same data: not recorded)
-    cmd = ["python", "-m", "training.train"] + [a for a in argv if a != "--no-cache"]
+    cmd = ["python", "-m", "marine_fdi_env.training.train"] + [a for a in argv if a != "--no-cache"]
     if args.seed < 0:
         cmd = [a if a != str(args.seed) else str(seed) for a in cmd]
     cfg.update(command=shlex.join(cmd), seed_drawn=args.seed < 0, cpu_minutes=round(cfg["cpu_s"] / 60.0, 2),

@@ -3,10 +3,10 @@
 Importing the package registers the Gymnasium environments ``MarineFDI-v0`` and ``MarineFDI-v1``.
 """
 
-from .envs import ENV_ID, register_envs
+from ._version import __version__
 from .engine.params import EngineParams, list_parameter_sets, load_params
+from .envs import ENV_ID, register_envs
 
-__version__ = "0.1.0"
 __all__ = ["EngineParams", "load_params", "list_parameter_sets", "ENV_ID", "__version__"]
 
 register_envs()

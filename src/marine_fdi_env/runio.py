@@ -126,7 +126,7 @@ def save_run(
     interrupted save never leaves a truncated run file.  Returns the path written (exactly
     ``path``; no suffix is appended).
     """
-    from . import __version__
+    from ._version import __version__
     from .engine.simulator import TRUTH_VARIABLES
 
     path = Path(path)

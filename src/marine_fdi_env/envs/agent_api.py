@@ -32,6 +32,7 @@ from pathlib import Path
 from typing import Protocol
 
 import numpy as np
+from .agent_registry import BUILTIN_AGENTS, LEGACY_PACKAGES  # the names live in the registry
 from .jsonfile import read_json
 
 __all__ = ["Agent", "BUILTIN_AGENTS", "load_agent", "resolve_agent_spec", "agent_file_stem"]
@@ -45,13 +46,6 @@ class Agent(Protocol):
     def act(self, obs: np.ndarray, infos: dict) -> np.ndarray: ...
 
 
-BUILTIN_AGENTS = {
-    "null": "baselines.null_agent:NullAgent",
-    "random": "baselines.random_agent:RandomAgent",
-    "reference": "baselines.reference_agent:ReferenceAgent",
-    "sequential": "baselines.sequential_agent:SequentialAgent",
-    "oracle": "baselines.oracle_agent:OracleAgent",
-}
 
 
 def _import(target: str, where: str):
@@ -61,7 +55,12 @@ def _import(target: str, where: str):
     try:
         mod = importlib.import_module(mod_name)
     except ImportError as e:
-        raise ValueError(f"{where}: cannot import {mod_name!r} ({e})") from None
+        hint = ""
+        if mod_name.split(".")[0] in LEGACY_PACKAGES:  # the names before issue 15: no alias, a clear message
+            top = mod_name.split(".")[0]
+            hint = (f"; this project's {top!r} package is installed as 'marine_fdi_env.{top}': "
+                    f"write 'marine_fdi_env.{target}' in the agent.json")
+        raise ValueError(f"{where}: cannot import {mod_name!r} ({e}){hint}") from None
     try:
         return getattr(mod, attr)
     except AttributeError:

@@ -2,16 +2,18 @@
 
 Nothing here lists the models: they are found where they are installed.
 
-* **Baselines**: :data:`~.agent_api.BUILTIN_AGENTS` (name -> ``module:Class`` in the package
-  :data:`BASELINES_PACKAGE`).
+* **Baselines**: :data:`BUILTIN_AGENTS` (name -> ``module:Class`` in the package
+  ``marine_fdi_env.baselines``).
 * **Models**: every folder of ``MODELS_PACKAGE/MODELS_FOLDER/`` (package data) holding an
   ``agent.json``.  Its name is the ``name`` of its ``config.json`` (the name the agent reports in
   results), else the folder's name; the folder's name is accepted too.  A new model folder is a
   new agent name, with no code change.
 
-:data:`MODELS_PACKAGE` is the only place that knows where the ``training`` package is installed,
-and the targets of ``BUILTIN_AGENTS`` the only place for ``baselines`` (a later move under the
-``marine_fdi_env`` namespace changes these strings only).
+:data:`MODELS_PACKAGE` is the only place that knows where the training code is installed
+(``marine_fdi_env.training``, from the repository folder ``training/``), and the targets of
+``BUILTIN_AGENTS`` the only place for the baselines (``marine_fdi_env.baselines``, from
+``baselines/``).  These are looked up by name at run time: the environments never import an
+agent's code in their source (``python -m marine_fdi_env.info --imports``).
 """
 
 from __future__ import annotations
@@ -24,10 +26,21 @@ from pathlib import Path
 
 from .jsonfile import read_json
 
-__all__ = ["AgentEntry", "list_agents", "find_agent", "MODELS_PACKAGE", "MODELS_FOLDER", "models_dir"]
+__all__ = ["AgentEntry", "list_agents", "find_agent", "MODELS_PACKAGE", "MODELS_FOLDER", "models_dir",
+           "BUILTIN_AGENTS"]
 
-MODELS_PACKAGE = "training"
+MODELS_PACKAGE = "marine_fdi_env.training"  # the repository folder training/, installed under the namespace
 MODELS_FOLDER = "models"
+# name -> module:Class of the non-learned agents (marine_fdi_env.baselines)
+BUILTIN_AGENTS = {
+    "null": "marine_fdi_env.baselines.null_agent:NullAgent",
+    "random": "marine_fdi_env.baselines.random_agent:RandomAgent",
+    "reference": "marine_fdi_env.baselines.reference_agent:ReferenceAgent",
+    "sequential": "marine_fdi_env.baselines.sequential_agent:SequentialAgent",
+    "oracle": "marine_fdi_env.baselines.oracle_agent:OracleAgent",
+}
+# top-level package names of the agents and the training code before they moved under the namespace
+LEGACY_PACKAGES = ("baselines", "training")
 TRAIN_EXTRA_HINT = "pip install 'marine-fdi-env[train]'"
 
 
@@ -79,7 +92,7 @@ def _model_entry(folder: Path) -> AgentEntry | None:
         algo = cfg.get("algo", "?")
         minutes = cfg.get("cpu_minutes")
         size = cfg.get("model_bytes")
-        parts = [f"trained {algo} model in {MODELS_PACKAGE}/{MODELS_FOLDER}/{folder.name}"]
+        parts = [f"trained {algo} model in {MODELS_PACKAGE.rpartition('.')[2]}/{MODELS_FOLDER}/{folder.name}"]
         if minutes is not None:
             parts.append(f"{float(minutes):.1f} CPU min of training")
         if size:
@@ -95,8 +108,6 @@ def _model_entry(folder: Path) -> AgentEntry | None:
 
 @lru_cache(maxsize=1)
 def _entries() -> tuple[AgentEntry, ...]:
-    from .agent_api import BUILTIN_AGENTS
-
     out = []
     for name, target in BUILTIN_AGENTS.items():
         mod, _, cls = target.partition(":")

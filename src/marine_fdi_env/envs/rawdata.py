@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import __version__
+from .._version import __version__
 from ..engine.faults import FAULT_IDS
 from ..engine.sensors import SENSORS
 from .hypotheses import DECLARE_THRESHOLD, N_FAULTS, UNKNOWN

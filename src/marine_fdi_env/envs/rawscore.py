@@ -54,7 +54,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import __version__
+from .._version import __version__
 from ..engine.faults import FAULT_IDS, _window_time, fault_class
 from .metrics import compute_metrics
 from .rawdata import OUTPUT_COLUMNS, RANK_COLUMNS, read_manifest, scenario_stem

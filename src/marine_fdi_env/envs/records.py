@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Iterable, Mapping
 
 __all__ = ["pyarrow", "records_to_table", "table_to_records", "write_records", "read_records",
-           "write_results_parquet", "read_results_parquet", "PARQUET_MISSING"]
+           "write_results_parquet", "read_results_parquet", "PARQUET_MISSING", "sweep_results"]
 
 PARQUET_MISSING = "Parquet files need pyarrow: pip install 'marine-fdi-env[parquet]'"
 META_KEY = b"marine_fdi"
@@ -143,4 +143,22 @@ def read_results_parquet(path: "str | Path") -> dict:
     records, meta = read_records(path)
     out = dict(meta)
     out["episodes"] = records
+    return out
+
+
+def sweep_results(records: list[dict], source: str = "") -> list[dict]:
+    """Results objects (as ``marine-fdi evaluate`` writes them) per agent x suite, pooled over
+    the seed offsets, from sweep records (with ``agent_spec`` and ``seed_offset``)."""
+    from .metrics import compute_metrics
+
+    groups: dict[tuple, list[dict]] = {}
+    for r in records:
+        groups.setdefault((r.get("agent_spec", r["agent"]), r["suite"]), []).append(r)
+    out = []
+    for (spec, suite), recs in groups.items():
+        offsets = sorted({int(r.get("seed_offset", 0)) for r in recs})
+        clean = [{k: v for k, v in r.items() if k not in ("agent_spec", "seed_offset")} for r in recs]
+        out.append({"agent": recs[0]["agent"], "agent_spec": spec, "suite": suite, "seed_offsets": offsets,
+                    "n_episodes": len(recs), "metrics": compute_metrics(clean), "episodes": clean,
+                    "path": f"{source}[{spec} on {suite}]" if source else f"{spec} on {suite}"})
     return out

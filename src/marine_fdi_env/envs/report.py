@@ -50,12 +50,10 @@ _DASH = "–"
 def _parquet_results(p: Path) -> list[dict]:
     """Results objects from a Parquet file: an evaluation's records, or a sweep's table (one
     object per agent x suite)."""
-    from .records import read_records
+    from .records import read_records, sweep_results
 
     records, meta = read_records(p, keep_extra=True)
     if meta.get("kind") == "marine-fdi sweep" or (records and "agent_spec" in records[0]):
-        from .sweep import sweep_results
-
         return sweep_results(records, str(p))
     for r in records:
         r.pop("agent_spec", None)

@@ -31,10 +31,10 @@ import sys
 import time
 from pathlib import Path
 
-from .. import __version__
+from .._version import __version__
 from .backends import Backend, chunk_size, run_tasks
 from .evaluate import cached_agent, evaluate_chunk, suite_env_kwargs
-from .metrics import compute_metrics
+from .records import sweep_results  # noqa: F401 - part of this module's API
 from .suites import SUITE_NAMES, load_suite
 
 __all__ = ["run_sweep", "sweep_main", "sweep_results"]
@@ -191,22 +191,6 @@ def run_sweep(agents: list[str], suites: list[str], seed_offsets: list[int], out
     metrics["run"] = run
     metrics["table"] = results
     return metrics
-
-
-def sweep_results(records: list[dict], source: str = "") -> list[dict]:
-    """Results objects (as ``marine-fdi evaluate`` writes them) per agent x suite, pooled over
-    the seed offsets, from sweep records (with ``agent_spec`` and ``seed_offset``)."""
-    groups: dict[tuple, list[dict]] = {}
-    for r in records:
-        groups.setdefault((r.get("agent_spec", r["agent"]), r["suite"]), []).append(r)
-    out = []
-    for (spec, suite), recs in groups.items():
-        offsets = sorted({int(r.get("seed_offset", 0)) for r in recs})
-        clean = [{k: v for k, v in r.items() if k not in ("agent_spec", "seed_offset")} for r in recs]
-        out.append({"agent": recs[0]["agent"], "agent_spec": spec, "suite": suite, "seed_offsets": offsets,
-                    "n_episodes": len(recs), "metrics": compute_metrics(clean), "episodes": clean,
-                    "path": f"{source}[{spec} on {suite}]" if source else f"{spec} on {suite}"})
-    return out
 
 
 def sweep_main(argv=None) -> int:
