@@ -337,8 +337,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Run an agent on a frozen evaluation suite and print its metrics. With no arguments: the "
                     "reference diagnoser on thesis-v1.")
     ap.add_argument("--agent", default="reference",
-                    help="an agent name (see 'marine-fdi agents': null, random, reference, sequential, oracle,
-                         the shipped "
+                    help="an agent name (see 'marine-fdi agents': null, random, reference, sequential, oracle, the shipped "
                          "models), a directory with agent.json, or path/to/file.py:ClassName (default: reference)")
     ap.add_argument("--suite", default="thesis-v1", help="suite name or JSON path (default: thesis-v1)")
     ap.add_argument("--out", type=Path, default=None,
