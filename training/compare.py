@@ -56,6 +56,8 @@ WHAT = {
     "null": ("never declares anything", False),
     "random": ("declares a random hypothesis about once a minute", False),
     "reference": ("the thesis's diagnoser (19 modules, adaptive thresholds, minimal diagnoses)", True),
+    "sequential": ("the sequential diagnoser (issue 13): CUSUM tests on the reference's residuals, the same structural "
+                   "isolation; thresholds calibrated on its own fault-free runs, not on a suite", False),
     "ppo": ("reinforcement learning (PPO), observation features only", False),
     "classifier": ("supervised GRU, observation features only: its own alarm and faults", False),
     "classifier+reference": ("hybrid: the classifier plus the reference's alarm and its isolation whenever it "
