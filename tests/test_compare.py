@@ -59,3 +59,12 @@ def test_an_agent_that_does_not_reach_its_median_fails(results):
     assert censored[1] is False and censored[0].startswith("not reached vs 60.0 s")  # the middle of 5
     paired = next(v for k, v in checks.items() if "paired" in k)
     assert paired[1] is True and "5.0 s vs 40.0 s" in paired[0]
+
+
+def test_every_agent_row_says_what_it_is(results):
+    """Each compared agent (sequential included) has its description and its 'reads the reference'
+    flag: the tables are written for every row, with n/a where a result is missing."""
+    assert set(cmp.WHAT) == set(cmp.AGENTS)
+    table = cmp.compact_table(list(cmp.AGENTS))
+    assert all(f"| {a} | " in table for a in cmp.AGENTS)
+    assert "| sequential | no |" in table  # CUSUM on the residuals, not the reference's conclusion

@@ -56,6 +56,8 @@ WHAT = {
     "null": ("never declares anything", False),
     "random": ("declares a random hypothesis about once a minute", False),
     "reference": ("the thesis's diagnoser (19 modules, adaptive thresholds, minimal diagnoses)", True),
+    "sequential": ("the sequential diagnoser (issue 13): CUSUM tests on the reference's residuals, the same structural "
+                   "isolation; thresholds calibrated on its own fault-free runs, not on a suite", False),
     "ppo": ("reinforcement learning (PPO), observation features only", False),
     "classifier": ("supervised GRU, observation features only: its own alarm and faults", False),
     "classifier+reference": ("hybrid: the classifier plus the reference's alarm and its isolation whenever it "
@@ -84,6 +86,11 @@ METRICS = (  # (key, title, format)
     ("feature_compute_s_per_sample", "features [µs/sample]", "us"),
     ("agent_compute_s_per_decision", "agent [µs/decision]", "us"),
 )
+
+
+def _current_spelling(command: str) -> str:
+    """A recorded training command as it is typed today (training/ installs as marine_fdi_env.training)."""
+    return command.replace("python -m training.", "python -m marine_fdi_env.training.")
 
 
 def _fmt(v, kind: str) -> str:
@@ -356,7 +363,7 @@ def models_table() -> str:
             algo = f"PPO on {cfg['env_id']} ({cfg['action_mode']} actions)"
         n_par = cfg.get("n_parameters") or _count_parameters(a)
         rows.append(f"| `{d}` | {algo} | {data} | {cfg['cpu_minutes']:.1f} | {cfg.get('cpu_s_data', 0) / 60:.1f} | "
-                    f"{n_par} | {_dir_bytes(ROOT / d) / 1024:.0f} KiB | `{cfg['command']}` |")
+                    f"{n_par} | {_dir_bytes(ROOT / d) / 1024:.0f} KiB | `{_current_spelling(cfg['command'])}` |")
     return "\n".join(rows) + "\n"
 
 
