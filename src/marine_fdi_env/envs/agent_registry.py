@@ -76,7 +76,9 @@ def models_dir() -> Path | None:
 
 
 def _first_line(doc: str | None) -> str:
-    return (doc or "").strip().splitlines()[0].rstrip(".") if (doc or "").strip() else ""
+    """The first sentence of a docstring's first paragraph (a paragraph may wrap over several lines)."""
+    para = " ".join((doc or "").strip().split("\n\n")[0].split())
+    return para.split(". ")[0].rstrip(".")
 
 
 def _model_entry(folder: Path) -> AgentEntry | None:
@@ -85,9 +87,14 @@ def _model_entry(folder: Path) -> AgentEntry | None:
         return None
     cfg_file = folder / "config.json"
     cfg = read_json(cfg_file, "model config") if cfg_file.is_file() else {}
-    cls = str((read_json(meta, "agent description") or {}).get("class", ""))
+    spec = read_json(meta, "agent description") or {}
+    cls = str(spec.get("class", ""))
     name = str(cfg.get("name") or folder.name)
     desc = cfg.get("description")
+    kw = spec.get("kwargs") or {}
+    if not desc and not cfg and kw.get("model"):  # an agent directory over another folder's model
+        desc = (f"the model of {MODELS_FOLDER}/{Path(str(kw['model'])).name} with the reference diagnoser's "
+                f"conclusion ({kw.get('use_reference', '?')}): a hybrid")
     if not desc:
         algo = cfg.get("algo", "?")
         minutes = cfg.get("cpu_minutes")
