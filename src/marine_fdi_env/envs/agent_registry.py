@@ -93,7 +93,7 @@ def _model_entry(folder: Path) -> AgentEntry | None:
     desc = cfg.get("description")
     kw = spec.get("kwargs") or {}
     if not desc and not cfg and kw.get("model"):  # an agent directory over another folder's model
-        desc = (f"the model of {MODELS_FOLDER}/{Path(str(kw['model'])).name} with the reference diagnoser's "
+        desc = (f"the model of {MODELS_PACKAGE.rpartition('.')[2]}/{MODELS_FOLDER}/{Path(str(kw['model'])).name} with the reference diagnoser's "
                 f"conclusion ({kw.get('use_reference', '?')}): a hybrid")
     if not desc:
         algo = cfg.get("algo", "?")
