@@ -72,11 +72,10 @@ from ..engine.subsystems.exhaust_receiver import (
     receiver_forcing,
     scavenge_flow_function,
     turbine_expansion,
-    turbine_mass_flow,
     turbine_outlet_from_expansion,
     turbine_outlet_temperature,
 )
-from ..engine.subsystems.gas_path import flow_law_pressure, extended_gas_path, valve_opening
+from ..engine.subsystems.gas_path import extended_gas_path, flow_law_pressure, valve_flows
 from .modules import MODULE_IDS
 from .inclusion_table import interpolate_rows, sigma2_table
 from .sigma2 import ONE_SIDED, SLOPE_STEP, _centre_speed, _centre_speed2, _perturbed_rows, _perturbed_rows2
@@ -197,18 +196,8 @@ def _point(c, x1, x3, x4, m1, n, psi, Pi, T_in, T_out, T6, p6, out, j):
 @jit
 def _sm_flows(c, x1, x3, x4, m1, s_sl, n, T_c):
     """(ṁ_g, ṁ_bp, waste-gate opening a, compressor air ṁ_c) of the extended gas path."""
-    mdot_g = turbine_mass_flow(x1, m1, s_sl, n, c)
-    u = x1 / c.x1_nom_kg
-    a_wg = 0.0
-    if c.wg_on != 0.0:
-        a_wg = valve_opening(u, c.wg_u, c.wg_a)
-    mdot_bp = 0.0
-    if c.bp_on != 0.0 and x4 > x3:
-        b = valve_opening(u, c.bp_u, c.bp_b)
-        rho = x4 / (c.R_a_J_per_kgK * T_c)
-        mdot_bp = c.alpha_z * c.A_eff_m2 * b * math.sqrt(2.0 * rho * (x4 - x3))
-    m_c = (1.0 + s_sl) * m1 * n * c.cycles_per_rev + mdot_bp
-    return mdot_g, mdot_bp, a_wg, m_c
+    mdot_g, mdot_bp, a_wg, m_air = valve_flows(x1, x3, x4, m1, s_sl, n, T_c, c, math.nan, math.nan)
+    return mdot_g, mdot_bp, a_wg, m_air + mdot_bp
 
 
 @jit
