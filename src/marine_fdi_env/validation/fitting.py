@@ -49,7 +49,7 @@ from scipy.optimize import least_squares
 from ..engine.submodels import Schedule
 from .mechanisms import Mechanism, ValveMechanism
 from .nuisance import NUISANCE, nuisance_bounds, prior_residuals, scales_of
-from .problem import BASE_SETTING, Problem, Setting
+from .problem import Problem, Setting
 
 __all__ = ["ROBUST_SCALE", "robust_loss", "Combination", "FitResult", "fit_combination", "cross_validate",
            "cell_losses", "channel_rmse", "L1_LAMBDA", "SUPPORT_FRACTION", "POINT_ALPHA", "predict_setting",
@@ -142,7 +142,7 @@ class Combination:
 
     def setting(self, problem: Problem, nuis, xg, openings: Mapping[str, np.ndarray] | None = None) -> Setting:
         """The :class:`Setting` of nuisance ``nuis``, global parameters ``xg`` and valve ``openings`` (per point)."""
-        s = BASE_SETTING.replace(scales=scales_of(nuis))
+        s = problem.base_setting.replace(scales=scales_of(nuis))
         for m, v in self.unpack(xg):
             s = m.apply(s, v, problem.params)
         for m in self.valves:
@@ -206,7 +206,7 @@ class FitResult:
 
     def schedule_setting(self, problem: Problem) -> Setting:
         """The fitted model with the valves on their schedules (what predicts points it was not fitted on)."""
-        s = BASE_SETTING.replace(scales=scales_of(self.nuisance))
+        s = problem.base_setting.replace(scales=scales_of(self.nuisance))
         for m, v in self.combination.unpack(self.x):
             s = m.apply(s, v, problem.params)
         for m in self.combination.valves:

@@ -115,6 +115,10 @@ class Problem:
         self.boundary = {k: np.asarray(b.get(k, nan), float) for k in ("p_amb_Pa", "T_amb_K", "p_ex_Pa")}
         self.p_amb_rows = np.broadcast_to(np.asarray(ds.ambient["p_amb_Pa"], float), (n,)).copy()
         self.ctx = ModelContext(rated_power_W=ds.rated_power_W)
+        # the parameter set as it is, with its own submodels (an engine file written by --save-params keeps its
+        # waste gate when it is validated again); candidate mechanisms are added on top of these
+        self.base_setting = BASE_SETTING if self.params.submodels == BASE_SETTING.submodels else \
+            BASE_SETTING.replace(submodels=self.params.submodels)
         self._state = np.full((n, 3), np.nan)
         self._group_cache: dict[bytes, list] = {}
         self._plans: dict[str, tuple] = {}
@@ -137,8 +141,10 @@ class Problem:
         return tol
 
     # ---- model evaluation
-    def engine(self, setting: Setting = BASE_SETTING) -> EngineParams:
-        """The engine of ``setting`` at the parameter set's ambient state (scales, submodels, ambient offsets)."""
+    def engine(self, setting: Setting | None = None) -> EngineParams:
+        """The engine of ``setting`` (default :attr:`base_setting`) at the parameter set's ambient state (scales,
+        submodels, ambient offsets)."""
+        setting = self.base_setting if setting is None else setting
         p = self.params
         ch: dict[str, Any] = {k: getattr(p, k) * v for k, v in setting.scales.items() if v != 1.0}
         if setting.area_scale != 1.0:
@@ -202,9 +208,10 @@ class Problem:
                 return MODE_F, np.where(np.isfinite(t) & (t > 0), t, np.nan), zero, LAW_PARAMS
             return MODE_U, np.where(np.isfinite(t) & (t > 0), t, np.nan), zero, LAW_PARAMS
 
-    def solve(self, setting: Setting = BASE_SETTING, rows=None) -> tuple[Summary, np.ndarray]:
-        """Operating points of ``rows`` (default all): (SI summary arrays over the rows, computed on demand;
-        converged)."""
+    def solve(self, setting: Setting | None = None, rows=None) -> tuple[Summary, np.ndarray]:
+        """Operating points of ``rows`` (default all) for ``setting`` (default :attr:`base_setting`): (SI summary
+        arrays over the rows, computed on demand; converged)."""
+        setting = self.base_setting if setting is None else setting
         rows = np.arange(self.n_points) if rows is None else np.asarray(rows, dtype=int)
         t0 = time.perf_counter()
         eng = self.engine(setting)
@@ -259,8 +266,10 @@ class Problem:
             out[:, j] = np.where(conv, v, np.nan)
         return out
 
-    def predict(self, setting: Setting = BASE_SETTING, rows=None, columns: Sequence[str] | None = None):
-        """(readings (rows x channels) in the channels' units, converged per row, SI summaries)."""
+    def predict(self, setting: Setting | None = None, rows=None, columns: Sequence[str] | None = None):
+        """(readings (rows x channels) in the channels' units, converged per row, SI summaries) of ``setting``
+        (default :attr:`base_setting`)."""
+        setting = self.base_setting if setting is None else setting
         rows = np.arange(self.n_points) if rows is None else np.asarray(rows, dtype=int)
         vals, conv = self.solve(setting, rows)
         return self.readings(setting, vals, conv, rows, columns or self.channels), conv, vals
@@ -293,6 +302,47 @@ class Problem:
         # spread over the load range (contiguous blocks would test extrapolation, not the model)
         return f"{max_folds}-fold (interleaved in load)", [(f"fold {k + 1}", np.sort(order[k::max_folds]))
                                                           for k in range(max_folds)]
+
+    def test_bed_conditions(self) -> dict[str, Any] | None:
+        """The boundary conditions this data recorded, as a test bed's: mean ambient pressure [Pa] and intake
+        temperature [K], and the back pressure above ambient [Pa] over the load fraction (its points sorted by
+        load); None where a quantity was not recorded."""
+        b, load = self.boundary, self.load_axis()
+
+        def mean(k):
+            v = b[k][np.isfinite(b[k])]
+            return float(v.mean()) if v.size else None
+
+        dp = b["p_ex_Pa"] - np.where(np.isfinite(b["p_amb_Pa"]), b["p_amb_Pa"], self.params.p_amb_Pa)
+        ok = np.isfinite(dp) & np.isfinite(load)
+        order = np.argsort(load[ok], kind="stable")
+        out = {"p_amb_Pa": mean("p_amb_Pa"), "T_amb_K": mean("T_amb_K"),
+               "back_pressure": ({"load_fraction": load[ok][order].tolist(), "dp_Pa": dp[ok][order].tolist()}
+                                 if ok.any() else None)}
+        return out if any(v is not None for v in out.values()) else None
+
+    def assume_boundary(self, conditions: Mapping[str, Any]) -> list[str]:
+        """Fill the boundary conditions this data did not record from ``conditions`` (a
+        :meth:`test_bed_conditions`, e.g. of the data a fit saw on the same test bed); returns what was filled.
+        Recorded values are never replaced."""
+        b, n, filled = self.boundary, self.n_points, []
+        if conditions.get("p_amb_Pa") is not None and not np.isfinite(b["p_amb_Pa"]).any():
+            b["p_amb_Pa"] = np.full(n, float(conditions["p_amb_Pa"]))
+            if not self.ds.ambient.get("recorded"):
+                self.p_amb_rows = b["p_amb_Pa"].copy()  # the gauge readings' reference too
+            filled.append("ambient pressure")
+        if conditions.get("T_amb_K") is not None and not np.isfinite(b["T_amb_K"]).any():
+            b["T_amb_K"] = np.full(n, float(conditions["T_amb_K"]))
+            filled.append("intake temperature")
+        bp = conditions.get("back_pressure")
+        if bp is not None and not np.isfinite(b["p_ex_Pa"]).any():
+            pa = np.where(np.isfinite(b["p_amb_Pa"]), b["p_amb_Pa"], self.params.p_amb_Pa)
+            b["p_ex_Pa"] = pa + np.interp(self.load_axis(), bp["load_fraction"], bp["dp_Pa"])
+            filled.append("back pressure (over load)")
+        if filled:
+            self._group_cache.clear()
+            self._state[:] = np.nan
+        return filled
 
     def load_axis(self) -> np.ndarray:
         """Load fraction per point (measured power or load / rated, else the target normalised)."""

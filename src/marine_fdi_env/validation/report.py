@@ -43,7 +43,7 @@ from .dataset import DatasetError, DataWarning, MeasuredDataset, list_shipped, l
 from .fitting import channel_rmse, predict_setting
 from .matching import TARGETS
 from .mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
-from .problem import BASE_SETTING, Problem
+from .problem import Problem
 from .selection import Selection, family_significant, select_causes
 
 __all__ = ["run_validation", "build_report", "write_plots", "validate_main", "load_data_arg", "split_engine",
@@ -227,14 +227,28 @@ def _step_dict(pr: Problem, step: Mapping[str, Any]) -> dict[str, Any]:
     return d
 
 
-def holdout_evaluation(sel: Selection, holdout: MeasuredDataset) -> dict[str, Any]:
+def holdout_evaluation(sel: Selection, holdout: MeasuredDataset, conditions: str = "parameter_set") -> dict[str, Any]:
     """RMSE per channel of the base model (as it is) and of the fitted engine on data the fit did not see.
 
     The fitted engine predicts with its valve schedules (the hold-out's points are not among the fitted ones);
-    sensor calibrations apply where the hold-out has the same column."""
+    sensor calibrations apply where the hold-out has the same column.  ``conditions``: where the hold-out did not
+    record its ambient pressure, intake temperature or back pressure, take the parameter set's
+    (``"parameter_set"``) or the test-bed conditions the fitted data recorded (``"fit"``: their mean ambient
+    state, back pressure over load) -- an assumption that the hold-out was run on the same test bed, stated in
+    the result's ``conditions``."""
+    if conditions not in ("parameter_set", "fit"):
+        raise ValueError(f"conditions must be 'parameter_set' or 'fit', not {conditions!r}")
     pr = sel.problem
     ho = Problem(holdout, params=pr.params, target=pr.target if pr.target in ("power", "fuel_flow") else "auto")
-    pb, _, _ = ho.predict(BASE_SETTING)
+    cond: dict[str, Any] = {"kind": conditions, "filled": []}
+    if conditions == "fit":
+        tb = pr.test_bed_conditions()
+        if tb is not None:
+            cond["filled"] = ho.assume_boundary(tb)
+            cond["test_bed"] = tb
+        cond["assumption"] = ("the hold-out was run on the test bed of the fitted data: what it did not record ("
+                              + (", ".join(cond["filled"]) or "nothing") + ") is taken from the fitted data")
+    pb, _, _ = ho.predict()
     s = sel.fit.schedule_setting(pr)
     s = s.replace(sensors={c: v for c, v in s.sensors.items() if c in ho.channels})
     pe, conv, vals = ho.predict(s)
@@ -249,7 +263,7 @@ def holdout_evaluation(sel: Selection, holdout: MeasuredDataset) -> dict[str, An
     rb_c = {c: _rmse_masked(ho, pb_c, keep, j) for j, c in enumerate(ho.channels)}
     re_c = {c: _rmse_masked(ho, pe_c, keep, j) for j, c in enumerate(ho.channels)}
     out = {"dataset": holdout.name, "engines": holdout.engine_ids(), "n_points": holdout.n_points,
-           "not_converged": [int(i) + 1 for i in np.flatnonzero(~conv)],
+           "conditions": cond, "not_converged": [int(i) + 1 for i in np.flatnonzero(~conv)],
            "suspect_readings": list(holdout.suspect),
            "channels": {c: {"holdout_rmse_base": rb[c], "holdout_rmse_extended": re_[c],
                             "holdout_rmse_base_without_suspect": rb_c[c],
@@ -286,7 +300,12 @@ def run_validation(ds: MeasuredDataset, *, holdout: MeasuredDataset | None = Non
     sel = select_causes(pr, max_causes=max_causes, alpha=alpha, cv_all=cv_all, max_folds=max_folds, progress=progress)
     sel.settings["max_folds"] = max_folds
     ho = holdout_evaluation(sel, holdout) if holdout is not None else None
-    return build_report(sel, ho, notes, command), sel, ho
+    rep = build_report(sel, ho, notes, command)
+    if ho is not None:
+        hf = holdout_evaluation(sel, holdout, conditions="fit")
+        if hf["conditions"]["filled"]:
+            rep["holdout_at_fit_conditions"] = _clean({k: v for k, v in hf.items() if not k.startswith("_")})
+    return rep, sel, ho
 
 
 # --------------------------------------------------------------------------------------- plots
@@ -445,6 +464,28 @@ def _g(x, fmt=".4g") -> str:
     return "–" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, fmt)
 
 
+def _holdout_lines(h: Mapping[str, Any], how: str) -> list[str]:
+    """Markdown: a hold-out's RMSE base → fitted engine per channel (all points, and without the readings the
+    loader flagged), and per engine."""
+    pe = h.get("per_engine") or {}
+    L = [f"Hold-out `{h['dataset']}` ({how}), RMSE base → fitted engine; in brackets without the "
+         f"{len(h.get('suspect_readings') or [])} reading(s) the loader flags as suspect:", "",
+         "| engine | " + " | ".join(f"`{c}`" for c in h["channels"]) + " |", "|---|" + "---|" * len(h["channels"])]
+
+    def cell(v):
+        b, e = v.get("holdout_rmse_base"), v.get("holdout_rmse_extended")
+        bc, ec = v.get("holdout_rmse_base_without_suspect"), v.get("holdout_rmse_extended_without_suspect")
+        out = f"{_g(b)} → {_g(e)}"
+        if (bc, ec) != (b, e) and bc is not None and ec is not None:
+            out += f" ({_g(bc)} → {_g(ec)})"
+        return out
+
+    for e, v in pe.items():
+        L.append(f"| {e} | " + " | ".join(cell(v[c]) for c in h["channels"]) + " |")
+    L.append("| all | " + " | ".join(cell(v) for v in h["channels"].values()) + " |")
+    return L + [""]
+
+
 def markdown_summary(rep: Mapping[str, Any], title: str | None = None) -> str:
     """The report as Markdown tables (what docs/validation.md quotes)."""
     ds, ch = rep["dataset"], rep["channels"]
@@ -557,17 +598,12 @@ def markdown_summary(rep: Mapping[str, Any], title: str | None = None) -> str:
             row += f" {_g(v.get('holdout_rmse_base'))} | {_g(v.get('holdout_rmse_extended'))} |"
         L.append(row)
     L.append("")
-    if ho and rep["holdout"].get("per_engine"):
-        pe = rep["holdout"]["per_engine"]
-        cs = list(next(iter(pe.values())).keys())
-        L.append(f"Hold-out `{rep['holdout']['dataset']}` per engine, RMSE base → fitted engine:")
-        L.append("")
-        L.append("| engine | " + " | ".join(f"`{c}`" for c in cs) + " |")
-        L.append("|---|" + "---|" * len(cs))
-        for e, v in pe.items():
-            L.append(f"| {e} | " + " | ".join(
-                f"{_g(v[c]['holdout_rmse_base'])} → {_g(v[c]['holdout_rmse_extended'])}" for c in cs) + " |")
-        L.append("")
+    if ho:
+        L += _holdout_lines(rep["holdout"], "at the parameter set's conditions where it recorded none")
+    if "holdout_at_fit_conditions" in rep:
+        h = rep["holdout_at_fit_conditions"]
+        L += _holdout_lines(h, "assuming " + h["conditions"]["assumption"] + " (an assumption that favours the "
+                            "fitted engine, which was calibrated at those conditions)")
     if rep["cv"]["folds"]:
         cs = [c for c, v in ch.items() if v["touched_by_selected"]] or list(ch)
         L.append("Per left-out engine (model fitted on the other engines), RMSE base → extended:")

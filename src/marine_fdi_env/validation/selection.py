@@ -31,11 +31,14 @@ Pipeline (:func:`select_causes`), on a :class:`~.problem.Problem`:
    A sensor calibration is only eligible when the gain and offset it fits on the model without its channel
    leave no such local departure: a gain and an offset are a complete explanation of a sensor or none.
    A candidate whose fit sits at a bound of its plausible range that is not a natural limit is not eligible
-   either (the data want more than it can physically give).
+   either when the data want more than the bound (:func:`_binding`: widening the bound and refitting lowers
+   the in-sample loss significantly); a bound merely touched because two parameters trade off is kept, with a
+   note.  Parameters the data do not determine are noted, not a reason to reject.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -51,7 +54,7 @@ from .fitting import (Combination, FitResult, ROBUST_SCALE, FoldData, cell_losse
                       fit_combination, fit_sensor, fold_data, loco_predictions, predict_setting, robust_loss)
 from .matching import MatchResult
 from .mechanisms import Mechanism, SensorCalibration, equivalents, library, sensor_reference
-from .problem import BASE_SETTING, Problem, Setting
+from .problem import Problem, Setting
 
 __all__ = [
     "CandidateScore", "Selection", "select_causes", "point_outliers", "family_significant", "match_result",
@@ -59,8 +62,10 @@ __all__ = [
 ]
 
 
-def match_result(problem: Problem, setting: Setting = BASE_SETTING, pred_fn=None) -> MatchResult:
-    """A :class:`~.matching.MatchResult` of a model setting at every point (for the discrepancy analysis)."""
+def match_result(problem: Problem, setting: Setting | None = None, pred_fn=None) -> MatchResult:
+    """A :class:`~.matching.MatchResult` of a model setting (default the problem's base) at every point (for the
+    discrepancy analysis)."""
+    setting = problem.base_setting if setting is None else setting
     ds = problem.ds
     rows = np.arange(problem.n_points)
     vals, conv = problem.solve(setting, rows)
@@ -102,6 +107,7 @@ class CandidateScore:
     point_losses: np.ndarray | None = None
     screened: str = ""
     folds: list | None = None
+    notes: list[str] = field(default_factory=list)
 
     @property
     def cross_validated(self) -> bool:
@@ -120,6 +126,8 @@ class CandidateScore:
                              for k, v in self.fit.openings.items()}
         if self.screened:
             d["screened"] = self.screened
+        if self.notes:
+            d["notes"] = list(self.notes)
         return d
 
 
@@ -369,22 +377,95 @@ def _structure_left(problem: Problem, loco: np.ndarray, mech: SensorCalibration,
 
 
 def _pinned(fit: FitResult) -> list[str]:
-    """Why a fitted combination cannot be named: parameters at a bound of their plausible range that is not natural
-    (the data want more than the mechanism can physically give), parameters the data do not determine (standard
-    error above half the plausible range), a valve that acts at no point (then it is not a valve)."""
+    """Why a fitted combination cannot be named as it stands: parameters at a bound of their plausible range that
+    is not natural (:func:`_at_bound`; :func:`_eligibility` then asks whether the data want more than the bound),
+    a valve that acts at no measured point (then it is not a valve)."""
+    out = [f"{m.label}.{p.name} at its {side} bound {p.bounds[0 if side == 'lower' else 1]:g}"
+           for m, p, side in _at_bound(fit)]
+    out += [f"{m.label} opens at no measured point" for m in fit.combination.mechanisms
+            if m.pointwise and not fit.support.get(m.id)]
+    return out
+
+
+def _at_bound(fit: FitResult) -> list[tuple[Mechanism, Any, str]]:
+    """(mechanism, parameter, side) of the parameters sitting at a bound that is not a natural limit."""
+    vals = fit.values()
+    return [(m, p, side) for m in fit.combination.mechanisms for p in m.params
+            if (side := p.pinned(vals[f"{m.label}.{p.name}"]))]
+
+
+def _undetermined(fit: FitResult) -> list[str]:
+    """Parameters the data do not determine (standard error above half the plausible range): reported, not a
+    reason to reject a mechanism whose effect as a whole passed the cross-validated tests (two parameters of one
+    curve, such as the optimum and the curvature of an efficiency parabola seen over a part of it, trade off)."""
     vals = fit.values()
     se = dict(zip(fit.combination.names, fit.stderr))
     out = []
     for m in fit.combination.mechanisms:
         for p in m.params:
             key = f"{m.label}.{p.name}"
-            side = p.pinned(vals[key])
-            if side:
-                out.append(f"{key} at its {side} bound {p.bounds[0 if side == 'lower' else 1]:g}")
-            elif math.isfinite(se.get(key, math.nan)) and se[key] > 0.5 * (p.bounds[1] - p.bounds[0]):
+            if not p.pinned(vals[key]) and math.isfinite(se.get(key, math.nan)) \
+                    and se[key] > 0.5 * (p.bounds[1] - p.bounds[0]):
                 out.append(f"{key} not determined by the data (standard error {se[key]:.3g})")
-        if m.pointwise and not fit.support.get(m.id):
-            out.append(f"{m.label} opens at no measured point")
+    return out
+
+
+#: share of a parameter's plausible span by which :func:`_relaxed` widens a bound (kept inside the submodel's
+#: own validity range by halving)
+RELAX_SPAN = 0.25
+#: a bound is binding when widening it lowers the in-sample loss with p below this (F-test, one parameter)
+BINDING_ALPHA = 0.05
+
+
+def _relaxed(m: Mechanism, name: str, side: str, problem: Problem) -> Mechanism | None:
+    """``m`` with parameter ``name``'s plausible range widened on ``side`` by :data:`RELAX_SPAN` of its span,
+    halved until the submodel accepts the value (None when it accepts no wider value)."""
+    import copy
+
+    params = m.params
+    p = next(q for q in params if q.name == name)
+    lo, hi = p.bounds
+    span = hi - lo
+    for f in (RELAX_SPAN, RELAX_SPAN / 2, RELAX_SPAN / 4, RELAX_SPAN / 8):
+        b = (lo - f * span, hi) if side == "lower" else (lo, hi + f * span)
+        x = b[0] if side == "lower" else b[1]
+        try:
+            m.apply(problem.base_setting, {q.name: (x if q.name == name else q.default) for q in params},
+                    problem.params)
+        except ValueError:
+            continue
+        wide = tuple(dataclasses.replace(q, bounds=b) if q.name == name else q for q in params)
+        sub = type(type(m).__name__ + "Relaxed", (type(m),), {"params": property(lambda self, w=wide: w)})
+        r = copy.copy(m)
+        object.__setattr__(r, "__class__", sub)
+        return r
+    return None
+
+
+def _binding(problem: Problem, c: "CandidateScore", known: Mapping[str, float], support) -> list[str]:
+    """The bounds of ``c``'s fit that the data want to go beyond: widening the bound (:func:`_relaxed`) and
+    refitting lowers the in-sample loss significantly (one-parameter F-test, p < :data:`BINDING_ALPHA`).  A
+    bound the fit merely touches because two parameters trade off costs nothing to keep."""
+    out = []
+    M = c.fit.n_cells
+    for m, p, side in _at_bound(c.fit):
+        bound = p.bounds[0 if side == "lower" else 1]
+        r = None if isinstance(m, SensorCalibration) else _relaxed(m, p.name, side, problem)
+        if r is None:
+            out.append(f"{m.label}.{p.name} at its {side} bound {bound:g}")
+            continue
+        comb = Combination(tuple(r if x is m else x for x in c.combination.mechanisms))
+        try:
+            wide = fit_combination(problem, comb, start=c.fit, known=known, support=support, uncertainty=False)
+        except (ValueError, FloatingPointError):
+            out.append(f"{m.label}.{p.name} at its {side} bound {bound:g}")
+            continue
+        pv = _f_test_p(c.fit.data_cost, wide.data_cost, c.fit.k - 1, c.fit.k, M)
+        if pv < BINDING_ALPHA:
+            out.append(f"{m.label}.{p.name} at its {side} bound {bound:g} (widening it gains p = {pv:.2g})")
+        else:
+            c.notes.append(f"{m.label}.{p.name} touches its {side} bound {bound:g} but the data do not want more "
+                           f"(widening it gains p = {pv:.2g})")
     return out
 
 
@@ -517,8 +598,8 @@ def select_causes(
     scheme, folds = problem.folds(max_folds)
     rows = problem.rows_with_data()
     tol = dict(zip(problem.channels, problem.tolerance))
-    raw_pred, _, _ = problem.predict(BASE_SETTING)
-    base_match = match_result(problem, BASE_SETTING)
+    raw_pred, _, _ = problem.predict()
+    base_match = match_result(problem)
     base_report = analyse_discrepancies(base_match, alpha=alpha, tolerances=tol)
     base_outliers = point_outliers(base_match, tol, alpha)
     current = Combination()
@@ -578,7 +659,10 @@ def select_causes(
             say(f"step {step}: {c.added:48s} CV {c.cv_score:9.4g}  gain {c.gain:+.1%}  p = {c.p_value:.2g}")
         for c in scored:
             if c.cross_validated:
-                pins = _pinned(c.fit)
+                c.notes += _undetermined(c.fit)
+                pins = [x for x in _pinned(c.fit) if "opens at no" in x]
+                if not pins and _at_bound(c.fit):
+                    pins = _binding(problem, c, known, current_fit.support)
                 if pins:
                     c.screened = "not eligible: " + "; ".join(pins)
                 elif isinstance(c.combination.mechanisms[-1], SensorCalibration):
@@ -596,8 +680,8 @@ def select_causes(
             say(f"step {step}: {steps[-1]['decision']}")
             break
         best = cv[0]
-        pinned = _pinned(best.fit)  # (never: pinned candidates are not eligible)
-        accept = best.penalised < current_pen and best.gain >= min_gain and best.p_value < threshold and not pinned
+        pinned: list[str] = []  # (pinned candidates are not eligible)
+        accept = best.penalised < current_pen and best.gain >= min_gain and best.p_value < threshold
         why = ("accepted" if accept else
                "rejected: " + "; ".join(s for s, bad in (
                    (f"penalised score {best.penalised:.4g} not below the current {current_pen:.4g}",
