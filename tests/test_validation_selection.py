@@ -95,6 +95,29 @@ def test_a_bound_is_widened_within_the_submodels_validity(tmp_path):
     assert s.submodels.turbine_efficiency_bsr.bsr_opt_rel == pytest.approx(lo)
 
 
+def test_leave_one_channel_out_refit_at_a_natural_upper_bound(tmp_path):
+    """A fit can end exactly at a natural limit (an ideal cooler, effectiveness 1): the leave-one-channel-out
+    refit differentiates inwards there instead of asking the submodel for an effectiveness above 1 (which it
+    refuses; this stopped a study run)."""
+    import dataclasses
+
+    from marine_fdi_env.validation.fitting import Combination, fit_combination, loco_predictions
+    from marine_fdi_env.validation.mechanisms import get_mechanism
+
+    syn = synthesize("wartsila-6l46", ["intercooler_effectiveness:effectiveness=1.0,dT_outlet_K=6"], points=6,
+                     noise=0.003, seed=5)
+    path = tmp_path / "x.csv"
+    syn.write(path)
+    pr = Problem(_load(path))
+    fit = fit_combination(pr, Combination((get_mechanism("intercooler_effectiveness"),)))
+    names = fit.combination.names
+    x = fit.x.copy()
+    x[names.index("intercooler_effectiveness.effectiveness")] = 1.0  # exactly at the limit
+    at_limit = dataclasses.replace(fit, x=x)
+    loco = loco_predictions(pr, at_limit)
+    assert np.isfinite(loco[pr.measured_mask]).all()
+
+
 @pytest.mark.slow
 def test_a_blade_speed_ratio_loss_is_named_although_its_parameters_trade_off():
     """Closed world, a turbine efficiency parabola with its optimum away from the measured range (study trial a/2):

@@ -418,6 +418,13 @@ def fit_combination(problem: Problem, comb: Combination, rows=None, *, start: "F
                      at_bound[N_NUIS:N_NUIS + ng], nfev, relaxed, eliminated)
 
 
+def _fd_step(z: float, lo: float, hi: float) -> float:
+    """Forward-difference step of a parameter at ``z`` in ``[lo, hi]``: inwards at the upper bound (a parameter
+    fitted to a natural limit, e.g. an ideal cooler, must not step outside what its submodel accepts)."""
+    h = 1e-6 * max(abs(z), 1e-3 * (hi - lo))
+    return -h if z + h > hi else h
+
+
 def _stderr(obj: _Objective, z: np.ndarray, M: int, k: int) -> np.ndarray:
     """Standard errors ``sqrt(diag(s² (JᵀWJ)^-1))`` from the Jacobian of the raw normalised residuals and the
     prior at the optimum (W: the soft-L1 weights; s²: the weighted residual sum of squares per dof)."""
@@ -426,9 +433,7 @@ def _stderr(obj: _Objective, z: np.ndarray, M: int, k: int) -> np.ndarray:
     n = z.size
     J = np.empty((r0.size + N_NUIS, n))
     for j in range(n):
-        h = 1e-6 * max(abs(z[j]), 1e-3 * (hi[j] - lo[j]))
-        if z[j] + h > hi[j]:
-            h = -h
+        h = _fd_step(z[j], lo[j], hi[j])
         zj = z.copy()
         zj[j] += h
         J[:r0.size, j] = (obj.data_residuals(zj) - r0) / h
@@ -565,7 +570,7 @@ def loco_predictions(problem: Problem, fit: FitResult, rows=None) -> np.ndarray:
     lo, hi = obj.bounds()
     J = np.empty((r0.size, n_par))
     for j in range(n_par):
-        h = 1e-6 * max(abs(z0[j]), 1e-3 * (hi[j] - lo[j]))
+        h = _fd_step(z0[j], lo[j], hi[j])
         zj = z0.copy()
         zj[j] += h
         J[:, j] = (obj.data_residuals(zj) - r0) / h
