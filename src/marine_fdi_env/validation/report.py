@@ -305,6 +305,7 @@ def run_validation(ds: MeasuredDataset, *, holdout: MeasuredDataset | None = Non
         hf = holdout_evaluation(sel, holdout, conditions="fit")
         if hf["conditions"]["filled"]:
             rep["holdout_at_fit_conditions"] = _clean({k: v for k, v in hf.items() if not k.startswith("_")})
+            ho["_at_fit_conditions"] = hf  # for the plot
     return rep, sel, ho
 
 
@@ -446,12 +447,19 @@ def write_plots(sel: Selection, directory: str | Path, holdout: Mapping[str, Any
         for j, (ax, c) in enumerate(zip(axes, ho.channels)):
             draw(ax, xh, ho.Y[:, j], holdout["_pred_base"][:, j], holdout["_pred_extended"][:, j], None,
                  ho.ds.engines, c, ho.ds.spec(c).unit, ext_label="fitted engine (fitted without these data)")
+            hf = holdout.get("_at_fit_conditions")
+            if hf is not None:  # the same at the fitted data's test-bed conditions (what the hold-out did not record)
+                o = np.argsort(xh, kind="stable")
+                ax.plot(xh[o], hf["_pred_base"][o, j], "-.", color="C0", lw=1.0, alpha=0.7,
+                        label="base model, at the fitted test bed's conditions")
+                ax.plot(xh[o], hf["_pred_extended"][o, j], "-.", color="C3", lw=1.2, alpha=0.8,
+                        label="fitted engine, at the fitted test bed's conditions")
             ax.set_xlabel(xlh, fontsize=8)
         handles, labels = axes[0].get_legend_handles_labels()
-        fig.legend(handles, labels, loc="lower center", ncol=min(5, len(labels)), fontsize=8, frameon=False)
+        fig.legend(handles, labels, loc="lower center", ncol=min(4, len(labels)), fontsize=8, frameon=False)
         fig.suptitle(f"hold-out {ho.ds.name} {', '.join(ho.ds.engine_ids())}: engine fitted on {pr.ds.name} "
                      f"({cause})", fontsize=10)
-        fig.tight_layout(rect=(0, 0.08, 1, 0.95))
+        fig.tight_layout(rect=(0, 0.13, 1, 0.95))
         f = d / f"{name}_holdout.png"
         fig.savefig(f, dpi=100)
         plt.close(fig)
