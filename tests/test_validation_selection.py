@@ -95,6 +95,22 @@ def test_a_bound_is_widened_within_the_submodels_validity(tmp_path):
     assert s.submodels.turbine_efficiency_bsr.bsr_opt_rel == pytest.approx(lo)
 
 
+def test_a_named_cause_touching_a_bound_says_so():
+    """Every parameter of a named cause that sits at a (non-natural) bound is reported next to the cause, with
+    the widening test that let it stay (the three-engine Birka shop test: four channels, a weakly identified
+    cause), in the JSON ``cause_notes`` and the Markdown summary."""
+    from marine_fdi_env.validation.report import markdown_summary
+
+    rep, _, _ = run_validation(_shipped("birka_6l46_shop_test"))
+    at_bound = [f"{lab}.{k}" for lab, ps in rep["parameters"].items() for k, v in ps.items() if v["at_bound"]]
+    assert at_bound, "the shop test's cause no longer touches a bound: pick another example"
+    notes = [n for ns in rep["cause_notes"].values() for n in ns]
+    for key in at_bound:
+        assert any(n.startswith(key + " touches its") and "p = " in n for n in notes), (key, notes)
+    md = markdown_summary(rep)
+    assert all(n in md for n in notes)
+
+
 def test_leave_one_channel_out_refit_at_a_natural_upper_bound(tmp_path):
     """A fit can end exactly at a natural limit (an ideal cooler, effectiveness 1): the leave-one-channel-out
     refit differentiates inwards there instead of asking the submodel for an effectiveness above 1 (which it

@@ -18,11 +18,14 @@ Report keys: ``dataset`` (with ``columns``: what happens to every column, ``boun
 ``model``, ``settings``, ``channels`` (per channel: tolerance, the base model's bias / RMSE as it is,
 ``cv_rmse_base`` of the base calibrated within its uncertainty, ``cv_rmse_extended``, ``cv_gain`` against
 the base as it is, and with a hold-out ``holdout_rmse_*``), ``discrepancies`` (the base model's, ranked),
-``candidates``, ``steps``, ``selected_causes`` / ``selected_labels``, ``parameters`` (fitted values with
-standard errors), ``nuisance`` (the calibration within uncertainty), ``activity`` (per valve-type cause:
+``candidates``, ``steps``, ``selected_causes`` / ``selected_labels``, ``alternatives``, ``cause_notes``
+(per cause: a bound its fit touches without the data wanting more, parameters the data do not determine),
+``parameters`` (fitted values with standard errors), ``nuisance`` (the calibration within uncertainty), ``activity`` (per valve-type cause:
 the diverted flow fraction at every measured point, file row order, 0 where it does not act),
 ``openings`` and ``schedules`` of the valves, ``unexplained`` (channel, kind, region), ``outliers``,
-``explained``, ``cv``, ``holdout``, ``fitted_engine`` (the engine file's content).
+``explained``, ``cv``, ``holdout`` (the parameter set's conditions where the hold-out recorded none),
+``holdout_at_fit_conditions`` (the fitted data's test-bed conditions instead), ``fitted_engine`` (the engine
+file's content).
 """
 
 from __future__ import annotations
@@ -193,6 +196,7 @@ def build_report(sel: Selection, holdout: Mapping[str, Any] | None = None, notes
         "selected_causes": sel.selected_causes,
         "selected_labels": sel.selected_labels,
         "alternatives": sel.alternatives,
+        "cause_notes": {k: v for k, v in sel.cause_notes.items() if v},
         "parameters": sel.fit.parameters(),
         "nuisance": {"base_calibrated": sel.base_fit.nuisance_values(), "extended": sel.fit.nuisance_values()},
         "activity": sel.activity(),
@@ -568,7 +572,10 @@ def markdown_summary(rep: Mapping[str, Any], title: str | None = None) -> str:
         if alts:
             L.append(f"* `{lab}`: the data hardly tell it from " + ", ".join(
                 f"`{a['mechanism']}` ({a['why']})" for a in alts) + ".")
-    if any(rep.get("alternatives", {}).values()):
+    for lab, notes in (rep.get("cause_notes") or {}).items():
+        for n in notes:
+            L.append(f"* `{lab}`: {n}.")
+    if any(rep.get("alternatives", {}).values()) or rep.get("cause_notes"):
         L.append("")
     if rep["parameters"]:
         L.append("| cause | parameter | value | standard error | unit |")
@@ -678,6 +685,8 @@ def _summary_lines(rep: Mapping[str, Any]) -> list[str]:
     for lab, alts in (rep.get("alternatives") or {}).items():
         if alts:
             lines.append(f"  {lab}: hardly told from " + ", ".join(a["mechanism"] for a in alts))
+    for notes in (rep.get("cause_notes") or {}).values():
+        lines += [f"  {n}" for n in notes]
     for mid, a in (rep.get("activity") or {}).items():
         lines.append(f"  {mid} acts at points " + ", ".join(f"{i + 1} ({x:.3f})" for i, x in enumerate(a) if x))
     lines.append(f"  {'channel':40s} {'rmse_base':>11s} {'cv_rmse_ext':>11s}"

@@ -162,6 +162,9 @@ class Selection:
     seconds: float
     settings: dict[str, Any] = field(default_factory=dict)
     alternatives: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
+    #: per accepted cause, what its fit's parameters leave open (a bound touched but not wanted beyond, a
+    #: parameter the data do not determine)
+    cause_notes: dict[str, list[str]] = field(default_factory=dict)
 
     @property
     def selected_causes(self) -> list[str]:
@@ -612,6 +615,7 @@ def select_causes(
     current_pred, current_L, current_S, current_pen = base_pred, L_base, S_base, S_base
     steps: list[dict[str, Any]] = []
     alternatives: dict[str, list[dict[str, Any]]] = {}
+    cause_notes: dict[str, list[str]] = {}
     say(f"calibrated base model: S = {S_base:.4g} over {M} cells ({scheme}, {len(folds)} folds)")
     for step in range(1, max_causes + 1):
         pool = [m for m in mechanisms if m.label not in current.labels]
@@ -697,6 +701,7 @@ def select_causes(
         if not accept:
             break
         alternatives[best.added] = _alternatives(best, cv, ALTERNATIVE_MARGIN)
+        cause_notes[best.added] = [n for n in best.notes if best.added in n]
         current, current_fit = best.combination, best.fit
         current_pred, current_L, current_S, current_pen = best.cv_pred, best.point_losses, best.cv_score, best.penalised
         if best.folds is not None:
@@ -724,7 +729,7 @@ def select_causes(
         base_score=S_base, base_report=base_report, steps=steps, selected=current, fit=current_fit,
         cv_pred=current_pred, cv_score=current_S, final_report=final_report, unexplained=unexplained,
         outliers=point_outliers(final_match, tol, alpha), base_outliers=base_outliers,
-        seconds=time.perf_counter() - t0, alternatives=alternatives,
+        seconds=time.perf_counter() - t0, alternatives=alternatives, cause_notes=cause_notes,
         settings={"max_causes": max_causes, "alpha": alpha, "min_gain": min_gain, "penalty": penalty,
                   "robust_scale": ROBUST_SCALE, "cv": scheme, "n_folds": len(folds), "n_cells": M, "cv_all": cv_all,
                   "nuisance_sigma": 0.03},
