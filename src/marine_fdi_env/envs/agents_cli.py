@@ -11,6 +11,7 @@ __all__ = ["agents_main"]
 
 def agents_main(argv=None) -> int:
     from .agent_registry import TRAIN_EXTRA_HINT, list_agents
+    from .cliutil import parse_cli
 
     ap = argparse.ArgumentParser(
         prog="marine-fdi agents",
@@ -18,10 +19,9 @@ def agents_main(argv=None) -> int:
                     "name: the baselines and every shipped model (a folder of training/models/). Any other agent: "
                     "a model folder by path, or path/to/file.py:ClassName (docs/agent_api.md).")
     ap.add_argument("--json", action="store_true", help="print JSON")
-    try:
-        args = ap.parse_args(argv)
-    except SystemExit as e:
-        return e.code if isinstance(e.code, int) else 0
+    args, code = parse_cli(ap, argv)
+    if args is None:
+        return code
     try:
         entries = list_agents()
     except ValueError as e:

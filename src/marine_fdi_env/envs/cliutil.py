@@ -23,10 +23,26 @@ import sys
 from pathlib import Path
 
 __all__ = ["INTERRUPTED", "USAGE_ERROR", "prepare_out", "progress_bar", "add_backend_args", "backend_from_args",
-           "require_extra", "EXTRAS"]
+           "require_extra", "EXTRAS", "parse_cli", "interrupted"]
 
 INTERRUPTED = 130  # exit code after Ctrl-C (128 + SIGINT)
 USAGE_ERROR = 2    # exit code of an invalid input (argparse's convention)
+
+def parse_cli(ap: argparse.ArgumentParser, argv) -> tuple[argparse.Namespace | None, int | None]:
+    """``(args, None)``, or ``(None, exit code)`` where argparse would exit (``--help``: 0, a usage error: 2):
+    the commands return their exit code instead of raising ``SystemExit``."""
+    try:
+        return ap.parse_args(argv), None
+    except SystemExit as e:
+        return None, (e.code if isinstance(e.code, int) else 0)
+
+
+def interrupted(prog: str, kept: str = "") -> int:
+    """After Ctrl-C: one line saying what is kept and that the same command resumes; the exit code."""
+    print(f"{prog}: interrupted; " + (f"{kept}, " if kept else "") + "rerun the same command to resume",
+          file=sys.stderr)
+    return INTERRUPTED
+
 
 # optional module -> the extra of pyproject.toml that installs it
 EXTRAS: dict[str, str] = {"matplotlib": "plots", "pyarrow": "parquet", "ray": "ray", "torch": "train",

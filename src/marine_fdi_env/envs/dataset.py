@@ -367,13 +367,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def dataset_main(argv=None) -> int:
-    from .cliutil import INTERRUPTED, backend_from_args, prepare_out, require_extra
+    from .cliutil import backend_from_args, interrupted, parse_cli, prepare_out, require_extra
 
     ap = build_parser()
-    try:
-        args = ap.parse_args(argv)
-    except SystemExit as e:
-        return e.code if isinstance(e.code, int) else 0
+    args, code = parse_cli(ap, argv)
+    if args is None:
+        return code
     try:
         backend = backend_from_args(args)
         if args.suite and (args.episodes is not None or args.seed is not None):
@@ -411,8 +410,6 @@ def dataset_main(argv=None) -> int:
         print(f"marine-fdi dataset: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("marine-fdi dataset: interrupted; finished chunks are kept, rerun the same command to resume",
-              file=sys.stderr)
-        return INTERRUPTED
+        return interrupted("marine-fdi dataset", "finished chunks are kept")
     print(f"wrote {path} and {out / 'scenarios.json'} ({len(scenarios)} episodes)")
     return 0

@@ -356,12 +356,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def evaluate_main(argv=None) -> int:
+    from .cliutil import interrupted, parse_cli
     from .report import markdown_table
 
-    try:
-        args = build_parser().parse_args(argv)
-    except SystemExit as e:
-        return e.code if isinstance(e.code, int) else 0
+    args, code = parse_cli(build_parser(), argv)
+    if args is None:
+        return code
     try:
         from .agent_api import agent_file_stem
         from .cliutil import backend_from_args, prepare_out, require_extra
@@ -382,8 +382,7 @@ def evaluate_main(argv=None) -> int:
         print(f"marine-fdi evaluate: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("marine-fdi evaluate: interrupted; rerun the same command to resume", file=sys.stderr)
-        return 130
+        return interrupted("marine-fdi evaluate")
     print(markdown_table([result]))
     print(f"\nresults: {out}")
     return 0

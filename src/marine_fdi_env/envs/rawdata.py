@@ -287,7 +287,7 @@ def predict_raw(agent_spec: str, data_dir: "str | Path", out_dir: "str | Path", 
 
 # ----------------------------------------------------------------------------- commands
 def export_raw_main(argv=None) -> int:
-    from .cliutil import INTERRUPTED, prepare_out
+    from .cliutil import interrupted, parse_cli, prepare_out
 
     ap = argparse.ArgumentParser(prog="marine-fdi export-raw", formatter_class=argparse.RawDescriptionHelpFormatter,
                                  description="Write a suite's 100 Hz sensor samples (named columns, SI units) and "
@@ -297,10 +297,9 @@ def export_raw_main(argv=None) -> int:
     ap.add_argument("--out", type=Path, required=True, help="output folder (its parent is created if missing)")
     ap.add_argument("--seed-offset", type=int, default=0, help="shift every noise seed (new noise, same scenarios)")
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
-    try:
-        args = ap.parse_args(argv)
-    except SystemExit as e:
-        return e.code if isinstance(e.code, int) else 0
+    args, code = parse_cli(ap, argv)
+    if args is None:
+        return code
     t0 = time.perf_counter()
     try:
         out = prepare_out(args.out, create=False)  # export_raw creates it after checking the suite
@@ -309,9 +308,7 @@ def export_raw_main(argv=None) -> int:
         print(f"marine-fdi export-raw: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("marine-fdi export-raw: interrupted; written scenarios are kept, rerun the same command to resume",
-              file=sys.stderr)
-        return INTERRUPTED
+        return interrupted("marine-fdi export-raw", "written scenarios are kept")
     n = sum(e["n_samples"] for e in man["scenarios"])
     print(f"wrote {len(man['scenarios'])} scenarios of {man['suite']} ({n} samples at {1 / man['sample_time_s']:g} Hz) "
           f"to {out}/data, ground truth and manifest.json in {time.perf_counter() - t0:.1f} s")
@@ -319,7 +316,7 @@ def export_raw_main(argv=None) -> int:
 
 
 def predict_raw_main(argv=None) -> int:
-    from .cliutil import INTERRUPTED, prepare_out
+    from .cliutil import interrupted, parse_cli, prepare_out
 
     ap = argparse.ArgumentParser(
         prog="marine-fdi predict-raw",
@@ -332,10 +329,9 @@ def predict_raw_main(argv=None) -> int:
     ap.add_argument("--out", type=Path, required=True, help="predictions folder (its parent is created if missing)")
     ap.add_argument("--batch-size", type=int, default=32, help="episodes advanced together (default 32)")
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
-    try:
-        args = ap.parse_args(argv)
-    except SystemExit as e:
-        return e.code if isinstance(e.code, int) else 0
+    args, code = parse_cli(ap, argv)
+    if args is None:
+        return code
     try:
         if args.batch_size < 1:
             raise ValueError(f"--batch-size must be a positive integer, got {args.batch_size}")
@@ -345,9 +341,7 @@ def predict_raw_main(argv=None) -> int:
         print(f"marine-fdi predict-raw: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("marine-fdi predict-raw: interrupted; written files are kept, rerun the same command to resume",
-              file=sys.stderr)
-        return INTERRUPTED
+        return interrupted("marine-fdi predict-raw", "written files are kept")
     n = len(read_manifest(args.data)["scenarios"])
     print(f"wrote {n} prediction files of agent {args.agent} to {out}")
     return 0

@@ -309,7 +309,7 @@ def dx_table(results: list[dict]) -> str:
 
 
 def score_raw_main(argv=None) -> int:
-    from .cliutil import INTERRUPTED, prepare_out, require_extra
+    from .cliutil import INTERRUPTED, parse_cli, prepare_out, require_extra
     from .report import markdown_table
 
     ap = argparse.ArgumentParser(prog="marine-fdi score-raw", formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -324,10 +324,9 @@ def score_raw_main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=None, help="write the results (.json or .parquet; readable by "
                                                            "'marine-fdi report')")
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
-    try:
-        args = ap.parse_args(argv)
-    except SystemExit as e:
-        return e.code if isinstance(e.code, int) else 0
+    args, code = parse_cli(ap, argv)
+    if args is None:
+        return code
     try:
         if args.out is not None:
             if args.out.suffix == ".parquet":

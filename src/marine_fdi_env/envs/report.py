@@ -539,10 +539,11 @@ def build_report_parser(prog: str = "marine-fdi report") -> argparse.ArgumentPar
 
 def report_main(argv: Sequence[str] | None = None) -> int:
     """``marine-fdi report results*.json [--out DIR] [--no-plots]``; returns the exit code."""
-    try:
-        args = build_report_parser().parse_args(argv)
-    except SystemExit as e:
-        return e.code if isinstance(e.code, int) else 0
+    from .cliutil import parse_cli
+
+    args, code = parse_cli(build_report_parser(), argv)
+    if args is None:
+        return code
     try:
         from .cliutil import prepare_out
 

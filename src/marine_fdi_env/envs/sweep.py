@@ -194,7 +194,7 @@ def run_sweep(agents: list[str], suites: list[str], seed_offsets: list[int], out
 
 
 def sweep_main(argv=None) -> int:
-    from .cliutil import INTERRUPTED, add_backend_args, backend_from_args, prepare_out, require_extra
+    from .cliutil import add_backend_args, backend_from_args, interrupted, parse_cli, prepare_out, require_extra
     from .report import markdown_table
 
     ap = argparse.ArgumentParser(prog="marine-fdi sweep", description=__doc__.splitlines()[0],
@@ -209,10 +209,9 @@ def sweep_main(argv=None) -> int:
     ap.add_argument("--out", type=Path, required=True, help="sweep folder (its parent is created if missing)")
     add_backend_args(ap)
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
-    try:
-        args = ap.parse_args(argv)
-    except SystemExit as e:
-        return e.code if isinstance(e.code, int) else 0
+    args, code = parse_cli(ap, argv)
+    if args is None:
+        return code
     try:
         backend = backend_from_args(args)
         require_extra("pyarrow", "sweep (its table episodes.parquet)")
@@ -223,9 +222,7 @@ def sweep_main(argv=None) -> int:
         print(f"marine-fdi sweep: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("marine-fdi sweep: interrupted; finished chunks are kept, rerun the same command to resume",
-              file=sys.stderr)
-        return INTERRUPTED
+        return interrupted("marine-fdi sweep", "finished chunks are kept")
     run = res["run"]
     print(markdown_table(res["table"]))
     n = sum(r["n_episodes"] for r in res["results"])
