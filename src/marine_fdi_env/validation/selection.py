@@ -379,15 +379,11 @@ def _structure_left(problem: Problem, loco: np.ndarray, mech: SensorCalibration,
     return ""
 
 
-def _pinned(fit: FitResult) -> list[str]:
-    """Why a fitted combination cannot be named as it stands: parameters at a bound of their plausible range that
-    is not natural (:func:`_at_bound`; :func:`_eligibility` then asks whether the data want more than the bound),
-    a valve that acts at no measured point (then it is not a valve)."""
-    out = [f"{m.label}.{p.name} at its {side} bound {p.bounds[0 if side == 'lower' else 1]:g}"
-           for m, p, side in _at_bound(fit)]
-    out += [f"{m.label} opens at no measured point" for m in fit.combination.mechanisms
+def _shut_valves(fit: FitResult) -> list[str]:
+    """Valves of the fit that act at no measured point (then they are not valves, and the candidate is not
+    eligible); bounds are judged by :func:`_binding`."""
+    return [f"{m.label} opens at no measured point" for m in fit.combination.mechanisms
             if m.pointwise and not fit.support.get(m.id)]
-    return out
 
 
 def _at_bound(fit: FitResult) -> list[tuple[Mechanism, Any, str]]:
@@ -664,7 +660,7 @@ def select_causes(
         for c in scored:
             if c.cross_validated:
                 c.notes += _undetermined(c.fit)
-                pins = [x for x in _pinned(c.fit) if "opens at no" in x]
+                pins = _shut_valves(c.fit)
                 if not pins and _at_bound(c.fit):
                     pins = _binding(problem, c, known, current_fit.support)
                 if pins:
@@ -684,7 +680,6 @@ def select_causes(
             say(f"step {step}: {steps[-1]['decision']}")
             break
         best = cv[0]
-        pinned: list[str] = []  # (pinned candidates are not eligible)
         accept = best.penalised < current_pen and best.gain >= min_gain and best.p_value < threshold
         why = ("accepted" if accept else
                "rejected: " + "; ".join(s for s, bad in (
@@ -692,9 +687,7 @@ def select_causes(
                     best.penalised >= current_pen),
                    (f"gain {best.gain:.1%} below {min_gain:.0%}", best.gain < min_gain),
                    (f"p = {best.p_value:.2g} not below alpha/{len(scored)} = {threshold:.2g}",
-                    best.p_value >= threshold),
-                   ("pinned at the limit of its plausible range (" + ", ".join(pinned) + "): the data want more than "
-                    "this mechanism can physically give, so it is not the cause", bool(pinned))) if bad))
+                    best.p_value >= threshold)) if bad))
         steps.append({"step": step, "best": best.added, "accepted": accept, "decision": why, "threshold_p": threshold,
                       "current_score": current_S, "candidates": scored})
         say(f"step {step}: best {best.added}: {why}")
