@@ -21,7 +21,10 @@ Pipeline (:func:`select_causes`), on a :class:`~.problem.Problem`:
    current model's, (b) at least ``min_gain`` (10 %) lower in S and (c) significant: the one-sided F-test
    of the drop of the cross-validated loss per added parameter against the candidate's loss per
    residual degree of freedom gives ``p < alpha / (number of candidates tried in the step)``
-   (Bonferroni, alpha = 0.01).  Selection stops at the first step where nothing qualifies.
+   (Bonferroni, alpha = 0.01).  Each step also tries pairs of physical mechanisms added together
+   (:func:`_pair_candidates`); a pair replaces the best single candidate when its penalised score is lower, it
+   passes the same tests (Bonferroni over singles and pairs) and each member earns its place against the other
+   alone (:func:`_members_earn_their_place`).  Selection stops at the first step where nothing qualifies.
 6. **Unexplained.**  Each channel is judged against the final model refitted *without that channel*
    (:func:`~.fitting.loco_predictions`): an anomaly of one sensor bends a fit that includes it and would
    hide.  The discrepancy analysis of :mod:`.discrepancy` (bias, trend, change point) and a scan for local
@@ -108,10 +111,26 @@ class CandidateScore:
     screened: str = ""
     folds: list | None = None
     notes: list[str] = field(default_factory=list)
+    #: for a pair of mechanisms added together: the two single candidates of the same step
+    members: tuple | None = None
 
     @property
     def cross_validated(self) -> bool:
         return self.cv_pred is not None
+
+    def score(self, problem: Problem, pred: np.ndarray, folds, M: int, penalty: float, current_S: float,
+              current_k: int, current_L: np.ndarray | None = None, rows: np.ndarray | None = None) -> None:
+        """Record the cross-validated predictions ``pred`` (and fold fits): score, penalised score, gain and F-test
+        against the current model (score ``current_S``, ``current_k`` parameters), the paired test over ``rows``
+        when the current model's point losses ``current_L`` are given."""
+        L, _ = cell_losses(problem, pred)
+        self.folds, self.cv_pred, self.point_losses = folds, pred, L
+        self.cv_score = float(L.sum() / M)
+        self.penalised = self.cv_score * math.exp(penalty * self.fit.k / M)
+        self.gain = (current_S - self.cv_score) / current_S if current_S > 0 else 0.0
+        self.p_value = _f_test_p(current_S, self.cv_score, current_k, self.fit.k, M)
+        if current_L is not None:
+            self.p_value_points = _paired_p(current_L, L, rows)
 
     def as_dict(self) -> dict[str, Any]:
         d = {"mechanism": self.added, "id": self.combination.mechanisms[-1].id,
@@ -566,6 +585,107 @@ def _unexplained_all(match: MatchResult, report: DiscrepancyReport, tol: Mapping
     return out
 
 
+#: per greedy step, at most this many pairs (the best by in-sample penalised score) are cross-validated
+PAIR_CV = 3
+
+
+def _pair_candidates(problem: Problem, current: Combination, current_fit: FitResult, scored: Sequence[CandidateScore],
+                     known: Mapping[str, float], M: int, penalty: float, current_S: float, bar_pen: float,
+                     min_gain: float, max_folds: int | None, say) -> list[CandidateScore]:
+    """Every pair of physical mechanisms added together to ``current`` (fitted jointly), the promising ones
+    cross-validated.
+
+    Greedy forward selection is myopic: two mechanisms whose effects only fit the data together (more friction
+    needs more fuel and heats the exhaust; a manifold heat loss cools it again) can each explain little alone,
+    while a sensor calibration absorbs the one channel the pair disagrees on and blocks the way to both.  Pairs
+    are formed with at least one member that improves the current model's in-sample score by ``min_gain`` alone
+    (fitted from the better member's fit, without standard errors; the accepted pair is refitted with them).  A
+    pair is cross-validated only when its in-sample penalised score is below ``bar_pen`` (the best the step's single
+    candidates reached, cross-validated) and its in-sample fit improves on the current model and on each member
+    alone by ``min_gain``; at most :data:`PAIR_CV` of them, best first.  Sensor calibrations are not paired (they
+    are fitted on a model's readings and can join at the next step)."""
+    singles = [c for c in scored if not isinstance(c.combination.mechanisms[-1], SensorCalibration)]
+    s_in = 2.0 * current_fit.data_cost / M  # the current model's in-sample score: what a lead member must improve
+    lead = {id(c) for c in singles if s_in > 0 and (s_in - c.in_sample_score) / s_in >= min_gain}
+    pairs: list[CandidateScore] = []
+    for i, a in enumerate(singles):
+        for b in singles[i + 1:]:
+            if id(a) not in lead and id(b) not in lead:
+                continue
+            comb = current.plus(a.combination.mechanisms[-1]).plus(b.combination.mechanisms[-1])
+            first = min((a, b), key=lambda c: c.in_sample_score)  # its fit as the start, the other's starts tried
+            fit = fit_combination(problem, comb, start=first.fit, known={**known, **first.fit.values()},
+                                  support=current_fit.support, uncertainty=False)
+            c = CandidateScore(comb, f"{a.added} + {b.added}", fit, 2.0 * fit.data_cost / M)
+            say(f"pair: fitted {c.added:48s} in-sample {c.in_sample_score:9.4g} (k = {fit.k}, nfev {fit.nfev})")
+            c.members = (a, b)
+            pairs.append(c)
+    pairs.sort(key=lambda c: c.in_sample_score * math.exp(penalty * c.fit.k / M))
+    n_cv = 0
+    for c in pairs:
+        in_pen = c.in_sample_score * math.exp(penalty * c.fit.k / M)
+        gains = [(current_S - c.in_sample_score) / current_S if current_S > 0 else 0.0] + [
+            (m.in_sample_score - c.in_sample_score) / m.in_sample_score if m.in_sample_score > 0 else 0.0
+            for m in c.members]
+        if min(gains) < min_gain:
+            c.screened = (f"not cross-validated: in-sample gain {min(gains):.1%} over the current model or a member "
+                          f"alone below {min_gain:.0%}")
+            continue
+        if in_pen >= bar_pen or n_cv >= PAIR_CV:
+            c.screened = (f"not cross-validated: in-sample penalised score {in_pen:.4g} not among the best pairs "
+                          f"below {bar_pen:.4g}")
+            continue
+        n_cv += 1
+        c.score(problem, *cross_validate(problem, c.combination, c.fit, max_folds=max_folds), M, penalty, current_S,
+                current_fit.k)
+        say(f"pair: {c.added:48s} CV {c.cv_score:9.4g}  gain {c.gain:+.1%}  p = {c.p_value:.2g}")
+    return pairs
+
+
+def _members_earn_their_place(problem: Problem, pair: CandidateScore, M: int, min_gain: float, threshold: float,
+                              max_folds: int | None, penalty: float, current_S: float, current_k: int) -> str:
+    """"" when the pair beats each of its members alone (cross-validated, cross-validating a member that was
+    screened) by ``min_gain`` with the F-test's ``p < threshold``: the second mechanism of a pair must pass the
+    test a forward step would have put it to; else why not."""
+    for m in pair.members:
+        if not m.cross_validated:  # scored against the pair's step like any single candidate
+            m.score(problem, *cross_validate(problem, m.combination, m.fit, max_folds=max_folds), M, penalty,
+                    current_S, current_k)
+            m.screened = "cross-validated only as a member of a pair (" + m.screened.removeprefix(
+                "not cross-validated: ") + ")"
+        gain = (m.cv_score - pair.cv_score) / m.cv_score if m.cv_score > 0 else 0.0
+        p = _f_test_p(m.cv_score, pair.cv_score, m.fit.k, pair.fit.k, M)
+        if gain < min_gain or p >= threshold:
+            other = next(x.added for x in pair.members if x is not m)
+            why = " and ".join(w for w, bad in ((f"below {min_gain:.0%}", gain < min_gain),
+                                                (f"p = {p:.2g} not below {threshold:.2g}", p >= threshold)) if bad)
+            return f"{other} adds {gain:.1%} to {m.added} alone ({why})"
+    return ""
+
+
+def _pair_alternatives(best: CandidateScore, pairs: Sequence[CandidateScore], margin: float
+                       ) -> dict[str, list[dict[str, Any]]]:
+    """Per member of an accepted pair: the mechanisms that replace it in another cross-validated pair with the
+    other member within ``margin`` of the pair's score, and its structural equivalents."""
+    out = {}
+    a, b = best.members
+    for m, other in ((a, b), (b, a)):
+        mid = m.combination.mechanisms[-1].id
+        alts = []
+        for c in pairs:
+            if c is best or not c.cross_validated or other not in c.members:
+                continue
+            z = next(x for x in c.members if x is not other)
+            if c.cv_score <= best.cv_score * (1.0 + margin):
+                alts.append({"mechanism": z.added, "cv_score": c.cv_score, "relative": c.cv_score / best.cv_score - 1,
+                             "why": f"with {other.added}: cross-validated score within {margin:.0%}"})
+        for e in sorted(equivalents(mid)):
+            alts.append({"mechanism": e, "cv_score": None, "relative": None,
+                         "why": "structurally equivalent on steady-state data"})
+        out[m.added] = alts
+    return out
+
+
 def select_causes(
     problem: Problem,
     mechanisms: Sequence[Mechanism] | None = None,
@@ -576,6 +696,7 @@ def select_causes(
     penalty: float = 2.0,
     cv_all: bool = False,
     max_folds: int | None = None,
+    pairs: bool = True,
     progress=None,
 ) -> Selection:
     """Greedy forward selection of named mechanisms (see the module docstring).
@@ -586,10 +707,12 @@ def select_causes(
         the data it saw better than data it did not) is below the best cross-validated penalised score of
         the step so far and improves the current model by ``min_gain`` in-sample.
     max_folds : at most this many cross-validation folds (interleaved k-fold) for single-engine data.
+    pairs : also try every pair of physical mechanisms added together at each step (:func:`_pair_candidates`).
     progress : optional callable receiving one-line status messages.
     """
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
+    use_pairs = pairs
     if mechanisms is None:
         refs = {c: sensor_reference(c, problem.Y[:, j], QUANTITIES[problem.ds.column_quantity[c]].kind)
                 for j, c in enumerate(problem.channels)}
@@ -615,7 +738,7 @@ def select_causes(
     say(f"calibrated base model: S = {S_base:.4g} over {M} cells ({scheme}, {len(folds)} folds)")
     for step in range(1, max_causes + 1):
         pool = [m for m in mechanisms if m.label not in current.labels]
-        if not pool:
+        if not pool or len(current.mechanisms) >= max_causes:
             break
         known = current_fit.values()
         scored: list[CandidateScore] = []
@@ -647,14 +770,7 @@ def select_causes(
                 pred, c_folds = sensor_cv[c.added], None
             else:
                 pred, c_folds = cross_validate(problem, c.combination, c.fit, max_folds=max_folds)
-            c.folds = c_folds
-            L, _ = cell_losses(problem, pred)
-            c.cv_pred, c.point_losses = pred, L
-            c.cv_score = float(L.sum() / M)
-            c.penalised = c.cv_score * math.exp(penalty * c.fit.k / M)
-            c.gain = (current_S - c.cv_score) / current_S if current_S > 0 else 0.0
-            c.p_value = _f_test_p(current_S, c.cv_score, current_fit.k, c.fit.k, M)
-            c.p_value_points = _paired_p(current_L, L, rows)
+            c.score(problem, pred, c_folds, M, penalty, current_S, current_fit.k, current_L, rows)
             best_pen = min(best_pen, c.penalised)
             say(f"step {step}: {c.added:48s} CV {c.cv_score:9.4g}  gain {c.gain:+.1%}  p = {c.p_value:.2g}")
         for c in scored:
@@ -672,25 +788,65 @@ def select_causes(
                                       "): a gain and an offset do not explain it")
         cv = sorted((c for c in scored if c.cross_validated and not c.screened), key=lambda c: c.penalised)
         threshold = alpha / len(scored)
-        if not cv:
-            steps.append({"step": step, "best": None, "accepted": False, "threshold_p": threshold,
-                          "current_score": current_S, "candidates": scored,
-                          "decision": f"rejected: no candidate improves the in-sample score by {min_gain:.0%} "
-                                      "without being pinned at the limit of its plausible range"})
-            say(f"step {step}: {steps[-1]['decision']}")
-            break
-        best = cv[0]
-        accept = best.penalised < current_pen and best.gain >= min_gain and best.p_value < threshold
-        why = ("accepted" if accept else
-               "rejected: " + "; ".join(s for s, bad in (
-                   (f"penalised score {best.penalised:.4g} not below the current {current_pen:.4g}",
-                    best.penalised >= current_pen),
-                   (f"gain {best.gain:.1%} below {min_gain:.0%}", best.gain < min_gain),
-                   (f"p = {best.p_value:.2g} not below alpha/{len(scored)} = {threshold:.2g}",
-                    best.p_value >= threshold)) if bad))
-        steps.append({"step": step, "best": best.added, "accepted": accept, "decision": why, "threshold_p": threshold,
-                      "current_score": current_S, "candidates": scored})
-        say(f"step {step}: best {best.added}: {why}")
+        best, accept, why = None, False, (f"rejected: no candidate improves the in-sample score by {min_gain:.0%} "
+                                          "without being pinned at the limit of its plausible range")
+        if cv:
+            best = cv[0]
+            accept = best.penalised < current_pen and best.gain >= min_gain and best.p_value < threshold
+            why = ("accepted" if accept else
+                   "rejected: " + "; ".join(s for s, bad in (
+                       (f"penalised score {best.penalised:.4g} not below the current {current_pen:.4g}",
+                        best.penalised >= current_pen),
+                       (f"gain {best.gain:.1%} below {min_gain:.0%}", best.gain < min_gain),
+                       (f"p = {best.p_value:.2g} not below alpha/{len(scored)} = {threshold:.2g}",
+                        best.p_value >= threshold)) if bad))
+        pairs: list[CandidateScore] = []
+        pair = None
+        if use_pairs and len(current.mechanisms) + 2 <= max_causes:
+            bar = min(current_pen, best.penalised if accept else math.inf)
+            pairs = _pair_candidates(problem, current, current_fit, scored, known, M, penalty, current_S, bar,
+                                     min_gain, max_folds, say)
+            p_threshold = alpha / (len(scored) + len(pairs))
+            for c in sorted((c for c in pairs if c.cross_validated), key=lambda c: c.penalised):
+                if not (c.penalised < bar and c.gain >= min_gain and c.p_value < p_threshold):
+                    continue
+                c.fit = fit_combination(problem, c.combination, start=c.fit, known=known,
+                                        support=current_fit.support)
+                c.notes += _undetermined(c.fit)
+                pins = _shut_valves(c.fit)
+                if not pins and _at_bound(c.fit):
+                    pins = _binding(problem, c, known, current_fit.support)
+                if pins:
+                    c.screened = "not eligible: " + "; ".join(pins)
+                    continue
+                left = _members_earn_their_place(problem, c, M, min_gain, p_threshold, max_folds, penalty, current_S,
+                                                 current_fit.k)
+                if left:
+                    c.screened = "not eligible: " + left
+                    continue
+                pair = c
+                break
+        if pair is not None:
+            steps.append({"step": step, "best": pair.added, "accepted": True, "pair": True,
+                          "decision": (f"accepted the pair (p = {pair.p_value:.2g} below "
+                                       f"alpha/{len(scored) + len(pairs)}"
+                                       f"; penalised score {pair.penalised:.4g} below "
+                                       + (f"the best single candidate's {best.penalised:.4g})" if accept else
+                                          f"the current {current_pen:.4g}; no single candidate qualified)")),
+                          "threshold_p": alpha / (len(scored) + len(pairs)), "current_score": current_S,
+                          "candidates": scored + pairs})
+            say(f"step {step}: best pair {pair.added}: accepted")
+            alternatives.update(_pair_alternatives(pair, pairs, ALTERNATIVE_MARGIN))
+            for m in pair.members:
+                cause_notes[m.added] = [n for n in pair.notes if m.added in n]
+            current, current_fit = pair.combination, pair.fit
+            current_pred, current_L, current_S, current_pen = pair.cv_pred, pair.point_losses, pair.cv_score, \
+                pair.penalised
+            current_folds = fold_data(problem, pair.folds, max_folds)
+            continue
+        steps.append({"step": step, "best": best.added if best else None, "accepted": accept, "decision": why,
+                      "threshold_p": threshold, "current_score": current_S, "candidates": scored + pairs})
+        say(f"step {step}: " + (f"best {best.added}: " if best else "") + why)
         if not accept:
             break
         alternatives[best.added] = _alternatives(best, cv, ALTERNATIVE_MARGIN)
@@ -725,5 +881,5 @@ def select_causes(
         seconds=time.perf_counter() - t0, alternatives=alternatives, cause_notes=cause_notes,
         settings={"max_causes": max_causes, "alpha": alpha, "min_gain": min_gain, "penalty": penalty,
                   "robust_scale": ROBUST_SCALE, "cv": scheme, "n_folds": len(folds), "n_cells": M, "cv_all": cv_all,
-                  "nuisance_sigma": 0.03},
+                  "nuisance_sigma": 0.03, "pairs": use_pairs},
     )
