@@ -72,6 +72,15 @@ def test_study_trial_and_its_control(condition, seed, tmp_path, monkeypatch):
     assert s["n_trials"] == 1 and s["control_named_rate"] == 0.0
 
 
+def test_a_miscalibrated_sensor_is_named_alone_once_the_model_is_refitted_with_it():
+    """Closed world, one thermocouple reading 8 % low and 24 K off (study trial a25): the calibration is named and
+    nothing else.  Before the model was refitted with an accepted calibration, the nuisance fitted to the
+    uncorrected channel stayed bent, and the next step credited `ambient_conditions` with the gain of refitting."""
+    tr = trial("a", 25)
+    assert tr["selected"] == ["sensor_calibration[cylinder_exhaust_temperature_mean_C]"], tr["selected"]
+    assert tr["exact"]
+
+
 def test_two_mechanisms_that_only_fit_together_are_named_as_a_pair(tmp_path):
     """The data of study trial d/6: extra friction (more fuel, hotter exhaust) and a manifold heat loss (cooler
     turbine inlet) at once.  Alone, each explains little (friction 7 % of the base's loss in-sample), and the best single
@@ -182,6 +191,27 @@ def test_effect_region_and_local_excess_on_a_known_bump(tmp_path):
     hits = [f for f in found if f["channel"] == e["channel"]]
     assert hits and hits[0]["load_range"][0] <= hi and hits[0]["load_range"][1] >= lo
     assert not [f for f in found if f["channel"] != e["channel"]]
+
+
+@pytest.mark.parametrize("channel", ["charge_air_pressure_bar_gauge", "turbine_inlet_pressure_bar_gauge",
+                                     "fuel_flow_kg_per_h"])
+def test_a_relative_effect_is_as_many_tolerances_as_its_amplitude_says(channel, tmp_path):
+    """An out-of-library step of 5 % is 5 of the pipeline's tolerances (1 % of the mean reading in SI, absolute for a
+    gauge pressure) on the loaded data, on gauge and absolute channels alike; measured noise-free, the ratio can only
+    differ by the effect's own share of the mean reading (< 5 % of 5 tolerances, the step covers part of the loads)."""
+    from marine_fdi_env.validation.discrepancy import column_tolerance
+
+    e = {"kind": "step", "channel": channel, "center": 0.6, "width": 0.1, "amplitude": 0.05, "relative": True,
+         "family": "pressure"}
+    runs = {}
+    for name, eff in (("with", [e]), ("without", [])):
+        syn = synthesize("wartsila-6l46", ["none"], points=6, noise=0.0, seed=3, effects=eff)
+        syn.write(tmp_path / f"{name}.csv")
+        runs[name] = _load(tmp_path / f"{name}.csv")
+    tol = column_tolerance(runs["with"], channel)
+    top = np.argmax(runs["with"].raw["load_fraction"])  # the step is complete there
+    shift = runs["with"].raw[channel][top] - runs["without"].raw[channel][top]
+    assert shift / tol == pytest.approx(5.0, rel=0.05)
 
 
 # --------------------------------------------------------------------------------------- the fitted engine

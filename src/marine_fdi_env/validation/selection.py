@@ -24,7 +24,11 @@ Pipeline (:func:`select_causes`), on a :class:`~.problem.Problem`:
    (Bonferroni, alpha = 0.01).  Each step also tries pairs of physical mechanisms added together
    (:func:`_pair_candidates`); a pair replaces the best single candidate when its penalised score is lower, it
    passes the same tests (Bonferroni over singles and pairs) and each member earns its place against the other
-   alone (:func:`_members_earn_their_place`).  Selection stops at the first step where nothing qualifies.
+   alone (:func:`_members_earn_their_place`).  Sensor calibrations are fitted on the current model's readings, the
+   two most promising of them then as whole models with every parameter free, as the physical candidates are
+   (:func:`_calibrations_to_refit`); an accepted calibration is followed by a refit of the whole model
+   (:func:`_refit_with_calibration`), so that the next step's candidates are not credited with the gain of merely
+   refitting.  Selection stops at the first step where nothing qualifies.
 6. **Unexplained.**  Each channel is judged against the final model refitted *without that channel*
    (:func:`~.fitting.loco_predictions`): an anomaly of one sensor bends a fit that includes it and would
    hide.  The discrepancy analysis of :mod:`.discrepancy` (bias, trend, change point) and a scan for local
@@ -511,6 +515,48 @@ def _sensor_candidate(problem: Problem, current: FitResult, in_pred: np.ndarray,
     return fit, cvp
 
 
+#: per step, the sensor calibrations (best first by their fit on the current readings) refitted as whole models
+CALIBRATION_REFITS = 2
+
+
+def _calibrations_to_refit(scored: Sequence[CandidateScore], current_S: float, min_gain: float
+                           ) -> list[CandidateScore]:
+    """The :data:`CALIBRATION_REFITS` most promising sensor calibrations of a step, to be fitted and cross-validated
+    with every parameter free, as the physical candidates are.
+
+    A calibration fitted on the current model's readings (:func:`_sensor_candidate`) keeps the nuisance that the
+    uncorrected channel pulled, while a physical candidate refits it: the comparison favoured physical mechanisms,
+    and a turbine flow law or a friction + heat-loss pair was named where one sensor read wrong (study trials a48,
+    a51, b58, d40, 2026-11-25).  Refitting every calibration would cost as much as the physical candidates again;
+    the miscalibrated channel is the one whose calibration on the current readings gains most, so the best two
+    (those that improve the current score by ``min_gain`` already on the current readings) are refitted."""
+    cal = [c for c in scored if isinstance(c.combination.mechanisms[-1], SensorCalibration)
+           and current_S > 0 and (current_S - c.in_sample_score) / current_S >= min_gain]
+    return sorted(cal, key=lambda c: c.in_sample_score)[:CALIBRATION_REFITS]
+
+
+def _refit_with_calibration(problem: Problem, best: CandidateScore, previous: FitResult, M: int, penalty: float,
+                            max_folds: int | None, step: dict[str, Any], say):
+    """The model with an accepted sensor calibration, refitted as a whole and cross-validated: (fit, cross-validated
+    predictions, point losses, score, penalised score, folds).
+
+    A calibration is chosen on the current model's readings (:func:`_sensor_candidate`: cheap, and fair between
+    channels), but that model's nuisance and mechanisms were fitted to the channel *before* its correction: a
+    miscalibrated sensor pulls them.  Left so, the next step compares every physical candidate (each fitted with all
+    parameters free) against a model that is still bent, and whichever is tried first takes the gain of merely
+    refitting: in trials with a calibration and model error, every physical candidate of the next step gained about
+    a third and one of them was named on top of the true calibration (study trials a25, b8, c14, d17, d33, d38,
+    2026-11-25).  So the whole model is refitted with the calibration before the next step."""
+    comb = best.combination
+    fit = fit_combination(problem, comb, start=best.fit, known=best.fit.values(), support=previous.support)
+    c = CandidateScore(comb, best.added, fit, 2.0 * fit.data_cost / M)
+    c.score(problem, *cross_validate(problem, comb, fit, max_folds=max_folds), M, penalty, best.cv_score, best.fit.k)
+    step["refit"] = {"cv_score_on_previous_readings": best.cv_score, "cv_score_refitted": c.cv_score,
+                     "fit": fit.values()}
+    say(f"refitted with {best.added}: CV {best.cv_score:.4g} -> {c.cv_score:.4g}")
+    return fit, c.cv_pred, c.point_losses, c.cv_score, c.penalised, fold_data(problem, c.folds, max_folds)
+
+
 def window_excess(r: np.ndarray, load: np.ndarray, tol: float, max_width: int | None = None) -> dict[str, Any] | None:
     """The most significant window of 2 .. n/2 consecutive points (in load order) whose mean residual departs from
     the rest: ``d = mean(window) - mean(rest)``, ``z = d / (σ sqrt(1/w + 1/(n - w)))`` with ``σ = max(tol, s_rest)``,
@@ -753,6 +799,12 @@ def select_causes(
                 full = fit_combination(problem, comb, start=current_fit, known=known, support=current_fit.support)
             scored.append(CandidateScore(comb, mech.label, full, 2.0 * full.data_cost / M))
             say(f"step {step}: fitted {mech.label:48s} in-sample {scored[-1].in_sample_score:9.4g} (k = {full.k})")
+        for c in _calibrations_to_refit(scored, current_S, min_gain):
+            c.fit = fit_combination(problem, c.combination, start=c.fit, known=c.fit.values(),
+                                    support=current_fit.support)
+            c.in_sample_score = 2.0 * c.fit.data_cost / M
+            del sensor_cv[c.added]  # cross-validated as the whole model it would become
+            say(f"step {step}: refitted {c.added:46s} in-sample {c.in_sample_score:9.4g} (k = {c.fit.k})")
         scored.sort(key=lambda c: c.in_sample_score * math.exp(penalty * c.fit.k / M))
         best_pen = math.inf
         for c in scored:
@@ -855,17 +907,9 @@ def select_causes(
         current_pred, current_L, current_S, current_pen = best.cv_pred, best.point_losses, best.cv_score, best.penalised
         if best.folds is not None:
             current_folds = fold_data(problem, best.folds, max_folds)
-        else:  # a sensor calibration on the previous model's folds: apply it to their readings
-            j = problem.channels.index(best.combination.mechanisms[-1].channel)
-            bounds = [p.bounds for p in best.combination.mechanisms[-1].params]
-            new = []
-            for name, train, test, p_tr, p_te in current_folds.folds:
-                gf, of = fit_sensor(problem, j, p_tr, train, bounds)
-                p_tr, p_te = p_tr.copy(), p_te.copy()
-                p_tr[:, j] = gf * p_tr[:, j] + of
-                p_te[:, j] = gf * p_te[:, j] + of
-                new.append((name, train, test, p_tr, p_te))
-            current_folds = FoldData(new)
+        else:
+            current_fit, current_pred, current_L, current_S, current_pen, current_folds = _refit_with_calibration(
+                problem, best, current_fit, M, penalty, max_folds, steps[-1], say)
     final_setting = current_fit.setting(problem)
     # what is left is judged channel by channel against the model fitted without that channel: an anomaly of one
     # sensor would otherwise bend the fit towards it and hide

@@ -138,6 +138,17 @@ def _effect_shape(effect: dict[str, Any], load: np.ndarray) -> np.ndarray:
     raise ValueError(f"unknown effect kind {k!r}; known: {', '.join(EFFECT_KINDS)}")
 
 
+def _relative_basis(column: str, values: np.ndarray, p_amb_Pa: float) -> float:
+    """What a relative effect's amplitude multiplies, in the column's units: the mean absolute reading in SI (the
+    absolute pressure for a gauge column), the basis of the pipeline's 1 % tolerance
+    (:func:`~.discrepancy.column_tolerance`), so that an amplitude of 4 % is 4 tolerances on every channel.
+
+    Until 2026-11-25 it was the mean *gauge* reading: on charge-air and turbine inlet pressure (gauge means of about
+    1.6-2.4 bar against 2.6-3.4 bar absolute) the "4-7 tolerance" effects of condition (e) were 2.6-5 tolerances."""
+    spec = lookup_column(column)
+    return float(np.mean(np.abs(spec.to_si(values, p_amb_Pa)))) / spec.scale
+
+
 def draw_effect(rng: np.random.Generator, columns: Sequence[str], family: str | None = None) -> dict[str, Any]:
     """An out-of-library effect on one channel: kind, channel, centre load, width, amplitude (column units)."""
     fams = [f for f, cs in FAMILIES.items() if any(c in columns for c in cs)]
@@ -149,7 +160,7 @@ def draw_effect(rng: np.random.Generator, columns: Sequence[str], family: str | 
     width = float(rng.uniform(0.08, 0.14))
     sign = float(rng.choice([-1.0, 1.0]))
     q = QUANTITIES[lookup_column(col).quantity]
-    # 4-7 tolerances of the pipeline (5 K, 1 % of the channel's mean reading)
+    # 4-7 tolerances of the pipeline (5 K; 1 % of the channel's mean reading, absolute for gauge pressures: _relative_basis)
     if q.kind == "temperature":
         amp = sign * float(rng.uniform(20.0, 35.0))
     else:
@@ -287,7 +298,7 @@ def synthesize(
         if e["channel"] not in clean:
             raise ValueError(f"effect on {e['channel']!r}, which is not a written column")
         shape = _effect_shape(e, loads)
-        base = float(np.mean(np.abs(clean[e["channel"]]))) if e.get("relative") else 1.0
+        base = _relative_basis(e["channel"], clean[e["channel"]], p_amb) if e.get("relative") else 1.0
         clean[e["channel"]] = clean[e["channel"]] + e["amplitude"] * base * shape
     k = max(int(engines), 1)
     out: dict[str, np.ndarray] = {}
