@@ -143,8 +143,8 @@ def _relative_basis(column: str, values: np.ndarray, p_amb_Pa: float) -> float:
     absolute pressure for a gauge column), the basis of the pipeline's 1 % tolerance
     (:func:`~.discrepancy.column_tolerance`), so that an amplitude of 4 % is 4 tolerances on every channel.
 
-    Until 2026-11-25 it was the mean *gauge* reading: on charge-air and turbine inlet pressure (gauge means of about
-    1.6-2.4 bar against 2.6-3.4 bar absolute) the "4-7 tolerance" effects of condition (e) were 2.6-5 tolerances."""
+    Until 2026-11-25 it was the mean *gauge* reading: on charge-air and turbine inlet pressure the "4-7 tolerance"
+    effects of condition (e) were about 2.4-4.3 and 1.9-3.4 tolerances (a 5 % step: 3.0 and 2.4)."""
     spec = lookup_column(column)
     return float(np.mean(np.abs(spec.to_si(values, p_amb_Pa)))) / spec.scale
 
@@ -160,7 +160,7 @@ def draw_effect(rng: np.random.Generator, columns: Sequence[str], family: str | 
     width = float(rng.uniform(0.08, 0.14))
     sign = float(rng.choice([-1.0, 1.0]))
     q = QUANTITIES[lookup_column(col).quantity]
-    # 4-7 tolerances of the pipeline (5 K; 1 % of the channel's mean reading, absolute for gauge pressures: _relative_basis)
+    # 4-7 tolerances of the pipeline (5 K; 1 % of the mean reading, absolute for gauge pressures: _relative_basis)
     if q.kind == "temperature":
         amp = sign * float(rng.uniform(20.0, 35.0))
     else:
