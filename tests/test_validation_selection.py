@@ -58,6 +58,8 @@ def test_study_trial_and_its_control(condition, seed, tmp_path, monkeypatch):
         return json.dumps(x, default=float, sort_keys=True)
 
     assert dump(again["conditions"]) == dump(res["conditions"])
+    with pytest.raises(AssertionError, match="run again"):  # other settings: not taken from the checkpoint
+        study([condition], [seed], controls=True, progress=False, points=7, prune=False, checkpoint=ckpt)
     tr = [r for r in res["trials"] if not r["control"]][0]
     ct = [r for r in res["trials"] if r["control"]][0]
     assert not ct["named_any"], ct["selected"]
@@ -79,6 +81,14 @@ def test_a_miscalibrated_sensor_is_named_alone_once_the_model_is_refitted_with_i
     tr = trial("a", 25)
     assert tr["selected"] == ["sensor_calibration[cylinder_exhaust_temperature_mean_C]"], tr["selected"]
     assert tr["exact"]
+
+
+def test_a_cause_that_later_causes_make_redundant_is_removed():
+    """Study trial d7 (a bypass valve and a turbine-inlet pressure gauge off): the first step names the bypass valve
+    with a turbine flow law as a pair; the next names the gauge's calibration, after which the flow law adds too
+    little.  Without the final removal step the selection named all three."""
+    tr = trial("d", 7)
+    assert tr["selected"] == ["bypass_valve", "sensor_calibration[turbine_inlet_pressure_bar_gauge]"], tr["selected"]
 
 
 def test_two_mechanisms_that_only_fit_together_are_named_as_a_pair(tmp_path):

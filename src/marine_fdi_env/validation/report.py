@@ -8,7 +8,8 @@ submodels) that the simulator, the steady-state solver, the environment and the 
 
     marine-fdi validate --data FILE.csv [--holdout FILE.csv | --holdout-engine ID] --out report.json
                         [--plots DIR] [--params NAME|FILE.json] [--target auto|power|fuel_flow|speed|fuel_rack]
-                        [--max-causes N] [--alpha A] [--save-params ENGINE.json] [--markdown FILE.md]
+                        [--max-causes N] [--alpha A] [--alpha-unexplained A] [--save-params ENGINE.json]
+                        [--markdown FILE.md]
 
 ``--data`` also takes the name of a shipped dataset (``birka_6l46_shop_test``, ``birka_me1_test_protocol``,
 ``man_12v32_40_fpp_iso``).  ``--holdout-engine ID`` leaves one engine of ``--data`` out of everything
@@ -47,7 +48,7 @@ from .fitting import channel_rmse, predict_setting
 from .matching import TARGETS
 from .mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
 from .problem import Problem
-from .selection import Selection, family_significant, select_causes
+from .selection import ALPHA_UNEXPLAINED, Selection, family_significant, select_causes
 
 __all__ = ["run_validation", "build_report", "write_plots", "validate_main", "load_data_arg", "split_engine",
            "markdown_summary", "holdout_evaluation", "fitted_engine"]
@@ -297,11 +298,13 @@ def _rmse_masked(pr: Problem, pred: np.ndarray, keep: np.ndarray, j: int, rows=N
 
 def run_validation(ds: MeasuredDataset, *, holdout: MeasuredDataset | None = None, target: str = "auto",
                    params: str | EngineParams | None = None, max_causes: int = 4, alpha: float = 0.01,
-                   cv_all: bool = False, max_folds: int | None = None, progress=None, notes: Sequence[str] = (),
+                   alpha_unexplained: float = ALPHA_UNEXPLAINED, cv_all: bool = False, max_folds: int | None = None,
+                   progress=None, notes: Sequence[str] = (),
                    command: str | None = None) -> tuple[dict[str, Any], Selection, dict | None]:
     """Run the pipeline; returns (JSON report, selection, hold-out evaluation with predictions or None)."""
     pr = Problem(ds, target=target, params=params)
-    sel = select_causes(pr, max_causes=max_causes, alpha=alpha, cv_all=cv_all, max_folds=max_folds, progress=progress)
+    sel = select_causes(pr, max_causes=max_causes, alpha=alpha, alpha_unexplained=alpha_unexplained, cv_all=cv_all,
+                        max_folds=max_folds, progress=progress)
     sel.settings["max_folds"] = max_folds
     ho = holdout_evaluation(sel, holdout) if holdout is not None else None
     rep = build_report(sel, ho, notes, command)
@@ -630,7 +633,8 @@ def markdown_summary(rep: Mapping[str, Any], title: str | None = None) -> str:
                 f"{_g(f['channels'][c]['rmse_base'])} → {_g(f['channels'][c]['rmse_extended'])}" for c in cs) + " |")
         L.append("")
     if rep["unexplained"]:
-        L.append("Unexplained:")
+        L.append(f"Unexplained (family-wise p < {rep['settings'].get('alpha_unexplained', rep['settings']['alpha'])} "
+                 "over the channels, judged against the model refitted without each channel):")
         L.append("")
         for u in rep["unexplained"]:
             L.append(f"* {u['text']}" + (f" — {u['note']}" if u.get("note") else ""))
@@ -669,7 +673,9 @@ def build_parser(prog: str = "marine-fdi validate") -> argparse.ArgumentParser:
     ap.add_argument("--max-causes", type=int, default=4, help="most mechanisms to combine (default 4)")
     ap.add_argument("--max-folds", type=int, default=None,
                     help="cross-validate single-engine data with at most this many folds (default: leave one out)")
-    ap.add_argument("--alpha", type=float, default=0.01, help="significance level (default 0.01)")
+    ap.add_argument("--alpha", type=float, default=0.01, help="significance level of a named cause (default 0.01)")
+    ap.add_argument("--alpha-unexplained", type=float, default=ALPHA_UNEXPLAINED,
+                    help=f"family-wise level of what is reported as unexplained (default {ALPHA_UNEXPLAINED:g})")
     ap.add_argument("--cv-all", action="store_true", help="cross-validate every candidate (slower)")
     ap.add_argument("--markdown", metavar="FILE.md", help="also write the report's tables as Markdown")
     ap.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
@@ -747,6 +753,8 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
             raise ValueError(f"--max-folds must be >= 2, got {args.max_folds}")
         if not 0.0 < args.alpha < 1.0:
             raise ValueError(f"--alpha must lie in (0, 1), got {args.alpha}")
+        if not 0.0 < args.alpha_unexplained < 1.0:
+            raise ValueError(f"--alpha-unexplained must lie in (0, 1), got {args.alpha_unexplained}")
         out = _out_path(args.out, "--out")
         save = _out_path(args.save_params, "--save-params") if args.save_params else None
         md = _out_path(args.markdown, "--markdown") if args.markdown else None
@@ -769,7 +777,8 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
             except DatasetError as e:
                 raise ValueError(f"--holdout: {e}") from None
         rep, sel, ho = run_validation(ds, holdout=holdout, target=args.target, params=params,
-                                      max_causes=args.max_causes, alpha=args.alpha, cv_all=args.cv_all,
+                                      max_causes=args.max_causes, alpha=args.alpha,
+                                      alpha_unexplained=args.alpha_unexplained, cv_all=args.cv_all,
                                       max_folds=args.max_folds, progress=say, notes=notes,
                                       command="marine-fdi validate " + " ".join(argv))
     except RuntimeError as e:  # a missing optional extra

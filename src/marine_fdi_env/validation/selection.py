@@ -28,13 +28,15 @@ Pipeline (:func:`select_causes`), on a :class:`~.problem.Problem`:
    two most promising of them then as whole models with every parameter free, as the physical candidates are
    (:func:`_calibrations_to_refit`); an accepted calibration is followed by a refit of the whole model
    (:func:`_refit_with_calibration`), so that the next step's candidates are not credited with the gain of merely
-   refitting.  Selection stops at the first step where nothing qualifies.
+   refitting.  Selection stops at the first step where nothing qualifies; then every named cause must still earn
+   its place against all the others (:func:`_prune`: the weakest that does not is removed, and the test repeated).
 6. **Unexplained.**  Each channel is judged against the final model refitted *without that channel*
    (:func:`~.fitting.loco_predictions`): an anomaly of one sensor bends a fit that includes it and would
    hide.  The discrepancy analysis of :mod:`.discrepancy` (bias, trend, change point) and a scan for local
-   excess (:func:`window_excess`: contiguous windows of points in load order whose mean residual departs
-   from the rest) run on these residuals; what is family-significant after a Bonferroni correction over the
-   channels is reported as ``unexplained: channel, kind, region``; single readings as ``outliers``.
+   excess (:func:`~.window_scan.window_excess`: contiguous windows of points in load order whose mean residual
+   departs from the rest, its p-value simulated at the data's noise level) run on these residuals; what is
+   significant at the family-wise level :data:`ALPHA_UNEXPLAINED` (5 %, Bonferroni over the channels) is reported as
+   ``unexplained: channel, kind, region``; single readings as ``outliers``.
    A sensor calibration is only eligible when the gain and offset it fits on the model without its channel
    leave no such local departure: a gain and an offset are a complete explanation of a sensor or none.
    A candidate whose fit sits at a bound of its plausible range that is not a natural limit is not eligible
@@ -62,6 +64,7 @@ from .fitting import (Combination, FitResult, ROBUST_SCALE, FoldData, cell_losse
 from .matching import MatchResult
 from .mechanisms import Mechanism, SensorCalibration, equivalents, library, sensor_reference
 from .problem import Problem, Setting
+from .window_scan import noise_ratio, window_excess
 
 __all__ = [
     "CandidateScore", "Selection", "select_causes", "point_outliers", "family_significant", "match_result",
@@ -391,14 +394,16 @@ def _structure_left(problem: Problem, loco: np.ndarray, mech: SensorCalibration,
     g, o = fit_sensor(problem, j, loco[rows], rows, [p.bounds for p in mech.params])
     before = loco[rows, j] - problem.Y[rows, j]
     after = g * loco[rows, j] + o - problem.Y[rows, j]
-    best = window_excess(g * loco[:, j] + o - problem.Y[:, j], problem.load_axis(), tol)
+    load = problem.load_axis()
+    noise = noise_ratio((loco - problem.Y) / problem.tolerance_cells, load)
+    best = window_excess(g * loco[:, j] + o - problem.Y[:, j], load, tol, noise=noise)
     if best is not None and best["p"] < alpha and abs(best["d"]) >= tol:
         rms_b, rms_a = float(np.sqrt(np.mean(before ** 2))), float(np.sqrt(np.mean(after ** 2)))
         if rms_a <= (1.0 - CALIBRATION_EXPLAINS) * rms_b:
             return ""
         lo, hi = best["load_range"]
-        return (f"load {lo:.3g}-{hi:.3g}, {best['d']:+.3g}, p = {best['p']:.2g}; the calibration removes only "
-                f"{1 - rms_a / rms_b:.0%} of the channel's error")
+        return (f"load {lo:.3g}-{hi:.3g}, {best['d']:+.3g}, p {'<' if best['p_at_floor'] else '='} {best['p']:.2g}; "
+                f"the calibration removes only {1 - rms_a / rms_b:.0%} of the channel's error")
     return ""
 
 
@@ -557,49 +562,19 @@ def _refit_with_calibration(problem: Problem, best: CandidateScore, previous: Fi
     return fit, c.cv_pred, c.point_losses, c.cv_score, c.penalised, fold_data(problem, c.folds, max_folds)
 
 
-def window_excess(r: np.ndarray, load: np.ndarray, tol: float, max_width: int | None = None) -> dict[str, Any] | None:
-    """The most significant window of 2 .. n/2 consecutive points (in load order) whose mean residual departs from
-    the rest: ``d = mean(window) - mean(rest)``, ``z = d / (σ sqrt(1/w + 1/(n - w)))`` with ``σ = max(tol, s_rest)``,
-    s_rest the scatter of the residuals outside the window (the window's own scatter is part of a bump, not noise;
-    the tolerance is the floor).  Returns ``{p (Bonferroni over the windows), d, load_range, positions}`` or None."""
-    ok = np.isfinite(r) & np.isfinite(load)
-    idx = np.flatnonzero(ok)
-    n = idx.size
-    if n < 4:
-        return None
-    order = idx[np.argsort(load[idx], kind="stable")]
-    rr, x = r[order], load[order]
-    wmax = max_width or n // 2
-    wins = [(a, w) for w in range(2, wmax + 1) for a in range(0, n - w + 1)]
-    best = None
-    for a, w in wins:
-        inside = np.zeros(n, bool)
-        inside[a:a + w] = True
-        rest = rr[~inside]
-        d = float(rr[inside].mean() - rest.mean())
-        s_rest = float(np.std(rest, ddof=1)) if rest.size >= 3 else 0.0
-        sigma = max(tol, s_rest)
-        z = abs(d) / (sigma * math.sqrt(1.0 / w + 1.0 / (n - w)))
-        p = float(2 * stats.norm.sf(z))
-        if best is None or p < best["p_raw"]:
-            best = {"p_raw": p, "d": d, "sigma": sigma, "load_range": [float(x[a]), float(x[a + w - 1])],
-                    "positions": order[a:a + w]}
-    if best is None:
-        return None
-    best["p"] = min(1.0, best["p_raw"] * len(wins))
-    return best
-
-
 def local_excess(match: MatchResult, tolerances: Mapping[str, float], alpha: float, max_width: int | None = None,
                  channels: Sequence[str] | None = None) -> list[dict[str, Any]]:
     """Per channel, the most significant window of :func:`window_excess` when ``p < alpha`` and ``|d|`` exceeds the
-    tolerance: ``{channel, kind: "local", region: "load a-b", load_range, points, magnitude, ...}``."""
+    tolerance: ``{channel, kind: "local", region: "load a-b", load_range, points, magnitude, ...}``.  The scan's null
+    is simulated at the data's noise level, the median over all channels (``noise_ratio``, in tolerances, at least
+    1: :func:`~.window_scan.noise_ratio`)."""
     ds = match.dataset
     load = operating_variables(match)["load"]
+    noise = noise_ratio(np.column_stack([match.residual(c) / float(tolerances[c]) for c in match.channels]), load)
     out = []
     for col in (channels or match.channels):
         tol = float(tolerances[col])
-        best = window_excess(match.residual(col), load, tol, max_width)
+        best = window_excess(match.residual(col), load, tol, max_width, noise=noise)
         if best is None or not (best["p"] < alpha and abs(best["d"]) >= tol):
             continue
         lo, hi = best["load_range"]
@@ -613,7 +588,8 @@ def local_excess(match: MatchResult, tolerances: Mapping[str, float], alpha: flo
         unit = ds.spec(col).unit
         out.append({"channel": col, "kind": "local", "region": region, "load_range": [lo, hi],
                     "points": sorted(int(i) + 1 for i in best["positions"]), "magnitude": best["d"],
-                    "score": abs(best["d"]) / tol, "p_value": best["p"], "noise": best["sigma"], "unit": unit,
+                    "score": abs(best["d"]) / tol, "p_value": best["p"], "p_at_floor": best["p_at_floor"],
+                    "noise": best["sigma"], "noise_ratio": best["noise"], "unit": unit,
                     "significant": True,
                     "text": f"unexplained: {col}, {region} (local, magnitude {best['d']:+.4g} {unit})"})
     return out
@@ -629,6 +605,15 @@ def _unexplained_all(match: MatchResult, report: DiscrepancyReport, tol: Mapping
         if f["channel"] not in have or all(u["kind"] != "local" for u in out if u["channel"] == f["channel"]):
             out.append(f)
     return out
+
+
+#: family-wise level (Bonferroni over the channels) at which a discrepancy left by the final model is reported as
+#: unexplained.  Naming a cause asserts a physical explanation and is held to ``alpha`` (1 %); an unexplained finding
+#: asks an engineer to look at a channel and a load region, and is held to the customary 5 %.  Chosen 2026-11-25
+#: after the study's condition (e) showed effects of 4-7 tolerances whose scan p-values lay between 0.001 and 0.004
+#: per channel (trials e66, e69, e75, e77): above 0.01/13, below 0.05/13.  The price, measured on the negative
+#: controls, is in docs/validation.md.
+ALPHA_UNEXPLAINED = 0.05
 
 
 #: per greedy step, at most this many pairs (the best by in-sample penalised score) are cross-validated
@@ -732,17 +717,62 @@ def _pair_alternatives(best: CandidateScore, pairs: Sequence[CandidateScore], ma
     return out
 
 
+def _prune(problem: Problem, current: Combination, current_fit: FitResult, current_S: float, M: int, penalty: float,
+           min_gain: float, thresholds: Mapping[str, float], max_folds: int | None, step_no: int, say
+           ) -> tuple[dict[str, Any], CandidateScore] | None:
+    """The weakest named cause that no longer earns its place among the others, as a removal step (and the model
+    without it), or None when each does.
+
+    A forward step judges a mechanism against the causes named *before* it; one named later may take over what an
+    earlier one explained (study trial d7: a turbine flow law named at the first step, as one of a pair, and made
+    redundant by the bypass valve and the pressure-gauge calibration named next).  So at the end every named cause
+    is put to the test its own step put it to, against the model of all the others refitted and cross-validated:
+    it must lower the cross-validated score by ``min_gain`` with the F-test's p below the threshold of the step
+    that named it.  The weakest failing cause is removed and the test repeated."""
+    if len(current.mechanisms) < 2:
+        return None
+    tried: list[CandidateScore] = []
+    for m in current.mechanisms:
+        comb = Combination(tuple(x for x in current.mechanisms if x is not m))
+        support = {k: v for k, v in current_fit.support.items() if k in {x.id for x in comb.valves}}
+        fit = fit_combination(problem, comb, start=current_fit, known=current_fit.values(), support=support)
+        c = CandidateScore(comb, m.label, fit, 2.0 * fit.data_cost / M)
+        c.score(problem, *cross_validate(problem, comb, fit, max_folds=max_folds), M, penalty, current_S,
+                current_fit.k)
+        tried.append(c)
+        say(f"step {step_no}: without {m.label:42s} CV {c.cv_score:9.4g}")
+    worst = None
+    for c in tried:
+        gain = (c.cv_score - current_S) / c.cv_score if c.cv_score > 0 else 0.0
+        p = _f_test_p(c.cv_score, current_S, c.fit.k, current_fit.k, M)
+        thr = thresholds.get(c.added, 1.0)
+        if (gain < min_gain or p >= thr) and (worst is None or gain < worst[1]):
+            worst = (c, gain, p, thr)
+    if worst is None:
+        return None
+    c, gain, p, thr = worst
+    why = " and ".join(w for w, bad in ((f"below {min_gain:.0%}", gain < min_gain),
+                                        (f"p = {p:.2g} not below {thr:.2g}", p >= thr)) if bad)
+    step = {"step": step_no, "best": c.added, "accepted": True, "removed": c.added,
+            "decision": f"removed: {c.added} adds only {gain:.1%} to the other named causes ({why})",
+            "threshold_p": thr, "current_score": current_S, "candidates": tried}
+    say(f"step {step_no}: {step['decision']}")
+    return step, c
+
+
 def select_causes(
     problem: Problem,
     mechanisms: Sequence[Mechanism] | None = None,
     *,
     max_causes: int = 4,
     alpha: float = 0.01,
+    alpha_unexplained: float = ALPHA_UNEXPLAINED,
     min_gain: float = 0.10,
     penalty: float = 2.0,
     cv_all: bool = False,
     max_folds: int | None = None,
     pairs: bool = True,
+    prune: bool = True,
     progress=None,
 ) -> Selection:
     """Greedy forward selection of named mechanisms (see the module docstring).
@@ -752,8 +782,11 @@ def select_causes(
         still win: its in-sample penalised score (a lower bound of its cross-validated one: a fit predicts
         the data it saw better than data it did not) is below the best cross-validated penalised score of
         the step so far and improves the current model by ``min_gain`` in-sample.
+    alpha_unexplained : family-wise level (over the channels) of what is reported as unexplained
+        (:data:`ALPHA_UNEXPLAINED`).
     max_folds : at most this many cross-validation folds (interleaved k-fold) for single-engine data.
     pairs : also try every pair of physical mechanisms added together at each step (:func:`_pair_candidates`).
+    prune : at the end, remove named causes that no longer earn their place among the others (:func:`_prune`).
     progress : optional callable receiving one-line status messages.
     """
     t0 = time.perf_counter()
@@ -910,20 +943,34 @@ def select_causes(
         else:
             current_fit, current_pred, current_L, current_S, current_pen, current_folds = _refit_with_calibration(
                 problem, best, current_fit, M, penalty, max_folds, steps[-1], say)
+    thresholds = {}
+    for st in steps:
+        if st["accepted"]:
+            for lab in st["best"].split(" + "):
+                thresholds[lab] = st["threshold_p"]
+    while prune and (pruned := _prune(problem, current, current_fit, current_S, M, penalty, min_gain, thresholds,
+                                      max_folds, len(steps) + 1, say)) is not None:
+        st, c = pruned
+        steps.append(st)
+        alternatives.pop(c.added, None)
+        cause_notes.pop(c.added, None)
+        current, current_fit = c.combination, c.fit
+        current_pred, current_L, current_S, current_pen = c.cv_pred, c.point_losses, c.cv_score, c.penalised
     final_setting = current_fit.setting(problem)
     # what is left is judged channel by channel against the model fitted without that channel: an anomaly of one
     # sensor would otherwise bend the fit towards it and hide
     final_loco = loco_predictions(problem, current_fit)
     final_match = match_result(problem, final_setting, pred_fn=lambda: final_loco)
     final_report = analyse_discrepancies(final_match, alpha=alpha, tolerances=tol)
-    unexplained = _unexplained_all(final_match, final_report, tol, alpha)
+    unexplained = _unexplained_all(final_match, final_report, tol, alpha_unexplained)
     return Selection(
         problem=problem, cv_scheme=scheme, raw_pred=raw_pred, base_fit=base_fit, base_pred=base_pred,
         base_score=S_base, base_report=base_report, steps=steps, selected=current, fit=current_fit,
         cv_pred=current_pred, cv_score=current_S, final_report=final_report, unexplained=unexplained,
         outliers=point_outliers(final_match, tol, alpha), base_outliers=base_outliers,
         seconds=time.perf_counter() - t0, alternatives=alternatives, cause_notes=cause_notes,
-        settings={"max_causes": max_causes, "alpha": alpha, "min_gain": min_gain, "penalty": penalty,
-                  "robust_scale": ROBUST_SCALE, "cv": scheme, "n_folds": len(folds), "n_cells": M, "cv_all": cv_all,
-                  "nuisance_sigma": 0.03, "pairs": use_pairs},
+        settings={"max_causes": max_causes, "alpha": alpha, "alpha_unexplained": alpha_unexplained,
+                  "min_gain": min_gain, "penalty": penalty, "robust_scale": ROBUST_SCALE, "cv": scheme,
+                  "n_folds": len(folds), "n_cells": M, "cv_all": cv_all,
+                  "nuisance_sigma": 0.03, "pairs": use_pairs, "prune": prune},
     )

@@ -294,11 +294,13 @@ def synthesize(
                 vals[prm.name] = drawn[prm.name]
         clean[channel] = vals["gain"] * clean[channel] + vals["offset"]
         truth.append({"id": m.id, "label": m.label, "channel": channel, "reference": ref, "values": vals})
+    added: dict[str, list[float]] = {}
     for e in effects:
         if e["channel"] not in clean:
             raise ValueError(f"effect on {e['channel']!r}, which is not a written column")
         shape = _effect_shape(e, loads)
         base = _relative_basis(e["channel"], clean[e["channel"]], p_amb) if e.get("relative") else 1.0
+        added[e["channel"]] = (e["amplitude"] * base * shape).tolist()
         clean[e["channel"]] = clean[e["channel"]] + e["amplitude"] * base * shape
     k = max(int(engines), 1)
     out: dict[str, np.ndarray] = {}
@@ -328,7 +330,7 @@ def synthesize(
                      settings={"params": pname, "points": int(points), "noise": noise, "seed": seed,
                                "load_range": [lo, hi], "engines": int(engines), "noise_model": noise_model,
                                "full_range": full_range, "perturb": perturb, "model_error": scales,
-                               "loads": loads.tolist(), "columns": list(columns)})
+                               "loads": loads.tolist(), "columns": list(columns), "effects_added": added})
 
 
 def _valve_openings(m: ValveMechanism, loads: np.ndarray, given: dict[str, float], rng
@@ -468,16 +470,40 @@ CONDITIONS = {
 }
 
 
+def effect_size(added: Sequence[float], reading: Sequence[float], tol: float) -> dict[str, float]:
+    """How large an out-of-library effect is at the measured points, in the pipeline's tolerances: ``rms`` (its
+    root-mean-square), ``norm`` (its Euclidean norm: what an oracle that knows the shape tests against noise of one
+    tolerance) and ``beyond_calibration`` (the norm of what a gain and an offset of the reading leave of it: the part
+    by which any test could tell the effect from a miscalibrated sensor)."""
+    e = np.asarray(added, dtype=float)
+    A = np.column_stack([np.ones_like(e), np.asarray(reading, dtype=float)])
+    left = e - A @ np.linalg.lstsq(A, e, rcond=None)[0]
+    return {"rms": float(np.sqrt(np.mean(e ** 2)) / tol), "norm": float(np.linalg.norm(e) / tol),
+            "beyond_calibration": float(np.linalg.norm(left) / tol)}
+
+
+#: bins of :func:`effect_size`'s ``beyond_calibration`` in the study summary (tolerances)
+SIZE_BINS = (3.0, 5.0)
+
+
 def _draw_mechanisms(rng: np.random.Generator, n: int) -> list[str]:
     """``n`` distinct mechanism ids (a sensor calibration at most once)."""
     ids = list(MECHANISM_IDS)
     return [str(x) for x in rng.choice(ids, size=n, replace=False)]
 
 
+def _trial_settings(params: str = "wartsila-6l46", points: int = 8, max_folds: int | None = None, prune: bool = True,
+                    **_) -> dict[str, Any]:
+    """What a trial's outcome depends on besides its condition and seed (a resumed study keeps only trials run with
+    the same)."""
+    return {"params": str(params), "points": int(points), "max_folds": max_folds, "prune": bool(prune)}
+
+
 def trial(condition: str, seed: int, *, control: bool = False, params: str = "wartsila-6l46", points: int = 8,
-          max_folds: int | None = None, workdir: str | Path | None = None) -> dict[str, Any]:
+          max_folds: int | None = None, prune: bool = True, workdir: str | Path | None = None) -> dict[str, Any]:
     """One trial of the study: synthesise with the condition's hidden effects (none when ``control``), write and
-    reload the data, run the selection and compare with the truth."""
+    reload the data, run the selection (``prune``: its final removal step, on by default) and compare with the
+    truth."""
     import tempfile
     import warnings
 
@@ -489,11 +515,17 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
     cond = CONDITIONS[condition]
     rng = np.random.default_rng([int(seed), ord(condition), 7919])
     mechs = [] if control else _draw_mechanisms(rng, cond["n_mech"])
-    effects = []
-    if condition == "e" and not control:
-        effects = [draw_effect(rng, DEFAULT_COLUMNS, family=list(FAMILIES)[int(seed) % len(FAMILIES)])]
+    effects, shadow = [], None
+    if condition == "e":
+        if control:  # the channel the paired trial's effect is on: a finding there is the control's false hit
+            rng_s = np.random.default_rng([int(seed), ord(condition), 7919])
+            _draw_mechanisms(rng_s, cond["n_mech"])
+            shadow = draw_effect(rng_s, DEFAULT_COLUMNS, family=list(FAMILIES)[int(seed) % len(FAMILIES)])["channel"]
+        else:
+            effects = [draw_effect(rng, DEFAULT_COLUMNS, family=list(FAMILIES)[int(seed) % len(FAMILIES)])]
     base = {"condition": condition, "control": bool(control), "seed": int(seed), "mechanisms": mechs,
-            "effects": effects}
+            "effects": effects, "trial_settings": _trial_settings(params=params, points=points, max_folds=max_folds,
+                                                                  prune=prune)}
     try:
         syn = synthesize(params, mechs or ["none"], points=points, noise=cond["noise"], seed=int(seed) * 31 + 7,
                          noise_model=cond["noise_model"], perturb=cond["perturb"], effects=effects)
@@ -509,13 +541,17 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
             except DatasetError as e:
                 return {**base, "outcome": "skipped", "why": "loader: " + " ".join(str(e).split())[:300],
                         "seconds": time.perf_counter() - t0}
-    sel = select_causes(Problem(ds), max_folds=max_folds)
+    sel = select_causes(Problem(ds), max_folds=max_folds, prune=prune)
     truth_labels = sorted(t["label"] for t in syn.truth)
     named = sorted(sel.selected_labels)
     res = {**base, "truth": syn.truth, "selected": named, "model_error": syn.settings["model_error"],
            "seconds": time.perf_counter() - t0, "unexplained": [
                {k: u.get(k) for k in ("channel", "kind", "region", "load_range", "magnitude")} for u in sel.unexplained]}
     res["named_any"] = bool(named)
+    res["unexplained_local"] = any(u["kind"] == "local" for u in sel.unexplained)
+    if shadow is not None:
+        res["shadow_channel"] = shadow
+        res["unexplained_on_shadow_channel"] = any(u["channel"] == shadow for u in sel.unexplained)
     res["exact"] = named == truth_labels
     res["alternatives"] = {k: [a["mechanism"] for a in v] for k, v in sel.alternatives.items()}
     res["exact_up_to_equivalence"] = len(named) == len(truth_labels) and all(
@@ -549,6 +585,10 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
                 x0 = float(u["region"].split(">")[1])
                 region_ok |= x0 <= hi + 0.05
         res["effect_region"] = [lo, hi]
+        j = sel.problem.channels.index(e["channel"])
+        add = np.asarray(syn.settings["effects_added"][e["channel"]])
+        res["effect_size"] = effect_size(add, np.asarray(syn.clean[e["channel"]]) - add,
+                                         float(sel.problem.tolerance[j]))
         res["found_on_channel"] = [{k: u.get(k) for k in ("kind", "region", "load_range")} for u in hits]
         res["unexplained_right_channel"] = bool(hits)
         res["unexplained_right_region"] = bool(region_ok)
@@ -565,7 +605,9 @@ def study(conditions: Sequence[str], seeds: Sequence[int], *, controls: bool = T
     """Run :func:`trial` for every condition x seed (and its control) and summarise per condition.
 
     ``checkpoint`` (a JSON-lines file) keeps every finished trial; a rerun with the same file resumes
-    where the last one stopped (trials are deterministic in their seed, so nothing changes)."""
+    where the last one stopped (trials are deterministic in their seed, so nothing changes); trials it holds that
+    were run with other settings (:func:`_trial_settings`: parameter set, points, folds, removal step) are run
+    again, not mixed in."""
     jobs = [(c, int(s), False) for c in conditions for s in seeds]
     if controls:
         jobs += [(c, int(s), True) for c in conditions for s in seeds]
@@ -579,7 +621,7 @@ def study(conditions: Sequence[str], seeds: Sequence[int], *, controls: bool = T
                 if line.strip():
                     r = json.loads(line)
                     key = (r["condition"], int(r["seed"]), bool(r["control"]))
-                    if key in want:
+                    if key in want and r.get("trial_settings") == _trial_settings(**kw):
                         want.discard(key)
                         results.append(r)
             jobs = [j for j in jobs if j in want]
@@ -633,8 +675,20 @@ def summarise(results: Sequence[dict[str, Any]], condition: str) -> dict[str, An
     out: dict[str, Any] = {"n_trials": len(tr), "n_controls": len(ct),
                            "skipped": sum(r["outcome"] == "skipped" for r in results if r["condition"] == condition),
                            "control_named_rate": (sum(r["named_any"] for r in ct) / len(ct)) if ct else None}
+    if ct and all("unexplained_local" in r for r in ct):
+        out["control_unexplained_local_rate"] = sum(r["unexplained_local"] for r in ct) / len(ct)
+    if ct and all("unexplained_on_shadow_channel" in r for r in ct):
+        out["control_unexplained_on_effect_channel_rate"] = \
+            sum(r["unexplained_on_shadow_channel"] for r in ct) / len(ct)
     if condition == "e":
         out["unexplained_right_channel_rate"] = sum(r["unexplained_right_channel"] for r in tr) / len(tr) if tr else None
+        if tr and all("effect_size" in r for r in tr):
+            edges = (0.0,) + SIZE_BINS + (math.inf,)
+            out["unexplained_by_size_beyond_calibration"] = {
+                (f"{a:g}-{b:g}" if math.isfinite(b) else f">={a:g}"): "{}/{}".format(
+                    sum(r["unexplained_right_channel"] for r in tr if a <= r["effect_size"]["beyond_calibration"] < b),
+                    sum(a <= r["effect_size"]["beyond_calibration"] < b for r in tr))
+                for a, b in zip(edges[:-1], edges[1:])}
         out["unexplained_right_region_rate"] = sum(r["unexplained_right_region"] for r in tr) / len(tr) if tr else None
         out["named_a_cause_rate"] = sum(r["named_any"] for r in tr) / len(tr) if tr else None
     else:
@@ -658,7 +712,7 @@ def summarise(results: Sequence[dict[str, Any]], condition: str) -> dict[str, An
 
 def study_main(argv: Sequence[str] | None = None) -> int:
     """``python -m marine_fdi_env.validation.synthesize study [--conditions abcde] [--seeds A:B] [--workers K]
-    [--out FILE.json]``: the open-world hidden-effect study."""
+    [--no-prune] [--out FILE.json]``: the open-world hidden-effect study."""
     ap = argparse.ArgumentParser(prog="python -m marine_fdi_env.validation.synthesize study",
                                  description="Open-world hidden-effect study: " + "; ".join(
                                      f"({k}) {v['title']}" for k, v in CONDITIONS.items()))
@@ -667,6 +721,8 @@ def study_main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--no-controls", action="store_true", help="skip the negative controls")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--points", type=int, default=8)
+    ap.add_argument("--no-prune", action="store_true",
+                    help="without the selection's final removal step (to measure what it changes)")
     ap.add_argument("--out", default=None, help="write every trial as JSON here; finished trials are kept in "
                     "OUT.trials.jsonl and a rerun resumes from it")
     args = ap.parse_args(list(argv) if argv is not None else None)
@@ -677,8 +733,16 @@ def study_main(argv: Sequence[str] | None = None) -> int:
         return 2
     a, _, b = args.seeds.partition(":")
     try:
-        res = study(list(args.conditions), range(int(a), int(b)), controls=not args.no_controls, workers=args.workers,
-                    points=args.points,
+        seeds = range(int(a), int(b))
+    except ValueError:
+        print(f"study: error: --seeds must be A:B with integers A < B, got {args.seeds!r}", file=sys.stderr)
+        return 2
+    if not seeds:
+        print(f"study: error: --seeds {args.seeds!r} holds no seed (A:B runs A .. B-1)", file=sys.stderr)
+        return 2
+    try:
+        res = study(list(args.conditions), seeds, controls=not args.no_controls, workers=args.workers,
+                    points=args.points, **({"prune": False} if args.no_prune else {}),
                     checkpoint=(Path(args.out).with_suffix(".trials.jsonl") if args.out else None))
     except KeyboardInterrupt:
         print("study: interrupted", file=sys.stderr)
