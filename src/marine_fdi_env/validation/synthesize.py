@@ -514,15 +514,14 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
     t0 = time.perf_counter()
     cond = CONDITIONS[condition]
     rng = np.random.default_rng([int(seed), ord(condition), 7919])
-    mechs = [] if control else _draw_mechanisms(rng, cond["n_mech"])
-    effects, shadow = [], None
-    if condition == "e":
-        if control:  # the channel the paired trial's effect is on: a finding there is the control's false hit
-            rng_s = np.random.default_rng([int(seed), ord(condition), 7919])
-            _draw_mechanisms(rng_s, cond["n_mech"])
-            shadow = draw_effect(rng_s, DEFAULT_COLUMNS, family=list(FAMILIES)[int(seed) % len(FAMILIES)])["channel"]
-        else:
-            effects = [draw_effect(rng, DEFAULT_COLUMNS, family=list(FAMILIES)[int(seed) % len(FAMILIES)])]
+    mechs = _draw_mechanisms(rng, cond["n_mech"])
+    effects = ([draw_effect(rng, DEFAULT_COLUMNS, family=list(FAMILIES)[int(seed) % len(FAMILIES)])]
+               if condition == "e" else [])
+    # a control drops the draw; in (e) it keeps the channel the paired trial's effect is on: a finding there is the
+    # control's false hit
+    shadow = effects[0]["channel"] if control and effects else None
+    if control:
+        mechs, effects = [], []
     base = {"condition": condition, "control": bool(control), "seed": int(seed), "mechanisms": mechs,
             "effects": effects, "trial_settings": _trial_settings(params=params, points=points, max_folds=max_folds,
                                                                   prune=prune)}
