@@ -6,6 +6,7 @@
     python -m marine_fdi_env.diagnosis.kpis min-detectable --seeds 20       # KPI 6.5.2, bisection
     python -m marine_fdi_env.diagnosis.kpis min-detectable --all --seeds 4  # all 26 faults -> env table
     python -m marine_fdi_env.diagnosis.kpis seal-leak-snr --seeds 16        # why turbine_seal_leak is missed
+    python -m marine_fdi_env.diagnosis.detection_bound --seeds 50           # how fast any test could see it
     python -m marine_fdi_env.diagnosis.kpis render                          # docs/diagnosis_results.md
 
 ``--diagnoser sequential`` measures the ``sequential`` diagnoser instead of the reference.  Each
@@ -555,6 +556,11 @@ def render(data_dir: Path = Path("docs/data")) -> str:
                              f"({100 * v['state_change_relative']:.3f} %) | {v['residual_shift_Pa']:.0f} | "
                              f"{v['z_score']:.1f} | {v['threshold_mean_Pa']:.0f} |")
         lines.append("")
+    bound = load("seal-leak-bound")
+    if bound:
+        from .detection_bound import render as render_bound
+
+        lines += render_bound(bound)
     mds = {a: load("min-detectable", a) for a in agents}
     if any(mds.values()):
         cmd = "; ".join(f"`{d['command']}`" for d in mds.values() if d)

@@ -42,7 +42,7 @@ from .agent import ReferenceDiagnoser
 from .modules import MODULE_IDS
 from .sequential import CALIBRATION_FILE, Z_CAP, pressure_ratio
 
-__all__ = ["profile_for", "record", "fit", "cusum_offline", "check", "SETS"]
+__all__ = ["profile_for", "record", "fit", "cusum_offline", "check", "normalise_blocks", "tail_threshold", "SETS"]
 
 N_MODULES = len(MODULE_IDS)
 PARAMS = "thesis-12v28"
@@ -135,7 +135,7 @@ def _warm_blocks(warmup_s) -> np.ndarray:
     return np.array([int(math.ceil(w / BLOCK_S - 1e-9)) for w in warmup_s])
 
 
-def _normalise(BM, UB, nodes, mean, scale):
+def normalise_blocks(BM, UB, nodes, mean, scale):
     """z (runs, blocks, 19) of block means with the interpolated normalisation (as the online kernel)."""
     mu = np.stack([np.interp(UB, nodes, mean[m]) for m in range(N_MODULES)], axis=-1)
     sc = np.stack([np.interp(UB, nodes, scale[m]) for m in range(N_MODULES)], axis=-1)
@@ -165,7 +165,7 @@ def cusum_offline(z, k, h, warm_blocks, RB=None, r_max=None):
     return first, peak
 
 
-def _tail_threshold(peaks, p_target, tail_fraction=TAIL_FRACTION):
+def tail_threshold(peaks, p_target, tail_fraction=TAIL_FRACTION):
     """h with P(run peak > h) = p_target from an exponential fit of the upper tail of the peaks."""
     x = np.sort(peaks)[::-1]
     n = len(x)
@@ -197,7 +197,7 @@ def fit(cal: dict, k: float = K_DEFAULT, r_max: float = R_MAX_DEFAULT) -> dict:
             counts[j] = sel.sum()
             mean[m, j] = x.mean()
             scale[m, j] = x.std()
-    z = _normalise(BM, UB, nodes, mean, scale)
+    z = normalise_blocks(BM, UB, nodes, mean, scale)
     kk = np.full(N_MODULES, k)
     rmax = np.array([r_max if m in PAUSED_MODULES else np.inf for m in MODULE_IDS])
     RB = cal["ratio"].astype(np.float64)
@@ -207,7 +207,7 @@ def fit(cal: dict, k: float = K_DEFAULT, r_max: float = R_MAX_DEFAULT) -> dict:
     h = np.zeros(N_MODULES)
     tails = {}
     for m, mid in enumerate(MODULE_IDS):
-        h[m], theta, a = _tail_threshold(peaks[:, m], p_run)
+        h[m], theta, a = tail_threshold(peaks[:, m], p_run)
         h[m] = max(h[m], 1.2 * peaks[:, m].max())  # never below the largest calibration peak
         tails[mid] = {"theta": theta, "a": a, "max_peak": float(peaks[:, m].max()),
                       "p99_peak": float(np.percentile(peaks[:, m], 99))}
@@ -229,7 +229,7 @@ def check(val: dict, calibration: dict) -> dict:
     UB = val["u"].astype(np.float64)
     n_runs, nb, _ = BM.shape
     nodes = np.asarray(calibration["u_nodes"])
-    z = _normalise(BM, UB, nodes, np.asarray(calibration["mean"]), np.asarray(calibration["scale"]))
+    z = normalise_blocks(BM, UB, nodes, np.asarray(calibration["mean"]), np.asarray(calibration["scale"]))
     warm = _warm_blocks(calibration["warmup_s"])
     first, peaks = cusum_offline(z, np.asarray(calibration["k"]), np.asarray(calibration["h"]), warm,
                                  val["ratio"].astype(np.float64), np.asarray(calibration["r_max"]))
