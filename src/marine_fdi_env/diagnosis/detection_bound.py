@@ -168,7 +168,8 @@ def seal_leak_bound(n_seeds: int, first_seed: int = FIRST_SEED, calibration_reco
     fb = first[:, [a, b]].astype(np.float64)
     fb[fb < 0] = np.inf
     d_seq = (fb.min(axis=1) + 1) * bs - onset
-    rows.append({"statistic": "sequential diagnoser (shipped): CUSUM of M3.1, M3.2, k = 0.5",
+    rows.append({"statistic": "sequential diagnoser (shipped): CUSUM of M3.1, M3.2, k = 0.5, replayed on the "
+                              "recorded float32 blocks (online, any module: `kpis delays`)",
                  "threshold": f"h = {cal.h[a]:.1f}, {cal.h[b]:.1f} (per-run p {cal.data['fit']['per_run_target_probability']:.1e})",
                  **_summary(d_seq, DURATION_S, onset)})
     for at, name, end_s in (("run_end", "at the end of the 300 s run", DURATION_S),
