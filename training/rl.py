@@ -186,7 +186,7 @@ def train_ppo_replay(seed: int, hp: dict, out: Path | None, use_cache: bool = Tr
            "validation_episodes": n_val, "validation": final,
            "features": features.to_dict(), "observation": dict(_observation_meta(), reference_features=False),
            "n_parameters": int(sum(p.numel() for p in model.policy.parameters())),
-           "cpu_s_data": round(data_cpu, 1), "cpu_s": round(cpu_total, 1),
+           "cpu_s_data": round(data_cpu, 3), "cpu_s": round(cpu_total, 1),
            "wall_s": round(time.perf_counter() - w0, 1)}
     if out is not None:
         from .artifacts import _write_curve

@@ -170,7 +170,7 @@ def train_classifier_run(seed: int, hp: dict, out: Path | None, use_cache: bool 
                            "use_reference": hp.get("use_reference", False), "calibration": cal},
            "observation": _observation_meta(), "training_episodes": int(len(data["obs"])),
            "n_parameters": int(sum(p.numel() for p in res.model.parameters())),
-           "cpu_s_data": round(data_cpu, 1), "cpu_s_train": round(train_cpu, 1),
+           "cpu_s_data": round(data_cpu, 3), "cpu_s_train": round(train_cpu, 1),
            # a data export cached from an earlier run still counts
            "cpu_s": round(cpu_here - fresh_cpu + data_cpu, 1), "wall_s": round(time.perf_counter() - w0, 1)}
     if out is not None:

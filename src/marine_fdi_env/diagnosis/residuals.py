@@ -77,11 +77,13 @@ from ..engine.subsystems.exhaust_receiver import (
 )
 from ..engine.subsystems.gas_path import extended_gas_path, flow_law_pressure, valve_flows
 from .modules import MODULE_IDS
-from .inclusion_table import interpolate_rows, sigma2_table
-from .sigma2 import ONE_SIDED, SLOPE_STEP, _centre_speed, _centre_speed2, _perturbed_rows, _perturbed_rows2
+from .inclusion_table import interpolate_rows, jit_inline, sigma2_table
+from .sigma2 import (ONE_SIDED, SLOPE_STEP, KernelConstants, _centre_speed, _centre_speed2, _perturbed_rows,
+                     _perturbed_rows2, kernel_constants)
 
 __all__ = ["OBSERVER_GAINS", "compute_residuals", "compute_residuals_batch", "ResidualTrace", "SAFETY",
-           "MODEL_MARGIN", "new_state", "N_STATE", "residuals_for_run", "INCLUSIONS", "inclusion_arrays", "table_arrays"]
+           "MODEL_MARGIN", "new_state", "N_STATE", "residuals_for_run", "INCLUSIONS", "inclusion_arrays", "table_arrays",
+           "KernelConstants", "kernel_constants"]
 
 # Observer gains L [1/s] of table 6.1 for M(1,q), M(3,q), M(4,q).
 OBSERVER_GAINS = (33.3833, 1.25, 0.3764)
@@ -168,14 +170,16 @@ def _mixing(x1, m1, s_sl, mdot, T6, p6, c):
 
 
 @jit
-def _point(c, x1, x3, x4, m1, n, psi, Pi, T_in, T_out, T6, p6, out, j):
+def _point(c, csm, x1, x3, x4, m1, n, psi, Pi, T_in, T_out, T6, p6, out, j):
     """h3, h4, T_in(model), T_co(model) at one point of the (x1, x3, x4, T1, n) box into out[j],
     sharing s_sl, ṁ_g, δ_f; m1 = x4 V1/(R_a T1), psi = Ψ_sc(x3/x4) and Pi = Π_turbo(x3) are passed
     in (most points reuse the centre's).  The same operations as ``slip_ratio``,
-    ``receiver_forcing``, ... in the same order, so the numbers equal the direct calls bit for bit."""
+    ``receiver_forcing``, ... in the same order, so the numbers equal the direct calls bit for bit.
+    csm: the full constants for the gas-path submodels, or None (see :func:`kernel_constants`)."""
     s_sl = c.slip_coeff * x4 * psi / (n * m1)
-    if c.sm_on != 0.0:
-        return _point_sm(c, x1, x3, x4, m1, n, s_sl, Pi, T_in, T_out, T6, p6, out, j)
+    if csm is not None:  # compiled only where a gas-path submodel may be on
+        if c.sm_on != 0.0:
+            return _point_sm(csm, x1, x3, x4, m1, n, s_sl, Pi, T_in, T_out, T6, p6, out, j)
     opm = (1.0 + s_sl) * m1
     mdot = (opm + x1) * n * c.cycles_per_rev
     df = 1.0 + x1 / opm
@@ -297,7 +301,7 @@ def _straddles_kink(x3, x4, d3, d4, c):
 
 
 @jit
-def _kink_corners(c, x1, x3, x4, T1, d3, d4, n_x4p, n_x4m, T_in, T_out, T6m, p6m, G, kc):
+def _kink_corners(c, csm, x1, x3, x4, T1, d3, d4, n_x4p, n_x4m, T_in, T_out, T6m, p6m, G, kc):
     """The model values at the 4 corners (x3 ± d3, x4 ± d4) into G[18:22] and, per output q, how
     much their largest deviation from the centre exceeds the sum of the x3 and x4 coordinate terms
     (kc[q] >= 0): the mixed term that the coordinate-wise inclusion neglects, which is not small
@@ -309,7 +313,7 @@ def _kink_corners(c, x1, x3, x4, T1, d3, d4, n_x4p, n_x4m, T_in, T_out, T6m, p6m
         for f in (d4, -d4):
             x3c = x3 + e
             x4c = x4 + f
-            _point(c, x1, x3c, x4c, _charge_mass(x4c, T1, c), n_x4p if f > 0.0 else n_x4m,
+            _point(c, csm, x1, x3c, x4c, _charge_mass(x4c, T1, c), n_x4p if f > 0.0 else n_x4m,
                    scavenge_flow_function(x3c / x4c, c), turbine_expansion(x3c, c), T_in, T_out, T6m, p6m, G, row)
             row += 1
     for q in range(4):
@@ -364,7 +368,7 @@ SPEED_MARGIN_FACTOR = 2.0  # the speed sensitivity may change over the noise box
 SPEED_ELASTICITY = 4.0
 
 
-@jit
+@jit_inline
 def _tabulate(table, ti, x1, x4, T1, t, dl, mg):
     """Rows 1-6 of a chain's cycle table t (7, 3) from table ``ti`` of the tabulated differences
     (t[0] holds the exactly solved centre): t[p] = t[0] + Δ_p; dl (6, 3) gets the interpolated
@@ -393,14 +397,14 @@ def _dev_margin(dl, mg, q):
 
 
 @jit
-def _speed_margins(c, x1, x3, x4, m1, n0, psi, Pi, T_in, T_out, T6m, p6m, G, mg, spm):
+def _speed_margins(c, csm, x1, x3, x4, m1, n0, psi, Pi, T_in, T_out, T6m, p6m, G, mg, spm):
     """Margins spm (4,) of the M3/M4 model values h3, h4, T_in, T_co for the tabulated speeds of
     the x1, x4, T1 points: each is off by at most its certified margin e_n, which moves a model
     value by at most |∂g/∂n| e_n (mean value theorem); ∂g/∂n by a forward difference at the centre
     (row 17 of G), times SPEED_MARGIN_FACTOR for its change over the noise box, and at least the
     elasticity bound SPEED_ELASTICITY |g| / n (a perturbed point across a kink)."""
     hn = SLOPE_STEP * n0
-    _point(c, x1, x3, x4, m1, n0 + hn, psi, Pi, T_in, T_out, T6m, p6m, G, 17)
+    _point(c, csm, x1, x3, x4, m1, n0 + hn, psi, Pi, T_in, T_out, T6m, p6m, G, 17)
     en = 0.0
     for i in range(3):
         en += max(mg[2 * i, 0], mg[2 * i + 1, 0])
@@ -460,8 +464,7 @@ def new_state(n_engines: int, n_nom: float) -> np.ndarray:
     return st
 
 
-@jit
-def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table=None):
+def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table=None) -> None:
     """Residuals R (T, 19) and thresholds THR (T, 19) of all modules for samples Y (T, 19) of one
     engine, continuing from the observer state ST (2, N_STATE), which is updated in place.
 
@@ -471,15 +474,17 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table
     table : None (exact inclusion) or :func:`table_arrays` (the tabulated Σ2 inclusion terms with
     their certified margins, :mod:`marine_fdi_env.diagnosis.inclusion_table`).
     """
+    kc, csm = kernel_constants(c)
     if table is None:
-        _kernel(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, _NO_TABLE, False)
+        _kernel(kc, csm, Y, U, float(dt), dbar, side_cols, t_out_col, R, THR, ST, _NO_TABLE, False)
     else:
-        _kernel(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, True)
+        _kernel(kc, csm, Y, U, float(dt), dbar, side_cols, t_out_col, R, THR, ST, table, True)
 
 
 @jit
-def _kernel(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_table):
-    """:func:`compute_residuals` (``use_table`` False: exact inclusion, ``table`` unused)."""
+def _kernel(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_table):
+    """:func:`compute_residuals` (``use_table`` False: exact inclusion, ``table`` unused) with the
+    constants of :func:`kernel_constants`."""
     tside = table[5]
     T = Y.shape[0]
     L1, L3, L4 = OBSERVER_GAINS
@@ -609,21 +614,21 @@ def _kernel(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_tabl
                     psi = scavenge_flow_function(x3 / x4, c)
                     Pi = turbine_expansion(x3, c)
                     m1 = _charge_mass(x4, T1, c)
-                    s_sl, mdot, df = _point(c, x1, x3, x4, m1, n0, psi, Pi, T_in, T_out, T6m, p6m, G, 0)
+                    s_sl, mdot, df = _point(c, csm, x1, x3, x4, m1, n0, psi, Pi, T_in, T_out, T6m, p6m, G, 0)
                     # the x1, x3, x4, T1 points, unrolled (x + 0.0 and x + (-d) equal x and x - d exactly)
-                    _point(c, x1 + d1, x3, x4, m1, t[1, 0], psi, Pi, T_in, T_out, T6m, p6m, G, 1)
-                    _point(c, x1 - d1, x3, x4, m1, t[2, 0], psi, Pi, T_in, T_out, T6m, p6m, G, 2)
-                    _point(c, x1, x3 + d3, x4, m1, n0, scavenge_flow_function((x3 + d3) / x4, c),
+                    _point(c, csm, x1 + d1, x3, x4, m1, t[1, 0], psi, Pi, T_in, T_out, T6m, p6m, G, 1)
+                    _point(c, csm, x1 - d1, x3, x4, m1, t[2, 0], psi, Pi, T_in, T_out, T6m, p6m, G, 2)
+                    _point(c, csm, x1, x3 + d3, x4, m1, n0, scavenge_flow_function((x3 + d3) / x4, c),
                            turbine_expansion(x3 + d3, c), T_in, T_out, T6m, p6m, G, 3)
-                    _point(c, x1, x3 - d3, x4, m1, n0, scavenge_flow_function((x3 - d3) / x4, c),
+                    _point(c, csm, x1, x3 - d3, x4, m1, n0, scavenge_flow_function((x3 - d3) / x4, c),
                            turbine_expansion(x3 - d3, c), T_in, T_out, T6m, p6m, G, 4)
-                    _point(c, x1, x3, x4 + d4, _charge_mass(x4 + d4, T1, c), t[3, 0],
+                    _point(c, csm, x1, x3, x4 + d4, _charge_mass(x4 + d4, T1, c), t[3, 0],
                            scavenge_flow_function(x3 / (x4 + d4), c), Pi, T_in, T_out, T6m, p6m, G, 5)
-                    _point(c, x1, x3, x4 - d4, _charge_mass(x4 - d4, T1, c), t[4, 0],
+                    _point(c, csm, x1, x3, x4 - d4, _charge_mass(x4 - d4, T1, c), t[4, 0],
                            scavenge_flow_function(x3 / (x4 - d4), c), Pi, T_in, T_out, T6m, p6m, G, 6)
-                    _point(c, x1, x3, x4, _charge_mass(x4, T1 + dT1, c), t[5, 0], psi, Pi, T_in, T_out, T6m, p6m,
+                    _point(c, csm, x1, x3, x4, _charge_mass(x4, T1 + dT1, c), t[5, 0], psi, Pi, T_in, T_out, T6m, p6m,
                            G, 7)
-                    _point(c, x1, x3, x4, _charge_mass(x4, T1 - dT1, c), t[6, 0], psi, Pi, T_in, T_out, T6m, p6m,
+                    _point(c, csm, x1, x3, x4, _charge_mass(x4, T1 - dT1, c), t[6, 0], psi, Pi, T_in, T_out, T6m, p6m,
                            G, 8)
                     # near a kink of Ψ_sc (x3/x4 clipped to [r_crit, 1]) the coordinate-wise terms miss
                     # the range of the slip flow (e.g. measured x3/x4 > 1, no slip at any coordinate-wise
@@ -631,12 +636,13 @@ def _kernel(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_tabl
                     # coordinate terms' sum and the corners' deviation, and enlarge (KINK_SAFETY)
                     kinked = _straddles_kink(x3, x4, d3, d4, c)
                     if kinked:
-                        _kink_corners(c, x1, x3, x4, T1, d3, d4, t[3, 0], t[4, 0], T_in, T_out, T6m, p6m, G, kc)
+                        _kink_corners(c, csm, x1, x3, x4, T1, d3, d4, t[3, 0], t[4, 0], T_in, T_out, T6m, p6m, G, kc)
                     for j in range(9, 17, step):
-                        if c.sm_on != 0.0:
-                            _sm_perturbed(c, x1, x3, x4, m1, n0, s_sl, Pi, T_in, T_out, dTin, dTo, T6m, p6m, dp6, dT6,
-                                          G, step)
-                            break
+                        if csm is not None:  # compiled only where a gas-path submodel may be on
+                            if c.sm_on != 0.0:
+                                _sm_perturbed(csm, x1, x3, x4, m1, n0, s_sl, Pi, T_in, T_out, dTin, dTo, T6m, p6m, dp6,
+                                              dT6, G, step)
+                                break
                         sg = 1.0 if j % 2 == 1 else -1.0
                         Ti = T_in + sg * dTin if j < 11 else T_in
                         if j < 11:  # T_in: h3, h4, T_co
@@ -654,7 +660,7 @@ def _kernel(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_tabl
                             for q in range(4):
                                 G[j, q] = G[0, q]
                     if tabd[side]:
-                        _speed_margins(c, x1, x3, x4, m1, n0, psi, Pi, T_in, T_out, T6m, p6m, G, mg[side], spm)
+                        _speed_margins(c, csm, x1, x3, x4, m1, n0, psi, Pi, T_in, T_out, T6m, p6m, G, mg[side], spm)
                 # ---------------------------------------------------------------- M3.q (receiver observer)
                 m = 8 + side
                 F, H = 0.0, 0.0
@@ -827,9 +833,16 @@ def residuals_for_run(constants, measurements: np.ndarray, u: np.ndarray, dt: fl
 
 
 @jit
-def _batch_range(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_table, i0, i1):
+def _batch_loop(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_table, i0, i1):
     for i in range(i0, i1):
-        _kernel(c, Y[i], U[i], dt, dbar, side_cols, t_out_col, R[i], THR[i], ST[i], table, use_table)
+        _kernel(c, csm, Y[i], U[i], dt, dbar, side_cols, t_out_col, R[i], THR[i], ST[i], table, use_table)
+
+
+def _batch_range(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_table, i0, i1) -> None:
+    """Engines i0..i1-1 of :func:`compute_residuals_batch` on this thread (``table`` the kernel's:
+    ``_NO_TABLE`` with ``use_table`` False for the exact inclusion)."""
+    kc, csm = kernel_constants(c)
+    _batch_loop(kc, csm, Y, U, float(dt), dbar, side_cols, t_out_col, R, THR, ST, table, use_table, i0, i1)
 
 
 def compute_residuals_batch(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table=None):
@@ -841,13 +854,14 @@ def compute_residuals_batch(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST,
     results equal the single-thread loop bit for bit.
     """
     n = Y.shape[0]
-    args = (c, Y, U, float(dt), dbar, side_cols, t_out_col, R, THR, ST,
+    kc, csm = kernel_constants(c)
+    args = (kc, csm, Y, U, float(dt), dbar, side_cols, t_out_col, R, THR, ST,
             _NO_TABLE if table is None else table, table is not None)
     if n < THREADED_MIN_ENGINES:
-        _batch_range(*args, 0, n)
+        _batch_loop(*args, 0, n)
         return
     edges = np.linspace(0, n, THREAD_CHUNKS + 1).astype(np.int64)
-    list(_executor().map(lambda r: _batch_range(*args, r[0], r[1]), list(zip(edges[:-1], edges[1:]))))
+    list(_executor().map(lambda r: _batch_loop(*args, r[0], r[1]), list(zip(edges[:-1], edges[1:]))))
 
 
 THREAD_CHUNKS = 8
