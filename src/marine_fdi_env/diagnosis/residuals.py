@@ -54,6 +54,7 @@ import math
 import numpy as np
 
 from .._jit import jit
+from ..engine.constants import KernelConstants, kernel_constants
 from ..engine.integrators import THREADED_MIN_ENGINES, _etd_scalar, _executor
 from ..engine.sensors import NOISE_BOUNDS, SENSOR_IDS
 from ..engine.subsystems.air_intake import (
@@ -78,8 +79,7 @@ from ..engine.subsystems.exhaust_receiver import (
 from ..engine.subsystems.gas_path import extended_gas_path, flow_law_pressure, valve_flows
 from .modules import MODULE_IDS
 from .inclusion_table import interpolate_rows, jit_inline, sigma2_table
-from .sigma2 import (ONE_SIDED, SLOPE_STEP, KernelConstants, _centre_speed, _centre_speed2, _perturbed_rows,
-                     _perturbed_rows2, kernel_constants)
+from .sigma2 import ONE_SIDED, SLOPE_STEP, _centre_speed, _centre_speed2, _perturbed_rows, _perturbed_rows2
 
 __all__ = ["OBSERVER_GAINS", "compute_residuals", "compute_residuals_batch", "ResidualTrace", "SAFETY",
            "MODEL_MARGIN", "new_state", "N_STATE", "residuals_for_run", "INCLUSIONS", "inclusion_arrays", "table_arrays",

@@ -12,10 +12,9 @@ same order (the same numbers bit for bit), interleaved so that the processor ove
 from __future__ import annotations
 
 import math
-from collections import namedtuple
 
 from .._jit import jit
-from ..engine.constants import ModelConstants
+from ..engine.constants import KernelConstants, kernel_constants  # re-exported (defined in the engine layer)
 from ..engine.subsystems.engine_block import _sweep, engine_block
 
 __all__ = ["SPEED_SWEEPS", "ONE_SIDED", "LINEAR_SPEED", "SLOPE_STEP", "SLOPE_LIMIT", "KernelConstants",
@@ -26,35 +25,6 @@ ONE_SIDED = False  # measured and rejected (see residuals' module docstring)
 LINEAR_SPEED = True  # perturbed points: one sweep + linearisation in the speed (see _cycle_table)
 SLOPE_STEP = 1e-5  # relative step of the centre's speed slope
 SLOPE_LIMIT = 0.5  # the linearised perturbed speeds need a contraction |f'(n)| below this
-
-# The compiled code takes the model constants as a named tuple of floats.  ModelConstants also holds
-# the valve schedules of the gas-path submodels as arrays, and a tuple holding arrays is reference
-# counted at every compiled call that receives it (an atomic increment and decrement per array and
-# call, which the compiler cannot remove): that was about 2/3 of the kernel's time (measured, 5.3 ->
-# 1.6 µs per engine-sample).  Only the gas-path submodels' functions read the schedules; they get
-# the full constants as a separate argument ``csm``, None for a model without them, which removes
-# that code at compile time.
-_KNOT_FIELDS = ("wg_u", "wg_a", "bp_u", "bp_b")
-KernelConstants = namedtuple("KernelConstants", [f for f in ModelConstants._fields if f not in _KNOT_FIELDS])
-_KERNEL_CONSTANTS: dict = {}
-
-
-def kernel_constants(c) -> tuple:
-    """(kc, csm): the model constants ``c`` as the kernel takes them, ``kc`` the
-    :data:`KernelConstants` (floats only) and ``csm`` ``c`` itself where a gas-path submodel is on
-    (``c.sm_on``), else None; (c, c) for constants of another type.  Kept per object."""
-    hit = _KERNEL_CONSTANTS.get(id(c))
-    if hit is not None and hit[0] is c:
-        return hit[1], hit[2]
-    if type(c) is ModelConstants and all(isinstance(getattr(c, f), float) for f in KernelConstants._fields):
-        kc = KernelConstants(*(getattr(c, f) for f in KernelConstants._fields))
-        csm = c if c.sm_on != 0.0 else None
-    else:
-        kc, csm = c, c
-    if len(_KERNEL_CONSTANTS) > 64:
-        _KERNEL_CONSTANTS.clear()
-    _KERNEL_CONSTANTS[id(c)] = (c, kc, csm)
-    return kc, csm
 
 
 @jit

@@ -22,6 +22,9 @@ Submodel constants (:mod:`marine_fdi_env.engine.submodels`; ``*_on`` = 1.0 when 
 values are inert).  ``sm_on`` is 1.0 when any submodel acting on the gas path (Σ3, Σ4) is on: the
 compiled model then runs the extended gas path, else the base code path, bit for bit.  Schedules are
 knot arrays (``wg_u``/``wg_a``, ``bp_u``/``bp_b``).
+
+Compiled kernels take :data:`KernelConstants` (:func:`kernel_constants`): the same values without the
+knot arrays, so that no call between compiled functions reference-counts them.
 """
 
 from __future__ import annotations
@@ -36,7 +39,8 @@ import numpy as np
 from .geometry import cylinder_geometry
 from .params import EngineParams
 
-__all__ = ["ModelConstants", "model_constants", "DERIVED_FIELDS", "SUBMODEL_FIELDS"]
+__all__ = ["ModelConstants", "model_constants", "DERIVED_FIELDS", "SUBMODEL_FIELDS", "KernelConstants",
+           "kernel_constants"]
 
 _PARAM_FIELDS = tuple(f.name for f in fields(EngineParams) if f.name not in ("name", "submodels"))
 DERIVED_FIELDS = (
@@ -161,3 +165,34 @@ def model_constants(p: EngineParams) -> ModelConstants:
     values += [float(derived[k]) for k in DERIVED_FIELDS]
     values += [sub[k] if isinstance(sub[k], np.ndarray) else float(sub[k]) for k in SUBMODEL_FIELDS]
     return ModelConstants(*values)
+
+
+# The compiled code takes the model constants as a named tuple of floats.  ModelConstants also holds
+# the valve schedules of the gas-path submodels as arrays, and a tuple holding arrays is reference
+# counted at every compiled call that receives it (an atomic increment and decrement per array and
+# call, which the compiler cannot remove): that was about 2/3 of the reference diagnoser's kernel time
+# (measured, 5.3 -> 1.6 µs per engine-sample) and half of the simulator's (1.7 -> 0.8 µs, one thread,
+# ``benchmarks/simulator_cpu.py``).  Only the gas-path submodels' functions read the schedules; they
+# get the full constants as a separate argument ``csm``, None for a model without them, which removes
+# that code at compile time.
+_KNOT_FIELDS = ("wg_u", "wg_a", "bp_u", "bp_b")
+KernelConstants = namedtuple("KernelConstants", [f for f in ModelConstants._fields if f not in _KNOT_FIELDS])
+_KERNEL_CONSTANTS: dict = {}
+
+
+def kernel_constants(c) -> tuple:
+    """(kc, csm): the model constants ``c`` as the compiled kernels take them, ``kc`` the
+    :data:`KernelConstants` (floats only) and ``csm`` ``c`` itself where a gas-path submodel is on
+    (``c.sm_on``), else None; (c, c) for constants of another type.  Kept per object."""
+    hit = _KERNEL_CONSTANTS.get(id(c))
+    if hit is not None and hit[0] is c:
+        return hit[1], hit[2]
+    if type(c) is ModelConstants and all(isinstance(getattr(c, f), float) for f in KernelConstants._fields):
+        kc = KernelConstants(*(getattr(c, f) for f in KernelConstants._fields))
+        csm = c if c.sm_on != 0.0 else None
+    else:
+        kc, csm = c, c
+    if len(_KERNEL_CONSTANTS) > 64:
+        _KERNEL_CONSTANTS.clear()
+    _KERNEL_CONSTANTS[id(c)] = (c, kc, csm)
+    return kc, csm

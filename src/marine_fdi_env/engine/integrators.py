@@ -29,7 +29,8 @@ import math
 import numpy as np
 
 from .._jit import jit
-from .model import forcings, solve_algebraic
+from .constants import kernel_constants
+from .model import _solve_algebraic, forcings, jit_inline
 
 __all__ = ["advance_batch", "reference_solve", "FAILURE_REASONS",
            "PREDICTOR_SWEEPS", "OUTPUT_SWEEPS", "TRANSIENT_TOL"]
@@ -87,9 +88,10 @@ def healthy_coefficients(c, h):
     return _etd_scalar(-1.0 / c.tau_X_s, h) + _etd_scalar(-1.0 / c.tau_pd_s, h) + _etd_scalar(-1.0 / c.tau_TC_s, h)
 
 
-@jit
-def _etd_once(c, h, coef, x1, x3, x4, u0, u1, pf0, pf1, pfm, alg0, algp, alg_out, lam_lim):
+@jit_inline
+def _etd_once(c, csm, h, coef, x1, x3, x4, u0, u1, pf0, pf1, alg0, algp, alg_out, lam_lim):
     """One ETD2RK step of one engine; alg0 is the algebraic state at the start, alg_out the end.
+    c, csm: the constants of :func:`~marine_fdi_env.engine.constants.kernel_constants`.
 
     u0, u1 are the commanded fuel settings; the applied ones pass the charge-air limiter.
     ``coef`` holds the healthy coefficients for step h; a seal-leak fault (evaluated at mid-step)
@@ -106,16 +108,16 @@ def _etd_once(c, h, coef, x1, x3, x4, u0, u1, pf0, pf1, pfm, alg0, algp, alg_out
     y1 = E1 * x1 + q1 * F1
     y3 = E3 * x3 + q3 * F3
     y4 = E4 * x4 + q4 * F4
-    solve_algebraic(c, y1, y3, y4, pf1, alg0[0], PREDICTOR_SWEEPS, algp)
+    _solve_algebraic(c, csm, y1, y3, y4, pf1, alg0[0], PREDICTOR_SWEEPS, algp)
     G1, G3, G4 = forcings(limited_fuel_setting(u1, y4, algp[9], lam_lim, c), pf1, algp, c)
     z1 = y1 + r1 * (G1 - F1)
     z3 = y3 + r3 * (G3 - F3)
     z4 = y4 + r4 * (G4 - F4)
-    solve_algebraic(c, z1, z3, z4, pf1, algp[0], OUTPUT_SWEEPS, alg_out)
+    _solve_algebraic(c, csm, z1, z3, z4, pf1, algp[0], OUTPUT_SWEEPS, alg_out)
     return z1, z3, z4
 
 
-@jit
+@jit_inline
 def _failure_code(c, x1, x3, x4, alg):
     """0 when the engine is within its physical range, else the index in FAILURE_REASONS."""
     total = x1 + x3 + x4 + alg[0] + alg[7] + alg[10]
@@ -134,75 +136,87 @@ def _failure_code(c, x1, x3, x4, alg):
     return 0
 
 
-@jit
-def _engine_step(c, i, h, substeps, X, U0, U1, PF0, PF1, ALG, X_NEW, ALG_NEW, SCR_PF, SCR_ALG, lam_lim, coef,
-                 coef_sub):
-    x1, x3, x4 = X[i, 0], X[i, 1], X[i, 2]
-    target = c.x1_nom_kg * PF1[i, 0] * limited_fuel_setting(U1[i], x4, ALG[i, 9], lam_lim, c)
-    pfm = SCR_PF[i, 0]
-    algp = SCR_ALG[i, 0]
+@jit_inline
+def _pf_row(PF, r, i):
+    """The process-fault vector PF[r, i] (7 values, ``PF_FIELDS``) as a tuple: a value, where a view
+    would cost a reference-count increment and decrement per sample."""
+    return (PF[r, i, 0], PF[r, i, 1], PF[r, i, 2], PF[r, i, 3], PF[r, i, 4], PF[r, i, 5], PF[r, i, 6])
+
+
+@jit_inline
+def _engine_step(c, csm, h, substeps, x1, x3, x4, u0, u1, pf0, pf1, alg, alg_new, algp, pfa, pfb, alg_a, alg_b,
+                 lam_lim, coef, coef_sub):
+    """One sample of one engine from the state (x1, x3, x4) and algebraic state ``alg`` under the commanded
+    fuel settings u0, u1 and the process-fault vectors pf0, pf1 at the start and end: returns the state and
+    the failure code at the end, the algebraic state in ``alg_new`` (algp, pfa, pfb, alg_a, alg_b: the
+    engine's scratch rows).  Inlined into the loop by numba with scalars, tuples and the engine's row views
+    as arguments: every array argument of an out-of-line call, and every view made per sample, costs an
+    atomic reference-count increment and decrement."""
+    target = c.x1_nom_kg * pf1[0] * limited_fuel_setting(u1, x4, alg[9], lam_lim, c)
     if substeps > 1 and abs(x1 - target) > TRANSIENT_TOL * c.x1_nom_kg:
         # fuel pump far from its target: substeps, u and process faults linear within the step
         hs = h / substeps
-        pfa, pfb = SCR_PF[i, 1], SCR_PF[i, 2]
-        alg_a, alg_b = SCR_ALG[i, 1], SCR_ALG[i, 2]
-        alg_a[:] = ALG[i]
+        for m in range(alg_a.shape[0]):
+            alg_a[m] = alg[m]
         for j in range(substeps):
             w0, w1 = j / substeps, (j + 1) / substeps
             for k in range(pfa.shape[0]):
-                pfa[k] = PF0[i, k] + w0 * (PF1[i, k] - PF0[i, k])
-                pfb[k] = PF0[i, k] + w1 * (PF1[i, k] - PF0[i, k])
-            ua = U0[i] + w0 * (U1[i] - U0[i])
-            ub = U0[i] + w1 * (U1[i] - U0[i])
-            x1, x3, x4 = _etd_once(c, hs, coef_sub, x1, x3, x4, ua, ub, pfa, pfb, pfm, alg_a, algp, alg_b, lam_lim)
-            alg_a[:] = alg_b
-        ALG_NEW[i, :] = alg_a
+                pfa[k] = pf0[k] + w0 * (pf1[k] - pf0[k])
+                pfb[k] = pf0[k] + w1 * (pf1[k] - pf0[k])
+            ua = u0 + w0 * (u1 - u0)
+            ub = u0 + w1 * (u1 - u0)
+            x1, x3, x4 = _etd_once(c, csm, hs, coef_sub, x1, x3, x4, ua, ub, pfa, pfb, alg_a, algp, alg_b, lam_lim)
+            for m in range(alg_a.shape[0]):
+                alg_a[m] = alg_b[m]
+        for m in range(alg_a.shape[0]):
+            alg_new[m] = alg_a[m]
     else:
-        x1, x3, x4 = _etd_once(c, h, coef, x1, x3, x4, U0[i], U1[i], PF0[i], PF1[i], pfm, ALG[i], algp, ALG_NEW[i],
-                               lam_lim)
-    X_NEW[i, 0] = x1
-    X_NEW[i, 1] = x3
-    X_NEW[i, 2] = x4
-    code = _failure_code(c, x1, x3, x4, ALG_NEW[i])
-    if code != 0:  # freeze at the last valid state
-        X_NEW[i, :] = X[i]
-        ALG_NEW[i, :] = ALG[i]
-    return code
+        x1, x3, x4 = _etd_once(c, csm, h, coef, x1, x3, x4, u0, u1, pf0, pf1, alg, algp, alg_new, lam_lim)
+    return x1, x3, x4, _failure_code(c, x1, x3, x4, alg_new)
 
 
 @jit
-def _advance_range(c, h, substeps, i0, i1, X, UR, UL, PF, ALG, alive, lam_lim, NOISE, noise_pos, NB, SENSOR_COLS,
+def _advance_range(c, csm, h, substeps, i0, i1, X, UR, UL, PF, ALG, alive, lam_lim, NOISE, noise_pos, NB, SENSOR_COLS,
                    Y, UAPP, STATE, record, CODES, FAIL_K, SCR_PF, SCR_ALG, X_NEW, ALG_NEW):
     """K samples of engines i0..i1-1: step, charge-air limiter, noisy sensor readings (one call)."""
     K = Y.shape[1]
     n_s = SENSOR_COLS.shape[0]
+    n_alg = ALG.shape[1]
     coef = healthy_coefficients(c, h)
     coef_sub = healthy_coefficients(c, h / max(substeps, 1))
     multi_pf = PF.shape[0] > 1
     for i in range(i0, i1):
+        alg, alg_new = ALG[i], ALG_NEW[i]  # the engine's rows, one view each per call (not per sample)
+        algp, alg_a, alg_b = SCR_ALG[i, 0], SCR_ALG[i, 1], SCR_ALG[i, 2]
+        pfa, pfb = SCR_PF[i, 1], SCR_PF[i, 2]
         for k in range(K):
             r0 = k if multi_pf else 0
             r1 = k + 1 if multi_pf else 0
             if alive[i]:
-                code = _engine_step(c, i, h, substeps, X, UR[k], UL[k + 1], PF[r0], PF[r1], ALG, X_NEW, ALG_NEW,
-                                    SCR_PF, SCR_ALG, lam_lim, coef, coef_sub)
-                X[i, :] = X_NEW[i]
-                ALG[i, :] = ALG_NEW[i]
-                if code != 0:
+                x1, x3, x4, code = _engine_step(c, csm, h, substeps, X[i, 0], X[i, 1], X[i, 2], UR[k, i], UL[k + 1, i],
+                                                _pf_row(PF, r0, i), _pf_row(PF, r1, i), alg, alg_new, algp, pfa, pfb,
+                                                alg_a, alg_b, lam_lim, coef, coef_sub)
+                if code == 0:
+                    X[i, 0] = x1
+                    X[i, 1] = x3
+                    X[i, 2] = x4
+                    for j in range(n_alg):
+                        alg[j] = alg_new[j]
+                else:  # freeze at the last valid state
                     alive[i] = False
                     CODES[i] = code
                     FAIL_K[i] = k
-            UAPP[i, k] = limited_fuel_setting(UR[k + 1, i], X[i, 2], ALG[i, 9], lam_lim, c)
+            UAPP[i, k] = limited_fuel_setting(UR[k + 1, i], X[i, 2], alg[9], lam_lim, c)
             base = (noise_pos + k) * n_s
             for s in range(n_s):
                 col = SENSOR_COLS[s]
-                v = X[i, col] if col < 3 else ALG[i, col - 3]
+                v = X[i, col] if col < 3 else alg[col - 3]
                 Y[i, k, s] = v + NOISE[i, base + s] * NB[s]
             if record:
                 for j in range(3):
                     STATE[i, k, j] = X[i, j]
-                for j in range(ALG.shape[1]):
-                    STATE[i, k, 3 + j] = ALG[i, j]
+                for j in range(n_alg):
+                    STATE[i, k, 3 + j] = alg[j]
 
 
 def advance_batch(c, h, substeps, X, UR, UL, PF, ALG, alive, lam_lim, NOISE, noise_pos, NB, SENSOR_COLS,
@@ -222,13 +236,14 @@ def advance_batch(c, h, substeps, X, UR, UL, PF, ALG, alive, lam_lim, NOISE, noi
     removes the Python overhead per sample (70 µs -> 2 µs for one engine).
     """
     n = X.shape[0]
+    kc, csm = kernel_constants(c)  # floats only: no reference counting of the constants per compiled call
     args = (X, UR, UL, PF, ALG, alive, float(lam_lim), NOISE, int(noise_pos), NB, SENSOR_COLS, Y, UAPP, STATE,
             bool(record), CODES, FAIL_K, SCR_PF, SCR_ALG, X_NEW, ALG_NEW)
     if n < THREADED_MIN_ENGINES:
-        _advance_range(c, h, substeps, 0, n, *args)
+        _advance_range(kc, csm, h, substeps, 0, n, *args)
         return
     half = n // 2
-    list(_executor().map(lambda r: _advance_range(c, h, substeps, r[0], r[1], *args), [(0, half), (half, n)]))
+    list(_executor().map(lambda r: _advance_range(kc, csm, h, substeps, r[0], r[1], *args), [(0, half), (half, n)]))
 
 
 THREADED_MIN_ENGINES = 256

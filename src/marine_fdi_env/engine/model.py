@@ -24,10 +24,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from .._jit import jit
-from .constants import ModelConstants, model_constants
+from .constants import ModelConstants, kernel_constants, model_constants
 from .params import EngineParams
 from .subsystems.air_intake import (
     air_excess_ratio,
@@ -40,7 +41,7 @@ from .subsystems.air_intake import (
 from .subsystems.engine_block import engine_block, engine_block_at_speed
 from .subsystems.exhaust_receiver import receiver_and_turbine, slip_ratio
 from .subsystems.fuel_pump import fuel_pump_forcing
-from .subsystems.gas_path import extended_gas_path
+from .subsystems.gas_path import _extended_gas_path
 
 __all__ = ["ProcessFaultValues", "Algebraic", "EngineModel", "solve_algebraic", "algebraic_at_speed", "ALG_FIELDS",
            "PF_FIELDS", "HEALTHY_PF"]
@@ -51,6 +52,12 @@ HEALTHY_PF = np.array([1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
 ALG_FIELDS = ("n", "torque", "p6", "T6", "p_max", "m1", "s_sl", "T_in", "T_out", "T1", "T_co", "lam", "mdot_g",
               "Pi_turbo", "h3", "h4", "T_cyl", "T_t", "T_c", "mdot_bp", "wg_frac", "mdot_c", "T_exh")
 N_ALG = len(ALG_FIELDS)
+
+# ``jit`` inlined into the caller by numba (not only by LLVM): an out-of-line call with array arguments costs
+# their reference counting at entry and at every exit (an atomic increment and decrement per array, which the
+# compiler cannot remove; with the constants' arrays that was most of the simulator's time, see
+# ``benchmarks/simulator_cpu.py``)
+jit_inline = numba.njit(cache=True, error_model="numpy", nogil=True, inline="always")
 
 
 @dataclass
@@ -122,9 +129,10 @@ class Algebraic:
         return 2.0 * np.pi * self.n * self.torque
 
 
-@jit
-def _gas_exchange(c, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, out, ov_wg, ov_bp):
-    """Σ3 and Σ4 after Σ2 (base functions, or the extended gas path when a submodel is on); fills ``out``."""
+@jit_inline
+def _gas_exchange(c, csm, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, out, ov_wg, ov_bp):
+    """Σ3 and Σ4 after Σ2 (base functions, or the extended gas path when a submodel is on); fills ``out``.
+    csm: the full constants for the gas-path submodels, or None (see :func:`kernel_constants`)."""
     # Gas exchange (Σ3, Σ4) uses the nominal V1 as in eq. 3.17-3.22 and 3.32: bore damage acts on
     # the cylinder process (Σ2) only, the variables of table 3.1.
     m1 = x4 * c.V1_m3 / (c.R_a_J_per_kgK * T1)
@@ -138,40 +146,51 @@ def _gas_exchange(c, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, out, 
     out[6] = s_sl
     out[9] = T1
     out[11] = air_excess_ratio(m1_cyl, x1, c)
-    if c.sm_on == 0.0:
-        h3, T_in, T_out, Pi, mdot = receiver_and_turbine(x1, x3, x4, m1, s_sl, n, T6, p6, c.T_sl_K + pf[3], c)
-        d_f = delta_f(x1, m1, s_sl)
-        out[7] = T_in
-        out[8] = T_out
-        out[10] = compressor_outlet_temperature(d_f, T_in, T_out, pf[6], c)
-        out[12] = mdot
-        out[13] = Pi
-        out[14] = h3
-        out[15] = compressor_forcing(x4, d_f, T_in, Pi, c)
-        out[16] = T_in
-        out[17] = T_in
-        out[18] = cooler_outlet_temperature(x4, c)
-        out[19] = 0.0
-        out[20] = 0.0
-        out[21] = (1.0 + s_sl) * m1 * n * c.cycles_per_rev
-        out[22] = T_out
-        return
-    T_c = cooler_outlet_temperature(x4, c)
-    g = extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, c.T_sl_K + pf[3], T_c, pf[6], c, ov_wg, ov_bp)
-    out[14] = g[0]
-    out[7] = g[1]
-    out[8] = g[2]
-    out[13] = g[3]
-    out[12] = g[4]
-    out[15] = g[5]
-    out[10] = g[6]
-    out[16] = g[7]
-    out[17] = g[8]
-    out[18] = T_c
-    out[19] = g[9]
-    out[20] = g[10]
-    out[21] = g[11]
-    out[22] = g[12]
+    if csm is not None:  # compiled only where a gas-path submodel may be on
+        if c.sm_on != 0.0:
+            T_c = cooler_outlet_temperature(x4, c)
+            g = _extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, c.T_sl_K + pf[3], T_c, pf[6], c, csm, ov_wg,
+                                   ov_bp)
+            out[14] = g[0]
+            out[7] = g[1]
+            out[8] = g[2]
+            out[13] = g[3]
+            out[12] = g[4]
+            out[15] = g[5]
+            out[10] = g[6]
+            out[16] = g[7]
+            out[17] = g[8]
+            out[18] = T_c
+            out[19] = g[9]
+            out[20] = g[10]
+            out[21] = g[11]
+            out[22] = g[12]
+            return
+    h3, T_in, T_out, Pi, mdot = receiver_and_turbine(x1, x3, x4, m1, s_sl, n, T6, p6, c.T_sl_K + pf[3], c)
+    d_f = delta_f(x1, m1, s_sl)
+    out[7] = T_in
+    out[8] = T_out
+    out[10] = compressor_outlet_temperature(d_f, T_in, T_out, pf[6], c)
+    out[12] = mdot
+    out[13] = Pi
+    out[14] = h3
+    out[15] = compressor_forcing(x4, d_f, T_in, Pi, c)
+    out[16] = T_in
+    out[17] = T_in
+    out[18] = cooler_outlet_temperature(x4, c)
+    out[19] = 0.0
+    out[20] = 0.0
+    out[21] = (1.0 + s_sl) * m1 * n * c.cycles_per_rev
+    out[22] = T_out
+
+
+@jit_inline
+def _solve_algebraic(c, csm, x1, x3, x4, pf, n_guess, sweeps, out):
+    """:func:`solve_algebraic` with the constants of :func:`kernel_constants` (``c`` floats only,
+    ``csm`` the full constants or None): the compiled kernels' form, the same numbers."""
+    T1 = inlet_air_temperature_at(pf[5], x4, c)
+    n, torque, p6, T6, p_max, m1_cyl = engine_block(x1, x4, T1, c.V1_m3 + pf[1], n_guess, c, sweeps)
+    _gas_exchange(c, csm, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, out, math.nan, math.nan)
 
 
 @jit
@@ -181,9 +200,7 @@ def solve_algebraic(c, x1, x3, x4, pf, n_guess, sweeps, out):
     ``pf`` is the process-fault vector (order ``PF_FIELDS``); the results are written to ``out``
     in the order of ``ALG_FIELDS``.
     """
-    T1 = inlet_air_temperature_at(pf[5], x4, c)
-    n, torque, p6, T6, p_max, m1_cyl = engine_block(x1, x4, T1, c.V1_m3 + pf[1], n_guess, c, sweeps)
-    _gas_exchange(c, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, out, math.nan, math.nan)
+    _solve_algebraic(c, c, x1, x3, x4, pf, n_guess, sweeps, out)
 
 
 @jit
@@ -193,7 +210,7 @@ def algebraic_at_speed(c, x1, x3, x4, n, pf, out, ov_wg=math.nan, ov_bp=math.nan
     ov_wg, ov_bp : valve openings overriding the schedules (NaN: the schedules)."""
     T1 = inlet_air_temperature_at(pf[5], x4, c)
     torque, p6, T6, p_max, m1_cyl = engine_block_at_speed(x1, x4, T1, c.V1_m3 + pf[1], n, c)
-    _gas_exchange(c, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, out, ov_wg, ov_bp)
+    _gas_exchange(c, c, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, out, ov_wg, ov_bp)
 
 
 @jit
@@ -202,16 +219,16 @@ def linear_rates(pf, c):
     return -1.0 / c.tau_X_s, -(1.0 + pf[2]) / c.tau_pd_s, -(1.0 + pf[4]) / c.tau_TC_s
 
 
-@jit
+@jit_inline
 def forcings(u, pf, alg, c):
     """Forcings F1 [kg/s] (eq. 3.4), F3 = h3, F4 = h4 [Pa/s] of one engine."""
     return fuel_pump_forcing(u, pf[0], c), alg[14], alg[15]
 
 
 @jit
-def algebraic_batch(c, x1, x3, x4, pf, n_guess, sweeps, out):
+def algebraic_batch(c, csm, x1, x3, x4, pf, n_guess, sweeps, out):
     for i in range(x1.shape[0]):
-        solve_algebraic(c, x1[i], x3[i], x4[i], pf[i], n_guess[i], sweeps, out[i])
+        _solve_algebraic(c, csm, x1[i], x3[i], x4[i], pf[i], n_guess[i], sweeps, out[i])
 
 
 def _vec(v, n: int) -> np.ndarray:
@@ -240,7 +257,8 @@ class EngineModel:
         if n_guess is None:
             n_guess = self.params.n_nom_rev_s
         out = np.empty((n, N_ALG))
-        algebraic_batch(self.constants, _vec(x1, n), _vec(x3, n), _vec(x4, n), pf.as_array(n), _vec(n_guess, n),
+        kc, csm = kernel_constants(self.constants)
+        algebraic_batch(kc, csm, _vec(x1, n), _vec(x3, n), _vec(x4, n), pf.as_array(n), _vec(n_guess, n),
                         self.speed_sweeps if sweeps is None else int(sweeps), out)
         return Algebraic.from_array(out)
 

@@ -84,15 +84,23 @@ def valve_flows(x1, x3, x4, m1, s_sl, n, T_c, c, ov_wg, ov_bp) -> tuple:
     """(ṁ_g [kg/s], ṁ_bp [kg/s], waste-gate opening a [-], cylinder air ṁ_air [kg/s]): the cylinders'
     discharge, the bypass air and the waste-gate opening at the measured fuel setting u = x1/x1_nom
     (ov_wg, ov_bp: openings overriding the schedules, NaN: the schedules)."""
+    return _valve_flows(x1, x3, x4, m1, s_sl, n, T_c, c, c, ov_wg, ov_bp)
+
+
+@jit
+def _valve_flows(x1, x3, x4, m1, s_sl, n, T_c, c, csm, ov_wg, ov_bp) -> tuple:
+    """:func:`valve_flows` with the constants split as the compiled kernels take them (``c`` floats
+    only, ``csm`` the full constants with the valve schedules; see
+    :func:`~marine_fdi_env.engine.constants.kernel_constants`)."""
     u = x1 / c.x1_nom_kg
     mdot_g = turbine_mass_flow(x1, m1, s_sl, n, c)
     m_air = (1.0 + s_sl) * m1 * (n * c.cycles_per_rev)
     a_wg = 0.0
     if c.wg_on != 0.0:
-        a_wg = valve_opening(u, c.wg_u, c.wg_a) if math.isnan(ov_wg) else ov_wg
+        a_wg = valve_opening(u, csm.wg_u, csm.wg_a) if math.isnan(ov_wg) else ov_wg
     mdot_bp = 0.0
     if c.bp_on != 0.0 and x4 > x3:
-        b = valve_opening(u, c.bp_u, c.bp_b) if math.isnan(ov_bp) else ov_bp
+        b = valve_opening(u, csm.bp_u, csm.bp_b) if math.isnan(ov_bp) else ov_bp
         rho = x4 / (c.R_a_J_per_kgK * T_c)
         mdot_bp = c.alpha_z * c.A_eff_m2 * b * math.sqrt(2.0 * rho * (x4 - x3))
     return mdot_g, mdot_bp, a_wg, m_air
@@ -113,7 +121,15 @@ def extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, T_c, dT_c, c, ov_wg
     [kg/s], h4 [Pa/s], T_co [K], T_cyl [K], T_t (turbine gas inlet) [K], ṁ_bp [kg/s], waste-gate flow
     fraction [-], ṁ_c (compressor air) [kg/s], T_exh (after the waste-gate junction) [K])
     """
-    mdot_g, mdot_bp, a_wg, m_air = valve_flows(x1, x3, x4, m1, s_sl, n, T_c, c, ov_wg, ov_bp)
+    return _extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, T_c, dT_c, c, c, ov_wg, ov_bp)
+
+
+@jit
+def _extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, T_c, dT_c, c, csm, ov_wg, ov_bp) -> tuple:
+    """:func:`extended_gas_path` with the constants split as the compiled kernels take them (``c``
+    floats only, ``csm`` the full constants with the valve schedules; see
+    :func:`~marine_fdi_env.engine.constants.kernel_constants`): the same numbers."""
+    mdot_g, mdot_bp, a_wg, m_air = _valve_flows(x1, x3, x4, m1, s_sl, n, T_c, c, csm, ov_wg, ov_bp)
     # receiver mixing of exhaust and slip air: T_cyl = alpha + beta P (blowdown term, eq. 3.20-3.23)
     psi2 = c.c_p_a_J_per_kgK * s_sl * m1
     psi3 = c.c_p_g_J_per_kgK * (x1 + m1)

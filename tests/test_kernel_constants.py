@@ -1,0 +1,54 @@
+"""The floats-only model constants of the compiled kernels (``engine.constants.kernel_constants``)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from marine_fdi_env.engine.constants import KernelConstants, ModelConstants, kernel_constants, model_constants
+from marine_fdi_env.engine.model import HEALTHY_PF, N_ALG, _solve_algebraic, solve_algebraic
+from marine_fdi_env.engine.params import load_params
+from test_submodels import ALL_ON
+
+
+def _constants(sub):
+    p = load_params("thesis-12v28")
+    return model_constants(p if sub is None else p.replace(submodels=sub))
+
+
+@pytest.mark.parametrize("sub", [None, ALL_ON], ids=["base", "all-submodels"])
+def test_kernel_constants_are_the_floats_of_the_model_constants(sub):
+    c = _constants(sub)
+    kc, csm = kernel_constants(c)
+    assert type(kc) is KernelConstants
+    assert all(type(v) is float for v in kc)
+    assert set(ModelConstants._fields) - set(KernelConstants._fields) == {"wg_u", "wg_a", "bp_u", "bp_b"}
+    for f in KernelConstants._fields:
+        assert getattr(kc, f) == getattr(c, f), f
+    assert csm is (None if sub is None else c)  # the full constants only where a gas-path submodel is on
+    again = kernel_constants(c)
+    assert again[0] is kc and again[1] is csm  # kept per object
+    other = object()
+    assert kernel_constants(other) == (other, other)
+
+
+def test_kernel_constants_are_reexported_by_the_diagnosis():
+    from marine_fdi_env.diagnosis import residuals, sigma2
+
+    assert sigma2.kernel_constants is kernel_constants and sigma2.KernelConstants is KernelConstants
+    assert residuals.kernel_constants is kernel_constants
+
+
+@pytest.mark.parametrize("sub", [None, ALL_ON], ids=["base", "all-submodels"])
+def test_kernel_form_of_the_algebraic_solve_gives_the_same_numbers(sub):
+    c = _constants(sub)
+    kc, csm = kernel_constants(c)
+    pf = HEALTHY_PF.copy()
+    pf[3], pf[6] = 5.0, 2.0
+    for u in (0.3, 0.7, 1.0):
+        x1, x3, x4 = u * c.x1_nom_kg, 1.0e5 + u * 2.5e5, 1.0e5 + u * 3.0e5
+        a, b = np.empty(N_ALG), np.empty(N_ALG)
+        for sweeps in (1, 2, 3):
+            solve_algebraic(c, x1, x3, x4, pf, c.n_nom_rev_s, sweeps, a)
+            _solve_algebraic(kc, csm, x1, x3, x4, pf, c.n_nom_rev_s, sweeps, b)
+            assert np.array_equal(a, b, equal_nan=True), (u, sweeps)
