@@ -53,7 +53,7 @@ import math
 
 import numpy as np
 
-from .._jit import jit
+from .._jit import jit, jit_inline
 from ..engine.constants import KernelConstants, kernel_constants
 from ..engine.integrators import THREADED_MIN_ENGINES, _etd_scalar, _executor
 from ..engine.sensors import NOISE_BOUNDS, SENSOR_IDS
@@ -78,7 +78,7 @@ from ..engine.subsystems.exhaust_receiver import (
 )
 from ..engine.subsystems.gas_path import extended_gas_path, flow_law_pressure, valve_flows
 from .modules import MODULE_IDS
-from .inclusion_table import interpolate_rows, jit_inline, sigma2_table
+from .inclusion_table import interpolate_rows, sigma2_table
 from .sigma2 import ONE_SIDED, SLOPE_STEP, _centre_speed, _centre_speed2, _perturbed_rows, _perturbed_rows2
 
 __all__ = ["OBSERVER_GAINS", "compute_residuals", "compute_residuals_batch", "ResidualTrace", "SAFETY",

@@ -28,9 +28,9 @@ import math
 
 import numpy as np
 
-from .._jit import jit
+from .._jit import jit, jit_inline
 from .constants import kernel_constants
-from .model import _solve_algebraic, forcings, jit_inline
+from .model import _solve_algebraic, forcings
 
 __all__ = ["advance_batch", "reference_solve", "FAILURE_REASONS",
            "PREDICTOR_SWEEPS", "OUTPUT_SWEEPS", "TRANSIENT_TOL"]

@@ -24,10 +24,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-import numba
 import numpy as np
 
-from .._jit import jit
+from .._jit import jit, jit_inline
 from .constants import ModelConstants, kernel_constants, model_constants
 from .params import EngineParams
 from .subsystems.air_intake import (
@@ -52,12 +51,6 @@ HEALTHY_PF = np.array([1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
 ALG_FIELDS = ("n", "torque", "p6", "T6", "p_max", "m1", "s_sl", "T_in", "T_out", "T1", "T_co", "lam", "mdot_g",
               "Pi_turbo", "h3", "h4", "T_cyl", "T_t", "T_c", "mdot_bp", "wg_frac", "mdot_c", "T_exh")
 N_ALG = len(ALG_FIELDS)
-
-# ``jit`` inlined into the caller by numba (not only by LLVM): an out-of-line call with array arguments costs
-# their reference counting at entry and at every exit (an atomic increment and decrement per array, which the
-# compiler cannot remove; with the constants' arrays that was most of the simulator's time, see
-# ``benchmarks/simulator_cpu.py``)
-jit_inline = numba.njit(cache=True, error_model="numpy", nogil=True, inline="always")
 
 
 @dataclass
