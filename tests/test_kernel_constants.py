@@ -32,13 +32,6 @@ def test_kernel_constants_are_the_floats_of_the_model_constants(sub):
     assert kernel_constants(other) == (other, other)
 
 
-def test_kernel_constants_are_reexported_by_the_diagnosis():
-    from marine_fdi_env.diagnosis import residuals, sigma2
-
-    assert sigma2.kernel_constants is kernel_constants and sigma2.KernelConstants is KernelConstants
-    assert residuals.kernel_constants is kernel_constants
-
-
 @pytest.mark.parametrize("sub", [None, ALL_ON], ids=["base", "all-submodels"])
 def test_kernel_form_of_the_algebraic_solve_gives_the_same_numbers(sub):
     c = _constants(sub)

@@ -32,8 +32,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._jit import jit, jit_inline
+from ..engine.constants import kernel_constants
 from ..engine.subsystems.engine_block import engine_block
-from .sigma2 import SLOPE_LIMIT, SLOPE_STEP, _cycle_table, kernel_constants
+from .sigma2 import SLOPE_LIMIT, SLOPE_STEP, _cycle_table
 
 __all__ = ["Sigma2Table", "sigma2_table", "TABLE_STEPS", "N_ROWS", "interpolate_rows"]
 

@@ -54,7 +54,7 @@ import math
 import numpy as np
 
 from .._jit import jit, jit_inline
-from ..engine.constants import KernelConstants, kernel_constants
+from ..engine.constants import kernel_constants
 from ..engine.integrators import THREADED_MIN_ENGINES, _etd_scalar, _executor
 from ..engine.sensors import NOISE_BOUNDS, SENSOR_IDS
 from ..engine.subsystems.air_intake import (
@@ -82,8 +82,7 @@ from .inclusion_table import interpolate_rows, sigma2_table
 from .sigma2 import ONE_SIDED, SLOPE_STEP, _centre_speed, _centre_speed2, _perturbed_rows, _perturbed_rows2
 
 __all__ = ["OBSERVER_GAINS", "compute_residuals", "compute_residuals_batch", "ResidualTrace", "SAFETY",
-           "MODEL_MARGIN", "new_state", "N_STATE", "residuals_for_run", "INCLUSIONS", "inclusion_arrays", "table_arrays",
-           "KernelConstants", "kernel_constants"]
+           "MODEL_MARGIN", "new_state", "N_STATE", "residuals_for_run", "INCLUSIONS", "inclusion_arrays", "table_arrays"]
 
 # Observer gains L [1/s] of table 6.1 for M(1,q), M(3,q), M(4,q).
 OBSERVER_GAINS = (33.3833, 1.25, 0.3764)

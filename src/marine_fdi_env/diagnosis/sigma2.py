@@ -14,11 +14,9 @@ from __future__ import annotations
 import math
 
 from .._jit import jit
-from ..engine.constants import KernelConstants, kernel_constants  # re-exported (defined in the engine layer)
 from ..engine.subsystems.engine_block import _sweep, engine_block
 
-__all__ = ["SPEED_SWEEPS", "ONE_SIDED", "LINEAR_SPEED", "SLOPE_STEP", "SLOPE_LIMIT", "KernelConstants",
-           "kernel_constants"]
+__all__ = ["SPEED_SWEEPS", "ONE_SIDED", "LINEAR_SPEED", "SLOPE_STEP", "SLOPE_LIMIT"]
 
 SPEED_SWEEPS = 4
 ONE_SIDED = False  # measured and rejected (see residuals' module docstring)
