@@ -45,7 +45,7 @@ from scipy.stats import norm
 from ..engine.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, FaultSpec
 from .modules import MODULE_IDS
 from .sequential import load_calibration
-from .sequential_calibration import DURATION_S, cusum_offline, normalise_blocks, record, tail_threshold
+from .sequential_calibration import DURATION_S, cusum_offline, normalise_blocks, record, tail_threshold, warm_blocks
 
 __all__ = ["glr_polynomial", "matched_filter", "white_noise_threshold", "pooled_blocks", "seal_leak_bound",
            "P_TEST", "FIRST_SEED"]
@@ -109,17 +109,17 @@ def white_noise_threshold(order: int, window: int, n_blocks: int, p_test: float,
     return {"h": math.sqrt(2.0 * h2), "max_peak": float(pk.max()), "runs": int(n_runs), "tail_theta": theta}
 
 
-def pooled_blocks(rec: dict, cal=None) -> tuple[np.ndarray, np.ndarray]:
+def pooled_blocks(rec: dict, cal=None, z: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(p, paused) of a :func:`~marine_fdi_env.diagnosis.sequential_calibration.record`: the
-    normalised sum of the M3.1 and M3.2 block z (the sequential calibration's normalisation), and
-    the blocks where their tests pause (warm-up, pressure ratio above r_max)."""
+    normalised sum of the M3.1 and M3.2 block z (the sequential calibration's normalisation; ``z``
+    if already computed), and the blocks where their tests pause (warm-up, pressure ratio above r_max)."""
     cal = cal or load_calibration()
-    z = normalise_blocks(rec["block_means"].astype(np.float64), rec["u"].astype(np.float64), cal.u_nodes,
-                         cal.mean, cal.scale)
+    if z is None:
+        z = normalise_blocks(rec["block_means"].astype(np.float64), rec["u"].astype(np.float64), cal.u_nodes,
+                             cal.mean, cal.scale)
     a, b = (MODULE_IDS.index(m) for m in PAIR)
     paused = np.asarray(rec["ratio"], dtype=np.float64) > max(cal.r_max[a], cal.r_max[b])
-    warm = int(math.ceil(max(cal.warmup_s[a], cal.warmup_s[b]) / cal.block_s - 1e-9))
-    paused[:, :warm] = True
+    paused[:, :warm_blocks(cal.warmup_s)[[a, b]].max()] = True
     p = np.where(paused, 0.0, (z[:, :, a] + z[:, :, b]) / math.sqrt(2.0))
     return p, paused
 
@@ -131,10 +131,9 @@ def _delays(stat: np.ndarray, h: float, onset_s: float, block_s: float) -> np.nd
 
 
 def _summary(d: np.ndarray, run_s: float, onset_s: float) -> dict:
-    fin = d[np.isfinite(d)]
-    return {"median_delay_s": float(np.median(d)) if np.isfinite(np.median(d)) else None,
-            "p10_delay_s": float(np.percentile(d, 10)) if len(fin) else None,
-            "p90_delay_s": float(np.percentile(d, 90)) if np.isfinite(np.percentile(d, 90)) else None,
+    """Median and 10/90 % delays (None where not detected by then) and the detected fractions."""
+    q = {k: float(np.percentile(d, p)) for k, p in (("median_delay_s", 50), ("p10_delay_s", 10), ("p90_delay_s", 90))}
+    return {**{k: (v if math.isfinite(v) else None) for k, v in q.items()},
             "within_run": float(np.mean(d <= run_s - onset_s)), "within_300_s_of_onset": float(np.mean(d <= 300.0))}
 
 
@@ -148,7 +147,9 @@ def seal_leak_bound(n_seeds: int, first_seed: int = FIRST_SEED, calibration_reco
     faulty = record(n_seeds, 0, duration_s=RUN_S, faults=[[FaultSpec(FAULT, onset)] for _ in seeds],
                     profiles=["constant"] * n_seeds, seeds=seeds, progress=progress)
     healthy = record(n_seeds, 0, duration_s=RUN_S, profiles=["constant"] * n_seeds, seeds=seeds, progress=progress)
-    p_f, paused_f = pooled_blocks(faulty, cal)
+    z = normalise_blocks(faulty["block_means"].astype(np.float64), faulty["u"].astype(np.float64), cal.u_nodes,
+                         cal.mean, cal.scale)
+    p_f, paused_f = pooled_blocks(faulty, cal, z)
     p_h, _ = pooled_blocks(healthy, cal)
     bs = cal.block_s
     on_b = onset / bs
@@ -161,10 +162,8 @@ def seal_leak_bound(n_seeds: int, first_seed: int = FIRST_SEED, calibration_reco
     c_pooled = float((shift * g).sum() / (g ** 2).sum())
     rows = []
     # shipped sequential CUSUM on the same blocks (M3.1 and M3.2 tests)
-    z = normalise_blocks(faulty["block_means"].astype(np.float64), faulty["u"].astype(np.float64), cal.u_nodes,
-                         cal.mean, cal.scale)
-    warm = np.array([int(math.ceil(w / bs - 1e-9)) for w in cal.warmup_s])
-    first, _ = cusum_offline(z, cal.k, cal.h, warm, faulty["ratio"].astype(np.float64), cal.r_max)
+    first, _ = cusum_offline(z, cal.k, cal.h, warm_blocks(cal.warmup_s), faulty["ratio"].astype(np.float64),
+                             cal.r_max)
     fb = first[:, [a, b]].astype(np.float64)
     fb[fb < 0] = np.inf
     d_seq = (fb.min(axis=1) + 1) * bs - onset

@@ -42,7 +42,7 @@ from .agent import ReferenceDiagnoser
 from .modules import MODULE_IDS
 from .sequential import CALIBRATION_FILE, Z_CAP, pressure_ratio
 
-__all__ = ["profile_for", "record", "fit", "cusum_offline", "check", "normalise_blocks", "tail_threshold", "SETS"]
+__all__ = ["profile_for", "record", "fit", "cusum_offline", "check", "normalise_blocks", "tail_threshold", "warm_blocks", "SETS"]
 
 N_MODULES = len(MODULE_IDS)
 PARAMS = "thesis-12v28"
@@ -131,7 +131,7 @@ def record(n_runs: int, entropy0: int, duration_s: float = DURATION_S, faults=No
             "seeds": np.array(seeds, dtype=np.int64), "entropy0": entropy0, "duration_s": duration_s}
 
 
-def _warm_blocks(warmup_s) -> np.ndarray:
+def warm_blocks(warmup_s) -> np.ndarray:
     return np.array([int(math.ceil(w / BLOCK_S - 1e-9)) for w in warmup_s])
 
 
@@ -184,7 +184,7 @@ def fit(cal: dict, k: float = K_DEFAULT, r_max: float = R_MAX_DEFAULT) -> dict:
     BM = cal["block_means"].astype(np.float64)
     UB = cal["u"].astype(np.float64)
     n_runs, nb, _ = BM.shape
-    warm = _warm_blocks([WARMUP_S[m] for m in MODULE_IDS])
+    warm = warm_blocks([WARMUP_S[m] for m in MODULE_IDS])
     nodes = np.array(U_NODES)
     mean = np.zeros((N_MODULES, len(nodes)))
     scale = np.zeros((N_MODULES, len(nodes)))
@@ -230,7 +230,7 @@ def check(val: dict, calibration: dict) -> dict:
     n_runs, nb, _ = BM.shape
     nodes = np.asarray(calibration["u_nodes"])
     z = normalise_blocks(BM, UB, nodes, np.asarray(calibration["mean"]), np.asarray(calibration["scale"]))
-    warm = _warm_blocks(calibration["warmup_s"])
+    warm = warm_blocks(calibration["warmup_s"])
     first, peaks = cusum_offline(z, np.asarray(calibration["k"]), np.asarray(calibration["h"]), warm,
                                  val["ratio"].astype(np.float64), np.asarray(calibration["r_max"]))
     cus = first >= 0

@@ -30,7 +30,7 @@ import numpy as np
 
 from .._jit import jit, jit_inline
 from .constants import kernel_constants
-from .model import _solve_algebraic, forcings
+from .model import PF_FIELDS, _solve_algebraic, forcings
 
 __all__ = ["advance_batch", "reference_solve", "FAILURE_REASONS",
            "PREDICTOR_SWEEPS", "OUTPUT_SWEEPS", "TRANSIENT_TOL"]
@@ -134,6 +134,10 @@ def _failure_code(c, x1, x3, x4, alg):
     if not x4 > 0.0:
         return 6
     return 0
+
+
+if len(PF_FIELDS) != 7:  # _pf_row unpacks them one by one
+    raise ImportError("_pf_row unpacks 7 process-fault values; PF_FIELDS has " + str(len(PF_FIELDS)))
 
 
 @jit_inline
