@@ -49,7 +49,7 @@ from .problem import BASE_SETTING, Setting, _quantity
 from .columns import ModelContext
 
 __all__ = ["DEFAULT_COLUMNS", "SET_POINT_COLUMNS", "EFFECT_KINDS", "PERTURBED_FIELDS", "Synthesis", "synthesize",
-           "write_synthesis", "synthesize_main", "trial", "study", "study_main", "CONDITIONS", "effect_region"]
+           "write_synthesis", "synthesize_main", "trial", "trial_draw", "trial_data", "study", "study_main", "CONDITIONS", "effect_region"]
 
 DEFAULT_COLUMNS = (
     "load_fraction", "power_kW", "speed_rpm", "fuel_flow_kg_per_h", "turbocharger_speed_rpm",
@@ -89,6 +89,17 @@ class Synthesis:
 
     def write(self, path: str | Path, truth_path: str | Path | None = None) -> Path:
         return write_synthesis(self, path, truth_path)
+
+    def noise_sd(self, column: str) -> np.ndarray:
+        """Standard deviation of the noise drawn on each reading of ``column`` (column units; zero on set points),
+        as :func:`synthesize` drew it."""
+        clean = np.asarray(self.clean[column], dtype=float)
+        if column in SET_POINT_COLUMNS:
+            return np.zeros_like(clean)
+        noise = float(self.settings.get("noise", 0.0))
+        if self.settings.get("noise_model", "typical") == "typical":
+            return np.full_like(clean, noise * float(np.mean(np.abs(clean))))
+        return noise * np.abs(clean)
 
 
 def _check_columns(columns: Sequence[str]) -> None:
@@ -499,6 +510,33 @@ def _trial_settings(params: str = "wartsila-6l46", points: int = 8, max_folds: i
     return {"params": str(params), "points": int(points), "max_folds": max_folds, "prune": bool(prune)}
 
 
+def trial_draw(condition: str, seed: int, *, control: bool = False
+               ) -> tuple[list[str], list[dict[str, Any]], str | None]:
+    """What a trial of the study hides: (mechanism ids, out-of-library effects, the control's shadow channel).
+
+    A control drops the draw; in (e) it keeps the channel the paired trial's effect is on (the shadow channel): a
+    finding there is the control's false hit."""
+    cond = CONDITIONS[condition]
+    rng = np.random.default_rng([int(seed), ord(condition), 7919])
+    mechs = _draw_mechanisms(rng, cond["n_mech"])
+    effects = ([draw_effect(rng, DEFAULT_COLUMNS, family=list(FAMILIES)[int(seed) % len(FAMILIES)])]
+               if condition == "e" else [])
+    shadow = effects[0]["channel"] if control and effects else None
+    if control:
+        mechs, effects = [], []
+    return mechs, effects, shadow
+
+
+def trial_data(condition: str, seed: int, *, control: bool = False, params: str = "wartsila-6l46",
+               points: int = 8) -> Synthesis:
+    """The data of one trial of the study (:func:`trial` runs the pipeline on them); raises ValueError when the
+    hidden engine cannot run at the drawn points (the trial is then skipped)."""
+    cond = CONDITIONS[condition]
+    mechs, effects, _ = trial_draw(condition, seed, control=control)
+    return synthesize(params, mechs or ["none"], points=points, noise=cond["noise"], seed=int(seed) * 31 + 7,
+                      noise_model=cond["noise_model"], perturb=cond["perturb"], effects=effects)
+
+
 def trial(condition: str, seed: int, *, control: bool = False, params: str = "wartsila-6l46", points: int = 8,
           max_folds: int | None = None, prune: bool = True, workdir: str | Path | None = None) -> dict[str, Any]:
     """One trial of the study: synthesise with the condition's hidden effects (none when ``control``), write and
@@ -512,22 +550,12 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
     from .selection import select_causes
 
     t0 = time.perf_counter()
-    cond = CONDITIONS[condition]
-    rng = np.random.default_rng([int(seed), ord(condition), 7919])
-    mechs = _draw_mechanisms(rng, cond["n_mech"])
-    effects = ([draw_effect(rng, DEFAULT_COLUMNS, family=list(FAMILIES)[int(seed) % len(FAMILIES)])]
-               if condition == "e" else [])
-    # a control drops the draw; in (e) it keeps the channel the paired trial's effect is on: a finding there is the
-    # control's false hit
-    shadow = effects[0]["channel"] if control and effects else None
-    if control:
-        mechs, effects = [], []
+    mechs, effects, shadow = trial_draw(condition, seed, control=control)
     base = {"condition": condition, "control": bool(control), "seed": int(seed), "mechanisms": mechs,
             "effects": effects, "trial_settings": _trial_settings(params=params, points=points, max_folds=max_folds,
                                                                   prune=prune)}
     try:
-        syn = synthesize(params, mechs or ["none"], points=points, noise=cond["noise"], seed=int(seed) * 31 + 7,
-                         noise_model=cond["noise_model"], perturb=cond["perturb"], effects=effects)
+        syn = trial_data(condition, seed, control=control, params=params, points=points)
     except ValueError as e:
         return {**base, "outcome": "skipped", "why": str(e)[:300], "seconds": time.perf_counter() - t0}
     with tempfile.TemporaryDirectory(dir=workdir) as d:

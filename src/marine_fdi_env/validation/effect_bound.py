@@ -1,0 +1,295 @@
+"""How often could *any* test tell the open-world study's out-of-library effects from a sensor calibration?
+
+Condition (e) of the study (:mod:`.synthesize`) adds a bump, a step or a bend to one channel, and the pipeline
+should report it as unexplained on that channel.  A gain and an offset of that channel's reading (a sensor
+calibration: in the library, and conditions (a)-(d) ask the pipeline to name it when it is the truth) reproduce
+part of every such effect.  Only the part they cannot reproduce tells the effect from a miscalibrated sensor.
+
+**The bound.**  An oracle knows the channel, the effect's exact shape, the true readings and the noise's standard
+deviation σ_i at each point, and sees no model error.  It tests "gain and offset" (H0, a miscalibrated sensor)
+against "gain and offset plus θ times the shape" (H1).  Whitened by the noise, the generalised likelihood-ratio
+statistic is normal with unit variance and mean
+
+    z = || P⊥ (e / σ) ||,    P⊥: the projection orthogonal to the whitened columns [1, reading],
+
+(e: the effect added at the measured points): the gain and the offset are projected out exactly, and for a known
+shape no test of the same level is more powerful (Neyman-Pearson).  At level α it reports the effect with
+probability Φ(z - z_(1-α)).  α is the rate at which the same test would call a truly miscalibrated sensor
+unexplained; two levels are reported:
+
+* **5 % on the one channel**: the calibration being judged names its channel, and a 95 % identification target
+  for true calibrations leaves 5 % to lose;
+* **5 % family-wise over the compared channels** (Bonferroni), the level at which the pipeline reports
+  unexplained findings (:data:`~.selection.ALPHA_UNEXPLAINED`).
+
+Everything favours the oracle (the shape, the channel, the noise, no model error: the study's (e) engine is 1 % off),
+so its mean rate over the trials bounds what any pipeline can reach on them while naming true calibrations at the
+stated rate.  The pipeline need not respect that rate for this one decision, so its own hit rate is compared, not
+ordered.  :func:`scale_for` gives the factor on the effects' amplitudes at which the oracle would reach a target.
+
+**A scan that knows the family, not the effect** (:func:`family_scan_rate`).  The oracle knows the one shape;
+a test in practice does not.  The generalised likelihood-ratio scan over the study's own family of shapes (bumps,
+steps and bends on a grid of centres and widths covering the generator's ranges, each made orthogonal to the
+whitened [1, reading]) takes the largest normalised projection; its threshold is simulated under H0 at the
+trial's points and noise.  It still knows more than any pipeline (the family the effects are drawn from, the
+channel, the noise, no model error), so it is a second, tighter reference, not a bound in the strict sense.
+It is also run with the noise floored at the pipeline's tolerance (σ_i = max(noise, tolerance), ``at the
+tolerance``): the pipeline takes a channel's noise to be at least its tolerance (1 %, 5 K), and where the study's
+noise is smaller (a 45 °C reading: 0.45 K) the first two references exploit what the pipeline by design does not.
+
+``python -m marine_fdi_env.validation.effect_bound --study FILE.json [FILE.json ...] [--out OUT.json]`` re-draws
+each (e) trial's data from its seed (no pipeline run; seconds) and prints the table of docs/validation.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+from scipy import optimize, stats
+
+__all__ = ["separation", "oracle_rate", "family_scan_rate", "shape_family", "trial_bound", "bound", "summarise",
+           "scale_for", "LEVELS", "main"]
+
+#: (name, family-wise level, spread over the compared channels?)
+LEVELS = (("one channel, 5 %", 0.05, False), ("family-wise 5 % over the channels", 0.05, True))
+
+
+def separation(added: Sequence[float], reading: Sequence[float], noise_sd: Sequence[float] | float) -> float:
+    """z: the norm of the whitened effect's part that no gain and offset of ``reading`` reproduce (see the module
+    docstring).  ``added``: the effect at the measured points; ``reading``: the true readings without it;
+    ``noise_sd``: the noise's standard deviation per point (or one for all), in the same units."""
+    e = np.asarray(added, dtype=float)
+    x = np.asarray(reading, dtype=float)
+    s = np.broadcast_to(np.asarray(noise_sd, dtype=float), e.shape)
+    if e.shape != x.shape or e.ndim != 1:
+        raise ValueError(f"added and reading must be 1-D of the same length, got {e.shape} and {x.shape}")
+    if not np.all(np.isfinite(s)) or np.any(s <= 0):
+        raise ValueError("noise_sd must be finite and positive at every point")
+    A = np.column_stack([np.ones_like(x), x]) / s[:, None]
+    ew = e / s
+    left = ew - A @ np.linalg.lstsq(A, ew, rcond=None)[0]
+    return float(np.linalg.norm(left))
+
+
+def oracle_rate(z: float | np.ndarray, alpha: float) -> float | np.ndarray:
+    """Probability that the one-sided test at level ``alpha`` reports a statistic N(z, 1): Φ(z - z_(1-α))."""
+    if not 0.0 < alpha < 1.0:
+        raise ValueError(f"alpha must be in (0, 1), got {alpha}")
+    return stats.norm.cdf(np.asarray(z, dtype=float) - stats.norm.isf(alpha))
+
+
+#: the scan's family: the generator's kinds (``synthesize.EFFECT_KINDS``) with centres and widths on a grid over
+#: its draw ranges (``synthesize.draw_effect``: centre 0.45-0.85, width 0.08-0.14)
+SCAN_CENTRES = tuple(np.round(np.linspace(0.45, 0.85, 17), 4))
+SCAN_WIDTHS = (0.08, 0.10, 0.12, 0.14)
+#: Monte Carlo draws for the scan's threshold (under H0) and its rate (under H1)
+SCAN_NULL_DRAWS = 20000
+SCAN_ALT_DRAWS = 4000
+
+
+def shape_family(loads: Sequence[float]) -> np.ndarray:
+    """The scan's shapes at ``loads`` (rows; unit amplitude): every kind of the study's effects at every grid
+    centre and width (a bend does not depend on the width: once)."""
+    from .synthesize import EFFECT_KINDS, _effect_shape
+
+    x = np.asarray(loads, dtype=float)
+    rows = []
+    for kind in EFFECT_KINDS:
+        for c in SCAN_CENTRES:
+            for w in (SCAN_WIDTHS if kind != "bend" else SCAN_WIDTHS[:1]):
+                rows.append(_effect_shape({"kind": kind, "center": float(c), "width": float(w)}, x))
+    return np.asarray(rows)
+
+
+def _scan_directions(shapes: np.ndarray, reading: np.ndarray, sd: np.ndarray) -> np.ndarray:
+    """Unit vectors (columns) of the whitened shapes' parts orthogonal to the whitened [1, reading]."""
+    A = np.column_stack([np.ones_like(reading), reading]) / sd[:, None]
+    Q, _ = np.linalg.qr(A)
+    D = (shapes / sd[None, :]).T
+    U = D - Q @ (Q.T @ D)
+    n = np.linalg.norm(U, axis=0)
+    keep = n > 1e-9 * max(float(n.max()), 1e-300)
+    return U[:, keep] / n[keep]
+
+
+def family_scan_rate(added: Sequence[float], reading: Sequence[float], noise_sd: Sequence[float] | float,
+                     loads: Sequence[float], alpha: float, rng: np.random.Generator) -> float:
+    """Rate at which the scan over :func:`shape_family` (two-sided, see the module docstring), at level ``alpha``
+    (threshold simulated with :data:`SCAN_NULL_DRAWS` draws), reports the effect ``added`` (Monte Carlo over
+    :data:`SCAN_ALT_DRAWS` noise draws)."""
+    e = np.asarray(added, dtype=float)
+    x = np.asarray(reading, dtype=float)
+    sd = np.broadcast_to(np.asarray(noise_sd, dtype=float), e.shape).astype(float)
+    if not 0.0 < alpha < 1.0:
+        raise ValueError(f"alpha must be in (0, 1), got {alpha}")
+    U = _scan_directions(shape_family(loads), x, sd)
+    null = np.max(np.abs(rng.standard_normal((SCAN_NULL_DRAWS, e.size)) @ U), axis=1)
+    thr = float(np.quantile(null, 1.0 - alpha))
+    alt = np.max(np.abs((e / sd)[None, :] @ U + rng.standard_normal((SCAN_ALT_DRAWS, e.size)) @ U), axis=1)
+    return float(np.mean(alt > thr))
+
+
+def _alpha(level: float, spread: bool, n_channels: int) -> float:
+    return level / n_channels if spread else level
+
+
+def trial_bound(result: Mapping[str, Any]) -> dict[str, Any]:
+    """The oracle's z and rates for one (e) trial of a study file (its data re-drawn from the seed).
+
+    Raises ValueError when the result is not an (e) trial with an effect, or when the re-drawn effect differs from
+    the one the file records (the file was written by another version of the study)."""
+    from .synthesize import SET_POINT_COLUMNS, trial_data
+
+    if result.get("condition") != "e" or result.get("control") or not result.get("effects"):
+        raise ValueError("not an (e) trial with an out-of-library effect")
+    ts = result.get("trial_settings") or {}
+    syn = trial_data("e", int(result["seed"]), params=str(ts.get("params", "wartsila-6l46")),
+                     points=int(ts.get("points", 8)))
+    eff = syn.effects[0]
+    rec = result["effects"][0]
+    if eff["channel"] != rec["channel"] or not math.isclose(eff["amplitude"], rec["amplitude"], rel_tol=1e-9):
+        raise ValueError(f"seed {result['seed']}: the re-drawn effect ({eff['channel']}, {eff['amplitude']:.6g}) is "
+                         f"not the file's ({rec['channel']}, {rec['amplitude']:.6g}): another version of the study")
+    c = eff["channel"]
+    added = np.asarray(syn.settings["effects_added"][c], dtype=float)
+    reading = np.asarray(syn.clean[c], dtype=float) - added
+    z = separation(added, reading, syn.noise_sd(c))
+    n_ch = sum(1 for k in syn.columns if k not in SET_POINT_COLUMNS)
+    tol = _tolerance(syn, c)
+    out = {"seed": int(result["seed"]), "channel": c, "kind": eff["kind"], "z": z, "n_channels": n_ch,
+           "tolerance": tol,
+           "pipeline_hit": bool(result.get("unexplained_right_channel"))}
+    rng = np.random.default_rng([int(result["seed"]), 7919, 5])
+    loads = syn.settings["loads"]
+    sd = syn.noise_sd(c)
+    for name, level, spread in LEVELS:
+        a = _alpha(level, spread, n_ch)
+        out[name] = float(oracle_rate(z, a))
+        out["scan: " + name] = family_scan_rate(added, reading, sd, loads, a, rng)
+        out["scan at the tolerance: " + name] = family_scan_rate(added, reading, np.maximum(sd, tol), loads, a, rng)
+    return out
+
+
+def _tolerance(syn, column: str) -> float:
+    """The pipeline's tolerance of ``column`` on the trial's data (written and loaded as the study does)."""
+    import tempfile
+    import warnings
+
+    from .dataset import DataWarning, load_dataset
+    from .discrepancy import column_tolerance
+
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "trial.csv"
+        syn.write(path)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DataWarning)
+            return float(column_tolerance(load_dataset(path), column))
+
+
+def scale_for(z: Sequence[float], alpha: float, target: float) -> float:
+    """The factor k on every effect's amplitude at which the oracle's mean rate reaches ``target`` (z scales with
+    the amplitude)."""
+    zz = np.asarray(z, dtype=float)
+    if not 0.0 < target < 1.0:
+        raise ValueError(f"target must be in (0, 1), got {target}")
+    if zz.size == 0 or np.any(zz <= 0):
+        raise ValueError("need at least one trial, with z > 0 in every trial")
+
+    def f(k: float) -> float:
+        return float(np.mean(oracle_rate(k * zz, alpha))) - target
+
+    hi = 1.0
+    while f(hi) < 0:
+        hi *= 2.0
+    lo = hi / 2.0
+    while f(lo) > 0 and lo > 1e-6:
+        lo /= 2.0
+    return float(optimize.brentq(f, lo, hi, xtol=1e-6))
+
+
+def bound(results: Sequence[Mapping[str, Any]], target: float = 0.9) -> dict[str, Any]:
+    """Per (e) trial of ``results`` (skipped trials and controls left out) and in summary: the oracle's rates at
+    :data:`LEVELS`, the pipeline's hit rate on the same trials, and the amplitude factor for ``target``."""
+    trials = [trial_bound(r) for r in results
+              if r.get("condition") == "e" and not r.get("control") and r.get("outcome") != "skipped"
+              and r.get("effects")]
+    if not trials:
+        raise ValueError("no (e) trial in the results")
+    return {"summary": summarise(trials, target), "trials": trials}
+
+
+def summarise(trials: Sequence[Mapping[str, Any]], target: float = 0.9) -> dict[str, Any]:
+    """Mean oracle rates at :data:`LEVELS`, the pipeline's hit rate and the amplitude factors over the per-trial
+    values of :func:`trial_bound`."""
+    z = [t["z"] for t in trials]
+    n_ch = trials[0]["n_channels"]
+    out: dict[str, Any] = {"n_trials": len(trials),
+                           "pipeline_rate": sum(t["pipeline_hit"] for t in trials) / len(trials),
+                           "z_median": float(np.median(z)), "target": target}
+    for name, level, spread in LEVELS:
+        a = _alpha(level, spread, n_ch)
+        out[name] = {"alpha": a, "oracle_rate": float(np.mean([t[name] for t in trials])),
+                     "family_scan_rate": float(np.mean([t["scan: " + name] for t in trials])),
+                     "family_scan_rate_at_tolerance": float(np.mean([t["scan at the tolerance: " + name]
+                                                                     for t in trials])),
+                     "amplitude_factor_for_target": scale_for(z, a, target)}
+    return out
+
+
+def _table(rows: Sequence[tuple[str, dict[str, Any]]]) -> str:
+    lines = ["| trials | n | level | pipeline: unexplained on the right channel | oracle (knows the shape) | "
+             "scan over the family | scan over the family, noise floored at the tolerance | amplitude factor for the "
+             "oracle to reach 90 % |", "|---|---|---|---|---|---|---|---|"]
+    for label, s in rows:
+        for name, _, _ in LEVELS:
+            v = s[name]
+            lines.append(f"| {label} | {s['n_trials']} | {name} | {s['pipeline_rate']:.0%} | {v['oracle_rate']:.0%} | "
+                         f"{v['family_scan_rate']:.0%} | {v['family_scan_rate_at_tolerance']:.0%} | "
+                         f"{v['amplitude_factor_for_target']:.2f}x |")
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m marine_fdi_env.validation.effect_bound",
+                                 description="How often could any test tell the open-world study's (e) effects "
+                                             "from a sensor calibration? (an oracle bound, see the module docstring)")
+    ap.add_argument("--study", nargs="+", required=True, metavar="FILE.json",
+                    help="study files written by `python -m marine_fdi_env.validation.synthesize study --out`")
+    ap.add_argument("--target", type=float, default=0.9, help="rate for the amplitude factor (default 0.9)")
+    ap.add_argument("--out", default=None, help="write the per-trial values and summaries as JSON here")
+    args = ap.parse_args(list(argv) if argv is not None else None)
+    rows, out = [], {}
+    for f in args.study:
+        try:
+            results = json.loads(Path(f).read_text())["trials"]
+        except (OSError, ValueError, KeyError, TypeError) as e:
+            print(f"effect_bound: error: {f}: not a study file ({e})", file=sys.stderr)
+            return 2
+        try:
+            b = bound(results, target=args.target)
+        except ValueError as e:
+            print(f"effect_bound: error: {f}: {e}", file=sys.stderr)
+            return 2
+        seeds = [t["seed"] for t in b["trials"]]
+        label = f"seeds {min(seeds)}-{max(seeds)}"
+        rows.append((label, b["summary"]))
+        out[str(f)] = b
+    if len(rows) > 1:
+        pooled = summarise([t for b in out.values() for t in b["trials"]], args.target)
+        rows.append(("pooled", pooled))
+        out["pooled"] = {"summary": pooled}
+    print(_table(rows))
+    if args.out:
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).write_text(json.dumps(out, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
