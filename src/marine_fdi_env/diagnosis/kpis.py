@@ -465,7 +465,7 @@ def render(data_dir: Path = Path("docs/data")) -> str:
             lines.append(f"| {label[a]} | `{fa['command']}` | {v['runs']} | {v['engine_hours']:.0f} | "
                          f"{v['runs_with_false_alarm']} | {fam} |")
         lines.append("")
-    sfa = data_dir / "sequential_false_alarms.json"
+    sfa = data_dir / "sequential_calibration_check.json"
     if sfa.exists():
         v = json.loads(sfa.read_text())
         lines += [f"The sequential tests' own check on the validation runs (`python -m "

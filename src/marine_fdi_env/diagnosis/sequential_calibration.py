@@ -272,7 +272,7 @@ def main(argv=None) -> int:
                     help="fit: pressure ratio above which the tests of M3.1-M3.4 pause")
     ap.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[1] / "data" / "diagnosis"
                     / CALIBRATION_FILE, help="fit: calibration file")
-    ap.add_argument("--report", type=Path, default=Path("docs/data/sequential_false_alarms.json"),
+    ap.add_argument("--report", type=Path, default=Path("docs/data/sequential_calibration_check.json"),
                     help="check: where to write the false-alarm report")
     args = ap.parse_args(argv)
     if args.what == "record":
