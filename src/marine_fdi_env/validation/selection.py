@@ -36,7 +36,9 @@ Pipeline (:func:`select_causes`), on a :class:`~.problem.Problem`:
    excess (:func:`~.window_scan.window_excess`: contiguous windows of points in load order whose mean residual
    departs from the rest, its p-value simulated at the data's noise level) run on these residuals; what is
    significant at the family-wise level :data:`ALPHA_UNEXPLAINED` (5 %, Bonferroni over the channels) is reported as
-   ``unexplained: channel, kind, region``; single readings as ``outliers``.
+   ``unexplained: channel, kind, region``; single readings as ``outliers``.  On a channel with a named sensor
+   calibration, what its gain and offset leave is also scanned for steps, kinks and windows
+   (:func:`calibration_left`, :mod:`.calibration_scan`): the bias, trend and change-point tests cannot see it.
    A sensor calibration is only eligible when the gain and offset it fits on the model without its channel
    leave no such local departure: a gain and an offset are a complete explanation of a sensor or none.
    A candidate whose fit sits at a bound of its plausible range that is not a natural limit is not eligible
@@ -64,6 +66,7 @@ from .fitting import (Combination, FitResult, ROBUST_SCALE, FoldData, cell_losse
 from .matching import MatchResult
 from .mechanisms import Mechanism, SensorCalibration, equivalents, library, sensor_reference
 from .problem import Problem, Setting
+from .calibration_scan import structure_scan
 from .window_scan import noise_ratio, window_excess
 
 __all__ = [
@@ -595,15 +598,49 @@ def local_excess(match: MatchResult, tolerances: Mapping[str, float], alpha: flo
     return out
 
 
-def _unexplained_all(match: MatchResult, report: DiscrepancyReport, tol: Mapping[str, float], alpha: float
-                     ) -> list[dict[str, Any]]:
-    """Family-significant region findings and local excesses (Bonferroni over the channels)."""
+def _unexplained_all(match: MatchResult, report: DiscrepancyReport, tol: Mapping[str, float], alpha: float,
+                     calibrated: Sequence[str] = ()) -> list[dict[str, Any]]:
+    """Family-significant region findings and local excesses (Bonferroni over the channels); on the channels of
+    ``calibrated`` (a named sensor calibration) also what the gain and offset leave (:func:`calibration_left`)."""
     out = _unexplained(report, alpha)
     n_ch = max(len(report.channels), 1)
     have = {u["channel"] for u in out}
     for f in local_excess(match, tol, alpha / n_ch):
         if f["channel"] not in have or all(u["kind"] != "local" for u in out if u["channel"] == f["channel"]):
             out.append(f)
+    for f in calibration_left(match, tol, alpha / n_ch, calibrated):
+        if all(u["kind"] != "local" for u in out if u["channel"] == f["channel"]):
+            out.append(f)
+    return out
+
+
+def calibration_left(match: MatchResult, tolerances: Mapping[str, float], alpha: float, channels: Sequence[str]
+                     ) -> list[dict[str, Any]]:
+    """Per channel of ``channels`` (each carrying a named sensor calibration, held in ``match``'s readings): the
+    step, kink or window that the gain and offset leave, when :func:`~.calibration_scan.structure_scan` finds it
+    at ``p < alpha`` and it departs by at least the tolerance; reported as kind ``local``."""
+    if not channels:
+        return []
+    ds = match.dataset
+    load = operating_variables(match)["load"]
+    noise = noise_ratio(np.column_stack([match.residual(c) / float(tolerances[c]) for c in match.channels]), load)
+    out = []
+    for col in channels:
+        if col not in match.channels:
+            continue
+        t = float(tolerances[col])
+        best = structure_scan(match.residual(col), load, match.predicted[col], t, noise)
+        if best is None or not (best["p"] < alpha and abs(best["d"]) >= t):
+            continue
+        lo, hi = best["load_range"]
+        region = f"load {lo:.3g}-{hi:.3g}"
+        unit = ds.spec(col).unit
+        out.append({"channel": col, "kind": "local", "region": region, "load_range": [lo, hi],
+                    "points": [i + 1 for i in best["positions"]], "magnitude": best["d"],
+                    "score": abs(best["d"]) / t, "p_value": best["p"], "p_at_floor": best["p_at_floor"],
+                    "shape": best["kind"], "left_by": "sensor_calibration", "unit": unit, "significant": True,
+                    "text": f"unexplained: {col}, {region} (a {best['kind']} the named calibration leaves, "
+                            f"magnitude {best['d']:+.4g} {unit})"})
     return out
 
 
@@ -962,7 +999,8 @@ def select_causes(
     final_loco = loco_predictions(problem, current_fit)
     final_match = match_result(problem, final_setting, pred_fn=lambda: final_loco)
     final_report = analyse_discrepancies(final_match, alpha=alpha, tolerances=tol)
-    unexplained = _unexplained_all(final_match, final_report, tol, alpha_unexplained)
+    unexplained = _unexplained_all(final_match, final_report, tol, alpha_unexplained,
+                                   [m.channel for m in current.mechanisms if isinstance(m, SensorCalibration)])
     return Selection(
         problem=problem, cv_scheme=scheme, raw_pred=raw_pred, base_fit=base_fit, base_pred=base_pred,
         base_score=S_base, base_report=base_report, steps=steps, selected=current, fit=current_fit,
