@@ -58,6 +58,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 from scipy import stats
 
+from .calibration_scan import structure_scan
 from .columns import QUANTITIES
 from .discrepancy import (_VAR_QUANTITY, DiscrepancyReport, _replicate_groups, analyse_discrepancies, operating_variables,
                           theil_sen_detrend)
@@ -66,7 +67,6 @@ from .fitting import (Combination, FitResult, ROBUST_SCALE, FoldData, cell_losse
 from .matching import MatchResult
 from .mechanisms import Mechanism, SensorCalibration, equivalents, library, sensor_reference
 from .problem import Problem, Setting
-from .calibration_scan import structure_scan
 from .window_scan import noise_ratio, window_excess
 
 __all__ = [

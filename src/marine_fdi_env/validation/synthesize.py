@@ -49,7 +49,8 @@ from .problem import BASE_SETTING, Setting, _quantity
 from .columns import ModelContext
 
 __all__ = ["DEFAULT_COLUMNS", "SET_POINT_COLUMNS", "EFFECT_KINDS", "PERTURBED_FIELDS", "Synthesis", "synthesize",
-           "write_synthesis", "synthesize_main", "trial", "trial_draw", "trial_data", "study", "study_main", "CONDITIONS", "effect_region"]
+           "write_synthesis", "synthesize_main", "trial", "trial_draw", "trial_data", "study", "study_main",
+           "CONDITIONS", "effect_region"]
 
 DEFAULT_COLUMNS = (
     "load_fraction", "power_kW", "speed_rpm", "fuel_flow_kg_per_h", "turbocharger_speed_rpm",
