@@ -95,7 +95,9 @@ def test_the_recorded_study_files_are_redrawn_exactly(tmp_path):
     b = eb.bound(e)
     assert b["summary"]["n_trials"] == 3
     out = tmp_path / "b.json"
-    assert eb.main(["--study", str(f), "--out", str(out)]) == 0
+    png = tmp_path / "b.png"
+    assert eb.main(["--study", str(f), "--out", str(out), "--plot", str(png)]) == 0
+    assert png.stat().st_size > 10_000 and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     s = json.loads(out.read_text())[str(f)]["summary"]
     assert s["n_trials"] == 20 and 0.0 <= s["family-wise 5 % over the channels"]["oracle_rate"] <= 1.0
 

@@ -37,7 +37,8 @@ It is also run with the noise floored at the pipeline's tolerance (σ_i = max(no
 tolerance``): the pipeline takes a channel's noise to be at least its tolerance (1 %, 5 K), and where the study's
 noise is smaller (a 45 °C reading: 0.45 K) the first two references exploit what the pipeline by design does not.
 
-``python -m marine_fdi_env.validation.effect_bound --study FILE.json [FILE.json ...] [--out OUT.json]`` re-draws
+``python -m marine_fdi_env.validation.effect_bound --study FILE.json [FILE.json ...] [--out OUT.json]
+[--plot OUT.png]`` re-draws
 each (e) trial's data from its seed (no pipeline run; seconds) and prints the table of docs/validation.md.
 """
 
@@ -54,7 +55,7 @@ import numpy as np
 from scipy import optimize, stats
 
 __all__ = ["separation", "oracle_rate", "family_scan_rate", "shape_family", "trial_bound", "bound", "summarise",
-           "scale_for", "LEVELS", "main"]
+           "scale_for", "plot", "LEVELS", "main"]
 
 #: (name, family-wise level, spread over the compared channels?)
 LEVELS = (("one channel, 5 %", 0.05, False), ("family-wise 5 % over the channels", 0.05, True))
@@ -255,6 +256,47 @@ def _table(rows: Sequence[tuple[str, dict[str, Any]]]) -> str:
     return "\n".join(lines)
 
 
+def plot(out: Mapping[str, Any], path: str | Path) -> Path:
+    """Per (e) trial its z against whether the pipeline reported it (jittered 0/1, one colour per study file), over
+    the oracle's rate Φ(z - z_(1-α)) at :data:`LEVELS`: where the pipeline's hits fall against what a test that
+    knows the shape could reach."""
+    try:
+        import matplotlib
+    except ImportError:  # pragma: no cover - the dev extra has it
+        raise RuntimeError("plots need matplotlib: pip install 'marine-fdi-env[plots]'") from None
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    files = [(k, b) for k, b in out.items() if "trials" in b]
+    zs = np.concatenate([[t["z"] for t in b["trials"]] for _, b in files])
+    grid = np.geomspace(max(0.3, float(zs.min()) * 0.8), float(zs.max()) * 1.2, 200)
+    fig, ax = plt.subplots(figsize=(7.5, 4.2))
+    n_ch = files[0][1]["trials"][0]["n_channels"]
+    for (name, level, spread), style in zip(LEVELS, ("-", "--")):
+        ax.plot(grid, oracle_rate(grid, _alpha(level, spread, n_ch)), "k" + style, lw=1.2,
+                label=f"oracle (knows the shape), {name}")
+    rng = np.random.default_rng(0)
+    for k, b in files:
+        z = np.array([t["z"] for t in b["trials"]])
+        hit = np.array([t["pipeline_hit"] for t in b["trials"]], dtype=float)
+        seeds = [t["seed"] for t in b["trials"]]
+        ax.scatter(z, hit + rng.uniform(-0.04, 0.04, z.size), s=18, alpha=0.8,
+                   label=f"pipeline, seeds {min(seeds)}-{max(seeds)} ({int(hit.sum())}/{hit.size})")
+    ax.set_xscale("log")
+    ax.set_xlabel("z: the effect beyond a gain and offset, in noise units (log)")
+    ax.set_ylabel("reported unexplained on the right channel")
+    ax.set_yticks([0, 0.5, 1])
+    ax.set_title("Out-of-library effects (study condition e): the pipeline against an oracle", fontsize=10)
+    ax.legend(fontsize=7, loc="center right")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m marine_fdi_env.validation.effect_bound",
                                  description="How often could any test tell the open-world study's (e) effects "
@@ -263,6 +305,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help="study files written by `python -m marine_fdi_env.validation.synthesize study --out`")
     ap.add_argument("--target", type=float, default=0.9, help="rate for the amplitude factor (default 0.9)")
     ap.add_argument("--out", default=None, help="write the per-trial values and summaries as JSON here")
+    ap.add_argument("--plot", default=None, metavar="FILE.png", help="plot z against the pipeline's hits over the "
+                    "oracle's rate curves (needs matplotlib)")
     args = ap.parse_args(list(argv) if argv is not None else None)
     rows, out = [], {}
     for f in args.study:
@@ -288,6 +332,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.out:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         Path(args.out).write_text(json.dumps(out, indent=1) + "\n")
+    if args.plot:
+        try:
+            plot(out, args.plot)
+        except RuntimeError as e:
+            print(f"effect_bound: error: {e}", file=sys.stderr)
+            return 2
     return 0
 
 
