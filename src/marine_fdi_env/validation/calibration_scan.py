@@ -34,7 +34,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-__all__ = ["shape_dictionary", "structure_scan", "NULL_DRAWS"]
+__all__ = ["shape_dictionary", "orthonormal_directions", "structure_scan", "NULL_DRAWS"]
 
 #: Gaussian draws for the scan's null distribution (p-values resolve down to 1 / (NULL_DRAWS + 1))
 NULL_DRAWS = 20_000
@@ -64,11 +64,15 @@ def shape_dictionary(x: Sequence[float]) -> tuple[np.ndarray, list[tuple[str, fl
     return np.asarray(rows), where
 
 
-def _directions(shapes: np.ndarray, reading: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unit vectors (columns) of the shapes' parts orthogonal to [1, reading], and the indices of the shapes kept."""
-    A = np.column_stack([np.ones_like(reading), reading])
+def orthonormal_directions(shapes: np.ndarray, reading: np.ndarray, noise_sd: np.ndarray | float = 1.0
+                           ) -> tuple[np.ndarray, np.ndarray]:
+    """Unit vectors (columns) of the shapes' (rows) parts orthogonal to [1, reading], all whitened by ``noise_sd``
+    per point (what a gain and an offset absorb projected out), and the indices of the shapes kept (those left with
+    more than 1e-6 of the largest shape's norm)."""
+    sd = np.broadcast_to(np.asarray(noise_sd, dtype=float), reading.shape)
+    A = np.column_stack([np.ones_like(reading), reading]) / sd[:, None]
     Q, _ = np.linalg.qr(A)
-    D = shapes.T
+    D = (shapes / sd[None, :]).T
     U = D - Q @ (Q.T @ D)
     norm = np.linalg.norm(U, axis=0)
     keep = np.flatnonzero(norm > 1e-6 * np.linalg.norm(D, axis=0).max())
@@ -93,7 +97,7 @@ def structure_scan(residual: Sequence[float], load: Sequence[float], reading: Se
     order = ok[np.argsort(x[ok], kind="stable")]
     xs, rs, ys = x[order], r[order] / tol, y[order]
     shapes, where = shape_dictionary(xs)
-    U, keep = _directions(shapes, ys)
+    U, keep = orthonormal_directions(shapes, ys)
     if U.shape[1] == 0:
         return None
     sigma = max(float(noise), 1.0)

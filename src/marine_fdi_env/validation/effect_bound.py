@@ -54,6 +54,8 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 from scipy import optimize, stats
 
+from .calibration_scan import orthonormal_directions
+
 __all__ = ["separation", "oracle_rate", "family_scan_rate", "shape_family", "trial_bound", "bound", "summarise",
            "scale_for", "plot", "LEVELS", "main"]
 
@@ -108,17 +110,6 @@ def shape_family(loads: Sequence[float]) -> np.ndarray:
     return np.asarray(rows)
 
 
-def _scan_directions(shapes: np.ndarray, reading: np.ndarray, sd: np.ndarray) -> np.ndarray:
-    """Unit vectors (columns) of the whitened shapes' parts orthogonal to the whitened [1, reading]."""
-    A = np.column_stack([np.ones_like(reading), reading]) / sd[:, None]
-    Q, _ = np.linalg.qr(A)
-    D = (shapes / sd[None, :]).T
-    U = D - Q @ (Q.T @ D)
-    n = np.linalg.norm(U, axis=0)
-    keep = n > 1e-9 * max(float(n.max()), 1e-300)
-    return U[:, keep] / n[keep]
-
-
 def family_scan_rate(added: Sequence[float], reading: Sequence[float], noise_sd: Sequence[float] | float,
                      loads: Sequence[float], alpha: float, rng: np.random.Generator) -> float:
     """Rate at which the scan over :func:`shape_family` (two-sided, see the module docstring), at level ``alpha``
@@ -129,7 +120,7 @@ def family_scan_rate(added: Sequence[float], reading: Sequence[float], noise_sd:
     sd = np.broadcast_to(np.asarray(noise_sd, dtype=float), e.shape).astype(float)
     if not 0.0 < alpha < 1.0:
         raise ValueError(f"alpha must be in (0, 1), got {alpha}")
-    U = _scan_directions(shape_family(loads), x, sd)
+    U, _ = orthonormal_directions(shape_family(loads), x, sd)
     null = np.max(np.abs(rng.standard_normal((SCAN_NULL_DRAWS, e.size)) @ U), axis=1)
     thr = float(np.quantile(null, 1.0 - alpha))
     alt = np.max(np.abs((e / sd)[None, :] @ U + rng.standard_normal((SCAN_ALT_DRAWS, e.size)) @ U), axis=1)

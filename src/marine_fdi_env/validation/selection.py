@@ -566,14 +566,14 @@ def _refit_with_calibration(problem: Problem, best: CandidateScore, previous: Fi
 
 
 def local_excess(match: MatchResult, tolerances: Mapping[str, float], alpha: float, max_width: int | None = None,
-                 channels: Sequence[str] | None = None) -> list[dict[str, Any]]:
+                 channels: Sequence[str] | None = None, noise: float | None = None) -> list[dict[str, Any]]:
     """Per channel, the most significant window of :func:`window_excess` when ``p < alpha`` and ``|d|`` exceeds the
     tolerance: ``{channel, kind: "local", region: "load a-b", load_range, points, magnitude, ...}``.  The scan's null
     is simulated at the data's noise level, the median over all channels (``noise_ratio``, in tolerances, at least
-    1: :func:`~.window_scan.noise_ratio`)."""
+    1: :func:`~.window_scan.noise_ratio`; ``noise`` when given)."""
     ds = match.dataset
     load = operating_variables(match)["load"]
-    noise = noise_ratio(np.column_stack([match.residual(c) / float(tolerances[c]) for c in match.channels]), load)
+    noise = _data_noise(match, tolerances, load) if noise is None else noise
     out = []
     for col in (channels or match.channels):
         tol = float(tolerances[col])
@@ -605,17 +605,23 @@ def _unexplained_all(match: MatchResult, report: DiscrepancyReport, tol: Mapping
     out = _unexplained(report, alpha)
     n_ch = max(len(report.channels), 1)
     have = {u["channel"] for u in out}
-    for f in local_excess(match, tol, alpha / n_ch):
+    noise = _data_noise(match, tol, operating_variables(match)["load"])
+    for f in local_excess(match, tol, alpha / n_ch, noise=noise):
         if f["channel"] not in have or all(u["kind"] != "local" for u in out if u["channel"] == f["channel"]):
             out.append(f)
-    for f in calibration_left(match, tol, alpha / n_ch, calibrated):
+    for f in calibration_left(match, tol, alpha / n_ch, calibrated, noise=noise):
         if all(u["kind"] != "local" for u in out if u["channel"] == f["channel"]):
             out.append(f)
     return out
 
 
-def calibration_left(match: MatchResult, tolerances: Mapping[str, float], alpha: float, channels: Sequence[str]
-                     ) -> list[dict[str, Any]]:
+def _data_noise(match: MatchResult, tolerances: Mapping[str, float], load: np.ndarray) -> float:
+    """The data's noise in tolerances (:func:`~.window_scan.noise_ratio` over every channel's residual)."""
+    return noise_ratio(np.column_stack([match.residual(c) / float(tolerances[c]) for c in match.channels]), load)
+
+
+def calibration_left(match: MatchResult, tolerances: Mapping[str, float], alpha: float, channels: Sequence[str],
+                     noise: float | None = None) -> list[dict[str, Any]]:
     """Per channel of ``channels`` (each carrying a named sensor calibration, held in ``match``'s readings): the
     step, kink or window that the gain and offset leave, when :func:`~.calibration_scan.structure_scan` finds it
     at ``p < alpha`` and it departs by at least the tolerance; reported as kind ``local``."""
@@ -623,7 +629,7 @@ def calibration_left(match: MatchResult, tolerances: Mapping[str, float], alpha:
         return []
     ds = match.dataset
     load = operating_variables(match)["load"]
-    noise = noise_ratio(np.column_stack([match.residual(c) / float(tolerances[c]) for c in match.channels]), load)
+    noise = _data_noise(match, tolerances, load) if noise is None else noise
     out = []
     for col in channels:
         if col not in match.channels:
