@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from marine_fdi_env.diagnosis.detection_bound import glr_polynomial, matched_filter, white_noise_threshold
+from marine_fdi_env.diagnosis.detection_bound import matched_filter, white_noise_threshold
+from marine_fdi_env.diagnosis.incipient_glr import glr_polynomial
 
 
 def _brute_glr(p, order, window, paused=None):
@@ -72,3 +73,29 @@ def test_white_noise_threshold_is_seeded_and_grows_as_the_budget_shrinks():
     assert strict["h"] > a["h"]
     # a single known-onset look needs |N(0,1)| > 3.29 at p = 1e-3; scanning onsets and times costs more
     assert a["h"] > 3.29
+
+
+def test_transient_gate_closes_only_while_the_load_settles():
+    """At constant load the gate never closes; after a step of size D it stays closed while the moving
+    average is more than δ away: block j >= 0 after the step is D (1 - a)^(j + 1) away, a = block / τ."""
+    from marine_fdi_env.diagnosis.incipient_glr import GATE_DELTA, GATE_TAU_S, transient_gate
+
+    u = np.full((2, 400), 0.7)
+    u[1, 100:] = 0.4
+    g = transient_gate(u, 1.0)
+    assert not g[0].any()
+    a = 1.0 / GATE_TAU_S
+    n = math.floor(math.log(GATE_DELTA / 0.3) / math.log(1.0 - a))  # blocks with j + 1 below it
+    closed = np.flatnonzero(g[1])
+    assert closed[0] == 100 and closed[-1] == 100 + n - 1 and len(closed) == n
+
+
+def test_recorded_threshold_keeps_the_margin_over_the_largest_peak():
+    from marine_fdi_env.diagnosis.detection_bound import recorded_threshold
+
+    rng = np.random.default_rng(6)
+    p = rng.standard_normal((200, 120))
+    paused = np.zeros_like(p, dtype=bool)
+    h, h_tail, peak = recorded_threshold(p, paused)
+    assert peak == pytest.approx(glr_polynomial(p, 2, 300, paused).max())
+    assert h == max(h_tail, 1.2 * peak)

@@ -36,10 +36,15 @@ def test_cusum_kernel_equals_the_textbook_recursion():
     ratio = np.full((N, B), 0.7)
     acc, st = np.zeros((N, 22)), np.zeros((N, 19, 2))
     first, feats = np.full((N, 19), np.nan), np.zeros((N, 19, 3))
+    off = np.array([np.inf, 2, 1 / 30, 0.02, 3.0])  # the receiver test switched off
+    gstate = np.zeros((N, 4))
+    gstate[:, 1] = np.nan
     for a, b in ((0, 130), (130, 131), (131, 700)):
         cusum_blocks(R[:, a:b], U[:, a:b], ratio[:, a:b], np.zeros((N, 0, 19), dtype=bool), 0.01,
                      np.full(N, a * 0.01), block, cal.u_nodes, cal.mean, cal.scale, cal.k, cal.h * 0.2,
-                     np.zeros(19), cal.r_max, acc, st, first, feats)
+                     np.zeros(19), cal.r_max, acc, st, first, feats, np.array([8, 9]), off, np.ones(5),
+                     np.zeros((N, 5, 2)), np.zeros(N, dtype=np.int64), np.zeros(N, dtype=np.int64),
+                     np.full(N, np.nan), gstate)
     bm = R.reshape(N, B // block, block, 19).mean(axis=2)
     z = np.clip((bm - cal.mean[:, -1]) / cal.scale[:, -1], -10, 10)
     blocks, _ = cusum_offline(z, cal.k, cal.h * 0.2, np.zeros(19, dtype=int))

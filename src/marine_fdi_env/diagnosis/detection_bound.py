@@ -2,7 +2,8 @@
 turbine seal leak (issue 13's "table 6.4 size within 300 s in >= 90 % of seeds").
 
     python -m marine_fdi_env.diagnosis.detection_bound --seeds 50 \\
-        [--calibration-record results/sequential_calibration/calibration.npz]
+        [--calibration-record results/sequential_calibration/calibration.npz \\
+         [--validation-record results/sequential_calibration/validation.npz]]
 
 The turbine seal leak (table 6.4: φ_tur = β R s, β = 1 - exp(-κ s), κ = 2e-5 1/s, R = 3.5e-4 1/s)
 grows as s² for s << 1/κ, and it shifts only the receiver residuals M3.1 and M3.2 (measured: the
@@ -23,11 +24,25 @@ the least informed:
 * **GLR, recorded threshold**: the same test with its threshold from the fault-free calibration
   runs of :mod:`~marine_fdi_env.diagnosis.sequential_calibration` (all profile families; the
   residuals' model error in transients is common to both chains, so pooling does not average it).
+* **GLR, transient gate, recorded threshold**: the same test paused (and restarted) on the blocks
+  where the load is changing, known from the input alone: :func:`transient_gate`, the block's mean
+  fuel setting more than ``GATE_DELTA`` = 0.02 away from its moving average with time constant
+  ``GATE_TAU_S`` = 30 s.  The recorded GLR peaks above the white-noise threshold all come from load
+  *reductions* to u ≈ 0.3 (steps, ramps, manoeuvring), 100-200 s after the change: the residuals'
+  slow transient model error, not noise.  Gate parameters chosen on the calibration runs' peaks
+  (every τ in 30-120 s and δ in 0.01-0.02 gave the same largest peak), before any detection was
+  computed; at constant load the gate never closes.  The same gated test on M3.1 and M3.2 *alone*
+  (each its own threshold) is what a per-module test could do.  With ``--validation-record`` the
+  gated thresholds are checked on the disjoint validation runs.  This row is what the sequential
+  diagnoser's receiver test (:mod:`~marine_fdi_env.diagnosis.incipient_glr`, since 2026-11-26)
+  builds in, with its own calibrated threshold (at p* with the factor 3 of margin).
 
 False-alarm budget: 1 per 200 engine-hours shared by 19 tests, per 300 s run
 ``p = (300 / 3600) / 200 / 19`` = 2.2e-5 per test, without the factor 3 of margin that the
-sequential diagnoser's thresholds keep (this favours the bounds).  Beside them, the shipped
-sequential diagnoser's CUSUM on the same blocks (its M3.1/M3.2 tests, its thresholds).
+sequential diagnoser's thresholds keep (this favours the bounds).  Beside them, the sequential
+diagnoser's CUSUMs on the same blocks (its M3.1/M3.2 tests, its thresholds), and the streaming
+diagnoser as shipped on these seeds and, with ``--held-out-seeds N``, on N further seeds that no
+design choice looked at.
 """
 
 from __future__ import annotations
@@ -36,55 +51,28 @@ import argparse
 import json
 import math
 import sys
-from math import comb
 from pathlib import Path
 
 import numpy as np
 from scipy.stats import norm
 
 from ..engine.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, FaultSpec
+from .incipient_glr import GATE_DELTA, GATE_TAU_S, WINDOW_BLOCKS, glr_polynomial, transient_gate
 from .modules import MODULE_IDS
 from .sequential import load_calibration
-from .sequential_calibration import DURATION_S, cusum_offline, normalise_blocks, record, tail_threshold, warm_blocks
+from .sequential_calibration import (DURATION_S, cusum_offline, normalise_blocks, pooled_pair, record, tail_threshold,
+                                     warm_blocks)
 
-__all__ = ["glr_polynomial", "matched_filter", "white_noise_threshold", "pooled_blocks", "seal_leak_bound",
-           "P_TEST", "FIRST_SEED"]
+__all__ = ["matched_filter", "white_noise_threshold", "pooled_blocks", "recorded_threshold",
+           "seal_leak_bound", "P_TEST", "FIRST_SEED"]
 
 FAULT = "turbine_seal_leak"
 PAIR = ("M3.1", "M3.2")
 P_TEST = (DURATION_S / 3600.0) / 200.0 / len(MODULE_IDS)
-WINDOW_BLOCKS = 300
 # the seeds of `kpis delays` for this fault (10_000 + 1000 * fault index + seed)
 FIRST_SEED = 10_000 + 1000 * list(FAULT_IDS).index(FAULT)
 RUN_S = 600.0
 WHITE_RUNS = 20_000
-
-
-def glr_polynomial(p: np.ndarray, order: int, window: int, paused: np.ndarray | None = None) -> np.ndarray:
-    """GLR statistic of a shift a (t - τ)^order (unknown a, onset τ within ``window`` blocks) in unit
-    white blocks p (runs, N): ``max_τ |Σ_{t>τ} p_t (t-τ)^q| / sqrt(Σ (t-τ)^{2q})`` after every block
-    (runs, N).  Onsets before a ``paused`` block (runs, N bool) are not considered (the test restarts)."""
-    p = np.asarray(p, dtype=np.float64)
-    R, N = p.shape
-    t = np.arange(1, N + 1, dtype=np.float64)
-    prefix = [np.concatenate([np.zeros((R, 1)), np.cumsum(p * t ** j, axis=1)], axis=1) for j in range(order + 1)]
-    if paused is None:
-        restart = np.zeros((R, N), dtype=np.int64)
-    else:  # prefix index after the last paused block up to t
-        idx = np.where(np.asarray(paused, dtype=bool), np.arange(1, N + 1)[None, :], 0)
-        restart = np.maximum.accumulate(idx, axis=1)
-    norm_g = np.sqrt(np.cumsum(np.arange(1, window + 1, dtype=np.float64) ** (2 * order)))
-    out = np.zeros((R, N))
-    for T in range(1, N + 1):
-        taus = np.arange(max(0, T - window), T)  # signal in blocks tau+1 .. T
-        num = np.zeros((R, len(taus)))
-        for j in range(order + 1):  # (t - tau)^q = sum_j C(q, j) t^j (-tau)^(q - j)
-            num += comb(order, j) * ((-taus.astype(np.float64)) ** (order - j))[None, :] \
-                * (prefix[j][:, T][:, None] - prefix[j][:, taus])
-        stat = np.abs(num) / norm_g[T - taus - 1][None, :]
-        stat = np.where(taus[None, :] >= restart[:, T - 1][:, None], stat, 0.0)
-        out[:, T - 1] = stat.max(axis=1)
-    return out
 
 
 def matched_filter(p: np.ndarray, onset_blocks: float, order: int, end_block: int) -> np.ndarray:
@@ -109,19 +97,27 @@ def white_noise_threshold(order: int, window: int, n_blocks: int, p_test: float,
     return {"h": math.sqrt(2.0 * h2), "max_peak": float(pk.max()), "runs": int(n_runs), "tail_theta": theta}
 
 
-def pooled_blocks(rec: dict, cal=None, z: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def pooled_blocks(rec: dict, cal=None, z: np.ndarray | None = None,
+                  modules: tuple[str, ...] = PAIR) -> tuple[np.ndarray, np.ndarray]:
     """(p, paused) of a :func:`~marine_fdi_env.diagnosis.sequential_calibration.record`: the
-    normalised sum of the M3.1 and M3.2 block z (the sequential calibration's normalisation; ``z``
-    if already computed), and the blocks where their tests pause (warm-up, pressure ratio above r_max)."""
+    normalised sum of the ``modules``' block z (default M3.1 and M3.2; the sequential calibration's
+    normalisation; ``z`` if already computed), and the blocks where their tests pause (warm-up,
+    pressure ratio above r_max)."""
     cal = cal or load_calibration()
     if z is None:
         z = normalise_blocks(rec["block_means"].astype(np.float64), rec["u"].astype(np.float64), cal.u_nodes,
                              cal.mean, cal.scale)
-    a, b = (MODULE_IDS.index(m) for m in PAIR)
-    paused = np.asarray(rec["ratio"], dtype=np.float64) > max(cal.r_max[a], cal.r_max[b])
-    paused[:, :warm_blocks(cal.warmup_s)[[a, b]].max()] = True
-    p = np.where(paused, 0.0, (z[:, :, a] + z[:, :, b]) / math.sqrt(2.0))
-    return p, paused
+    return pooled_pair(z, rec["ratio"], warm_blocks(cal.warmup_s), cal.r_max, modules)
+
+
+def recorded_threshold(p: np.ndarray, paused: np.ndarray) -> tuple[float, float, float]:
+    """(h, tail-fit h, largest peak) of the order-2 GLR on fault-free blocks: h at the per-run
+    probability ``P_TEST`` from the exponential tail of the peaks, never below 1.2x the largest peak
+    (the sequential calibration's rule)."""
+    peaks = glr_polynomial(p, 2, WINDOW_BLOCKS, paused).max(axis=1)
+    h2, _, _ = tail_threshold(peaks ** 2 / 2.0, P_TEST)
+    h_tail = math.sqrt(2.0 * h2)
+    return max(h_tail, 1.2 * float(peaks.max())), h_tail, float(peaks.max())
 
 
 def _delays(stat: np.ndarray, h: float, onset_s: float, block_s: float) -> np.ndarray:
@@ -137,10 +133,21 @@ def _summary(d: np.ndarray, run_s: float, onset_s: float) -> dict:
             "within_run": float(np.mean(d <= run_s - onset_s)), "within_300_s_of_onset": float(np.mean(d <= 300.0))}
 
 
+def online_delays(seeds: list[int], onset: float) -> np.ndarray:
+    """(seeds,) detection delays [s after the onset; inf: none] of the streaming sequential diagnoser
+    as shipped on the seal leak at its table size, constant fuel setting 1.0, ``RUN_S`` runs."""
+    from .batch import diagnose_batch
+
+    reps = diagnose_batch([[FaultSpec(FAULT, onset)] for _ in seeds], seeds, "constant", RUN_S,
+                          exoneration="none", diagnoser="sequential")
+    return np.array([r["first_detection_time_s"] - onset if r["detected"] else np.inf for r in reps])
+
+
 def seal_leak_bound(n_seeds: int, first_seed: int = FIRST_SEED, calibration_record: dict | None = None,
-                    progress: bool = True) -> dict:
+                    progress: bool = True, validation_record: dict | None = None, held_out_seeds: int = 0) -> dict:
     """The rows of the module docstring for the seal leak at its table size, constant fuel setting
-    1.0, onset 15 s, ``n_seeds`` noise seeds (the same seeds with and without the fault)."""
+    1.0, onset 15 s, ``n_seeds`` noise seeds (the same seeds with and without the fault); with
+    ``held_out_seeds`` the shipped diagnoser also on that many further seeds."""
     cal = load_calibration()
     onset = PROCESS_FAULT_DEFAULTS[FAULT].onset_s
     seeds = [first_seed + i for i in range(n_seeds)]
@@ -161,16 +168,24 @@ def seal_leak_bound(n_seeds: int, first_seed: int = FIRST_SEED, calibration_reco
     shift = (p_f - p_h).mean(axis=0)
     c_pooled = float((shift * g).sum() / (g ** 2).sum())
     rows = []
-    # shipped sequential CUSUM on the same blocks (M3.1 and M3.2 tests)
+    held = [first_seed + n_seeds + i for i in range(held_out_seeds)]
+    # the sequential diagnoser's CUSUMs on the same blocks (M3.1 and M3.2 tests)
     first, _ = cusum_offline(z, cal.k, cal.h, warm_blocks(cal.warmup_s), faulty["ratio"].astype(np.float64),
                              cal.r_max)
     fb = first[:, [a, b]].astype(np.float64)
     fb[fb < 0] = np.inf
     d_seq = (fb.min(axis=1) + 1) * bs - onset
-    rows.append({"statistic": "sequential diagnoser (shipped): CUSUM of M3.1, M3.2, k = 0.5, replayed on the "
-                              "recorded float32 blocks (online, any module: `kpis delays`)",
+    rows.append({"statistic": "CUSUM of M3.1, M3.2 alone (the sequential diagnoser before its receiver test), k = 0.5, "
+                              "replayed on the recorded float32 blocks",
                  "threshold": f"h = {cal.h[a]:.1f}, {cal.h[b]:.1f} (per-run p {cal.data['fit']['per_run_target_probability']:.1e})",
                  **_summary(d_seq, DURATION_S, onset)})
+    for label, run_seeds in (("these seeds", seeds), (f"{held_out_seeds} held-out seeds", held)):
+        if not run_seeds:
+            continue
+        d_on = online_delays(run_seeds, onset)
+        rows.append({"statistic": f"sequential diagnoser as shipped (CUSUMs + receiver test, streaming), {label} "
+                                  f"({run_seeds[0]}-{run_seeds[-1]})",
+                     "threshold": f"receiver h = {cal.receiver.h:.2f}", **_summary(d_on, DURATION_S, onset)})
     for at, name, end_s in (("run_end", "at the end of the 300 s run", DURATION_S),
                              ("onset_plus_300_s", "300 s after the onset", onset + 300.0)):
         mf = matched_filter(p_f, on_b, 2, int(round(end_s / bs)))
@@ -188,19 +203,58 @@ def seal_leak_bound(n_seeds: int, first_seed: int = FIRST_SEED, calibration_reco
     rows.append({"statistic": f"GLR (t - τ)², M3.1 + M3.2, onset unknown within {WINDOW_BLOCKS} s; white-noise threshold",
                  "threshold": f"{white['h']:.2f} ({white['runs']} simulated white runs)",
                  **_summary(_delays(glr_f, white["h"], onset, bs), DURATION_S, onset)})
+    gated = None
     if calibration_record is not None:
         p_c, paused_c = pooled_blocks(calibration_record, cal)
-        peaks = glr_polynomial(p_c, 2, WINDOW_BLOCKS, paused_c).max(axis=1)
-        h2, _, _ = tail_threshold(peaks ** 2 / 2.0, P_TEST)
-        h = max(math.sqrt(2.0 * h2), 1.2 * float(peaks.max()))
+        h, _, peak = recorded_threshold(p_c, paused_c)
         hours = p_c.shape[0] * p_c.shape[1] * bs / 3600.0
         rows.append({"statistic": f"GLR (t - τ)², M3.1 + M3.2, onset unknown within {WINDOW_BLOCKS} s; "
                                   "threshold from the recorded fault-free runs",
-                     "threshold": f"{h:.2f} ({p_c.shape[0]} runs, {hours:.0f} h, largest peak {peaks.max():.2f})",
+                     "threshold": f"{h:.2f} ({p_c.shape[0]} runs, {hours:.0f} h, largest peak {peak:.2f})",
                      **_summary(_delays(glr_f, h, onset, bs), DURATION_S, onset)})
+        gated = _gated_rows(calibration_record, validation_record, faulty, cal, onset, rows)
     return {"fault": FAULT, "magnitude": PROCESS_FAULT_DEFAULTS[FAULT].magnitude, "onset_s": onset,
             "profile": "constant (fuel setting 1.0)", "seeds": seeds, "p_test": P_TEST,
-            "pooled_shift_per_s2": c_pooled, "rows": rows}
+            "pooled_shift_per_s2": c_pooled, "gate": gated, "rows": rows}
+
+
+def _gated_rows(calibration_record: dict, validation_record: dict | None, faulty: dict, cal, onset: float,
+                rows: list) -> dict:
+    """Append the transient-gated GLR rows (pooled, M3.1 alone, M3.2 alone, either alone) to ``rows``;
+    return the gate's settings, its share of the calibration blocks and the validation check."""
+    bs = cal.block_s
+    gate_c = transient_gate(calibration_record["u"], bs)
+    gate_f = transient_gate(faulty["u"], bs)
+    hours = gate_c.shape[0] * gate_c.shape[1] * bs / 3600.0
+    out = {"tau_s": GATE_TAU_S, "delta": GATE_DELTA, "calibration_share_gated": float(gate_c.mean()),
+           "faulty_share_gated": float(gate_f.mean()), "tests": {}}
+    first = {}
+    for label, modules in (("M3.1 + M3.2", PAIR), ("M3.1 alone", PAIR[:1]), ("M3.2 alone", PAIR[1:])):
+        p_c, paused_c = pooled_blocks(calibration_record, cal, modules=modules)
+        h, h_tail, peak = recorded_threshold(p_c, paused_c | gate_c)
+        p_f, paused_f = pooled_blocks(faulty, cal, modules=modules)
+        first[label] = _delays(glr_polynomial(p_f, 2, WINDOW_BLOCKS, paused_f | gate_f), h, onset, bs)
+        test = {"h": h, "h_tail": h_tail, "largest_calibration_peak": peak}
+        note = ""
+        if validation_record is not None:
+            gate_v = transient_gate(validation_record["u"], bs)
+            p_v, paused_v = pooled_blocks(validation_record, cal, modules=modules)
+            peaks_v = glr_polynomial(p_v, 2, WINDOW_BLOCKS, paused_v | gate_v).max(axis=1)
+            hv = peaks_v.shape[0] * p_v.shape[1] * bs / 3600.0
+            test.update({"validation_runs": int(peaks_v.shape[0]), "validation_hours": hv,
+                         "validation_alarms": int((peaks_v > h).sum()), "largest_validation_peak": float(peaks_v.max())})
+            note = (f"; validation {hv:.0f} h: {test['validation_alarms']} alarms, largest peak "
+                    f"{peaks_v.max():.2f}")
+        out["tests"][label] = test
+        rows.append({"statistic": f"GLR (t - τ)², {label}, transient gate (τ {GATE_TAU_S:g} s, δ {GATE_DELTA:g}); "
+                                  "threshold from the recorded fault-free runs, gated",
+                     "threshold": f"{h:.2f} ({hours:.0f} h, largest peak {peak:.2f}{note})",
+                     **_summary(first[label], DURATION_S, onset)})
+    rows.append({"statistic": "GLR (t - τ)², M3.1 alone or M3.2 alone (per-module tests, as the isolation logic "
+                              "uses them), transient gate",
+                 "threshold": "each its own (above)",
+                 **_summary(np.minimum(first["M3.1 alone"], first["M3.2 alone"]), DURATION_S, onset)})
+    return out
 
 
 def render(data: dict) -> list[str]:
@@ -233,23 +287,37 @@ def render(data: dict) -> list[str]:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=50)
+    ap.add_argument("--held-out-seeds", type=int, default=0,
+                    help="also run the shipped sequential diagnoser on this many further seeds (after --seeds)")
     ap.add_argument("--calibration-record", type=Path, default=None,
-                    help="npz of `sequential_calibration record --set calibration` (adds the recorded-threshold row)")
+                    help="npz of `sequential_calibration record --set calibration` (adds the recorded-threshold rows)")
+    ap.add_argument("--validation-record", type=Path, default=None,
+                    help="npz of `sequential_calibration record --set validation`: checks the gated thresholds on it")
     ap.add_argument("--out", type=Path, default=Path("docs/data/diagnoser_seal-leak-bound.json"))
     args = ap.parse_args(argv)
     if args.seeds < 2:
         ap.error("--seeds must be >= 2")
-    rec = None
-    if args.calibration_record is not None:
-        if not args.calibration_record.exists():
-            ap.error(f"{args.calibration_record} not found (python -m marine_fdi_env.diagnosis.sequential_calibration "
-                     "record --set calibration)")
-        d = np.load(args.calibration_record, allow_pickle=False)
-        rec = {k: d[k] for k in ("block_means", "u", "ratio")}
-    result = seal_leak_bound(args.seeds, calibration_record=rec)
+    if args.held_out_seeds < 0:
+        ap.error("--held-out-seeds must be >= 0")
+    if args.validation_record is not None and args.calibration_record is None:
+        ap.error("--validation-record checks the thresholds of --calibration-record: give both")
+    recs = {}
+    for name, path in (("calibration", args.calibration_record), ("validation", args.validation_record)):
+        if path is None:
+            continue
+        if not path.exists():
+            ap.error(f"{path} not found (python -m marine_fdi_env.diagnosis.sequential_calibration record --set {name})")
+        d = np.load(path, allow_pickle=False)
+        recs[name] = {k: d[k] for k in ("block_means", "u", "ratio")}
+    result = seal_leak_bound(args.seeds, calibration_record=recs.get("calibration"),
+                             validation_record=recs.get("validation"), held_out_seeds=args.held_out_seeds)
     cmd = f"python -m marine_fdi_env.diagnosis.detection_bound --seeds {args.seeds}"
+    if args.held_out_seeds:
+        cmd += f" --held-out-seeds {args.held_out_seeds}"
     if args.calibration_record is not None:
         cmd += f" --calibration-record {args.calibration_record}"
+    if args.validation_record is not None:
+        cmd += f" --validation-record {args.validation_record}"
     data = {"command": cmd, "result": result}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(data, indent=1) + "\n")

@@ -27,8 +27,15 @@ sequential test accumulates the evidence instead (Page's CUSUM; Basseville & Nik
   from there, when the charge pressure lags (calibration runs: CUSUM peaks up to 320 spreads
   with the fuel setting alone as region, below 12 above u = 0.5).  The worst-case test of these
   modules stays active everywhere.
-* **module decision** = the reference's worst-case violation OR the CUSUM alarm, latched: large
-  faults are still seen at the first sample, small ones once their evidence accumulates.
+* **receiver test** (:mod:`~marine_fdi_env.diagnosis.incipient_glr`): a GLR for a shift growing as
+  (t - τ)² on the pooled z of the two receiver chains M3.1 and M3.2, paused while the load changes;
+  when it crosses its threshold and a common shift explains the two chains better than a shift of
+  either alone, it fires M3.1 and M3.2 together; it runs only while neither of them has fired on
+  its own evidence (the turbine seal leak moves both by less than half a spread within 300 s,
+  below any k).
+* **module decision** = the reference's worst-case violation OR the CUSUM alarm (OR, for M3.1 and
+  M3.2, the receiver test), latched: large faults are still seen at the first sample, small ones
+  once their evidence accumulates.
 
 The decision logic is :class:`~marine_fdi_env.diagnosis.decision.DiagnosisState` with sure cells,
 settle and grace times measured for *these* decisions over the same magnitude grid as the
@@ -48,10 +55,11 @@ import numpy as np
 from .._jit import jit
 from .agent import ReferenceDiagnoser
 from .decision import DiagnosisState, candidate_classes, sorted_diagnoses
+from .incipient_glr import GATE_DELTA, GATE_TAU_S, ORDER, WINDOW_BLOCKS, common_shift, glr_norms, glr_pair_update
 from .modules import MODULE_IDS
 from .sure_cells import load_sure_cells
 
-__all__ = ["SequentialCalibration", "SequentialStage", "SequentialDiagnoser", "SEQUENTIAL_FEATURES",
+__all__ = ["SequentialCalibration", "ReceiverTest", "SequentialStage", "SequentialDiagnoser", "SEQUENTIAL_FEATURES",
            "CALIBRATION_FILE", "SURE_CELLS_FILE", "cusum_blocks", "pressure_ratio"]
 
 N_MODULES = len(MODULE_IDS)
@@ -63,13 +71,42 @@ Z_CAP = 10.0
 
 
 @dataclass(frozen=True)
+class ReceiverTest:
+    """Settings of the receiver test (:mod:`~marine_fdi_env.diagnosis.incipient_glr`).
+
+    modules : the two pooled chains; h : GLR threshold [spreads] (inf: the test is off, as in a
+    calibration file without it); order : shape (t - τ)^order; window_blocks : onsets kept;
+    gate_tau_s [s], gate_delta [-] : the transient gate on the fuel setting.
+    """
+
+    modules: tuple[str, str] = ("M3.1", "M3.2")
+    h: float = math.inf
+    order: int = ORDER
+    window_blocks: int = WINDOW_BLOCKS
+    gate_tau_s: float = GATE_TAU_S
+    gate_delta: float = GATE_DELTA
+
+    @classmethod
+    def from_dict(cls, d: dict | None) -> "ReceiverTest":
+        if d is None:
+            return cls()
+        out = cls(tuple(d["modules"]), float(d["h"]), int(d["order"]), int(d["window_blocks"]),
+                  float(d["gate_tau_s"]), float(d["gate_delta"]))
+        if len(out.modules) != 2 or any(m not in MODULE_IDS for m in out.modules):
+            raise ValueError(f"sequential calibration: receiver modules must be two of {MODULE_IDS}, got {out.modules}")
+        if not (out.h > 0 and out.order >= 0 and out.window_blocks >= 1 and out.gate_tau_s > 0 and out.gate_delta > 0):
+            raise ValueError("sequential calibration: receiver h, window and gate must be positive")
+        return out
+
+
+@dataclass(frozen=True)
 class SequentialCalibration:
     """Normalisation and CUSUM settings (see module docstring).
 
     block_s : block length [s]; u_nodes : (nu,) fuel settings of the normalisation nodes;
     mean, scale : (19, nu) fault-free block-mean residual mean and spread at the nodes;
     k, h : (19,) reference values and thresholds [spreads]; warmup_s : (19,); r_max : (19,)
-    pressure ratio above which the test pauses.
+    pressure ratio above which the test pauses; receiver : the receiver test.
     """
 
     block_s: float
@@ -81,6 +118,7 @@ class SequentialCalibration:
     warmup_s: np.ndarray
     r_max: np.ndarray
     data: dict
+    receiver: ReceiverTest = ReceiverTest()
 
     @classmethod
     def from_dict(cls, d: dict) -> "SequentialCalibration":
@@ -97,7 +135,7 @@ class SequentialCalibration:
         if not np.all(np.diff(arr["u_nodes"]) > 0) or not np.all(arr["scale"] > 0):
             raise ValueError("sequential calibration: u_nodes must increase and every scale be > 0")
         return cls(float(d["block_s"]), arr["u_nodes"], arr["mean"], arr["scale"], arr["k"], arr["h"],
-                   arr["warmup_s"], arr["r_max"], d)
+                   arr["warmup_s"], arr["r_max"], d, ReceiverTest.from_dict(d.get("receiver")))
 
 
 @lru_cache(maxsize=None)
@@ -138,7 +176,8 @@ def _interp(u, nodes, values, m):
 
 
 @jit
-def cusum_blocks(R, U, RATIO, VIOL, dt, t0, block, nodes, mean, scale, k, h, warm, r_max, acc, st, first, feats):
+def cusum_blocks(R, U, RATIO, VIOL, dt, t0, block, nodes, mean, scale, k, h, warm, r_max, acc, st, first, feats,
+                 pair, gpar, gnorms, gnum, gcount, gpos, gavg, gstate):
     """Advance the tests of N engines over a block of samples (compiled).
 
     R (N, B, 19) residuals, U (N, B) fuel setting, RATIO (N, B) measured pressure ratio x3/x4,
@@ -148,6 +187,11 @@ def cusum_blocks(R, U, RATIO, VIOL, dt, t0, block, nodes, mean, scale, k, h, war
     st (N, 19, 2) CUSUM S+ / S-; first (N, 19): first firing time (NaN: not yet), set at the sample
     of a worst-case violation or at the end of the block whose CUSUM crosses h.  feats (N, 19, 3):
     S+/h, S-/h and the last block's z.
+    Receiver test (:func:`~marine_fdi_env.diagnosis.incipient_glr.glr_pair_update`): pair (2,) the
+    chains' module indices; gpar (4,) h, order, gate coefficient block/τ, gate δ; gnorms (W,);
+    state gnum (N, W, 2), gcount (N,), gpos (N,), gavg (N,), gstate (N, 4): the last block's
+    statistic, the alarm time (NaN: none; it also fires both chains' modules), and the last block's
+    chain statistics c1, c2 at the maximising onset.
     """
     N, B, M = R.shape
     use_viol = VIOL.shape[1] == B
@@ -182,6 +226,23 @@ def cusum_blocks(R, U, RATIO, VIOL, dt, t0, block, nodes, mean, scale, k, h, war
                         st[i, m, 0] = 0.0
                         st[i, m, 1] = 0.0
                     acc[i, m] = 0.0
+                a, b = pair[0], pair[1]
+                # only while neither chain has fired on its own evidence: a chain already known to be
+                # faulty would lend its fault to the other through the pooled sum
+                active = (t + 0.5 * dt >= warm[a] and t + 0.5 * dt >= warm[b]
+                          and ratio <= r_max[a] and ratio <= r_max[b]
+                          and first[i, a] != first[i, a] and first[i, b] != first[i, b])
+                g, c1, c2 = glr_pair_update(i, feats[i, a, 2], feats[i, b, 2], u, active, gnum, gcount, gpos, gavg,
+                                            gnorms, gpar[1], gpar[2], gpar[3])
+                gstate[i, 0] = g
+                gstate[i, 2] = c1
+                gstate[i, 3] = c2
+                if g > gpar[0] and common_shift(c1, c2) and gstate[i, 1] != gstate[i, 1]:
+                    gstate[i, 1] = t
+                    if first[i, a] != first[i, a]:
+                        first[i, a] = t
+                    if first[i, b] != first[i, b]:
+                        first[i, b] = t
                 acc[i, 19] = 0.0
                 acc[i, 20] = 0.0
                 acc[i, 21] = 0.0
@@ -222,11 +283,24 @@ class SequentialStage:
         return DiagnosisState(exoneration=True if self.exoneration == "all" else None,
                               max_cardinality=self.max_cardinality)
 
+    def _receiver_arrays(self) -> None:
+        r = self.cal.receiver
+        self._pair = np.array([MODULE_IDS.index(m) for m in r.modules], dtype=np.int64)
+        self._gpar = np.array([r.h, r.order, self.cal.block_s / r.gate_tau_s, r.gate_delta])
+        self._gnorms = glr_norms(r.order, r.window_blocks)
+
     def reset(self) -> None:
         self.acc = np.zeros((self.n, 22))
         self.st = np.zeros((self.n, N_MODULES, 2))
         self.first = np.full((self.n, N_MODULES), np.nan)
         self.feats = np.zeros((self.n, N_MODULES, 3))
+        self._receiver_arrays()
+        self.gnum = np.zeros((self.n, len(self._gnorms), 2))
+        self.gcount = np.zeros(self.n, dtype=np.int64)
+        self.gpos = np.zeros(self.n, dtype=np.int64)
+        self.gavg = np.full(self.n, np.nan)
+        self.gstate = np.zeros((self.n, 4))
+        self.gstate[:, 1] = np.nan
         self.decisions = [self._new_decision() for _ in range(self.n)]
         self._next_expiry = np.full(self.n, np.inf)
 
@@ -236,6 +310,11 @@ class SequentialStage:
             self.st[i] = 0.0
             self.first[i] = np.nan
             self.feats[i] = 0.0
+            self.gnum[i] = 0.0
+            self.gcount[i] = 0
+            self.gpos[i] = 0
+            self.gavg[i] = np.nan
+            self.gstate[i] = (0.0, np.nan, 0.0, 0.0)
             self.decisions[i] = self._new_decision()
             self._next_expiry[i] = np.inf
 
@@ -252,7 +331,8 @@ class SequentialStage:
         before = np.isnan(self.first)
         c = self.cal
         cusum_blocks(R, U, Q, V, self.dt, t0, self.block, c.u_nodes, c.mean, c.scale, c.k, c.h, c.warmup_s,
-                     c.r_max, self.acc, self.st, self.first, self.feats)
+                     c.r_max, self.acc, self.st, self.first, self.feats, self._pair, self._gpar, self._gnorms,
+                     self.gnum, self.gcount, self.gpos, self.gavg, self.gstate)
         t_end = t0 + (B - 1) * self.dt
         new = before & ~np.isnan(self.first)
         busy = new.any(axis=1) | (t_end > self._next_expiry)
@@ -286,6 +366,7 @@ class SequentialStage:
             "detected": det,
             "first_detection_time_s": None if math.isnan(d.first_detection_time) else d.first_detection_time,
             "module_detection_times_s": times,
+            "receiver_test_time_s": None if math.isnan(self.gstate[engine, 1]) else float(self.gstate[engine, 1]),
             "final_minimal_diagnoses": sorted_diagnoses(d.diagnoses) if det else [],
             "candidate_classes": candidate_classes(d.diagnoses) if det else {},
         }

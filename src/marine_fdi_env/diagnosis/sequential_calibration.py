@@ -21,8 +21,14 @@ k, and the threshold h: the per-run maximum of max(S+, S-) over the calibration 
 exponential tail (the CUSUM of increments with negative drift -k, Siegmund's approximation); we
 fit it on the largest 10 % of the runs and take the h at which a run exceeds it with probability
 p* = (1 false alarm / 200 h) x (300 s / 3600 s) / 19 modules / 3 (a factor 3 of margin).
+The receiver test (:mod:`~marine_fdi_env.diagnosis.incipient_glr`, the GLR for a (t - τ)² shift of
+M3.1 + M3.2 pooled, paused where those tests pause and where the transient gate closes) gets its
+threshold the same way from the per-run peaks of its statistic, at the same p* (it is a 20th test:
+the budget spent rises by 1/19, still a factor 2.85 below the target), never below 1.2x the
+largest calibration peak.
 ``check`` (validation set only): runs the same tests (and the worst-case violations, which the
-sequential decision ORs in) and counts the runs with an alarm.
+sequential decision ORs in) and counts the runs with an alarm (the receiver test's without its
+common-shift condition, which can only remove alarms).
 """
 
 from __future__ import annotations
@@ -39,10 +45,12 @@ import numpy as np
 from ..engine.faults import FaultSpec
 from ..engine.simulator import Simulator
 from .agent import ReferenceDiagnoser
+from .incipient_glr import GATE_DELTA, GATE_TAU_S, ORDER, WINDOW_BLOCKS, glr_polynomial, transient_gate
 from .modules import MODULE_IDS
 from .sequential import CALIBRATION_FILE, Z_CAP, pressure_ratio
 
-__all__ = ["profile_for", "record", "fit", "cusum_offline", "check", "normalise_blocks", "tail_threshold", "warm_blocks", "SETS"]
+__all__ = ["profile_for", "record", "fit", "cusum_offline", "check", "normalise_blocks", "tail_threshold", "warm_blocks",
+           "pooled_pair", "receiver_peaks", "SETS", "RECEIVER_MODULES"]
 
 N_MODULES = len(MODULE_IDS)
 PARAMS = "thesis-12v28"
@@ -60,6 +68,7 @@ WARMUP_S = {m: (20.0 if m in ("M4.1", "M4.2") else 5.0) for m in MODULE_IDS}
 # pressure ratio x3/x4 above which a test pauses (see the sequential module's docstring): the
 # receiver and turbine-inlet residuals near x3/x4 = 1
 PAUSED_MODULES = ("M3.1", "M3.2", "M3.3", "M3.4")
+RECEIVER_MODULES = ("M3.1", "M3.2")
 R_MAX_DEFAULT = 0.9
 FA_TARGET_PER_H = 1.0 / 200.0
 FA_MARGIN = 3.0
@@ -143,6 +152,25 @@ def normalise_blocks(BM, UB, nodes, mean, scale):
     return np.clip(np.nan_to_num(z, nan=0.0), -Z_CAP, Z_CAP)
 
 
+def pooled_pair(z, RB, warm, r_max, modules=RECEIVER_MODULES):
+    """(p, paused) (runs, blocks): the normalised sum of the ``modules``' block z (runs, blocks, 19),
+    0 where their tests pause (warm-up ``warm`` (19,) blocks, pressure ratio RB above r_max (19,))."""
+    idx = [MODULE_IDS.index(m) for m in modules]
+    paused = np.asarray(RB, dtype=np.float64) > max(float(r_max[i]) for i in idx)
+    paused[:, :max(int(warm[i]) for i in idx)] = True
+    p = np.where(paused, 0.0, z[:, :, idx].sum(axis=2) / math.sqrt(len(idx)))
+    return p, paused
+
+
+def receiver_peaks(z, UB, RB, warm, r_max, order=ORDER, window=WINDOW_BLOCKS, gate_tau_s=GATE_TAU_S,
+                   gate_delta=GATE_DELTA) -> np.ndarray:
+    """(runs,) largest receiver-test statistic of each recorded run (pause region and transient gate
+    as online; without the common-shift condition)."""
+    p, paused = pooled_pair(z, RB, warm, r_max)
+    paused = paused | transient_gate(UB, BLOCK_S, gate_tau_s, gate_delta)
+    return glr_polynomial(np.where(paused, 0.0, p), order, window, paused).max(axis=1)
+
+
 def cusum_offline(z, k, h, warm_blocks, RB=None, r_max=None):
     """CUSUM over normalised block means z (runs, blocks, 19): returns (first alarm block (runs, 19),
     -1 if none; per-run maximum of max(S+, S-) after the warm-up (runs, 19)); with the blocks'
@@ -211,6 +239,14 @@ def fit(cal: dict, k: float = K_DEFAULT, r_max: float = R_MAX_DEFAULT) -> dict:
         h[m] = max(h[m], 1.2 * peaks[:, m].max())  # never below the largest calibration peak
         tails[mid] = {"theta": theta, "a": a, "max_peak": float(peaks[:, m].max()),
                       "p99_peak": float(np.percentile(peaks[:, m], 99))}
+    gpeaks = receiver_peaks(z, UB, RB, warm, rmax)
+    g2, gtheta, _ = tail_threshold(gpeaks ** 2 / 2.0, p_run)
+    g_tail = math.sqrt(2.0 * g2)
+    receiver = {"modules": list(RECEIVER_MODULES), "h": max(g_tail, 1.2 * float(gpeaks.max())), "order": ORDER,
+                "window_blocks": WINDOW_BLOCKS, "gate_tau_s": GATE_TAU_S, "gate_delta": GATE_DELTA,
+                "fit": {"tail_h": g_tail, "tail_theta_half_square": gtheta, "max_peak": float(gpeaks.max()),
+                        "p99_peak": float(np.percentile(gpeaks, 99)),
+                        "share_gated": float(transient_gate(UB, BLOCK_S).mean())}}
     return {
         "module_ids": list(MODULE_IDS), "block_s": BLOCK_S, "u_nodes": nodes.tolist(),
         "mean": mean.tolist(), "scale": scale.tolist(), "k": kk.tolist(), "h": h.tolist(),
@@ -219,6 +255,7 @@ def fit(cal: dict, k: float = K_DEFAULT, r_max: float = R_MAX_DEFAULT) -> dict:
                 "per_run_target_probability": p_run, "fa_target_per_h": FA_TARGET_PER_H, "margin": FA_MARGIN,
                 "tail_fraction": TAIL_FRACTION, "tails": tails,
                 "load_range": list(LOAD_RANGE), "families": list(FAMILIES), "duration_s": float(cal["duration_s"])},
+        "receiver": receiver,
         "command": "python -m marine_fdi_env.diagnosis.sequential_calibration fit",
     }
 
@@ -235,15 +272,24 @@ def check(val: dict, calibration: dict) -> dict:
                                  val["ratio"].astype(np.float64), np.asarray(calibration["r_max"]))
     cus = first >= 0
     worst = ~np.isnan(val["first_violation"])
-    any_alarm = (cus | worst).any(axis=1)
+    rec = calibration.get("receiver")
+    if rec is not None:
+        gpeaks = receiver_peaks(z, UB, val["ratio"].astype(np.float64), warm, np.asarray(calibration["r_max"]),
+                                rec["order"], rec["window_blocks"], rec["gate_tau_s"], rec["gate_delta"])
+        glr = gpeaks > rec["h"]
+    else:
+        gpeaks, glr = np.zeros(n_runs), np.zeros(n_runs, dtype=bool)
+    any_alarm = (cus | worst).any(axis=1) | glr
     hours = n_runs * nb * BLOCK_S / 3600.0
     runs = [{"run": int(i), "profile": str(val["profiles"][i]), "seed": int(val["seeds"][i]),
              "cusum_modules": [MODULE_IDS[m] for m in np.flatnonzero(cus[i])],
-             "worst_case_modules": [MODULE_IDS[m] for m in np.flatnonzero(worst[i])]}
+             "worst_case_modules": [MODULE_IDS[m] for m in np.flatnonzero(worst[i])], "receiver_test": bool(glr[i])}
             for i in np.flatnonzero(any_alarm)]
     return {"runs": int(n_runs), "hours": hours, "entropy0": int(val["entropy0"]),
             "runs_with_alarm": int(any_alarm.sum()), "runs_with_cusum_alarm": int(cus.any(axis=1).sum()),
             "runs_with_worst_case_alarm": int(worst.any(axis=1).sum()),
+            "runs_with_receiver_alarm": int(glr.sum()),
+            "receiver_peak_over_h_max": float(gpeaks.max() / rec["h"]) if rec is not None else None,
             "alarms_per_module": {mid: int(cus[:, m].sum()) for m, mid in enumerate(MODULE_IDS)},
             "peak_over_h_max": {mid: float(peaks[:, m].max() / calibration["h"][m]) for m, mid in enumerate(MODULE_IDS)},
             "alarm_runs": runs}
@@ -295,6 +341,9 @@ def main(argv=None) -> int:
         for m, mid in enumerate(MODULE_IDS):
             t = cal["fit"]["tails"][mid]
             print(f"| {mid} | {cal['k'][m]:g} | {cal['h'][m]:.2f} | {t['max_peak']:.2f} | {t['theta']:.3f} |")
+        r = cal["receiver"]
+        print(f"receiver test ({' + '.join(r['modules'])}): h = {r['h']:.2f} (tail {r['fit']['tail_h']:.2f}, "
+              f"largest calibration peak {r['fit']['max_peak']:.2f}, {100 * r['fit']['share_gated']:.0f} % of blocks gated)")
         return 0
     calibration = json.loads(args.out.read_text())
     rep = check(_load(args.out_dir / "validation.npz"), calibration)
@@ -302,7 +351,8 @@ def main(argv=None) -> int:
     args.report.parent.mkdir(parents=True, exist_ok=True)
     args.report.write_text(json.dumps(rep, indent=1) + "\n")
     print(f"{rep['runs']} runs, {rep['hours']:.1f} engine-hours: {rep['runs_with_alarm']} with an alarm "
-          f"({rep['runs_with_cusum_alarm']} CUSUM, {rep['runs_with_worst_case_alarm']} worst-case); wrote {args.report}")
+          f"({rep['runs_with_cusum_alarm']} CUSUM, {rep['runs_with_worst_case_alarm']} worst-case, "
+          f"{rep['runs_with_receiver_alarm']} receiver test); wrote {args.report}")
     return 0
 
 
