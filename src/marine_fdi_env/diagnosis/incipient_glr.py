@@ -14,8 +14,8 @@ generalised likelihood ratio for a shift a (t - τ)^q with unknown amplitude a a
 
 * **transient gate.**  Fault-free, the largest recorded g come from load *reductions* to low load,
   100-200 s after the change: the residuals' slow transient model error, common to both chains,
-  not noise (calibration runs: peaks to 6.9 with the gate, 4.6 without; the white-noise threshold
-  is 5.7).  The test pauses (and restarts) on every block whose mean fuel setting u lies more than
+  not noise (calibration runs: peaks to 6.9 without the gate, 4.6 with it; the white-noise
+  threshold is 5.7).  The test pauses (and restarts) on every block whose mean fuel setting u lies more than
   ``GATE_DELTA`` from its exponential moving average with time constant ``GATE_TAU_S``: the known
   input alone decides, so a fault cannot open or close the gate.  At constant load it never closes.
 * **common shift, not one chain.**  A process fault on the receiver moves both chains alike; a
@@ -26,7 +26,6 @@ generalised likelihood ratio for a shift a (t - τ)^q with unknown amplitude a a
   ``(c1 + c2)² / 2 >= max(c1², c2²)`` (same sign, the smaller at least sqrt(2) - 1 of the larger;
   the three hypotheses have one free amplitude each, so no penalty term): a large one-chain shift
   raises g too, and this keeps it from claiming the other chain's module.
-
 * **only while both chains are unfired.**  The sequential diagnoser runs the test only while
   neither M3.1 nor M3.2 has fired on its own evidence (worst-case threshold or CUSUM): once one
   chain is known to be inconsistent, the pooled sum would lend its fault to the other chain
