@@ -51,6 +51,7 @@ import argparse
 import json
 import math
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -133,21 +134,24 @@ def _summary(d: np.ndarray, run_s: float, onset_s: float) -> dict:
             "within_run": float(np.mean(d <= run_s - onset_s)), "within_300_s_of_onset": float(np.mean(d <= 300.0))}
 
 
-def online_delays(seeds: list[int], onset: float) -> np.ndarray:
+def online_delays(seeds: list[int], onset: float, profile: str = "constant") -> np.ndarray:
     """(seeds,) detection delays [s after the onset; inf: none] of the streaming sequential diagnoser
-    as shipped on the seal leak at its table size, constant fuel setting 1.0, ``RUN_S`` runs."""
+    as shipped on the seal leak at its table size, ``RUN_S`` runs (``profile``: default constant fuel
+    setting 1.0)."""
     from .batch import diagnose_batch
 
-    reps = diagnose_batch([[FaultSpec(FAULT, onset)] for _ in seeds], seeds, "constant", RUN_S,
+    reps = diagnose_batch([[FaultSpec(FAULT, onset)] for _ in seeds], seeds, profile, RUN_S,
                           exoneration="none", diagnoser="sequential")
     return np.array([r["first_detection_time_s"] - onset if r["detected"] else np.inf for r in reps])
 
 
 def seal_leak_bound(n_seeds: int, first_seed: int = FIRST_SEED, calibration_record: dict | None = None,
-                    progress: bool = True, validation_record: dict | None = None, held_out_seeds: int = 0) -> dict:
+                    progress: bool = True, validation_record: dict | None = None, held_out_seeds: int = 0,
+                    held_out_profiles: Sequence[str] = ("constant",)) -> dict:
     """The rows of the module docstring for the seal leak at its table size, constant fuel setting
     1.0, onset 15 s, ``n_seeds`` noise seeds (the same seeds with and without the fault); with
-    ``held_out_seeds`` the shipped diagnoser also on that many further seeds."""
+    ``held_out_seeds`` the shipped diagnoser also on that many further seeds, under each of
+    ``held_out_profiles`` (beyond the must-show's constant fuel setting 1.0)."""
     cal = load_calibration()
     onset = PROCESS_FAULT_DEFAULTS[FAULT].onset_s
     seeds = [first_seed + i for i in range(n_seeds)]
@@ -179,12 +183,13 @@ def seal_leak_bound(n_seeds: int, first_seed: int = FIRST_SEED, calibration_reco
                               "replayed on the recorded float32 blocks",
                  "threshold": f"h = {cal.h[a]:.1f}, {cal.h[b]:.1f} (per-run p {cal.data['fit']['per_run_target_probability']:.1e})",
                  **_summary(d_seq, DURATION_S, onset)})
-    for label, run_seeds in (("these seeds", seeds), (f"{held_out_seeds} held-out seeds", held)):
-        if not run_seeds:
-            continue
-        d_on = online_delays(run_seeds, onset)
+    runs = [("these seeds", seeds, "constant")] + [(f"{held_out_seeds} held-out seeds", held, prof)
+                                                  for prof in (held_out_profiles if held else ())]
+    for label, run_seeds, prof in runs:
+        d_on = online_delays(run_seeds, onset, prof)
+        where = "" if prof == "constant" else f", profile {prof}"
         rows.append({"statistic": f"sequential diagnoser as shipped (CUSUMs + receiver test, streaming), {label} "
-                                  f"({run_seeds[0]}-{run_seeds[-1]})",
+                                  f"({run_seeds[0]}-{run_seeds[-1]}){where}",
                      "threshold": f"receiver h = {cal.receiver.h:.2f}", **_summary(d_on, DURATION_S, onset)})
     for at, name, end_s in (("run_end", "at the end of the 300 s run", DURATION_S),
                              ("onset_plus_300_s", "300 s after the onset", onset + 300.0)):
@@ -289,6 +294,8 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", type=int, default=50)
     ap.add_argument("--held-out-seeds", type=int, default=0,
                     help="also run the shipped sequential diagnoser on this many further seeds (after --seeds)")
+    ap.add_argument("--held-out-profiles", nargs="+", default=["constant"],
+                    help="load profiles of the held-out runs (default: constant fuel setting 1.0)")
     ap.add_argument("--calibration-record", type=Path, default=None,
                     help="npz of `sequential_calibration record --set calibration` (adds the recorded-threshold rows)")
     ap.add_argument("--validation-record", type=Path, default=None,
@@ -299,6 +306,13 @@ def main(argv=None) -> int:
         ap.error("--seeds must be >= 2")
     if args.held_out_seeds < 0:
         ap.error("--held-out-seeds must be >= 0")
+    from ..engine.profiles import make_profile
+
+    for prof in args.held_out_profiles:
+        try:
+            make_profile(prof, RUN_S)
+        except (ValueError, KeyError) as e:
+            ap.error(f"--held-out-profiles: {prof!r}: {e}")
     if args.validation_record is not None and args.calibration_record is None:
         ap.error("--validation-record checks the thresholds of --calibration-record: give both")
     recs = {}
@@ -310,10 +324,13 @@ def main(argv=None) -> int:
         d = np.load(path, allow_pickle=False)
         recs[name] = {k: d[k] for k in ("block_means", "u", "ratio")}
     result = seal_leak_bound(args.seeds, calibration_record=recs.get("calibration"),
-                             validation_record=recs.get("validation"), held_out_seeds=args.held_out_seeds)
+                             validation_record=recs.get("validation"), held_out_seeds=args.held_out_seeds,
+                             held_out_profiles=args.held_out_profiles)
     cmd = f"python -m marine_fdi_env.diagnosis.detection_bound --seeds {args.seeds}"
     if args.held_out_seeds:
         cmd += f" --held-out-seeds {args.held_out_seeds}"
+        if args.held_out_profiles != ["constant"]:
+            cmd += " --held-out-profiles " + " ".join(args.held_out_profiles)
     if args.calibration_record is not None:
         cmd += f" --calibration-record {args.calibration_record}"
     if args.validation_record is not None:
