@@ -167,3 +167,23 @@ def test_sequential_diagnoser_sees_the_seal_leak_at_table_size_through_the_recei
         assert r["receiver_test_time_s"] is not None and 15.0 < r["receiver_test_time_s"] <= 315.0
         assert {m for m, t in times.items() if t is not None} == {"M3.1", "M3.2"}
         assert times["M3.1"] == times["M3.2"] == r["receiver_test_time_s"]
+
+
+def test_diagnose_cli_says_which_test_fired(tmp_path, capsys):
+    """`marine-fdi diagnose --diagnoser sequential` on a recorded seal-leak run: the report carries the
+    receiver test's time, and the console says the receiver test fired M3.1 and M3.2."""
+    import json
+
+    from marine_fdi_env.cli import main as cli_main
+
+    run = tmp_path / "seal.npz"
+    assert cli_main(["simulate", "--duration", "330", "--seed", "31000", "--fault", "turbine_seal_leak@15",
+                     "--out", str(run), "--no-progress"]) == 0
+    out = tmp_path / "seq.json"
+    capsys.readouterr()
+    assert cli_main(["diagnose", "--run", str(run), "--diagnoser", "sequential", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    rep = json.loads(out.read_text())
+    assert rep["receiver_test_time_s"] is not None
+    assert f"by the receiver test at {rep['receiver_test_time_s']:.2f} s" in text
+    assert "modules fired: M3.1 at" in text

@@ -164,6 +164,11 @@ def cmd_diagnose(args) -> int:
     Path(args.out).write_text(text + "\n")
     first = report["first_detection_time_s"]
     print(f"detected: {report['detected']}" + (f" at {first:.2f} s" if first is not None else ""))
+    fired = sorted(((t, m) for m, t in report["module_detection_times_s"].items() if t is not None))
+    if fired:
+        print("modules fired: " + ", ".join(f"{m} at {t:.2f} s" for t, m in fired)
+              + (f" (M3.1 and M3.2 by the receiver test at {report['receiver_test_time_s']:.2f} s)"
+                 if report.get("receiver_test_time_s") is not None else ""))
     print("minimal diagnoses: " + (", ".join("{" + ", ".join(d) + "}" for d in report["final_minimal_diagnoses"])
                                    or "none"))
     print(f"wrote {args.out}")
