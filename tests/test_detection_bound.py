@@ -75,21 +75,6 @@ def test_white_noise_threshold_is_seeded_and_grows_as_the_budget_shrinks():
     assert a["h"] > 3.29
 
 
-def test_transient_gate_closes_only_while_the_load_settles():
-    """At constant load the gate never closes; after a step of size D it stays closed while the moving
-    average is more than δ away: block j >= 0 after the step is D (1 - a)^(j + 1) away, a = block / τ."""
-    from marine_fdi_env.diagnosis.incipient_glr import GATE_DELTA, GATE_TAU_S, transient_gate
-
-    u = np.full((2, 400), 0.7)
-    u[1, 100:] = 0.4
-    g = transient_gate(u, 1.0)
-    assert not g[0].any()
-    a = 1.0 / GATE_TAU_S
-    n = math.floor(math.log(GATE_DELTA / 0.3) / math.log(1.0 - a))  # blocks with j + 1 below it
-    closed = np.flatnonzero(g[1])
-    assert closed[0] == 100 and closed[-1] == 100 + n - 1 and len(closed) == n
-
-
 def test_recorded_threshold_keeps_the_margin_over_the_largest_peak():
     from marine_fdi_env.diagnosis.detection_bound import recorded_threshold
 

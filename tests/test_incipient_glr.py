@@ -31,6 +31,19 @@ def _stream(z1, z2, u, active, window, order=2):
     return g, c
 
 
+def test_transient_gate_closes_only_while_the_load_settles():
+    """At constant load the gate never closes; after a step of size D it stays closed while the moving
+    average is more than δ away: block j >= 0 after the step is D (1 - a)^(j + 1) away, a = block / τ."""
+    u = np.full((2, 400), 0.7)
+    u[1, 100:] = 0.4
+    g = transient_gate(u, 1.0)
+    assert not g[0].any()
+    a = 1.0 / GATE_TAU_S
+    n = math.floor(math.log(GATE_DELTA / 0.3) / math.log(1.0 - a))  # blocks with j + 1 below it
+    closed = np.flatnonzero(g[1])
+    assert closed[0] == 100 and closed[-1] == 100 + n - 1 and len(closed) == n
+
+
 def test_streaming_statistic_equals_the_offline_glr_with_pauses_and_the_gate():
     """Per block, the ring of running numerators gives the same maximum over onsets as the offline
     prefix-sum statistic on the pooled blocks, with the same restarts: at paused blocks and while the

@@ -61,8 +61,8 @@ from ..engine.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, FaultSpec
 from .incipient_glr import GATE_DELTA, GATE_TAU_S, WINDOW_BLOCKS, glr_polynomial, transient_gate
 from .modules import MODULE_IDS
 from .sequential import load_calibration
-from .sequential_calibration import (DURATION_S, cusum_offline, normalise_blocks, pooled_pair, record, tail_threshold,
-                                     warm_blocks)
+from .sequential_calibration import (DURATION_S, cusum_offline, glr_threshold, normalise_blocks, pooled_pair,
+                                     receiver_peaks, record, tail_threshold, warm_blocks)
 
 __all__ = ["matched_filter", "white_noise_threshold", "pooled_blocks", "recorded_threshold",
            "seal_leak_bound", "P_TEST", "FIRST_SEED"]
@@ -116,9 +116,16 @@ def recorded_threshold(p: np.ndarray, paused: np.ndarray) -> tuple[float, float,
     probability ``P_TEST`` from the exponential tail of the peaks, never below 1.2x the largest peak
     (the sequential calibration's rule)."""
     peaks = glr_polynomial(p, 2, WINDOW_BLOCKS, paused).max(axis=1)
-    h2, _, _ = tail_threshold(peaks ** 2 / 2.0, P_TEST)
-    h_tail = math.sqrt(2.0 * h2)
-    return max(h_tail, 1.2 * float(peaks.max())), h_tail, float(peaks.max())
+    h, h_tail, _ = glr_threshold(peaks, P_TEST)
+    return h, h_tail, float(peaks.max())
+
+
+def _gated_peaks(rec: dict, cal, modules: tuple[str, ...]) -> np.ndarray:
+    """(runs,) per-run peaks of the gated GLR on a fault-free record (the receiver test's statistic)."""
+    z = normalise_blocks(rec["block_means"].astype(np.float64), rec["u"].astype(np.float64), cal.u_nodes, cal.mean,
+                         cal.scale)
+    return receiver_peaks(z, rec["u"].astype(np.float64), rec["ratio"].astype(np.float64), warm_blocks(cal.warmup_s),
+                          cal.r_max, modules=modules)
 
 
 def _delays(stat: np.ndarray, h: float, onset_s: float, block_s: float) -> np.ndarray:
@@ -235,17 +242,16 @@ def _gated_rows(calibration_record: dict, validation_record: dict | None, faulty
            "faulty_share_gated": float(gate_f.mean()), "tests": {}}
     first = {}
     for label, modules in (("M3.1 + M3.2", PAIR), ("M3.1 alone", PAIR[:1]), ("M3.2 alone", PAIR[1:])):
-        p_c, paused_c = pooled_blocks(calibration_record, cal, modules=modules)
-        h, h_tail, peak = recorded_threshold(p_c, paused_c | gate_c)
+        peaks_c = _gated_peaks(calibration_record, cal, modules)
+        h, h_tail, _ = glr_threshold(peaks_c, P_TEST)
+        peak = float(peaks_c.max())
         p_f, paused_f = pooled_blocks(faulty, cal, modules=modules)
         first[label] = _delays(glr_polynomial(p_f, 2, WINDOW_BLOCKS, paused_f | gate_f), h, onset, bs)
         test = {"h": h, "h_tail": h_tail, "largest_calibration_peak": peak}
         note = ""
         if validation_record is not None:
-            gate_v = transient_gate(validation_record["u"], bs)
-            p_v, paused_v = pooled_blocks(validation_record, cal, modules=modules)
-            peaks_v = glr_polynomial(p_v, 2, WINDOW_BLOCKS, paused_v | gate_v).max(axis=1)
-            hv = peaks_v.shape[0] * p_v.shape[1] * bs / 3600.0
+            peaks_v = _gated_peaks(validation_record, cal, modules)
+            hv = validation_record["u"].size * bs / 3600.0
             test.update({"validation_runs": int(peaks_v.shape[0]), "validation_hours": hv,
                          "validation_alarms": int((peaks_v > h).sum()), "largest_validation_peak": float(peaks_v.max())})
             note = (f"; validation {hv:.0f} h: {test['validation_alarms']} alarms, largest peak "

@@ -50,7 +50,7 @@ from .modules import MODULE_IDS
 from .sequential import CALIBRATION_FILE, Z_CAP, pressure_ratio
 
 __all__ = ["profile_for", "record", "fit", "cusum_offline", "check", "normalise_blocks", "tail_threshold", "warm_blocks",
-           "pooled_pair", "receiver_peaks", "SETS", "RECEIVER_MODULES"]
+           "pooled_pair", "receiver_peaks", "glr_threshold", "SETS", "RECEIVER_MODULES"]
 
 N_MODULES = len(MODULE_IDS)
 PARAMS = "thesis-12v28"
@@ -163,12 +163,21 @@ def pooled_pair(z, RB, warm, r_max, modules=RECEIVER_MODULES):
 
 
 def receiver_peaks(z, UB, RB, warm, r_max, order=ORDER, window=WINDOW_BLOCKS, gate_tau_s=GATE_TAU_S,
-                   gate_delta=GATE_DELTA) -> np.ndarray:
+                   gate_delta=GATE_DELTA, modules=RECEIVER_MODULES) -> np.ndarray:
     """(runs,) largest receiver-test statistic of each recorded run (pause region and transient gate
-    as online; without the common-shift condition)."""
-    p, paused = pooled_pair(z, RB, warm, r_max)
+    as online; without the common-shift condition); ``modules``: the chains pooled (one: that chain alone)."""
+    p, paused = pooled_pair(z, RB, warm, r_max, modules)
     paused = paused | transient_gate(UB, BLOCK_S, gate_tau_s, gate_delta)
     return glr_polynomial(np.where(paused, 0.0, p), order, window, paused).max(axis=1)
+
+
+def glr_threshold(peaks: np.ndarray, p_target: float) -> tuple[float, float, float]:
+    """(h, tail-fit h, tail slope) of a GLR statistic from its fault-free per-run peaks: the h a run
+    exceeds with probability ``p_target`` by the exponential tail of peak²/2 (the log-likelihood
+    ratio), never below 1.2x the largest peak."""
+    h2, theta, _ = tail_threshold(np.asarray(peaks) ** 2 / 2.0, p_target)
+    h_tail = math.sqrt(2.0 * h2)
+    return max(h_tail, 1.2 * float(np.max(peaks))), h_tail, theta
 
 
 def cusum_offline(z, k, h, warm_blocks, RB=None, r_max=None):
@@ -240,9 +249,8 @@ def fit(cal: dict, k: float = K_DEFAULT, r_max: float = R_MAX_DEFAULT) -> dict:
         tails[mid] = {"theta": theta, "a": a, "max_peak": float(peaks[:, m].max()),
                       "p99_peak": float(np.percentile(peaks[:, m], 99))}
     gpeaks = receiver_peaks(z, UB, RB, warm, rmax)
-    g2, gtheta, _ = tail_threshold(gpeaks ** 2 / 2.0, p_run)
-    g_tail = math.sqrt(2.0 * g2)
-    receiver = {"modules": list(RECEIVER_MODULES), "h": max(g_tail, 1.2 * float(gpeaks.max())), "order": ORDER,
+    g_h, g_tail, gtheta = glr_threshold(gpeaks, p_run)
+    receiver = {"modules": list(RECEIVER_MODULES), "h": g_h, "order": ORDER,
                 "window_blocks": WINDOW_BLOCKS, "gate_tau_s": GATE_TAU_S, "gate_delta": GATE_DELTA,
                 "fit": {"tail_h": g_tail, "tail_theta_half_square": gtheta, "max_peak": float(gpeaks.max()),
                         "p99_peak": float(np.percentile(gpeaks, 99)),
