@@ -249,12 +249,16 @@ def fit(cal: dict, k: float = K_DEFAULT, r_max: float = R_MAX_DEFAULT) -> dict:
         tails[mid] = {"theta": theta, "a": a, "max_peak": float(peaks[:, m].max()),
                       "p99_peak": float(np.percentile(peaks[:, m], 99))}
     gpeaks = receiver_peaks(z, UB, RB, warm, rmax)
+    gate = transient_gate(UB, BLOCK_S)
+    family = np.array([str(p).split(":")[0] for p in cal["profiles"]])
     g_h, g_tail, gtheta = glr_threshold(gpeaks, p_run)
     receiver = {"modules": list(RECEIVER_MODULES), "h": g_h, "order": ORDER,
                 "window_blocks": WINDOW_BLOCKS, "gate_tau_s": GATE_TAU_S, "gate_delta": GATE_DELTA,
                 "fit": {"tail_h": g_tail, "tail_theta_half_square": gtheta, "max_peak": float(gpeaks.max()),
                         "p99_peak": float(np.percentile(gpeaks, 99)),
-                        "share_gated": float(transient_gate(UB, BLOCK_S).mean())}}
+                        "share_gated": float(gate.mean()),
+                        "share_gated_by_family": {fam: float(gate[family == fam].mean()) for fam in FAMILIES
+                                                  if (family == fam).any()}}}
     return {
         "module_ids": list(MODULE_IDS), "block_s": BLOCK_S, "u_nodes": nodes.tolist(),
         "mean": mean.tolist(), "scale": scale.tolist(), "k": kk.tolist(), "h": h.tolist(),
