@@ -257,6 +257,20 @@ class MeasuredDataset:
             suspect=tuple(dict(x, row=int(np.sum(m[:x["row"]]))) for x in self.suspect if m[x["row"] - 1]),
         )
 
+    def with_readings(self, readings: Mapping[str, Iterable[float]]) -> "MeasuredDataset":
+        """The same dataset (boundary conditions, per-cylinder spreads, flags) with other readings of some channels
+        or set-point columns, in the columns' units (e.g. a replica drawn from a fitted model)."""
+        raw, values = dict(self.raw), dict(self.values)
+        for col, v in readings.items():
+            if col not in self.column_quantity or self.column_role.get(col, "channel") not in ("channel", "setpoint"):
+                raise ValueError(f"{col!r} is not a reading of {self.name} (a channel or a set point)")
+            a = np.asarray(v, dtype=float)
+            if a.shape != (self.n_points,):
+                raise ValueError(f"{col}: {a.shape[0] if a.ndim else 1} values for {self.n_points} points")
+            raw[col] = a.copy()
+            values[self.column_quantity[col]] = self.to_si(col, a)
+        return dataclasses.replace(self, raw=raw, values=values)
+
     def quality_report(self) -> str:
         """The data-quality summary as text."""
         q = self.quality

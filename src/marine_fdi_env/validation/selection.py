@@ -824,7 +824,9 @@ def select_causes(
     cv_all : cross-validate every candidate.  By default a candidate is cross-validated only if it can
         still win: its in-sample penalised score (a lower bound of its cross-validated one: a fit predicts
         the data it saw better than data it did not) is below the best cross-validated penalised score of
-        the step so far and improves the current model by ``min_gain`` in-sample.
+        an *eligible* candidate of the step so far (one pinned at a bound or a calibration that leaves
+        structure cannot win, so it screens nothing out; until 2026-11-26 it did, found with
+        :mod:`.replicas`) and improves the current model by ``min_gain`` in-sample.
     alpha_unexplained : family-wise level (over the channels) of what is reported as unexplained
         (:data:`ALPHA_UNEXPLAINED`).
     max_folds : at most this many cross-validation folds (interleaved k-fold) for single-engine data.
@@ -899,21 +901,22 @@ def select_causes(
             else:
                 pred, c_folds = cross_validate(problem, c.combination, c.fit, max_folds=max_folds)
             c.score(problem, pred, c_folds, M, penalty, current_S, current_fit.k, current_L, rows)
-            best_pen = min(best_pen, c.penalised)
             say(f"step {step}: {c.added:48s} CV {c.cv_score:9.4g}  gain {c.gain:+.1%}  p = {c.p_value:.2g}")
-        for c in scored:
-            if c.cross_validated:
-                c.notes += _undetermined(c.fit)
-                pins = _shut_valves(c.fit)
-                if not pins and _at_bound(c.fit):
-                    pins = _binding(problem, c, known, current_fit.support)
-                if pins:
-                    c.screened = "not eligible: " + "; ".join(pins)
-                elif isinstance(c.combination.mechanisms[-1], SensorCalibration):
-                    left = _structure_left(problem, loco_cur, c.combination.mechanisms[-1], alpha)
-                    if left:
-                        c.screened = ("not eligible: the calibrated channel keeps a local departure (" + left +
-                                      "): a gain and an offset do not explain it")
+            # eligibility at once: only an eligible candidate's score can screen the others out (one pinned at a
+            # bound, or a calibration that leaves structure, cannot win, so it must not stop those that can)
+            c.notes += _undetermined(c.fit)
+            pins = _shut_valves(c.fit)
+            if not pins and _at_bound(c.fit):
+                pins = _binding(problem, c, known, current_fit.support)
+            if pins:
+                c.screened = "not eligible: " + "; ".join(pins)
+            elif isinstance(c.combination.mechanisms[-1], SensorCalibration):
+                left = _structure_left(problem, loco_cur, c.combination.mechanisms[-1], alpha)
+                if left:
+                    c.screened = ("not eligible: the calibrated channel keeps a local departure (" + left +
+                                  "): a gain and an offset do not explain it")
+            if not c.screened:
+                best_pen = min(best_pen, c.penalised)
         cv = sorted((c for c in scored if c.cross_validated and not c.screened), key=lambda c: c.penalised)
         threshold = alpha / len(scored)
         best, accept, why = None, False, (f"rejected: no candidate improves the in-sample score by {min_gain:.0%} "
