@@ -148,3 +148,16 @@ def test_a_candidate_pinned_at_a_bound_does_not_screen_the_others_out():
     assert first[f"sensor_calibration[{ch}]"].screened.startswith("not eligible")
     assert first["turbine_flow_law"].cross_validated  # no longer screened out by the ineligible calibration
     assert sel.selected_labels[0] == "turbine_flow_law", sel.selected_labels
+
+
+def test_replicas_command_line_bad_input(capsys):
+    from marine_fdi_env.validation.replicas import main
+
+    assert main(["--data", "no_such_dataset"]) == 2
+    assert "no such file" in capsys.readouterr().err
+    assert main(["--data", "birka_me1_test_protocol", "--replicas", "0"]) == 2
+    assert "--replicas" in capsys.readouterr().err
+    assert main(["--data", "birka_me1_test_protocol", "--top", "-1"]) == 2
+    assert "--top" in capsys.readouterr().err
+    assert main(["--data", "birka_me1_test_protocol", "--alternatives", "waste_gate,warp_drive"]) == 2
+    assert "warp_drive" in capsys.readouterr().err

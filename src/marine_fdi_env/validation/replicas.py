@@ -298,13 +298,16 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise ValueError(f"--top must be >= 0, got {args.top}")
         if args.replicas < 1 or args.workers < 1:
             raise ValueError("--replicas and --workers must be >= 1")
+        known = {m.id for m in PHYSICAL_MECHANISMS}
+        if alts is not None and not set(alts) <= known:  # before the selection's minutes, not after
+            raise ValueError(f"--alternatives: unknown physical mechanism(s) {', '.join(sorted(set(alts) - known))}; "
+                             f"known: {', '.join(sorted(known))}")
         ds = load_data_arg(args.data, args.params)
         pr = Problem(ds, params=args.params, target=args.target)
         say = None if args.no_progress else (lambda s: print(f"replicas: {s}", file=sys.stderr))
         if say:
             say("selecting causes on the data (as marine-fdi validate)")
         sel = select_causes(pr, max_folds=args.max_folds)
-        sel.settings["max_folds"] = args.max_folds
         if say:
             say(f"named on the data: {' + '.join(sel.selected_labels) or '(nothing)'}")
         rep = replicate(sel, replicas=args.replicas, noise=args.noise, seed=args.seed, alternatives=alts,

@@ -305,7 +305,6 @@ def run_validation(ds: MeasuredDataset, *, holdout: MeasuredDataset | None = Non
     pr = Problem(ds, target=target, params=params)
     sel = select_causes(pr, max_causes=max_causes, alpha=alpha, alpha_unexplained=alpha_unexplained, cv_all=cv_all,
                         max_folds=max_folds, progress=progress)
-    sel.settings["max_folds"] = max_folds
     ho = holdout_evaluation(sel, holdout) if holdout is not None else None
     rep = build_report(sel, ho, notes, command)
     if ho is not None:

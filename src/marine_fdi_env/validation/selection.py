@@ -1019,5 +1019,5 @@ def select_causes(
         settings={"max_causes": max_causes, "alpha": alpha, "alpha_unexplained": alpha_unexplained,
                   "min_gain": min_gain, "penalty": penalty, "robust_scale": ROBUST_SCALE, "cv": scheme,
                   "n_folds": len(folds), "n_cells": M, "cv_all": cv_all,
-                  "nuisance_sigma": 0.03, "pairs": use_pairs, "prune": prune},
+                  "nuisance_sigma": 0.03, "pairs": use_pairs, "prune": prune, "max_folds": max_folds},
     )
