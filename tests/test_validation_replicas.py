@@ -161,3 +161,25 @@ def test_replicas_command_line_bad_input(capsys):
     assert "--top" in capsys.readouterr().err
     assert main(["--data", "birka_me1_test_protocol", "--alternatives", "waste_gate,warp_drive"]) == 2
     assert "warp_drive" in capsys.readouterr().err
+
+
+def test_validate_replicas_option_writes_them_to_the_report(waste_gate_selection, tmp_path, capsys):
+    """``marine-fdi validate --replicas N``: the replicas' summary in the JSON report, a table in the Markdown and a
+    line per hypothesis on stdout (here with no cause allowed, so one hypothesis, the calibrated base: seconds)."""
+    import json
+
+    from marine_fdi_env.validation.report import validate_main
+
+    syn, _ = waste_gate_selection
+    path = tmp_path / "wg.csv"
+    syn.write(path)
+    out, md = tmp_path / "r.json", tmp_path / "r.md"
+    assert validate_main(["--data", str(path), "--out", str(out), "--markdown", str(md), "--max-causes", "0",
+                          "--replicas", "2", "--quiet"]) == 0
+    rep = json.loads(out.read_text())
+    s = rep["replicas"]["summary"]
+    assert [h["hypothesis"] for h in s] == ["named"] and s[0]["replicas"] == 2
+    assert s[0]["named_data_causes"] == 2  # nothing may be named, and nothing is
+    assert "Would data like these name the same causes again?" in md.read_text()
+    assert "replicas drawn from named (nothing): named itself 2/2" in capsys.readouterr().out
+    assert validate_main(["--data", str(path), "--out", str(out), "--replicas", "-1", "--quiet"]) == 2

@@ -872,3 +872,15 @@ def load_shipped(name: str, *, params: str | None = None) -> MeasuredDataset:
     csv_res = shipped_path(name)
     meta = json.loads((_measured_dir() / f"{name}.meta.json").read_text())
     return load_dataset(Path(str(csv_res)), meta, params=params, name=name, text=csv_res.read_text())
+
+
+def load_data_arg(text: str, params: str | None = None) -> MeasuredDataset:
+    """A dataset from a CSV path or the name of a shipped dataset (warnings kept in the dataset)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)
+        p = Path(text)
+        if p.exists():
+            return load_dataset(p, params=params)
+        if text in list_shipped():
+            return load_shipped(text, params=params)
+        raise ValueError(f"no such file {text!r} (shipped datasets: {', '.join(list_shipped())})")

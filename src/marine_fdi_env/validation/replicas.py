@@ -46,7 +46,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 from scipy import stats
 
-from .dataset import MeasuredDataset
+from .dataset import MeasuredDataset, load_data_arg
 from .fitting import Combination, fit_combination, predict_setting
 from .mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
 from .problem import Problem
@@ -271,8 +271,6 @@ def markdown_table(rep: Mapping[str, Any]) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    from .report import load_data_arg
-
     ap = argparse.ArgumentParser(prog="python -m marine_fdi_env.validation.replicas",
                                  description="Would the pipeline name the same causes again on data like these? "
                                              "(a parametric bootstrap at the data's design; module docstring)")

@@ -35,7 +35,6 @@ import argparse
 import json
 import math
 import sys
-import warnings
 from datetime import date
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -43,7 +42,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ..engine.params import EngineParams, engine_file_dict, list_parameter_sets, load_params
-from .dataset import DatasetError, DataWarning, MeasuredDataset, list_shipped, load_dataset, load_shipped
+from .dataset import DatasetError, MeasuredDataset, list_shipped, load_data_arg
 from .fitting import channel_rmse, predict_setting
 from .matching import TARGETS
 from .mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
@@ -71,18 +70,6 @@ def _clean(x: Any) -> Any:
         x = float(x)
         return x if math.isfinite(x) else None
     return x
-
-
-def load_data_arg(text: str, params: str | None = None) -> MeasuredDataset:
-    """A dataset from a CSV path or the name of a shipped dataset (warnings kept in the dataset)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DataWarning)
-        p = Path(text)
-        if p.exists():
-            return load_dataset(p, params=params)
-        if text in list_shipped():
-            return load_shipped(text, params=params)
-        raise ValueError(f"no such file {text!r} (shipped datasets: {', '.join(list_shipped())})")
 
 
 def split_engine(ds: MeasuredDataset, engine: str) -> tuple[MeasuredDataset, MeasuredDataset]:
@@ -644,6 +631,16 @@ def markdown_summary(rep: Mapping[str, Any], title: str | None = None) -> str:
         for o in rep["outliers"]:
             L.append(f"* {o['text']}")
         L.append("")
+    if rep.get("replicas"):
+        from .replicas import markdown_table
+
+        r = rep["replicas"]
+        L.append(f"Would data like these name the same causes again? {r['settings']['replicas']} replicas per "
+                 f"hypothesis at this dataset's design (noise: {r['settings']['noise']}; each hypothesis fitted on "
+                 "the data and taken as the truth, the whole pipeline run on each replica):")
+        L.append("")
+        L.append(markdown_table(r))
+        L.append("")
     return "\n".join(L)
 
 
@@ -677,6 +674,11 @@ def build_parser(prog: str = "marine-fdi validate") -> argparse.ArgumentParser:
                     help=f"family-wise level of what is reported as unexplained (default {ALPHA_UNEXPLAINED:g})")
     ap.add_argument("--cv-all", action="store_true", help="cross-validate every candidate (slower)")
     ap.add_argument("--markdown", metavar="FILE.md", help="also write the report's tables as Markdown")
+    ap.add_argument("--replicas", type=int, default=0, metavar="N",
+                    help="also ask whether data like these would name the same causes again: N replicas of the data "
+                         "per hypothesis (the named causes and 4 alternatives), each run through the whole pipeline "
+                         "(python -m marine_fdi_env.validation.replicas; about 5 x N pipeline runs; default 0: no)")
+    ap.add_argument("--workers", type=int, default=1, help="processes for --replicas (default 1)")
     ap.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     return ap
 
@@ -705,6 +707,10 @@ def _summary_lines(rep: Mapping[str, Any]) -> list[str]:
         lines.append("  " + u["text"])
     for o in rep["outliers"]:
         lines.append("  " + o["text"])
+    for h in (rep.get("replicas") or {}).get("summary", []):
+        lines.append(f"  replicas drawn from {h['hypothesis']} ({' + '.join(h['causes']) or 'nothing'}): named "
+                     f"itself {h['named_itself']}/{h['replicas']}, the data's causes {h['named_data_causes']}/"
+                     f"{h['replicas']}")
     return lines
 
 
@@ -754,6 +760,8 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
             raise ValueError(f"--alpha must lie in (0, 1), got {args.alpha}")
         if not 0.0 < args.alpha_unexplained < 1.0:
             raise ValueError(f"--alpha-unexplained must lie in (0, 1), got {args.alpha_unexplained}")
+        if args.replicas < 0 or args.workers < 1:
+            raise ValueError(f"--replicas must be >= 0 and --workers >= 1, got {args.replicas}, {args.workers}")
         out = _out_path(args.out, "--out")
         save = _out_path(args.save_params, "--save-params") if args.save_params else None
         md = _out_path(args.markdown, "--markdown") if args.markdown else None
@@ -780,6 +788,13 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
                                       alpha_unexplained=args.alpha_unexplained, cv_all=args.cv_all,
                                       max_folds=args.max_folds, progress=say, notes=notes,
                                       command="marine-fdi validate " + " ".join(argv))
+        if args.replicas:
+            from .replicas import replicate
+
+            if say:
+                say(f"replicas: {args.replicas} per hypothesis, each through the whole pipeline")
+            rep["replicas"] = _clean(replicate(sel, replicas=args.replicas, workers=args.workers,
+                                               progress=not args.quiet))
     except RuntimeError as e:  # a missing optional extra
         print(f"{prog}: error: {e}", file=sys.stderr)
         return 2
