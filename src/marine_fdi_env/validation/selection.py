@@ -499,6 +499,16 @@ def _binding(problem: Problem, c: "CandidateScore", known: Mapping[str, float], 
     return out
 
 
+def _pins(problem: Problem, c: "CandidateScore", known: Mapping[str, float], support) -> list[str]:
+    """Why a cross-validated candidate is pinned (a valve shut everywhere, a bound the data want beyond), empty if
+    it is not; notes the parameters its fit leaves undetermined."""
+    c.notes += _undetermined(c.fit)
+    pins = _shut_valves(c.fit)
+    if not pins and _at_bound(c.fit):
+        pins = _binding(problem, c, known, support)
+    return pins
+
+
 def _sensor_candidate(problem: Problem, current: FitResult, in_pred: np.ndarray, folds: FoldData,
                       mech: SensorCalibration) -> tuple[FitResult, np.ndarray]:
     """``current`` plus a sensor calibration, fitted on ``current``'s readings (in-sample and per fold):
@@ -904,10 +914,7 @@ def select_causes(
             say(f"step {step}: {c.added:48s} CV {c.cv_score:9.4g}  gain {c.gain:+.1%}  p = {c.p_value:.2g}")
             # eligibility at once: only an eligible candidate's score can screen the others out (one pinned at a
             # bound, or a calibration that leaves structure, cannot win, so it must not stop those that can)
-            c.notes += _undetermined(c.fit)
-            pins = _shut_valves(c.fit)
-            if not pins and _at_bound(c.fit):
-                pins = _binding(problem, c, known, current_fit.support)
+            pins = _pins(problem, c, known, current_fit.support)
             if pins:
                 c.screened = "not eligible: " + "; ".join(pins)
             elif isinstance(c.combination.mechanisms[-1], SensorCalibration):
@@ -943,10 +950,7 @@ def select_causes(
                     continue
                 c.fit = fit_combination(problem, c.combination, start=c.fit, known=known,
                                         support=current_fit.support)
-                c.notes += _undetermined(c.fit)
-                pins = _shut_valves(c.fit)
-                if not pins and _at_bound(c.fit):
-                    pins = _binding(problem, c, known, current_fit.support)
+                pins = _pins(problem, c, known, current_fit.support)
                 if pins:
                     c.screened = "not eligible: " + "; ".join(pins)
                     continue
