@@ -74,6 +74,42 @@ def test_study_trial_and_its_control(condition, seed, tmp_path, monkeypatch):
     assert s["n_trials"] == 1 and s["control_named_rate"] == 0.0
 
 
+def test_study_told_the_true_noise(monkeypatch):
+    """The ``--tolerance noise`` ablation hands the selection each channel's true noise (the mean standard deviation
+    drawn on it: in (c) 1.5 % of each reading, so about 0.75 K on a 50 C cooler outlet and 9 K on a 600 C exhaust,
+    where the stated tolerance is 5 K on both), records it in the trial's settings (a resumed study does not mix it
+    with the stated-tolerance trials; the default is not recorded, so earlier files still resume) and refuses an
+    unknown mode."""
+    import marine_fdi_env.validation.selection as selection
+    from marine_fdi_env.validation.synthesize import _trial_settings, noise_tolerances, trial_data
+
+    seen = {}
+
+    class Stop(Exception):
+        pass
+
+    def capture(problem, **kw):
+        seen["channels"], seen["tolerance"] = list(problem.channels), problem.tolerance.copy()
+        raise Stop
+
+    monkeypatch.setattr(selection, "select_causes", capture)
+    with pytest.raises(Stop):
+        trial("c", 3, tolerance="noise")
+    syn = trial_data("c", 3)
+    told = noise_tolerances(syn, seen["channels"])
+    np.testing.assert_allclose(seen["tolerance"], [told[c] for c in seen["channels"]], rtol=1e-12)
+    clean = {c: np.asarray(syn.clean[c], dtype=float) for c in seen["channels"]}
+    for c in seen["channels"]:  # 1.5 % of the mean absolute reading, in the column's units
+        assert told[c] == pytest.approx(0.015 * np.mean(np.abs(clean[c])), rel=1e-9)
+    cooler = told["charge_air_cooler_outlet_temperature_C"]
+    exhaust = told["cylinder_exhaust_temperature_mean_C"]
+    assert cooler < 1.5 and exhaust > 6.0, (cooler, exhaust)  # the stated 5 K misstates both
+    assert "tolerance" not in _trial_settings()
+    assert _trial_settings(tolerance="noise")["tolerance"] == "noise"
+    with pytest.raises(ValueError, match="tolerance must be one of"):
+        trial("c", 3, tolerance="exact")
+
+
 def test_a_miscalibrated_sensor_is_named_alone_once_the_model_is_refitted_with_it():
     """Closed world, one thermocouple reading 8 % low and 24 K off (study trial a25): the calibration is named and
     nothing else.  Before the model was refitted with an accepted calibration, the nuisance fitted to the

@@ -504,11 +504,28 @@ def _draw_mechanisms(rng: np.random.Generator, n: int) -> list[str]:
     return [str(x) for x in rng.choice(ids, size=n, replace=False)]
 
 
+#: what the pipeline is told of the noise in a study trial: ``stated`` its own tolerances (1 %, 5 K: what every
+#: result of the study uses), ``noise`` each channel's true noise (:func:`noise_tolerances`, an ablation)
+TOLERANCE_MODES = ("stated", "noise")
+
+
 def _trial_settings(params: str = "wartsila-6l46", points: int = 8, max_folds: int | None = None, prune: bool = True,
-                    **_) -> dict[str, Any]:
+                    tolerance: str = "stated", **_) -> dict[str, Any]:
     """What a trial's outcome depends on besides its condition and seed (a resumed study keeps only trials run with
-    the same)."""
-    return {"params": str(params), "points": int(points), "max_folds": max_folds, "prune": bool(prune)}
+    the same; ``tolerance`` is recorded only when it is not the default, so earlier files still resume)."""
+    out = {"params": str(params), "points": int(points), "max_folds": max_folds, "prune": bool(prune)}
+    if tolerance != "stated":
+        out["tolerance"] = str(tolerance)
+    return out
+
+
+def noise_tolerances(syn: Synthesis, channels: Sequence[str]) -> dict[str, float]:
+    """Each channel's tolerance set to the noise :func:`synthesize` drew on it: the mean over the points of its
+    standard deviation (one number per sensor, as a user states a sensor's accuracy; in condition (c) the noise is
+    proportional to the reading, so it is larger at high readings than this).  Used by the study's ``--tolerance
+    noise`` ablation, which measures what the pipeline loses because its tolerances misstate the noise; no result
+    of the study itself uses it."""
+    return {c: float(np.mean(syn.noise_sd(c))) for c in channels}
 
 
 def trial_draw(condition: str, seed: int, *, control: bool = False
@@ -539,10 +556,11 @@ def trial_data(condition: str, seed: int, *, control: bool = False, params: str 
 
 
 def trial(condition: str, seed: int, *, control: bool = False, params: str = "wartsila-6l46", points: int = 8,
-          max_folds: int | None = None, prune: bool = True, workdir: str | Path | None = None) -> dict[str, Any]:
+          max_folds: int | None = None, prune: bool = True, tolerance: str = "stated",
+          workdir: str | Path | None = None) -> dict[str, Any]:
     """One trial of the study: synthesise with the condition's hidden effects (none when ``control``), write and
-    reload the data, run the selection (``prune``: its final removal step, on by default) and compare with the
-    truth."""
+    reload the data, run the selection (``prune``: its final removal step, on by default; ``tolerance``: one of
+    :data:`TOLERANCE_MODES`) and compare with the truth."""
     import tempfile
     import warnings
 
@@ -552,9 +570,11 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
 
     t0 = time.perf_counter()
     mechs, effects, shadow = trial_draw(condition, seed, control=control)
+    if tolerance not in TOLERANCE_MODES:
+        raise ValueError(f"tolerance must be one of {', '.join(TOLERANCE_MODES)}, got {tolerance!r}")
     base = {"condition": condition, "control": bool(control), "seed": int(seed), "mechanisms": mechs,
             "effects": effects, "trial_settings": _trial_settings(params=params, points=points, max_folds=max_folds,
-                                                                  prune=prune)}
+                                                                  prune=prune, tolerance=tolerance)}
     try:
         syn = trial_data(condition, seed, control=control, params=params, points=points)
     except ValueError as e:
@@ -569,7 +589,10 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
             except DatasetError as e:
                 return {**base, "outcome": "skipped", "why": "loader: " + " ".join(str(e).split())[:300],
                         "seconds": time.perf_counter() - t0}
-    sel = select_causes(Problem(ds), max_folds=max_folds, prune=prune)
+    problem = Problem(ds)
+    if tolerance == "noise":
+        problem = Problem(ds, tolerances=noise_tolerances(syn, problem.channels))
+    sel = select_causes(problem, max_folds=max_folds, prune=prune)
     truth_labels = sorted(t["label"] for t in syn.truth)
     named = sorted(sel.selected_labels)
     res = {**base, "truth": syn.truth, "selected": named, "model_error": syn.settings["model_error"],
@@ -740,7 +763,7 @@ def summarise(results: Sequence[dict[str, Any]], condition: str) -> dict[str, An
 
 def study_main(argv: Sequence[str] | None = None) -> int:
     """``python -m marine_fdi_env.validation.synthesize study [--conditions abcde] [--seeds A:B] [--workers K]
-    [--no-prune] [--out FILE.json]``: the open-world hidden-effect study."""
+    [--no-prune] [--tolerance stated|noise] [--out FILE.json]``: the open-world hidden-effect study."""
     ap = argparse.ArgumentParser(prog="python -m marine_fdi_env.validation.synthesize study",
                                  description="Open-world hidden-effect study: " + "; ".join(
                                      f"({k}) {v['title']}" for k, v in CONDITIONS.items()))
@@ -751,6 +774,9 @@ def study_main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--points", type=int, default=8)
     ap.add_argument("--no-prune", action="store_true",
                     help="without the selection's final removal step (to measure what it changes)")
+    ap.add_argument("--tolerance", default="stated", choices=TOLERANCE_MODES,
+                    help="what the pipeline is told of the noise: its own tolerances (default; every result of the "
+                    "study) or each channel's true noise (an ablation: what misstated tolerances cost)")
     ap.add_argument("--out", default=None, help="write every trial as JSON here; finished trials are kept in "
                     "OUT.trials.jsonl and a rerun resumes from it")
     args = ap.parse_args(list(argv) if argv is not None else None)
@@ -771,6 +797,7 @@ def study_main(argv: Sequence[str] | None = None) -> int:
     try:
         res = study(list(args.conditions), seeds, controls=not args.no_controls, workers=args.workers,
                     points=args.points, **({"prune": False} if args.no_prune else {}),
+                    **({"tolerance": args.tolerance} if args.tolerance != "stated" else {}),
                     checkpoint=(Path(args.out).with_suffix(".trials.jsonl") if args.out else None))
     except KeyboardInterrupt:
         print("study: interrupted", file=sys.stderr)
