@@ -382,6 +382,14 @@ def test_validate_bad_input(tmp_path, capsys):
         (["--data", "man_12v32_40_fpp_iso"], "--out"),
         (["--data", "birka_6l46_shop_test", "--holdout", "x.csv", "--holdout-engine", "ME1", "--out", out],
          "not allowed with"),
+        (["--data", "man_12v32_40_fpp_iso", "--tolerance", "boost=2", "--out", out], "not a compared channel"),
+        (["--data", "man_12v32_40_fpp_iso", "--tolerance", "speed_rpm", "--out", out], "COLUMN=VALUE"),
+        (["--data", "man_12v32_40_fpp_iso", "--tolerance", "speed_rpm=-1", "--out", out], "must be positive"),
+        (["--data", "man_12v32_40_fpp_iso", "--tolerance", "speed_rpm=fast", "--out", out], "not a number"),
+        (["--data", "man_12v32_40_fpp_iso", "--tolerance", "turbine_outlet_temperature_C=1%", "--out", out],
+         "not in %"),
+        (["--data", "man_12v32_40_fpp_iso", "--tolerance", "speed_rpm=2", "--tolerance", "speed_rpm=3", "--out", out],
+         "given twice"),
     ]
     capsys.readouterr()
     for argv, msg in cases:
@@ -425,3 +433,21 @@ def test_open_world_study_rates():
     res = study(["a"], range(20), controls=True, progress=False)
     s = res["conditions"]["a"]
     assert s["identification_rate_up_to_equivalence"] >= 0.9 and s["control_named_rate"] <= 0.05
+
+
+def test_validate_tolerance_option_sets_the_residual_scale(tmp_path):
+    """``--tolerance COLUMN=VALUE|P%``: the stated tolerance is the one the report's channels carry and the fit
+    weights by (P % on the default's basis: twice the default 1 % at 2 %); the other channels keep theirs."""
+    out = tmp_path / "r.json"
+    argv = ["--data", "man_12v32_40_fpp_iso", "--out", str(out), "--max-causes", "0", "--quiet"]
+    assert validate_main(argv) == 0
+    default = json.loads(out.read_text())["channels"]
+    assert validate_main(argv + ["--tolerance", "charge_air_pressure_bar_abs=2%",
+                                 "--tolerance", "turbine_outlet_temperature_C=8"]) == 0
+    told = json.loads(out.read_text())["channels"]
+    assert told["charge_air_pressure_bar_abs"]["tolerance"] == pytest.approx(
+        2 * default["charge_air_pressure_bar_abs"]["tolerance"], rel=1e-12)
+    assert told["turbine_outlet_temperature_C"]["tolerance"] == 8.0
+    assert default["turbine_outlet_temperature_C"]["tolerance"] == 5.0
+    for c in set(default) - {"charge_air_pressure_bar_abs", "turbine_outlet_temperature_C"}:
+        assert told[c]["tolerance"] == default[c]["tolerance"], c

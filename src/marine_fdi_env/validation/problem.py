@@ -130,6 +130,43 @@ class Problem:
         """1 % of the mean measured value (ratio quantities), 5 K (temperatures), 0.01 (load fraction)."""
         return column_tolerance(self.ds, column)
 
+    def stated_tolerances(self, items: Sequence[str]) -> dict[str, float]:
+        """The tolerances of this problem with ``COLUMN=VALUE`` items (``marine-fdi validate --tolerance``) put in
+        place: VALUE in the column's units, or ``P%`` for P % of the channel's mean value on the default's basis
+        (absolute pressure for a gauge column; not for temperatures, whose default is 5 K, not a percentage).
+
+        A tolerance is the residual scale of a channel: the fit weights it by its inverse and the tests of
+        unexplained structure count in it, so a tolerance that misstates a sensor's noise weights the channels
+        wrongly (docs/validation.md, the study's ``--tolerance noise`` ablation).  Raises ValueError naming the
+        item on an unknown or uncompared column, a malformed or non-positive value, or a column given twice."""
+        out = {c: float(t) for c, t in zip(self.channels, self.tolerance)}
+        seen: set[str] = set()
+        for item in items:
+            col, eq, val = str(item).partition("=")
+            col, val = col.strip(), val.strip()
+            if not eq or not col or not val:
+                raise ValueError(f"--tolerance {item!r}: expected COLUMN=VALUE or COLUMN=P%")
+            if col not in self.channels:
+                raise ValueError(f"--tolerance {item!r}: {col!r} is not a compared channel of {self.ds.name}; "
+                                 f"channels: {', '.join(self.channels)}")
+            if col in seen:
+                raise ValueError(f"--tolerance: {col!r} given twice")
+            seen.add(col)
+            pct = val.endswith("%")
+            try:
+                x = float(val[:-1] if pct else val)
+            except ValueError:
+                raise ValueError(f"--tolerance {item!r}: {val!r} is not a number (or P%)") from None
+            if not np.isfinite(x) or x <= 0:
+                raise ValueError(f"--tolerance {item!r}: must be positive")
+            if pct:
+                if QUANTITIES[self.ds.column_quantity[col]].kind == "temperature":
+                    raise ValueError(f"--tolerance {item!r}: give a temperature's tolerance in its unit, not "
+                                     "in % (the default is 5 K)")
+                x = column_tolerance(self.ds, col, rel_tol=x / 100.0)
+            out[col] = x
+        return out
+
     def _cell_tolerances(self) -> np.ndarray:
         tol = np.broadcast_to(self.tolerance, self.Y.shape).copy()
         for g in self.ds.groups.values():

@@ -286,10 +286,11 @@ def _rmse_masked(pr: Problem, pred: np.ndarray, keep: np.ndarray, j: int, rows=N
 def run_validation(ds: MeasuredDataset, *, holdout: MeasuredDataset | None = None, target: str = "auto",
                    params: str | EngineParams | None = None, max_causes: int = 4, alpha: float = 0.01,
                    alpha_unexplained: float = ALPHA_UNEXPLAINED, cv_all: bool = False, max_folds: int | None = None,
-                   progress=None, notes: Sequence[str] = (),
-                   command: str | None = None) -> tuple[dict[str, Any], Selection, dict | None]:
-    """Run the pipeline; returns (JSON report, selection, hold-out evaluation with predictions or None)."""
-    pr = Problem(ds, target=target, params=params)
+                   progress=None, notes: Sequence[str] = (), command: str | None = None,
+                   tolerances: Mapping[str, float] | None = None) -> tuple[dict[str, Any], Selection, dict | None]:
+    """Run the pipeline; returns (JSON report, selection, hold-out evaluation with predictions or None).
+    ``tolerances``: per channel in its units (default: the sidecar's, else 1 % / 5 K)."""
+    pr = Problem(ds, target=target, params=params, tolerances=tolerances)
     sel = select_causes(pr, max_causes=max_causes, alpha=alpha, alpha_unexplained=alpha_unexplained, cv_all=cv_all,
                         max_folds=max_folds, progress=progress)
     ho = holdout_evaluation(sel, holdout) if holdout is not None else None
@@ -672,6 +673,9 @@ def build_parser(prog: str = "marine-fdi validate") -> argparse.ArgumentParser:
     ap.add_argument("--alpha", type=float, default=0.01, help="significance level of a named cause (default 0.01)")
     ap.add_argument("--alpha-unexplained", type=float, default=ALPHA_UNEXPLAINED,
                     help=f"family-wise level of what is reported as unexplained (default {ALPHA_UNEXPLAINED:g})")
+    ap.add_argument("--tolerance", action="append", default=[], metavar="COLUMN=VALUE",
+                    help="a channel's tolerance (its noise and what is not worth naming), in the column's units or "
+                         "as P%% of its mean value; repeatable; default: the sidecar's tolerances, else 1 %% and 5 K")
     ap.add_argument("--cv-all", action="store_true", help="cross-validate every candidate (slower)")
     ap.add_argument("--markdown", metavar="FILE.md", help="also write the report's tables as Markdown")
     ap.add_argument("--replicas", type=int, default=0, metavar="N",
@@ -783,11 +787,13 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
                                         ds.params_name)
             except DatasetError as e:
                 raise ValueError(f"--holdout: {e}") from None
+        tolerances = Problem(ds, target=args.target, params=params).stated_tolerances(args.tolerance) \
+            if args.tolerance else None
         rep, sel, ho = run_validation(ds, holdout=holdout, target=args.target, params=params,
                                       max_causes=args.max_causes, alpha=args.alpha,
                                       alpha_unexplained=args.alpha_unexplained, cv_all=args.cv_all,
                                       max_folds=args.max_folds, progress=say, notes=notes,
-                                      command="marine-fdi validate " + " ".join(argv))
+                                      command="marine-fdi validate " + " ".join(argv), tolerances=tolerances)
         if args.replicas:
             from .replicas import replicate
 
