@@ -161,6 +161,8 @@ def test_replicas_command_line_bad_input(capsys):
     assert "--top" in capsys.readouterr().err
     assert main(["--data", "birka_me1_test_protocol", "--alternatives", "waste_gate,warp_drive"]) == 2
     assert "warp_drive" in capsys.readouterr().err
+    assert main(["--data", "birka_me1_test_protocol", "--tolerance", "boost_bar=0.1"]) == 2
+    assert "not a compared channel" in capsys.readouterr().err
 
 
 def test_validate_replicas_option_writes_them_to_the_report(waste_gate_selection, tmp_path, capsys):

@@ -288,6 +288,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=1, help="processes (default 1)")
     ap.add_argument("--out", default=None, metavar="FILE.json")
     ap.add_argument("--markdown", default=None, metavar="FILE.md")
+    ap.add_argument("--tolerance", action="append", default=[], metavar="COLUMN=VALUE",
+                    help="a channel's tolerance in its units or as P%% of its mean value (as marine-fdi validate)")
     ap.add_argument("--no-progress", action="store_true")
     args = ap.parse_args(list(argv) if argv is not None else None)
     alts = None if args.alternatives is None else [a.strip() for a in args.alternatives.split(",") if a.strip()]
@@ -302,6 +304,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                              f"known: {', '.join(sorted(known))}")
         ds = load_data_arg(args.data, args.params)
         pr = Problem(ds, params=args.params, target=args.target)
+        if args.tolerance:
+            pr = Problem(ds, params=args.params, target=args.target, tolerances=pr.stated_tolerances(args.tolerance))
         say = None if args.no_progress else (lambda s: print(f"replicas: {s}", file=sys.stderr))
         if say:
             say("selecting causes on the data (as marine-fdi validate)")
