@@ -42,6 +42,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ..engine.params import EngineParams, engine_file_dict, list_parameter_sets, load_params
+from .data_check import column_registry, describe
 from .dataset import DatasetError, MeasuredDataset, list_shipped, load_data_arg
 from .fitting import channel_rmse, predict_setting
 from .matching import TARGETS
@@ -653,13 +654,17 @@ class _ArgError(Exception):
 def build_parser(prog: str = "marine-fdi validate") -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog=prog, description="Validate the engine model against measured data: "
                                  "discrepancies, named causes, cross-validated gain, the fitted engine.")
-    ap.add_argument("--data", required=True, metavar="FILE.csv",
+    ap.add_argument("--data", metavar="FILE.csv",
                     help="measured data (CSV with sidecar FILE.meta.json) or a shipped dataset name "
                          f"({', '.join(list_shipped())})")
     g = ap.add_mutually_exclusive_group()
     g.add_argument("--holdout", metavar="FILE.csv", help="data the fit does not see; the report gives its RMSE")
     g.add_argument("--holdout-engine", metavar="ID", help="leave this engine of --data out and predict it")
-    ap.add_argument("--out", required=True, metavar="report.json", help="JSON report")
+    ap.add_argument("--out", metavar="report.json", help="JSON report (required unless --check)")
+    ap.add_argument("--check", action="store_true",
+                    help="only load and check --data: what each column becomes, the assumptions, the readings left "
+                         "out, the tolerance of every compared channel; no fit (seconds)")
+    ap.add_argument("--columns", action="store_true", help="list the column names the loader knows and stop")
     ap.add_argument("--plots", metavar="DIR", help="write model-vs-measurement plots here (needs matplotlib)")
     ap.add_argument("--params", metavar="NAME|FILE.json", help="parameter set overriding the sidecar's ("
                     + ", ".join(list_parameter_sets()) + ") or a fitted-engine file")
@@ -746,8 +751,15 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
         return 2
     except SystemExit as e:  # --help
         return int(e.code or 0)
+    if args.columns:
+        print(column_registry())
+        return 0
     say = None if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
     try:
+        if args.data is None:
+            raise ValueError("--data is required (or --columns to list the known column names)")
+        if args.out is None and not args.check:
+            raise ValueError("--out is required (or --check to only check the data)")
         params = None
         if args.params is not None:
             try:
@@ -766,7 +778,7 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
             raise ValueError(f"--alpha-unexplained must lie in (0, 1), got {args.alpha_unexplained}")
         if args.replicas < 0 or args.workers < 1:
             raise ValueError(f"--replicas must be >= 0 and --workers >= 1, got {args.replicas}, {args.workers}")
-        out = _out_path(args.out, "--out")
+        out = _out_path(args.out, "--out") if args.out else None
         save = _out_path(args.save_params, "--save-params") if args.save_params else None
         md = _out_path(args.markdown, "--markdown") if args.markdown else None
         if args.plots:
@@ -787,8 +799,14 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
                                         ds.params_name)
             except DatasetError as e:
                 raise ValueError(f"--holdout: {e}") from None
-        tolerances = Problem(ds, target=args.target, params=params).stated_tolerances(args.tolerance) \
-            if args.tolerance else None
+        problem = Problem(ds, target=args.target, params=params) if args.tolerance or args.check else None
+        tolerances = problem.stated_tolerances(args.tolerance) if args.tolerance else None
+        if args.check:
+            print(describe(ds, problem, tolerances or dict(zip(problem.channels, problem.tolerance)), args.tolerance,
+                           max_folds=args.max_folds))
+            if holdout is not None:
+                print(f"hold-out: {holdout.name}, {holdout.n_points} points (predicted, not fitted)")
+            return 0
         rep, sel, ho = run_validation(ds, holdout=holdout, target=args.target, params=params,
                                       max_causes=args.max_causes, alpha=args.alpha,
                                       alpha_unexplained=args.alpha_unexplained, cv_all=args.cv_all,

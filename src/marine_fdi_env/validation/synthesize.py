@@ -181,6 +181,13 @@ def draw_effect(rng: np.random.Generator, columns: Sequence[str], family: str | 
             "relative": q.kind != "temperature"}
 
 
+def _column_description(column: str) -> str:
+    """The sidecar's description of a written column; a gauge column says so (the quantity itself is absolute)."""
+    spec = lookup_column(column)
+    text = QUANTITIES[spec.quantity].description
+    return text.replace(", absolute", "") + ", gauge (above the ambient pressure)" if spec.gauge else text
+
+
 def synthesize(
     params: str | EngineParams,
     mechanisms: Sequence[str | tuple[str, dict[str, float], str | None]] = ("none",),
@@ -335,7 +342,7 @@ def synthesize(
         "noise": (f"Gaussian noise of standard deviation {noise:g} x the column's mean absolute value" if
                   noise_model == "typical" else f"Gaussian noise of standard deviation {noise:g} x the reading") +
                  " (column units) on every column except the set points",
-        "columns": {c: QUANTITIES[lookup_column(c).quantity].description for c in columns},
+        "columns": {c: _column_description(c) for c in columns},
     }
     return Synthesis(columns=out, clean={c: np.tile(v, k) for c, v in clean.items()}, meta=meta, truth=truth,
                      engines=eng_ids, effects=list(effects), activity=activity,
