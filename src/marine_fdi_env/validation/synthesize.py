@@ -824,4 +824,8 @@ def study_main(argv: Sequence[str] | None = None) -> int:
 if __name__ == "__main__":  # pragma: no cover
     if len(sys.argv) > 1 and sys.argv[1] == "study":
         sys.exit(study_main(sys.argv[2:]))
+    if len(sys.argv) > 1 and sys.argv[1] == "pool":
+        from .study_pool import pool_main
+
+        sys.exit(pool_main(sys.argv[2:]))
     sys.exit(synthesize_main())

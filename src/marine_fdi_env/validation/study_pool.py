@@ -1,0 +1,150 @@
+"""Pool open-world study files and hold each condition to its target, with exact binomial intervals.
+
+``python -m marine_fdi_env.validation.synthesize pool FILE.json ...`` reads study files written by
+``synthesize study --out`` (each a range of seeds), refuses a trial counted twice, and prints per condition the
+hits over the trials of every file and pooled, the pooled rate's two-sided 95 % Clopper-Pearson interval, the
+target of issue 11 and two verdicts: the point estimate against the bar (how the issue states its targets) and
+what the interval says (above the bar, containing it, or below it).  Twenty trials bound a rate only loosely
+(20/20: the true rate is above 86 % with 95 % confidence), so a verdict on one range is mostly noise; the
+pooled interval says how much a pooled verdict is worth.
+
+Targets: identification (the exact set of named causes) >= 95 % in (a), (b), (c); the exact pair >= 80 % in
+(d); the out-of-library effect reported unexplained on its channel >= 90 % in (e); negative controls naming a
+cause <= 5 % in every condition.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+from scipy.stats import binomtest
+
+__all__ = ["TARGETS", "load_trials", "pool", "pool_markdown", "pool_main"]
+
+# condition -> (what counts, the bar, "min" (rate >= bar) or "max" (rate <= bar))
+TARGETS: dict[str, tuple[str, float, str]] = {
+    "a": ("right cause (exact set)", 0.95, "min"),
+    "b": ("right cause (exact set)", 0.95, "min"),
+    "c": ("right cause (exact set)", 0.95, "min"),
+    "d": ("exact pair", 0.80, "min"),
+    "e": ("unexplained on the right channel", 0.90, "min"),
+}
+CONTROL_BAR = 0.05
+
+
+def load_trials(paths: Sequence[str | Path]) -> list[tuple[str, list[dict[str, Any]]]]:
+    """``[(label, trials)]`` per file; ValueError on an unreadable file, one without trials, or a trial (condition,
+    seed, control) that two files both hold."""
+    out, seen = [], {}
+    for p in paths:
+        p = Path(p)
+        try:
+            data = json.loads(p.read_text())
+        except (OSError, json.JSONDecodeError) as e:
+            raise ValueError(f"{p}: not a readable study file ({e})") from None
+        trials = data.get("trials") if isinstance(data, Mapping) else None
+        if not isinstance(trials, list) or not trials:
+            raise ValueError(f"{p}: no trials (write one with `synthesize study --out`)")
+        for t in trials:
+            key = (t["condition"], int(t["seed"]), bool(t["control"]))
+            if key in seen:
+                raise ValueError(f"{p}: trial ({key[0]}, seed {key[1]}{', control' if key[2] else ''}) is also in "
+                                 f"{seen[key]}: a trial counted twice")
+            seen[key] = p.name
+        seeds = sorted({int(t["seed"]) for t in trials})
+        out.append((f"{seeds[0]}-{seeds[-1]}", trials))
+    return out
+
+
+def _hit(t: Mapping[str, Any]) -> bool:
+    return bool(t.get("unexplained_right_channel") if t["condition"] == "e" else t.get("exact"))
+
+
+def _interval(k: int, n: int) -> tuple[float, float]:
+    ci = binomtest(k, n).proportion_ci(0.95, method="exact")
+    return float(ci.low), float(ci.high)
+
+
+def _verdict(k: int, n: int, bar: float, sense: str) -> dict[str, Any]:
+    rate = k / n
+    lo, hi = _interval(k, n)
+    met = rate >= bar if sense == "min" else rate <= bar
+    if (lo >= bar and sense == "min") or (hi <= bar and sense == "max"):
+        says = "confirmed"
+    elif (hi < bar and sense == "min") or (lo > bar and sense == "max"):
+        says = "refuted"
+    else:
+        says = "undecided"
+    return {"k": k, "n": n, "rate": rate, "ci95": [lo, hi], "bar": bar, "sense": sense, "met": met,
+            "interval_says": says}
+
+
+def pool(files: Sequence[tuple[str, list[dict[str, Any]]]]) -> dict[str, Any]:
+    """Per condition: hits per file and pooled with the verdicts, and the controls naming a cause."""
+    out: dict[str, Any] = {"files": [lab for lab, _ in files], "conditions": {}}
+    conds = sorted({t["condition"] for _, tr in files for t in tr})
+    for c in conds:
+        what, bar, sense = TARGETS[c]
+        per, ctl_per = [], []
+        for _, tr in files:
+            trials = [t for t in tr if t["condition"] == c and not t["control"] and t["outcome"] != "skipped"]
+            ctls = [t for t in tr if t["condition"] == c and t["control"] and t["outcome"] != "skipped"]
+            per.append([sum(map(_hit, trials)), len(trials)])
+            ctl_per.append([sum(bool(t["named_any"]) for t in ctls), len(ctls)])
+        k, n = (sum(x[i] for x in per) for i in (0, 1))
+        kc, nc = (sum(x[i] for x in ctl_per) for i in (0, 1))
+        out["conditions"][c] = {
+            "what": what, "per_file": per, "pooled": _verdict(k, n, bar, sense) if n else None,
+            "controls_per_file": ctl_per,
+            "controls_pooled": _verdict(kc, nc, CONTROL_BAR, "max") if nc else None}
+    return out
+
+
+def _cell(v: Mapping[str, Any] | None) -> str:
+    if v is None:
+        return "–"
+    lo, hi = v["ci95"]
+    return f"{v['k']}/{v['n']} = {100 * v['rate']:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}]"
+
+
+def pool_markdown(res: Mapping[str, Any]) -> str:
+    """The pooled table as Markdown: per condition the hits per file, pooled with its 95 % interval, the verdicts."""
+    files = res["files"]
+    head = "| condition | " + " | ".join(files) + " | pooled [95 % CI] | target | met | the interval says |"
+    lines = [head, "|" + "---|" * (len(files) + 5)]
+    for c, r in res["conditions"].items():
+        for label, per, v in ((f"({c}) {r['what']}", r["per_file"], r["pooled"]),
+                              (f"({c}) controls naming a cause", r["controls_per_file"], r["controls_pooled"])):
+            if v is None:
+                continue
+            bar = f"{'≥' if v['sense'] == 'min' else '≤'} {100 * v['bar']:.0f} %"
+            lines.append(f"| {label} | " + " | ".join(f"{k}/{n}" for k, n in per) +
+                         f" | {_cell(v)} | {bar} | {'yes' if v['met'] else '**no**'} | {v['interval_says']} |")
+    return "\n".join(lines)
+
+
+def pool_main(argv: Sequence[str] | None = None) -> int:
+    """``python -m marine_fdi_env.validation.synthesize pool FILE.json ... [--markdown OUT.md] [--out OUT.json]``."""
+    ap = argparse.ArgumentParser(prog="python -m marine_fdi_env.validation.synthesize pool",
+                                 description="Pool study files (one range of seeds each) and hold every condition "
+                                             "to its target with exact 95 %% intervals.")
+    ap.add_argument("files", nargs="+", metavar="FILE.json", help="study files written by `synthesize study --out`")
+    ap.add_argument("--markdown", metavar="OUT.md", help="also write the table as Markdown")
+    ap.add_argument("--out", metavar="OUT.json", help="also write the pooled counts and verdicts as JSON")
+    args = ap.parse_args(list(argv) if argv is not None else None)
+    try:
+        res = pool(load_trials(args.files))
+    except ValueError as e:
+        print(f"pool: error: {e}", file=sys.stderr)
+        return 2
+    md = pool_markdown(res)
+    print(md)
+    if args.markdown:
+        Path(args.markdown).write_text(md + "\n")
+    if args.out:
+        Path(args.out).write_text(json.dumps(res, indent=1) + "\n")
+    return 0

@@ -1,0 +1,76 @@
+"""Pooling study files: counts add up to the study's own summaries, a trial is never counted twice, and the
+verdicts follow the exact binomial interval (the numbers docs/validation.md quotes as pooled)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from marine_fdi_env.validation.study_pool import load_trials, pool, pool_main
+
+FIG = Path(__file__).resolve().parents[1] / "docs" / "figures" / "validation"
+
+
+def _trial(c, seed, hit, control=False, named=False):
+    t = {"condition": c, "seed": seed, "control": control, "outcome": "control" if control else "x",
+         "named_any": named}
+    t["unexplained_right_channel" if c == "e" else "exact"] = hit
+    return t
+
+
+def _write(tmp_path, name, trials):
+    p = tmp_path / name
+    p.write_text(json.dumps({"trials": trials}))
+    return p
+
+
+def test_pool_matches_each_files_own_summary():
+    files = sorted(FIG.glob("open_world_study_seeds_*_*.json"))
+    assert len(files) >= 8
+    res = pool(load_trials(files))
+    for i, f in enumerate(files):
+        summ = json.loads(f.read_text())["conditions"]
+        for c, s in summ.items():
+            k, n = res["conditions"][c]["per_file"][i]
+            assert n == s["n_trials"]
+            rate = s["unexplained_right_channel_rate"] if c == "e" else s["identification_rate"]
+            assert k == round(rate * n)
+            kc, nc = res["conditions"][c]["controls_per_file"][i]
+            assert (nc, kc) == (s["n_controls"], round(s["control_named_rate"] * nc))
+
+
+def test_verdicts_follow_the_exact_interval(tmp_path):
+    # 20/20 at a 95 % bar: met, but 20 trials cannot confirm it (Clopper-Pearson lower bound 0.025^(1/20) = 83.2 %)
+    a = _write(tmp_path, "a.json", [_trial("a", s, True) for s in range(20)] +
+               [_trial("a", s, False, control=True) for s in range(20)])
+    v = pool(load_trials([a]))["conditions"]["a"]
+    assert v["pooled"]["met"] and v["pooled"]["interval_says"] == "undecided"
+    assert v["pooled"]["ci95"][0] == pytest.approx(0.025 ** (1 / 20), rel=1e-9)
+    # 0/20 controls: at most 5 % is met, and the upper bound 1 - 0.025^(1/20) = 16.8 % leaves it undecided
+    assert v["controls_pooled"]["met"] and v["controls_pooled"]["interval_says"] == "undecided"
+    assert v["controls_pooled"]["ci95"][1] == pytest.approx(1 - 0.025 ** (1 / 20), rel=1e-9)
+    # 64/100 against 90 %: refuted; 99/100 against 80 %: confirmed
+    e = _write(tmp_path, "e.json", [_trial("e", s, s < 64) for s in range(100)])
+    d = _write(tmp_path, "d.json", [_trial("d", s, s < 99) for s in range(100)])
+    res = pool(load_trials([e, d]))["conditions"]
+    assert not res["e"]["pooled"]["met"] and res["e"]["pooled"]["interval_says"] == "refuted"
+    assert res["d"]["pooled"]["met"] and res["d"]["pooled"]["interval_says"] == "confirmed"
+    assert res["e"]["per_file"] == [[64, 100], [0, 0]] and res["d"]["per_file"] == [[0, 0], [99, 100]]
+
+
+def test_a_trial_counted_twice_or_a_bad_file_is_refused(tmp_path, capsys):
+    a = _write(tmp_path, "a.json", [_trial("c", 5, True)])
+    b = _write(tmp_path, "b.json", [_trial("c", 5, False), _trial("c", 6, True)])
+    with pytest.raises(ValueError, match="counted twice"):
+        load_trials([a, b])
+    (tmp_path / "empty.json").write_text("{}")
+    for argv, msg in (([str(a), str(b)], "counted twice"), ([str(tmp_path / "nope.json")], "not a readable"),
+                      ([str(tmp_path / "empty.json")], "no trials")):
+        assert pool_main(argv) == 2
+        assert msg in capsys.readouterr().err
+    out = tmp_path / "pool.json"
+    assert pool_main([str(a), "--markdown", str(tmp_path / "pool.md"), "--out", str(out)]) == 0
+    assert "| (c) right cause (exact set) | 1/1 |" in (tmp_path / "pool.md").read_text()
+    assert json.loads(out.read_text())["conditions"]["c"]["pooled"]["k"] == 1
