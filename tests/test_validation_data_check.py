@@ -42,7 +42,8 @@ def test_columns_lists_every_registered_stem_and_group(capsys):
 
 
 def test_check_the_protocol_says_what_becomes_of_every_column(tmp_path, capsys):
-    assert validate_main(["--data", "birka_me1_test_protocol", "--check",
+    report = tmp_path / "r.json"
+    assert validate_main(["--data", "birka_me1_test_protocol", "--check", "--out", str(report),
                           "--tolerance", "turbine_outlet_temperature_C=10",
                           "--tolerance", "charge_air_pressure_bar_gauge=2%"]) == 0
     out = capsys.readouterr().out
@@ -63,7 +64,8 @@ def test_check_the_protocol_says_what_becomes_of_every_column(tmp_path, capsys):
     assert tol == pytest.approx(2 * 0.03197, rel=2e-3)
     assert _row(out, "turbine_inlet_temperature_C").endswith("default (5 K)")
     assert _row(out, "turbine_inlet_pressure_bar_gauge").endswith("default (1 % of the mean absolute reading)")
-    assert not list(tmp_path.iterdir())  # --check writes nothing
+    assert not report.exists()  # --check fits nothing and writes nothing, --out or not
+    assert out.rstrip().endswith("--check: nothing fitted, nothing written")
 
 
 def test_check_names_sidecar_tolerances_and_a_suspect_reading(tmp_path, capsys):
@@ -76,6 +78,9 @@ def test_check_names_sidecar_tolerances_and_a_suspect_reading(tmp_path, capsys):
     out = capsys.readouterr().out
     assert re.search(r"fuel_flow_kg_per_h\s+12\s+\S+\s+sidecar$", _row(out, "fuel_flow_kg_per_h"))
     assert "leave-one-engine-out (3 folds)" in out
+    assert validate_main(["--data", str(tmp_path / "shop.csv"), "--check", "--holdout-engine", "ME2"]) == 0
+    held = capsys.readouterr().out
+    assert "leave-one-engine-out (2 folds)" in held and "hold-out: engine ME2 of shop, 5 points" in held
     assert "suspect reading, kept" in out and "row 6 charge_air_pressure_bar_gauge = 1.3" in out
     assert "fuel_rack" in out and "not compared (the model has no counterpart)" in out
 

@@ -805,7 +805,9 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
             print(describe(ds, problem, tolerances or dict(zip(problem.channels, problem.tolerance)), args.tolerance,
                            max_folds=args.max_folds))
             if holdout is not None:
-                print(f"hold-out: {holdout.name}, {holdout.n_points} points (predicted, not fitted)")
+                what = f"engine {args.holdout_engine} of {ds.name}" if args.holdout_engine else holdout.name
+                print(f"hold-out: {what}, {holdout.n_points} points (predicted, not fitted)")
+            print("--check: nothing fitted, nothing written")
             return 0
         rep, sel, ho = run_validation(ds, holdout=holdout, target=args.target, params=params,
                                       max_causes=args.max_causes, alpha=args.alpha,
