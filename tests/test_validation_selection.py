@@ -104,8 +104,9 @@ def test_study_told_the_true_noise(monkeypatch):
     cooler = told["charge_air_cooler_outlet_temperature_C"]
     exhaust = told["cylinder_exhaust_temperature_mean_C"]
     assert cooler < 1.5 and exhaust > 6.0, (cooler, exhaust)  # the stated 5 K misstates both
-    assert "tolerance" not in _trial_settings()
+    assert "tolerance" not in _trial_settings() and _trial_settings()["exchange"] is True
     assert _trial_settings(tolerance="noise")["tolerance"] == "noise"
+    assert "exchange" not in _trial_settings(exchange=False)  # as in every file written before the exchange step
     with pytest.raises(ValueError, match="tolerance must be one of"):
         trial("c", 3, tolerance="exact")
 
@@ -125,6 +126,18 @@ def test_a_cause_that_later_causes_make_redundant_is_removed():
     little.  Without the final removal step the selection named all three."""
     tr = trial("d", 7)
     assert tr["selected"] == ["bypass_valve", "sensor_calibration[turbine_inlet_pressure_bar_gauge]"], tr["selected"]
+
+
+@pytest.mark.slow
+def test_the_exchange_step_names_the_calibration_a_physical_cause_had_absorbed():
+    """Study trial d260 (friction + a maximum-pressure gauge reading 5 % high and 7.5 bar off): forward selection
+    names cylinder heat loss with friction as a pair (the heat loss absorbs part of the gauge's error, so the gauge's
+    calibration then leaves structure and is not eligible) and then ambient + turbine flow law to mop up.  With the
+    exchange step the heat loss is replaced by the calibration, the removal step drops the other two, and the
+    exact pair is named.  Without it (the selection before 2026-11-26) the four causes stay."""
+    truth = ["friction_losses", "sensor_calibration[max_cylinder_pressure_bar_gauge]"]
+    assert trial("d", 260)["selected"] == sorted(truth)
+    assert len(trial("d", 260, exchange=False)["selected"]) == 4
 
 
 def test_two_mechanisms_that_only_fit_together_are_named_as_a_pair(tmp_path):

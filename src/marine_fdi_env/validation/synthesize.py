@@ -517,12 +517,15 @@ TOLERANCE_MODES = ("stated", "noise")
 
 
 def _trial_settings(params: str = "wartsila-6l46", points: int = 8, max_folds: int | None = None, prune: bool = True,
-                    tolerance: str = "stated", **_) -> dict[str, Any]:
+                    tolerance: str = "stated", exchange: bool = True, **_) -> dict[str, Any]:
     """What a trial's outcome depends on besides its condition and seed (a resumed study keeps only trials run with
-    the same; ``tolerance`` is recorded only when it is not the default, so earlier files still resume)."""
+    the same).  ``tolerance`` is recorded only when it is not the default, ``exchange`` only when it is on: every
+    file written before the exchange step (2026-11-26) was run without it and resumes only with ``--no-exchange``."""
     out = {"params": str(params), "points": int(points), "max_folds": max_folds, "prune": bool(prune)}
     if tolerance != "stated":
         out["tolerance"] = str(tolerance)
+    if exchange:
+        out["exchange"] = True
     return out
 
 
@@ -563,11 +566,11 @@ def trial_data(condition: str, seed: int, *, control: bool = False, params: str 
 
 
 def trial(condition: str, seed: int, *, control: bool = False, params: str = "wartsila-6l46", points: int = 8,
-          max_folds: int | None = None, prune: bool = True, tolerance: str = "stated",
+          max_folds: int | None = None, prune: bool = True, tolerance: str = "stated", exchange: bool = True,
           workdir: str | Path | None = None) -> dict[str, Any]:
     """One trial of the study: synthesise with the condition's hidden effects (none when ``control``), write and
     reload the data, run the selection (``prune``: its final removal step, on by default; ``tolerance``: one of
-    :data:`TOLERANCE_MODES`) and compare with the truth."""
+    :data:`TOLERANCE_MODES`; ``exchange``: the selection's exchange step, on by default) and compare with the truth."""
     import tempfile
     import warnings
 
@@ -581,7 +584,8 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
         raise ValueError(f"tolerance must be one of {', '.join(TOLERANCE_MODES)}, got {tolerance!r}")
     base = {"condition": condition, "control": bool(control), "seed": int(seed), "mechanisms": mechs,
             "effects": effects, "trial_settings": _trial_settings(params=params, points=points, max_folds=max_folds,
-                                                                  prune=prune, tolerance=tolerance)}
+                                                                  prune=prune, tolerance=tolerance,
+                                                                  exchange=exchange)}
     try:
         syn = trial_data(condition, seed, control=control, params=params, points=points)
     except ValueError as e:
@@ -599,7 +603,7 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
     problem = Problem(ds)
     if tolerance == "noise":
         problem = Problem(ds, tolerances=noise_tolerances(syn, problem.channels))
-    sel = select_causes(problem, max_folds=max_folds, prune=prune)
+    sel = select_causes(problem, max_folds=max_folds, prune=prune, exchange=exchange)
     truth_labels = sorted(t["label"] for t in syn.truth)
     named = sorted(sel.selected_labels)
     res = {**base, "truth": syn.truth, "selected": named, "model_error": syn.settings["model_error"],
@@ -770,7 +774,7 @@ def summarise(results: Sequence[dict[str, Any]], condition: str) -> dict[str, An
 
 def study_main(argv: Sequence[str] | None = None) -> int:
     """``python -m marine_fdi_env.validation.synthesize study [--conditions abcde] [--seeds A:B] [--workers K]
-    [--no-prune] [--tolerance stated|noise] [--out FILE.json]``: the open-world hidden-effect study."""
+    [--no-prune] [--no-exchange] [--tolerance stated|noise] [--out FILE.json]``: the open-world hidden-effect study."""
     ap = argparse.ArgumentParser(prog="python -m marine_fdi_env.validation.synthesize study",
                                  description="Open-world hidden-effect study: " + "; ".join(
                                      f"({k}) {v['title']}" for k, v in CONDITIONS.items()))
@@ -781,6 +785,9 @@ def study_main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--points", type=int, default=8)
     ap.add_argument("--no-prune", action="store_true",
                     help="without the selection's final removal step (to measure what it changes)")
+    ap.add_argument("--no-exchange", action="store_true",
+                    help="without the selection's exchange step (a named physical cause replaced by a sensor "
+                         "calibration that explains the data better): the selection before 2026-11-26")
     ap.add_argument("--tolerance", default="stated", choices=TOLERANCE_MODES,
                     help="what the pipeline is told of the noise: its own tolerances (default; every result of the "
                     "study) or each channel's true noise (an ablation: what misstated tolerances cost)")
@@ -805,6 +812,7 @@ def study_main(argv: Sequence[str] | None = None) -> int:
         res = study(list(args.conditions), seeds, controls=not args.no_controls, workers=args.workers,
                     points=args.points, **({"prune": False} if args.no_prune else {}),
                     **({"tolerance": args.tolerance} if args.tolerance != "stated" else {}),
+                    **({"exchange": False} if args.no_exchange else {}),
                     checkpoint=(Path(args.out).with_suffix(".trials.jsonl") if args.out else None))
     except KeyboardInterrupt:
         print("study: interrupted", file=sys.stderr)
