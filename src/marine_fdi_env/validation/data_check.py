@@ -17,6 +17,7 @@ import numpy as np
 
 from .columns import COLUMNS, GROUP_PATTERNS, QUANTITIES
 from .dataset import MeasuredDataset
+from .discrepancy import LOAD_TOL, REL_TOL, TEMPERATURE_TOL_K
 from .problem import Problem
 
 __all__ = ["describe", "column_registry", "tolerance_sources"]
@@ -33,10 +34,10 @@ def tolerance_sources(problem: Problem, stated: Sequence[str] = ()) -> dict[str,
 def _default_basis(ds: MeasuredDataset, column: str) -> str:
     q = QUANTITIES[ds.column_quantity[column]]
     if q.kind == "temperature":
-        return "5 K"
+        return f"{TEMPERATURE_TOL_K:g} K"
     if q.name == "load_fraction":
-        return "0.01"
-    return "1 % of the mean" + (" absolute reading" if ds.spec(column).gauge else "")
+        return f"{LOAD_TOL:g}"
+    return f"{100 * REL_TOL:g} % of the mean" + (" absolute reading" if ds.spec(column).gauge else "")
 
 
 def describe(ds: MeasuredDataset, problem: Problem, tolerances: Mapping[str, float], stated: Sequence[str] = (),

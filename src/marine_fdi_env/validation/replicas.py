@@ -44,8 +44,8 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
-from scipy import stats
 
+from .binomial import proportion_ci95
 from .dataset import MeasuredDataset, load_data_arg
 from .fitting import Combination, fit_combination, predict_setting
 from .mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
@@ -162,13 +162,6 @@ def run_replica(ds: MeasuredDataset, params, target: str, tolerances: Mapping[st
             "unexplained": sorted({u["channel"] for u in s.unexplained}), "seconds": time.perf_counter() - t0}
 
 
-def _ci(k: int, n: int) -> list[float]:
-    if n == 0:
-        return [math.nan, math.nan]
-    ci = stats.binomtest(k, n).proportion_ci(0.95)
-    return [float(ci.low), float(ci.high)]
-
-
 def summarise(hyps: Sequence[Hypothesis], runs: Mapping[int, Sequence[dict[str, Any]]],
               data_causes: Sequence[str]) -> list[dict[str, Any]]:
     """Per hypothesis: rates of naming it, of naming the data's causes, the physical sets named, valve support."""
@@ -187,9 +180,9 @@ def summarise(hyps: Sequence[Hypothesis], runs: Mapping[int, Sequence[dict[str, 
             valves[v] = {"acts_in_hypothesis": list(acts), "same_points": k, "rate": k / n if n else math.nan}
         out.append({"hypothesis": hyp.name, "causes": list(hyp.causes), "in_sample_score": hyp.in_sample_score,
                     "replicas": n, "named_itself": k_self, "named_itself_rate": k_self / n if n else math.nan,
-                    "named_itself_ci95": _ci(k_self, n), "named_data_causes": k_data,
+                    "named_itself_ci95": proportion_ci95(k_self, n), "named_data_causes": k_data,
                     "named_data_causes_rate": k_data / n if n else math.nan,
-                    "named_data_causes_ci95": _ci(k_data, n),
+                    "named_data_causes_ci95": proportion_ci95(k_data, n),
                     "physical_named": dict(phys.most_common()), "valve_support": valves})
     return out
 

@@ -852,6 +852,7 @@ def _exchange(problem: Problem, current: Combination, current_fit: FitResult, cu
         support = {k: v for k, v in current_fit.support.items() if k in {x.id for x in comb0.valves}}
         fit0 = fit_combination(problem, comb0, start=current_fit, known=current_fit.values(), support=support)
         in_pred = predict_setting(problem, fit0, rows_all)
+        loco0 = None  # the model without m, judged channel by channel: computed once, when a candidate needs it
         # the channel whose calibration gains most on these readings is the candidate (as at a forward step,
         # :func:`_calibrations_to_refit`); it is then refitted as a whole model, nuisance included
         for cheap in sorted((_sensor_fit(problem, fit0, in_pred, cal) for cal in cals),
@@ -869,7 +870,9 @@ def _exchange(problem: Problem, current: Combination, current_fit: FitResult, cu
                 c.screened = f"gain {c.gain:.1%}, penalised {c.penalised:.4g} against {current_pen:.4g}"
             else:
                 pins = _pins(problem, c, fit.values(), support)
-                left = "" if pins else _structure_left(problem, loco_predictions(problem, fit0), cal, alpha)
+                if not pins and loco0 is None:
+                    loco0 = loco_predictions(problem, fit0)
+                left = "" if pins else _structure_left(problem, loco0, cal, alpha)
                 if pins or left:
                     c.screened = "not eligible: " + ("; ".join(pins) if pins else left)
             say(f"step {step_no}: exchange {c.added:40s} CV {c.cv_score:9.4g}  gain {c.gain:+.1%}  "

@@ -21,7 +21,7 @@ import sys
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
-from scipy.stats import binomtest
+from .binomial import proportion_ci95
 
 __all__ = ["TARGETS", "load_trials", "pool", "pool_markdown", "pool_main"]
 
@@ -64,14 +64,9 @@ def _hit(t: Mapping[str, Any]) -> bool:
     return bool(t.get("unexplained_right_channel") if t["condition"] == "e" else t.get("exact"))
 
 
-def _interval(k: int, n: int) -> tuple[float, float]:
-    ci = binomtest(k, n).proportion_ci(0.95, method="exact")
-    return float(ci.low), float(ci.high)
-
-
 def _verdict(k: int, n: int, bar: float, sense: str) -> dict[str, Any]:
     rate = k / n
-    lo, hi = _interval(k, n)
+    lo, hi = proportion_ci95(k, n)
     met = rate >= bar if sense == "min" else rate <= bar
     if (lo >= bar and sense == "min") or (hi <= bar and sense == "max"):
         says = "confirmed"
