@@ -107,6 +107,7 @@ def test_study_told_the_true_noise(monkeypatch):
     assert "tolerance" not in _trial_settings() and _trial_settings()["exchange"] is True
     assert _trial_settings(tolerance="noise")["tolerance"] == "noise"
     assert "exchange" not in _trial_settings(exchange=False)  # as in every file written before the exchange step
+    assert _trial_settings()["calibration_scan"] == "per named calibration"  # older files scanned over every channel
     with pytest.raises(ValueError, match="tolerance must be one of"):
         trial("c", 3, tolerance="exact")
 

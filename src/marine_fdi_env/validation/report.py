@@ -621,8 +621,11 @@ def markdown_summary(rep: Mapping[str, Any], title: str | None = None) -> str:
                 f"{_g(f['channels'][c]['rmse_base'])} → {_g(f['channels'][c]['rmse_extended'])}" for c in cs) + " |")
         L.append("")
     if rep["unexplained"]:
-        L.append(f"Unexplained (family-wise p < {rep['settings'].get('alpha_unexplained', rep['settings']['alpha'])} "
-                 "over the channels, judged against the model refitted without each channel):")
+        a_u = rep['settings'].get('alpha_unexplained', rep['settings']['alpha'])
+        left = (f"; what a named sensor calibration leaves: p < {a_u} over the calibrated channels"
+                if any(u.get("left_by") == "sensor_calibration" for u in rep["unexplained"]) else "")
+        L.append(f"Unexplained (family-wise p < {a_u} over the channels{left}, judged against the model refitted "
+                 "without each channel):")
         L.append("")
         for u in rep["unexplained"]:
             L.append(f"* {u['text']}" + (f" — {u['note']}" if u.get("note") else ""))

@@ -520,8 +520,12 @@ def _trial_settings(params: str = "wartsila-6l46", points: int = 8, max_folds: i
                     tolerance: str = "stated", exchange: bool = True, **_) -> dict[str, Any]:
     """What a trial's outcome depends on besides its condition and seed (a resumed study keeps only trials run with
     the same).  ``tolerance`` is recorded only when it is not the default, ``exchange`` only when it is on: every
-    file written before the exchange step (2026-11-26) was run without it and resumes only with ``--no-exchange``."""
-    out = {"params": str(params), "points": int(points), "max_folds": max_folds, "prune": bool(prune)}
+    file written before the exchange step (2026-11-26) was run without it.  ``calibration_scan``: the level of the
+    scan of what a named calibration leaves (:func:`~.selection.calibration_left`), over the calibrated channels
+    since 2026-11-26; files without the key scanned at the level over every channel, and differ from a rerun only
+    in unexplained findings on channels with a named calibration."""
+    out = {"params": str(params), "points": int(points), "max_folds": max_folds, "prune": bool(prune),
+           "calibration_scan": "per named calibration"}
     if tolerance != "stated":
         out["tolerance"] = str(tolerance)
     if exchange:
