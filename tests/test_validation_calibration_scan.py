@@ -90,7 +90,30 @@ def test_a_named_calibration_is_scanned_at_the_level_of_its_own_claim():
     r = trial("e", 222)
     assert r["selected"] == ["sensor_calibration[fuel_flow_kg_per_h]"]
     left = [u for u in r["unexplained"] if u["channel"] == "fuel_flow_kg_per_h"]
-    assert len(left) == 1 and left[0]["kind"] == "local"
+    assert len(left) == 1 and left[0]["kind"] == "local" and left[0]["left_by"] == "sensor_calibration"
+    scan = r["calibration_scan"]["fuel_flow_kg_per_h"]  # recorded whether reported or not
+    assert 0.05 / 13 < scan["p"] < 0.05 and abs(scan["d"]) >= scan["tolerance"]
     lo, hi = left[0]["load_range"]
     assert 0.40 < lo < hi < 0.60, left[0]
     assert r["unexplained_right_channel"] and r["unexplained_right_region"]
+
+
+def test_the_study_counts_true_calibrations_the_scan_says_leave_structure():
+    """The scan's price, in the study summary: of the trials whose true sensor calibration was named, those whose
+    report says the calibration leaves structure on its channel."""
+    from marine_fdi_env.validation.synthesize import summarise
+
+    def rec(seed, named, left):
+        truth = [{"id": "sensor_calibration", "label": "sensor_calibration[fuel_flow_kg_per_h]",
+                  "channel": "fuel_flow_kg_per_h"}]
+        sel = ["sensor_calibration[fuel_flow_kg_per_h]"] if named else ["friction_losses"]
+        unex = [{"channel": "fuel_flow_kg_per_h", "kind": "local", "left_by": "sensor_calibration"}] if left else []
+        return {"condition": "a", "control": False, "seed": seed, "outcome": "identified" if named else "wrong",
+                "truth": truth, "selected": sel, "exact": named, "named_any": True, "unexplained": unex,
+                "calibration_scan": {}, "mechanisms": ["sensor_calibration"]}
+
+    out = summarise([rec(1, True, True), rec(2, True, False), rec(3, False, True), rec(4, True, False)], "a")
+    assert out["true_calibration_left_by_it"] == "1/3"  # seed 3's calibration was not named: not counted
+    old = [dict(rec(5, True, True))]
+    del old[0]["calibration_scan"]  # files written before the scan was recorded: no count
+    assert "true_calibration_left_by_it" not in summarise(old, "a")

@@ -23,7 +23,9 @@ the base as it is, and with a hold-out ``holdout_rmse_*``), ``discrepancies`` (t
 (per cause: a bound its fit touches without the data wanting more, parameters the data do not determine),
 ``parameters`` (fitted values with standard errors), ``nuisance`` (the calibration within uncertainty), ``activity`` (per valve-type cause:
 the diverted flow fraction at every measured point, file row order, 0 where it does not act),
-``openings`` and ``schedules`` of the valves, ``unexplained`` (channel, kind, region), ``outliers``,
+``openings`` and ``schedules`` of the valves, ``unexplained`` (channel, kind, region), ``calibration_scans``
+(per named sensor calibration, the scan of what its gain and offset leave, reported or not: ``p``, shape, region,
+departure), ``outliers``,
 ``explained``, ``cv``, ``holdout`` (the parameter set's conditions where the hold-out recorded none),
 ``holdout_at_fit_conditions`` (the fitted data's test-bed conditions instead), ``fitted_engine`` (the engine
 file's content).
@@ -192,6 +194,7 @@ def build_report(sel: Selection, holdout: Mapping[str, Any] | None = None, notes
         "openings": sel.openings(),
         "schedules": {k: v.as_dict() for k, v in sel.fit.schedules().items()},
         "unexplained": sel.unexplained,
+        "calibration_scans": sel.calibration_scans,
         "outliers": sel.outliers,
         "explained": explained,
         "cv": {"scheme": scheme, "n_folds": len(folds), "score_base": sel.base_score, "score_extended": sel.cv_score,

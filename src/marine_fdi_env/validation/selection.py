@@ -197,6 +197,10 @@ class Selection:
     #: per accepted cause, what its fit's parameters leave open (a bound touched but not wanted beyond, a
     #: parameter the data do not determine)
     cause_notes: dict[str, list[str]] = field(default_factory=dict)
+    #: per channel with a named sensor calibration, what :func:`~.calibration_scan.structure_scan` found on what
+    #: its gain and offset leave, reported or not (``p``, ``z``, ``kind``, ``load_range``, ``d`` in column units,
+    #: ``tolerance``): the scan's verdict can be read at any level
+    calibration_scans: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     @property
     def selected_causes(self) -> list[str]:
@@ -619,7 +623,8 @@ def local_excess(match: MatchResult, tolerances: Mapping[str, float], alpha: flo
 
 
 def _unexplained_all(match: MatchResult, report: DiscrepancyReport, tol: Mapping[str, float], alpha: float,
-                     calibrated: Sequence[str] = ()) -> list[dict[str, Any]]:
+                     calibrated: Sequence[str] = (), scans: dict[str, dict[str, Any]] | None = None
+                     ) -> list[dict[str, Any]]:
     """Family-significant region findings and local excesses (Bonferroni over the channels); on the channels of
     ``calibrated`` (a named sensor calibration) also what the gain and offset leave (:func:`calibration_left`),
     Bonferroni over the calibrated channels only.
@@ -629,7 +634,8 @@ def _unexplained_all(match: MatchResult, report: DiscrepancyReport, tol: Mapping
     they do not enter its multiplicity.  ``alpha`` (5 %) is then the rate at which a true calibration's report
     carries a spurious "left by the calibration" finding; dividing by 13 channels held it to 0.4 % and cost the
     out-of-library effects the selection names as a calibration.  Measured on development trials in
-    docs/validation.md ("What changed this round")."""
+    docs/validation.md ("What changed this round").  ``scans``, when given, receives every calibration scan
+    (:func:`calibration_left`)."""
     out = _unexplained(report, alpha)
     n_ch = max(len(report.channels), 1)
     have = {u["channel"] for u in out}
@@ -638,7 +644,7 @@ def _unexplained_all(match: MatchResult, report: DiscrepancyReport, tol: Mapping
         if f["channel"] not in have or all(u["kind"] != "local" for u in out if u["channel"] == f["channel"]):
             out.append(f)
     cal = [c for c in calibrated if c in match.channels]
-    for f in calibration_left(match, tol, alpha / max(len(cal), 1), cal, noise=noise):
+    for f in calibration_left(match, tol, alpha / max(len(cal), 1), cal, noise=noise, scans=scans):
         if all(u["kind"] != "local" for u in out if u["channel"] == f["channel"]):
             out.append(f)
     return out
@@ -650,10 +656,12 @@ def _data_noise(match: MatchResult, tolerances: Mapping[str, float], load: np.nd
 
 
 def calibration_left(match: MatchResult, tolerances: Mapping[str, float], alpha: float, channels: Sequence[str],
-                     noise: float | None = None) -> list[dict[str, Any]]:
+                     noise: float | None = None, scans: dict[str, dict[str, Any]] | None = None
+                     ) -> list[dict[str, Any]]:
     """Per channel of ``channels`` (each carrying a named sensor calibration, held in ``match``'s readings): the
     step, kink or window that the gain and offset leave, when :func:`~.calibration_scan.structure_scan` finds it
-    at ``p < alpha`` and it departs by at least the tolerance; reported as kind ``local``."""
+    at ``p < alpha`` and it departs by at least the tolerance; reported as kind ``local``.  ``scans``, when given,
+    receives each channel's scan whether reported or not."""
     if not channels:
         return []
     ds = match.dataset
@@ -665,6 +673,8 @@ def calibration_left(match: MatchResult, tolerances: Mapping[str, float], alpha:
             continue
         t = float(tolerances[col])
         best = structure_scan(match.residual(col), load, match.predicted[col], t, noise)
+        if scans is not None and best is not None:
+            scans[col] = {k: best[k] for k in ("p", "z", "kind", "load_range", "d")} | {"tolerance": t}
         if best is None or not (best["p"] < alpha and abs(best["d"]) >= t):
             continue
         lo, hi = best["load_range"]
@@ -1113,14 +1123,17 @@ def select_causes(
     final_loco = loco_predictions(problem, current_fit)
     final_match = match_result(problem, final_setting, pred_fn=lambda: final_loco)
     final_report = analyse_discrepancies(final_match, alpha=alpha, tolerances=tol)
+    cal_scans: dict[str, dict[str, Any]] = {}
     unexplained = _unexplained_all(final_match, final_report, tol, alpha_unexplained,
-                                   [m.channel for m in current.mechanisms if isinstance(m, SensorCalibration)])
+                                   [m.channel for m in current.mechanisms if isinstance(m, SensorCalibration)],
+                                   scans=cal_scans)
     return Selection(
         problem=problem, cv_scheme=scheme, raw_pred=raw_pred, base_fit=base_fit, base_pred=base_pred,
         base_score=S_base, base_report=base_report, steps=steps, selected=current, fit=current_fit,
         cv_pred=current_pred, cv_score=current_S, final_report=final_report, unexplained=unexplained,
         outliers=point_outliers(final_match, tol, alpha), base_outliers=base_outliers,
         seconds=time.perf_counter() - t0, alternatives=alternatives, cause_notes=cause_notes,
+        calibration_scans=cal_scans,
         settings={"max_causes": max_causes, "alpha": alpha, "alpha_unexplained": alpha_unexplained,
                   "min_gain": min_gain, "penalty": penalty, "robust_scale": ROBUST_SCALE, "cv": scheme,
                   "n_folds": len(folds), "n_cells": M, "cv_all": cv_all,

@@ -612,7 +612,9 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
     named = sorted(sel.selected_labels)
     res = {**base, "truth": syn.truth, "selected": named, "model_error": syn.settings["model_error"],
            "seconds": time.perf_counter() - t0, "unexplained": [
-               {k: u.get(k) for k in ("channel", "kind", "region", "load_range", "magnitude")} for u in sel.unexplained]}
+               {k: u.get(k) for k in ("channel", "kind", "region", "load_range", "magnitude", "left_by")}
+               for u in sel.unexplained]}
+    res["calibration_scan"] = sel.calibration_scans
     res["named_any"] = bool(named)
     res["unexplained_local"] = any(u["kind"] == "local" for u in sel.unexplained)
     if shadow is not None:
@@ -763,6 +765,13 @@ def summarise(results: Sequence[dict[str, Any]], condition: str) -> dict[str, An
             sum(r.get("exact_up_to_equivalence", r["exact"]) for r in tr) / len(tr) if tr else None
         out["wrong_rate"] = sum(r["outcome"] == "wrong" for r in tr) / len(tr) if tr else None
         out["none_rate"] = sum(r["outcome"] == "none" for r in tr) / len(tr) if tr else None
+        # the calibration scan's price: true sensor calibrations, named, that it reports as leaving structure
+        cal = [(r, t["channel"]) for r in tr if "calibration_scan" in r for t in r.get("truth", [])
+               if t["id"] == "sensor_calibration" and t["label"] in r["selected"]]
+        if cal:
+            out["true_calibration_left_by_it"] = "{}/{}".format(sum(any(
+                u["channel"] == ch and u.get("left_by") == "sensor_calibration" for u in r["unexplained"])
+                for r, ch in cal), len(cal))
         valves = [r for r in tr if r.get("activity_support_match")]
         if valves:
             out["valve_support_exact"] = f"{sum(all(r['activity_support_match'].values()) for r in valves)}/{len(valves)}"
