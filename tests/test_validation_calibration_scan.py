@@ -117,3 +117,33 @@ def test_the_study_counts_true_calibrations_the_scan_says_leave_structure():
     old = [dict(rec(5, True, True))]
     del old[0]["calibration_scan"]  # files written before the scan was recorded: no count
     assert "true_calibration_left_by_it" not in summarise(old, "a")
+
+
+def test_the_report_says_what_each_named_calibration_leaves():
+    """The protocol's report (shipped in docs): the named cylinder-outlet calibration leaves a kink above 80 % load
+    that the channel's local finding already reports; the Markdown says so, and says "nothing significant left"
+    when the scan is not significant, "reported above" when the scan's own finding is listed."""
+    import copy
+    import json
+    from pathlib import Path
+
+    from marine_fdi_env.validation.report import markdown_summary
+
+    path = Path(__file__).resolve().parents[1] / "docs/figures/validation/birka_me1_test_protocol.json"
+    rep = json.loads(path.read_text())
+    col = "cylinder_exhaust_temperature_mean_C"
+    scan = rep["calibration_scans"][col]
+    assert scan["kind"] == "kink" and scan["load_range"][0] >= 0.75 and scan["p"] < 1e-3
+    assert abs(scan["d"]) > 5 * scan["tolerance"]
+
+    def line(r):
+        return next(x for x in markdown_summary(r).splitlines() if x.startswith(f"* `{col}`: a "))
+
+    assert line(rep).endswith("structure left; the channel's local finding above already reports it")
+    quiet = copy.deepcopy(rep)
+    quiet["calibration_scans"][col]["p"] = 0.4
+    assert line(quiet).endswith("nothing significant left")
+    own = copy.deepcopy(rep)
+    own["unexplained"] = [dict(u, left_by="sensor_calibration") if u["channel"] == col and u["kind"] == "local"
+                          else u for u in own["unexplained"]]
+    assert line(own).endswith("structure left, reported above")

@@ -633,6 +633,22 @@ def markdown_summary(rep: Mapping[str, Any], title: str | None = None) -> str:
         for u in rep["unexplained"]:
             L.append(f"* {u['text']}" + (f" — {u['note']}" if u.get("note") else ""))
         L.append("")
+    if rep.get("calibration_scans"):
+        L.append("What each named sensor calibration leaves on its channel (the largest step, kink or window beyond its "
+                 "gain and offset; reported as unexplained when p < the level and it departs by a tolerance):")
+        L.append("")
+        for col, sc in rep["calibration_scans"].items():
+            lo, hi = sc["load_range"]
+            p_txt = f"p < {sc['p']:.2g}" if sc.get("p_at_floor") else f"p = {sc['p']:.2g}"
+            verdict = "nothing significant left"
+            if sc["p"] < sc.get("level", 0.0) and abs(sc["d"]) >= sc["tolerance"]:
+                local = [u for u in rep["unexplained"] if u["channel"] == col and u["kind"] == "local"]
+                verdict = ("structure left, reported above" if any(u.get("left_by") for u in local) else
+                           "structure left; the channel's local finding above already reports it" if local else
+                           "structure left")
+            L.append(f"* `{col}`: a {sc['kind']} at load {lo:.3g}-{hi:.3g}, {sc['d']:+.4g} {sc.get('unit', '')} "
+                     f"(tolerance {sc['tolerance']:.3g}), {p_txt}, level {sc.get('level', float('nan')):.2g}: {verdict}")
+        L.append("")
     if rep["outliers"]:
         L.append("Single-reading outliers (kept in the data; the robust fit down-weights them):")
         L.append("")

@@ -198,8 +198,8 @@ class Selection:
     #: parameter the data do not determine)
     cause_notes: dict[str, list[str]] = field(default_factory=dict)
     #: per channel with a named sensor calibration, what :func:`~.calibration_scan.structure_scan` found on what
-    #: its gain and offset leave, reported or not (``p``, ``z``, ``kind``, ``load_range``, ``d`` in column units,
-    #: ``tolerance``): the scan's verdict can be read at any level
+    #: its gain and offset leave, reported or not (``p``, ``p_at_floor``, ``z``, ``kind``, ``load_range``, ``d`` and
+    #: ``tolerance`` in column units, ``unit``, ``level``: the level it was judged at): readable at any level
     calibration_scans: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     @property
@@ -674,7 +674,8 @@ def calibration_left(match: MatchResult, tolerances: Mapping[str, float], alpha:
         t = float(tolerances[col])
         best = structure_scan(match.residual(col), load, match.predicted[col], t, noise)
         if scans is not None and best is not None:
-            scans[col] = {k: best[k] for k in ("p", "z", "kind", "load_range", "d")} | {"tolerance": t}
+            scans[col] = ({k: best[k] for k in ("p", "p_at_floor", "z", "kind", "load_range", "d")}
+                          | {"tolerance": t, "unit": ds.spec(col).unit, "level": alpha})
         if best is None or not (best["p"] < alpha and abs(best["d"]) >= t):
             continue
         lo, hi = best["load_range"]
