@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from marine_fdi_env.validation.study_pool import load_trials, pool, pool_main
+from marine_fdi_env.validation.study_pool import load_trials, pool, pool_main, pool_markdown
 
 FIG = Path(__file__).resolve().parents[1] / "docs" / "figures" / "validation"
 
@@ -39,6 +39,8 @@ def test_pool_matches_each_files_own_summary():
             assert k == round(rate * n)
             kc, nc = res["conditions"][c]["controls_per_file"][i]
             assert (nc, kc) == (s["n_controls"], round(s["control_named_rate"] * nc))
+            kl, nl = res["conditions"][c]["controls_local_per_file"][i]
+            assert (nl, kl) == (s["n_controls"], round(s["control_unexplained_local_rate"] * nl))
 
 
 def test_verdicts_follow_the_exact_interval(tmp_path):
@@ -74,3 +76,22 @@ def test_a_trial_counted_twice_or_a_bad_file_is_refused(tmp_path, capsys):
     assert pool_main([str(a), "--markdown", str(tmp_path / "pool.md"), "--out", str(out)]) == 0
     assert "| (c) right cause (exact set) | 1/1 |" in (tmp_path / "pool.md").read_text()
     assert json.loads(out.read_text())["conditions"]["c"]["pooled"]["k"] == 1
+
+
+def test_local_findings_of_the_controls_are_held_to_the_level_only_where_they_are_false_alarms(tmp_path):
+    """In (a) and (c) the controls are the model plus noise: a local finding is a false alarm, and 4 of 20 against
+    the reporting level of 5 % is "not met"; in (b) the engine is off the model, so the row carries no verdict."""
+    trials = []
+    for c in ("a", "b", "c"):
+        for s in range(20):
+            t = _trial(c, s, False, control=True)
+            t["unexplained_local"] = s < 4
+            trials.append(t)
+    res = pool(load_trials([_write(tmp_path, "x.json", trials)]))["conditions"]
+    for c in ("a", "b", "c"):
+        v = res[c]["controls_local_pooled"]
+        assert (v["k"], v["n"], v["met"]) == (4, 20, False)
+        assert v["held"] is (c != "b")
+    md = pool_markdown(pool(load_trials([_write(tmp_path, "y.json", trials)])))
+    assert "| (a) controls with a local finding | 4/20 | 4/20 = 20.0 % [5.7, 43.7] | ≤ 5 % (level) | **no** |" in md
+    assert "| (b) controls with a local finding | 4/20 | 4/20 = 20.0 % [5.7, 43.7] | – | – | – |" in md

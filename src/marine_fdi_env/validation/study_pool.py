@@ -11,6 +11,11 @@ pooled interval says how much a pooled verdict is worth.
 Targets: identification (the exact set of named causes) >= 95 % in (a), (b), (c); the exact pair >= 80 % in
 (d); the out-of-library effect reported unexplained on its channel >= 90 % in (e); negative controls naming a
 cause <= 5 % in every condition.
+
+Also pooled, not a target of the issue: the controls with a *local* unexplained finding (a window, step or kink on
+some channel).  The pipeline reports those at a family-wise 5 % (:data:`~.selection.ALPHA_UNEXPLAINED`); where the
+control's data are the model plus noise, (a) and (c), every such finding is a false alarm and the rate is held to
+that level (in (b), (d) and (e) the engine differs from the model by a few per cent, and a finding may be real).
 """
 
 from __future__ import annotations
@@ -34,6 +39,10 @@ TARGETS: dict[str, tuple[str, float, str]] = {
     "e": ("unexplained on the right channel", 0.90, "min"),
 }
 CONTROL_BAR = 0.05
+#: the conditions whose controls are the model plus noise (no model error): a local finding there is a false alarm
+#: and is held to the pipeline's reporting level; the level itself (5 %, family-wise over the channels)
+NOISE_ONLY = ("a", "c")
+LOCAL_LEVEL = 0.05
 
 
 def load_trials(paths: Sequence[str | Path]) -> list[tuple[str, list[dict[str, Any]]]]:
@@ -84,18 +93,23 @@ def pool(files: Sequence[tuple[str, list[dict[str, Any]]]]) -> dict[str, Any]:
     conds = sorted({t["condition"] for _, tr in files for t in tr})
     for c in conds:
         what, bar, sense = TARGETS[c]
-        per, ctl_per = [], []
+        per, ctl_per, loc_per = [], [], []
         for _, tr in files:
             trials = [t for t in tr if t["condition"] == c and not t["control"] and t["outcome"] != "skipped"]
             ctls = [t for t in tr if t["condition"] == c and t["control"] and t["outcome"] != "skipped"]
             per.append([sum(map(_hit, trials)), len(trials)])
             ctl_per.append([sum(bool(t["named_any"]) for t in ctls), len(ctls)])
+            loc = [t for t in ctls if "unexplained_local" in t]
+            loc_per.append([sum(bool(t["unexplained_local"]) for t in loc), len(loc)])
         k, n = (sum(x[i] for x in per) for i in (0, 1))
         kc, nc = (sum(x[i] for x in ctl_per) for i in (0, 1))
+        kl, nl = (sum(x[i] for x in loc_per) for i in (0, 1))
         out["conditions"][c] = {
             "what": what, "per_file": per, "pooled": _verdict(k, n, bar, sense) if n else None,
             "controls_per_file": ctl_per,
-            "controls_pooled": _verdict(kc, nc, CONTROL_BAR, "max") if nc else None}
+            "controls_pooled": _verdict(kc, nc, CONTROL_BAR, "max") if nc else None,
+            "controls_local_per_file": loc_per,
+            "controls_local_pooled": (_verdict(kl, nl, LOCAL_LEVEL, "max") | {"held": c in NOISE_ONLY}) if nl else None}
     return out
 
 
@@ -107,7 +121,8 @@ def _cell(v: Mapping[str, Any] | None) -> str:
 
 
 def pool_markdown(res: Mapping[str, Any]) -> str:
-    """The pooled table as Markdown: per condition the hits per file, pooled with its 95 % interval, the verdicts."""
+    """The pooled table as Markdown: per condition the hits per file, pooled with its 95 % interval, the verdicts;
+    then the controls' local findings (held to the reporting level where the controls are the model plus noise)."""
     files = res["files"]
     head = "| condition | " + " | ".join(files) + " | pooled [95 % CI] | target | met | the interval says |"
     lines = [head, "|" + "---|" * (len(files) + 5)]
@@ -119,6 +134,19 @@ def pool_markdown(res: Mapping[str, Any]) -> str:
             bar = f"{'≥' if v['sense'] == 'min' else '≤'} {100 * v['bar']:.0f} %"
             lines.append(f"| {label} | " + " | ".join(f"{k}/{n}" for k, n in per) +
                          f" | {_cell(v)} | {bar} | {'yes' if v['met'] else '**no**'} | {v['interval_says']} |")
+    lines += ["", "Not a target of the issue: negative controls with a *local* unexplained finding, reported at a "
+              "family-wise 5 %; in (a) and (c) the controls are the model plus noise, so every finding is a false "
+              "alarm and the rate is held to that level (in (b), (d), (e) the engine is a few per cent off the "
+              "model and a finding may be real).", "", head, lines[1]]
+    for c, r in res["conditions"].items():
+        v = r.get("controls_local_pooled")
+        if v is None:
+            continue
+        held = v["held"]
+        lines.append(f"| ({c}) controls with a local finding | " +
+                     " | ".join(f"{k}/{n}" for k, n in r["controls_local_per_file"]) + f" | {_cell(v)} | " +
+                     (f"≤ {100 * v['bar']:.0f} % (level) | {'yes' if v['met'] else '**no**'} | {v['interval_says']} |"
+                      if held else "– | – | – |"))
     return "\n".join(lines)
 
 
