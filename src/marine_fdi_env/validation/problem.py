@@ -80,10 +80,15 @@ class Problem:
     ds : the dataset.  params : parameter set (name, file or :class:`EngineParams`; default the sidecar's).
     target : what fixes each point (as :func:`~.matching.match_operating_points`).
     tolerances : per column in its units (default: sidecar ``tolerances``, else the defaults).
+    held_out_valves : how cross-validation predicts a valve's opening at a held-out point, ``"schedule"`` (default)
+        or ``"support"`` (tried 2026-11-26, not adopted): :data:`~.fitting.HELD_OUT_VALVES`.
     """
 
     def __init__(self, ds: MeasuredDataset, *, params: str | EngineParams | None = None, target: str = "auto",
-                 tolerances: Mapping[str, float] | None = None):
+                 tolerances: Mapping[str, float] | None = None, held_out_valves: str = "schedule"):
+        if held_out_valves not in ("schedule", "support"):
+            raise ValueError(f"held_out_valves must be 'schedule' or 'support', got {held_out_valves!r}")
+        self.held_out_valves = held_out_valves
         self.ds = ds
         self.params: EngineParams = load_params(params) if params is not None else ds.params
         self.target = _resolve_target(ds, target)

@@ -291,10 +291,12 @@ def run_validation(ds: MeasuredDataset, *, holdout: MeasuredDataset | None = Non
                    params: str | EngineParams | None = None, max_causes: int = 4, alpha: float = 0.01,
                    alpha_unexplained: float = ALPHA_UNEXPLAINED, cv_all: bool = False, max_folds: int | None = None,
                    progress=None, notes: Sequence[str] = (), command: str | None = None,
-                   tolerances: Mapping[str, float] | None = None) -> tuple[dict[str, Any], Selection, dict | None]:
+                   tolerances: Mapping[str, float] | None = None, held_out_valves: str = "schedule"
+                   ) -> tuple[dict[str, Any], Selection, dict | None]:
     """Run the pipeline; returns (JSON report, selection, hold-out evaluation with predictions or None).
-    ``tolerances``: per channel in its units (default: the sidecar's, else 1 % / 5 K)."""
-    pr = Problem(ds, target=target, params=params, tolerances=tolerances)
+    ``tolerances``: per channel in its units (default: the sidecar's, else 1 % / 5 K).  ``held_out_valves``: how
+    cross-validation predicts a valve's opening at a held-out point (:data:`~.fitting.HELD_OUT_VALVES`)."""
+    pr = Problem(ds, target=target, params=params, tolerances=tolerances, held_out_valves=held_out_valves)
     sel = select_causes(pr, max_causes=max_causes, alpha=alpha, alpha_unexplained=alpha_unexplained, cv_all=cv_all,
                         max_folds=max_folds, progress=progress)
     ho = holdout_evaluation(sel, holdout) if holdout is not None else None
@@ -704,6 +706,11 @@ def build_parser(prog: str = "marine-fdi validate") -> argparse.ArgumentParser:
                     help="a channel's tolerance (its noise and what is not worth naming), in the column's units or "
                          "as P%% of its mean value; repeatable; default: the sidecar's tolerances, else 1 %% and 5 K")
     ap.add_argument("--cv-all", action="store_true", help="cross-validate every candidate (slower)")
+    ap.add_argument("--held-out-valves", default="schedule", choices=("schedule", "support"),
+                    help="how cross-validation predicts a valve's opening at a left-out point: the schedule through "
+                         "the other points (default), or where the fit on all points opens it, interpolated among "
+                         "the open points (tried 2026-11-26, not adopted: it names a second mechanism beside a valve too "
+                         "often; docs/figures/validation/held_out_valves/)")
     ap.add_argument("--markdown", metavar="FILE.md", help="also write the report's tables as Markdown")
     ap.add_argument("--replicas", type=int, default=0, metavar="N",
                     help="also ask whether data like these would name the same causes again: N replicas of the data "
@@ -835,7 +842,8 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
                                       max_causes=args.max_causes, alpha=args.alpha,
                                       alpha_unexplained=args.alpha_unexplained, cv_all=args.cv_all,
                                       max_folds=args.max_folds, progress=say, notes=notes,
-                                      command="marine-fdi validate " + " ".join(argv), tolerances=tolerances)
+                                      command="marine-fdi validate " + " ".join(argv), tolerances=tolerances,
+                                      held_out_valves=args.held_out_valves)
         if args.replicas:
             from .replicas import replicate
 

@@ -517,19 +517,24 @@ TOLERANCE_MODES = ("stated", "noise")
 
 
 def _trial_settings(params: str = "wartsila-6l46", points: int = 8, max_folds: int | None = None, prune: bool = True,
-                    tolerance: str = "stated", exchange: bool = True, **_) -> dict[str, Any]:
+                    tolerance: str = "stated", exchange: bool = True, held_out_valves: str = "schedule",
+                    **_) -> dict[str, Any]:
     """What a trial's outcome depends on besides its condition and seed (a resumed study keeps only trials run with
     the same).  ``tolerance`` is recorded only when it is not the default, ``exchange`` only when it is on: every
     file written before the exchange step (2026-11-26) was run without it.  ``calibration_scan``: the level of the
     scan of what a named calibration leaves (:func:`~.selection.calibration_left`), over the calibrated channels
     since 2026-11-26; files without the key scanned at the level over every channel, and differ from a rerun only
-    in unexplained findings on channels with a named calibration."""
+    in unexplained findings on channels with a named calibration.  ``held_out_valves``: how cross-validation
+    predicts a valve's opening at a held-out point (:data:`~.fitting.HELD_OUT_VALVES`), recorded only when it is
+    not the default ``schedule`` (every file before 2026-11-26 followed the schedule)."""
     out = {"params": str(params), "points": int(points), "max_folds": max_folds, "prune": bool(prune),
            "calibration_scan": "per named calibration"}
     if tolerance != "stated":
         out["tolerance"] = str(tolerance)
     if exchange:
         out["exchange"] = True
+    if held_out_valves != "schedule":
+        out["held_out_valves"] = str(held_out_valves)
     return out
 
 
@@ -571,10 +576,11 @@ def trial_data(condition: str, seed: int, *, control: bool = False, params: str 
 
 def trial(condition: str, seed: int, *, control: bool = False, params: str = "wartsila-6l46", points: int = 8,
           max_folds: int | None = None, prune: bool = True, tolerance: str = "stated", exchange: bool = True,
-          workdir: str | Path | None = None) -> dict[str, Any]:
+          held_out_valves: str = "schedule", workdir: str | Path | None = None) -> dict[str, Any]:
     """One trial of the study: synthesise with the condition's hidden effects (none when ``control``), write and
     reload the data, run the selection (``prune``: its final removal step, on by default; ``tolerance``: one of
-    :data:`TOLERANCE_MODES`; ``exchange``: the selection's exchange step, on by default) and compare with the truth."""
+    :data:`TOLERANCE_MODES`; ``exchange``: the selection's exchange step, on by default; ``held_out_valves``: one of
+    :data:`~.fitting.HELD_OUT_VALVES`) and compare with the truth."""
     import tempfile
     import warnings
 
@@ -589,7 +595,8 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
     base = {"condition": condition, "control": bool(control), "seed": int(seed), "mechanisms": mechs,
             "effects": effects, "trial_settings": _trial_settings(params=params, points=points, max_folds=max_folds,
                                                                   prune=prune, tolerance=tolerance,
-                                                                  exchange=exchange)}
+                                                                  exchange=exchange,
+                                                                  held_out_valves=held_out_valves)}
     try:
         syn = trial_data(condition, seed, control=control, params=params, points=points)
     except ValueError as e:
@@ -604,9 +611,9 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
             except DatasetError as e:
                 return {**base, "outcome": "skipped", "why": "loader: " + " ".join(str(e).split())[:300],
                         "seconds": time.perf_counter() - t0}
-    problem = Problem(ds)
+    problem = Problem(ds, held_out_valves=held_out_valves)
     if tolerance == "noise":
-        problem = Problem(ds, tolerances=noise_tolerances(syn, problem.channels))
+        problem = Problem(ds, tolerances=noise_tolerances(syn, problem.channels), held_out_valves=held_out_valves)
     sel = select_causes(problem, max_folds=max_folds, prune=prune, exchange=exchange)
     truth_labels = sorted(t["label"] for t in syn.truth)
     named = sorted(sel.selected_labels)
@@ -787,7 +794,8 @@ def summarise(results: Sequence[dict[str, Any]], condition: str) -> dict[str, An
 
 def study_main(argv: Sequence[str] | None = None) -> int:
     """``python -m marine_fdi_env.validation.synthesize study [--conditions abcde] [--seeds A:B] [--workers K]
-    [--no-prune] [--no-exchange] [--tolerance stated|noise] [--out FILE.json]``: the open-world hidden-effect study."""
+    [--no-prune] [--no-exchange] [--tolerance stated|noise] [--held-out-valves support|schedule] [--out FILE.json]``:
+    the open-world hidden-effect study."""
     ap = argparse.ArgumentParser(prog="python -m marine_fdi_env.validation.synthesize study",
                                  description="Open-world hidden-effect study: " + "; ".join(
                                      f"({k}) {v['title']}" for k, v in CONDITIONS.items()))
@@ -804,6 +812,10 @@ def study_main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--tolerance", default="stated", choices=TOLERANCE_MODES,
                     help="what the pipeline is told of the noise: its own tolerances (default; every result of the "
                     "study) or each channel's true noise (an ablation: what misstated tolerances cost)")
+    ap.add_argument("--held-out-valves", default="schedule", choices=("schedule", "support"),
+                    help="how cross-validation predicts a valve's opening at a held-out point: the schedule through "
+                    "every training point (default; every study file), or the full-data support with the opening "
+                    "interpolated among the open points (tried 2026-11-26, not adopted: docs/figures/validation/held_out_valves/)")
     ap.add_argument("--out", default=None, help="write every trial as JSON here; finished trials are kept in "
                     "OUT.trials.jsonl and a rerun resumes from it")
     args = ap.parse_args(list(argv) if argv is not None else None)
@@ -826,6 +838,7 @@ def study_main(argv: Sequence[str] | None = None) -> int:
                     points=args.points, **({"prune": False} if args.no_prune else {}),
                     **({"tolerance": args.tolerance} if args.tolerance != "stated" else {}),
                     **({"exchange": False} if args.no_exchange else {}),
+                    **({"held_out_valves": args.held_out_valves} if args.held_out_valves != "schedule" else {}),
                     checkpoint=(Path(args.out).with_suffix(".trials.jsonl") if args.out else None))
     except KeyboardInterrupt:
         print("study: interrupted", file=sys.stderr)
