@@ -170,18 +170,10 @@ def trial_bound(result: Mapping[str, Any]) -> dict[str, Any]:
 
 def _tolerance(syn, column: str) -> float:
     """The pipeline's tolerance of ``column`` on the trial's data (written and loaded as the study does)."""
-    import tempfile
-    import warnings
-
-    from .dataset import DataWarning, load_dataset
     from .discrepancy import column_tolerance
+    from .synthesize import loaded
 
-    with tempfile.TemporaryDirectory() as d:
-        path = Path(d) / "trial.csv"
-        syn.write(path)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", DataWarning)
-            return float(column_tolerance(load_dataset(path), column))
+    return float(column_tolerance(loaded(syn), column))
 
 
 def scale_for(z: Sequence[float], alpha: float, target: float) -> float:

@@ -36,8 +36,6 @@ import argparse
 import json
 import math
 import sys
-import tempfile
-import warnings
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
@@ -73,18 +71,11 @@ def passes_bar(S_a: float, k_a: int, S_b: float, k_b: int, M: int, *, min_gain: 
 
 def _problem(condition: str, seed: int, params: str, points: int):
     """The trial's data and :class:`~.problem.Problem`, written and loaded as the study does."""
-    from .dataset import DataWarning, load_dataset
     from .problem import Problem
-    from .synthesize import trial_data
+    from .synthesize import loaded, trial_data
 
     syn = trial_data(condition, seed, params=params, points=points)
-    with tempfile.TemporaryDirectory() as d:
-        path = Path(d) / f"hidden_{condition}_{seed}.csv"
-        syn.write(path)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", DataWarning)
-            ds = load_dataset(path)
-    return syn, Problem(ds)
+    return syn, Problem(loaded(syn, f"hidden_{condition}_{seed}"))
 
 
 def trial_check(result: Mapping[str, Any], *, min_gain: float = 0.10, alpha: float = 0.01) -> dict[str, Any]:
@@ -117,6 +108,7 @@ def trial_check(result: Mapping[str, Any], *, min_gain: float = 0.10, alpha: flo
     if unknown:
         raise ValueError(f"({cond}) seed {seed}: not in the library: {', '.join(unknown)}")
     known = {f"{t['label']}.{k}": float(v) for t in syn.truth for k, v in t.get("values", {}).items()}
+
     def best_fit(labels):
         comb = Combination(tuple(lib[x] for x in labels))
         fits = [fit_combination(problem, comb), fit_combination(problem, comb, known=known)]

@@ -564,6 +564,22 @@ def trial_draw(condition: str, seed: int, *, control: bool = False
     return mechs, effects, shadow
 
 
+def loaded(syn: Synthesis, name: str = "trial", workdir: str | Path | None = None):
+    """``syn`` written to a temporary CSV and read back with the loader, as a user's file would be (its data
+    warnings silenced: the study reports outcomes, not the loader's notes); raises the loader's DatasetError."""
+    import tempfile
+    import warnings
+
+    from .dataset import DataWarning, load_dataset
+
+    with tempfile.TemporaryDirectory(dir=workdir) as d:
+        path = Path(d) / f"{name}.csv"
+        syn.write(path)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DataWarning)
+            return load_dataset(path)
+
+
 def trial_data(condition: str, seed: int, *, control: bool = False, params: str = "wartsila-6l46",
                points: int = 8) -> Synthesis:
     """The data of one trial of the study (:func:`trial` runs the pipeline on them); raises ValueError when the
@@ -581,10 +597,7 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
     reload the data, run the selection (``prune``: its final removal step, on by default; ``tolerance``: one of
     :data:`TOLERANCE_MODES`; ``exchange``: the selection's exchange step, on by default; ``held_out_valves``: one of
     :data:`~.fitting.HELD_OUT_VALVES`) and compare with the truth."""
-    import tempfile
-    import warnings
-
-    from .dataset import DatasetError, DataWarning, load_dataset
+    from .dataset import DatasetError
     from .problem import Problem
     from .selection import select_causes
 
@@ -601,16 +614,11 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
         syn = trial_data(condition, seed, control=control, params=params, points=points)
     except ValueError as e:
         return {**base, "outcome": "skipped", "why": str(e)[:300], "seconds": time.perf_counter() - t0}
-    with tempfile.TemporaryDirectory(dir=workdir) as d:
-        path = Path(d) / f"hidden_{condition}_{seed}.csv"
-        syn.write(path)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", DataWarning)
-            try:
-                ds = load_dataset(path)
-            except DatasetError as e:
-                return {**base, "outcome": "skipped", "why": "loader: " + " ".join(str(e).split())[:300],
-                        "seconds": time.perf_counter() - t0}
+    try:
+        ds = loaded(syn, f"hidden_{condition}_{seed}", workdir)
+    except DatasetError as e:
+        return {**base, "outcome": "skipped", "why": "loader: " + " ".join(str(e).split())[:300],
+                "seconds": time.perf_counter() - t0}
     problem = Problem(ds, held_out_valves=held_out_valves)
     if tolerance == "noise":
         problem = Problem(ds, tolerances=noise_tolerances(syn, problem.channels), held_out_valves=held_out_valves)
