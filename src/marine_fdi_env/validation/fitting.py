@@ -32,8 +32,8 @@ the ends), as the fitted engine would predict it.  Leaving out the last shut poi
 load then predicts a half-open or a too-small opening there: an error of tens of tolerances shared by every model
 with that valve, which swamps what a second mechanism adds to it (study condition (d): a waste gate and a second
 mechanism named as the gate alone; ``docs/validation.md``, "What the misses of (a)-(d) are made of").  The option
-``"support"`` (2026-11-26, eighth session; ``Problem(..., held_out_valves="support")``, :meth:`FitResult.held_out_openings`)
-predicts it in two parts: *whether* the valve acts there is the full-data fit's support (a per-point state the
+``"support"`` (2026-11-26, eighth session; ``Problem(..., held_out_valves="support")``,
+:meth:`FitResult.held_out_openings`) predicts it in two parts: *whether* the valve acts there is the full-data fit's support (a per-point state the
 selection counts as one free parameter per open point, like the opening itself), and *how much* it opens is
 interpolated in load among the training points where it acts, extrapolated linearly beyond them (never below shut).
 Tried and not adopted: on the study's development seeds 300-339 it made the two such (d) misses exact and lost ten
@@ -60,7 +60,7 @@ from scipy.optimize import least_squares
 from ..engine.submodels import Schedule
 from .mechanisms import Mechanism, ValveMechanism
 from .nuisance import NUISANCE, nuisance_bounds, prior_residuals, scales_of
-from .problem import Problem, Setting
+from .problem import HELD_OUT_VALVES, Problem, Setting
 
 __all__ = ["ROBUST_SCALE", "robust_loss", "Combination", "FitResult", "fit_combination", "cross_validate",
            "cell_losses", "channel_rmse", "L1_LAMBDA", "SUPPORT_FRACTION", "POINT_ALPHA", "predict_setting",
@@ -71,9 +71,6 @@ L1_LAMBDA = 2.0
 SUPPORT_FRACTION = 0.05
 POINT_ALPHA = 0.01
 N_NUIS = len(NUISANCE)
-#: how cross-validation predicts a valve's opening at a held-out point (see the module docstring): ``schedule`` (the
-#: default) or ``support`` (tried 2026-11-26, not adopted: an ablation, ``Problem(..., held_out_valves="support")``)
-HELD_OUT_VALVES = ("schedule", "support")
 
 
 def robust_loss(r: np.ndarray) -> np.ndarray:

@@ -12,18 +12,18 @@ selection (:mod:`.selection`) on naming exactly them.  A miss has two possible r
 * **the selection missed what the data say**: the truth fits clearly better, and the selection's path (the
   greedy order, the supports a step keeps, the cross-validated gain a partner must add) did not get there.
 
-The check fits both sets to the trial's full data, with the selection's own loss, nuisance and valve-support
-rules (:func:`~.fitting.fit_combination`), each the better of two fits: from the mechanisms' default starts, and
-from the true values of the mechanisms it shares with the truth (the oracle knows them).  A set is *preferred by the data* over the other when it passes the selection's own bar
-for accepting a model over another, in sample: its mean robust loss per cell is at least ``min_gain`` (10 %) lower
-and, when it has more free parameters than the other, the F-test of the drop gives ``p < alpha`` (0.01; the selection's
-threshold is this over the number of candidates of a step, so this is the lenient side).  An in-sample fit
-favours the larger model (it is scored on the data it saw; the selection scores cross-validated losses), so a
-miss where even the in-sample comparison does not prefer the truth is one no selection of this kind could avoid
-(when the named set is the larger one, its being preferred in sample is the weaker statement):
-``identifiable`` = hits + misses the data prefer bounds, from above, what such a selection can reach on the
-trials.  It is a bound in that sense only: a different kind of evidence (more points, other channels) could tell
-more.
+The check fits both sets to the trial's full data, with the selection's own loss, nuisance and valve-support rules
+(:func:`~.fitting.fit_combination`), each the better of two fits: from the mechanisms' default starts, and from the
+true values of the mechanisms it shares with the truth (the oracle knows them). A set is *preferred by the data*
+over the other when it passes the selection's own bar for accepting a model over another, in sample: its mean robust
+loss per cell is at least ``min_gain`` (10 %) lower and, when it has more free parameters than the other, the F-test
+of the drop gives ``p < alpha`` (0.01; the selection's threshold is this over the number of candidates of a step, so
+this is the lenient side). An in-sample fit favours the larger model (it is scored on the data it saw; the selection
+scores cross-validated losses), so a miss where even the in-sample comparison does not prefer the truth is one no
+selection of this kind could avoid (when the named set is the larger one, its being preferred in sample is the
+weaker statement): ``identifiable`` = hits + misses the data prefer bounds, from above, what such a selection can
+reach on the trials. It is a bound in that sense only: a different kind of evidence (more points, other channels)
+could tell more.
 
 ``python -m marine_fdi_env.validation.identification_bound --study FILE.json [FILE.json ...] [--out OUT.json]``
 re-draws each missed trial's data from its seed (no selection run: two fits per miss, seconds each) and prints
@@ -40,6 +40,8 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from scipy import stats
+
+from .study_pool import load_trials
 
 __all__ = ["passes_bar", "trial_check", "check", "summarise", "CONDITIONS", "main"]
 
@@ -191,30 +193,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--out", default=None, help="write the per-miss fits and summaries as JSON here")
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = ap.parse_args(list(argv) if argv is not None else None)
-    rows, out, all_counts, all_checked = [], {}, None, []
-    for f in args.study:
-        try:
-            results = json.loads(Path(f).read_text())["trials"]
-        except (OSError, ValueError, KeyError, TypeError) as e:
-            print(f"identification_bound: error: {f}: not a study file ({e})", file=sys.stderr)
-            return 2
+    try:
+        files = load_trials(args.study)  # refuses an unreadable file and a trial counted twice
+    except ValueError as e:
+        print(f"identification_bound: error: not a study file ({e})", file=sys.stderr)
+        return 2
+    rows, out = [], {}
+    for f, (label, results) in zip(args.study, files):
         try:
             b = check(results, progress=not args.no_progress)
         except ValueError as e:
             print(f"identification_bound: error: {f}: {e}", file=sys.stderr)
             return 2
-        seeds = [r["seed"] for r in results if r.get("condition") in CONDITIONS]
-        rows.append((f"seeds {min(seeds)}-{max(seeds)}", b["summary"]))
+        rows.append((f"seeds {label}", b["summary"]))
         out[str(f)] = b
-        if all_counts is None:
-            all_counts = {c: dict(v) for c, v in b["counts"].items()}
-        else:
-            for c, v in b["counts"].items():
-                all_counts[c]["n"] += v["n"]
-                all_counts[c]["hits"] += v["hits"]
-        all_checked += b["misses"]
-    if len(rows) > 1 and all_counts is not None:
-        pooled = summarise(all_counts, all_checked)
+    if len(out) > 1:
+        counts = {c: {k: sum(b["counts"][c][k] for b in out.values()) for k in ("n", "hits")} for c in CONDITIONS}
+        pooled = summarise(counts, [m for b in out.values() for m in b["misses"]])
         rows.append(("pooled", pooled))
         out["pooled"] = {"summary": pooled}
     print(_table(rows))

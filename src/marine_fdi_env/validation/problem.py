@@ -36,7 +36,12 @@ from .dataset import MeasuredDataset
 from .discrepancy import column_tolerance
 from .matching import _rack_settings, _resolve_target, _target_values, load_law_of
 
-__all__ = ["Setting", "Problem", "BASE_SETTING", "FAIL_RESIDUAL", "VALVES"]
+__all__ = ["Setting", "Problem", "BASE_SETTING", "FAIL_RESIDUAL", "VALVES", "HELD_OUT_VALVES"]
+
+#: how cross-validation predicts a valve's opening at a held-out point (:mod:`.fitting`'s docstring): ``schedule``
+#: (the default) or ``support`` (tried 2026-11-26, not adopted: an ablation,
+#: ``Problem(..., held_out_valves="support")``)
+HELD_OUT_VALVES = ("schedule", "support")
 
 FAIL_RESIDUAL = 50.0  # normalised residual of a cell whose point has no steady state
 VALVES = ("waste_gate", "bypass_valve")
@@ -81,13 +86,13 @@ class Problem:
     target : what fixes each point (as :func:`~.matching.match_operating_points`).
     tolerances : per column in its units (default: sidecar ``tolerances``, else the defaults).
     held_out_valves : how cross-validation predicts a valve's opening at a held-out point, ``"schedule"`` (default)
-        or ``"support"`` (tried 2026-11-26, not adopted): :data:`~.fitting.HELD_OUT_VALVES`.
+        or ``"support"`` (tried 2026-11-26, not adopted): :data:`HELD_OUT_VALVES`.
     """
 
     def __init__(self, ds: MeasuredDataset, *, params: str | EngineParams | None = None, target: str = "auto",
                  tolerances: Mapping[str, float] | None = None, held_out_valves: str = "schedule"):
-        if held_out_valves not in ("schedule", "support"):
-            raise ValueError(f"held_out_valves must be 'schedule' or 'support', got {held_out_valves!r}")
+        if held_out_valves not in HELD_OUT_VALVES:
+            raise ValueError(f"held_out_valves must be one of {', '.join(HELD_OUT_VALVES)}, got {held_out_valves!r}")
         self.held_out_valves = held_out_valves
         self.ds = ds
         self.params: EngineParams = load_params(params) if params is not None else ds.params

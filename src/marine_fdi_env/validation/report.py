@@ -49,7 +49,7 @@ from .dataset import DatasetError, MeasuredDataset, list_shipped, load_data_arg
 from .fitting import channel_rmse, predict_setting
 from .matching import TARGETS
 from .mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
-from .problem import Problem
+from .problem import HELD_OUT_VALVES, Problem
 from .selection import ALPHA_UNEXPLAINED, Selection, family_significant, select_causes
 
 __all__ = ["run_validation", "build_report", "write_plots", "validate_main", "load_data_arg", "split_engine",
@@ -295,7 +295,7 @@ def run_validation(ds: MeasuredDataset, *, holdout: MeasuredDataset | None = Non
                    ) -> tuple[dict[str, Any], Selection, dict | None]:
     """Run the pipeline; returns (JSON report, selection, hold-out evaluation with predictions or None).
     ``tolerances``: per channel in its units (default: the sidecar's, else 1 % / 5 K).  ``held_out_valves``: how
-    cross-validation predicts a valve's opening at a held-out point (:data:`~.fitting.HELD_OUT_VALVES`)."""
+    cross-validation predicts a valve's opening at a held-out point (:data:`~.problem.HELD_OUT_VALVES`)."""
     pr = Problem(ds, target=target, params=params, tolerances=tolerances, held_out_valves=held_out_valves)
     sel = select_causes(pr, max_causes=max_causes, alpha=alpha, alpha_unexplained=alpha_unexplained, cv_all=cv_all,
                         max_folds=max_folds, progress=progress)
@@ -706,11 +706,11 @@ def build_parser(prog: str = "marine-fdi validate") -> argparse.ArgumentParser:
                     help="a channel's tolerance (its noise and what is not worth naming), in the column's units or "
                          "as P%% of its mean value; repeatable; default: the sidecar's tolerances, else 1 %% and 5 K")
     ap.add_argument("--cv-all", action="store_true", help="cross-validate every candidate (slower)")
-    ap.add_argument("--held-out-valves", default="schedule", choices=("schedule", "support"),
+    ap.add_argument("--held-out-valves", default="schedule", choices=HELD_OUT_VALVES,
                     help="how cross-validation predicts a valve's opening at a left-out point: the schedule through "
                          "the other points (default), or where the fit on all points opens it, interpolated among "
-                         "the open points (tried 2026-11-26, not adopted: it names a second mechanism beside a valve too "
-                         "often; docs/figures/validation/held_out_valves/)")
+                         "the open points (tried 2026-11-26, not adopted: it names a second mechanism beside a "
+                         "valve too often; docs/figures/validation/held_out_valves/)")
     ap.add_argument("--markdown", metavar="FILE.md", help="also write the report's tables as Markdown")
     ap.add_argument("--replicas", type=int, default=0, metavar="N",
                     help="also ask whether data like these would name the same causes again: N replicas of the data "

@@ -45,7 +45,7 @@ from .columns import QUANTITIES, column_problem, lookup_column
 from .dataset import write_dataset
 from .mechanisms import (MECHANISM_IDS, PHYSICAL_MECHANISMS, Mechanism, SensorCalibration, ValveMechanism,
                          equivalents, get_mechanism, parse_mechanism_spec, sensor_reference)
-from .problem import BASE_SETTING, Setting, _quantity
+from .problem import BASE_SETTING, HELD_OUT_VALVES, Setting, _quantity
 from .columns import ModelContext
 
 __all__ = ["DEFAULT_COLUMNS", "SET_POINT_COLUMNS", "EFFECT_KINDS", "PERTURBED_FIELDS", "Synthesis", "synthesize",
@@ -525,7 +525,7 @@ def _trial_settings(params: str = "wartsila-6l46", points: int = 8, max_folds: i
     scan of what a named calibration leaves (:func:`~.selection.calibration_left`), over the calibrated channels
     since 2026-11-26; files without the key scanned at the level over every channel, and differ from a rerun only
     in unexplained findings on channels with a named calibration.  ``held_out_valves``: how cross-validation
-    predicts a valve's opening at a held-out point (:data:`~.fitting.HELD_OUT_VALVES`), recorded only when it is
+    predicts a valve's opening at a held-out point (:data:`~.problem.HELD_OUT_VALVES`), recorded only when it is
     not the default ``schedule`` (every file before 2026-11-26 followed the schedule)."""
     out = {"params": str(params), "points": int(points), "max_folds": max_folds, "prune": bool(prune),
            "calibration_scan": "per named calibration"}
@@ -596,7 +596,7 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
     """One trial of the study: synthesise with the condition's hidden effects (none when ``control``), write and
     reload the data, run the selection (``prune``: its final removal step, on by default; ``tolerance``: one of
     :data:`TOLERANCE_MODES`; ``exchange``: the selection's exchange step, on by default; ``held_out_valves``: one of
-    :data:`~.fitting.HELD_OUT_VALVES`) and compare with the truth."""
+    :data:`~.problem.HELD_OUT_VALVES`) and compare with the truth."""
     from .dataset import DatasetError
     from .problem import Problem
     from .selection import select_causes
@@ -820,10 +820,11 @@ def study_main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--tolerance", default="stated", choices=TOLERANCE_MODES,
                     help="what the pipeline is told of the noise: its own tolerances (default; every result of the "
                     "study) or each channel's true noise (an ablation: what misstated tolerances cost)")
-    ap.add_argument("--held-out-valves", default="schedule", choices=("schedule", "support"),
+    ap.add_argument("--held-out-valves", default="schedule", choices=HELD_OUT_VALVES,
                     help="how cross-validation predicts a valve's opening at a held-out point: the schedule through "
                     "every training point (default; every study file), or the full-data support with the opening "
-                    "interpolated among the open points (tried 2026-11-26, not adopted: docs/figures/validation/held_out_valves/)")
+                    "interpolated among the open points (tried 2026-11-26, not adopted: "
+                    "docs/figures/validation/held_out_valves/)")
     ap.add_argument("--out", default=None, help="write every trial as JSON here; finished trials are kept in "
                     "OUT.trials.jsonl and a rerun resumes from it")
     args = ap.parse_args(list(argv) if argv is not None else None)
