@@ -50,7 +50,7 @@ from .fitting import channel_rmse, predict_setting
 from .matching import TARGETS
 from .mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
 from .problem import HELD_OUT_VALVES, Problem
-from .selection import ALPHA_UNEXPLAINED, Selection, family_significant, select_causes
+from .selection import ALPHA_UNEXPLAINED, BESIDE_VALVE, Selection, family_significant, select_causes
 
 __all__ = ["run_validation", "build_report", "write_plots", "validate_main", "load_data_arg", "split_engine",
            "markdown_summary", "holdout_evaluation", "fitted_engine"]
@@ -291,14 +291,16 @@ def run_validation(ds: MeasuredDataset, *, holdout: MeasuredDataset | None = Non
                    params: str | EngineParams | None = None, max_causes: int = 4, alpha: float = 0.01,
                    alpha_unexplained: float = ALPHA_UNEXPLAINED, cv_all: bool = False, max_folds: int | None = None,
                    progress=None, notes: Sequence[str] = (), command: str | None = None,
-                   tolerances: Mapping[str, float] | None = None, held_out_valves: str = "schedule"
-                   ) -> tuple[dict[str, Any], Selection, dict | None]:
+                   tolerances: Mapping[str, float] | None = None, held_out_valves: str = "schedule",
+                   beside_valve: str = "in_sample") -> tuple[dict[str, Any], Selection, dict | None]:
     """Run the pipeline; returns (JSON report, selection, hold-out evaluation with predictions or None).
     ``tolerances``: per channel in its units (default: the sidecar's, else 1 % / 5 K).  ``held_out_valves``: how
-    cross-validation predicts a valve's opening at a held-out point (:data:`~.problem.HELD_OUT_VALVES`)."""
+    cross-validation predicts a valve's opening at a held-out point (:data:`~.problem.HELD_OUT_VALVES`).
+    ``beside_valve``: how a physical mechanism joining a model with a valve earns its place
+    (:data:`~.selection.BESIDE_VALVE`)."""
     pr = Problem(ds, target=target, params=params, tolerances=tolerances, held_out_valves=held_out_valves)
     sel = select_causes(pr, max_causes=max_causes, alpha=alpha, alpha_unexplained=alpha_unexplained, cv_all=cv_all,
-                        max_folds=max_folds, progress=progress)
+                        max_folds=max_folds, progress=progress, beside_valve=beside_valve)
     ho = holdout_evaluation(sel, holdout) if holdout is not None else None
     rep = build_report(sel, ho, notes, command)
     if ho is not None:
@@ -711,6 +713,11 @@ def build_parser(prog: str = "marine-fdi validate") -> argparse.ArgumentParser:
                          "the other points (default), or where the fit on all points opens it, interpolated among "
                          "the open points (tried 2026-11-26, not adopted: it names a second mechanism beside a "
                          "valve too often; docs/figures/validation/held_out_valves/)")
+    ap.add_argument("--beside-valve", default="in_sample", choices=BESIDE_VALVE,
+                    help="how a physical mechanism joining a model with a valve earns its place: in sample, with a "
+                         "cross-validated score that is lower at all (default since 2026-11-26: the valve's held-out "
+                         "openings dilute the cross-validated gain), or by the cross-validated gain and F-test as "
+                         "every other candidate (the rule before)")
     ap.add_argument("--markdown", metavar="FILE.md", help="also write the report's tables as Markdown")
     ap.add_argument("--replicas", type=int, default=0, metavar="N",
                     help="also ask whether data like these would name the same causes again: N replicas of the data "
@@ -843,7 +850,7 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
                                       alpha_unexplained=args.alpha_unexplained, cv_all=args.cv_all,
                                       max_folds=args.max_folds, progress=say, notes=notes,
                                       command="marine-fdi validate " + " ".join(argv), tolerances=tolerances,
-                                      held_out_valves=args.held_out_valves)
+                                      held_out_valves=args.held_out_valves, beside_valve=args.beside_valve)
         if args.replicas:
             from .replicas import replicate
 

@@ -518,7 +518,7 @@ TOLERANCE_MODES = ("stated", "noise")
 
 def _trial_settings(params: str = "wartsila-6l46", points: int = 8, max_folds: int | None = None, prune: bool = True,
                     tolerance: str = "stated", exchange: bool = True, held_out_valves: str = "schedule",
-                    **_) -> dict[str, Any]:
+                    beside_valve: str = "in_sample", **_) -> dict[str, Any]:
     """What a trial's outcome depends on besides its condition and seed (a resumed study keeps only trials run with
     the same).  ``tolerance`` is recorded only when it is not the default, ``exchange`` only when it is on: every
     file written before the exchange step (2026-11-26) was run without it.  ``calibration_scan``: the level of the
@@ -526,7 +526,9 @@ def _trial_settings(params: str = "wartsila-6l46", points: int = 8, max_folds: i
     since 2026-11-26; files without the key scanned at the level over every channel, and differ from a rerun only
     in unexplained findings on channels with a named calibration.  ``held_out_valves``: how cross-validation
     predicts a valve's opening at a held-out point (:data:`~.problem.HELD_OUT_VALVES`), recorded only when it is
-    not the default ``schedule`` (every file before 2026-11-26 followed the schedule)."""
+    not the default ``schedule`` (every file before 2026-11-26 followed the schedule).  ``beside_valve``: how a
+    physical mechanism joining a model with a valve earns its place (:data:`~.selection.BESIDE_VALVE`), recorded
+    when it is ``in_sample`` (the default): every file before 2026-11-26 (ninth session) judged it cross-validated."""
     out = {"params": str(params), "points": int(points), "max_folds": max_folds, "prune": bool(prune),
            "calibration_scan": "per named calibration"}
     if tolerance != "stated":
@@ -535,6 +537,8 @@ def _trial_settings(params: str = "wartsila-6l46", points: int = 8, max_folds: i
         out["exchange"] = True
     if held_out_valves != "schedule":
         out["held_out_valves"] = str(held_out_valves)
+    if beside_valve != "cross_validated":
+        out["beside_valve"] = str(beside_valve)
     return out
 
 
@@ -592,11 +596,13 @@ def trial_data(condition: str, seed: int, *, control: bool = False, params: str 
 
 def trial(condition: str, seed: int, *, control: bool = False, params: str = "wartsila-6l46", points: int = 8,
           max_folds: int | None = None, prune: bool = True, tolerance: str = "stated", exchange: bool = True,
-          held_out_valves: str = "schedule", workdir: str | Path | None = None) -> dict[str, Any]:
+          held_out_valves: str = "schedule", beside_valve: str = "in_sample",
+          workdir: str | Path | None = None) -> dict[str, Any]:
     """One trial of the study: synthesise with the condition's hidden effects (none when ``control``), write and
     reload the data, run the selection (``prune``: its final removal step, on by default; ``tolerance``: one of
     :data:`TOLERANCE_MODES`; ``exchange``: the selection's exchange step, on by default; ``held_out_valves``: one of
-    :data:`~.problem.HELD_OUT_VALVES`) and compare with the truth."""
+    :data:`~.problem.HELD_OUT_VALVES`; ``beside_valve``: one of :data:`~.selection.BESIDE_VALVE`) and compare with the
+    truth."""
     from .dataset import DatasetError
     from .problem import Problem
     from .selection import select_causes
@@ -609,7 +615,8 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
             "effects": effects, "trial_settings": _trial_settings(params=params, points=points, max_folds=max_folds,
                                                                   prune=prune, tolerance=tolerance,
                                                                   exchange=exchange,
-                                                                  held_out_valves=held_out_valves)}
+                                                                  held_out_valves=held_out_valves,
+                                                                  beside_valve=beside_valve)}
     try:
         syn = trial_data(condition, seed, control=control, params=params, points=points)
     except ValueError as e:
@@ -622,7 +629,7 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
     problem = Problem(ds, held_out_valves=held_out_valves)
     if tolerance == "noise":
         problem = Problem(ds, tolerances=noise_tolerances(syn, problem.channels), held_out_valves=held_out_valves)
-    sel = select_causes(problem, max_folds=max_folds, prune=prune, exchange=exchange)
+    sel = select_causes(problem, max_folds=max_folds, prune=prune, exchange=exchange, beside_valve=beside_valve)
     truth_labels = sorted(t["label"] for t in syn.truth)
     named = sorted(sel.selected_labels)
     res = {**base, "truth": syn.truth, "selected": named, "model_error": syn.settings["model_error"],
@@ -802,8 +809,11 @@ def summarise(results: Sequence[dict[str, Any]], condition: str) -> dict[str, An
 
 def study_main(argv: Sequence[str] | None = None) -> int:
     """``python -m marine_fdi_env.validation.synthesize study [--conditions abcde] [--seeds A:B] [--workers K]
-    [--no-prune] [--no-exchange] [--tolerance stated|noise] [--held-out-valves support|schedule] [--out FILE.json]``:
+    [--no-prune] [--no-exchange] [--tolerance stated|noise] [--held-out-valves support|schedule]
+    [--beside-valve cross_validated|in_sample] [--out FILE.json]``:
     the open-world hidden-effect study."""
+    from .selection import BESIDE_VALVE
+
     ap = argparse.ArgumentParser(prog="python -m marine_fdi_env.validation.synthesize study",
                                  description="Open-world hidden-effect study: " + "; ".join(
                                      f"({k}) {v['title']}" for k, v in CONDITIONS.items()))
@@ -825,6 +835,11 @@ def study_main(argv: Sequence[str] | None = None) -> int:
                     "every training point (default; every study file), or the full-data support with the opening "
                     "interpolated among the open points (tried 2026-11-26, not adopted: "
                     "docs/figures/validation/held_out_valves/)")
+    ap.add_argument("--beside-valve", default="in_sample", choices=BESIDE_VALVE,
+                    help="how a physical mechanism joining a model with a valve earns its place: in sample, with a "
+                    "cross-validated score that is lower at all (default since 2026-11-26: the valve's held-out "
+                    "openings dilute the cross-validated gain), or by the cross-validated gain and F-test as every "
+                    "other candidate (every study file before it)")
     ap.add_argument("--out", default=None, help="write every trial as JSON here; finished trials are kept in "
                     "OUT.trials.jsonl and a rerun resumes from it")
     args = ap.parse_args(list(argv) if argv is not None else None)
@@ -848,6 +863,7 @@ def study_main(argv: Sequence[str] | None = None) -> int:
                     **({"tolerance": args.tolerance} if args.tolerance != "stated" else {}),
                     **({"exchange": False} if args.no_exchange else {}),
                     **({"held_out_valves": args.held_out_valves} if args.held_out_valves != "schedule" else {}),
+                    **({"beside_valve": args.beside_valve} if args.beside_valve != "in_sample" else {}),
                     checkpoint=(Path(args.out).with_suffix(".trials.jsonl") if args.out else None))
     except KeyboardInterrupt:
         print("study: interrupted", file=sys.stderr)
