@@ -49,8 +49,8 @@ from .dataset import DatasetError, MeasuredDataset, list_shipped, load_data_arg
 from .fitting import channel_rmse, predict_setting
 from .matching import TARGETS
 from .mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
-from .problem import HELD_OUT_VALVES, Problem
-from .selection import ALPHA_UNEXPLAINED, BESIDE_VALVE, Selection, family_significant, select_causes
+from .problem import Problem
+from .selection import ALPHA_UNEXPLAINED, Selection, add_valve_options, family_significant, select_causes
 
 __all__ = ["run_validation", "build_report", "write_plots", "validate_main", "load_data_arg", "split_engine",
            "markdown_summary", "holdout_evaluation", "fitted_engine"]
@@ -708,16 +708,7 @@ def build_parser(prog: str = "marine-fdi validate") -> argparse.ArgumentParser:
                     help="a channel's tolerance (its noise and what is not worth naming), in the column's units or "
                          "as P%% of its mean value; repeatable; default: the sidecar's tolerances, else 1 %% and 5 K")
     ap.add_argument("--cv-all", action="store_true", help="cross-validate every candidate (slower)")
-    ap.add_argument("--held-out-valves", default="schedule", choices=HELD_OUT_VALVES,
-                    help="how cross-validation predicts a valve's opening at a left-out point: the schedule through "
-                         "the other points (default), or where the fit on all points opens it, interpolated among "
-                         "the open points (tried 2026-11-26, not adopted: it names a second mechanism beside a "
-                         "valve too often; docs/figures/validation/held_out_valves/)")
-    ap.add_argument("--beside-valve", default="in_sample", choices=BESIDE_VALVE,
-                    help="how a physical mechanism joining a model with a valve earns its place: in sample, with a "
-                         "cross-validated score that is lower at all (default since 2026-11-26: the valve's held-out "
-                         "openings dilute the cross-validated gain), or by the cross-validated gain and F-test as "
-                         "every other candidate (the rule before)")
+    add_valve_options(ap)
     ap.add_argument("--markdown", metavar="FILE.md", help="also write the report's tables as Markdown")
     ap.add_argument("--replicas", type=int, default=0, metavar="N",
                     help="also ask whether data like these would name the same causes again: N replicas of the data "

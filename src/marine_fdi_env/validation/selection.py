@@ -72,7 +72,7 @@ from .fitting import (Combination, FitResult, ROBUST_SCALE, FoldData, cell_losse
                       fit_combination, fit_sensor, fold_data, loco_predictions, predict_setting, robust_loss)
 from .matching import MatchResult
 from .mechanisms import Mechanism, SensorCalibration, equivalents, library, sensor_reference
-from .problem import Problem, Setting
+from .problem import HELD_OUT_VALVES, Problem, Setting
 from .window_scan import noise_ratio, window_excess
 
 __all__ = [
@@ -271,6 +271,21 @@ def _paired_p(current: np.ndarray, cand: np.ndarray, rows: np.ndarray) -> float:
 #: (the default since 2026-11-26, ninth session) or ``cross_validated`` (the rule of every other candidate, and of
 #: every study file before it; an ablation)
 BESIDE_VALVE = ("in_sample", "cross_validated")
+
+
+def add_valve_options(ap) -> None:
+    """The command-line options of how valves are cross-validated and judged (``--held-out-valves``,
+    ``--beside-valve``), shared by ``marine-fdi validate`` and the study."""
+    ap.add_argument("--held-out-valves", default="schedule", choices=HELD_OUT_VALVES,
+                    help="how cross-validation predicts a valve's opening at a left-out point: the schedule through "
+                         "the other points (default; every study file), or where the fit on all points opens it, "
+                         "interpolated among the open points (tried 2026-11-26, not adopted: it names a second "
+                         "mechanism beside a valve too often; docs/figures/validation/held_out_valves/)")
+    ap.add_argument("--beside-valve", default="in_sample", choices=BESIDE_VALVE,
+                    help="how a physical mechanism joining a model with a valve earns its place: in sample, with a "
+                         "cross-validated score that is lower at all (default since 2026-11-26: the valve's held-out "
+                         "openings dilute the cross-validated gain), or by the cross-validated gain and F-test as "
+                         "every other candidate (the rule before, and of every study file before it)")
 
 
 def _beside_valve(reference: Combination, added: Sequence[Mechanism]) -> bool:

@@ -45,7 +45,7 @@ from .columns import QUANTITIES, column_problem, lookup_column
 from .dataset import write_dataset
 from .mechanisms import (MECHANISM_IDS, PHYSICAL_MECHANISMS, Mechanism, SensorCalibration, ValveMechanism,
                          equivalents, get_mechanism, parse_mechanism_spec, sensor_reference)
-from .problem import BASE_SETTING, HELD_OUT_VALVES, Setting, _quantity
+from .problem import BASE_SETTING, Setting, _quantity
 from .columns import ModelContext
 
 __all__ = ["DEFAULT_COLUMNS", "SET_POINT_COLUMNS", "EFFECT_KINDS", "PERTURBED_FIELDS", "Synthesis", "synthesize",
@@ -812,7 +812,7 @@ def study_main(argv: Sequence[str] | None = None) -> int:
     [--no-prune] [--no-exchange] [--tolerance stated|noise] [--held-out-valves support|schedule]
     [--beside-valve cross_validated|in_sample] [--out FILE.json]``:
     the open-world hidden-effect study."""
-    from .selection import BESIDE_VALVE
+    from .selection import add_valve_options
 
     ap = argparse.ArgumentParser(prog="python -m marine_fdi_env.validation.synthesize study",
                                  description="Open-world hidden-effect study: " + "; ".join(
@@ -830,16 +830,7 @@ def study_main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--tolerance", default="stated", choices=TOLERANCE_MODES,
                     help="what the pipeline is told of the noise: its own tolerances (default; every result of the "
                     "study) or each channel's true noise (an ablation: what misstated tolerances cost)")
-    ap.add_argument("--held-out-valves", default="schedule", choices=HELD_OUT_VALVES,
-                    help="how cross-validation predicts a valve's opening at a held-out point: the schedule through "
-                    "every training point (default; every study file), or the full-data support with the opening "
-                    "interpolated among the open points (tried 2026-11-26, not adopted: "
-                    "docs/figures/validation/held_out_valves/)")
-    ap.add_argument("--beside-valve", default="in_sample", choices=BESIDE_VALVE,
-                    help="how a physical mechanism joining a model with a valve earns its place: in sample, with a "
-                    "cross-validated score that is lower at all (default since 2026-11-26: the valve's held-out "
-                    "openings dilute the cross-validated gain), or by the cross-validated gain and F-test as every "
-                    "other candidate (every study file before it)")
+    add_valve_options(ap)
     ap.add_argument("--out", default=None, help="write every trial as JSON here; finished trials are kept in "
                     "OUT.trials.jsonl and a rerun resumes from it")
     args = ap.parse_args(list(argv) if argv is not None else None)
