@@ -292,11 +292,11 @@ def run_validation(ds: MeasuredDataset, *, holdout: MeasuredDataset | None = Non
                    alpha_unexplained: float = ALPHA_UNEXPLAINED, cv_all: bool = False, max_folds: int | None = None,
                    progress=None, notes: Sequence[str] = (), command: str | None = None,
                    tolerances: Mapping[str, float] | None = None, held_out_valves: str = "schedule",
-                   beside_valve: str = "in_sample") -> tuple[dict[str, Any], Selection, dict | None]:
+                   beside_valve: str = "in_sample_exchange") -> tuple[dict[str, Any], Selection, dict | None]:
     """Run the pipeline; returns (JSON report, selection, hold-out evaluation with predictions or None).
     ``tolerances``: per channel in its units (default: the sidecar's, else 1 % / 5 K).  ``held_out_valves``: how
     cross-validation predicts a valve's opening at a held-out point (:data:`~.problem.HELD_OUT_VALVES`).
-    ``beside_valve``: how a physical mechanism joining a model with a valve earns its place
+    ``beside_valve``: how a cause joining a model with a valve earns its place
     (:data:`~.selection.BESIDE_VALVE`)."""
     pr = Problem(ds, target=target, params=params, tolerances=tolerances, held_out_valves=held_out_valves)
     sel = select_causes(pr, max_causes=max_causes, alpha=alpha, alpha_unexplained=alpha_unexplained, cv_all=cv_all,

@@ -518,7 +518,7 @@ TOLERANCE_MODES = ("stated", "noise")
 
 def _trial_settings(params: str = "wartsila-6l46", points: int = 8, max_folds: int | None = None, prune: bool = True,
                     tolerance: str = "stated", exchange: bool = True, held_out_valves: str = "schedule",
-                    beside_valve: str = "in_sample", **_) -> dict[str, Any]:
+                    beside_valve: str = "in_sample_exchange", **_) -> dict[str, Any]:
     """What a trial's outcome depends on besides its condition and seed (a resumed study keeps only trials run with
     the same).  ``tolerance`` is recorded only when it is not the default, ``exchange`` only when it is on: every
     file written before the exchange step (2026-11-26) was run without it.  ``calibration_scan``: the level of the
@@ -527,8 +527,9 @@ def _trial_settings(params: str = "wartsila-6l46", points: int = 8, max_folds: i
     in unexplained findings on channels with a named calibration.  ``held_out_valves``: how cross-validation
     predicts a valve's opening at a held-out point (:data:`~.problem.HELD_OUT_VALVES`), recorded only when it is
     not the default ``schedule`` (every file before 2026-11-26 followed the schedule).  ``beside_valve``: how a
-    physical mechanism joining a model with a valve earns its place (:data:`~.selection.BESIDE_VALVE`), recorded
-    when it is ``in_sample`` (the default): every file before 2026-11-26 (ninth session) judged it cross-validated."""
+    cause joining a model with a valve earns its place (:data:`~.selection.BESIDE_VALVE`), recorded unless it is
+    ``cross_validated``: every file before 2026-11-26 (ninth session) judged it so; the files 340-360 record
+    ``in_sample``, those after them ``in_sample_exchange`` (the default since the tenth session)."""
     out = {"params": str(params), "points": int(points), "max_folds": max_folds, "prune": bool(prune),
            "calibration_scan": "per named calibration"}
     if tolerance != "stated":
@@ -596,7 +597,7 @@ def trial_data(condition: str, seed: int, *, control: bool = False, params: str 
 
 def trial(condition: str, seed: int, *, control: bool = False, params: str = "wartsila-6l46", points: int = 8,
           max_folds: int | None = None, prune: bool = True, tolerance: str = "stated", exchange: bool = True,
-          held_out_valves: str = "schedule", beside_valve: str = "in_sample",
+          held_out_valves: str = "schedule", beside_valve: str = "in_sample_exchange",
           workdir: str | Path | None = None) -> dict[str, Any]:
     """One trial of the study: synthesise with the condition's hidden effects (none when ``control``), write and
     reload the data, run the selection (``prune``: its final removal step, on by default; ``tolerance``: one of
@@ -854,7 +855,7 @@ def study_main(argv: Sequence[str] | None = None) -> int:
                     **({"tolerance": args.tolerance} if args.tolerance != "stated" else {}),
                     **({"exchange": False} if args.no_exchange else {}),
                     **({"held_out_valves": args.held_out_valves} if args.held_out_valves != "schedule" else {}),
-                    **({"beside_valve": args.beside_valve} if args.beside_valve != "in_sample" else {}),
+                    **({"beside_valve": args.beside_valve} if args.beside_valve != "in_sample_exchange" else {}),
                     checkpoint=(Path(args.out).with_suffix(".trials.jsonl") if args.out else None))
     except KeyboardInterrupt:
         print("study: interrupted", file=sys.stderr)
