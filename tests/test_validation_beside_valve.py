@@ -87,3 +87,29 @@ def test_the_exchange_beside_the_gate_swaps_a_heat_loss_back_for_the_true_calibr
     every = trial("d", 346, beside_valve="in_sample_exchange")
     assert phys["selected"] == ["cylinder_heat_loss", "waste_gate"]
     assert every["selected"] == ["sensor_calibration[max_cylinder_pressure_bar_gauge]", "waste_gate"] and every["exact"]
+
+
+def test_the_study_reruns_only_the_listed_trials(monkeypatch, capsys):
+    """``--trials`` (the development check of a change that can only touch trials with a valve) runs exactly the
+    listed trials, with their controls unless told not to, and refuses a malformed name."""
+    import marine_fdi_env.validation.synthesize as synth
+
+    calls = []
+
+    def fake(c, s, control=False, **kw):
+        calls.append((c, s, control, kw.get("beside_valve")))
+        return {"condition": c, "seed": s, "control": control}
+
+    monkeypatch.setattr(synth, "trial", fake)
+    monkeypatch.setattr(synth, "summarise", lambda results, c: {"n": sum(r["condition"] == c for r in results),
+                                                                "by_mechanism": {}})
+    res = synth.study(["a"], range(5), trials=[("d", 346), ("b", 12)], progress=False, controls=True)
+    assert sorted(calls) == sorted([("d", 346, False, None), ("b", 12, False, None), ("d", 346, True, None),
+                                    ("b", 12, True, None)])
+    assert list(res["conditions"]) == ["d", "b"]  # the listed conditions, not the ignored --conditions
+    calls.clear()
+    assert synth.study_main(["--trials", "d346, b12", "--no-controls", "--beside-valve", "in_sample"]) == 0
+    assert sorted(calls) == [("b", 12, False, "in_sample"), ("d", 346, False, "in_sample")]
+    for bad in ("x3", "d", "d3a", ","):
+        assert synth.study_main(["--trials", bad]) == 2
+        assert "--trials" in capsys.readouterr().err

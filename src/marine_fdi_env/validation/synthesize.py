@@ -692,16 +692,24 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
 
 
 def study(conditions: Sequence[str], seeds: Sequence[int], *, controls: bool = True, workers: int = 1,
-          progress: bool = True, checkpoint: str | Path | None = None, **kw) -> dict[str, Any]:
+          progress: bool = True, checkpoint: str | Path | None = None,
+          trials: Sequence[tuple[str, int]] | None = None, **kw) -> dict[str, Any]:
     """Run :func:`trial` for every condition x seed (and its control) and summarise per condition.
+
+    ``trials``: only these ``(condition, seed)`` (``conditions`` and ``seeds`` are then ignored): a development
+    check that reruns the trials a change can touch, e.g. those with a valve in the truth or the selection.
 
     ``checkpoint`` (a JSON-lines file) keeps every finished trial; a rerun with the same file resumes
     where the last one stopped (trials are deterministic in their seed, so nothing changes); trials it holds that
     were run with other settings (:func:`_trial_settings`: parameter set, points, folds, removal step) are run
     again, not mixed in."""
-    jobs = [(c, int(s), False) for c in conditions for s in seeds]
+    pairs = ([(c, int(s)) for c, s in trials] if trials is not None else
+             [(c, int(s)) for c in conditions for s in seeds])
+    if trials is not None:
+        conditions = list(dict.fromkeys(c for c, _ in pairs))
+    jobs = [(c, s, False) for c, s in pairs]
     if controls:
-        jobs += [(c, int(s), True) for c in conditions for s in seeds]
+        jobs += [(c, s, True) for c, s in pairs]
     results: list[dict[str, Any]] = []
     sink = None
     if checkpoint is not None:
@@ -811,7 +819,7 @@ def summarise(results: Sequence[dict[str, Any]], condition: str) -> dict[str, An
 def study_main(argv: Sequence[str] | None = None) -> int:
     """``python -m marine_fdi_env.validation.synthesize study [--conditions abcde] [--seeds A:B] [--workers K]
     [--no-prune] [--no-exchange] [--tolerance stated|noise] [--held-out-valves support|schedule]
-    [--beside-valve cross_validated|in_sample] [--out FILE.json]``:
+    [--beside-valve in_sample_exchange|in_sample|cross_validated] [--trials d346,...] [--out FILE.json]``:
     the open-world hidden-effect study."""
     from .selection import add_valve_options
 
@@ -820,6 +828,9 @@ def study_main(argv: Sequence[str] | None = None) -> int:
                                      f"({k}) {v['title']}" for k, v in CONDITIONS.items()))
     ap.add_argument("--conditions", default="abcde", help="which conditions (letters), default abcde")
     ap.add_argument("--seeds", default="0:20", help="A:B, the seeds A..B-1 (default 0:20)")
+    ap.add_argument("--trials", default=None, metavar="d346,b12,...",
+                    help="only these trials (condition letter + seed, comma-separated), instead of --conditions x "
+                         "--seeds: a development check on the trials a change can touch")
     ap.add_argument("--no-controls", action="store_true", help="skip the negative controls")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--points", type=int, default=8)
@@ -849,8 +860,20 @@ def study_main(argv: Sequence[str] | None = None) -> int:
     if not seeds:
         print(f"study: error: --seeds {args.seeds!r} holds no seed (A:B runs A .. B-1)", file=sys.stderr)
         return 2
+    trials = None
+    if args.trials is not None:
+        trials = []
+        for t in (x.strip() for x in args.trials.split(",") if x.strip()):
+            if len(t) < 2 or t[0] not in CONDITIONS or not t[1:].isdigit():
+                print(f"study: error: --trials wants a condition letter ({''.join(CONDITIONS)}) and a seed, "
+                      f"e.g. d346; got {t!r}", file=sys.stderr)
+                return 2
+            trials.append((t[0], int(t[1:])))
+        if not trials:
+            print("study: error: --trials names no trial", file=sys.stderr)
+            return 2
     try:
-        res = study(list(args.conditions), seeds, controls=not args.no_controls, workers=args.workers,
+        res = study(list(args.conditions), seeds, controls=not args.no_controls, workers=args.workers, trials=trials,
                     points=args.points, **({"prune": False} if args.no_prune else {}),
                     **({"tolerance": args.tolerance} if args.tolerance != "stated" else {}),
                     **({"exchange": False} if args.no_exchange else {}),
