@@ -1024,8 +1024,8 @@ def select_causes(
     prune : at the end, remove named causes that no longer earn their place among the others (:func:`_prune`).
     exchange : then try each named physical cause replaced by a sensor calibration (:func:`_exchange`; off: the
         selection before 2026-11-26, an ablation).
-    beside_valve : how a physical mechanism joining a model with a valve earns its place, one of
-        :data:`BESIDE_VALVE` (:func:`_earns`).
+    beside_valve : how a cause joining a model with a valve earns its place (a physical mechanism, and the exchange
+        step's swap), one of :data:`BESIDE_VALVE` (:func:`_earns`, :func:`_exchange`).
     progress : optional callable receiving one-line status messages.
     """
     if beside_valve not in BESIDE_VALVE:
