@@ -50,7 +50,8 @@ from .fitting import channel_rmse, predict_setting
 from .matching import TARGETS
 from .mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
 from .problem import Problem
-from .selection import ALPHA_UNEXPLAINED, Selection, add_valve_options, family_significant, select_causes
+from .selection import (ALPHA_UNEXPLAINED, BESIDE_VALVE_DEFAULT, Selection, add_valve_options, family_significant,
+                        select_causes)
 
 __all__ = ["run_validation", "build_report", "write_plots", "validate_main", "load_data_arg", "split_engine",
            "markdown_summary", "holdout_evaluation", "fitted_engine"]
@@ -292,7 +293,7 @@ def run_validation(ds: MeasuredDataset, *, holdout: MeasuredDataset | None = Non
                    alpha_unexplained: float = ALPHA_UNEXPLAINED, cv_all: bool = False, max_folds: int | None = None,
                    progress=None, notes: Sequence[str] = (), command: str | None = None,
                    tolerances: Mapping[str, float] | None = None, held_out_valves: str = "schedule",
-                   beside_valve: str = "in_sample_exchange") -> tuple[dict[str, Any], Selection, dict | None]:
+                   beside_valve: str = BESIDE_VALVE_DEFAULT) -> tuple[dict[str, Any], Selection, dict | None]:
     """Run the pipeline; returns (JSON report, selection, hold-out evaluation with predictions or None).
     ``tolerances``: per channel in its units (default: the sidecar's, else 1 % / 5 K).  ``held_out_valves``: how
     cross-validation predicts a valve's opening at a held-out point (:data:`~.problem.HELD_OUT_VALVES`).

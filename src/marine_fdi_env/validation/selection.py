@@ -276,6 +276,8 @@ def _paired_p(current: np.ndarray, cand: np.ndarray, rows: np.ndarray) -> float:
 #: cross-validated bar under every rule: judged in sample it named a spurious turbine-inlet temperature calibration
 #: beside a bypass valve in development trial d317 (tried 2026-11-26, not kept; docs/figures/validation/beside_valve/)
 BESIDE_VALVE = ("in_sample_exchange", "in_sample", "cross_validated")
+#: the default of :data:`BESIDE_VALVE`, everywhere it is a parameter or an option
+BESIDE_VALVE_DEFAULT = BESIDE_VALVE[0]
 
 
 def add_valve_options(ap) -> None:
@@ -286,7 +288,7 @@ def add_valve_options(ap) -> None:
                          "the other points (default; every study file), or where the fit on all points opens it, "
                          "interpolated among the open points (tried 2026-11-26, not adopted: it names a second "
                          "mechanism beside a valve too often; docs/figures/validation/held_out_valves/)")
-    ap.add_argument("--beside-valve", default="in_sample_exchange", choices=BESIDE_VALVE,
+    ap.add_argument("--beside-valve", default=BESIDE_VALVE_DEFAULT, choices=BESIDE_VALVE,
                     help="how a cause joining a model with a valve earns its place: a physical mechanism in sample, "
                          "with a cross-validated score that is lower at all, and the exchange step's swap of a "
                          "physical cause for a sensor calibration by its in-sample gain (in_sample_exchange, the "
@@ -296,7 +298,7 @@ def add_valve_options(ap) -> None:
                          "every study file before 340-360)")
 
 
-def _beside_valve(reference: Combination, added: Sequence[Mechanism], rule: str = "in_sample_exchange") -> bool:
+def _beside_valve(reference: Combination, added: Sequence[Mechanism], rule: str = BESIDE_VALVE_DEFAULT) -> bool:
     """Whether ``added`` join ``reference``, a model with a valve, as physical mechanisms judged in sample under
     ``rule`` (one of :data:`BESIDE_VALVE`; never under ``cross_validated``).  A second valve brings its own held-out
     error, and a sensor calibration added at a forward step keeps the cross-validated bar: never those."""
@@ -827,7 +829,7 @@ def _pair_candidates(problem: Problem, current: Combination, current_fit: FitRes
 
 def _members_earn_their_place(problem: Problem, pair: CandidateScore, M: int, min_gain: float, threshold: float,
                               max_folds: int | None, penalty: float, current_S: float, current_k: int,
-                              beside_valve: str = "in_sample_exchange") -> str:
+                              beside_valve: str = BESIDE_VALVE_DEFAULT) -> str:
     """"" when the pair beats each of its members alone (cross-validated, cross-validating a member that was
     screened) by ``min_gain`` with the F-test's ``p < threshold`` (:func:`_earns`; in sample for a physical
     mechanism beside a valve when ``beside_valve`` says so): the second mechanism of a pair must pass the test a
@@ -872,7 +874,7 @@ def _pair_alternatives(best: CandidateScore, pairs: Sequence[CandidateScore], ma
 
 def _prune(problem: Problem, current: Combination, current_fit: FitResult, current_S: float, M: int, penalty: float,
            min_gain: float, thresholds: Mapping[str, float], max_folds: int | None, step_no: int, say,
-           beside_valve: str = "in_sample_exchange") -> tuple[dict[str, Any], CandidateScore] | None:
+           beside_valve: str = BESIDE_VALVE_DEFAULT) -> tuple[dict[str, Any], CandidateScore] | None:
     """The weakest named cause that no longer earns its place among the others, as a removal step (and the model
     without it), or None when each does.
 
@@ -916,7 +918,7 @@ def _prune(problem: Problem, current: Combination, current_fit: FitResult, curre
 
 def _exchange(problem: Problem, current: Combination, current_fit: FitResult, current_S: float, current_pen: float,
               M: int, penalty: float, min_gain: float, alpha: float, mechanisms: Sequence[Mechanism],
-              max_folds: int | None, step_no: int, say, beside_valve: str = "in_sample_exchange"
+              max_folds: int | None, step_no: int, say, beside_valve: str = BESIDE_VALVE_DEFAULT
               ) -> tuple[dict[str, Any], CandidateScore, Mechanism] | None:
     """The exchange step: a named physical cause that a sensor calibration, named in its place, explains better
     (the step, the model after the exchange, the cause taken out), or None.
@@ -950,6 +952,7 @@ def _exchange(problem: Problem, current: Combination, current_fit: FitResult, cu
         fit0 = fit_combination(problem, comb0, start=current_fit, known=current_fit.values(), support=support)
         in_pred = predict_setting(problem, fit0, rows_all)
         loco0 = None  # the model without m, judged channel by channel: computed once, when a candidate needs it
+        in_sample = beside_valve == "in_sample_exchange" and bool(comb0.valves)
         # the channel whose calibration gains most on these readings is the candidate (as at a forward step,
         # :func:`_calibrations_to_refit`); it is then refitted as a whole model, nuisance included
         for cheap in sorted((_sensor_fit(problem, fit0, in_pred, cal) for cal in cals),
@@ -963,7 +966,6 @@ def _exchange(problem: Problem, current: Combination, current_fit: FitResult, cu
             c.score(problem, *cross_validate(problem, c.combination, fit, max_folds=max_folds), M, penalty,
                     current_S, current_fit.k)
             tried.append(c)
-            in_sample = beside_valve == "in_sample_exchange" and bool(comb0.valves)
             gain = (s_in_cur - c.in_sample_score) / s_in_cur if in_sample else c.gain
             if gain < min_gain or c.penalised >= current_pen:
                 c.screened = (f"{'in-sample ' if in_sample else ''}gain {gain:.1%}, penalised {c.penalised:.4g} "
@@ -1005,7 +1007,7 @@ def select_causes(
     pairs: bool = True,
     prune: bool = True,
     exchange: bool = True,
-    beside_valve: str = "in_sample_exchange",
+    beside_valve: str = BESIDE_VALVE_DEFAULT,
     progress=None,
 ) -> Selection:
     """Greedy forward selection of named mechanisms (see the module docstring).

@@ -46,6 +46,7 @@ from .dataset import write_dataset
 from .mechanisms import (MECHANISM_IDS, PHYSICAL_MECHANISMS, Mechanism, SensorCalibration, ValveMechanism,
                          equivalents, get_mechanism, parse_mechanism_spec, sensor_reference)
 from .problem import BASE_SETTING, Setting, _quantity
+from .selection import BESIDE_VALVE_DEFAULT
 from .columns import ModelContext
 
 __all__ = ["DEFAULT_COLUMNS", "SET_POINT_COLUMNS", "EFFECT_KINDS", "PERTURBED_FIELDS", "Synthesis", "synthesize",
@@ -518,7 +519,7 @@ TOLERANCE_MODES = ("stated", "noise")
 
 def _trial_settings(params: str = "wartsila-6l46", points: int = 8, max_folds: int | None = None, prune: bool = True,
                     tolerance: str = "stated", exchange: bool = True, held_out_valves: str = "schedule",
-                    beside_valve: str = "in_sample_exchange", **_) -> dict[str, Any]:
+                    beside_valve: str = BESIDE_VALVE_DEFAULT, **_) -> dict[str, Any]:
     """What a trial's outcome depends on besides its condition and seed (a resumed study keeps only trials run with
     the same).  ``tolerance`` is recorded only when it is not the default, ``exchange`` only when it is on: every
     file written before the exchange step (2026-11-26) was run without it.  ``calibration_scan``: the level of the
@@ -597,7 +598,7 @@ def trial_data(condition: str, seed: int, *, control: bool = False, params: str 
 
 def trial(condition: str, seed: int, *, control: bool = False, params: str = "wartsila-6l46", points: int = 8,
           max_folds: int | None = None, prune: bool = True, tolerance: str = "stated", exchange: bool = True,
-          held_out_valves: str = "schedule", beside_valve: str = "in_sample_exchange",
+          held_out_valves: str = "schedule", beside_valve: str = BESIDE_VALVE_DEFAULT,
           workdir: str | Path | None = None) -> dict[str, Any]:
     """One trial of the study: synthesise with the condition's hidden effects (none when ``control``), write and
     reload the data, run the selection (``prune``: its final removal step, on by default; ``tolerance``: one of
@@ -878,7 +879,7 @@ def study_main(argv: Sequence[str] | None = None) -> int:
                     **({"tolerance": args.tolerance} if args.tolerance != "stated" else {}),
                     **({"exchange": False} if args.no_exchange else {}),
                     **({"held_out_valves": args.held_out_valves} if args.held_out_valves != "schedule" else {}),
-                    **({"beside_valve": args.beside_valve} if args.beside_valve != "in_sample_exchange" else {}),
+                    **({"beside_valve": args.beside_valve} if args.beside_valve != BESIDE_VALVE_DEFAULT else {}),
                     checkpoint=(Path(args.out).with_suffix(".trials.jsonl") if args.out else None))
     except KeyboardInterrupt:
         print("study: interrupted", file=sys.stderr)
