@@ -40,8 +40,11 @@ selection counts as one free parameter per open point, like the opening itself),
 interpolated in load among the training points where it acts, extrapolated linearly beyond them (never below shut).
 Tried and not adopted: on the study's development seeds 300-339 it made the two such (d) misses exact and lost ten
 trials of (b)-(d), where model error or proportional noise then passed the selection's bar as a second mechanism
-beside a valve (``docs/figures/validation/held_out_valves/``).  The fitted engine between and beyond the measured
-points follows the schedule either way (:meth:`FitResult.schedules`).
+beside a valve (``docs/figures/validation/held_out_valves/``).  The option ``"state"`` (2026-11-26, eleventh
+session; :mod:`.held_out_state`, :attr:`FitResult.held_out_state`) estimates the opening at the held-out point
+from that point's other channels, each channel predicted without its own reading: what a per-point state claims
+is tested, not a load dependence it does not claim.  The fitted engine between and beyond the measured
+points follows the schedule in every mode (:meth:`FitResult.schedules`).
 
 A sensor calibration changes no model state: added to a model it is fitted on that model's readings
 (:func:`fit_sensor`, per fold on the fold's readings), without solving the engine again; the nuisance is
@@ -62,6 +65,7 @@ from scipy.optimize import least_squares
 from ..engine.submodels import Schedule
 from .mechanisms import Mechanism, ValveMechanism
 from .nuisance import NUISANCE, nuisance_bounds, prior_residuals, scales_of
+from .held_out_state import state_predictions
 from .problem import HELD_OUT_VALVES, Problem, Setting
 
 __all__ = ["ROBUST_SCALE", "robust_loss", "Combination", "FitResult", "fit_combination", "cross_validate",
@@ -195,6 +199,9 @@ class FitResult:
     #: a cross-validation fold's fit: per valve id, the rows where the full-data fit opens it (held-out rows are then
     #: predicted with :meth:`held_out_openings`); None: held-out rows follow the schedule
     held_out_support: dict[str, list[int]] | None = None
+    #: a cross-validation fold's fit whose held-out rows take each valve's opening as a state estimated from the
+    #: row's other channels (:mod:`.held_out_state`)
+    held_out_state: bool = False
 
     def values(self) -> dict[str, float]:
         return dict(zip(self.combination.names, map(float, self.x)))
@@ -509,6 +516,16 @@ def predict_setting(problem: Problem, fit: FitResult, rows) -> np.ndarray:
         out[fitted] = problem.predict(fit.setting(problem), rows[fitted])[0]
     if np.any(~fitted):
         held = rows[~fitted]
+        if fit.held_out_state:
+            comb = fit.combination
+
+            def setting_of(state):
+                return comb.setting(problem, fit.nuisance, fit.x,
+                                    {k: np.full(problem.n_points, v) for k, v in state.items()})
+
+            out[~fitted] = state_predictions(problem, setting_of, comb.valves, held, robust_loss, L1_LAMBDA,
+                                             SUPPORT_FRACTION)
+            return out
         if fit.held_out_support is not None:
             s = fit.combination.setting(problem, fit.nuisance, fit.x, fit.held_out_openings(problem, held))
         else:
@@ -536,6 +553,7 @@ def cross_validate(problem: Problem, comb: Combination, full: FitResult | None =
                             max_nfev=25 * (N_NUIS + comb.n_global + 1), eliminate=False)
         if comb.valves and problem.held_out_valves == "support":
             f.held_out_support = {k: list(v) for k, v in full.support.items()}
+        f.held_out_state = bool(comb.valves) and problem.held_out_valves == "state"
         pred[test] = predict_setting(problem, f, test)
         fits.append((name, f))
     return pred, fits

@@ -41,7 +41,7 @@ __all__ = ["Setting", "Problem", "BASE_SETTING", "FAIL_RESIDUAL", "VALVES", "HEL
 #: how cross-validation predicts a valve's opening at a held-out point (:mod:`.fitting`'s docstring): ``schedule``
 #: (the default) or ``support`` (tried 2026-11-26, not adopted: an ablation,
 #: ``Problem(..., held_out_valves="support")``)
-HELD_OUT_VALVES = ("schedule", "support")
+HELD_OUT_VALVES = ("schedule", "support", "state")
 
 FAIL_RESIDUAL = 50.0  # normalised residual of a cell whose point has no steady state
 VALVES = ("waste_gate", "bypass_valve")
@@ -85,8 +85,9 @@ class Problem:
     ds : the dataset.  params : parameter set (name, file or :class:`EngineParams`; default the sidecar's).
     target : what fixes each point (as :func:`~.matching.match_operating_points`).
     tolerances : per column in its units (default: sidecar ``tolerances``, else the defaults).
-    held_out_valves : how cross-validation predicts a valve's opening at a held-out point, ``"schedule"`` (default)
-        or ``"support"`` (tried 2026-11-26, not adopted): :data:`HELD_OUT_VALVES`.
+    held_out_valves : how cross-validation predicts a valve's opening at a held-out point, ``"schedule"`` (default),
+        ``"support"`` (tried 2026-11-26, not adopted) or ``"state"`` (tried 2026-11-26, eleventh session;
+        :mod:`.held_out_state`): :data:`HELD_OUT_VALVES`.
     """
 
     def __init__(self, ds: MeasuredDataset, *, params: str | EngineParams | None = None, target: str = "auto",

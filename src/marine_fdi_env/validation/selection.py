@@ -286,8 +286,11 @@ def add_valve_options(ap) -> None:
     ap.add_argument("--held-out-valves", default="schedule", choices=HELD_OUT_VALVES,
                     help="how cross-validation predicts a valve's opening at a left-out point: the schedule through "
                          "the other points (default; every study file), or where the fit on all points opens it, "
-                         "interpolated among the open points (tried 2026-11-26, not adopted: it names a second "
-                         "mechanism beside a valve too often; docs/figures/validation/held_out_valves/)")
+                         "interpolated among the open points (support: tried 2026-11-26, not adopted: it names a "
+                         "second mechanism beside a valve too often; docs/figures/validation/held_out_valves/), or "
+                         "estimated as a state from the left-out point's other channels, each channel predicted "
+                         "without its own reading (state: tried 2026-11-26, eleventh session; "
+                         "validation/held_out_state.py)")
     ap.add_argument("--beside-valve", default=BESIDE_VALVE_DEFAULT, choices=BESIDE_VALVE,
                     help="how a cause joining a model with a valve earns its place: a physical mechanism in sample, "
                          "with a cross-validated score that is lower at all, and the exchange step's swap of a "

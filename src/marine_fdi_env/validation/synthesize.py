@@ -819,7 +819,7 @@ def summarise(results: Sequence[dict[str, Any]], condition: str) -> dict[str, An
 
 def study_main(argv: Sequence[str] | None = None) -> int:
     """``python -m marine_fdi_env.validation.synthesize study [--conditions abcde] [--seeds A:B] [--workers K]
-    [--no-prune] [--no-exchange] [--tolerance stated|noise] [--held-out-valves support|schedule]
+    [--no-prune] [--no-exchange] [--tolerance stated|noise] [--held-out-valves schedule|support|state]
     [--beside-valve in_sample_exchange|in_sample|cross_validated] [--trials d346,...] [--out FILE.json]``:
     the open-world hidden-effect study."""
     from .selection import add_valve_options
