@@ -43,7 +43,8 @@ trials of (b)-(d), where model error or proportional noise then passed the selec
 beside a valve (``docs/figures/validation/held_out_valves/``).  The option ``"state"`` (2026-11-26, eleventh
 session; :mod:`.held_out_state`, :attr:`FitResult.held_out_state`) estimates the opening at the held-out point
 from that point's other channels, each channel predicted without its own reading: what a per-point state claims
-is tested, not a load dependence it does not claim.  The fitted engine between and beyond the measured
+is tested, not a load dependence it does not claim; not adopted (it lets model error in as a valve or beside one:
+``docs/figures/validation/held_out_state/``).  The fitted engine between and beyond the measured
 points follows the schedule in every mode (:meth:`FitResult.schedules`).
 
 A sensor calibration changes no model state: added to a model it is fitted on that model's readings

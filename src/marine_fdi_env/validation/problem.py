@@ -86,7 +86,7 @@ class Problem:
     target : what fixes each point (as :func:`~.matching.match_operating_points`).
     tolerances : per column in its units (default: sidecar ``tolerances``, else the defaults).
     held_out_valves : how cross-validation predicts a valve's opening at a held-out point, ``"schedule"`` (default),
-        ``"support"`` (tried 2026-11-26, not adopted) or ``"state"`` (tried 2026-11-26, eleventh session;
+        ``"support"`` (tried 2026-11-26, not adopted) or ``"state"`` (tried 2026-11-26, not adopted;
         :mod:`.held_out_state`): :data:`HELD_OUT_VALVES`.
     """
 

@@ -289,8 +289,8 @@ def add_valve_options(ap) -> None:
                          "interpolated among the open points (support: tried 2026-11-26, not adopted: it names a "
                          "second mechanism beside a valve too often; docs/figures/validation/held_out_valves/), or "
                          "estimated as a state from the left-out point's other channels, each channel predicted "
-                         "without its own reading (state: tried 2026-11-26, eleventh session; "
-                         "validation/held_out_state.py)")
+                         "without its own reading (state: tried 2026-11-26, not adopted: it lets model error in as a "
+                         "valve or beside one; docs/figures/validation/held_out_state/)")
     ap.add_argument("--beside-valve", default=BESIDE_VALVE_DEFAULT, choices=BESIDE_VALVE,
                     help="how a cause joining a model with a valve earns its place: a physical mechanism in sample, "
                          "with a cross-validated score that is lower at all, and the exchange step's swap of a "
