@@ -64,9 +64,9 @@ from scipy import stats
 from scipy.optimize import least_squares
 
 from ..engine.submodels import Schedule
+from .held_out_state import state_predictions
 from .mechanisms import Mechanism, ValveMechanism
 from .nuisance import NUISANCE, nuisance_bounds, prior_residuals, scales_of
-from .held_out_state import state_predictions
 from .problem import HELD_OUT_VALVES, Problem, Setting
 
 __all__ = ["ROBUST_SCALE", "robust_loss", "Combination", "FitResult", "fit_combination", "cross_validate",

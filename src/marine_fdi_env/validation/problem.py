@@ -39,8 +39,8 @@ from .matching import _rack_settings, _resolve_target, _target_values, load_law_
 __all__ = ["Setting", "Problem", "BASE_SETTING", "FAIL_RESIDUAL", "VALVES", "HELD_OUT_VALVES"]
 
 #: how cross-validation predicts a valve's opening at a held-out point (:mod:`.fitting`'s docstring): ``schedule``
-#: (the default) or ``support`` (tried 2026-11-26, not adopted: an ablation,
-#: ``Problem(..., held_out_valves="support")``)
+#: (the default), ``support`` or ``state`` (each tried 2026-11-26 and not adopted: ablations,
+#: ``Problem(..., held_out_valves="support")``; ``state``: :mod:`.held_out_state`)
 HELD_OUT_VALVES = ("schedule", "support", "state")
 
 FAIL_RESIDUAL = 50.0  # normalised residual of a cell whose point has no steady state
