@@ -4,6 +4,7 @@ verdicts follow the exact binomial interval (the numbers docs/validation.md quot
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import pytest
@@ -95,3 +96,19 @@ def test_local_findings_of_the_controls_are_held_to_the_level_only_where_they_ar
     md = pool_markdown(pool(load_trials([_write(tmp_path, "y.json", trials)])))
     assert "| (a) controls with a local finding | 4/20 | 4/20 = 20.0 % [5.7, 43.7] | ≤ 5 % (level) | **no** |" in md
     assert "| (b) controls with a local finding | 4/20 | 4/20 = 20.0 % [5.7, 43.7] | – | – | – |" in md
+
+
+def test_the_forest_plot_is_drawn_and_a_missing_matplotlib_is_one_line_before_any_work(tmp_path, capsys,
+                                                                                        monkeypatch):
+    pytest.importorskip("matplotlib")
+    trials = [_trial(c, s, s % 7 != 0) for c in "abcde" for s in range(20)]
+    trials += [_trial(c, s, False, control=True, named=s == 3) for c in "abcde" for s in range(20)]
+    a = _write(tmp_path, "a.json", trials)
+    png = tmp_path / "fig" / "pool.png"
+    assert pool_main([str(a), "--plot", str(png)]) == 0
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 20_000
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib now raises ImportError
+    md = tmp_path / "pool.md"
+    assert pool_main([str(a), "--markdown", str(md), "--plot", str(tmp_path / "again.png")]) == 2
+    err = capsys.readouterr().err
+    assert "marine-fdi-env[plots]" in err and not md.exists() and not (tmp_path / "again.png").exists()

@@ -243,13 +243,9 @@ def plot(out: Mapping[str, Any], path: str | Path) -> Path:
     """Per (e) trial its z against whether the pipeline reported it (jittered 0/1, one colour per study file), over
     the oracle's rate Φ(z - z_(1-α)) at :data:`LEVELS`: where the pipeline's hits fall against what a test that
     knows the shape could reach."""
-    try:
-        import matplotlib
-    except ImportError:  # pragma: no cover - the dev extra has it
-        raise RuntimeError("plots need matplotlib: pip install 'marine-fdi-env[plots]'") from None
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from .plotting import pyplot
 
+    plt = pyplot()
     files = [(k, b) for k, b in out.items() if "trials" in b]
     zs = np.concatenate([[t["z"] for t in b["trials"]] for _, b in files])
     grid = np.geomspace(max(0.3, float(zs.min()) * 0.8), float(zs.max()) * 1.2, 200)

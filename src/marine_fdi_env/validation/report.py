@@ -49,6 +49,7 @@ from .dataset import DatasetError, MeasuredDataset, list_shipped, load_data_arg
 from .fitting import channel_rmse, predict_setting
 from .matching import TARGETS
 from .mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
+from .plotting import pyplot
 from .problem import Problem
 from .selection import (ALPHA_UNEXPLAINED, BESIDE_VALVE_DEFAULT, Selection, add_valve_options, family_significant,
                         select_causes)
@@ -324,22 +325,11 @@ def _load_axis(pr: Problem) -> tuple[np.ndarray, str]:
     return np.arange(pr.n_points, dtype=float), "point"
 
 
-def _pyplot():
-    try:
-        import matplotlib
-    except ImportError:
-        raise RuntimeError("plots need matplotlib: pip install 'marine-fdi-env[plots]'") from None
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
 def write_plots(sel: Selection, directory: str | Path, holdout: Mapping[str, Any] | None = None,
                 prefix: str | None = None) -> list[Path]:
     """Model against measurement per channel (base as it is, calibrated base, fitted extension, cross-validated
     predictions), the valve activity, the cross-validated RMSE per channel, and the hold-out if any."""
-    plt = _pyplot()
+    plt = pyplot()
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
     pr = sel.problem
@@ -810,7 +800,7 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
         save = _out_path(args.save_params, "--save-params") if args.save_params else None
         md = _out_path(args.markdown, "--markdown") if args.markdown else None
         if args.plots:
-            _pyplot()
+            pyplot()
         try:
             ds = load_data_arg(args.data, args.params if args.params in list_parameter_sets() else None)
         except DatasetError as e:

@@ -26,9 +26,11 @@ import sys
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
+import numpy as np
+
 from .binomial import proportion_ci95
 
-__all__ = ["TARGETS", "load_trials", "pool", "pool_markdown", "pool_main"]
+__all__ = ["TARGETS", "load_trials", "pool", "pool_markdown", "pool_plot", "pool_main"]
 
 # condition -> (what counts, the bar, "min" (rate >= bar) or "max" (rate <= bar))
 TARGETS: dict[str, tuple[str, float, str]] = {
@@ -150,18 +152,84 @@ def pool_markdown(res: Mapping[str, Any]) -> str:
     return "\n".join(lines)
 
 
+#: marker colour of the pooled rate by what its interval says
+VERDICT_COLOURS = {"confirmed": "tab:green", "undecided": "tab:orange", "refuted": "tab:red"}
+
+
+def pool_plot(res: Mapping[str, Any], path: str | Path) -> Path:
+    """The pooled table as a forest plot: per condition each file's rate (grey dots), the pooled rate with its exact
+    95 % interval (coloured by what the interval says) and the target (red tick); targets on the left, the controls
+    naming a cause on the right.  Needs matplotlib (the ``plots`` extra)."""
+    from .plotting import pyplot
+
+    plt = pyplot()
+    conds = list(res["conditions"])
+    fig, axes = plt.subplots(1, 2, figsize=(10, 0.55 * len(conds) + 2.0), sharey=True,
+                             gridspec_kw={"width_ratios": [3, 2]})
+    jitter = np.random.default_rng(0)  # fixed: the same file draws the same figure
+    for ax, per_key, pooled_key, title in ((axes[0], "per_file", "pooled", "trials: the target's rate"),
+                                           (axes[1], "controls_per_file", "controls_pooled",
+                                            "negative controls naming a cause")):
+        for i, c in enumerate(conds):
+            r, y = res["conditions"][c], -i
+            rates = [k / n for k, n in r[per_key] if n]
+            ax.scatter(rates, y + jitter.uniform(-0.18, 0.18, len(rates)), s=14, color="0.6", zorder=2)
+            v = r[pooled_key]
+            if v is None:
+                continue
+            colour = VERDICT_COLOURS[v["interval_says"]]
+            ax.plot(v["ci95"], [y, y], color=colour, lw=2.5, zorder=3)
+            ax.scatter([v["rate"]], [y], marker="D", s=40, color=colour, edgecolor="k", zorder=4)
+            ax.plot([v["bar"], v["bar"]], [y - 0.35, y + 0.35], color="tab:red", lw=1.5, zorder=1)
+            if ax is axes[1]:  # the left panel says it in the row's label
+                ax.text(0.98, y, f"{v['k']}/{v['n']}, {v['interval_says']}", transform=ax.get_yaxis_transform(),
+                        ha="right", va="center", fontsize=7)
+        ax.set_title(title, fontsize=10)
+        ax.grid(axis="x", alpha=0.3)
+        ax.xaxis.set_major_formatter(lambda x, _: f"{100 * x:.0f} %")
+    lowest = min(k / n for c in conds for k, n in res["conditions"][c]["per_file"] if n)
+    axes[0].set_xlim(min(0.5, lowest - 0.05), 1.02)
+    axes[1].set_xlim(-0.01, max(0.2, max(k / n for c in conds for k, n in res["conditions"][c]["controls_per_file"]
+                                         if n) + 0.02))
+    labels = []
+    for c in conds:
+        v = res["conditions"][c]["pooled"]
+        labels.append(f"({c}) {res['conditions'][c]['what']}" + (
+            f"\n{v['k']}/{v['n']} = {100 * v['rate']:.1f} %, {v['interval_says']}" if v else ""))
+    axes[0].set_yticks([-i for i in range(len(conds))], labels, fontsize=8)
+    handles = [axes[0].scatter([], [], s=14, color="0.6", label="one range of seeds"),
+               axes[0].plot([], [], color="tab:red", lw=1.5, label="target")[0]]
+    handles += [axes[0].plot([], [], color=colour, lw=2.5, marker="D", markeredgecolor="k",
+                             label=f"pooled, 95 % interval: {verdict}")[0] for verdict, colour in VERDICT_COLOURS.items()]
+    fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=7, frameon=False)
+    fig.suptitle(f"Open-world study, {len(res['files'])} ranges of seeds pooled ({res['files'][0]} to "
+                 f"{res['files'][-1]})", fontsize=10)
+    fig.tight_layout(rect=(0, 0.06, 1, 1))
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def pool_main(argv: Sequence[str] | None = None) -> int:
-    """``python -m marine_fdi_env.validation.synthesize pool FILE.json ... [--markdown OUT.md] [--out OUT.json]``."""
+    """``python -m marine_fdi_env.validation.synthesize pool FILE.json ... [--markdown OUT.md] [--out OUT.json]
+    [--plot OUT.png]``."""
     ap = argparse.ArgumentParser(prog="python -m marine_fdi_env.validation.synthesize pool",
                                  description="Pool study files (one range of seeds each) and hold every condition "
                                              "to its target with exact 95 %% intervals.")
     ap.add_argument("files", nargs="+", metavar="FILE.json", help="study files written by `synthesize study --out`")
     ap.add_argument("--markdown", metavar="OUT.md", help="also write the table as Markdown")
     ap.add_argument("--out", metavar="OUT.json", help="also write the pooled counts and verdicts as JSON")
+    ap.add_argument("--plot", metavar="OUT.png", help="also draw the table as a forest plot (needs matplotlib)")
     args = ap.parse_args(list(argv) if argv is not None else None)
     try:
+        if args.plot:
+            from .plotting import pyplot
+
+            pyplot()  # a missing matplotlib is one line before any work
         res = pool(load_trials(args.files))
-    except ValueError as e:
+    except (ValueError, RuntimeError) as e:
         print(f"pool: error: {e}", file=sys.stderr)
         return 2
     md = pool_markdown(res)
@@ -170,4 +238,6 @@ def pool_main(argv: Sequence[str] | None = None) -> int:
         Path(args.markdown).write_text(md + "\n")
     if args.out:
         Path(args.out).write_text(json.dumps(res, indent=1) + "\n")
+    if args.plot:
+        print(f"plot: {pool_plot(res, args.plot)}")
     return 0
