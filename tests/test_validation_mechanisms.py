@@ -9,12 +9,11 @@ import warnings
 import numpy as np
 import pytest
 
-from marine_fdi_env.engine.operating_point import MODE_P, solve_points
 from marine_fdi_env.engine.params import load_params
 from marine_fdi_env.validation import DataWarning, load_dataset, load_shipped
 from marine_fdi_env.validation.fitting import Combination, fit_combination, predict_setting
 from marine_fdi_env.validation.mechanisms import (MECHANISM_IDS, PHYSICAL_MECHANISMS, BypassValveM, Param,
-                                                  SensorCalibration, WasteGateM, equivalents, get_mechanism,
+                                                  SensorCalibration, WasteGateM, equivalents,
                                                   parse_mechanism_spec)
 from marine_fdi_env.validation.nuisance import NUISANCE
 from marine_fdi_env.validation.problem import BASE_SETTING, Problem

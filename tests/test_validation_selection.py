@@ -18,10 +18,11 @@ import pytest
 from marine_fdi_env.engine.operating_point import MODE_U, solve_points
 from marine_fdi_env.engine.params import load_params
 from marine_fdi_env.engine.submodels import NO_SUBMODELS
-from marine_fdi_env.validation import DataWarning, load_dataset, load_shipped, write_dataset
+from marine_fdi_env.validation import DataWarning, load_dataset, load_shipped
 from marine_fdi_env.validation.problem import Problem
-from marine_fdi_env.validation.report import fitted_engine, run_validation, validate_main
-from marine_fdi_env.validation.selection import local_excess, match_result, select_causes
+from marine_fdi_env.validation.report import run_validation, validate_main
+from marine_fdi_env.validation.selection import match_result, select_causes
+from marine_fdi_env.validation.unexplained import local_excess
 from marine_fdi_env.validation.synthesize import CONDITIONS, effect_region, study, synthesize, trial
 
 

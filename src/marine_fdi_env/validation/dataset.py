@@ -56,7 +56,7 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 
 from ..engine.params import EngineParams, list_parameter_sets, load_params
-from .columns import COLUMNS, ID_COLUMNS, QUANTITIES, ColumnSpec, column_problem, lookup_column, resolve_quantity
+from .columns import ID_COLUMNS, QUANTITIES, ColumnSpec, column_problem, lookup_column, resolve_quantity
 
 __all__ = [
     "MeasuredDataset", "DatasetError", "DataWarning", "Problem", "load_dataset", "load_shipped",
@@ -479,7 +479,7 @@ def load_dataset(
                 err(f"sidecar pressure_reference[{h!r}] must be \"gauge\" or \"absolute\", got {ref!r}", column=h)
                 continue
             if not q.endswith("_Pa"):
-                err(f"sidecar pressure_reference names a column that is not a pressure", column=h)
+                err("sidecar pressure_reference names a column that is not a pressure", column=h)
                 continue
             spec = dataclasses.replace(spec, gauge=ref == "gauge", gauge_assumed=False)
             notes.append(f"{h}: {ref} pressure (sidecar pressure_reference)")

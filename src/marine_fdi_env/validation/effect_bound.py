@@ -20,7 +20,7 @@ unexplained; two levels are reported:
 * **5 % on the one channel**: the calibration being judged names its channel, and a 95 % identification target
   for true calibrations leaves 5 % to lose;
 * **5 % family-wise over the compared channels** (Bonferroni), the level at which the pipeline reports
-  unexplained findings (:data:`~.selection.ALPHA_UNEXPLAINED`).
+  unexplained findings (:data:`~.unexplained.ALPHA_UNEXPLAINED`).
 
 Everything favours the oracle (the shape, the channel, the noise, no model error: the study's (e) engine is 1 % off),
 so its mean rate over the trials bounds what any pipeline can reach on them while naming true calibrations at the

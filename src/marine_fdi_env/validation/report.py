@@ -51,8 +51,8 @@ from .matching import TARGETS
 from .mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
 from .plotting import pyplot
 from .problem import Problem
-from .selection import (ALPHA_UNEXPLAINED, BESIDE_VALVE_DEFAULT, Selection, add_valve_options, family_significant,
-                        select_causes)
+from .selection import BESIDE_VALVE_DEFAULT, Selection, add_valve_options, select_causes
+from .unexplained import ALPHA_UNEXPLAINED, family_significant
 
 __all__ = ["run_validation", "build_report", "write_plots", "validate_main", "load_data_arg", "split_engine",
            "markdown_summary", "holdout_evaluation", "fitted_engine"]

@@ -13,7 +13,7 @@ Targets: identification (the exact set of named causes) >= 95 % in (a), (b), (c)
 cause <= 5 % in every condition.
 
 Also pooled, not a target of the issue: the controls with a *local* unexplained finding (a window, step or kink on
-some channel).  The pipeline reports those at a family-wise 5 % (:data:`~.selection.ALPHA_UNEXPLAINED`); where the
+some channel).  The pipeline reports those at a family-wise 5 % (:data:`~.unexplained.ALPHA_UNEXPLAINED`); where the
 control's data are the model plus noise, (a) and (c), every such finding is a false alarm and the rate is held to
 that level (in (b), (d) and (e) the engine differs from the model by a few per cent, and a finding may be real).
 """

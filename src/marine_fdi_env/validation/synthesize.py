@@ -43,8 +43,8 @@ from ..engine.operating_point import MODE_P, solve_points, speed_of_power
 from ..engine.params import EngineParams, list_parameter_sets, load_params
 from .columns import QUANTITIES, column_problem, lookup_column
 from .dataset import write_dataset
-from .mechanisms import (MECHANISM_IDS, PHYSICAL_MECHANISMS, Mechanism, SensorCalibration, ValveMechanism,
-                         equivalents, get_mechanism, parse_mechanism_spec, sensor_reference)
+from .mechanisms import (MECHANISM_IDS, SensorCalibration, ValveMechanism, equivalents, get_mechanism,
+                         parse_mechanism_spec, sensor_reference)
 from .problem import BASE_SETTING, Setting, _quantity
 from .selection import BESIDE_VALVE_DEFAULT
 from .columns import ModelContext
@@ -523,7 +523,7 @@ def _trial_settings(params: str = "wartsila-6l46", points: int = 8, max_folds: i
     """What a trial's outcome depends on besides its condition and seed (a resumed study keeps only trials run with
     the same).  ``tolerance`` is recorded only when it is not the default, ``exchange`` only when it is on: every
     file written before the exchange step (2026-11-26) was run without it.  ``calibration_scan``: the level of the
-    scan of what a named calibration leaves (:func:`~.selection.calibration_left`), over the calibrated channels
+    scan of what a named calibration leaves (:func:`~.unexplained.calibration_left`), over the calibrated channels
     since 2026-11-26; files without the key scanned at the level over every channel, and differ from a rerun only
     in unexplained findings on channels with a named calibration.  ``held_out_valves``: how cross-validation
     predicts a valve's opening at a held-out point (:data:`~.problem.HELD_OUT_VALVES`), recorded only when it is
