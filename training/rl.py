@@ -209,12 +209,12 @@ def plot_learning_curve(curve: list[dict], path: Path, title: str = "") -> Path 
     """Training return and, on the held-out episodes, isolation accuracy and false alarms vs steps."""
     if not curve:
         return None
+    from marine_fdi_env.plotting import pyplot
+
     try:
-        import matplotlib
-    except ImportError:
+        plt = pyplot()
+    except RuntimeError:  # the training extra does not need matplotlib: no curve then
         return None
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     x = [r["timesteps"] / 1e6 for r in curve]
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.6))

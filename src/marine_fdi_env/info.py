@@ -42,7 +42,7 @@ PACKAGE = "marine_fdi_env"
 
 # layer name -> module name prefixes (relative to the package), most specific first when matched
 LAYERS: dict[str, tuple[str, ...]] = {
-    "util": ("_version", "_jit", "_coldstart", "suggest"),
+    "util": ("_version", "_jit", "_coldstart", "suggest", "plotting"),
     "params": ("engine.params", "engine.submodels"),
     "engine": ("engine",),
     "io": ("runio", "scenarios"),

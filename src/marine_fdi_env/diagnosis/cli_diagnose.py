@@ -79,14 +79,12 @@ def plot_residuals(run: RunData, block, out_dir: Path, report: dict) -> list[Pat
     module's detection and the labelled fault onsets (figs. 6.1-6.34).  Files
     ``subsystem_<l>.png``; the thesis calls the four groups of modules "agents" M1-M4, which are
     not the benchmark's agents."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.transforms import blended_transform_factory
-
     from ..engine.sensors import SENSORS
+    from ..plotting import pyplot
     from .modules import MODULES
+
+    plt = pyplot()
+    from matplotlib.transforms import blended_transform_factory  # after pyplot(): a missing matplotlib is named
 
     sensor = {s.id: s for s in SENSORS}
     spec = {m.id: m for m in MODULES}

@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
 from ..engine.faults import FAULT_IDS
+from ..plotting import pyplot
 from .jsonfile import read_json
 from .metrics import FAULT_CLASSES, compute_metrics, episode_outcome
 
@@ -310,14 +311,7 @@ def confusion_markdown(cm: Mapping) -> str:
 # ----------------------------------------------------------------------------- plots
 
 def _pyplot():
-    try:
-        import matplotlib
-    except ImportError:
-        raise RuntimeError("plots need matplotlib: pip install 'marine-fdi-env[plots]' "
-                           "(or pass --no-plots)") from None
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
+    return pyplot("or pass --no-plots")
 
 
 def _by_suite(results: Sequence[Mapping]) -> dict[str, list[Mapping]]:

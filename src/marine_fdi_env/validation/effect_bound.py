@@ -243,7 +243,7 @@ def plot(out: Mapping[str, Any], path: str | Path) -> Path:
     """Per (e) trial its z against whether the pipeline reported it (jittered 0/1, one colour per study file), over
     the oracle's rate Φ(z - z_(1-α)) at :data:`LEVELS`: where the pipeline's hits fall against what a test that
     knows the shape could reach."""
-    from .plotting import pyplot
+    from ..plotting import pyplot
 
     plt = pyplot()
     files = [(k, b) for k, b in out.items() if "trials" in b]

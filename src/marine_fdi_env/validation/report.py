@@ -44,12 +44,12 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ..engine.params import EngineParams, engine_file_dict, list_parameter_sets, load_params
+from ..plotting import pyplot
 from .data_check import column_registry, describe
 from .dataset import DatasetError, MeasuredDataset, list_shipped, load_data_arg
 from .fitting import channel_rmse, predict_setting
 from .matching import TARGETS
 from .mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
-from .plotting import pyplot
 from .problem import Problem
 from .selection import BESIDE_VALVE_DEFAULT, Selection, add_valve_options, select_causes
 from .unexplained import ALPHA_UNEXPLAINED, family_significant

@@ -160,7 +160,7 @@ def pool_plot(res: Mapping[str, Any], path: str | Path) -> Path:
     """The pooled table as a forest plot: per condition each file's rate (grey dots), the pooled rate with its exact
     95 % interval (coloured by what the interval says) and the target (red tick); targets on the left, the controls
     naming a cause on the right.  Needs matplotlib (the ``plots`` extra)."""
-    from .plotting import pyplot
+    from ..plotting import pyplot
 
     plt = pyplot()
     conds = list(res["conditions"])
@@ -225,7 +225,7 @@ def pool_main(argv: Sequence[str] | None = None) -> int:
     args = ap.parse_args(list(argv) if argv is not None else None)
     try:
         if args.plot:
-            from .plotting import pyplot
+            from ..plotting import pyplot
 
             pyplot()  # a missing matplotlib is one line before any work
         res = pool(load_trials(args.files))
