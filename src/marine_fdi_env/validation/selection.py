@@ -265,14 +265,22 @@ def _paired_p(current: np.ndarray, cand: np.ndarray, rows: np.ndarray) -> float:
     return float(stats.ttest_1samp(d, 0.0, alternative="greater").pvalue)
 
 
-#: how a cause joining a model that has a valve must earn its place (:func:`_earns`): ``in_sample_exchange`` (a
-#: physical mechanism in sample, and the exchange step's swap of a physical cause for a sensor calibration beside the
-#: valve too: the default since 2026-11-26, tenth session), ``in_sample`` (physical mechanisms only: the ninth
+#: how a cause joining a model that has a valve must earn its place (:func:`_earns`): ``in_sample_pairs`` (the
+#: default since 2026-11-27, twelfth session: ``in_sample_exchange`` without the cross-validated guard, i.e. in
+#: sample the gain and F-test alone decide (:func:`_earns` ``cv_guard``), and a pair that holds the step's best
+#: single candidate, a valve, replaces it when its second member earns its place beside the valve so, not by the
+#: penalised score; development check on 135 trials with a valve: d225 and d358 gained, none lost,
+#: docs/figures/validation/in_sample_pairs/), ``in_sample_exchange`` (a physical mechanism in sample with a
+#: cross-validated score that must be lower at all, and the exchange step's swap of a physical cause for a sensor
+#: calibration beside the valve too: the tenth session's rule, of the study file 360-380), ``in_sample`` (physical
+#: mechanisms only: the ninth
 #: session's rule, of the study files 340-360) or ``cross_validated`` (the rule of every other candidate, and of
 #: every study file before the ninth session; an ablation).  A calibration added at a forward step keeps the
 #: cross-validated bar under every rule: judged in sample it named a spurious turbine-inlet temperature calibration
-#: beside a bypass valve in development trial d317 (tried 2026-11-26, not kept; docs/figures/validation/beside_valve/)
-BESIDE_VALVE = ("in_sample_exchange", "in_sample", "cross_validated")
+#: beside a bypass valve in development trial d317 (tried 2026-11-26, not kept; docs/figures/validation/beside_valve/).
+BESIDE_VALVE = ("in_sample_pairs", "in_sample_exchange", "in_sample", "cross_validated")
+#: the rules under which the exchange step's swap beside a valve is judged in sample
+EXCHANGE_IN_SAMPLE = ("in_sample_exchange", "in_sample_pairs")
 #: the default of :data:`BESIDE_VALVE`, everywhere it is a parameter or an option
 BESIDE_VALVE_DEFAULT = BESIDE_VALVE[0]
 
@@ -289,13 +297,15 @@ def add_valve_options(ap) -> None:
                          "without its own reading (state: tried 2026-11-26, not adopted: it lets model error in as a "
                          "valve or beside one; docs/figures/validation/held_out_state/)")
     ap.add_argument("--beside-valve", default=BESIDE_VALVE_DEFAULT, choices=BESIDE_VALVE,
-                    help="how a cause joining a model with a valve earns its place: a physical mechanism in sample, "
-                         "with a cross-validated score that is lower at all, and the exchange step's swap of a "
-                         "physical cause for a sensor calibration by its in-sample gain (in_sample_exchange, the "
-                         "default since 2026-11-26: the valve's held-out openings dilute the cross-validated gain); "
-                         "the physical mechanism only (in_sample, the rule of the study files 340-360); or by the "
-                         "cross-validated gain and F-test as every other candidate (cross_validated, the rule of "
-                         "every study file before 340-360)")
+                    help="how a cause joining a model with a valve earns its place: a physical mechanism by its "
+                         "in-sample gain and F-test, the exchange step's swap of a physical cause for a sensor "
+                         "calibration by its in-sample gain, and a pair holding the step's best single valve by its "
+                         "second member's in-sample evidence beside the valve (in_sample_pairs, the default since "
+                         "2026-11-27: the valve's held-out openings dilute and scatter the cross-validated score); "
+                         "as that but with a cross-validated score that must be lower at all and pairs by their "
+                         "penalised score (in_sample_exchange, the rule of the study file 360-380); the physical "
+                         "mechanism only (in_sample, the rule of 340-360); or by the cross-validated gain and F-test "
+                         "as every other candidate (cross_validated, the rule of every study file before 340-360)")
 
 
 def _beside_valve(reference: Combination, added: Sequence[Mechanism], rule: str = BESIDE_VALVE_DEFAULT) -> bool:
@@ -308,7 +318,7 @@ def _beside_valve(reference: Combination, added: Sequence[Mechanism], rule: str 
 
 
 def _earns(ref: tuple[float, float, int], cand: tuple[float, float, int], M: int, min_gain: float, threshold: float,
-           in_sample: bool) -> tuple[float, float, str]:
+           in_sample: bool, cv_guard: bool = True) -> tuple[float, float, str]:
     """Whether a model ``cand`` earns its place against ``ref`` (each ``(cross-validated S, in-sample S, k)``):
     ``(gain, p, why not)``, ``why not`` empty when it does.
 
@@ -319,14 +329,20 @@ def _earns(ref: tuple[float, float, int], cand: tuple[float, float, int], M: int
     one and the highest load that prediction misses by tens of tolerances.  That error is the same for every model
     with the valve, so it dominates both cross-validated scores and dilutes a second mechanism's gain below the bar
     however much it explains (study trial d131: in sample a waste gate with changed ambient conditions halves the
-    gate's loss alone, p ~ 1e-14; cross-validated the gain is 7.2 %)."""
+    gate's loss alone, p ~ 1e-14; cross-validated the gain is 7.2 %).
+
+    ``cv_guard=False`` (rule ``in_sample_pairs``): in sample, the cross-validated score need not drop at all.  The
+    held-out openings' error is not the same in both models: it depends on the openings each fit finds (study trial
+    d358: the true gate + turbine flow law is 83 % better in sample than the gate alone on the same four open points,
+    and cross-validates at 11.85 against 10.43)."""
     (ref_cv, ref_in, ref_k), (cv, s_in, k) = ref, cand
     if in_sample:
         gain = (ref_in - s_in) / ref_in if ref_in > 0 else 0.0
         p = _f_test_p(ref_in, s_in, ref_k, k, M)
         bad = ((f"in-sample gain {gain:.1%} below {min_gain:.0%}", gain < min_gain),
                (f"in-sample p = {p:.2g} not below {threshold:.2g}", p >= threshold),
-               (f"cross-validated score {cv:.4g} not below {ref_cv:.4g}", not cv < ref_cv))
+               (f"cross-validated score {cv:.4g} not below {ref_cv:.4g}",
+                cv_guard and not cv < ref_cv))
     else:
         gain = (ref_cv - cv) / ref_cv if ref_cv > 0 else 0.0
         p = _f_test_p(ref_cv, cv, ref_k, k, M)
@@ -634,7 +650,8 @@ def _members_earn_their_place(problem: Problem, pair: CandidateScore, M: int, mi
         o = next(x for x in pair.members if x is not m)
         in_sample = _beside_valve(m.combination, o.combination.mechanisms[-1:], beside_valve)
         gain, _, why = _earns((m.cv_score, m.in_sample_score, m.fit.k),
-                              (pair.cv_score, pair.in_sample_score, pair.fit.k), M, min_gain, threshold, in_sample)
+                              (pair.cv_score, pair.in_sample_score, pair.fit.k), M, min_gain, threshold, in_sample,
+                              cv_guard=beside_valve != "in_sample_pairs")
         if why:
             return f"{o.added} adds {gain:.1%} to {m.added} alone ({why})"
     return ""
@@ -694,7 +711,7 @@ def _prune(problem: Problem, current: Combination, current_fit: FitResult, curre
         thr = thresholds.get(c.added, 1.0)
         in_sample = _beside_valve(c.combination, [m], beside_valve)
         gain, p, why = _earns((c.cv_score, c.in_sample_score, c.fit.k), (current_S, s_in, current_fit.k), M,
-                              min_gain, thr, in_sample)
+                              min_gain, thr, in_sample, cv_guard=beside_valve != "in_sample_pairs")
         if why and (worst is None or gain < worst[1]):
             worst = (c, gain, p, thr, why)
     if worst is None:
@@ -725,7 +742,7 @@ def _exchange(problem: Problem, current: Combination, current_fit: FitResult, cu
     is made when it lowers the cross-validated score by ``min_gain`` and its penalised score, the calibration leaves
     no local departure against the model without the cause, and no parameter is pinned; the best such exchange is
     made, and the caller runs the removal step again.  Beside a valve (the model after the exchange keeps one) and with
-    ``beside_valve="in_sample_exchange"`` the gain is the in-sample one (as :func:`_earns`: the valve's held-out
+    ``beside_valve`` in :data:`EXCHANGE_IN_SAMPLE` the gain is the in-sample one (as :func:`_earns`: the valve's held-out
     openings dilute the cross-validated gain; study trial d346, 2026-11-26: the swap back to the true calibration
     gained 7.0 % cross-validated); the penalised cross-validated score must still be lower."""
     phys = [m for m in current.mechanisms if not isinstance(m, SensorCalibration)]
@@ -743,7 +760,7 @@ def _exchange(problem: Problem, current: Combination, current_fit: FitResult, cu
         fit0 = fit_combination(problem, comb0, start=current_fit, known=current_fit.values(), support=support)
         in_pred = predict_setting(problem, fit0, rows_all)
         loco0 = None  # the model without m, judged channel by channel: computed once, when a candidate needs it
-        in_sample = beside_valve == "in_sample_exchange" and bool(comb0.valves)
+        in_sample = beside_valve in EXCHANGE_IN_SAMPLE and bool(comb0.valves)
         # the channel whose calibration gains most on these readings is the candidate (as at a forward step,
         # :func:`_calibrations_to_refit`); it is then refitted as a whole model, nuisance included
         for cheap in sorted((_sensor_fit(problem, fit0, in_pred, cal) for cal in cals),
@@ -912,7 +929,8 @@ def select_causes(
             best = cv[0]
             in_sample = _beside_valve(current, best.combination.mechanisms[-1:], beside_valve)
             _, _, short = _earns((current_S, s_in_cur, current_fit.k),
-                                 (best.cv_score, best.in_sample_score, best.fit.k), M, min_gain, threshold, in_sample)
+                                 (best.cv_score, best.in_sample_score, best.fit.k), M, min_gain, threshold, in_sample,
+                                 cv_guard=beside_valve != "in_sample_pairs")
             accept = best.penalised < current_pen and not short
             why = ("accepted" + (" (beside a valve: judged in sample)" if in_sample else "") if accept else
                    "rejected: " + "; ".join(s for s, bad in (
@@ -926,11 +944,16 @@ def select_causes(
             pairs = _pair_candidates(problem, current, current_fit, scored, known, M, penalty, current_S, bar,
                                      min_gain, max_folds, say)
             p_threshold = alpha / (len(scored) + len(pairs))
+            # rule in_sample_pairs: a pair holding the accepted best single, a valve, is judged against it by the
+            # members test (its second member must earn its place beside the valve in sample), not by the score
+            lead_valve = (best.combination.mechanisms[-1] if accept and beside_valve == "in_sample_pairs"
+                          and best.combination.mechanisms[-1].pointwise else None)
             for c in sorted((c for c in pairs if c.cross_validated), key=lambda c: c.penalised):
                 in_sample = _beside_valve(current, c.combination.mechanisms[-2:], beside_valve)
-                if not c.penalised < bar or _earns((current_S, s_in_cur, current_fit.k),
+                c_bar = current_pen if lead_valve in c.combination.mechanisms[-2:] else bar
+                if not c.penalised < c_bar or _earns((current_S, s_in_cur, current_fit.k),
                                                    (c.cv_score, c.in_sample_score, c.fit.k), M, min_gain,
-                                                   p_threshold, in_sample)[2]:
+                                                   p_threshold, in_sample, beside_valve != "in_sample_pairs")[2]:
                     continue
                 c.fit = fit_combination(problem, c.combination, start=c.fit, known=known,
                                         support=current_fit.support)
@@ -951,9 +974,13 @@ def select_causes(
                                        + ("beside a valve, judged in sample; "
                                           if _beside_valve(current, pair.combination.mechanisms[-2:], beside_valve) else
                                           f"p = {pair.p_value:.2g} below alpha/{len(scored) + len(pairs)}; ")
-                                       + f"penalised score {pair.penalised:.4g} below "
-                                       + (f"the best single candidate's {best.penalised:.4g})" if accept else
-                                          f"the current {current_pen:.4g}; no single candidate qualified)")),
+                                       + (f"penalised score {pair.penalised:.4g} below the best single "
+                                          f"candidate's {best.penalised:.4g})" if accept and pair.penalised <
+                                          best.penalised else
+                                          f"it holds the best single candidate, the valve {best.added}, and its "
+                                          f"second member earns its place beside it in sample)" if accept else
+                                          f"penalised score {pair.penalised:.4g} below the current "
+                                          f"{current_pen:.4g}; no single candidate qualified)")),
                           "threshold_p": alpha / (len(scored) + len(pairs)), "current_score": current_S,
                           "candidates": scored + pairs})
             say(f"step {step}: best pair {pair.added}: accepted")

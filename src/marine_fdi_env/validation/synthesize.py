@@ -530,7 +530,8 @@ def _trial_settings(params: str = "wartsila-6l46", points: int = 8, max_folds: i
     not the default ``schedule`` (every file before 2026-11-26 followed the schedule).  ``beside_valve``: how a
     cause joining a model with a valve earns its place (:data:`~.selection.BESIDE_VALVE`), recorded unless it is
     ``cross_validated``: every file before 2026-11-26 (ninth session) judged it so; the files 340-360 record
-    ``in_sample``, those after them ``in_sample_exchange`` (the default since the tenth session)."""
+    ``in_sample``, 360-380 ``in_sample_exchange``, those after it ``in_sample_pairs`` (the default since the twelfth
+    session)."""
     out = {"params": str(params), "points": int(points), "max_folds": max_folds, "prune": bool(prune),
            "calibration_scan": "per named calibration"}
     if tolerance != "stated":
@@ -820,7 +821,7 @@ def summarise(results: Sequence[dict[str, Any]], condition: str) -> dict[str, An
 def study_main(argv: Sequence[str] | None = None) -> int:
     """``python -m marine_fdi_env.validation.synthesize study [--conditions abcde] [--seeds A:B] [--workers K]
     [--no-prune] [--no-exchange] [--tolerance stated|noise] [--held-out-valves schedule|support|state]
-    [--beside-valve in_sample_exchange|in_sample|cross_validated] [--trials d346,...] [--out FILE.json]``:
+    [--beside-valve in_sample_pairs|in_sample_exchange|in_sample|cross_validated] [--trials d346,...] [--out FILE.json]``:
     the open-world hidden-effect study."""
     from .selection import add_valve_options
 
