@@ -22,12 +22,13 @@ Pipeline (:func:`select_causes`), on a :class:`~.problem.Problem`:
    of the drop of the cross-validated loss per added parameter against the candidate's loss per
    residual degree of freedom gives ``p < alpha / (number of candidates tried in the step)``
    (Bonferroni, alpha = 0.01).  A physical mechanism joining a model that has a valve is judged on the same gain
-   and F-test of its *in-sample* scores, with a cross-validated score that must be lower at all (:func:`_earns`,
-   since 2026-11-26): the valve's held-out openings add an error shared by both models that dilutes the
+   and F-test of its *in-sample* scores (:func:`_earns`, since 2026-11-26; without a cross-validated guard since
+   2026-11-27): the valve's held-out openings add an error to both models that dilutes and scatters the
    cross-validated gain.  Each step also tries pairs of physical mechanisms added together
    (:func:`_pair_candidates`); a pair replaces the best single candidate when its penalised score is lower, it
    passes the same tests (Bonferroni over singles and pairs) and each member earns its place against the other
-   alone (:func:`_members_earn_their_place`).  Sensor calibrations are fitted on the current model's readings, the
+   alone (:func:`_members_earn_their_place`); a pair holding the best single candidate, a valve, replaces it on the
+   members test alone (:data:`BESIDE_VALVE`).  Sensor calibrations are fitted on the current model's readings, the
    two most promising of them then as whole models with every parameter free, as the physical candidates are
    (:func:`_calibrations_to_refit`); an accepted calibration is followed by a refit of the whole model
    (:func:`_refit_with_calibration`), so that the next step's candidates are not credited with the gain of merely
@@ -273,11 +274,11 @@ def _paired_p(current: np.ndarray, cand: np.ndarray, rows: np.ndarray) -> float:
 #: docs/figures/validation/in_sample_pairs/), ``in_sample_exchange`` (a physical mechanism in sample with a
 #: cross-validated score that must be lower at all, and the exchange step's swap of a physical cause for a sensor
 #: calibration beside the valve too: the tenth session's rule, of the study file 360-380), ``in_sample`` (physical
-#: mechanisms only: the ninth
-#: session's rule, of the study files 340-360) or ``cross_validated`` (the rule of every other candidate, and of
-#: every study file before the ninth session; an ablation).  A calibration added at a forward step keeps the
-#: cross-validated bar under every rule: judged in sample it named a spurious turbine-inlet temperature calibration
-#: beside a bypass valve in development trial d317 (tried 2026-11-26, not kept; docs/figures/validation/beside_valve/).
+#: mechanisms only: the ninth session's rule, of the study files 340-360) or ``cross_validated`` (the rule of every
+#: other candidate, and of every study file before the ninth session; an ablation).  A calibration added at a
+#: forward step keeps the cross-validated bar under every rule: judged in sample it named a spurious turbine-inlet
+#: temperature calibration beside a bypass valve in development trial d317 (tried 2026-11-26, not kept;
+#: docs/figures/validation/beside_valve/).
 BESIDE_VALVE = ("in_sample_pairs", "in_sample_exchange", "in_sample", "cross_validated")
 #: the rules under which the exchange step's swap beside a valve is judged in sample
 EXCHANGE_IN_SAMPLE = ("in_sample_exchange", "in_sample_pairs")
@@ -341,8 +342,7 @@ def _earns(ref: tuple[float, float, int], cand: tuple[float, float, int], M: int
         p = _f_test_p(ref_in, s_in, ref_k, k, M)
         bad = ((f"in-sample gain {gain:.1%} below {min_gain:.0%}", gain < min_gain),
                (f"in-sample p = {p:.2g} not below {threshold:.2g}", p >= threshold),
-               (f"cross-validated score {cv:.4g} not below {ref_cv:.4g}",
-                cv_guard and not cv < ref_cv))
+               (f"cross-validated score {cv:.4g} not below {ref_cv:.4g}", cv_guard and not cv < ref_cv))
     else:
         gain = (ref_cv - cv) / ref_cv if ref_cv > 0 else 0.0
         p = _f_test_p(ref_cv, cv, ref_k, k, M)
@@ -741,10 +741,10 @@ def _exchange(problem: Problem, current: Combination, current_fit: FitResult, cu
     fitted on that model's readings, and the best is refitted as a whole model and cross-validated.  The exchange
     is made when it lowers the cross-validated score by ``min_gain`` and its penalised score, the calibration leaves
     no local departure against the model without the cause, and no parameter is pinned; the best such exchange is
-    made, and the caller runs the removal step again.  Beside a valve (the model after the exchange keeps one) and with
-    ``beside_valve`` in :data:`EXCHANGE_IN_SAMPLE` the gain is the in-sample one (as :func:`_earns`: the valve's held-out
-    openings dilute the cross-validated gain; study trial d346, 2026-11-26: the swap back to the true calibration
-    gained 7.0 % cross-validated); the penalised cross-validated score must still be lower."""
+    made, and the caller runs the removal step again.  Beside a valve (the model after the exchange keeps one) and
+    with ``beside_valve`` in :data:`EXCHANGE_IN_SAMPLE` the gain is the in-sample one (as :func:`_earns`: the valve's
+    held-out openings dilute the cross-validated gain; study trial d346, 2026-11-26: the swap back to the true
+    calibration gained 7.0 % cross-validated); the penalised cross-validated score must still be lower."""
     phys = [m for m in current.mechanisms if not isinstance(m, SensorCalibration)]
     named = {m.channel for m in current.mechanisms if isinstance(m, SensorCalibration)}
     cals = [m for m in mechanisms if isinstance(m, SensorCalibration) and m.channel not in named]

@@ -200,7 +200,8 @@ def pool_plot(res: Mapping[str, Any], path: str | Path) -> Path:
     handles = [axes[0].scatter([], [], s=14, color="0.6", label="one range of seeds"),
                axes[0].plot([], [], color="tab:red", lw=1.5, label="target")[0]]
     handles += [axes[0].plot([], [], color=colour, lw=2.5, marker="D", markeredgecolor="k",
-                             label=f"pooled, 95 % interval: {verdict}")[0] for verdict, colour in VERDICT_COLOURS.items()]
+                             label=f"pooled, 95 % interval: {verdict}")[0]
+                for verdict, colour in VERDICT_COLOURS.items()]
     fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=7, frameon=False)
     fig.suptitle(f"Open-world study, {len(res['files'])} ranges of seeds pooled ({res['files'][0]} to "
                  f"{res['files'][-1]})", fontsize=10)
