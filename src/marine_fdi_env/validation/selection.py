@@ -282,6 +282,9 @@ def _paired_p(current: np.ndarray, cand: np.ndarray, rows: np.ndarray) -> float:
 BESIDE_VALVE = ("in_sample_pairs", "in_sample_exchange", "in_sample", "cross_validated")
 #: the rules under which the exchange step's swap beside a valve is judged in sample
 EXCHANGE_IN_SAMPLE = ("in_sample_exchange", "in_sample_pairs")
+#: the rules under which the in-sample evidence alone decides beside a valve: no cross-validated guard
+#: (:func:`_earns` ``cv_guard``), and a pair holding the step's best single valve judged against it so
+IN_SAMPLE_ALONE = ("in_sample_pairs",)
 #: the default of :data:`BESIDE_VALVE`, everywhere it is a parameter or an option
 BESIDE_VALVE_DEFAULT = BESIDE_VALVE[0]
 
@@ -651,7 +654,7 @@ def _members_earn_their_place(problem: Problem, pair: CandidateScore, M: int, mi
         in_sample = _beside_valve(m.combination, o.combination.mechanisms[-1:], beside_valve)
         gain, _, why = _earns((m.cv_score, m.in_sample_score, m.fit.k),
                               (pair.cv_score, pair.in_sample_score, pair.fit.k), M, min_gain, threshold, in_sample,
-                              cv_guard=beside_valve != "in_sample_pairs")
+                              cv_guard=beside_valve not in IN_SAMPLE_ALONE)
         if why:
             return f"{o.added} adds {gain:.1%} to {m.added} alone ({why})"
     return ""
@@ -711,7 +714,7 @@ def _prune(problem: Problem, current: Combination, current_fit: FitResult, curre
         thr = thresholds.get(c.added, 1.0)
         in_sample = _beside_valve(c.combination, [m], beside_valve)
         gain, p, why = _earns((c.cv_score, c.in_sample_score, c.fit.k), (current_S, s_in, current_fit.k), M,
-                              min_gain, thr, in_sample, cv_guard=beside_valve != "in_sample_pairs")
+                              min_gain, thr, in_sample, cv_guard=beside_valve not in IN_SAMPLE_ALONE)
         if why and (worst is None or gain < worst[1]):
             worst = (c, gain, p, thr, why)
     if worst is None:
@@ -840,6 +843,7 @@ def select_causes(
     """
     if beside_valve not in BESIDE_VALVE:
         raise ValueError(f"beside_valve must be one of {', '.join(BESIDE_VALVE)}, got {beside_valve!r}")
+    cv_guard = beside_valve not in IN_SAMPLE_ALONE
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
     use_pairs = pairs
@@ -930,7 +934,7 @@ def select_causes(
             in_sample = _beside_valve(current, best.combination.mechanisms[-1:], beside_valve)
             _, _, short = _earns((current_S, s_in_cur, current_fit.k),
                                  (best.cv_score, best.in_sample_score, best.fit.k), M, min_gain, threshold, in_sample,
-                                 cv_guard=beside_valve != "in_sample_pairs")
+                                 cv_guard=cv_guard)
             accept = best.penalised < current_pen and not short
             why = ("accepted" + (" (beside a valve: judged in sample)" if in_sample else "") if accept else
                    "rejected: " + "; ".join(s for s, bad in (
@@ -946,14 +950,14 @@ def select_causes(
             p_threshold = alpha / (len(scored) + len(pairs))
             # rule in_sample_pairs: a pair holding the accepted best single, a valve, is judged against it by the
             # members test (its second member must earn its place beside the valve in sample), not by the score
-            lead_valve = (best.combination.mechanisms[-1] if accept and beside_valve == "in_sample_pairs"
+            lead_valve = (best.combination.mechanisms[-1] if accept and beside_valve in IN_SAMPLE_ALONE
                           and best.combination.mechanisms[-1].pointwise else None)
             for c in sorted((c for c in pairs if c.cross_validated), key=lambda c: c.penalised):
                 in_sample = _beside_valve(current, c.combination.mechanisms[-2:], beside_valve)
                 c_bar = current_pen if lead_valve in c.combination.mechanisms[-2:] else bar
                 if not c.penalised < c_bar or _earns((current_S, s_in_cur, current_fit.k),
                                                    (c.cv_score, c.in_sample_score, c.fit.k), M, min_gain,
-                                                   p_threshold, in_sample, beside_valve != "in_sample_pairs")[2]:
+                                                   p_threshold, in_sample, cv_guard)[2]:
                     continue
                 c.fit = fit_combination(problem, c.combination, start=c.fit, known=known,
                                         support=current_fit.support)
