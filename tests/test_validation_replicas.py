@@ -119,6 +119,35 @@ def test_replicas_of_each_hypothesis_name_it(waste_gate_selection):
     assert one["acts"] == rep["runs"]["named"][0]["acts"]
 
 
+def test_every_replica_follows_the_rules_the_data_were_selected_with(waste_gate_selection, monkeypatch):
+    """A replica asks whether *this* pipeline would name the same causes again, so each runs with the data's
+    selection rules: the valve rules (``beside_valve``, ``held_out_valves``) and the exchange step too, not the
+    defaults (until 2026-11-27 those three were dropped; ``marine-fdi validate --beside-valve ... --replicas N``
+    judged the replicas by another rule than the data).  No cause may be named here, so each run is a base fit."""
+    import marine_fdi_env.validation.replicas as replicas
+
+    _, sel0 = waste_gate_selection
+    pr = sel0.problem
+    q = Problem(pr.ds, params=pr.params, target=pr.target, held_out_valves="support")
+    sel = select_causes(q, _LIB, pairs=False, max_causes=0, exchange=False, beside_valve="cross_validated")
+    seen = []
+    real = replicas.select_causes
+
+    def recording(problem, mechanisms=None, **kw):
+        seen.append((problem.held_out_valves, kw))
+        return real(problem, mechanisms, **kw)
+
+    monkeypatch.setattr(replicas, "select_causes", recording)
+    rep = replicate(sel, replicas=2, noise="tolerance", mechanisms=_LIB, progress=False)
+    assert len(seen) == 2
+    for hov, kw in seen:
+        assert hov == "support"
+        assert kw["beside_valve"] == "cross_validated" and kw["exchange"] is False
+        assert kw["max_causes"] == 0 and kw["pairs"] is False
+    assert rep["settings"]["selection"]["beside_valve"] == "cross_validated"
+    assert rep["settings"]["selection"]["held_out_valves"] == "support"
+
+
 def test_a_candidate_pinned_at_a_bound_does_not_screen_the_others_out():
     """Found with the replicas of the Birka protocol (tests/data/protocol_replica_flow_law.json: the data as the
     fitted flow law would give them): the cylinder-outlet calibration fits best in the first step but wants a gain

@@ -28,7 +28,8 @@ hypothesis.  Replica ``r`` of hypothesis ``h`` draws its noise from ``default_rn
 do not depend on the number of workers.
 
 ``python -m marine_fdi_env.validation.replicas --data NAME|FILE.csv [--replicas N] [--noise residual|tolerance]
-[--alternatives ID,...] [--workers W] [--out FILE.json] [--markdown FILE.md]``
+[--alternatives ID,...] [--workers W] [--beside-valve RULE] [--held-out-valves RULE] [--out FILE.json]
+[--markdown FILE.md]``: the data's selection and every replica's follow the same rules.
 """
 
 from __future__ import annotations
@@ -50,14 +51,17 @@ from .dataset import MeasuredDataset, load_data_arg
 from .fitting import Combination, fit_combination, predict_setting
 from .mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
 from .problem import Problem
-from .selection import Selection, select_causes
+from .selection import Selection, add_valve_options, select_causes
 
 __all__ = ["Hypothesis", "NOISE_MODELS", "hypotheses", "noise_scale", "replica_readings", "run_replica", "replicate",
            "summarise", "markdown_table", "main"]
 
 NOISE_MODELS = ("residual", "tolerance")
-#: settings of :func:`~.selection.select_causes` a replica reuses from the selection on the data
-_PASSED = ("max_causes", "alpha", "alpha_unexplained", "min_gain", "penalty", "cv_all", "max_folds", "pairs", "prune")
+#: settings of :func:`~.selection.select_causes` a replica reuses from the selection on the data (``exchange`` and
+#: ``beside_valve`` since 2026-11-27: before, a replica ran with their defaults whatever the data's selection used;
+#: every replica file in docs/ was written with the defaults of its day, so only its rule, now recorded, changes)
+_PASSED = ("max_causes", "alpha", "alpha_unexplained", "min_gain", "penalty", "cv_all", "max_folds", "pairs", "prune",
+           "exchange", "beside_valve")
 
 
 @dataclass(frozen=True)
@@ -150,13 +154,15 @@ def replica_readings(problem: Problem, hyp: Hypothesis, scale: np.ndarray, seed:
 
 
 def run_replica(ds: MeasuredDataset, params, target: str, tolerances: Mapping[str, float], channels: Sequence[str],
-                Y: np.ndarray, settings: Mapping[str, Any], mechanisms: Sequence[Mechanism] | None = None
-                ) -> dict[str, Any]:
+                Y: np.ndarray, settings: Mapping[str, Any], mechanisms: Sequence[Mechanism] | None = None,
+                held_out_valves: str = "schedule") -> dict[str, Any]:
     """Run the pipeline on ``ds`` with readings ``Y`` of ``channels``: what it names, where valves act, what it
-    leaves unexplained.  ``mechanisms``: the candidates (default the library, as on the data)."""
+    leaves unexplained.  ``mechanisms``: the candidates (default the library, as on the data); ``settings`` and
+    ``held_out_valves``: the selection's and the problem's, as on the data."""
     t0 = time.perf_counter()
     rep = ds.with_readings({c: Y[:, j] for j, c in enumerate(channels)})
-    pr = Problem(rep, params=params, target=target, tolerances=tolerances)
+    pr = Problem(rep, params=params, target=target, tolerances=tolerances,
+                 held_out_valves=held_out_valves)
     s = select_causes(pr, mechanisms, **settings)
     return {"named": sorted(s.selected_labels), "acts": {k: list(v) for k, v in _acts(s.fit).items()},
             "unexplained": sorted({u["channel"] for u in s.unexplained}), "seconds": time.perf_counter() - t0}
@@ -203,7 +209,8 @@ def replicate(sel: Selection, *, replicas: int = 10, noise: str = "residual", se
     tol = dict(zip(problem.channels, map(float, problem.tolerance)))
     jobs = [(h, r) for h in range(len(hyps)) for r in range(int(replicas))]
     args = {j: (problem.ds, problem.params, problem.target, tol, problem.channels,
-                replica_readings(problem, hyps[j[0]], scale, seed, *j, noise), settings, mechanisms) for j in jobs}
+                replica_readings(problem, hyps[j[0]], scale, seed, *j, noise), settings, mechanisms,
+                problem.held_out_valves) for j in jobs}
     results: dict[tuple[int, int], dict[str, Any]] = {}
     bar = None
     if progress:
@@ -235,7 +242,8 @@ def replicate(sel: Selection, *, replicas: int = 10, noise: str = "residual", se
     chans = list(problem.channels)
     return {
         "dataset": problem.ds.name, "data_causes": sorted(sel.selected_labels),
-        "settings": {"replicas": int(replicas), "noise": noise, "seed": int(seed), "selection": settings,
+        "settings": {"replicas": int(replicas), "noise": noise, "seed": int(seed),
+                     "selection": {**settings, "held_out_valves": problem.held_out_valves},
                      "noise_scale": {c: [float(abs(x)) for x in scale[:, j]] for j, c in enumerate(chans)}},
         "hypotheses": [{"name": h.name, "causes": list(h.causes), "in_sample_score": h.in_sample_score,
                         "fit": dict(h.fit_values), "acts": {k: list(v) for k, v in h.acts.items()},
@@ -283,6 +291,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--markdown", default=None, metavar="FILE.md")
     ap.add_argument("--tolerance", action="append", default=[], metavar="COLUMN=VALUE",
                     help="a channel's tolerance in its units or as P%% of its mean value (as marine-fdi validate)")
+    add_valve_options(ap)
     ap.add_argument("--no-progress", action="store_true")
     args = ap.parse_args(list(argv) if argv is not None else None)
     alts = None if args.alternatives is None else [a.strip() for a in args.alternatives.split(",") if a.strip()]
@@ -296,13 +305,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise ValueError(f"--alternatives: unknown physical mechanism(s) {', '.join(sorted(set(alts) - known))}; "
                              f"known: {', '.join(sorted(known))}")
         ds = load_data_arg(args.data, args.params)
-        pr = Problem(ds, params=args.params, target=args.target)
+        pr = Problem(ds, params=args.params, target=args.target, held_out_valves=args.held_out_valves)
         if args.tolerance:
-            pr = Problem(ds, params=args.params, target=args.target, tolerances=pr.stated_tolerances(args.tolerance))
+            pr = Problem(ds, params=args.params, target=args.target, tolerances=pr.stated_tolerances(args.tolerance),
+                         held_out_valves=args.held_out_valves)
         say = None if args.no_progress else (lambda s: print(f"replicas: {s}", file=sys.stderr))
         if say:
             say("selecting causes on the data (as marine-fdi validate)")
-        sel = select_causes(pr, max_folds=args.max_folds)
+        sel = select_causes(pr, max_folds=args.max_folds, beside_valve=args.beside_valve)
         if say:
             say(f"named on the data: {' + '.join(sel.selected_labels) or '(nothing)'}")
         rep = replicate(sel, replicas=args.replicas, noise=args.noise, seed=args.seed, alternatives=alts,
