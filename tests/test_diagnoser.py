@@ -11,7 +11,6 @@ from marine_fdi_env.baselines.reference_diagnoser import ReferenceDiagnoser
 from marine_fdi_env.cli import main as cli_main
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
 from marine_fdi_env.engine.faults import FaultSpec
-from marine_fdi_env.runio import load_run
 from marine_fdi_env.scenarios import get_scenario
 from marine_fdi_env.engine.simulator import Simulator
 

@@ -18,7 +18,6 @@ from marine_fdi_env.engine.params import params_provenance
 from marine_fdi_env.engine.constants import model_constants
 from marine_fdi_env.engine.seiliger import seiliger_cycle
 from marine_fdi_env.engine.subsystems import air_intake as s4
-from marine_fdi_env.engine.subsystems import engine_block as s2
 
 SHIPPED = ["man-12v32-40", "thesis-12v28", "wartsila-6l46"]
 FIELDS = [f.name for f in dataclasses.fields(EngineParams) if f.name not in ("name", "submodels")]

@@ -39,8 +39,6 @@ import subprocess
 from importlib import metadata
 from pathlib import Path
 
-import pytest
-
 from marine_fdi_env.cli import main as cli_main
 from marine_fdi_env.envs.suites import SUITE_NAMES, load_suite
 

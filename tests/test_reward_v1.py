@@ -258,7 +258,8 @@ def test_v1_vector_env_rewards_equal_single_envs():
     venv = MarineFDIVectorEnv(num_envs=3, scenario_config=cfg, reward="v1")
     _, vinfo = venv.reset(seed=11)
     singles = [MarineFDIEnv(scenario_config=cfg, reward="v1") for _ in range(3)]
-    sinfo = [e.reset(seed=11 + i)[1] for i, e in enumerate(singles)]
+    for i, e in enumerate(singles):
+        e.reset(seed=11 + i)
     rng = np.random.default_rng(0)
     for _ in range(20):  # across an autoreset
         acts = (rng.random((3, 28)) < 0.1).astype(np.float32)

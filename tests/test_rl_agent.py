@@ -3,7 +3,6 @@ own input preprocessing, a tiny seeded training run, and the shipped model's key
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np

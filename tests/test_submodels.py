@@ -5,7 +5,6 @@ dynamic simulator settles where the steady-state solver says."""
 from __future__ import annotations
 
 import json
-import math
 
 import numpy as np
 import pytest
@@ -17,7 +16,7 @@ from marine_fdi_env.engine.simulator import Simulator
 from marine_fdi_env.engine.steady_state import steady_state
 from marine_fdi_env.engine.submodels import (NO_SUBMODELS, BypassValve, CombinatorSpeed, CylinderHeatLoss, EngineSubmodels,
                                       ExhaustHeatLoss, ExtraFriction, Intercooler, Schedule, TurbineEfficiencyBSR,
-                                      TurbineFlowLaw, TurbochargerMap, WasteGate)
+                                      TurbineFlowLaw, WasteGate)
 from marine_fdi_env.engine.turbocharger_speed import turbocharger_speed_rpm
 
 SETS = ("thesis-12v28", "man-12v32-40", "wartsila-6l46")

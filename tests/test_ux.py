@@ -16,7 +16,6 @@ import numpy as np
 import pytest
 
 from marine_fdi_env.cli import main as cli_main
-from marine_fdi_env.envs import cliutil
 from marine_fdi_env.envs.cliutil import differing_fields, prepare_out, progress_bar
 from marine_fdi_env.envs.dataset import load_dataset
 from marine_fdi_env.envs.evaluate import evaluate

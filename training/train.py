@@ -22,8 +22,6 @@ An entry with ``replay: true`` (``ppo.yml``, ``MarineFDI-v1``) trains on recorde
 from __future__ import annotations
 
 import argparse
-import csv
-import json
 import os
 import platform
 import shlex

@@ -27,7 +27,7 @@ from marine_fdi_env.diagnosis.decision import DiagnosisState, candidate_classes,
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
 from marine_fdi_env.diagnosis.sure_cells import SURE_CELLS_FILE, load_sure_cells
 from marine_fdi_env.diagnosis.residuals import (
-    _SIDE_COLS, _T_OUT_COL, INCLUSIONS, N_STATE, compute_residuals_batch, inclusion_arrays, new_state)
+    _SIDE_COLS, _T_OUT_COL, INCLUSIONS, compute_residuals_batch, inclusion_arrays, new_state)
 from marine_fdi_env.engine.params import EngineParams, load_params
 from marine_fdi_env.engine.sensors import NOISE_BOUNDS, N_SENSORS
 

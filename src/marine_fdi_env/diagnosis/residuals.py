@@ -61,16 +61,13 @@ from ..engine.subsystems.air_intake import (
     compressor_forcing,
     compressor_outlet_temperature,
     cooler_outlet_temperature,
-    delta_f,
     eta_tc,
     inlet_air_temperature,
     inlet_air_temperature_at,
 )
 from ..engine.seiliger import seiliger_cycle
-from ..engine.subsystems.engine_block import _sweep, constant_volume_portion, engine_block, friction_torque, speed_of_torque
+from ..engine.subsystems.engine_block import constant_volume_portion, friction_torque, speed_of_torque
 from ..engine.subsystems.exhaust_receiver import (
-    receiver_and_turbine,
-    receiver_forcing,
     scavenge_flow_function,
     turbine_expansion,
     turbine_outlet_from_expansion,
@@ -484,7 +481,6 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table
 def _kernel(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_table):
     """:func:`compute_residuals` (``use_table`` False: exact inclusion, ``table`` unused) with the
     constants of :func:`kernel_constants`."""
-    tside = table[5]
     T = Y.shape[0]
     L1, L3, L4 = OBSERVER_GAINS
     E1, q1, r1 = _etd_scalar(-1.0 / c.tau_X_s, dt)

@@ -42,7 +42,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..engine.faults import FaultSpec
 from ..engine.simulator import Simulator
 from .agent import ReferenceDiagnoser
 from .incipient_glr import GATE_DELTA, GATE_TAU_S, ORDER, WINDOW_BLOCKS, glr_polynomial, transient_gate

@@ -48,7 +48,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .sensors import DEFAULT_FAULT_MAGNITUDES, NOISE_BOUNDS, N_SENSORS, SENSOR_IDS, sensor_index
+from .sensors import DEFAULT_FAULT_MAGNITUDES, NOISE_BOUNDS, SENSOR_IDS, sensor_index
 
 __all__ = [
     "PROCESS_FAULT_IDS",

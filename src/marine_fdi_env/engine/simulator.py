@@ -22,16 +22,16 @@ sample and an :class:`EngineFailure` event (time, reason) is recorded; nothing t
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from .faults import PROCESS_FAULT_IDS, FAULT_IDS, CompiledSchedule, FaultSpec, parse_fault_spec
+from .faults import FAULT_IDS, CompiledSchedule, FaultSpec, parse_fault_spec
 from .integrators import FAILURE_REASONS, _failure_code, advance_batch, limited_fuel_setting
 from .model import ALG_FIELDS, HEALTHY, HEALTHY_PF, N_ALG, PF_FIELDS, Algebraic, EngineModel, ProcessFaultValues
 from .params import EngineParams, load_params
 from .profiles import Profile, ProfileTable, make_profile
-from .sensors import MEASURED_VARIABLES, NOISE_BOUNDS, N_SENSORS, SENSOR_IDS, VARIABLE_OF_SENSOR
+from .sensors import MEASURED_VARIABLES, NOISE_BOUNDS, N_SENSORS, VARIABLE_OF_SENSOR
 from .steady_state import steady_state
 
 __all__ = ["Simulator", "SimulationResult", "Block", "EngineFailure", "TRUTH_VARIABLES"]

@@ -228,7 +228,6 @@ def score_records_v1(records: list[dict], cfg: RewardConfigV1 | None = None) -> 
     col = {f: k for k, f in enumerate(FAULT_IDS)}
     n = len(records)
     r = RewardV1(cfg, n)
-    sums = [dict.fromkeys(REWARD_TERMS_V1, 0.0) for _ in range(n)]
     grids, declared, alarms, active = [], [], [], []
     for i, rec in enumerate(records):
         trace, faults = rec["declared_changes"], rec["faults"]
