@@ -171,14 +171,14 @@ def test_a_bound_is_widened_within_the_submodels_validity(tmp_path):
     accepts the value), keeps the mechanism's type, label and other parameters, and the widened mechanism still
     builds its submodel at the new bound."""
     from marine_fdi_env.validation.mechanisms import TurbineEfficiencyBSRM
-    from marine_fdi_env.validation.selection import _relaxed
+    from marine_fdi_env.validation.eligibility import relaxed_mechanism
 
     syn = synthesize("wartsila-6l46", ["none"], points=5, noise=0.005, seed=3)
     path = tmp_path / "x.csv"
     syn.write(path)
     pr = Problem(_load(path))
     m = TurbineEfficiencyBSRM()
-    r = _relaxed(m, "bsr_opt_rel", "lower", pr)
+    r = relaxed_mechanism(m, "bsr_opt_rel", "lower", pr)
     assert isinstance(r, TurbineEfficiencyBSRM) and r.label == m.label
     lo, hi = dict((q.name, q.bounds) for q in r.params)["bsr_opt_rel"]
     # 0.5 - 0.25 * 1.5 = 0.125 and 0.5 - 0.1875 = 0.3125: the submodel's validity starts at 0.3

@@ -32,7 +32,7 @@ the ends), as the fitted engine would predict it.  Leaving out the last shut poi
 load then predicts a half-open or a too-small opening there: an error of tens of tolerances shared by every model
 with that valve, which swamps what a second mechanism adds to it (study condition (d): a waste gate and a second
 mechanism named as the gate alone; ``docs/validation.md``, "What the misses of (a)-(d) are made of").  The selection
-therefore judges a physical mechanism beside a valve on its in-sample gain and F-test (``selection._earns``, since
+therefore judges a physical mechanism beside a valve on its in-sample gain and F-test (``evidence.earns``, since
 2026-11-26, ninth session); the held-out prediction itself stays the schedule.  The option
 ``"support"`` (2026-11-26, eighth session; ``Problem(..., held_out_valves="support")``,
 :meth:`FitResult.held_out_openings`) predicts it in two parts: *whether* the valve acts there is the full-data fit's support (a per-point state the

@@ -51,7 +51,8 @@ from .dataset import MeasuredDataset, load_data_arg
 from .fitting import Combination, fit_combination, predict_setting
 from .mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
 from .problem import Problem
-from .selection import Selection, add_valve_options, select_causes
+from .evidence import add_valve_options
+from .selection import Selection, select_causes
 
 __all__ = ["Hypothesis", "NOISE_MODELS", "hypotheses", "noise_scale", "replica_readings", "run_replica", "replicate",
            "summarise", "markdown_table", "main"]

@@ -51,7 +51,8 @@ from .fitting import channel_rmse, predict_setting
 from .matching import TARGETS
 from .mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
 from .problem import Problem
-from .selection import BESIDE_VALVE_DEFAULT, Selection, add_valve_options, select_causes
+from .evidence import BESIDE_VALVE_DEFAULT, add_valve_options
+from .selection import Selection, select_causes
 from .unexplained import ALPHA_UNEXPLAINED, family_significant
 
 __all__ = ["run_validation", "build_report", "write_plots", "validate_main", "load_data_arg", "split_engine",
@@ -299,7 +300,7 @@ def run_validation(ds: MeasuredDataset, *, holdout: MeasuredDataset | None = Non
     ``tolerances``: per channel in its units (default: the sidecar's, else 1 % / 5 K).  ``held_out_valves``: how
     cross-validation predicts a valve's opening at a held-out point (:data:`~.problem.HELD_OUT_VALVES`).
     ``beside_valve``: how a cause joining a model with a valve earns its place
-    (:data:`~.selection.BESIDE_VALVE`)."""
+    (:data:`~.evidence.BESIDE_VALVE`)."""
     pr = Problem(ds, target=target, params=params, tolerances=tolerances, held_out_valves=held_out_valves)
     sel = select_causes(pr, max_causes=max_causes, alpha=alpha, alpha_unexplained=alpha_unexplained, cv_all=cv_all,
                         max_folds=max_folds, progress=progress, beside_valve=beside_valve)

@@ -46,7 +46,7 @@ from .dataset import write_dataset
 from .mechanisms import (MECHANISM_IDS, SensorCalibration, ValveMechanism, equivalents, get_mechanism,
                          parse_mechanism_spec, sensor_reference)
 from .problem import BASE_SETTING, Setting, _quantity
-from .selection import BESIDE_VALVE_DEFAULT
+from .evidence import BESIDE_VALVE_DEFAULT
 from .columns import ModelContext
 
 __all__ = ["DEFAULT_COLUMNS", "SET_POINT_COLUMNS", "EFFECT_KINDS", "PERTURBED_FIELDS", "Synthesis", "synthesize",
@@ -528,7 +528,7 @@ def _trial_settings(params: str = "wartsila-6l46", points: int = 8, max_folds: i
     in unexplained findings on channels with a named calibration.  ``held_out_valves``: how cross-validation
     predicts a valve's opening at a held-out point (:data:`~.problem.HELD_OUT_VALVES`), recorded only when it is
     not the default ``schedule`` (every file before 2026-11-26 followed the schedule).  ``beside_valve``: how a
-    cause joining a model with a valve earns its place (:data:`~.selection.BESIDE_VALVE`), recorded unless it is
+    cause joining a model with a valve earns its place (:data:`~.evidence.BESIDE_VALVE`), recorded unless it is
     ``cross_validated``: every file before 2026-11-26 (ninth session) judged it so; the files 340-360 record
     ``in_sample``, 360-380 ``in_sample_exchange``, those after it ``in_sample_pairs`` (the default since the twelfth
     session)."""
@@ -604,7 +604,7 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
     """One trial of the study: synthesise with the condition's hidden effects (none when ``control``), write and
     reload the data, run the selection (``prune``: its final removal step, on by default; ``tolerance``: one of
     :data:`TOLERANCE_MODES`; ``exchange``: the selection's exchange step, on by default; ``held_out_valves``: one of
-    :data:`~.problem.HELD_OUT_VALVES`; ``beside_valve``: one of :data:`~.selection.BESIDE_VALVE`) and compare with the
+    :data:`~.problem.HELD_OUT_VALVES`; ``beside_valve``: one of :data:`~.evidence.BESIDE_VALVE`) and compare with the
     truth."""
     from .dataset import DatasetError
     from .problem import Problem
@@ -823,7 +823,7 @@ def study_main(argv: Sequence[str] | None = None) -> int:
     [--no-prune] [--no-exchange] [--tolerance stated|noise] [--held-out-valves schedule|support|state]
     [--beside-valve in_sample_pairs|in_sample_exchange|in_sample|cross_validated] [--trials d346,...] [--out FILE.json]``:
     the open-world hidden-effect study."""
-    from .selection import add_valve_options
+    from .evidence import add_valve_options
 
     ap = argparse.ArgumentParser(prog="python -m marine_fdi_env.validation.synthesize study",
                                  description="Open-world hidden-effect study: " + "; ".join(
