@@ -10,7 +10,7 @@ import pytest
 from scipy import stats
 
 from marine_fdi_env.validation import effect_bound as eb
-from marine_fdi_env.validation.synthesize import effect_size, trial_data, trial_draw
+from marine_fdi_env.validation.study import effect_size, trial_data, trial_draw
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "figures" / "validation"
 

@@ -112,3 +112,19 @@ def test_the_forest_plot_is_drawn_and_a_missing_matplotlib_is_one_line_before_an
     assert pool_main([str(a), "--markdown", str(md), "--plot", str(tmp_path / "again.png")]) == 2
     err = capsys.readouterr().err
     assert "marine-fdi-env[plots]" in err and not md.exists() and not (tmp_path / "again.png").exists()
+
+
+def test_the_study_command_and_its_pool_run_from_the_study_module_and_the_old_command_points_there():
+    """``python -m marine_fdi_env.validation.study [pool]`` (since 2026-11-27, when the study left
+    ``synthesize.py``); the old ``... synthesize study|pool`` says where it went instead of failing obscurely."""
+    import subprocess
+
+    run = lambda *a: subprocess.run([sys.executable, "-m", *a], capture_output=True, text=True)  # noqa: E731
+    new = run("marine_fdi_env.validation.study", "--help")
+    assert new.returncode == 0 and "--conditions" in new.stdout
+    pooled = run("marine_fdi_env.validation.study", "pool", "--help")
+    assert pooled.returncode == 0 and "study pool" in pooled.stdout
+    for sub in ("study", "pool"):
+        old = run("marine_fdi_env.validation.synthesize", sub, "--seeds", "0:1")
+        assert old.returncode == 2
+        assert "python -m marine_fdi_env.validation.study" in old.stderr

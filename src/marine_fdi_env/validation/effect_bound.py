@@ -1,6 +1,6 @@
 """How often could *any* test tell the open-world study's out-of-library effects from a sensor calibration?
 
-Condition (e) of the study (:mod:`.synthesize`) adds a bump, a step or a bend to one channel, and the pipeline
+Condition (e) of the study (:mod:`.study`) adds a bump, a step or a bend to one channel, and the pipeline
 should report it as unexplained on that channel.  A gain and an offset of that channel's reading (a sensor
 calibration: in the library, and conditions (a)-(d) ask the pipeline to name it when it is the truth) reproduce
 part of every such effect.  Only the part they cannot reproduce tells the effect from a miscalibrated sensor.
@@ -136,7 +136,8 @@ def trial_bound(result: Mapping[str, Any]) -> dict[str, Any]:
 
     Raises ValueError when the result is not an (e) trial with an effect, or when the re-drawn effect differs from
     the one the file records (the file was written by another version of the study)."""
-    from .synthesize import SET_POINT_COLUMNS, trial_data
+    from .study import trial_data
+    from .synthesize import SET_POINT_COLUMNS
 
     if result.get("condition") != "e" or result.get("control") or not result.get("effects"):
         raise ValueError("not an (e) trial with an out-of-library effect")
@@ -171,7 +172,7 @@ def trial_bound(result: Mapping[str, Any]) -> dict[str, Any]:
 def _tolerance(syn, column: str) -> float:
     """The pipeline's tolerance of ``column`` on the trial's data (written and loaded as the study does)."""
     from .discrepancy import column_tolerance
-    from .synthesize import loaded
+    from .study import loaded
 
     return float(column_tolerance(loaded(syn), column))
 
@@ -281,7 +282,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                                  description="How often could any test tell the open-world study's (e) effects "
                                              "from a sensor calibration? (an oracle bound, see the module docstring)")
     ap.add_argument("--study", nargs="+", required=True, metavar="FILE.json",
-                    help="study files written by `python -m marine_fdi_env.validation.synthesize study --out`")
+                    help="study files written by `python -m marine_fdi_env.validation.study --out`")
     ap.add_argument("--target", type=float, default=0.9, help="rate for the amplitude factor (default 0.9)")
     ap.add_argument("--out", default=None, help="write the per-trial values and summaries as JSON here")
     ap.add_argument("--plot", default=None, metavar="FILE.png", help="plot z against the pipeline's hits over the "

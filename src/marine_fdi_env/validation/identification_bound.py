@@ -1,6 +1,6 @@
 """Could the data of a missed study trial have told the hidden causes from the ones the pipeline named?
 
-Conditions (a)-(d) of the open-world study (:mod:`.synthesize`) hide one or two library mechanisms and score the
+Conditions (a)-(d) of the open-world study (:mod:`.study`) hide one or two library mechanisms and score the
 selection (:mod:`.selection`) on naming exactly them.  A miss has two possible reasons:
 
 * **the data cannot tell**: the named set fits the trial's data as well as the truth does.  With eight points and
@@ -74,7 +74,7 @@ def passes_bar(S_a: float, k_a: int, S_b: float, k_b: int, M: int, *, min_gain: 
 def _problem(condition: str, seed: int, params: str, points: int):
     """The trial's data and :class:`~.problem.Problem`, written and loaded as the study does."""
     from .problem import Problem
-    from .synthesize import loaded, trial_data
+    from .study import loaded, trial_data
 
     syn = trial_data(condition, seed, params=params, points=points)
     return syn, Problem(loaded(syn, f"hidden_{condition}_{seed}"))
@@ -189,7 +189,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                                  description="Could the data of the study's missed (a)-(d) trials tell the truth "
                                              "from the named causes? (see the module docstring)")
     ap.add_argument("--study", nargs="+", required=True, metavar="FILE.json",
-                    help="study files written by `python -m marine_fdi_env.validation.synthesize study --out`")
+                    help="study files written by `python -m marine_fdi_env.validation.study --out`")
     ap.add_argument("--out", default=None, help="write the per-miss fits and summaries as JSON here")
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = ap.parse_args(list(argv) if argv is not None else None)

@@ -1,7 +1,7 @@
 """Pool open-world study files and hold each condition to its target, with exact binomial intervals.
 
-``python -m marine_fdi_env.validation.synthesize pool FILE.json ...`` reads study files written by
-``synthesize study --out`` (each a range of seeds), refuses a trial counted twice, and prints per condition the
+``python -m marine_fdi_env.validation.study pool FILE.json ...`` reads study files written by
+``python -m marine_fdi_env.validation.study --out`` (each a range of seeds), refuses a trial counted twice, and prints per condition the
 hits over the trials of every file and pooled, the pooled rate's two-sided 95 % Clopper-Pearson interval, the
 target of issue 11 and two verdicts: the point estimate against the bar (how the issue states its targets) and
 what the interval says (above the bar, containing it, or below it).  Twenty trials bound a rate only loosely
@@ -59,7 +59,7 @@ def load_trials(paths: Sequence[str | Path]) -> list[tuple[str, list[dict[str, A
             raise ValueError(f"{p}: not a readable study file ({e})") from None
         trials = data.get("trials") if isinstance(data, Mapping) else None
         if not isinstance(trials, list) or not trials:
-            raise ValueError(f"{p}: no trials (write one with `synthesize study --out`)")
+            raise ValueError(f"{p}: no trials (write one with `python -m marine_fdi_env.validation.study --out`)")
         for t in trials:
             key = (t["condition"], int(t["seed"]), bool(t["control"]))
             if key in seen:
@@ -214,12 +214,12 @@ def pool_plot(res: Mapping[str, Any], path: str | Path) -> Path:
 
 
 def pool_main(argv: Sequence[str] | None = None) -> int:
-    """``python -m marine_fdi_env.validation.synthesize pool FILE.json ... [--markdown OUT.md] [--out OUT.json]
+    """``python -m marine_fdi_env.validation.study pool FILE.json ... [--markdown OUT.md] [--out OUT.json]
     [--plot OUT.png]``."""
-    ap = argparse.ArgumentParser(prog="python -m marine_fdi_env.validation.synthesize pool",
+    ap = argparse.ArgumentParser(prog="python -m marine_fdi_env.validation.study pool",
                                  description="Pool study files (one range of seeds each) and hold every condition "
                                              "to its target with exact 95 %% intervals.")
-    ap.add_argument("files", nargs="+", metavar="FILE.json", help="study files written by `synthesize study --out`")
+    ap.add_argument("files", nargs="+", metavar="FILE.json", help="study files written by `python -m marine_fdi_env.validation.study --out`")
     ap.add_argument("--markdown", metavar="OUT.md", help="also write the table as Markdown")
     ap.add_argument("--out", metavar="OUT.json", help="also write the pooled counts and verdicts as JSON")
     ap.add_argument("--plot", metavar="OUT.png", help="also draw the table as a forest plot (needs matplotlib)")
