@@ -48,10 +48,10 @@ import numpy as np
 
 from .binomial import proportion_ci95
 from .dataset import MeasuredDataset, load_data_arg
+from .evidence import add_valve_options
 from .fitting import Combination, fit_combination, predict_setting
 from .mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
 from .problem import Problem
-from .evidence import add_valve_options
 from .selection import Selection, select_causes
 
 __all__ = ["Hypothesis", "NOISE_MODELS", "hypotheses", "noise_scale", "replica_readings", "run_replica", "replicate",
@@ -60,7 +60,7 @@ __all__ = ["Hypothesis", "NOISE_MODELS", "hypotheses", "noise_scale", "replica_r
 NOISE_MODELS = ("residual", "tolerance")
 #: settings of :func:`~.selection.select_causes` a replica reuses from the selection on the data (``exchange`` and
 #: ``beside_valve`` since 2026-11-27: before, a replica ran with their defaults whatever the data's selection used;
-#: every replica file in docs/ was written with the defaults of its day, so only its rule, now recorded, changes)
+#: every replica file in docs/ selected on the data with the defaults too, so none of them is changed by it)
 _PASSED = ("max_causes", "alpha", "alpha_unexplained", "min_gain", "penalty", "cv_all", "max_folds", "pairs", "prune",
            "exchange", "beside_valve")
 

@@ -48,13 +48,13 @@ from ..engine.params import EngineParams, engine_file_dict, list_parameter_sets,
 from ..plotting import pyplot
 from .data_check import column_registry, describe
 from .dataset import DatasetError, MeasuredDataset, list_shipped, load_data_arg
+from .evidence import BESIDE_VALVE_DEFAULT, add_valve_options
 from .fitting import channel_rmse, predict_setting
 from .matching import TARGETS
 from .mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
 from .problem import Problem
 from .report_markdown import markdown_summary
 from .report_plots import write_plots
-from .evidence import BESIDE_VALVE_DEFAULT, add_valve_options
 from .selection import Selection, select_causes
 from .unexplained import ALPHA_UNEXPLAINED, family_significant
 
