@@ -57,10 +57,11 @@ Pipeline (:func:`select_causes`), on a :class:`~.problem.Problem`:
    refitting lowers the in-sample loss significantly); a bound merely touched because two parameters trade off is
    kept, with a note.  Parameters the data do not determine are noted, not a reason to reject.
 
-The parts, one module each (split out of this one on 2026-11-27): a scored candidate (:mod:`.candidates`), the
-evidence a cause must give (:mod:`.evidence`), eligibility (:mod:`.eligibility`), sensor calibrations as candidates
-(:mod:`.calibration_candidates`), pairs (:mod:`.pairs`), the removal and exchange steps (:mod:`.revision`), what
-the data hardly tell from a named cause (:mod:`.alternatives`) and what the final model leaves (:mod:`.unexplained`).
+The parts, one module each (split out of this one on 2026-11-27): one forward step (:mod:`.forward_step`), a
+scored candidate (:mod:`.candidates`), the evidence a cause must give (:mod:`.evidence`), eligibility
+(:mod:`.eligibility`), sensor calibrations as candidates (:mod:`.calibration_candidates`), pairs (:mod:`.pairs`),
+the removal and exchange steps (:mod:`.revision`), what the data hardly tell from a named cause
+(:mod:`.alternatives`) and what the final model leaves (:mod:`.unexplained`).
 """
 
 from __future__ import annotations
@@ -72,18 +73,15 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .alternatives import ALTERNATIVE_MARGIN, pair_alternatives, step_alternatives
-from .calibration_candidates import calibrations_to_refit, refit_with_calibration, sensor_candidate
 from .candidates import CandidateScore
 from .columns import QUANTITIES
 from .discrepancy import DiscrepancyReport, analyse_discrepancies
-from .eligibility import structure_left, why_pinned
-from .evidence import BESIDE_VALVE, BESIDE_VALVE_DEFAULT, IN_SAMPLE_ALONE, earns, judged_in_sample
+from .evidence import BESIDE_VALVE, BESIDE_VALVE_DEFAULT
 from .fitting import (Combination, FitResult, ROBUST_SCALE, cell_losses, channel_rmse, cross_validate,
-                      fit_combination, fold_data, loco_predictions, predict_setting)
+                      fit_combination, fold_data, loco_predictions)
+from .forward_step import CurrentModel, StepRules, forward_step
 from .matching import MatchResult
 from .mechanisms import Mechanism, SensorCalibration, library, sensor_reference
-from .pairs import members_earn_their_place, pair_candidates
 from .problem import Problem, Setting
 from .revision import exchange_step, removal_step
 from .unexplained import ALPHA_UNEXPLAINED, point_outliers, unexplained_findings
@@ -234,199 +232,43 @@ def select_causes(
     """
     if beside_valve not in BESIDE_VALVE:
         raise ValueError(f"beside_valve must be one of {', '.join(BESIDE_VALVE)}, got {beside_valve!r}")
-    cv_guard = beside_valve not in IN_SAMPLE_ALONE
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
-    use_pairs = pairs
     if mechanisms is None:
         refs = {c: sensor_reference(c, problem.Y[:, j], QUANTITIES[problem.ds.column_quantity[c]].kind)
                 for j, c in enumerate(problem.channels)}
         mechanisms = library(problem.channels, refs)
     scheme, folds = problem.folds(max_folds)
-    rows = problem.rows_with_data()
     tol = dict(zip(problem.channels, problem.tolerance))
     raw_pred, _, _ = problem.predict()
     base_match = match_result(problem)
     base_report = analyse_discrepancies(base_match, alpha=alpha, tolerances=tol)
     base_outliers = point_outliers(base_match, tol, alpha)
-    current = Combination()
-    current_fit = fit_combination(problem, current)
-    base_pred, base_folds = cross_validate(problem, current, current_fit, max_folds=max_folds)
+    base_fit = fit_combination(problem, Combination())
+    base_pred, base_folds = cross_validate(problem, Combination(), base_fit, max_folds=max_folds)
     current_folds = fold_data(problem, base_folds, max_folds)
     L_base, M = cell_losses(problem, base_pred)
     S_base = float(L_base.sum() / M)
-    base_fit = current_fit
-    current_pred, current_L, current_S, current_pen = base_pred, L_base, S_base, S_base
+    cur = CurrentModel(Combination(), base_fit, base_pred, L_base, S_base, S_base, current_folds)
+    rules = StepRules(n_cells=M, rows=problem.rows_with_data(), alpha=alpha, min_gain=min_gain, penalty=penalty,
+                      cv_all=cv_all, max_folds=max_folds, max_causes=max_causes, pairs=pairs,
+                      beside_valve=beside_valve)
     steps: list[dict[str, Any]] = []
     alternatives: dict[str, list[dict[str, Any]]] = {}
     cause_notes: dict[str, list[str]] = {}
     say(f"calibrated base model: S = {S_base:.4g} over {M} cells ({scheme}, {len(folds)} folds)")
     for step in range(1, max_causes + 1):
-        pool = [m for m in mechanisms if m.label not in current.labels]
-        if not pool or len(current.mechanisms) >= max_causes:
+        outcome = forward_step(problem, cur, mechanisms, rules, step, say)
+        if outcome is None:
             break
-        known = current_fit.values()
-        scored: list[CandidateScore] = []
-        in_pred = predict_setting(problem, current_fit, np.arange(problem.n_points))
-        loco_cur = loco_predictions(problem, current_fit)
-        sensor_cv: dict[str, np.ndarray] = {}
-        for mech in pool:
-            comb = current.plus(mech)
-            if isinstance(mech, SensorCalibration):
-                full, sensor_cv[mech.label] = sensor_candidate(problem, current_fit, in_pred, current_folds, mech)
-            else:
-                full = fit_combination(problem, comb, start=current_fit, known=known, support=current_fit.support)
-            scored.append(CandidateScore(comb, mech.label, full, 2.0 * full.data_cost / M))
-            say(f"step {step}: fitted {mech.label:48s} in-sample {scored[-1].in_sample_score:9.4g} (k = {full.k})")
-        for c in calibrations_to_refit(scored, current_S, min_gain):
-            c.fit = fit_combination(problem, c.combination, start=c.fit, known=c.fit.values(),
-                                    support=current_fit.support)
-            c.in_sample_score = 2.0 * c.fit.data_cost / M
-            del sensor_cv[c.added]  # cross-validated as the whole model it would become
-            say(f"step {step}: refitted {c.added:46s} in-sample {c.in_sample_score:9.4g} (k = {c.fit.k})")
-        scored.sort(key=lambda c: c.in_sample_score * math.exp(penalty * c.fit.k / M))
-        best_pen = math.inf
-        for c in scored:
-            in_pen = c.in_sample_score * math.exp(penalty * c.fit.k / M)
-            in_gain = (current_S - c.in_sample_score) / current_S if current_S > 0 else 0.0
-            if not cv_all:
-                if in_gain < min_gain:
-                    c.screened = f"not cross-validated: in-sample gain {in_gain:.1%} below {min_gain:.0%}"
-                    continue
-                if in_pen >= best_pen:
-                    c.screened = (f"not cross-validated: in-sample penalised score {in_pen:.4g} already above the best "
-                                  f"cross-validated one {best_pen:.4g}")
-                    continue
-            if c.added in sensor_cv:
-                pred, c_folds = sensor_cv[c.added], None
-            else:
-                pred, c_folds = cross_validate(problem, c.combination, c.fit, max_folds=max_folds)
-            c.score(problem, pred, c_folds, M, penalty, current_S, current_fit.k, current_L, rows)
-            say(f"step {step}: {c.added:48s} CV {c.cv_score:9.4g}  gain {c.gain:+.1%}  p = {c.p_value:.2g}")
-            # eligibility at once: only an eligible candidate's score can screen the others out (one pinned at a
-            # bound, or a calibration that leaves structure, cannot win, so it must not stop those that can)
-            pins = why_pinned(problem, c, known, current_fit.support)
-            if pins:
-                c.screened = "not eligible: " + "; ".join(pins)
-            elif isinstance(c.combination.mechanisms[-1], SensorCalibration):
-                left = structure_left(problem, loco_cur, c.combination.mechanisms[-1], alpha)
-                if left:
-                    c.screened = ("not eligible: the calibrated channel keeps a local departure (" + left +
-                                  "): a gain and an offset do not explain it")
-            if not c.screened:
-                best_pen = min(best_pen, c.penalised)
-        cv = sorted((c for c in scored if c.cross_validated and not c.screened), key=lambda c: c.penalised)
-        threshold = alpha / len(scored)
-        best, accept, why = None, False, (f"rejected: no candidate improves the in-sample score by {min_gain:.0%} "
-                                          "without being pinned at the limit of its plausible range")
-        s_in_cur = 2.0 * current_fit.data_cost / M
-        if cv:
-            best = cv[0]
-            in_sample = judged_in_sample(current, best.combination.mechanisms[-1:], beside_valve)
-            _, _, short = earns((current_S, s_in_cur, current_fit.k),
-                                (best.cv_score, best.in_sample_score, best.fit.k), M, min_gain, threshold, in_sample,
-                                cv_guard=cv_guard)
-            accept = best.penalised < current_pen and not short
-            why = ("accepted" + (" (beside a valve: judged in sample)" if in_sample else "") if accept else
-                   "rejected: " + "; ".join(s for s, bad in (
-                       (f"penalised score {best.penalised:.4g} not below the current {current_pen:.4g}",
-                        best.penalised >= current_pen),
-                       (short + f" (threshold alpha/{len(scored)})", bool(short))) if bad))
-        pairs: list[CandidateScore] = []
-        pair = None
-        if use_pairs and len(current.mechanisms) + 2 <= max_causes:
-            bar = min(current_pen, best.penalised if accept else math.inf)
-            pairs = pair_candidates(problem, current, current_fit, scored, known, M, penalty, current_S, bar,
-                                    min_gain, max_folds, say)
-            p_threshold = alpha / (len(scored) + len(pairs))
-            # rule in_sample_pairs: a pair holding the accepted best single, a valve, is judged against it by the
-            # members test (its second member must earn its place beside the valve in sample), not by the score
-            lead_valve = (best.combination.mechanisms[-1] if accept and beside_valve in IN_SAMPLE_ALONE
-                          and best.combination.mechanisms[-1].pointwise else None)
-            for c in sorted((c for c in pairs if c.cross_validated), key=lambda c: c.penalised):
-                in_sample = judged_in_sample(current, c.combination.mechanisms[-2:], beside_valve)
-                c_bar = current_pen if lead_valve in c.combination.mechanisms[-2:] else bar
-                if not c.penalised < c_bar or earns((current_S, s_in_cur, current_fit.k),
-                                                    (c.cv_score, c.in_sample_score, c.fit.k), M, min_gain,
-                                                    p_threshold, in_sample, cv_guard)[2]:
-                    continue
-                c.fit = fit_combination(problem, c.combination, start=c.fit, known=known,
-                                        support=current_fit.support)
-                pins = why_pinned(problem, c, known, current_fit.support)
-                if pins:
-                    c.screened = "not eligible: " + "; ".join(pins)
-                    continue
-                left = members_earn_their_place(problem, c, M, min_gain, p_threshold, max_folds, penalty, current_S,
-                                                current_fit.k, beside_valve)
-                if left:
-                    c.screened = "not eligible: " + left
-                    continue
-                pair = c
-                break
-        if pair is not None:
-            steps.append({"step": step, "best": pair.added, "accepted": True, "pair": True,
-                          "decision": ("accepted the pair ("
-                                       + ("beside a valve, judged in sample; "
-                                          if judged_in_sample(current, pair.combination.mechanisms[-2:],
-                                                              beside_valve) else
-                                          f"p = {pair.p_value:.2g} below alpha/{len(scored) + len(pairs)}; ")
-                                       + (f"penalised score {pair.penalised:.4g} below the best single "
-                                          f"candidate's {best.penalised:.4g})" if accept and pair.penalised <
-                                          best.penalised else
-                                          f"it holds the best single candidate, the valve {best.added}, and its "
-                                          f"second member earns its place beside it in sample)" if accept else
-                                          f"penalised score {pair.penalised:.4g} below the current "
-                                          f"{current_pen:.4g}; no single candidate qualified)")),
-                          "threshold_p": alpha / (len(scored) + len(pairs)), "current_score": current_S,
-                          "candidates": scored + pairs})
-            say(f"step {step}: best pair {pair.added}: accepted")
-            alternatives.update(pair_alternatives(pair, pairs, ALTERNATIVE_MARGIN))
-            for m in pair.members:
-                cause_notes[m.added] = [n for n in pair.notes if m.added in n]
-            current, current_fit = pair.combination, pair.fit
-            current_pred, current_L, current_S, current_pen = pair.cv_pred, pair.point_losses, pair.cv_score, \
-                pair.penalised
-            current_folds = fold_data(problem, pair.folds, max_folds)
-            continue
-        steps.append({"step": step, "best": best.added if best else None, "accepted": accept, "decision": why,
-                      "threshold_p": threshold, "current_score": current_S, "candidates": scored + pairs})
-        say(f"step {step}: " + (f"best {best.added}: " if best else "") + why)
-        if not accept:
+        steps.append(outcome.record)
+        if outcome.model is None:
             break
-        alternatives[best.added] = step_alternatives(best, cv, ALTERNATIVE_MARGIN)
-        cause_notes[best.added] = [n for n in best.notes if best.added in n]
-        current, current_fit = best.combination, best.fit
-        current_pred, current_L, current_S, current_pen = best.cv_pred, best.point_losses, best.cv_score, best.penalised
-        if best.folds is not None:
-            current_folds = fold_data(problem, best.folds, max_folds)
-        else:
-            current_fit, current_pred, current_L, current_S, current_pen, current_folds = refit_with_calibration(
-                problem, best, current_fit, M, penalty, max_folds, steps[-1], say)
-    thresholds = {}
-    for st in steps:
-        if st["accepted"]:
-            for lab in st["best"].split(" + "):
-                thresholds[lab] = st["threshold_p"]
-    for _ in range(max_causes + 1):  # each exchange lowers the score by min_gain: no cycle
-        while prune and (pruned := removal_step(problem, current, current_fit, current_S, M, penalty, min_gain,
-                                                thresholds, max_folds, len(steps) + 1, say, beside_valve)) is not None:
-            st, c = pruned
-            steps.append(st)
-            alternatives.pop(c.added, None)
-            cause_notes.pop(c.added, None)
-            current, current_fit = c.combination, c.fit
-            current_pred, current_L, current_S, current_pen = c.cv_pred, c.point_losses, c.cv_score, c.penalised
-        if not exchange or (ex := exchange_step(problem, current, current_fit, current_S, current_pen, M, penalty,
-                                                min_gain, alpha, mechanisms, max_folds, len(steps) + 1, say,
-                                                beside_valve)) is None:
-            break
-        st, c, gone = ex
-        steps.append(st)
-        alternatives.pop(gone.label, None)
-        cause_notes.pop(gone.label, None)
-        thresholds[st["best"]] = thresholds.pop(gone.label, 1.0)
-        current, current_fit = c.combination, c.fit
-        current_pred, current_L, current_S, current_pen = c.cv_pred, c.point_losses, c.cv_score, c.penalised
+        alternatives.update(outcome.alternatives)
+        cause_notes.update(outcome.cause_notes)
+        cur = outcome.model
+    cur = _revise(problem, cur, steps, alternatives, cause_notes, mechanisms, rules, prune, exchange, say)
+    current, current_fit = cur.combination, cur.fit
     final_setting = current_fit.setting(problem)
     # what is left is judged channel by channel against the model fitted without that channel: an anomaly of one
     # sensor would otherwise bend the fit towards it and hide
@@ -440,7 +282,7 @@ def select_causes(
     return Selection(
         problem=problem, cv_scheme=scheme, raw_pred=raw_pred, base_fit=base_fit, base_pred=base_pred,
         base_score=S_base, base_report=base_report, steps=steps, selected=current, fit=current_fit,
-        cv_pred=current_pred, cv_score=current_S, final_report=final_report, unexplained=unexplained,
+        cv_pred=cur.pred, cv_score=cur.score, final_report=final_report, unexplained=unexplained,
         outliers=point_outliers(final_match, tol, alpha), base_outliers=base_outliers,
         seconds=time.perf_counter() - t0, alternatives=alternatives, cause_notes=cause_notes,
         calibration_scans=cal_scans,
@@ -448,6 +290,41 @@ def select_causes(
                   "max_causes": max_causes, "alpha": alpha, "alpha_unexplained": alpha_unexplained,
                   "min_gain": min_gain, "penalty": penalty, "robust_scale": ROBUST_SCALE, "cv": scheme,
                   "n_folds": len(folds), "n_cells": M, "cv_all": cv_all,
-                  "nuisance_sigma": 0.03, "pairs": use_pairs, "prune": prune, "exchange": exchange,
+                  "nuisance_sigma": 0.03, "pairs": pairs, "prune": prune, "exchange": exchange,
                   "max_folds": max_folds},
     )
+
+
+def _revise(problem: Problem, cur: CurrentModel, steps: list[dict[str, Any]],
+            alternatives: dict[str, list[dict[str, Any]]], cause_notes: dict[str, list[str]],
+            mechanisms: Sequence[Mechanism], rules: StepRules, prune: bool, exchange: bool, say) -> CurrentModel:
+    """After the forward steps: remove the named causes that no longer earn their place among the others
+    (:func:`~.revision.removal_step`), then try each named physical cause replaced by a sensor calibration
+    (:func:`~.revision.exchange_step`), and remove again after an exchange.  ``steps``, ``alternatives`` and
+    ``cause_notes`` are updated in place; returns the final model."""
+    M, penalty, min_gain, max_folds = rules.n_cells, rules.penalty, rules.min_gain, rules.max_folds
+    thresholds = {}
+    for st in steps:
+        if st["accepted"]:
+            for lab in st["best"].split(" + "):
+                thresholds[lab] = st["threshold_p"]
+    for _ in range(rules.max_causes + 1):  # each exchange lowers the score by min_gain: no cycle
+        while prune and (pruned := removal_step(problem, cur.combination, cur.fit, cur.score, M, penalty, min_gain,
+                                                thresholds, max_folds, len(steps) + 1, say,
+                                                rules.beside_valve)) is not None:
+            st, c = pruned
+            steps.append(st)
+            alternatives.pop(c.added, None)
+            cause_notes.pop(c.added, None)
+            cur = CurrentModel.of(c, None)
+        if not exchange or (ex := exchange_step(problem, cur.combination, cur.fit, cur.score, cur.penalised, M,
+                                                penalty, min_gain, rules.alpha, mechanisms, max_folds, len(steps) + 1,
+                                                say, rules.beside_valve)) is None:
+            break
+        st, c, gone = ex
+        steps.append(st)
+        alternatives.pop(gone.label, None)
+        cause_notes.pop(gone.label, None)
+        thresholds[st["best"]] = thresholds.pop(gone.label, 1.0)
+        cur = CurrentModel.of(c, None)
+    return cur
