@@ -56,7 +56,9 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 
 from ..engine.params import EngineParams, list_parameter_sets, load_params
+from .boundary_readings import BOUNDARY_OUTLIER_Z, boundary_conditions, cylinder_groups
 from .columns import ID_COLUMNS, QUANTITIES, ColumnSpec, column_problem, lookup_column, resolve_quantity
+from .plausibility import ENVELOPE, SETPOINT_QUANTITIES, check_across_engines, check_duplicates, check_values
 
 __all__ = [
     "MeasuredDataset", "DatasetError", "DataWarning", "Problem", "load_dataset", "load_shipped",
@@ -64,24 +66,9 @@ __all__ = [
     "ENVELOPE", "BOUNDARY_OUTLIER_Z",
 ]
 
-BOUNDARY_OUTLIER_Z = 5.0  # robust z-score above which a boundary reading is a recording error
-# resolution floors of the robust scale of boundary readings (a MAD of 0 must not flag 0.5 K differences)
-_BOUNDARY_FLOOR = {"ambient_temperature_K": 1.0, "ambient_pressure_Pa": 200.0, "exhaust_back_pressure_Pa": 300.0}
-_BOUNDARY_KEY = {"ambient_pressure_Pa": "p_amb_Pa", "ambient_temperature_K": "T_amb_K",
-                 "exhaust_back_pressure_Pa": "dp_ex_Pa"}
-
 MISSING_TOKENS = frozenset({"", "na", "nan", "n/a", "none", "null"})
 
-# Envelope of a plausible operating point (errors beyond, see _check_values for the warnings).
-ENVELOPE = {
-    "load_fraction_max": 1.15,
-    "speed_max_rel": 1.10,
-    "power_max_rel": 1.15,
-    "fuel_setting_max": 1.2,
-}
 ENGINE_COLUMN = "engine"
-# Columns that set an operating point (identify duplicates); responses are everything else.
-SETPOINT_QUANTITIES = ("load_fraction", "engine_speed_rev_s", "power_W")
 
 
 class DataWarning(UserWarning):
@@ -364,10 +351,6 @@ def _quality(columns, raw, engines, warns) -> dict[str, Any]:
     }
 
 
-def _fmt(v: float) -> str:
-    return f"{v:g}"
-
-
 # --------------------------------------------------------------------------------------- loader
 def load_dataset(
     path: str | Path,
@@ -393,27 +376,7 @@ def load_dataset(
     def warn(msg, rows=(), column=None):
         problems.append(Problem("warning", msg, tuple(rows), column))
 
-    # ---- sidecar
-    meta_path: Path | None = None
-    if isinstance(meta, Mapping):
-        meta_d = dict(meta)
-    else:
-        meta_path = Path(meta) if meta is not None else path.with_name(
-            path.name[:-4] + ".meta.json" if path.name.endswith(".csv") else path.name + ".meta.json")
-        meta_d = {}
-        try:
-            meta_d = json.loads(meta_path.read_text())
-            if not isinstance(meta_d, dict):
-                err(f"sidecar {meta_path.name} must hold a JSON object")
-                meta_d = {}
-        except FileNotFoundError:
-            if params is None:
-                err(f"no sidecar {meta_path.name}: it must name the engine parameter set (engine_params)")
-            else:
-                warn(f"no sidecar {meta_path.name}: parameter set {params!r} from the caller, ambient and load "
-                     "law unknown")
-        except json.JSONDecodeError as e:
-            err(f"sidecar {meta_path.name} is not valid JSON: {e}")
+    meta_d = _read_sidecar(path, meta, params, err, warn)
     params_name = params or meta_d.get("engine_params")
     p: EngineParams | None = None
     if params_name is None:
@@ -439,7 +402,98 @@ def load_dataset(
     if not data:
         err("no data rows")
 
-    # header checks: unknown, missing unit, duplicated names and duplicated quantities
+    seen, column_quantity, column_role, column_spec, notes = _resolve_columns(header, meta_d, err, warn)
+
+    n = len(data)
+    raw, engines = _read_cells(data, header, seen, column_quantity, err)
+
+    ambient, rated, boundary, b_outliers = _ambient_and_boundary(meta_d, p, raw, column_quantity, column_role,
+                                                                 column_spec, n, notes, warn)
+    p_amb_rows = ambient["p_amb_Pa"]
+
+    values = {column_quantity[h]: column_spec[h].to_si(raw[h], p_amb_rows) for h in column_quantity
+              if column_role[h] != "member"}
+    groups = cylinder_groups(raw, column_quantity, column_role, column_spec, n, p_amb_rows, warn)
+    suspect: list[dict[str, Any]] = []
+    if p is not None:
+        check_values(raw, values, {c: q for c, q in column_quantity.items() if column_role[c] != "member"}, p,
+                     rated, ambient, engines, err, warn)
+        check_duplicates(raw, column_quantity, engines, err)
+        check_across_engines(raw, column_quantity, engines, warn, suspect)
+    for h in column_quantity:
+        if n and not np.any(np.isfinite(raw[h])):
+            warn("every value is missing", column=h)
+    described = meta_d.get("columns") or {}
+    if isinstance(described, Mapping):
+        for c in described:
+            if c not in seen:
+                warn(f"the sidecar describes column {c!r}, which the CSV does not have")
+
+    if any(pr.severity == "error" for pr in problems):
+        raise DatasetError(source, problems)
+    warns = tuple(pr for pr in problems if pr.severity == "warning")
+    for w in warns:
+        warnings.warn(f"{source}: {w}", DataWarning, stacklevel=2)
+    columns = tuple(column_quantity)
+    eng = None if engines is None else tuple(engines)
+    law_text = meta_d.get("load_law")
+    return MeasuredDataset(
+        name=name or (path.name[:-4] if path.name.endswith(".csv") else path.name),
+        params_name=params_name,
+        meta=meta_d,
+        columns=columns,
+        column_quantity=column_quantity,
+        values=values,
+        raw=raw,
+        engines=eng,
+        provenance=str(meta_d.get("source", "not stated")),
+        ambient=ambient,
+        load_law=normalise_load_law(law_text),
+        load_law_text=law_text,
+        rated_power_W=rated,
+        quality=_quality(columns, raw, eng, warns),
+        warnings=warns,
+        notes=tuple(notes),
+        path=str(path),
+        column_role=column_role,
+        column_spec=column_spec,
+        boundary=boundary,
+        boundary_outliers=tuple(b_outliers),
+        groups=groups,
+        suspect=tuple(suspect),
+    )
+
+
+def _read_sidecar(path: Path, meta: str | Path | Mapping[str, Any] | None, params: str | None, err,
+                  warn) -> dict[str, Any]:
+    """The sidecar as a dict (``meta`` itself when it is one; ``{}`` when it is missing or unreadable, with the
+    problem reported)."""
+    if isinstance(meta, Mapping):
+        meta_d = dict(meta)
+    else:
+        meta_path = Path(meta) if meta is not None else path.with_name(
+            path.name[:-4] + ".meta.json" if path.name.endswith(".csv") else path.name + ".meta.json")
+        meta_d = {}
+        try:
+            meta_d = json.loads(meta_path.read_text())
+            if not isinstance(meta_d, dict):
+                err(f"sidecar {meta_path.name} must hold a JSON object")
+                meta_d = {}
+        except FileNotFoundError:
+            if params is None:
+                err(f"no sidecar {meta_path.name}: it must name the engine parameter set (engine_params)")
+            else:
+                warn(f"no sidecar {meta_path.name}: parameter set {params!r} from the caller, ambient and load "
+                     "law unknown")
+        except json.JSONDecodeError as e:
+            err(f"sidecar {meta_path.name} is not valid JSON: {e}")
+    return meta_d
+
+
+def _resolve_columns(header: list[str], meta_d: Mapping[str, Any], err, warn) -> tuple[
+        dict[str, int], dict[str, str], dict[str, str], dict[str, ColumnSpec], list[str]]:
+    """Header checks (unknown, missing unit, duplicated names and duplicated quantities) and what each column is:
+    (column index by name, quantity, role and spec of every usable column, notes)."""
     seen: dict[str, int] = {}
     known: list[tuple[int, str]] = []
     for j, h in enumerate(header):
@@ -501,7 +555,13 @@ def load_dataset(
              "ambient pressure (about 1 bar, 0.5 % of a maximum cylinder pressure). Set \"pressure_reference\" in "
              "the sidecar to decide", column=assumed_gauge[0])
 
-    # cells
+    return seen, column_quantity, column_role, column_spec, notes
+
+
+def _read_cells(data: list[list[str]], header: list[str], seen: Mapping[str, int], column_quantity: Mapping[str, str],
+                err) -> tuple[dict[str, np.ndarray], list[str] | None]:
+    """The cells of every usable column as floats in the file's units (NaN where missing), and the engine id per
+    row (``None`` without an engine column)."""
     n = len(data)
     raw: dict[str, np.ndarray] = {h: np.full(n, np.nan) for h in column_quantity}
     engines: list[str] | None = [] if ENGINE_COLUMN in seen else None
@@ -523,15 +583,23 @@ def load_dataset(
                 err(f"non-numeric value {row[j].strip()!r}", rows=(i,), column=h)
             else:
                 raw[h][i - 1] = v
+    return raw, engines
 
-    # ---- ambient, rated power, load law, per-row boundary conditions
+
+def _ambient_and_boundary(meta_d: Mapping[str, Any], p: EngineParams | None, raw: Mapping[str, np.ndarray],
+                          column_quantity: Mapping[str, str], column_role: Mapping[str, str],
+                          column_spec: Mapping[str, ColumnSpec], n: int, notes: list[str],
+                          warn) -> tuple[dict[str, Any], float, dict[str, np.ndarray], list[dict[str, Any]]]:
+    """Ambient conditions (per row where the file records them), rated power, and the per-row boundary conditions
+    with their recording errors left out: (ambient, rated power in W, boundary, outliers); ``notes`` gains what was
+    assumed."""
     if p is not None:
         ambient, amb_notes = parse_ambient(meta_d, p)
         rated = float(meta_d["rated_power_kW"]) * 1e3 if "rated_power_kW" in meta_d else p.P_nom_W
     else:
         ambient, amb_notes = {"p_amb_Pa": 1.013e5, "T_amb_K": None, "coolant_T_K": None, "recorded": False}, []
         rated = math.nan
-    boundary, b_outliers = _boundary(raw, column_quantity, column_role, column_spec, n, warn)
+    boundary, b_outliers = boundary_conditions(raw, column_quantity, column_role, column_spec, n, warn)
     if np.any(np.isfinite(boundary["p_amb_Pa"])):
         fill = ambient["p_amb_Pa"]
         ambient["p_amb_Pa"] = np.where(np.isfinite(boundary["p_amb_Pa"]), boundary["p_amb_Pa"], fill)
@@ -544,281 +612,8 @@ def load_dataset(
         amb_notes = [x for x in amb_notes if not x.startswith("recorded ambient temperature")]
         notes.append("compressor inlet temperature recorded per row: a boundary condition of each row")
     notes.extend(amb_notes)
-    p_amb_rows = ambient["p_amb_Pa"]
-    boundary["p_ex_Pa"] = np.broadcast_to(p_amb_rows, (n,)) + boundary.pop("dp_ex_Pa")  # NaN where not recorded
-
-    values = {column_quantity[h]: column_spec[h].to_si(raw[h], p_amb_rows) for h in column_quantity
-              if column_role[h] != "member"}
-    groups = _groups(raw, column_quantity, column_role, column_spec, n, p_amb_rows, warn)
-    suspect: list[dict[str, Any]] = []
-    if p is not None:
-        _check_values(raw, values, {c: q for c, q in column_quantity.items() if column_role[c] != "member"}, p,
-                      rated, ambient, engines, err, warn)
-        _check_duplicates(raw, column_quantity, engines, err)
-        _check_across_engines(raw, column_quantity, engines, warn, suspect)
-    for h in column_quantity:
-        if n and not np.any(np.isfinite(raw[h])):
-            warn("every value is missing", column=h)
-    described = meta_d.get("columns") or {}
-    if isinstance(described, Mapping):
-        for c in described:
-            if c not in seen:
-                warn(f"the sidecar describes column {c!r}, which the CSV does not have")
-
-    if any(pr.severity == "error" for pr in problems):
-        raise DatasetError(source, problems)
-    warns = tuple(pr for pr in problems if pr.severity == "warning")
-    for w in warns:
-        warnings.warn(f"{source}: {w}", DataWarning, stacklevel=2)
-    columns = tuple(column_quantity)
-    eng = None if engines is None else tuple(engines)
-    law_text = meta_d.get("load_law")
-    return MeasuredDataset(
-        name=name or (path.name[:-4] if path.name.endswith(".csv") else path.name),
-        params_name=params_name,
-        meta=meta_d,
-        columns=columns,
-        column_quantity=column_quantity,
-        values=values,
-        raw=raw,
-        engines=eng,
-        provenance=str(meta_d.get("source", "not stated")),
-        ambient=ambient,
-        load_law=normalise_load_law(law_text),
-        load_law_text=law_text,
-        rated_power_W=rated,
-        quality=_quality(columns, raw, eng, warns),
-        warnings=warns,
-        notes=tuple(notes),
-        path=str(path),
-        column_role=column_role,
-        column_spec=column_spec,
-        boundary=boundary,
-        boundary_outliers=tuple(b_outliers),
-        groups=groups,
-        suspect=tuple(suspect),
-    )
-
-
-def _boundary(raw, column_quantity, column_role, column_spec, n, warn) -> tuple[dict[str, np.ndarray], list[dict]]:
-    """Per-row boundary conditions (SI, NaN where not recorded) with recording errors left out.
-
-    A reading is a recording error when its robust z-score against the other rows (deviation from their
-    median over 1.4826 x their median absolute deviation, floored at the reading's resolution) exceeds
-    ``BOUNDARY_OUTLIER_Z``; it is replaced by the median of the other rows and reported.
-    """
-    out = {k: np.full(n, np.nan) for k in ("p_amb_Pa", "T_amb_K", "dp_ex_Pa")}
-    outliers: list[dict] = []
-    for h, q in column_quantity.items():
-        if column_role.get(h) != "boundary" or q not in _BOUNDARY_KEY:
-            continue
-        spec = column_spec[h]
-        si = spec.to_si(raw[h], 0.0) if spec.gauge else spec.to_si(raw[h])
-        key = _BOUNDARY_KEY[q]
-        fin = np.flatnonzero(np.isfinite(si))
-        clean = si.copy()
-        if fin.size >= 4:
-            for i in fin:
-                others = si[np.setdiff1d(fin, [i])]
-                med = float(np.median(others))
-                scale = max(1.4826 * float(np.median(np.abs(others - med))), _BOUNDARY_FLOOR.get(q, 0.0))
-                z = abs(si[i] - med) / scale if scale > 0 else math.inf
-                if z > BOUNDARY_OUTLIER_Z:
-                    clean[i] = med
-                    outliers.append({"column": h, "row": int(i) + 1, "value": float(raw[h][i]),
-                                     "replacement": float(spec.from_si(med, 0.0) if spec.gauge else spec.from_si(med)),
-                                     "robust_z": float(z)})
-                    warn(f"boundary reading {raw[h][i]:g} is {z:.0f} robust standard deviations from the other rows' "
-                         f"median {spec.from_si(med, 0.0) if spec.gauge else spec.from_si(med):g}: a recording error; "
-                         "left out, the row runs at that median", rows=(int(i) + 1,), column=h)
-        out[key] = clean
-    return out, outliers
-
-
-def _groups(raw, column_quantity, column_role, column_spec, n, p_amb, warn) -> dict[str, dict[str, Any]]:
-    """Per-cylinder groups: members, the engine-mean column, the per-row spread (sample standard deviation
-    of the members, in the mean column's units) and the member count; checks the recorded mean."""
-    out: dict[str, dict[str, Any]] = {}
-    for h, role in column_role.items():
-        if role != "member":
-            continue
-        g = column_spec[h].group
-        out.setdefault(g, {"columns": [], "quantity": column_quantity[h]})["columns"].append(h)
-    for g, d in out.items():
-        mean_col = next((c for c, q in column_quantity.items()
-                         if q == d["quantity"] and column_role.get(c) != "member"), None)
-        members = np.column_stack([column_spec[c].to_si(raw[c], p_amb) for c in d["columns"]])
-        cnt = np.sum(np.isfinite(members), axis=1)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            mean_si = np.nanmean(members, axis=1)
-            spread_si = np.nanstd(members, axis=1, ddof=1)
-        spread_si = np.where(cnt >= 2, spread_si, np.nan)
-        d["mean_column"] = mean_col
-        d["n"] = cnt
-        if mean_col is not None:
-            spec = column_spec[mean_col]
-            d["spread"] = spread_si / spec.scale
-            rec = spec.to_si(raw[mean_col], p_amb)
-            dev = np.abs(rec - mean_si)
-            bad = np.isfinite(dev) & (dev > np.maximum(0.01 * np.abs(mean_si) if QUANTITIES[d["quantity"]].kind != "temperature"
-                                                       else 2.0, 1e-9))
-            if np.any(bad):
-                warn(f"the recorded mean differs from the mean of {', '.join(d['columns'])} (kept as recorded)",
-                     rows=_rows_where(bad), column=mean_col)
-        else:
-            d["spread"] = spread_si
-            warn(f"per-cylinder group {g!r} has no engine-mean column: its members are listed, not compared",
-                 column=d["columns"][0])
-    return out
-
-
-def _rows_where(mask) -> list[int]:
-    return [int(i) + 1 for i in np.flatnonzero(mask)]
-
-
-def _check_values(raw, values, column_quantity, p: EngineParams, rated, ambient, engines, err, warn) -> None:
-    """Envelope (errors) and plausibility (warnings) of every value, one problem per column and kind."""
-    n_nom = p.n_nom_rev_s
-    for col, q in column_quantity.items():
-        v = values[q]
-        fin = np.isfinite(v)
-        kind = QUANTITIES[q].kind
-
-        def flag(mask, msg, f=err):
-            rows = _rows_where(mask & fin)
-            if rows:
-                f(msg, rows=rows, column=col)
-
-        if q == "load_fraction":
-            flag(v < 0, "negative load fraction")
-            flag(v > ENVELOPE["load_fraction_max"],
-                 f"load fraction above {ENVELOPE['load_fraction_max']} (outside the engine envelope)")
-        elif q == "engine_speed_rev_s":
-            flag(v <= 0, "speed not positive")
-            flag(v > ENVELOPE["speed_max_rel"] * n_nom,
-                 f"speed above {ENVELOPE['speed_max_rel']} x nominal ({ENVELOPE['speed_max_rel'] * n_nom * 60:g} rpm;"
-                 " outside the engine envelope)")
-            flag((v > 0) & (v < 0.2 * n_nom), "speed below 0.2 x nominal (suspicious, kept)", warn)
-        elif q == "power_W":
-            flag(v < 0, "negative power")
-            flag(v > ENVELOPE["power_max_rel"] * rated,
-                 f"power above {ENVELOPE['power_max_rel']} x rated ({ENVELOPE['power_max_rel'] * rated / 1e3:g} kW;"
-                 " outside the engine envelope)")
-        elif q == "fuel_setting":
-            flag((v < 0) | (v > ENVELOPE["fuel_setting_max"]), f"fuel setting outside [0, {ENVELOPE['fuel_setting_max']}]")
-        elif q in ("exhaust_back_pressure_Pa", "cooler_pressure_drop_Pa"):
-            flag(v < -5e3, "pressure difference below -50 mbar (suspicious, kept)", warn)
-            flag(v > 1e5, "pressure difference above 1 bar (outside any engine's exhaust or cooler)")
-        elif q == "ambient_pressure_Pa":
-            flag(v <= 0, "ambient pressure not positive")
-            flag((v > 0) & ((v < 850e2) | (v > 1100e2)), "ambient pressure outside [850, 1100] hPa (suspicious, kept)",
-                 warn)
-        elif q == "ambient_temperature_K":
-            flag(v < 0, "temperature below absolute zero")
-            flag((v >= 0) & ((v < 243.15) | (v > 333.15)), "intake temperature outside [-30, 60] C (suspicious, kept)",
-                 warn)
-        elif q == "relative_humidity":
-            flag((v < 0) | (v > 1), "relative humidity outside [0, 100] %")
-        elif q.endswith("_Pa"):
-            spec = lookup_column(col)
-            flag(v <= 0, "negative absolute pressure" + (" (gauge reading below -ambient)" if spec.gauge else ""))
-            if spec.gauge:
-                flag((v > 0) & (raw[col] < 0), "gauge pressure below ambient (suspicious, kept)", warn)
-            elif q == "charge_air_pressure_Pa":
-                flag((v > 0) & (v < 0.9 * ambient["p_amb_Pa"]), "charge-air pressure below ambient (suspicious, kept)",
-                     warn)
-        elif kind == "temperature":
-            flag(v < 0, "temperature below absolute zero")
-            flag((v >= 0) & ((v < 223.15) | (v > 1273.15)), "temperature outside [-50, 1000] C (suspicious, kept)", warn)
-        elif q == "sfc_kg_per_J":
-            flag(v <= 0, "specific fuel consumption not positive")
-            lo, hi = 150e-3 / 3.6e6, 400e-3 / 3.6e6
-            flag((v > 0) & ((v < lo) | (v > hi)), "SFC outside [150, 400] g/kWh (suspicious, kept)", warn)
-        elif q in ("fuel_mass_flow_kg_s", "air_mass_flow_kg_s", "exhaust_mass_flow_kg_s",
-                   "specific_air_flow_kg_per_J", "specific_exhaust_flow_kg_per_J", "torque_Nm"):
-            flag(v < 0, "negative value")
-            if q == "fuel_mass_flow_kg_s":
-                nominal = p.SFC_nom_kg_per_J * p.P_nom_W
-                flag(v > 1.4 * nominal, f"fuel flow above 1.4 x nominal ({1.4 * nominal * 3600:g} kg/h; suspicious, kept)",
-                     warn)
-        elif q in ("fuel_rack", "air_excess_ratio"):
-            flag(v < 0, "negative value")
-    # consistency of load fraction and power
-    if "load_fraction" in values and "power_W" in values and math.isfinite(rated):
-        lf, pw = values["load_fraction"], values["power_W"]
-        bad = np.isfinite(lf) & np.isfinite(pw) & (np.abs(pw / rated - lf) > 0.02)
-        if np.any(bad):
-            warn(f"load fraction and power / rated power ({rated / 1e3:g} kW) differ by more than 0.02 "
-                 "(suspicious, kept)", rows=_rows_where(bad), column=column_of(column_quantity, "load_fraction"))
-
-
-def column_of(column_quantity: Mapping[str, str], quantity: str) -> str | None:
-    for c, q in column_quantity.items():
-        if q == quantity:
-            return c
-    return None
-
-
-def _setpoint_columns(column_quantity) -> list[str]:
-    return [c for c, q in column_quantity.items() if q in SETPOINT_QUANTITIES]
-
-
-def _check_duplicates(raw, column_quantity, engines, err) -> None:
-    """Duplicate operating points: same engine and same set-point values (load, speed, power); without any
-    set-point column, identical rows."""
-    keys_cols = _setpoint_columns(column_quantity) or list(column_quantity)
-    if not keys_cols:
-        return
-    n = len(raw[keys_cols[0]])
-    groups: dict[tuple, list[int]] = {}
-    for i in range(n):
-        vals = tuple(raw[c][i] for c in keys_cols)
-        if any(not math.isfinite(v) for v in vals):
-            continue
-        key = ((engines[i] if engines is not None else None),) + tuple(round(v, 9) for v in vals)
-        groups.setdefault(key, []).append(i + 1)
-    for key, rws in groups.items():
-        if len(rws) > 1:
-            what = ", ".join(f"{c}={_fmt(v)}" for c, v in zip(keys_cols, key[1:]))
-            eng = f"engine {key[0]}, " if key[0] is not None else ""
-            err(f"duplicate operating point ({eng}{what})", rows=rws)
-
-
-def _check_across_engines(raw, column_quantity, engines, warn, suspect=None) -> None:
-    """With three or more engines at the same set point, a value far from the others' median is suspicious."""
-    if engines is None or len(set(engines)) < 3:
-        return
-    keys_cols = _setpoint_columns(column_quantity)
-    if not keys_cols:
-        return
-    n = len(engines)
-    groups: dict[tuple, list[int]] = {}
-    for i in range(n):
-        vals = tuple(raw[c][i] for c in keys_cols)
-        if all(math.isfinite(v) for v in vals):
-            groups.setdefault(tuple(round(v, 6) for v in vals), []).append(i)
-    for col, q in column_quantity.items():
-        if col in keys_cols or QUANTITIES[q].kind == "index":
-            continue
-        temp = QUANTITIES[q].kind == "temperature"
-        for key, idx in groups.items():
-            x = raw[col][idx]
-            ok = np.isfinite(x)
-            if ok.sum() < 3:
-                continue
-            med = float(np.median(x[ok]))
-            for i, xi in zip(idx, x):
-                if not math.isfinite(xi):
-                    continue
-                dev = abs(xi - med)
-                if (temp and dev > 25.0) or (not temp and dev > 0.25 * abs(med) and dev > 1e-12):
-                    others = ", ".join(f"{engines[k]}: {_fmt(raw[col][k])}" for k in idx if k != i)
-                    warn(f"engine {engines[i]} reads {_fmt(xi)} where the other engines at the same set point read "
-                         f"{others} (suspicious, kept)", rows=(i + 1,), column=col)
-                    if suspect is not None:
-                        suspect.append({"row": i + 1, "column": col, "value": float(xi), "median_of_others": med,
-                                        "why": "far from the other engines at the same set point"})
+    boundary["p_ex_Pa"] = np.broadcast_to(ambient["p_amb_Pa"], (n,)) + boundary.pop("dp_ex_Pa")  # NaN where not recorded
+    return ambient, rated, boundary, b_outliers
 
 
 # --------------------------------------------------------------------------------------- writer
