@@ -125,3 +125,27 @@ def test_the_family_scan_holds_its_level_and_knowing_less_costs_power():
     scan = eb.family_scan_rate(e, reading, sd, x, alpha, rng)
     floored = eb.family_scan_rate(e, reading, np.maximum(sd, 0.03), x, alpha, rng)
     assert 0.2 < floored < scan < oracle < 1.0
+
+
+def test_pooled_rows_by_size_split_the_pooled_trials(tmp_path):
+    """With several files the command also pools by the study's size bins: each effect in the bin of its own
+    recorded size, the bins together the pooled trials, each bin's pipeline rate its trials' hits."""
+    from marine_fdi_env.validation.study_pool import size_bin
+
+    files = []
+    for name in ("open_world_study_seeds_120_140.json", "open_world_study_seeds_140_160.json"):
+        trials = json.loads((DOCS / name).read_text())["trials"]
+        e = [r for r in trials if r["condition"] == "e" and not r["control"]][:4]
+        files.append(tmp_path / name)
+        files[-1].write_text(json.dumps({"trials": e}))
+    out = tmp_path / "b.json"
+    assert eb.main(["--study", *map(str, files), "--out", str(out)]) == 0
+    res = json.loads(out.read_text())
+    every = [t for f in files for t in res[str(f)]["trials"]]
+    assert all(t["size_bin"] == size_bin(t["beyond_calibration"]) for t in every)
+    by_size = res["pooled_by_size"]
+    assert sum(v["n_trials"] for v in by_size.values()) == res["pooled"]["summary"]["n_trials"] == 8
+    for lab, v in by_size.items():
+        mine = [t for t in every if t["size_bin"] == lab]
+        assert v["n_trials"] == len(mine) > 0
+        assert v["pipeline_rate"] == pytest.approx(sum(t["pipeline_hit"] for t in mine) / len(mine))

@@ -128,3 +128,38 @@ def test_the_study_command_and_its_pool_run_from_the_study_module_and_the_old_co
         old = run("marine_fdi_env.validation.synthesize", sub, "--seeds", "0:1")
         assert old.returncode == 2
         assert "python -m marine_fdi_env.validation.study" in old.stderr
+
+
+def test_e_by_size_adds_up_to_each_files_own_size_summary():
+    """The pooled (e) rate per effect size counts the same trials as each study file's own binned summary, and the
+    bins together are the (e) row."""
+    files = sorted(FIG.glob("open_world_study_seeds_*_*.json"))
+    res = pool(load_trials(files))["conditions"]["e"]
+    sizes = res["by_size"]
+    assert list(sizes) == ["0-3", "3-5", ">=5"]
+    for i, f in enumerate(files):
+        own = json.loads(f.read_text())["conditions"]["e"]["unexplained_by_size_beyond_calibration"]
+        assert {lab: "{}/{}".format(*r["per_file"][i]) for lab, r in sizes.items()} == own
+    for j in (0, 1):
+        assert sum(r["pooled"][("k", "n")[j]] for r in sizes.values()) == res["pooled"][("k", "n")[j]]
+
+
+def test_size_bins_are_half_open_and_refuse_a_negative_size():
+    from marine_fdi_env.validation.study_pool import size_bin
+
+    assert [size_bin(x) for x in (0.0, 2.999, 3.0, 4.999, 5.0, 1e9)] == ["0-3", "0-3", "3-5", "3-5", ">=5", ">=5"]
+    with pytest.raises(ValueError):
+        size_bin(-0.1)
+    with pytest.raises(ValueError):
+        size_bin(float("nan"))
+
+
+def test_e_by_size_leaves_out_trials_without_a_size(tmp_path):
+    trials = [dict(_trial("e", s, s % 2 == 0), effect_size={"beyond_calibration": float(s)}) for s in range(8)]
+    trials.append(_trial("e", 8, True))  # written before sizes were recorded
+    res = pool(load_trials([_write(tmp_path, "e.json", trials)]))["conditions"]["e"]
+    assert res["pooled"]["n"] == 9
+    assert {lab: r["per_file"][0] for lab, r in res["by_size"].items()} == {
+        "0-3": [2, 3], "3-5": [1, 2], ">=5": [1, 3]}
+    md = pool_markdown(pool(load_trials([_write(tmp_path, "e2.json", trials)])))
+    assert "| (e) unexplained on the right channel, >=5 tolerances beyond a calibration | 1/3 |" in md

@@ -38,8 +38,9 @@ tolerance``): the pipeline takes a channel's noise to be at least its tolerance 
 noise is smaller (a 45 °C reading: 0.45 K) the first two references exploit what the pipeline by design does not.
 
 ``python -m marine_fdi_env.validation.effect_bound --study FILE.json [FILE.json ...] [--out OUT.json]
-[--plot OUT.png]`` re-draws
-each (e) trial's data from its seed (no pipeline run; seconds) and prints the table of docs/validation.md.
+[--plot OUT.png]`` re-draws each (e) trial's data from its seed (no pipeline run; seconds) and prints the table of
+docs/validation.md: per file, pooled, and pooled by the study's size bins (how much of the effect a sensor's gain and
+offset leave, :data:`~.study_pool.SIZE_BINS`; ``pooled_by_size`` in the JSON).
 """
 
 from __future__ import annotations
@@ -55,6 +56,7 @@ import numpy as np
 from scipy import optimize, stats
 
 from .calibration_scan import orthonormal_directions
+from .study_pool import SIZE_BINS, size_bin
 
 __all__ = ["separation", "oracle_rate", "family_scan_rate", "shape_family", "trial_bound", "bound", "summarise",
            "scale_for", "plot", "LEVELS", "main"]
@@ -158,6 +160,9 @@ def trial_bound(result: Mapping[str, Any]) -> dict[str, Any]:
     out = {"seed": int(result["seed"]), "channel": c, "kind": eff["kind"], "z": z, "n_channels": n_ch,
            "tolerance": tol,
            "pipeline_hit": bool(result.get("unexplained_right_channel"))}
+    if "effect_size" in result:  # the study's own size: what a gain and an offset leave, in tolerances
+        out["beyond_calibration"] = float(result["effect_size"]["beyond_calibration"])
+        out["size_bin"] = size_bin(out["beyond_calibration"])
     rng = np.random.default_rng([int(result["seed"]), 7919, 5])
     loads = syn.settings["loads"]
     sd = syn.noise_sd(c)
@@ -305,9 +310,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         rows.append((label, b["summary"]))
         out[str(f)] = b
     if len(rows) > 1:
-        pooled = summarise([t for b in out.values() for t in b["trials"]], args.target)
+        every = [t for b in out.values() for t in b["trials"]]
+        pooled = summarise(every, args.target)
         rows.append(("pooled", pooled))
         out["pooled"] = {"summary": pooled}
+        by_size = {lab: summarise(mine, args.target) for lab in (size_bin(x) for x in (0.0,) + SIZE_BINS)
+                   if (mine := [t for t in every if t.get("size_bin") == lab])}
+        rows += [(f"pooled, {lab} tolerances beyond a calibration", v) for lab, v in by_size.items()]
+        out["pooled_by_size"] = by_size
     print(_table(rows))
     if args.out:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)

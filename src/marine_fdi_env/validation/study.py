@@ -23,6 +23,7 @@ import numpy as np
 
 from .evidence import BESIDE_VALVE_DEFAULT
 from .mechanisms import MECHANISM_IDS, equivalents
+from .study_pool import SIZE_BINS
 from .synthesize import DEFAULT_COLUMNS, FAMILIES, Synthesis, draw_effect, effect_region, synthesize
 
 __all__ = ["CONDITIONS", "SIZE_BINS", "TOLERANCE_MODES", "effect_size", "loaded", "noise_tolerances", "study",
@@ -52,10 +53,6 @@ def effect_size(added: Sequence[float], reading: Sequence[float], tol: float) ->
     left = e - A @ np.linalg.lstsq(A, e, rcond=None)[0]
     return {"rms": float(np.sqrt(np.mean(e ** 2)) / tol), "norm": float(np.linalg.norm(e) / tol),
             "beyond_calibration": float(np.linalg.norm(left) / tol)}
-
-
-#: bins of :func:`effect_size`'s ``beyond_calibration`` in the study summary (tolerances)
-SIZE_BINS = (3.0, 5.0)
 
 
 def _draw_mechanisms(rng: np.random.Generator, n: int) -> list[str]:

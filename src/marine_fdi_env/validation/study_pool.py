@@ -12,16 +12,20 @@ Targets: identification (the exact set of named causes) >= 95 % in (a), (b), (c)
 (d); the out-of-library effect reported unexplained on its channel >= 90 % in (e); negative controls naming a
 cause <= 5 % in every condition.
 
-Also pooled, not a target of the issue: the controls with a *local* unexplained finding (a window, step or kink on
-some channel).  The pipeline reports those at a family-wise 5 % (:data:`~.unexplained.ALPHA_UNEXPLAINED`); where the
-control's data are the model plus noise, (a) and (c), every such finding is a false alarm and the rate is held to
-that level (in (b), (d) and (e) the engine differs from the model by a few per cent, and a finding may be real).
+Also pooled, not targets of the issue: the (e) rate by effect size (what a gain and an offset of the reading leave
+of the effect, in tolerances, binned at :data:`SIZE_BINS`: the bins of the study's summary since 83ddd7b
+(2026-11-25), fixed with the first fresh range, before the others were run), and the controls with a *local*
+unexplained finding (a window, step or kink on some channel).  The pipeline reports those at a family-wise 5 %
+(:data:`~.unexplained.ALPHA_UNEXPLAINED`); where the control's data are the model plus noise, (a) and (c), every such
+finding is a false alarm and the rate is held to that level (in (b), (d) and (e) the engine differs from the model by
+a few per cent, and a finding may be real).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -30,7 +34,7 @@ import numpy as np
 
 from .binomial import proportion_ci95
 
-__all__ = ["TARGETS", "load_trials", "pool", "pool_markdown", "pool_plot", "pool_main"]
+__all__ = ["SIZE_BINS", "TARGETS", "load_trials", "pool", "pool_markdown", "pool_plot", "pool_main"]
 
 # condition -> (what counts, the bar, "min" (rate >= bar) or "max" (rate <= bar))
 TARGETS: dict[str, tuple[str, float, str]] = {
@@ -45,6 +49,18 @@ CONTROL_BAR = 0.05
 #: and is held to the pipeline's reporting level; the level itself (5 %, family-wise over the channels)
 NOISE_ONLY = ("a", "c")
 LOCAL_LEVEL = 0.05
+#: bins of an (e) effect's size beyond a sensor calibration (``effect_size.beyond_calibration`` of a trial, in
+#: tolerances; :func:`~.study.effect_size`): below 3, 3-5, 5 and above
+SIZE_BINS = (3.0, 5.0)
+
+
+def size_bin(beyond_calibration: float) -> str:
+    """The label of the :data:`SIZE_BINS` bin a size falls in ("0-3", "3-5", ">=5")."""
+    edges = (0.0,) + SIZE_BINS + (math.inf,)
+    for a, b in zip(edges[:-1], edges[1:]):
+        if a <= beyond_calibration < b:
+            return f"{a:g}-{b:g}" if math.isfinite(b) else f">={a:g}"
+    raise ValueError(f"effect size {beyond_calibration!r} is not a non-negative number")
 
 
 def load_trials(paths: Sequence[str | Path]) -> list[tuple[str, list[dict[str, Any]]]]:
@@ -108,10 +124,28 @@ def pool(files: Sequence[tuple[str, list[dict[str, Any]]]]) -> dict[str, Any]:
         kl, nl = (sum(x[i] for x in loc_per) for i in (0, 1))
         out["conditions"][c] = {
             "what": what, "per_file": per, "pooled": _verdict(k, n, bar, sense) if n else None,
+            **({"by_size": _by_size(files, bar)} if c == "e" else {}),
             "controls_per_file": ctl_per,
             "controls_pooled": _verdict(kc, nc, CONTROL_BAR, "max") if nc else None,
             "controls_local_per_file": loc_per,
             "controls_local_pooled": (_verdict(kl, nl, LOCAL_LEVEL, "max") | {"held": c in NOISE_ONLY}) if nl else None}
+    return out
+
+
+def _by_size(files: Sequence[tuple[str, list[dict[str, Any]]]], bar: float) -> dict[str, Any]:
+    """(e) hits per :data:`SIZE_BINS` bin, per file and pooled (trials without a recorded size are left out)."""
+    labels = [size_bin(x) for x in (0.0,) + SIZE_BINS]
+    per = {lab: [] for lab in labels}
+    for _, tr in files:
+        trials = [t for t in tr if t["condition"] == "e" and not t["control"] and t["outcome"] != "skipped"
+                  and "effect_size" in t]
+        for lab in labels:
+            mine = [t for t in trials if size_bin(t["effect_size"]["beyond_calibration"]) == lab]
+            per[lab].append([sum(map(_hit, mine)), len(mine)])
+    out = {}
+    for lab in labels:
+        k, n = (sum(x[i] for x in per[lab]) for i in (0, 1))
+        out[lab] = {"per_file": per[lab], "pooled": _verdict(k, n, bar, "min") if n else None}
     return out
 
 
@@ -149,6 +183,19 @@ def pool_markdown(res: Mapping[str, Any]) -> str:
                      " | ".join(f"{k}/{n}" for k, n in r["controls_local_per_file"]) + f" | {_cell(v)} | " +
                      (f"≤ {100 * v['bar']:.0f} % (level) | {'yes' if v['met'] else '**no**'} | {v['interval_says']} |"
                       if held else "– | – | – |"))
+    sizes = res["conditions"].get("e", {}).get("by_size")
+    if sizes:
+        lines += ["", "Not a target of the issue: (e) by how much of the effect a sensor's gain and offset leave at the "
+                  "measured points (`effect_size.beyond_calibration`, in tolerances; bins fixed in the study's summary "
+                  "since 83ddd7b, 2026-11-25). The issue's 90 % is shown for reference: it is stated for all effects, not per size.",
+                  "", head, lines[1]]
+        for lab, r in sizes.items():
+            v = r["pooled"]
+            if v is None:
+                continue
+            lines.append(f"| (e) unexplained on the right channel, {lab} tolerances beyond a calibration | " +
+                         " | ".join(f"{k}/{n}" for k, n in r["per_file"]) + f" | {_cell(v)} | "
+                         f"(≥ {100 * v['bar']:.0f} %) | {'yes' if v['met'] else 'no'} | {v['interval_says']} |")
     return "\n".join(lines)
 
 
