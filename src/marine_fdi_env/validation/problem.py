@@ -208,8 +208,8 @@ class Problem:
 
     def _groups(self, rows: np.ndarray) -> list[tuple[tuple[float, float, float], np.ndarray]]:
         """Rows grouped by their boundary conditions (cached per set of rows)."""
-        key = rows.tobytes()
-        hit = self._group_cache.get(key)
+        rows_key = rows.tobytes()
+        hit = self._group_cache.get(rows_key)
         if hit is not None:
             return hit
         b = self.boundary
@@ -218,7 +218,7 @@ class Problem:
             key = tuple(float(b[k][i]) if math.isfinite(b[k][i]) else None for k in ("p_amb_Pa", "T_amb_K", "p_ex_Pa"))
             groups.setdefault(key, []).append(int(i))
         out = [(tuple(math.nan if x is None else x for x in k), np.array(v, dtype=int)) for k, v in groups.items()]
-        self._group_cache[key] = out
+        self._group_cache[rows_key] = out  # until 2026-11-27 stored under the last group's key: it never hit
         return out
 
     def point_engine(self, setting: Setting, row: int) -> EngineParams:
