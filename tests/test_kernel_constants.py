@@ -45,3 +45,23 @@ def test_kernel_form_of_the_algebraic_solve_gives_the_same_numbers(sub):
             solve_algebraic(c, x1, x3, x4, pf, c.n_nom_rev_s, sweeps, a)
             _solve_algebraic(kc, csm, x1, x3, x4, pf, c.n_nom_rev_s, sweeps, b)
             assert np.array_equal(a, b, equal_nan=True), (u, sweeps)
+
+
+@pytest.mark.parametrize("name", ["thesis-12v28", "wartsila-6l46"])
+@pytest.mark.parametrize("sub", [None, ALL_ON], ids=["base", "all-submodels"])
+def test_constants_at_another_ambient_state_are_the_recomputed_ones_bit_for_bit(name, sub):
+    """A validation fit runs each measured row at its own ambient state from the engine's constants
+    (``constants_at_ambient``): every field must equal a full ``model_constants`` of the engine at that state, so
+    that a constant added later that depends on the ambient state fails here rather than bending fits."""
+    from marine_fdi_env.engine.constants import constants_at_ambient
+
+    p = load_params(name)
+    p = p if sub is None else p.replace(submodels=sub)
+    at = p.replace(validate=False, p_amb_Pa=p.p_amb_Pa * 1.0137, T_amb_K=p.T_amb_K + 11.3, p_ex_Pa=p.p_ex_Pa + 2417.0)
+    fast, full = constants_at_ambient(model_constants(p), at), model_constants(at)
+    assert type(fast) is ModelConstants
+    for f in ModelConstants._fields:
+        a, b = getattr(fast, f), getattr(full, f)
+        assert np.array_equal(a, b) if isinstance(b, np.ndarray) else (type(a) is type(b) and a == b), f
+    if sub is not None:  # the intercooler's nominal outlet temperature is the one derived constant that moves
+        assert fast.ic_tco_nom != model_constants(p).ic_tco_nom

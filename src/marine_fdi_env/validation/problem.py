@@ -25,7 +25,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from ..engine.constants import model_constants
+from ..engine.constants import constants_at_ambient, model_constants
 from ..engine.model import HEALTHY_PF, N_ALG
 from ..engine.operating_point import (LAW_PARAMS, MODE_F, MODE_P, MODE_U, Summary, power_of_speed, solve_raw,
                                speed_of_power)
@@ -273,11 +273,13 @@ class Problem:
         for j, name in enumerate(VALVES):
             if name in setting.valves:
                 ov_all[:, j] = np.asarray(setting.valves[name], float)
+        c_eng = model_constants(eng)
         for key, idx in self._groups(rows):
             p = self._at_boundary(eng, setting, key)
             mode, a0, a1, law = self._inputs(p, idx)
             y = self._state[idx]
-            a_, x_, ok = solve_raw(model_constants(p), mode, a0, np.asarray(a1, float), law, y, HEALTHY_PF,
+            c = c_eng if p is eng else constants_at_ambient(c_eng, p)  # = model_constants(p), cheaper
+            a_, x_, ok = solve_raw(c, mode, a0, np.asarray(a1, float), law, y, HEALTHY_PF,
                                    np.ascontiguousarray(ov_all[idx]))
             st = self._state[idx]
             st[ok] = y[ok]
