@@ -174,8 +174,9 @@ AMBIENT_FIELDS = ("p_amb_Pa", "T_amb_K", "p_ex_Pa")
 def constants_at_ambient(c: ModelConstants, p: EngineParams) -> ModelConstants:
     """``model_constants(p)`` from the constants ``c`` of an engine that differs from ``p`` in
     :data:`AMBIENT_FIELDS` only (a validation fit runs each measured row at its own ambient state, thousands of
-    times: rebuilding every constant per row cost a quarter of a fit).  The ambient fields are copied; of the derived
-    constants only the intercooler's nominal compressor outlet temperature depends on them, and is recomputed.
+    times: rebuilding every constant per row cost about a fifth of a protocol fit, ``benchmarks/validation.py``).
+    The ambient fields are copied; of the derived constants only the intercooler's nominal compressor outlet
+    temperature depends on them, and is recomputed.
     Equal to :func:`model_constants` field for field, bit for bit (tested for every submodel)."""
     ch = {k: float(getattr(p, k)) for k in AMBIENT_FIELDS}
     if c.ic_on != 0.0:
