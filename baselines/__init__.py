@@ -2,5 +2,5 @@
 sequential diagnoser.
 
 ``marine-fdi evaluate --agent null|random|reference|sequential|oracle`` loads them by name
-(:mod:`marine_fdi_env.envs.agent_api`).
+(:mod:`marine_fdi_env.benchmark.agent_api`).
 """

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from marine_fdi_env.diagnosis.certainty import derive_sure_cells, grid_magnitudes, replay_declarations
+from studies.diagnosis.certainty import derive_sure_cells, grid_magnitudes, replay_declarations
 from marine_fdi_env.diagnosis.decision import declared_faults
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
 from marine_fdi_env.diagnosis.sure_cells import SureCells, load_sure_cells

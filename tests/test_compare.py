@@ -1,4 +1,4 @@
-"""marine_fdi_env.training.compare's must-show rules: the censored median ("not reached" is worse than any number)
+"""studies.agents.compare's must-show rules: the censored median ("not reached" is worse than any number)
 and the paired median over the episodes both agents detect."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ import pytest
 
 pytest.importorskip("torch")
 
-import marine_fdi_env.training.compare as cmp  # noqa: E402
-from marine_fdi_env.envs.metrics import compute_metrics  # noqa: E402
+import studies.agents.compare as cmp  # noqa: E402
+from marine_fdi_env.benchmark.metrics import compute_metrics  # noqa: E402
 
 
 def _episode(sid: str, delay):

@@ -1,11 +1,11 @@
-"""The detection bounds of issue 13's seal-leak must-show (marine_fdi_env.diagnosis.detection_bound)."""
+"""The detection bounds of issue 13's seal-leak must-show (studies.diagnosis.detection_bound)."""
 
 import math
 
 import numpy as np
 import pytest
 
-from marine_fdi_env.diagnosis.detection_bound import matched_filter, white_noise_threshold
+from studies.diagnosis.detection_bound import matched_filter, white_noise_threshold
 from marine_fdi_env.diagnosis.incipient_glr import glr_polynomial
 
 
@@ -76,7 +76,7 @@ def test_white_noise_threshold_is_seeded_and_grows_as_the_budget_shrinks():
 
 
 def test_recorded_threshold_keeps_the_margin_over_the_largest_peak():
-    from marine_fdi_env.diagnosis.detection_bound import recorded_threshold
+    from studies.diagnosis.detection_bound import recorded_threshold
 
     rng = np.random.default_rng(6)
     p = rng.standard_normal((200, 120))

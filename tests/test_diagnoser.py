@@ -209,7 +209,7 @@ def test_linearised_perturbed_speeds_match_full_solves():
 def test_decision_bookkeeping_equals_feeding_every_violating_row():
     # observe() only feeds the decision logic the rows that fire a new module or pass a grace
     # expiry; the outcome must equal feeding every violating row (the reference loop)
-    from marine_fdi_env.diagnosis.certainty import grace_times, settle_times, sure_cells
+    from studies.diagnosis.certainty import grace_times, settle_times, sure_cells
     from marine_fdi_env.diagnosis.decision import DiagnosisState
 
     res = Simulator("thesis-12v28", 3, seeds=31, faults=[["S4.2@2"], ["S2.2@1", "S3.3@4"], []]).run(40.0)
@@ -240,7 +240,7 @@ def test_turbine_seal_leak_at_table_magnitude_is_below_the_worst_case_threshold(
     # the documented reason the reference misses it (docs/diagnosis.md): at table 6.4 magnitude the
     # residual shift of M3.1/M3.2 in the last minute is ~1 % of their worst-case threshold, and it
     # grows linearly with the magnitude (φ_tur = β R s is linear in R)
-    from marine_fdi_env.diagnosis.kpis import seal_leak_snr
+    from studies.diagnosis.kpis import seal_leak_snr
 
     out = seal_leak_snr(3, multiples=(1.0, 16.0), profiles=("constant",))["result"]["constant"]
     one, big = out["1x"], out["16x"]
@@ -253,7 +253,7 @@ def test_turbine_seal_leak_at_table_magnitude_is_below_the_worst_case_threshold(
 def test_kpi_streaming_diagnosis_equals_diagnosing_a_recorded_run():
     # the KPI commands stream blocks from the simulator into the diagnoser (hour-long runs would not
     # fit in memory recorded); the reports must equal those of a recorded run diagnosed in one pass
-    from marine_fdi_env.diagnosis.kpis import PARAMS, diagnose_batch
+    from studies.diagnosis.kpis import PARAMS, diagnose_batch
 
     sch = [[FaultSpec("S3.4", 20.0)], [FaultSpec("bore_damage", 15.0)], [], [FaultSpec("valve_seizing", 20.0)]]
     got = diagnose_batch(sch, [5, 6, 7, 8], "manoeuvring", duration_s=60.0, block_samples=777)

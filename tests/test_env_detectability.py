@@ -60,7 +60,7 @@ def test_table_is_a_copy():
 def test_limit_separates_detected_from_undetected(fid):
     """Real diagnoser, one seed not used by the bisection: 2x the limit is detected within
     250 s of a 50 s onset, 0.25x is not (and nothing fires before the onset)."""
-    from marine_fdi_env.diagnosis.kpis import LIMIT_SENSOR_ONSET_S, diagnose_batch
+    from studies.diagnosis.kpis import LIMIT_SENSOR_ONSET_S, diagnose_batch
 
     lim = detectability_limit(fid)
     onset = LIMIT_SENSOR_ONSET_S
@@ -72,7 +72,7 @@ def test_limit_separates_detected_from_undetected(fid):
 
 def test_bisection_brackets_and_converges(monkeypatch):
     """The bracketing log-space bisection on a fake diagnoser with known thresholds."""
-    from marine_fdi_env.diagnosis import kpis
+    from studies.diagnosis import kpis
 
     thresholds = {"S4.1": 3000.0, "bore_damage": 2e-5, "turbine_seal_leak": math.inf}
     calls = []

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from marine_fdi_env.cli import main as cli_main
-from marine_fdi_env.envs.agent_api import BUILTIN_AGENTS, load_agent
-from marine_fdi_env.envs.evaluate import WALL_CLOCK_FIELDS, evaluate, run_episodes
+from marine_fdi_env.benchmark.agent_api import BUILTIN_AGENTS, load_agent
+from marine_fdi_env.benchmark.evaluate import WALL_CLOCK_FIELDS, evaluate, run_episodes
 from marine_fdi_env.envs.scenario_sampler import ScenarioSpec
-from marine_fdi_env.envs.suites import SUITE_NAMES, build_suite, load_suite
+from marine_fdi_env.benchmark.suites import SUITE_NAMES, build_suite, load_suite
 
 SCENARIOS = [
     ScenarioSpec(faults=("S4.2@6:6e4",), profile="constant", noise_seed=1, duration_s=20.0, scenario_id="s42"),

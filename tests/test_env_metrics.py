@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from marine_fdi_env.envs.metrics import compute_metrics, episode_outcome, validate_record
+from marine_fdi_env.benchmark.metrics import compute_metrics, episode_outcome, validate_record
 
 
 def fault(fid: str, onset: float, end: float | None = None) -> dict:

@@ -7,8 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from marine_fdi_env.envs.metrics import compute_metrics
-from marine_fdi_env.envs.report import (agent_sort_key, load_results, markdown_table, report_main,
+from marine_fdi_env.benchmark.metrics import compute_metrics
+from marine_fdi_env.cli.report import report_main
+from marine_fdi_env.benchmark.report import (agent_sort_key, load_results, markdown_table,
                                         write_report)
 
 

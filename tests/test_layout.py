@@ -24,8 +24,8 @@ AGENTS = ("reference", "random", "classifier+reference")
 
 
 def _records(agent: str, suite: str, idx, tmp: Path) -> list[dict]:
-    from marine_fdi_env.envs.evaluate import WALL_CLOCK_FIELDS, evaluate
-    from marine_fdi_env.envs.suites import load_suite
+    from marine_fdi_env.benchmark.evaluate import WALL_CLOCK_FIELDS, evaluate
+    from marine_fdi_env.benchmark.suites import load_suite
 
     sc = load_suite(suite).scenarios
     f = tmp / f"{suite}-subset.json"  # same suite name: records compare as the suite's
@@ -74,7 +74,7 @@ def test_info_imports_finds_no_circle_and_no_backward_import():
                          text=True, cwd=ROOT.parent)
     assert out.returncode == 0, out.stdout + out.stderr
     assert "no import circle, no backward import between layers" in out.stdout
-    from marine_fdi_env.info import layer_of, package_modules
+    from marine_fdi_env.layers import layer_of, package_modules
 
     mods = package_modules()
     for name in ("marine_fdi_env.engine.simulator", "marine_fdi_env.engine.subsystems.gas_path",
@@ -86,8 +86,9 @@ def test_info_imports_finds_no_circle_and_no_backward_import():
 
 def test_info_imports_reports_circles_and_backward_imports(tmp_path):
     """The check can fail: a module-level circle, a circle through a function-level import, a
-    diagnosis module reaching the environments and an import of the CLI are all reported."""
-    from marine_fdi_env.info import check_imports, print_imports
+    diagnosis module reaching the environments, an import of the CLI and an import of the repository's
+    studies are all reported."""
+    from marine_fdi_env.layers import check_imports, print_imports
 
     src = {
         "marine_fdi_env.engine.a": "from marine_fdi_env.engine import b\n",
@@ -96,6 +97,7 @@ def test_info_imports_reports_circles_and_backward_imports(tmp_path):
         "marine_fdi_env.envs.e": "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from ..diagnosis import d\n"
                                  "def g():\n    from marine_fdi_env import cli\n",
         "marine_fdi_env.cli": "",
+        "marine_fdi_env.benchmark.s": "def h():\n    from studies.validation.study import trial\n",
     }
     mods = {}
     for name, text in src.items():
@@ -107,14 +109,16 @@ def test_info_imports_reports_circles_and_backward_imports(tmp_path):
     back = {(e.importer, e.imported) for e in res["backward"]}
     assert back == {("marine_fdi_env.diagnosis.d", "marine_fdi_env.envs.e"),
                     ("marine_fdi_env.envs.e", "marine_fdi_env.cli")}  # not the TYPE_CHECKING import
+    assert [(e.importer, e.imported) for e in res["studies"]] == [("marine_fdi_env.benchmark.s",
+                                                                   "studies.validation.study")]
     assert print_imports(res, file=open(tmp_path / "out.txt", "w")) == 1
 
 
 def test_agents_and_models_are_named_under_the_namespace(tmp_path):
     """Built-in agents, shipped model folders and the models package are under marine_fdi_env;
     an agent.json with a pre-move class name fails with the new spelling in the message."""
-    from marine_fdi_env.envs.agent_api import BUILTIN_AGENTS, load_agent
-    from marine_fdi_env.envs.agent_registry import MODELS_PACKAGE, models_dir
+    from marine_fdi_env.benchmark.agent_api import BUILTIN_AGENTS, load_agent
+    from marine_fdi_env.benchmark.agent_registry import MODELS_PACKAGE, models_dir
 
     assert all(t.startswith("marine_fdi_env.baselines.") for t in BUILTIN_AGENTS.values())
     assert MODELS_PACKAGE == "marine_fdi_env.training"
@@ -125,7 +129,7 @@ def test_agents_and_models_are_named_under_the_namespace(tmp_path):
     (d / "agent.json").write_text(json.dumps({"class": "no_such_pkg_xyz.agents:SB3Agent", "kwargs": {}}))
     with pytest.raises(ValueError, match="cannot import 'no_such_pkg_xyz.agents'"):
         load_agent(str(d))
-    out = subprocess.run([sys.executable, "-c", "from marine_fdi_env.envs.agent_api import _import\n"
+    out = subprocess.run([sys.executable, "-c", "from marine_fdi_env.benchmark.agent_api import _import\n"
                           "_import('training.agents:SB3Agent', 'old/agent.json')"],
                          capture_output=True, text=True, cwd=tmp_path)  # outside the repository
     assert "write 'marine_fdi_env.training.agents:SB3Agent' in the agent.json" in out.stderr

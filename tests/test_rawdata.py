@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from marine_fdi_env.cli import main as cli_main
-from marine_fdi_env.envs.evaluate import evaluate
-from marine_fdi_env.envs.rawdata import OUTPUT_COLUMNS, belief_to_dx
-from marine_fdi_env.envs.rawscore import score_raw
-from marine_fdi_env.envs.suites import load_suite
+from marine_fdi_env.benchmark.evaluate import evaluate
+from marine_fdi_env.benchmark.rawdata import OUTPUT_COLUMNS, belief_to_dx
+from marine_fdi_env.benchmark.rawscore import score_raw
+from marine_fdi_env.benchmark.suites import load_suite
 from marine_fdi_env.engine.simulator import Simulator
 
 from test_env_evaluate import SCENARIOS

@@ -13,7 +13,7 @@ What is not run, and why:
 * ``python -m pip install ...`` (the install CI has just done) and ``python -m pytest ...`` (this
   test suite);
 * commands in running text (backticks outside code blocks): synopses with placeholders such as
-  ``--data FILE.csv`` and the 20-minute ``python -m marine_fdi_env.training.compare``.
+  ``--data FILE.csv`` and the 20-minute ``python -m studies.agents.compare``.
 
 To keep the test within about a minute in CI, the arguments below are substituted (nothing
 else is changed):
@@ -40,7 +40,7 @@ from importlib import metadata
 from pathlib import Path
 
 from marine_fdi_env.cli import main as cli_main
-from marine_fdi_env.envs.suites import SUITE_NAMES, load_suite
+from marine_fdi_env.benchmark.suites import SUITE_NAMES, load_suite
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 import marine_fdi_env  # noqa: F401  (registers the environments)
-from marine_fdi_env.envs.evaluate import run_episodes
+from marine_fdi_env.benchmark.evaluate import run_episodes
 from marine_fdi_env.envs.fdi_env import MarineFDIEnv
 from marine_fdi_env.envs.hypotheses import one_hot
-from marine_fdi_env.envs.metrics import episode_outcome
+from marine_fdi_env.benchmark.metrics import episode_outcome
 from marine_fdi_env.envs.reward import (REWARD_TERMS_V1, RewardConfig, RewardConfigV1, make_reward_config,
                                         score_record_v1, score_records_v1)
 from marine_fdi_env.envs.scenario_sampler import ScenarioConfig, ScenarioSpec

@@ -11,9 +11,9 @@ import pytest
 torch = pytest.importorskip("torch")
 pytest.importorskip("stable_baselines3")
 
-from marine_fdi_env.envs.agent_api import load_agent  # noqa: E402
-from marine_fdi_env.envs.dataset import export_dataset  # noqa: E402
-from marine_fdi_env.envs.evaluate import run_episodes  # noqa: E402
+from marine_fdi_env.benchmark.agent_api import load_agent  # noqa: E402
+from marine_fdi_env.benchmark.dataset import export_dataset  # noqa: E402
+from marine_fdi_env.benchmark.evaluate import run_episodes  # noqa: E402
 from marine_fdi_env.envs.observation import feature_names  # noqa: E402
 from marine_fdi_env.envs.scenario_sampler import ScenarioConfig, ScenarioSpec  # noqa: E402
 from marine_fdi_env.envs.vector import MarineFDIVectorEnv  # noqa: E402
@@ -92,7 +92,7 @@ def test_agent_features_are_causal_and_restart_per_episode(recorded):
 def test_tiny_replay_ppo_is_seeded_and_runs_as_an_agent(tmp_path, monkeypatch):
     import marine_fdi_env.training.datasets as ds
     from marine_fdi_env.training.rl import train_ppo_replay
-    from marine_fdi_env.training.train import _save_meta, load_hyperparams
+    from marine_fdi_env.training.train import save_meta, load_hyperparams
 
     monkeypatch.setattr(ds, "CACHE", tmp_path / "cache")
     short = {"name": "short", "duration_s": 12.0, "onset_range_s": [2.0, 5.0], "second_onset_gap_s": [0.0, 2.0]}
@@ -105,7 +105,7 @@ def test_tiny_replay_ppo_is_seeded_and_runs_as_an_agent(tmp_path, monkeypatch):
         assert torch.equal(a, b)
     assert cfg["env_id"] == "MarineFDI-v1" and cfg["validation_episodes"] == 2 and cfg["cpu_s_data"] > 0
     assert (tmp_path / "a" / "learning_curve.csv").is_file()
-    _save_meta(tmp_path / "a", dict(cfg, command="test"), "marine_fdi_env.training.agents:SB3Agent")
+    save_meta(tmp_path / "a", dict(cfg, command="test"), "marine_fdi_env.training.agents:SB3Agent")
     agent = load_agent(str(tmp_path / "a"))
     sc = ScenarioConfig.from_dict({k: tuple(v) if isinstance(v, list) else v for k, v in short.items()})
     rec = run_episodes(agent, [sc.sample(9, scenario_id="x")], {"reward": "v1"})[0]

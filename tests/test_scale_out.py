@@ -14,15 +14,15 @@ import numpy as np
 import pytest
 
 from marine_fdi_env.cli import main as cli_main
-from marine_fdi_env.envs import agent_registry
-from marine_fdi_env.envs.agent_api import load_agent
-from marine_fdi_env.envs.cliutil import prepare_out
-from marine_fdi_env.envs.dataset import load_dataset
-from marine_fdi_env.envs.evaluate import WALL_CLOCK_FIELDS, WALL_CLOCK_METRICS, evaluate
-from marine_fdi_env.envs.metrics import compute_metrics
-from marine_fdi_env.envs.records import read_records, read_results_parquet
-from marine_fdi_env.envs.suites import load_suite
-from marine_fdi_env.envs.sweep import run_sweep
+from marine_fdi_env.benchmark import agent_registry
+from marine_fdi_env.benchmark.agent_api import load_agent
+from marine_fdi_env.outputs import prepare_out
+from marine_fdi_env.benchmark.dataset import load_dataset
+from marine_fdi_env.benchmark.evaluate import WALL_CLOCK_FIELDS, WALL_CLOCK_METRICS, evaluate
+from marine_fdi_env.benchmark.metrics import compute_metrics
+from marine_fdi_env.benchmark.records import read_records, read_results_parquet
+from marine_fdi_env.benchmark.suites import load_suite
+from marine_fdi_env.benchmark.sweep import run_sweep
 
 from test_env_evaluate import SCENARIOS
 
@@ -143,7 +143,7 @@ def test_dataset_parquet_and_npz_give_the_same_arrays(tiny, tmp_path):
 
 
 def test_interrupted_dataset_export_resumes_from_kept_chunks(tiny, tmp_path):
-    from marine_fdi_env.envs import dataset as ds
+    from marine_fdi_env.benchmark import dataset as ds
 
     full = load_dataset(ds.export_dataset(load_suite(str(tiny)).scenarios, tmp_path / "full", {}, batch_size=1,
                                           progress=False))

@@ -11,7 +11,7 @@ from marine_fdi_env.diagnosis.batch import diagnose_batch
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
 from marine_fdi_env.diagnosis.sequential import (SEQUENTIAL_FEATURES, SequentialCalibration, SequentialDiagnoser,
                                                  cusum_blocks, load_calibration)
-from marine_fdi_env.diagnosis.sequential_calibration import cusum_offline, profile_for
+from studies.diagnosis.sequential_calibration import cusum_offline, profile_for
 from marine_fdi_env.engine.faults import FaultSpec
 from marine_fdi_env.engine.simulator import Simulator
 
@@ -109,9 +109,9 @@ def test_environment_option_keeps_the_default_observation():
 
 
 def test_evaluate_runs_the_sequential_agent_with_its_environment_option():
-    from marine_fdi_env.envs.agent_api import load_agent
-    from marine_fdi_env.envs.evaluate import run_episodes
-    from marine_fdi_env.envs.suites import load_suite
+    from marine_fdi_env.benchmark.agent_api import load_agent
+    from marine_fdi_env.benchmark.evaluate import run_episodes
+    from marine_fdi_env.benchmark.suites import load_suite
 
     agent = load_agent("sequential")
     assert agent.env_kwargs == {"observe_sequential": True}

@@ -11,7 +11,7 @@ import pytest
 pytest.importorskip("torch")
 pytest.importorskip("stable_baselines3")
 
-from marine_fdi_env.envs.agent_api import load_agent  # noqa: E402
+from marine_fdi_env.benchmark.agent_api import load_agent  # noqa: E402
 from marine_fdi_env.envs.reward import RewardConfigV1  # noqa: E402
 
 MODELS = Path(__file__).resolve().parent.parent / "training" / "models"

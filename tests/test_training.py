@@ -12,14 +12,14 @@ import pytest
 torch = pytest.importorskip("torch")
 pytest.importorskip("stable_baselines3")
 
-from marine_fdi_env.envs.agent_api import load_agent  # noqa: E402
-from marine_fdi_env.envs.evaluate import run_episodes  # noqa: E402
+from marine_fdi_env.benchmark.agent_api import load_agent  # noqa: E402
+from marine_fdi_env.benchmark.evaluate import run_episodes  # noqa: E402
 from marine_fdi_env.envs.hypotheses import N_HYPOTHESES  # noqa: E402
 from marine_fdi_env.envs.observation import observation_size  # noqa: E402
 from marine_fdi_env.envs.scenario_sampler import ScenarioConfig  # noqa: E402
 from marine_fdi_env.training.agents import ClassifierAgent, SB3Agent  # noqa: E402
 from marine_fdi_env.training.classifier import calibrate_threshold, train_classifier  # noqa: E402
-from marine_fdi_env.training.train import _observation_meta, _save_meta, load_hyperparams, train_sb3  # noqa: E402
+from marine_fdi_env.training.train import _observation_meta, save_meta, load_hyperparams, train_sb3  # noqa: E402
 from marine_fdi_env.training.vec_adapter import SB3VecEnv, to_belief  # noqa: E402
 
 # fault-free 12 s episodes: no dependence on the detectability table, and episode ends happen
@@ -75,7 +75,7 @@ def test_recurrent_ppo_smoke_and_agent(tmp_path):
     hp = load_hyperparams("ppo_lstm", overrides=dict(TINY, policy_kwargs="dict(lstm_hidden_size=8)"))
     out = tmp_path / "lstm"
     _, cfg = train_sb3("ppo_lstm", 1, hp, out, log=None)
-    _save_meta(out, cfg, "marine_fdi_env.training.agents:SB3Agent")
+    save_meta(out, cfg, "marine_fdi_env.training.agents:SB3Agent")
     agent = load_agent(str(out))
     assert isinstance(agent, SB3Agent)
     recs = run_episodes(agent, [ScenarioConfig.from_dict(SHORT).sample(5, scenario_id="x")])
@@ -86,7 +86,7 @@ def test_frame_stacked_ppo_agent(tmp_path):
     hp = load_hyperparams("ppo", overrides=dict(TINY, frame_stack=3, action_mode="box"))
     out = tmp_path / "fs"
     _, cfg = train_sb3("ppo", 2, hp, out, log=None)
-    _save_meta(out, cfg, "marine_fdi_env.training.agents:SB3Agent")
+    save_meta(out, cfg, "marine_fdi_env.training.agents:SB3Agent")
     agent = load_agent(str(out))
     assert agent.frame_stack == 3 and agent.model.observation_space.shape == (3 * NF,)
     rec = run_episodes(agent, [ScenarioConfig.from_dict(SHORT).sample(6, scenario_id="y")])[0]
@@ -105,7 +105,7 @@ def test_reference_features_from_infos_and_ppo_agent_reading_them(tmp_path):
     hp = load_hyperparams("ppo", overrides=dict(TINY, reference_features=True))
     out = tmp_path / "ref"
     _, cfg = train_sb3("ppo", 4, hp, out, log=None)
-    _save_meta(out, cfg, "marine_fdi_env.training.agents:SB3Agent")
+    save_meta(out, cfg, "marine_fdi_env.training.agents:SB3Agent")
     agent = load_agent(str(out))
     assert agent.with_reference and agent.model.observation_space.shape == (NF + N_REFERENCE_FEATURES,)
     rec = run_episodes(agent, [ScenarioConfig.from_dict(SHORT).sample(8, scenario_id="r")])[0]
@@ -128,7 +128,7 @@ def _tiny_classifier(tmp_path) -> Path:
     cfg = {"name": "classifier", "algo": "classifier", "observation": _observation_meta(),
            "architecture": {"kind": "gru", "n_features": NF, "hidden": 8, "embed": 8},
            "declaration": {"alarm_threshold": 0.99, "isolation_threshold": 0.5}}
-    _save_meta(out, cfg, "marine_fdi_env.training.agents:ClassifierAgent")
+    save_meta(out, cfg, "marine_fdi_env.training.agents:ClassifierAgent")
     return out
 
 
@@ -174,7 +174,7 @@ def test_model_loading_errors(tmp_path):
     # missing / corrupt SB3 archive
     bad = tmp_path / "sb3"
     bad.mkdir()
-    _save_meta(bad, {"algo": "ppo", "action_mode": "discrete", "observation": _observation_meta()},
+    save_meta(bad, {"algo": "ppo", "action_mode": "discrete", "observation": _observation_meta()},
                "marine_fdi_env.training.agents:SB3Agent")
     with pytest.raises(ValueError, match=r"model\.zip: missing"):
         load_agent(str(bad))
@@ -198,10 +198,9 @@ def test_shipped_models_load(name):
                                                                        "diagnoses": [[], []]}})
     assert b.shape == (2, N_HYPOTHESES)
     cfg = json.loads((d / "config.json").read_text())
-    # the command recorded when the shipped model was made: before training/ moved under the namespace
-    # (issue 15) `python -m training.train`, today's spelling `python -m marine_fdi_env.training.train`
-    # (the PPO model was remeasured with it, the same weights)
-    assert cfg["command"].split(" --")[0] in ("python -m training.train", "python -m marine_fdi_env.training.train")
+    # the command recorded when the shipped model was made (older spellings of `marine-fdi train`)
+    assert cfg["command"].split(" --")[0] in ("python -m training.train", "python -m marine_fdi_env.training.train",
+                                              "marine-fdi train")
 
 
 def test_classifier_ewma_inputs_streaming_equals_episode():

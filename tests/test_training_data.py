@@ -11,7 +11,7 @@ import yaml
 
 pytest.importorskip("torch")
 
-from marine_fdi_env.envs.suites import SUITE_NAMES, load_suite  # noqa: E402
+from marine_fdi_env.benchmark.suites import SUITE_NAMES, load_suite  # noqa: E402
 from marine_fdi_env.training.train import dataset_scenarios  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent

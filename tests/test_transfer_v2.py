@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 import yaml
 
-from marine_fdi_env.envs.evaluate import evaluate, run_episodes
+from marine_fdi_env.benchmark.evaluate import evaluate, run_episodes
 from marine_fdi_env.envs.scenario_sampler import (HELD_OUT_PROFILES, PRESETS, SAMPLER_PROFILES, ScenarioConfig,
                                                   ScenarioSpec)
-from marine_fdi_env.envs.suites import TRANSFER_V2_NOISE_SCALE, load_suite
+from marine_fdi_env.benchmark.suites import TRANSFER_V2_NOISE_SCALE, load_suite
 from marine_fdi_env.engine.profiles import TELEGRAPH_LEVELS, make_profile
 from marine_fdi_env.engine.simulator import Simulator
 
@@ -104,7 +104,7 @@ def test_evaluation_of_transfer_v2_records_v1_and_its_noise(tmp_path):
 def test_a_suite_mixing_noise_scales_runs_each_at_its_own():
     sc = [ScenarioSpec(profile="constant", noise_seed=3, noise_scale=ns, duration_s=5.0, scenario_id=f"n{ns}")
           for ns in (1.0, 0.5, 1.0)]
-    from marine_fdi_env.envs.agent_api import load_agent
+    from marine_fdi_env.benchmark.agent_api import load_agent
 
     mixed = run_episodes(load_agent("null"), sc, {}, suite="x")
     assert [r["scenario_id"] for r in mixed] == ["n1.0", "n0.5", "n1.0"]

@@ -16,11 +16,12 @@ import numpy as np
 import pytest
 
 from marine_fdi_env.cli import main as cli_main
-from marine_fdi_env.envs.cliutil import differing_fields, prepare_out, progress_bar
-from marine_fdi_env.envs.dataset import load_dataset
-from marine_fdi_env.envs.evaluate import evaluate
-from marine_fdi_env.envs.metrics import compute_metrics
-from marine_fdi_env.envs.report import (NOTHING_LABEL, UNKNOWN_LABEL, confusion_matrix, load_results,
+from marine_fdi_env.outputs import differing_fields, prepare_out
+from marine_fdi_env.progress import progress_bar
+from marine_fdi_env.benchmark.dataset import load_dataset
+from marine_fdi_env.benchmark.evaluate import evaluate
+from marine_fdi_env.benchmark.metrics import compute_metrics
+from marine_fdi_env.benchmark.report import (NOTHING_LABEL, UNKNOWN_LABEL, confusion_matrix, load_results,
                                         write_report)
 from marine_fdi_env.suggest import did_you_mean
 
@@ -128,17 +129,17 @@ def test_a_missing_extra_is_one_line_before_any_work(module, argv, extra, tmp_pa
     def no_work(*a, **k):
         raise AssertionError("the command started working before checking its extras")
 
-    import marine_fdi_env.diagnosis.cli_diagnose as cd
-    import marine_fdi_env.envs.backends as backends
-    import marine_fdi_env.envs.evaluate as ev
-    import marine_fdi_env.envs.report as report
-    import marine_fdi_env.envs.sweep as sw
+    import marine_fdi_env.cli.diagnose as cd
+    import marine_fdi_env.benchmark.backends as backends
+    import marine_fdi_env.benchmark.evaluate as ev
+    import marine_fdi_env.benchmark.report as report
+    import marine_fdi_env.benchmark.sweep as sw
 
     monkeypatch.setattr(cd, "diagnose_run", no_work)
     for mod in (backends, ev, sw):
         monkeypatch.setattr(mod, "run_tasks", no_work)
     monkeypatch.setattr(report, "load_results", no_work)
-    import marine_fdi_env.validation.report as vreport
+    import marine_fdi_env.cli.validate as vreport
 
     monkeypatch.setattr(vreport, "run_validation", no_work)
     monkeypatch.setitem(sys.modules, module, None)  # as if not installed: import raises ImportError
@@ -194,7 +195,7 @@ def test_the_notice_ignores_other_compilations():
 def test_the_warm_up_episode_changes_no_number(tiny, tmp_path, monkeypatch):
     """Compile time is kept out of compute_s by a throw-away episode per process; the episodes'
     numbers are the same with and without it."""
-    from marine_fdi_env.envs import evaluate as ev
+    from marine_fdi_env.benchmark import evaluate as ev
 
     a = evaluate("random", str(tiny), tmp_path / "a.json", progress=False)
     monkeypatch.setitem(ev._WARM, "done", False)
@@ -249,7 +250,7 @@ def test_ctrl_c_in_a_command_without_its_own_handler(monkeypatch, capsys, tmp_pa
     monkeypatch.setattr(sim_mod.Simulator, "run", interrupt)
     assert cli_main(["simulate", "--duration", "1", "--out", str(tmp_path / "x.npz")]) == 130
     assert capsys.readouterr().err.strip() == "marine-fdi simulate: interrupted"
-    import marine_fdi_env.envs.report as report
+    import marine_fdi_env.benchmark.report as report
 
     monkeypatch.setattr(report, "load_results", interrupt)
     assert cli_main(["report", "x.json", "--out", str(tmp_path / "r"), "--no-plots"]) == 130
@@ -300,13 +301,13 @@ def test_resume_mismatch_names_only_the_differing_field(tiny, tmp_path, capsys):
     assert differing_fields({"a": 1, "b": {"c": 2}}, {"a": 1, "b": {"c": 3}}) == "b.c: 2 there, 3 here"
     # dataset: another preset seed in the same folder
     ds = tmp_path / "ds"
-    from marine_fdi_env.envs.dataset import export_dataset
+    from marine_fdi_env.benchmark.dataset import export_dataset
     from marine_fdi_env.envs.scenario_sampler import get_preset
 
     cfg = get_preset("nominal")
     mk = lambda seed: [cfg.sample(seed, scenario_id=f"n/{seed}"), cfg.sample(seed + 1, scenario_id=f"n/{seed + 1}")]  # noqa: E731
     (ds / "dataset.partial").mkdir(parents=True)
-    from marine_fdi_env.envs import dataset as dsmod
+    from marine_fdi_env.benchmark import dataset as dsmod
 
     head = {"key": "other", "env": dsmod._env_json({"scenario_config": cfg}), "n_episodes": 2,
             "scenario_ids": ["n/7", "n/8"]}
@@ -382,7 +383,7 @@ def test_dataset_help_is_plain_text_and_documents_every_option(capsys):
     assert cli_main(["dataset", "--help"]) == 0
     text = capsys.readouterr().out
     assert "``" not in text and ":mod:" not in text
-    from marine_fdi_env.envs.dataset import build_parser
+    from marine_fdi_env.cli.dataset import build_parser
 
     for action in build_parser()._actions:
         assert action.help, f"{action.option_strings} has no help"

@@ -9,7 +9,7 @@ from marine_fdi_env.validation.fitting import Combination
 from marine_fdi_env.validation.mechanisms import PHYSICAL_MECHANISMS, SensorCalibration
 from marine_fdi_env.validation.evidence import BESIDE_VALVE, earns, judged_in_sample
 from marine_fdi_env.validation.selection import select_causes
-from marine_fdi_env.validation.study import _trial_settings, trial
+from studies.validation.study import _trial_settings, trial
 
 MECH = {m.id: m for m in PHYSICAL_MECHANISMS}
 M = 88  # measured cells of a study trial: 8 points x 11 channels
@@ -124,7 +124,7 @@ def test_the_exchange_beside_the_gate_swaps_a_heat_loss_back_for_the_true_calibr
 def test_the_study_reruns_only_the_listed_trials(monkeypatch, capsys):
     """``--trials`` (the development check of a change that can only touch trials with a valve) runs exactly the
     listed trials, with their controls unless told not to, and refuses a malformed name."""
-    import marine_fdi_env.validation.study as synth
+    import studies.validation.study as synth
 
     calls = []
 

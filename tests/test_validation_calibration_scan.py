@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from marine_fdi_env.validation.calibration_scan import shape_dictionary, structure_scan
-from marine_fdi_env.validation.study import trial
+from studies.validation.study import trial
 from marine_fdi_env.validation.window_scan import window_excess
 
 LOADS = np.array([0.30, 0.41, 0.52, 0.60, 0.70, 0.81, 0.93, 1.05])
@@ -101,7 +101,7 @@ def test_a_named_calibration_is_scanned_at_the_level_of_its_own_claim():
 def test_the_study_counts_true_calibrations_the_scan_says_leave_structure():
     """The scan's price, in the study summary: of the trials whose true sensor calibration was named, those whose
     report says the calibration leaves structure on its channel."""
-    from marine_fdi_env.validation.study import summarise
+    from studies.validation.study import summarise
 
     def rec(seed, named, left):
         truth = [{"id": "sensor_calibration", "label": "sensor_calibration[fuel_flow_kg_per_h]",

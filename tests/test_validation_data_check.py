@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 
 from marine_fdi_env.validation.columns import COLUMNS, GROUP_PATTERNS
-from marine_fdi_env.validation.report import validate_main
-from marine_fdi_env.validation.synthesize import synthesize_main
+from marine_fdi_env.cli.validate import validate_main
+from marine_fdi_env.cli.synthesize import synthesize_main
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "docs" / "examples" / "measured" / "example_engine.csv"
 

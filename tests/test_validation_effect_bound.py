@@ -1,4 +1,4 @@
-"""The oracle bound on telling an out-of-library effect from a sensor calibration (validation/effect_bound.py)."""
+"""The oracle bound on telling an out-of-library effect from a sensor calibration (studies/validation/effect_bound.py)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from marine_fdi_env.validation import effect_bound as eb
-from marine_fdi_env.validation.study import effect_size, trial_data, trial_draw
+from studies.validation import effect_bound as eb
+from studies.validation.study import effect_size, trial_data, trial_draw
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "figures" / "validation"
 
@@ -130,7 +130,7 @@ def test_the_family_scan_holds_its_level_and_knowing_less_costs_power():
 def test_pooled_rows_by_size_split_the_pooled_trials(tmp_path):
     """With several files the command also pools by the study's size bins: each effect in the bin of its own
     recorded size, the bins together the pooled trials, each bin's pipeline rate its trials' hits."""
-    from marine_fdi_env.validation.study_pool import size_bin
+    from studies.validation.study_pool import size_bin
 
     files = []
     for name in ("open_world_study_seeds_120_140.json", "open_world_study_seeds_140_160.json"):

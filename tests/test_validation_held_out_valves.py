@@ -10,7 +10,7 @@ from marine_fdi_env.validation.fitting import (L1_LAMBDA, SUPPORT_FRACTION, Comb
 from marine_fdi_env.validation.held_out_state import state_predictions
 from marine_fdi_env.validation.mechanisms import PHYSICAL_MECHANISMS
 from marine_fdi_env.validation.problem import Problem
-from marine_fdi_env.validation.study import _trial_settings, loaded, trial, trial_data
+from studies.validation.study import _trial_settings, loaded, trial, trial_data
 
 LOADS = np.array([0.25, 0.36, 0.52, 0.67, 0.77, 0.85, 0.96, 1.08])
 GATE = next(m for m in PHYSICAL_MECHANISMS if m.id == "waste_gate")

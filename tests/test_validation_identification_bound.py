@@ -1,4 +1,4 @@
-"""Could the data of a missed study trial tell the truth from the named causes? (validation/identification_bound.py)"""
+"""Could the data of a missed study trial tell the truth from the named causes? (studies/validation/identification_bound.py)"""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from scipy import stats
 
-from marine_fdi_env.validation import identification_bound as ib
+from studies.validation import identification_bound as ib
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "figures" / "validation"
 

@@ -17,7 +17,8 @@ from marine_fdi_env.validation.mechanisms import (MECHANISM_IDS, PHYSICAL_MECHAN
                                                   parse_mechanism_spec)
 from marine_fdi_env.validation.nuisance import NUISANCE
 from marine_fdi_env.validation.problem import BASE_SETTING, Problem
-from marine_fdi_env.validation.synthesize import DEFAULT_COLUMNS, synthesize, synthesize_main
+from marine_fdi_env.cli.synthesize import synthesize_main
+from marine_fdi_env.validation.synthesize import DEFAULT_COLUMNS, synthesize
 
 
 def _quiet(f, *a, **k):

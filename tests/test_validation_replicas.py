@@ -180,7 +180,7 @@ def test_a_candidate_pinned_at_a_bound_does_not_screen_the_others_out():
 
 
 def test_replicas_command_line_bad_input(capsys):
-    from marine_fdi_env.validation.replicas import main
+    from marine_fdi_env.cli.replicas import replicas_main as main
 
     assert main(["--data", "no_such_dataset"]) == 2
     assert "no such file" in capsys.readouterr().err
@@ -199,7 +199,7 @@ def test_validate_replicas_option_writes_them_to_the_report(waste_gate_selection
     line per hypothesis on stdout (here with no cause allowed, so one hypothesis, the calibrated base: seconds)."""
     import json
 
-    from marine_fdi_env.validation.report import validate_main
+    from marine_fdi_env.cli.validate import validate_main
 
     syn, _ = waste_gate_selection
     path = tmp_path / "wg.csv"

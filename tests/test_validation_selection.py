@@ -1,7 +1,7 @@
 """Model selection on data with hidden effects (the open-world study, a few trials here), the fitted engine as a
 parameter set of the one model, the shipped datasets and the ``validate`` command line.
 
-The study's conditions (:data:`marine_fdi_env.validation.study.CONDITIONS`): (a) closed world, (b) model
+The study's conditions (:data:`studies.validation.study.CONDITIONS`): (a) closed world, (b) model
 error, (c) noise proportional to the reading, (d) two mechanisms, (e) an effect outside the library; each trial
 has a negative control (the same data without the hidden effect).  A few trials run in CI; the whole study is a
 documented command (docs/validation.md) and a slow test.
@@ -20,10 +20,11 @@ from marine_fdi_env.engine.params import load_params
 from marine_fdi_env.engine.submodels import NO_SUBMODELS
 from marine_fdi_env.validation import DataWarning, load_dataset, load_shipped
 from marine_fdi_env.validation.problem import Problem
-from marine_fdi_env.validation.report import run_validation, validate_main
+from marine_fdi_env.cli.validate import validate_main
+from marine_fdi_env.validation.report import run_validation
 from marine_fdi_env.validation.selection import match_result, select_causes
 from marine_fdi_env.validation.unexplained import local_excess
-from marine_fdi_env.validation.study import CONDITIONS, study, trial
+from studies.validation.study import CONDITIONS, study, trial
 from marine_fdi_env.validation.synthesize import effect_region, synthesize
 
 
@@ -53,7 +54,7 @@ def test_study_trial_and_its_control(condition, seed, tmp_path, monkeypatch):
     def no_rerun(*a, **k):
         raise AssertionError("a finished trial was run again")
 
-    import marine_fdi_env.validation.study as synth
+    import studies.validation.study as synth
     monkeypatch.setattr(synth, "trial", no_rerun)
     again = study([condition], [seed], controls=True, progress=False, points=7, checkpoint=ckpt)
     def dump(x):
@@ -83,7 +84,7 @@ def test_study_told_the_true_noise(monkeypatch):
     with the stated-tolerance trials; the default is not recorded, so earlier files still resume) and refuses an
     unknown mode."""
     import marine_fdi_env.validation.selection as selection
-    from marine_fdi_env.validation.study import _trial_settings, noise_tolerances, trial_data
+    from studies.validation.study import _trial_settings, noise_tolerances, trial_data
 
     seen = {}
 

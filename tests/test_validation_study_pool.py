@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from marine_fdi_env.validation.study_pool import load_trials, pool, pool_main, pool_markdown
+from studies.validation.study_pool import load_trials, pool, pool_main, pool_markdown
 
 FIG = Path(__file__).resolve().parents[1] / "docs" / "figures" / "validation"
 
@@ -114,20 +114,16 @@ def test_the_forest_plot_is_drawn_and_a_missing_matplotlib_is_one_line_before_an
     assert "marine-fdi-env[plots]" in err and not md.exists() and not (tmp_path / "again.png").exists()
 
 
-def test_the_study_command_and_its_pool_run_from_the_study_module_and_the_old_command_points_there():
-    """``python -m marine_fdi_env.validation.study [pool]`` (since 2026-11-27, when the study left
-    ``synthesize.py``); the old ``... synthesize study|pool`` says where it went instead of failing obscurely."""
+def test_the_study_command_and_its_pool_run_from_the_studies_folder():
+    """``python -m studies.validation.study [pool]`` from the repository's root."""
     import subprocess
 
-    run = lambda *a: subprocess.run([sys.executable, "-m", *a], capture_output=True, text=True)  # noqa: E731
-    new = run("marine_fdi_env.validation.study", "--help")
+    run = lambda *a: subprocess.run([sys.executable, "-m", *a], capture_output=True, text=True,  # noqa: E731
+                                    cwd=Path(__file__).resolve().parents[1])
+    new = run("studies.validation.study", "--help")
     assert new.returncode == 0 and "--conditions" in new.stdout
-    pooled = run("marine_fdi_env.validation.study", "pool", "--help")
+    pooled = run("studies.validation.study", "pool", "--help")
     assert pooled.returncode == 0 and "study pool" in pooled.stdout
-    for sub in ("study", "pool"):
-        old = run("marine_fdi_env.validation.synthesize", sub, "--seeds", "0:1")
-        assert old.returncode == 2
-        assert "python -m marine_fdi_env.validation.study" in old.stderr
 
 
 def test_e_by_size_adds_up_to_each_files_own_size_summary():
@@ -145,7 +141,7 @@ def test_e_by_size_adds_up_to_each_files_own_size_summary():
 
 
 def test_size_bins_are_half_open_and_refuse_a_negative_size():
-    from marine_fdi_env.validation.study_pool import size_bin
+    from studies.validation.study_pool import size_bin
 
     assert [size_bin(x) for x in (0.0, 2.999, 3.0, 4.999, 5.0, 1e9)] == ["0-3", "0-3", "3-5", "3-5", ">=5", ">=5"]
     with pytest.raises(ValueError):

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from marine_fdi_env.validation import window_scan as ws
-from marine_fdi_env.validation.study import trial
+from studies.validation.study import trial
 
 
 def _p_values(R: np.ndarray, noise: float) -> np.ndarray:

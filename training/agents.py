@@ -18,7 +18,7 @@ import numpy as np
 
 from marine_fdi_env.envs.hypotheses import N_HYPOTHESES, UNKNOWN
 from marine_fdi_env.envs.observation import feature_names
-from marine_fdi_env.envs.jsonfile import read_json
+from marine_fdi_env.jsonfile import read_json
 
 __all__ = ["SB3Agent", "ClassifierAgent", "read_config", "check_observation"]
 

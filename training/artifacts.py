@@ -25,7 +25,7 @@ def _write_curve(path: Path, rows: list[dict]) -> None:
         w.writerows(rows)
 
 
-def _save_meta(out: Path, cfg: dict, agent_class: str) -> None:
+def save_meta(out: Path, cfg: dict, agent_class: str) -> None:
     (out / "config.json").write_text(json.dumps(cfg, indent=1) + "\n")
     (out / "agent.json").write_text(json.dumps({"class": agent_class, "kwargs": {}}, indent=1) + "\n")
 

@@ -37,7 +37,7 @@ def dataset_scenarios(spec: dict) -> list:
 def _ensure_dataset(spec: dict, use_cache: bool, log=print) -> tuple[Path, float, bool]:
     """Export a dataset spec (or find it in the cache); returns (directory, CPU s of the export, fresh)."""
     from marine_fdi_env._version import __version__
-    from marine_fdi_env.envs.dataset import export_dataset
+    from marine_fdi_env.benchmark.dataset import export_dataset
 
     preset, cfg = scenario_config_of(spec)
     n, s = int(spec["episodes"]), int(spec["seed"])

@@ -1,6 +1,6 @@
 """PPO on MarineFDI-v1, learning from recorded episodes (:mod:`marine_fdi_env.training.replay`).
 
-``python -m marine_fdi_env.training.train --algo ppo --env MarineFDI-v1 --seed 0`` runs :func:`train_ppo_replay`
+``marine-fdi train --algo ppo --env MarineFDI-v1 --seed 0`` runs :func:`train_ppo_replay`
 with the ``MarineFDI-v1`` entry of ``training/hyperparams/ppo.yml``:
 
 1. the training episodes are simulated once (``marine-fdi dataset`` exports of the ``datasets``

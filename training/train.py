@@ -1,10 +1,10 @@
-"""Train a learned diagnoser for ``MarineFDI-v1`` / ``MarineFDI-v0`` (RL Zoo style).
+"""Train a learned diagnoser for ``MarineFDI-v1`` / ``MarineFDI-v0`` (RL Zoo style): :func:`train_agent`.
 
-    python -m marine_fdi_env.training.train --algo ppo --env MarineFDI-v1 --seed 0   # the shipped PPO: replayed v1 episodes
-    python -m marine_fdi_env.training.train --algo ppo --seed 0                 # PPO on the live batched env (v0 entry)
-    python -m marine_fdi_env.training.train --algo ppo_lstm --seed 0            # RecurrentPPO (sb3-contrib)
-    python -m marine_fdi_env.training.train --algo classifier --seed 0          # supervised GRU diagnoser
-    python -m marine_fdi_env.training.train --algo ppo --seed -1                # draw a seed (logged and saved)
+    marine-fdi train --algo ppo --env MarineFDI-v1 --seed 0   # the shipped PPO: replayed v1 episodes
+    marine-fdi train --algo ppo --seed 0                      # PPO on the live batched env (v0 entry)
+    marine-fdi train --algo ppo_lstm --seed 0                 # RecurrentPPO (sb3-contrib)
+    marine-fdi train --algo classifier --seed 0               # supervised GRU diagnoser
+    marine-fdi train --algo ppo --seed -1                     # draw a seed (logged and saved)
 
 Hyperparameters: ``training/hyperparams/ALGO.yml``, keyed by env id; ``--params key=value ...``
 overrides entries (values parsed as YAML), ``--n-timesteps`` the PPO budget.  The run directory
@@ -21,11 +21,8 @@ An entry with ``replay: true`` (``ppo.yml``, ``MarineFDI-v1``) trains on recorde
 
 from __future__ import annotations
 
-import argparse
 import os
 import platform
-import shlex
-import sys
 import time
 from pathlib import Path
 
@@ -35,10 +32,10 @@ import yaml
 from marine_fdi_env.envs.fdi_env import ENV_ID
 from marine_fdi_env.envs.observation import feature_names
 
-from .artifacts import _observation_meta, _save_meta, _write_curve  # noqa: F401 - used here and by tests
+from .artifacts import _observation_meta, _write_curve, save_meta  # noqa: F401 - used here and by tests
 from .datasets import _dataset, _ensure_dataset, dataset_scenarios, scenario_config_of  # noqa: F401
 
-__all__ = ["main", "load_hyperparams", "train_sb3", "train_classifier_run", "ALGOS"]
+__all__ = ["train_agent", "load_hyperparams", "train_sb3", "train_classifier_run", "ALGOS"]
 
 ALGOS = ("ppo", "ppo_lstm", "classifier")
 HERE = Path(__file__).resolve().parent
@@ -179,62 +176,23 @@ def train_classifier_run(seed: int, hp: dict, out: Path | None, use_cache: bool 
     return res.model, cfg
 
 
-# ----------------------------------------------------------------------------- CLI
-def _parse_params(items: list[str]) -> dict:
-    out = {}
-    for it in items or []:
-        k, sep, v = it.partition("=")
-        if not sep:
-            raise ValueError(f"--params entries must look like key=value, got {it!r}")
-        out[k] = yaml.safe_load(v)
-    return out
-
-
-def main(argv=None) -> int:
-    argv = list(sys.argv[1:] if argv is None else argv)
-    ap = argparse.ArgumentParser(prog="python -m marine_fdi_env.training.train", description=__doc__.splitlines()[0])
-    ap.add_argument("--algo", choices=ALGOS, required=True)
-    ap.add_argument("--seed", type=int, default=0, help="random seed; negative: draw one (logged)")
-    ap.add_argument("--env", default=ENV_ID)
-    ap.add_argument("--out", type=Path, default=None, help="run directory (default training/logs/ALGO_sSEED)")
-    ap.add_argument("--n-timesteps", type=int, default=None, help="override the PPO budget")
-    ap.add_argument("--params", nargs="*", default=[], help="hyperparameter overrides key=value")
-    ap.add_argument("--no-cache", action="store_true", help="simulate the training datasets again (classifier, replayed PPO) instead of using training/.cache")
-    args = ap.parse_args(argv)
-    seed = args.seed
-    if seed < 0:
-        seed = int(np.random.SeedSequence().entropy % (2**31))
-        print(f"drew seed {seed}")
-    try:
-        over = _parse_params(args.params)
-        if args.n_timesteps is not None:
-            over["n_timesteps"] = args.n_timesteps
-        hp = load_hyperparams(args.algo, args.env, over)
-    except ValueError as e:
-        print(f"marine_fdi_env.training.train: error: {e}", file=sys.stderr)
-        return 2
-    out = args.out or HERE / "logs" / f"{args.algo}_s{seed}"
-    if args.algo == "classifier":
-        _, cfg = train_classifier_run(seed, hp, out, use_cache=not args.no_cache)
+def train_agent(algo: str, seed: int, out: Path, *, env_id: str = ENV_ID, overrides: dict | None = None,
+                use_cache: bool = True, command: str = "", seed_drawn: bool = False) -> dict:
+    """Train ``algo`` with ``seed`` and save the model, ``config.json`` and ``agent.json`` in ``out``; returns the
+    config (``command``: the command that makes the model, recorded in it; ``seed_drawn``: the seed was drawn)."""
+    hp = load_hyperparams(algo, env_id, overrides)
+    if algo == "classifier":
+        _, cfg = train_classifier_run(seed, hp, out, use_cache=use_cache)
         agent_class = "marine_fdi_env.training.agents:ClassifierAgent"
     elif hp.get("replay"):  # PPO on recorded MarineFDI-v1 episodes (training/rl.py)
         from .rl import train_ppo_replay
 
-        _, cfg = train_ppo_replay(seed, hp, out, use_cache=not args.no_cache)
+        _, cfg = train_ppo_replay(seed, hp, out, use_cache=use_cache)
         agent_class = "marine_fdi_env.training.agents:SB3Agent"
     else:
-        _, cfg = train_sb3(args.algo, seed, hp, out)
+        _, cfg = train_sb3(algo, seed, hp, out)
         agent_class = "marine_fdi_env.training.agents:SB3Agent"
-    # the command that makes the model (--no-cache only re-exports the same data: not recorded)
-    cmd = ["python", "-m", "marine_fdi_env.training.train"] + [a for a in argv if a != "--no-cache"]
-    if args.seed < 0:
-        cmd = [a if a != str(args.seed) else str(seed) for a in cmd]
-    cfg.update(command=shlex.join(cmd), seed_drawn=args.seed < 0, cpu_minutes=round(cfg["cpu_s"] / 60.0, 2),
+    cfg.update(command=command, seed_drawn=seed_drawn, cpu_minutes=round(cfg["cpu_s"] / 60.0, 2),
                machine={"cpus": os.cpu_count(), "python": platform.python_version()})
-    _save_meta(out, cfg, agent_class)
-    print(f"saved {out} (seed {seed}, {cfg['cpu_minutes']} CPU minutes)")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+    save_meta(out, cfg, agent_class)
+    return cfg

@@ -122,7 +122,7 @@ class ReferenceDiagnoser:
     noise_bounds : (19,) sensor noise bounds (default: table 6.3).
     max_cardinality : largest diagnosis considered by the hitting-set search.
     exoneration : ``"sure"`` (default): a module that has not fired clears the faults it surely
-        detects (measured cells, :mod:`marine_fdi_env.diagnosis.certainty`, read from
+        detects (measured cells, :mod:`studies.diagnosis.certainty`, read from
         ``sure_cells_file`` in data/diagnosis; the thesis's '1' cells), with the temporal check
         that a fault explains a module only if its sure modules fired no later than shortly after
         it; ``"none"``: plain consistency-based diagnosis;

@@ -16,7 +16,7 @@ sequential test accumulates the evidence instead (Page's CUSUM; Basseville & Nik
   value k (half the shift, in spreads, detected fastest); module m fires when S+ or S- exceeds
   its threshold h_m.  The thresholds are set for at most one false alarm in 200 fault-free
   engine-hours over all modules (measured on calibration runs, checked on other runs:
-  :mod:`marine_fdi_env.diagnosis.sequential_calibration`, docs/diagnosis.md).
+  :mod:`studies.diagnosis.sequential_calibration`, docs/diagnosis.md).
 * **warm-up.**  The tests start after ``warmup_s`` (the observers' start-up transient: about 15 s
   for the charge-air observer, a few seconds for the others).
 * **inactive region.**  Where the block's mean measured pressure ratio x3/x4 (both chains) exceeds
@@ -145,7 +145,7 @@ def load_calibration(name: str = CALIBRATION_FILE) -> SequentialCalibration:
         return SequentialCalibration.from_dict(json.loads(path.read_text()))
     except FileNotFoundError:
         raise ValueError(f"no sequential calibration {name!r} in marine_fdi_env/data/diagnosis; build it with "
-                         "python -m marine_fdi_env.diagnosis.sequential_calibration") from None
+                         "python -m studies.diagnosis.sequential_calibration") from None
 
 
 def pressure_ratio(measurements) -> np.ndarray:

@@ -2,7 +2,7 @@
 '1' versus '*'), how far their firing times spread (the settle times of the time-order check) and
 how long a silent sure module is still awaited (the grace periods).
 
-The files are written by :mod:`marine_fdi_env.diagnosis.certainty` (the measurement over a grid of
+The files are written by :mod:`studies.diagnosis.certainty` (the measurement over a grid of
 fault magnitudes, profiles and seeds); this module only reads them, so that the diagnosers
 (:mod:`.agent`, :mod:`.sequential`) do not depend on the simulation code that measures them.
 

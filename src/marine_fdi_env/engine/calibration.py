@@ -33,8 +33,8 @@ steady state at fuel setting 1.0 *is* that nominal point (``derive_parameters``)
 Choices that no data determines are passed in as inputs with their justification (the
 ``source`` text of the entry): η_com, η_c, Q_loss_grad, σ_f, T_sl, turbochargers per engine.
 
-Run ``python -m marine_fdi_env.engine.calibration`` to rewrite the shipped parameter sets from the
-input tables below; ``tests/test_params.py`` checks that the shipped files match.
+``python -m studies.engine.parameter_sets`` (in the repository) rewrites the shipped parameter sets from
+the input tables below (:func:`write_parameter_sets`); ``tests/test_params.py`` checks that the shipped files match.
 """
 
 from __future__ import annotations
@@ -317,7 +317,3 @@ _DESCRIPTIONS = {
     "shop tests; everything else scaled from thesis-12v28 and re-derived at the nominal point.",
 }
 
-
-if __name__ == "__main__":  # pragma: no cover - maintenance entry point
-    for path in write_parameter_sets():
-        print(f"wrote {path}")

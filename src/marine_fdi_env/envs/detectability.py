@@ -12,7 +12,7 @@ constant nominal fuel setting 1.0.  That is, detected within ``300 s - onset``:
 
 It was found by bisection on a log scale (bracketed from the table 6.3 / 6.4 magnitude by factors
 of 2, then bisected to a 5 % bracket; the limit is the upper, detected end) with
-``python -m marine_fdi_env.diagnosis.kpis min-detectable --all --seeds 4``, which regenerates
+``python -m studies.diagnosis.kpis min-detectable --all --seeds 4``, which regenerates
 ``marine_fdi_env/data/env/detectability.json``.  A fault never detected at any magnitude tried
 (``turbine_seal_leak``: its effect on the receiver pressure stays far below the sensor noise) has
 ``"detected": false`` and its table magnitude as limit, so it is sampled relative to that.

@@ -56,6 +56,7 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 
 from ..engine.params import EngineParams, list_parameter_sets, load_params
+from ..errors import DatasetError
 from .boundary_readings import BOUNDARY_OUTLIER_Z, boundary_conditions, cylinder_groups
 from .columns import ID_COLUMNS, QUANTITIES, ColumnSpec, column_problem, lookup_column, resolve_quantity
 from .plausibility import ENVELOPE, SETPOINT_QUANTITIES, check_across_engines, check_duplicates, check_values
@@ -94,21 +95,6 @@ class Problem:
         if self.column is not None:
             where.append(f"column {self.column!r}")
         return (", ".join(where) + ": " if where else "") + self.message
-
-
-class DatasetError(ValueError):
-    """Raised with every error of a dataset; ``problems`` holds them (and the warnings)."""
-
-    def __init__(self, source: str, problems: list[Problem]):
-        self.problems = problems
-        errors = [p for p in problems if p.severity == "error"]
-        lines = [f"{source}: {len(errors)} error{'s' if len(errors) != 1 else ''} in the measured data:"]
-        lines += [f"  - {p}" for p in errors]
-        warns = [p for p in problems if p.severity == "warning"]
-        if warns:
-            lines.append(f"  and {len(warns)} warning{'s' if len(warns) != 1 else ''}:")
-            lines += [f"  - {p}" for p in warns]
-        super().__init__("\n".join(lines))
 
 
 @dataclass(frozen=True)

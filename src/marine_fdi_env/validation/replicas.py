@@ -27,35 +27,31 @@ true); which physical mechanisms it names; for a valve, how often the points whe
 hypothesis.  Replica ``r`` of hypothesis ``h`` draws its noise from ``default_rng([seed, h, r])``, so the numbers
 do not depend on the number of workers.
 
-``python -m marine_fdi_env.validation.replicas --data NAME|FILE.csv [--replicas N] [--noise residual|tolerance]
+``marine-fdi replicas --data NAME|FILE.csv [--replicas N] [--noise residual|tolerance]
 [--alternatives ID,...] [--workers W] [--beside-valve RULE] [--held-out-valves RULE] [--out FILE.json]
 [--markdown FILE.md]``: the data's selection and every replica's follow the same rules.
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
 import sys
 import time
 from collections import Counter
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from .binomial import proportion_ci95
-from .dataset import MeasuredDataset, load_data_arg
-from .evidence import add_valve_options
+from .dataset import MeasuredDataset
 from .fitting import Combination, fit_combination, predict_setting
 from .mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
 from .problem import Problem
 from .selection import Selection, select_causes
 
-__all__ = ["Hypothesis", "NOISE_MODELS", "hypotheses", "noise_scale", "replica_readings", "run_replica", "replicate",
-           "summarise", "markdown_table", "main"]
+__all__ = ["Hypothesis", "NOISE_MODELS", "hypotheses", "noise_scale", "replica_readings", "run_replica",
+           "replicate", "summarise", "markdown_table"]
 
 NOISE_MODELS = ("residual", "tolerance")
 #: settings of :func:`~.selection.select_causes` a replica reuses from the selection on the data (``exchange`` and
@@ -270,67 +266,3 @@ def markdown_table(rep: Mapping[str, Any]) -> str:
                      f"{_pct(s['named_itself'], s['replicas'], s['named_itself_ci95'])} | "
                      f"{_pct(s['named_data_causes'], s['replicas'], s['named_data_causes_ci95'])} | {phys} | {valves} |")
     return "\n".join(lines)
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m marine_fdi_env.validation.replicas",
-                                 description="Would the pipeline name the same causes again on data like these? "
-                                             "(a parametric bootstrap at the data's design; module docstring)")
-    ap.add_argument("--data", required=True, metavar="NAME|FILE.csv", help="shipped dataset name or CSV path")
-    ap.add_argument("--params", default=None, help="parameter set or engine file (default: the dataset's)")
-    ap.add_argument("--target", default="auto", help="what fixes each point (as marine-fdi validate)")
-    ap.add_argument("--replicas", type=int, default=10, help="replicas per hypothesis (default 10)")
-    ap.add_argument("--noise", default="residual", choices=NOISE_MODELS, help="replica noise (default residual)")
-    ap.add_argument("--alternatives", default=None, metavar="ID,...",
-                    help="physical mechanisms to put in place of the first named one (default: the best --top of "
-                         "the first selection step)")
-    ap.add_argument("--top", type=int, default=4, help="number of alternatives by default (default 4)")
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--max-folds", type=int, default=None, help="as marine-fdi validate")
-    ap.add_argument("--workers", type=int, default=1, help="processes (default 1)")
-    ap.add_argument("--out", default=None, metavar="FILE.json")
-    ap.add_argument("--markdown", default=None, metavar="FILE.md")
-    ap.add_argument("--tolerance", action="append", default=[], metavar="COLUMN=VALUE",
-                    help="a channel's tolerance in its units or as P%% of its mean value (as marine-fdi validate)")
-    add_valve_options(ap)
-    ap.add_argument("--no-progress", action="store_true")
-    args = ap.parse_args(list(argv) if argv is not None else None)
-    alts = None if args.alternatives is None else [a.strip() for a in args.alternatives.split(",") if a.strip()]
-    try:
-        if args.top < 0:
-            raise ValueError(f"--top must be >= 0, got {args.top}")
-        if args.replicas < 1 or args.workers < 1:
-            raise ValueError("--replicas and --workers must be >= 1")
-        known = {m.id for m in PHYSICAL_MECHANISMS}
-        if alts is not None and not set(alts) <= known:  # before the selection's minutes, not after
-            raise ValueError(f"--alternatives: unknown physical mechanism(s) {', '.join(sorted(set(alts) - known))}; "
-                             f"known: {', '.join(sorted(known))}")
-        ds = load_data_arg(args.data, args.params)
-        pr = Problem(ds, params=args.params, target=args.target, held_out_valves=args.held_out_valves)
-        if args.tolerance:
-            pr = Problem(ds, params=args.params, target=args.target, tolerances=pr.stated_tolerances(args.tolerance),
-                         held_out_valves=args.held_out_valves)
-        say = None if args.no_progress else (lambda s: print(f"replicas: {s}", file=sys.stderr))
-        if say:
-            say("selecting causes on the data (as marine-fdi validate)")
-        sel = select_causes(pr, max_folds=args.max_folds, beside_valve=args.beside_valve)
-        if say:
-            say(f"named on the data: {' + '.join(sel.selected_labels) or '(nothing)'}")
-        rep = replicate(sel, replicas=args.replicas, noise=args.noise, seed=args.seed, alternatives=alts,
-                        top=args.top, workers=args.workers, progress=not args.no_progress)
-    except ValueError as e:
-        print(f"replicas: error: {e}", file=sys.stderr)
-        return 2
-    table = markdown_table(rep)
-    print(table)
-    if args.out:
-        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.out).write_text(json.dumps(rep, indent=1, default=float) + "\n")
-    if args.markdown:
-        Path(args.markdown).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.markdown).write_text(table + "\n")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -21,16 +21,14 @@ load, with openings growing away from it.  The CSV follows the measured-data con
 protocol's channels (:data:`DEFAULT_COLUMNS`); the sidecar names the parameter set, the seed and the
 noise but not the hidden effects.  The truth goes to a separate file only when asked for (``--truth``).
 
-The open-world study that runs on these data is :mod:`.study` (``python -m marine_fdi_env.validation.study``;
-split out of this module on 2026-11-27).
+The open-world study that runs on these data is ``studies/validation/study.py`` in the repository
+(``python -m studies.validation.study``).
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
@@ -41,12 +39,12 @@ from ..engine.operating_point import MODE_P, solve_points, speed_of_power
 from ..engine.params import EngineParams, list_parameter_sets, load_params
 from .columns import QUANTITIES, ModelContext, column_problem, lookup_column
 from .dataset import write_dataset
-from .mechanisms import (MECHANISM_IDS, SensorCalibration, ValveMechanism, get_mechanism,
+from .mechanisms import (SensorCalibration, ValveMechanism, get_mechanism,
                          parse_mechanism_spec, sensor_reference)
 from .problem import BASE_SETTING, Setting, _quantity
 
 __all__ = ["DEFAULT_COLUMNS", "SET_POINT_COLUMNS", "EFFECT_KINDS", "PERTURBED_FIELDS", "FAMILIES", "Synthesis",
-           "synthesize", "write_synthesis", "synthesize_main", "draw_effect", "effect_region"]
+           "synthesize", "write_synthesis", "draw_effect", "effect_region"]
 
 DEFAULT_COLUMNS = (
     "load_fraction", "power_kW", "speed_rpm", "fuel_flow_kg_per_h", "turbocharger_speed_rpm",
@@ -130,12 +128,12 @@ def effect_region(effect: dict[str, Any], lo: float = LOAD_RANGE[0], hi: float =
     """Load range (within the study's load range) where an out-of-library effect exceeds half its largest magnitude
     there."""
     x = np.linspace(lo, hi, 2001)
-    y = np.abs(_effect_shape(effect, x))
+    y = np.abs(effect_shape(effect, x))
     on = x[y >= 0.5 * y.max()] if y.max() > 0 else x[:0]
     return (float(on.min()), float(on.max())) if on.size else (math.nan, math.nan)
 
 
-def _effect_shape(effect: dict[str, Any], load: np.ndarray) -> np.ndarray:
+def effect_shape(effect: dict[str, Any], load: np.ndarray) -> np.ndarray:
     k, c, w = effect["kind"], effect["center"], effect["width"]
     if k == "bump":
         return np.exp(-0.5 * ((load - c) / w) ** 2)
@@ -313,7 +311,7 @@ def synthesize(
     for e in effects:
         if e["channel"] not in clean:
             raise ValueError(f"effect on {e['channel']!r}, which is not a written column")
-        shape = _effect_shape(e, loads)
+        shape = effect_shape(e, loads)
         base = _relative_basis(e["channel"], clean[e["channel"]], p_amb) if e.get("relative") else 1.0
         added[e["channel"]] = (e["amplitude"] * base * shape).tolist()
         clean[e["channel"]] = clean[e["channel"]] + e["amplitude"] * base * shape
@@ -385,95 +383,3 @@ def write_synthesis(syn: Synthesis, path: str | Path, truth_path: str | Path | N
                                                 "activity": syn.activity, "settings": syn.settings},
                                                indent=2, default=float) + "\n")
     return path
-
-
-# --------------------------------------------------------------------------------------- CLI
-def build_parser(prog: str = "marine-fdi synthesize-measurements") -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(
-        prog=prog, description="Write synthetic measured data from the model with hidden mechanisms.",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="mechanisms: none, " + ", ".join(MECHANISM_IDS) + "\n"
-               "  e.g. --mechanism turbocharger_map:eta_scale=1.1,curvature=0.1 --mechanism waste_gate:above=0.8\n"
-               "  sensor_calibration:channel=turbine_outlet_temperature_C,gain=1.05,offset=-3\n"
-               "parameters not given are drawn from the mechanism's range with the seed.")
-    ap.add_argument("--params", required=True, help="parameter set (" + ", ".join(list_parameter_sets()) + ")")
-    ap.add_argument("--mechanism", action="append", default=None, metavar="ID[:param=value,...]",
-                    help="hidden mechanism (repeatable; default none)")
-    ap.add_argument("--points", type=int, default=8, help="operating points (per engine), default 8")
-    ap.add_argument("--noise", type=float, default=0.01, help="relative measurement noise, default 0.01")
-    ap.add_argument("--noise-model", default="typical", choices=("typical", "reading"),
-                    help="noise relative to the channel's typical value (default) or to each reading")
-    ap.add_argument("--perturb", type=float, default=0.0, help="relative model error of the true engine, default 0")
-    ap.add_argument("--seed", type=int, default=0, help="random seed, default 0")
-    ap.add_argument("--load-range", default=f"{LOAD_RANGE[0]},{LOAD_RANGE[1]}", metavar="LO,HI",
-                    help="load fractions are drawn uniformly in [LO, HI], default %(default)s")
-    ap.add_argument("--columns", default=None, metavar="COL,COL,...",
-                    help="columns to write (default: " + ",".join(DEFAULT_COLUMNS) + ")")
-    ap.add_argument("--engines", type=int, default=0, help="K > 0: K engines E1..EK at the same load points")
-    ap.add_argument("--truth", default=None, metavar="FILE.json", help="also write the hidden truth here")
-    ap.add_argument("--out", required=True, metavar="FILE.csv", help="output CSV (sidecar FILE.meta.json beside it)")
-    return ap
-
-
-class _ArgError(Exception):
-    pass
-
-
-def _parser_no_exit(prog: str) -> argparse.ArgumentParser:
-    ap = build_parser(prog)
-
-    def error(message):
-        raise _ArgError(message)
-
-    ap.error = error  # type: ignore[method-assign]
-    return ap
-
-
-def synthesize_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi synthesize-measurements") -> int:
-    """Command line: returns 0 on success, 2 on bad input (message on stderr)."""
-    try:
-        args = _parser_no_exit(prog).parse_args(list(argv) if argv is not None else None)
-    except _ArgError as e:
-        print(f"{prog}: error: {e}", file=sys.stderr)
-        return 2
-    except SystemExit as e:  # --help
-        return int(e.code or 0)
-    try:
-        try:
-            lo, hi = (float(x) for x in args.load_range.split(","))
-        except ValueError:
-            raise ValueError(f"--load-range must be LO,HI, got {args.load_range!r}") from None
-        columns = DEFAULT_COLUMNS if args.columns is None else \
-            tuple(c.strip() for c in args.columns.split(",") if c.strip())
-        parsed = []
-        for s in args.mechanism or ["none"]:
-            try:
-                parsed.append(parse_mechanism_spec(s))
-            except ValueError as e:
-                raise ValueError(f"--mechanism {s!r}: {e}") from None
-        out = Path(args.out)
-        if not out.name.endswith(".csv"):
-            raise ValueError(f"--out must name a .csv file, got {args.out!r}")
-        if not out.parent.parent.exists():
-            raise ValueError(f"--out: directory {str(out.parent.parent)!r} does not exist")
-        syn = synthesize(args.params, parsed, points=args.points, noise=args.noise, seed=args.seed, columns=columns,
-                         load_range=(lo, hi), engines=args.engines, noise_model=args.noise_model,
-                         perturb=args.perturb)
-        out.parent.mkdir(exist_ok=True)
-        syn.write(out, args.truth)
-    except ValueError as e:
-        print(f"{prog}: error: {e}", file=sys.stderr)
-        return 2
-    n = len(next(iter(syn.columns.values())))
-    print(f"wrote {out} ({n} points, {len(syn.columns)} columns) and {out.name[:-4]}.meta.json"
-          + (f"; truth in {args.truth}" if args.truth else ""))
-    return 0
-
-
-if __name__ == "__main__":  # pragma: no cover
-    if len(sys.argv) > 1 and sys.argv[1] in ("study", "pool"):
-        # the study moved to its own module (2026-11-27); it imports this one, so this one does not dispatch to it
-        print(f"the open-world study is now `python -m marine_fdi_env.validation.study"
-              f"{' pool' if sys.argv[1] == 'pool' else ''} ...` (same options)", file=sys.stderr)
-        sys.exit(2)
-    sys.exit(synthesize_main())

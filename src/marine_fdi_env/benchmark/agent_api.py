@@ -1,0 +1,172 @@
+"""The agent interface of the benchmark, and how ``marine-fdi evaluate --agent NAME|PATH`` finds one.
+
+An agent diagnoses N episodes at once (the vector environment's batch)::
+
+    class MyAgent:
+        name = "mine"
+        def reset(self, seeds: list[int]) -> None: ...            # new episodes, one seed each
+        def act(self, obs: np.ndarray, infos: dict) -> np.ndarray: # (N, D) -> beliefs (N, 28)
+
+``obs`` is the vector environment's observation batch and ``infos`` its info dict (one array per
+key, Gymnasium's vector convention: ``infos["reference"]["diagnoses"][i]`` ...).  Agents that
+read ground truth (``true_faults``, ``active_faults``) are oracles and say so in their name.
+
+NAME is one of :data:`BUILTIN_AGENTS` (``null``, ``random``, ``reference``, ``sequential``,
+``oracle``, from ``baselines/``) or a shipped model (``classifier``, ``ppo``, ...: every folder of
+``training/models/``, see :mod:`.agent_registry` and ``marine-fdi agents``).  An agent may name
+environment options it needs in an ``env_kwargs`` attribute (``sequential``:
+``{"observe_sequential": True}``); ``evaluate`` adds them to the suite's.  PATH is a directory
+holding ``agent.json``::
+
+    {"class": "package.module:ClassName", "kwargs": {...}}
+
+whose class has ``from_dir(path, **kwargs)`` returning the agent (trained models ship this way),
+or ``path/to/file.py:ClassName``: a class in a Python file, constructed without arguments (a
+custom agent needs nothing else; see docs/agent_api.md).
+"""
+
+from __future__ import annotations
+
+import importlib
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+from .agent_registry import BUILTIN_AGENTS, LEGACY_PACKAGES  # the names live in the registry
+from ..jsonfile import read_json
+
+__all__ = ["Agent", "BUILTIN_AGENTS", "load_agent", "resolve_agent_spec", "agent_file_stem"]
+
+
+class Agent(Protocol):
+    name: str
+
+    def reset(self, seeds: list[int]) -> None: ...
+
+    def act(self, obs: np.ndarray, infos: dict) -> np.ndarray: ...
+
+
+
+
+def _import(target: str, where: str):
+    mod_name, _, attr = target.partition(":")
+    if not mod_name or not attr:
+        raise ValueError(f"{where}: 'class' must look like 'package.module:ClassName', got {target!r}")
+    try:
+        mod = importlib.import_module(mod_name)
+    except ImportError as e:
+        hint = ""
+        if mod_name.split(".")[0] in LEGACY_PACKAGES:  # the names before issue 15: no alias, a clear message
+            top = mod_name.split(".")[0]
+            hint = (f"; this project's {top!r} package is installed as 'marine_fdi_env.{top}': "
+                    f"write 'marine_fdi_env.{target}' in the agent.json")
+        raise ValueError(f"{where}: cannot import {mod_name!r} ({e}){hint}") from None
+    try:
+        return getattr(mod, attr)
+    except AttributeError:
+        raise ValueError(f"{where}: module {mod_name!r} has no {attr!r}") from None
+
+
+def _split_file_spec(spec: str) -> tuple[Path, str] | None:
+    """``path/to/file.py:ClassName`` -> (path, ClassName); None for other specs."""
+    head, sep, cls = str(spec).rpartition(":")
+    if sep and head.endswith(".py") and cls.isidentifier():
+        return Path(head), cls
+    return None
+
+
+def _load_file_agent(path: Path, cls_name: str, spec: str) -> Agent:
+    import hashlib
+    import importlib.util
+    import sys
+
+    if not path.is_file():
+        raise ValueError(f"agent {spec!r}: no such file {str(path)!r}")
+    mod_name = "_marine_fdi_agent_" + hashlib.sha1(str(path.resolve()).encode()).hexdigest()[:12]
+    mod = sys.modules.get(mod_name)
+    if mod is None:
+        ms = importlib.util.spec_from_file_location(mod_name, path)
+        mod = importlib.util.module_from_spec(ms)
+        sys.modules[mod_name] = mod  # dataclasses and pickling look the module up by name
+        try:
+            ms.loader.exec_module(mod)
+        except Exception as e:  # noqa: BLE001 - any error in a user's file is a bad agent spec
+            del sys.modules[mod_name]
+            raise ValueError(f"agent {spec!r}: {path} failed to import ({type(e).__name__}: {e})") from None
+    cls = getattr(mod, cls_name, None)
+    if cls is None:
+        raise ValueError(f"agent {spec!r}: {path} has no {cls_name!r}")
+    try:
+        agent = cls()
+    except Exception as e:  # noqa: BLE001
+        raise ValueError(f"agent {spec!r}: {cls_name}() failed ({type(e).__name__}: {e}); a custom agent class "
+                         "must be constructible without arguments") from None
+    for attr in ("reset", "act"):
+        if not callable(getattr(agent, attr, None)):
+            raise ValueError(f"agent {spec!r}: {cls_name} has no {attr}() method (see docs/agent_api.md)")
+    if not isinstance(getattr(agent, "name", None), str) or not agent.name:
+        raise ValueError(f"agent {spec!r}: {cls_name} needs a non-empty string attribute 'name'")
+    return agent
+
+
+def resolve_agent_spec(spec: str) -> str:
+    """``spec`` with file and folder paths made absolute (names unchanged), for other processes."""
+    spec = str(spec)
+    if spec in BUILTIN_AGENTS:
+        return spec
+    fs = _split_file_spec(spec)
+    if fs is not None:
+        return f"{fs[0].resolve()}:{fs[1]}"
+    p = Path(spec)
+    return str(p.resolve()) if p.exists() else spec
+
+
+def agent_file_stem(spec: str) -> str:
+    """A short name for file names: the agent name, the model folder or the class name."""
+    fs = _split_file_spec(str(spec))
+    if fs is not None:
+        return fs[1]
+    p = Path(str(spec))
+    return p.name if p.exists() else str(spec).replace("/", "_")
+
+
+def load_agent(spec: str) -> Agent:
+    """An agent by name, path or ``file.py:Class`` (see module docstring)."""
+    spec = str(spec)
+    if spec in BUILTIN_AGENTS:
+        return _import(BUILTIN_AGENTS[spec], f"built-in agent {spec!r}")()
+    fs = _split_file_spec(spec)
+    if fs is not None:
+        return _load_file_agent(fs[0], fs[1], spec)
+    path = Path(spec)
+    if not path.exists():
+        from .agent_registry import find_agent, list_agents
+
+        entry = find_agent(spec)
+        if entry is not None and entry.kind == "model":
+            path = Path(entry.spec)
+            if not entry.available:
+                from .agent_registry import TRAIN_EXTRA_HINT
+
+                raise ValueError(f"agent {spec!r} needs {', '.join(entry.needs)}: {TRAIN_EXTRA_HINT}")
+        else:
+            from ..suggest import did_you_mean
+
+            known = [e.name for e in list_agents()]
+            names = ", ".join(known)
+            raise ValueError(f"unknown agent {spec!r}{did_you_mean(spec, known)}: not a name ({names}; see 'marine-fdi "
+                             "agents'), "
+                             "no such path, and not path/to/file.py:ClassName")
+    meta_file = path / "agent.json" if path.is_dir() else path
+    if not meta_file.is_file():
+        raise ValueError(f"agent directory {path} has no agent.json")
+    meta = read_json(meta_file, "agent description")
+    if not isinstance(meta, dict) or "class" not in meta:
+        raise ValueError(f"{meta_file}: must be a JSON object with a 'class' entry")
+    cls = _import(meta["class"], str(meta_file))
+    if not hasattr(cls, "from_dir"):
+        raise ValueError(f"{meta_file}: {meta['class']} has no from_dir(path) constructor")
+    kwargs = meta.get("kwargs", {})
+    if not isinstance(kwargs, dict):
+        raise ValueError(f"{meta_file}: 'kwargs' must be an object")
+    return cls.from_dir(meta_file.parent, **kwargs)

@@ -1,0 +1,117 @@
+"""``marine-fdi dataset``: features, labels and ground truth of episodes, for offline learners."""
+
+from __future__ import annotations
+
+import argparse
+import numpy as np
+import sys
+from pathlib import Path
+
+from ..benchmark.dataset import FORMATS, export_dataset
+from ..benchmark.suites import load_suite
+from ..envs.scenario_sampler import get_preset
+
+
+_HELP = """\
+Runs the episodes of a frozen suite (--suite) or of a scenario preset (--preset, --episodes,
+--seed) through the environment with a silent agent and writes, in the folder --out:
+
+  dataset.npz      (--format npz, default) dense arrays, E episodes x T decisions x D features:
+                     obs (E, T, D) float32    the observation at each decision
+                     active (E, T, 26) bool   faults active at the decision time
+                     valid (E, T) bool        False after an episode ended early (engine failure)
+                     t_s (E, T) float64       decision times [s]
+                     feature_names (D,), fault_ids (26,)
+  dataset.parquet  (--format parquet) the same in long format: one row per valid decision with
+                   the columns episode, scenario_id, step, t_s, one column per feature and one
+                   bool column active.<fault id> per fault, plus no_fault
+  scenarios.json   the scenarios with their ground truth, in episode order
+
+Load either file with marine_fdi_env.benchmark.dataset.load_dataset(path) (the same arrays, bit for
+bit).  Training data must not come from the evaluation suites: use --preset for training.
+
+Finished chunks are kept in OUT/dataset.partial/ until the dataset is written: after Ctrl-C
+(or a lost worker) the same command resumes where it stopped.  A folder that already holds a
+finished dataset is not overwritten without --force.
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from .common import add_backend_args
+    from ..envs.scenario_sampler import PRESETS
+    from ..benchmark.suites import SUITE_NAMES
+
+    ap = argparse.ArgumentParser(prog="marine-fdi dataset", formatter_class=argparse.RawDescriptionHelpFormatter,
+                                 description="Export observations, fault labels and ground truth of episodes for "
+                                             "offline learning.", epilog=_HELP)
+    src = ap.add_mutually_exclusive_group(required=True)
+    src.add_argument("--suite", metavar="NAME|FILE.json",
+                     help=f"a frozen evaluation suite: {', '.join(SUITE_NAMES)}, or a suite JSON file")
+    src.add_argument("--preset", metavar="NAME",
+                     help=f"a scenario preset (training data): {', '.join(PRESETS)}; with --episodes and --seed")
+    ap.add_argument("--episodes", type=int, default=None, metavar="N",
+                    help="episodes drawn from --preset (default 256; not with --suite)")
+    ap.add_argument("--seed", type=int, default=None, metavar="S",
+                    help="seed of the episodes drawn from --preset (default 0; not with --suite)")
+    ap.add_argument("--out", type=Path, required=True, metavar="DIR",
+                    help="output folder (created, and its parent if missing; never more levels)")
+    ap.add_argument("--format", choices=FORMATS, default="npz",
+                    help="npz (dense arrays, default) or parquet (long format, one row per decision; needs pyarrow)")
+    ap.add_argument("--observe-sensors", action="store_true",
+                    help="append the normalised sensor readings to the features")
+    ap.add_argument("--force", action="store_true",
+                    help="overwrite a finished dataset in --out, or discard another export's kept chunks there")
+    add_backend_args(ap, default_batch=64)
+    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
+    return ap
+
+
+def dataset_main(argv=None) -> int:
+    from .common import backend_from_args, interrupted, parse_cli
+    from ..outputs import prepare_out
+    from ..errors import require_extra
+
+    ap = build_parser()
+    args, code = parse_cli(ap, argv)
+    if args is None:
+        return code
+    try:
+        backend = backend_from_args(args)
+        if args.suite and (args.episodes is not None or args.seed is not None):
+            raise ValueError("--episodes and --seed draw episodes from a --preset; a --suite has its own episodes")
+        episodes = 256 if args.episodes is None else args.episodes
+        seed = 0 if args.seed is None else args.seed
+        if args.format == "parquet":
+            require_extra("pyarrow", "--format parquet")
+        if args.suite:
+            suite = load_suite(args.suite)
+            scenarios, env_kwargs = suite.scenarios, dict(suite["env"])
+        else:
+            if episodes < 1:
+                raise ValueError(f"--episodes must be >= 1, got {episodes}")
+            if seed < 0:
+                raise ValueError(f"--seed must be >= 0, got {seed}")
+            cfg = get_preset(args.preset)
+            ss = np.random.SeedSequence(seed)
+            ent = np.random.default_rng(ss).integers(0, 2**63 - 1, size=episodes)
+            scenarios = [cfg.sample(int(e), scenario_id=f"{cfg.name}/{seed}/{i}") for i, e in enumerate(ent)]
+            env_kwargs = {"scenario_config": cfg}
+        if args.observe_sensors:
+            env_kwargs["observe_sensors"] = True
+        out = prepare_out(args.out, "--out", is_dir=True)
+        finished = [f.name for f in (out / "dataset.npz", out / "dataset.parquet") if f.is_file()]
+        if finished and not (out / "dataset.partial").is_dir() and not args.force:
+            raise ValueError(f"--out {out} already holds a dataset ({', '.join(finished)}); pass --force to overwrite "
+                             "it, or choose another --out")
+        if args.force:
+            for name in finished:
+                (out / name).unlink()
+        path = export_dataset(scenarios, out, env_kwargs, batch_size=args.batch_size,
+                              progress=not args.no_progress, backend=backend, fmt=args.format, force=args.force)
+    except ValueError as e:
+        print(f"marine-fdi dataset: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return interrupted("marine-fdi dataset", "finished chunks are kept")
+    print(f"wrote {path} and {out / 'scenarios.json'} ({len(scenarios)} episodes)")
+    return 0

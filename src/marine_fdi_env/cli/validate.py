@@ -1,0 +1,177 @@
+"""``marine-fdi validate``: compare the engine model with measured data and name the causes of misfit."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Sequence
+
+from ..engine.params import list_parameter_sets, load_params
+from ..errors import UsageError
+from ..plotting import pyplot
+from ..validation.data_check import column_registry, describe
+from ..validation.dataset import DatasetError, list_shipped, load_data_arg
+from ..validation.evidence import add_valve_options
+from ..validation.matching import TARGETS
+from ..validation.problem import Problem
+from ..validation.report import clean_json, out_path, run_validation, split_engine, summary_lines
+from ..validation.report_markdown import markdown_summary
+from ..validation.report_plots import write_plots
+from ..validation.unexplained import ALPHA_UNEXPLAINED
+
+
+def build_parser(prog: str = "marine-fdi validate") -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog=prog, description="Validate the engine model against measured data: "
+                                 "discrepancies, named causes, cross-validated gain, the fitted engine.")
+    ap.add_argument("--data", metavar="FILE.csv",
+                    help="measured data (CSV with sidecar FILE.meta.json) or a shipped dataset name "
+                         f"({', '.join(list_shipped())})")
+    g = ap.add_mutually_exclusive_group()
+    g.add_argument("--holdout", metavar="FILE.csv", help="data the fit does not see; the report gives its RMSE")
+    g.add_argument("--holdout-engine", metavar="ID", help="leave this engine of --data out and predict it")
+    ap.add_argument("--out", metavar="report.json", help="JSON report (required unless --check)")
+    ap.add_argument("--check", action="store_true",
+                    help="only load and check --data: what each column becomes, the assumptions, the readings left "
+                         "out, the tolerance of every compared channel; no fit (seconds)")
+    ap.add_argument("--columns", action="store_true", help="list the column names the loader knows and stop")
+    ap.add_argument("--plots", metavar="DIR", help="write model-vs-measurement plots here (needs matplotlib)")
+    ap.add_argument("--params", metavar="NAME|FILE.json", help="parameter set overriding the sidecar's ("
+                    + ", ".join(list_parameter_sets()) + ") or a fitted-engine file")
+    ap.add_argument("--save-params", metavar="ENGINE.json",
+                    help="write the fitted engine (parameter set + selected submodels) for operating-point, simulate, "
+                         "the environment and --params")
+    ap.add_argument("--target", default="auto", help="what fixes each operating point: " + ", ".join(TARGETS))
+    ap.add_argument("--max-causes", type=int, default=4, help="most mechanisms to combine (default 4)")
+    ap.add_argument("--max-folds", type=int, default=None,
+                    help="cross-validate single-engine data with at most this many folds (default: leave one out)")
+    ap.add_argument("--alpha", type=float, default=0.01, help="significance level of a named cause (default 0.01)")
+    ap.add_argument("--alpha-unexplained", type=float, default=ALPHA_UNEXPLAINED,
+                    help=f"family-wise level of what is reported as unexplained (default {ALPHA_UNEXPLAINED:g})")
+    ap.add_argument("--tolerance", action="append", default=[], metavar="COLUMN=VALUE",
+                    help="a channel's tolerance (its noise and what is not worth naming), in the column's units or "
+                         "as P%% of its mean value; repeatable; default: the sidecar's tolerances, else 1 %% and 5 K")
+    ap.add_argument("--cv-all", action="store_true", help="cross-validate every candidate (slower)")
+    add_valve_options(ap)
+    ap.add_argument("--markdown", metavar="FILE.md", help="also write the report's tables as Markdown")
+    ap.add_argument("--replicas", type=int, default=0, metavar="N",
+                    help="also ask whether data like these would name the same causes again: N replicas of the data "
+                         "per hypothesis (the named causes and 4 alternatives), each run through the whole pipeline "
+                         "(marine-fdi replicas; about 5 x N pipeline runs; default 0: no)")
+    ap.add_argument("--workers", type=int, default=1, help="processes for --replicas (default 1)")
+    ap.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    return ap
+
+
+def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi validate") -> int:
+    """Command line ``marine-fdi validate``: 0 on success, 2 on bad input (message on stderr), 130 on Ctrl-C."""
+    ap = build_parser(prog)
+
+    def error(message):
+        raise UsageError(message)
+
+    ap.error = error  # type: ignore[method-assign]
+    argv = list(argv) if argv is not None else sys.argv[1:]
+    try:
+        args = ap.parse_args(argv)
+    except UsageError as e:
+        print(f"{prog}: error: {e}", file=sys.stderr)
+        return 2
+    except SystemExit as e:  # --help
+        return int(e.code or 0)
+    if args.columns:
+        print(column_registry())
+        return 0
+    say = None if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
+    try:
+        if args.data is None:
+            raise ValueError("--data is required (or --columns to list the known column names)")
+        if args.out is None and not args.check:
+            raise ValueError("--out is required (or --check to only check the data)")
+        params = None
+        if args.params is not None:
+            try:
+                params = load_params(args.params)
+            except ValueError as e:
+                raise ValueError(f"--params: {e}") from None
+        if args.target not in TARGETS:
+            raise ValueError(f"--target: unknown target {args.target!r}; allowed: {', '.join(TARGETS)}")
+        if args.max_causes < 0:
+            raise ValueError(f"--max-causes must be >= 0, got {args.max_causes}")
+        if args.max_folds is not None and args.max_folds < 2:
+            raise ValueError(f"--max-folds must be >= 2, got {args.max_folds}")
+        if not 0.0 < args.alpha < 1.0:
+            raise ValueError(f"--alpha must lie in (0, 1), got {args.alpha}")
+        if not 0.0 < args.alpha_unexplained < 1.0:
+            raise ValueError(f"--alpha-unexplained must lie in (0, 1), got {args.alpha_unexplained}")
+        if args.replicas < 0 or args.workers < 1:
+            raise ValueError(f"--replicas must be >= 0 and --workers >= 1, got {args.replicas}, {args.workers}")
+        out = out_path(args.out, "--out") if args.out else None
+        save = out_path(args.save_params, "--save-params") if args.save_params else None
+        md = out_path(args.markdown, "--markdown") if args.markdown else None
+        if args.plots:
+            pyplot()
+        try:
+            ds = load_data_arg(args.data, args.params if args.params in list_parameter_sets() else None)
+        except DatasetError as e:
+            raise ValueError(f"--data: {e}") from None
+        holdout = None
+        notes = []
+        if args.holdout_engine is not None:
+            ds, holdout = split_engine(ds, args.holdout_engine)
+            notes.append(f"engine {args.holdout_engine} left out of the fit and the cross-validation; "
+                         "it is the hold-out")
+        elif args.holdout is not None:
+            try:
+                holdout = load_data_arg(args.holdout, args.params if args.params in list_parameter_sets() else
+                                        ds.params_name)
+            except DatasetError as e:
+                raise ValueError(f"--holdout: {e}") from None
+        problem = Problem(ds, target=args.target, params=params) if args.tolerance or args.check else None
+        tolerances = problem.stated_tolerances(args.tolerance) if args.tolerance else None
+        if args.check:
+            print(describe(ds, problem, tolerances or dict(zip(problem.channels, problem.tolerance)), args.tolerance,
+                           max_folds=args.max_folds))
+            if holdout is not None:
+                what = f"engine {args.holdout_engine} of {ds.name}" if args.holdout_engine else holdout.name
+                print(f"hold-out: {what}, {holdout.n_points} points (predicted, not fitted)")
+            print("--check: nothing fitted, nothing written")
+            return 0
+        rep, sel, ho = run_validation(ds, holdout=holdout, target=args.target, params=params,
+                                      max_causes=args.max_causes, alpha=args.alpha,
+                                      alpha_unexplained=args.alpha_unexplained, cv_all=args.cv_all,
+                                      max_folds=args.max_folds, progress=say, notes=notes,
+                                      command="marine-fdi validate " + " ".join(argv), tolerances=tolerances,
+                                      held_out_valves=args.held_out_valves, beside_valve=args.beside_valve)
+        if args.replicas:
+            from ..validation.replicas import replicate
+
+            if say:
+                say(f"replicas: {args.replicas} per hypothesis, each through the whole pipeline")
+            rep["replicas"] = clean_json(replicate(sel, replicas=args.replicas, workers=args.workers,
+                                               progress=not args.quiet))
+    except RuntimeError as e:  # a missing optional extra
+        print(f"{prog}: error: {e}", file=sys.stderr)
+        return 2
+    except ValueError as e:
+        print(f"{prog}: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr)
+        return 130
+    for p in (out, save, md):
+        if p is not None:
+            p.parent.mkdir(exist_ok=True)
+    out.write_text(json.dumps(rep, indent=1) + "\n")
+    if save is not None:
+        save.write_text(json.dumps(rep["fitted_engine"], indent=1) + "\n")
+    if md is not None:
+        title = ds.name + (f" without {args.holdout_engine} (hold-out)" if args.holdout_engine else "")
+        md.write_text(markdown_summary(rep, title) + "\n")
+    if args.plots:
+        prefix = ds.name + (f"_without_{args.holdout_engine}" if args.holdout_engine else "")
+        files = write_plots(sel, args.plots, ho, prefix=prefix)
+        print("plots: " + ", ".join(str(f) for f in files))
+    print("\n".join(summary_lines(rep)))
+    print(f"report: {out}" + (f"; fitted engine: {save}" if save is not None else ""))
+    return 0

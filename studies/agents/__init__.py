@@ -1,0 +1,1 @@
+"""The comparison of every agent on every suite (see studies/README.md)."""

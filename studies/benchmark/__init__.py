@@ -1,0 +1,1 @@
+"""Studies of marine_fdi_env.benchmark: the frozen suites' builders."""

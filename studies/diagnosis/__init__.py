@@ -1,0 +1,1 @@
+"""Studies of marine_fdi_env.diagnosis (see studies/README.md)."""

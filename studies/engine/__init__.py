@@ -1,0 +1,1 @@
+"""Studies of marine_fdi_env.engine: the shipped parameter sets."""

@@ -1,0 +1,1 @@
+"""Studies of marine_fdi_env.validation (see studies/README.md)."""
