@@ -3,7 +3,7 @@ the tabulated inclusion added (commit ecfb703): one sensor chain after the other
 
 Kept verbatim (imports made absolute) as the regression anchor of ``inclusion="exact"``: the
 restructured kernel must give the same residuals and thresholds bit for bit
-(tests/test_residual_speed.py).
+(tests/unit/test_residual_inclusion.py).
 """
 
 from __future__ import annotations

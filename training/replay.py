@@ -6,7 +6,7 @@ once (``marine-fdi dataset``: the observation, the active faults and the decisio
 decision) can be played again under *any* sequence of actions, scoring each action with the
 environment's own reward code (:class:`marine_fdi_env.envs.reward.RewardV1`): the transitions and
 rewards are exactly those of the live environment on that episode (tested in
-``tests/test_rl_agent.py``: observations and rewards bit for bit; one difference: after an engine
+``tests/integration/test_rl_agent.py``: observations and rewards bit for bit; one difference: after an engine
 failure the live environment returns an observation of the failing period as the last one, which
 a dataset does not record, so the replay repeats the last recorded one; SB3 bootstraps values
 only on time-limit truncations, never on such terminations).  Reinforcement learning on a

@@ -2,7 +2,7 @@
 
     python -m studies.engine.parameter_sets
 
-``tests/test_params.py`` checks that the shipped files match what this writes.
+``tests/unit/test_params.py`` checks that the shipped files match what this writes.
 """
 
 from __future__ import annotations

@@ -34,7 +34,7 @@ Choices that no data determines are passed in as inputs with their justification
 ``source`` text of the entry): η_com, η_c, Q_loss_grad, σ_f, T_sl, turbochargers per engine.
 
 ``python -m studies.engine.parameter_sets`` (in the repository) rewrites the shipped parameter sets from
-the input tables below (:func:`write_parameter_sets`); ``tests/test_params.py`` checks that the shipped files match.
+the input tables below (:func:`write_parameter_sets`); ``tests/unit/test_params.py`` checks that the shipped files match.
 """
 
 from __future__ import annotations

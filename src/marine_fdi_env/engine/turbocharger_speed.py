@@ -10,7 +10,7 @@ step 8).
 Evidence for the law: on the Birka ME1 protocol, Δh_c,is / N² computed from the measured charge-air
 pressure, ambient pressure and compressor-inlet temperature varies by ±2.6 % over the six loads
 (25-110 %), so the law predicts the measured speed within about 1.5 % from the 100 % calibration point
-(``tests/test_turbocharger_speed.py``).
+(``tests/unit/test_submodels.py``, ``test_turbocharger_speed_law_on_the_protocol``).
 """
 
 from __future__ import annotations

@@ -1,0 +1,232 @@
+"""Smoke tests of the learned diagnosers (training/): tiny seeded runs only, full training stays out of CI."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+pytest.importorskip("stable_baselines3")
+
+from marine_fdi_env.benchmark.agent_api import load_agent  # noqa: E402
+from marine_fdi_env.benchmark.evaluate import run_episodes  # noqa: E402
+from marine_fdi_env.envs.hypotheses import N_HYPOTHESES  # noqa: E402
+from marine_fdi_env.envs.observation import observation_size  # noqa: E402
+from marine_fdi_env.envs.scenario_sampler import ScenarioConfig  # noqa: E402
+from marine_fdi_env.training.agents import ClassifierAgent, SB3Agent  # noqa: E402
+from marine_fdi_env.training.classifier import calibrate_threshold, train_classifier  # noqa: E402
+from marine_fdi_env.training.train import _observation_meta, save_meta, load_hyperparams, train_sb3  # noqa: E402
+from marine_fdi_env.training.vec_adapter import SB3VecEnv, to_belief  # noqa: E402
+from tests.paths import ROOT
+
+# fault-free 12 s episodes: no dependence on the detectability table, and episode ends happen
+SHORT = ScenarioConfig(name="short", duration_s=12.0, fault_count_weights=(1.0, 0.0, 0.0),
+                       onset_range_s=(2.0, 5.0)).to_dict()
+NF = observation_size(False)  # features per decision (module features + clock)
+TINY = dict(n_envs=2, n_timesteps=48, n_steps=12, batch_size=24, n_epochs=1, scenario_config=SHORT,
+            policy_kwargs="dict(net_arch=[16])")
+
+
+def _params(model) -> list[np.ndarray]:
+    return [p.detach().cpu().numpy().copy() for p in model.policy.parameters()]
+
+
+def test_adapter_autoreset_and_actions():
+    env = SB3VecEnv(2, scenario_config=SHORT, action_mode="box", seed=3)
+    obs = env.reset()
+    assert obs.shape == (2, NF) and obs.dtype == np.float32
+    for k in range(12):
+        obs, rew, done, infos = env.step(np.full((2, N_HYPOTHESES), -1.0, dtype=np.float32))
+        assert obs.shape == (2, NF)
+    assert done.all() and all("terminal_observation" in i for i in infos)
+    assert all(i["TimeLimit.truncated"] for i in infos)
+    # the new episodes started at once: time fraction of the first decision period
+    assert np.allclose(obs[:, -1], 1.0 / 12.0, atol=1e-6)
+    b = to_belief(np.array([[-1.0] * 27 + [1.0]]), "box")
+    assert b[0, -1] == 1.0 and b[0, 0] == 0.0
+    d = to_belief(np.array([26, 0]), "discrete")
+    assert d[0, 26] == 1.0 and d[1, 0] == 1.0 and d.sum() == 2.0
+    with pytest.raises(ValueError, match="action_mode"):
+        SB3VecEnv(1, scenario_config=SHORT, action_mode="multi")
+    # env_method reaches the shared batched env once, one result per index
+    drawn = env.env_method("_draw", 0, indices=[0, 1])
+    assert len(drawn) == 2 and drawn[0] is drawn[1] and drawn[0].duration_s == 12.0
+    with pytest.raises(ValueError, match="no method"):
+        env.env_method("fly")
+
+
+def test_ppo_same_seed_same_weights(tmp_path):
+    hp = load_hyperparams("ppo", overrides=TINY)
+    m1, cfg = train_sb3("ppo", 7, hp, tmp_path / "a", log=None)
+    m2, _ = train_sb3("ppo", 7, hp, None, log=None)
+    m3, _ = train_sb3("ppo", 8, hp, None, log=None)
+    for a, b in zip(_params(m1), _params(m2)):
+        np.testing.assert_array_equal(a, b)
+    assert any(not np.array_equal(a, b) for a, b in zip(_params(m1), _params(m3)))
+    assert (tmp_path / "a" / "model.zip").is_file() and (tmp_path / "a" / "learning_curve.csv").is_file()
+    assert cfg["seed"] == 7 and cfg["observation"]["size"] == NF
+
+
+def test_recurrent_ppo_smoke_and_agent(tmp_path):
+    pytest.importorskip("sb3_contrib")
+    hp = load_hyperparams("ppo_lstm", overrides=dict(TINY, policy_kwargs="dict(lstm_hidden_size=8)"))
+    out = tmp_path / "lstm"
+    _, cfg = train_sb3("ppo_lstm", 1, hp, out, log=None)
+    save_meta(out, cfg, "marine_fdi_env.training.agents:SB3Agent")
+    agent = load_agent(str(out))
+    assert isinstance(agent, SB3Agent)
+    recs = run_episodes(agent, [ScenarioConfig.from_dict(SHORT).sample(5, scenario_id="x")])
+    assert recs[0]["duration_s"] == 12.0
+
+
+def test_frame_stacked_ppo_agent(tmp_path):
+    hp = load_hyperparams("ppo", overrides=dict(TINY, frame_stack=3, action_mode="box"))
+    out = tmp_path / "fs"
+    _, cfg = train_sb3("ppo", 2, hp, out, log=None)
+    save_meta(out, cfg, "marine_fdi_env.training.agents:SB3Agent")
+    agent = load_agent(str(out))
+    assert agent.frame_stack == 3 and agent.model.observation_space.shape == (3 * NF,)
+    rec = run_episodes(agent, [ScenarioConfig.from_dict(SHORT).sample(6, scenario_id="y")])[0]
+    assert rec["duration_s"] == 12.0
+
+
+def test_reference_features_from_infos_and_ppo_agent_reading_them(tmp_path):
+    from marine_fdi_env.training.vec_adapter import N_REFERENCE_FEATURES, reference_features
+
+    ref = {"detected": np.array([False, True, True]),
+           "diagnoses": np.array([[], [["S3.4"], ["S3.2"]], [["S1.1", "bore_damage"]]], dtype=object)}
+    f = reference_features(ref, 3)
+    assert f.shape == (3, 27) and not f[0].any()
+    assert f[1, 0] == 1 and f[1, 1 + 11] == 0.5 and f[1, 1 + 9] == 0.5 and f[1].sum() == 2.0  # S3.4, S3.2
+    assert f[2, 1 + 0] == 1.0 and f[2, 1 + 20] == 1.0  # S1.1 and bore_damage in the one diagnosis
+    hp = load_hyperparams("ppo", overrides=dict(TINY, reference_features=True))
+    out = tmp_path / "ref"
+    _, cfg = train_sb3("ppo", 4, hp, out, log=None)
+    save_meta(out, cfg, "marine_fdi_env.training.agents:SB3Agent")
+    agent = load_agent(str(out))
+    assert agent.with_reference and agent.model.observation_space.shape == (NF + N_REFERENCE_FEATURES,)
+    rec = run_episodes(agent, [ScenarioConfig.from_dict(SHORT).sample(8, scenario_id="r")])[0]
+    assert rec["duration_s"] == 12.0
+
+
+def _tiny_classifier(tmp_path) -> Path:
+    rng = np.random.default_rng(0)
+    obs = rng.random((6, 10, NF)).astype(np.float32)
+    active = np.zeros((6, 10, 26), dtype=bool)
+    active[:3, 5:, 4] = True
+    data = {"obs": obs, "active": active, "valid": np.ones((6, 10), dtype=bool)}
+    r1 = train_classifier(data, seed=0, hidden=8, embed=8, epochs=2, log=None)
+    r2 = train_classifier(data, seed=0, hidden=8, embed=8, epochs=2, log=None)
+    for (k, a), (_, b) in zip(r1.model.state_dict().items(), r2.model.state_dict().items()):
+        assert torch.equal(a, b), k
+    out = tmp_path / "clf"
+    out.mkdir()
+    torch.save(r1.model.state_dict(), out / "model.pt")
+    cfg = {"name": "classifier", "algo": "classifier", "observation": _observation_meta(),
+           "architecture": {"kind": "gru", "n_features": NF, "hidden": 8, "embed": 8},
+           "declaration": {"alarm_threshold": 0.99, "isolation_threshold": 0.5}}
+    save_meta(out, cfg, "marine_fdi_env.training.agents:ClassifierAgent")
+    return out
+
+
+def test_classifier_seeded_and_agent(tmp_path):
+    out = _tiny_classifier(tmp_path)
+    agent = load_agent(str(out))
+    assert isinstance(agent, ClassifierAgent)
+    agent.reset([0, 1])
+    b = agent.act(np.zeros((2, NF), dtype=np.float32), {})
+    assert b.shape == (2, N_HYPOTHESES) and b.dtype == np.float32
+
+
+def test_calibration_threshold_above_fault_free_peaks():
+    p = np.array([[0.1, 0.3, 0.2], [0.05, 0.6, 0.1]])
+    cal = calibrate_threshold(p, np.ones_like(p, dtype=bool), margin=0.0)
+    assert cal["alarm_threshold"] == pytest.approx(0.6)
+    assert calibrate_threshold(p, np.ones_like(p, dtype=bool), margin=1.0)["alarm_threshold"] > 0.6
+
+
+def test_model_loading_errors(tmp_path):
+    out = _tiny_classifier(tmp_path)
+    # missing weights
+    bad = tmp_path / "missing"
+    shutil.copytree(out, bad)
+    (bad / "model.pt").unlink()
+    with pytest.raises(ValueError, match=r"model\.pt: missing"):
+        load_agent(str(bad))
+    # corrupt weights
+    bad = tmp_path / "corrupt"
+    shutil.copytree(out, bad)
+    (bad / "model.pt").write_bytes(b"\x00garbage" * 10)
+    with pytest.raises(ValueError, match=r"model\.pt: corrupt"):
+        load_agent(str(bad))
+    # another observation space (the sensor features too, observe_sensors=True)
+    bad = tmp_path / "other_space"
+    shutil.copytree(out, bad)
+    cfg = json.loads((bad / "config.json").read_text())
+    cfg["observation"] = _observation_meta(True)
+    cfg["observation"]["observe_sensors"] = False
+    (bad / "config.json").write_text(json.dumps(cfg))
+    with pytest.raises(ValueError, match=r"config\.json: model made for another observation space"):
+        load_agent(str(bad))
+    # missing / corrupt SB3 archive
+    bad = tmp_path / "sb3"
+    bad.mkdir()
+    save_meta(bad, {"algo": "ppo", "action_mode": "discrete", "observation": _observation_meta()},
+               "marine_fdi_env.training.agents:SB3Agent")
+    with pytest.raises(ValueError, match=r"model\.zip: missing"):
+        load_agent(str(bad))
+    (bad / "model.zip").write_bytes(b"PK\x03\x04 not really a zip")
+    with pytest.raises(ValueError, match=r"model\.zip: corrupt"):
+        load_agent(str(bad))
+    # corrupt config
+    (bad / "config.json").write_text("{not json")
+    with pytest.raises(ValueError, match=r"config\.json: not a readable model config"):
+        load_agent(str(bad))
+
+
+@pytest.mark.parametrize("name", ["classifier", "ppo"])
+def test_shipped_models_load(name):
+    d = ROOT / "training" / "models" / name
+    if not (d / "agent.json").is_file():
+        pytest.skip(f"{d} not shipped yet")
+    agent = load_agent(str(d))
+    agent.reset([0, 1])
+    b = agent.act(np.zeros((2, NF), dtype=np.float32), {"reference": {"detected": np.zeros(2, bool),
+                                                                       "diagnoses": [[], []]}})
+    assert b.shape == (2, N_HYPOTHESES)
+    cfg = json.loads((d / "config.json").read_text())
+    # the command recorded when the shipped model was made (older spellings of `marine-fdi train`)
+    assert cfg["command"].split(" --")[0] in ("python -m training.train", "python -m marine_fdi_env.training.train",
+                                              "marine-fdi train")
+
+
+def test_classifier_ewma_inputs_streaming_equals_episode():
+    """The EWMA inputs of the signed means are causal: one decision at a time gives the whole-episode logits."""
+    from marine_fdi_env.training.classifier import GRUDiagnoser
+    from marine_fdi_env.envs.observation import feature_names
+
+    names = feature_names(False)
+    idx = [i for i, n in enumerate(names) if n.endswith(".signed_mean_ratio")]
+    assert len(idx) == 19
+    torch.manual_seed(0)
+    m = GRUDiagnoser(NF, hidden=8, embed=8, ewma_idx=idx, ewma_taus=(5.0, 20.0)).eval()
+    assert m.n_inputs == NF + 2 * 19
+    x = torch.randn(3, 7, NF)
+    xa, _ = m.augment(x)
+    # the first EWMA input of the first signed feature: s_t = s_{t-1} + (x_t - s_{t-1}) / 5, s_{-1} = 0
+    s, ref = 0.0, []
+    for t in range(7):
+        s = s + (float(x[0, t, idx[0]]) - s) / 5.0
+        ref.append(s)
+    np.testing.assert_allclose(xa[0, :, NF].numpy(), ref, rtol=1e-5, atol=1e-6)
+    with torch.no_grad():
+        whole, _ = m(x)
+        h, steps = None, []
+        for t in range(7):
+            y, h = m(x[:, t:t + 1], h)
+            steps.append(y)
+    torch.testing.assert_close(torch.cat(steps, 1), whole, rtol=1e-5, atol=1e-5)
