@@ -57,7 +57,7 @@ WHAT = {
     "null": ("never declares anything", False),
     "random": ("declares a random hypothesis about once a minute", False),
     "reference": ("the thesis's diagnoser (19 modules, adaptive thresholds, minimal diagnoses)", True),
-    "sequential": ("the sequential diagnoser (issue 13): CUSUM tests on the reference's residuals, the same structural "
+    "sequential": ("the sequential diagnoser: CUSUM tests on the reference's residuals, the same structural "
                    "isolation; thresholds calibrated on its own fault-free runs, not on a suite", False),
     "ppo": ("reinforcement learning (PPO), observation features only", False),
     "classifier": ("supervised GRU, observation features only: its own alarm and faults", False),
@@ -427,7 +427,7 @@ def readme_block() -> str:
              f"compute at a batch of {BATCH_SIZE} episodes):\n",
              markdown_table(load_results(files)) if files else "(no results)\n",
              "Headline numbers, training compute and size of the learned agents:\n", compact_table(list(AGENTS)),
-             "\nMust-show checks of the learned agents (issue 12):\n",
+             "\nMust-show checks of the learned agents:\n",
              "| check | measured | met |", "|---|---|---|"]
     for name, val, ok in must_shows():
         parts.append(f"| {name} | {val} | {'–' if ok is None else 'yes' if ok else 'NO'} |")

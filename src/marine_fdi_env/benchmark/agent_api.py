@@ -56,7 +56,7 @@ def _import(target: str, where: str):
         mod = importlib.import_module(mod_name)
     except ImportError as e:
         hint = ""
-        if mod_name.split(".")[0] in LEGACY_PACKAGES:  # the names before issue 15: no alias, a clear message
+        if mod_name.split(".")[0] in LEGACY_PACKAGES:  # a top-level baselines/training name: say the namespaced one
             top = mod_name.split(".")[0]
             hint = (f"; this project's {top!r} package is installed as 'marine_fdi_env.{top}': "
                     f"write 'marine_fdi_env.{target}' in the agent.json")
