@@ -8,6 +8,7 @@ import sys
 
 from .._version import __version__
 from ..layers import PACKAGE, check_imports, package_roots, print_imports
+from .common import parse_cli
 
 
 def _summary() -> None:
@@ -28,7 +29,9 @@ def info_main(argv=None) -> int:
     ap.add_argument("--imports", action="store_true",
                     help="check the import layers and circles of the package (exit 1 on a violation)")
     ap.add_argument("-v", "--verbose", action="store_true", help="with --imports: list every import")
-    args = ap.parse_args(argv)
+    args, code = parse_cli(ap, argv)
+    if args is None:
+        return code
     if args.imports:
         return print_imports(check_imports(), verbose=args.verbose)
     _summary()

@@ -14,6 +14,7 @@ from ..validation.mechanisms import PHYSICAL_MECHANISMS
 from ..validation.problem import Problem
 from ..validation.replicas import NOISE_MODELS, markdown_table, replicate
 from ..validation.selection import select_causes
+from .common import parse_cli
 
 
 def replicas_main(argv: Sequence[str] | None = None) -> int:
@@ -38,7 +39,9 @@ def replicas_main(argv: Sequence[str] | None = None) -> int:
                     help="a channel's tolerance in its units or as P%% of its mean value (as marine-fdi validate)")
     add_valve_options(ap)
     ap.add_argument("--no-progress", action="store_true")
-    args = ap.parse_args(list(argv) if argv is not None else None)
+    args, code = parse_cli(ap, list(argv) if argv is not None else None)
+    if args is None:
+        return code
     alts = None if args.alternatives is None else [a.strip() for a in args.alternatives.split(",") if a.strip()]
     try:
         if args.top < 0:
