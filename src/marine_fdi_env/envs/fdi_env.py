@@ -12,6 +12,7 @@ from gymnasium import spaces
 from .core import EpisodeBatch
 from .hypotheses import HYPOTHESES, N_HYPOTHESES, check_action
 from .observation import feature_names, observation_bounds
+from .rendering import supported_render_mode
 from .reward import RewardConfig, RewardConfigV1, make_reward_config
 from .scenario_sampler import ScenarioConfig, ScenarioSpec, get_preset
 
@@ -124,9 +125,7 @@ class MarineFDIEnv(gym.Env):
                  observe_sequential: bool = False) -> None:
         self.scenario_config = get_preset(scenario_config)
         reward = make_reward_config(reward)
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        self.render_mode = render_mode
+        self.render_mode = supported_render_mode(render_mode, self.metadata["render_modes"])
         self._init_kwargs = dict(scenario_config=self.scenario_config, decision_period_s=decision_period_s,
                                  observe_sensors=observe_sensors, reward=reward, params=params, dt=dt,
                                  observe_sequential=observe_sequential)
