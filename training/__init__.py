@@ -7,7 +7,7 @@
 * :mod:`marine_fdi_env.training.vec_adapter` - SB3 ``VecEnv`` over the batched vector environment, action modes;
 * :mod:`marine_fdi_env.training.classifier` - the supervised GRU diagnoser and its threshold calibration;
 * :mod:`marine_fdi_env.training.agents` - trained models as benchmark agents (``marine-fdi evaluate --agent
-  training/models/NAME``).
+  NAME`` for a shipped model, ``--agent FOLDER`` for any model folder).
 
 ``SB3VecEnv`` and ``save_sb3_agent`` are importable from here (loaded on first use, so that importing
 this package needs no extra)::

@@ -544,3 +544,19 @@ def test_long_commands_say_their_cost_first(capsys, tmp_path):
     say_export_cost("thesis-v1")
     err = capsys.readouterr().err
     assert "marine-fdi export-raw: 20 scenarios of thesis-v1: expect about" in err and "MB" in err
+
+
+def test_a_fault_free_suite_confusion_plot_has_room_for_its_labels(tmp_path):
+    """A one-row confusion matrix (a fault-free suite) gets a panel tall enough for tight_layout: no
+    matplotlib warning among the report's output."""
+    import warnings
+
+    pytest.importorskip("matplotlib")
+    from marine_fdi_env.benchmark.report import plot_confusion
+
+    rs = load_results(sorted((ROOT / "docs" / "data" / "results").glob("*_nominal-v1.json")))
+    assert len(rs) >= 2
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        plot_confusion(rs, tmp_path / "c.png")
+    assert (tmp_path / "c.png").read_bytes()[:4] == b"\x89PNG"

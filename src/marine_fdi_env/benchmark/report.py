@@ -416,7 +416,7 @@ def plot_confusion(rs: Sequence[Mapping], path: Path) -> Path:
     nrow = -(-n // ncol)
     cell = 0.24
     w = cell * len(cols) + 0.4
-    h = cell * len(rows) + 0.5
+    h = max(cell * len(rows) + 0.5, 1.4)  # a one-row matrix (a fault-free suite) still needs room for title and labels
     lab_w = 0.07 * max(len(x) for x in rows) + 0.6    # room for the y tick labels of the first column
     lab_h = 0.065 * max(len(x) for x in cols) + 0.5   # room for the x tick labels of the bottom row
     fig, axes = plt.subplots(nrow, ncol, figsize=(w * ncol + lab_w, h * nrow + lab_h + 0.3), squeeze=False)

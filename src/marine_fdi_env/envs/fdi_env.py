@@ -99,7 +99,9 @@ class MarineFDIEnv(gym.Env):
     ``nominal``, ``incipient``, ``transfer``, ``sensor-kinds``), a
     :class:`~marine_fdi_env.envs.scenario_sampler.ScenarioConfig` or its dict.
     ``reset(options={"scenario": ScenarioSpec | dict})`` runs a given scenario instead of a drawn
-    one (the frozen suites do this).
+    one (the frozen suites do this).  ``render_mode``: ``"ansi"`` (one line of text per decision) or
+    None; another mode warns and renders nothing, as Gymnasium's own environments do (so that
+    Stable-Baselines3's ``make_vec_env``, which asks for ``"rgb_array"``, works unchanged).
 
     ## info
     ``t_s``, ``scenario_id``, ``profile``, ``true_faults`` (id, class, onset, magnitude, end),
