@@ -187,3 +187,14 @@ def test_readme_commands_run_verbatim_in_an_empty_folder(tmp_path, monkeypatch, 
     # the main job again: it shows the results it wrote instead of failing
     _, out = run_command(["marine-fdi", "evaluate"], minis, capsys)
     assert "computed before" in out
+
+
+def test_the_readme_is_short_and_its_links_resolve():
+    text = README.read_text(encoding="utf-8")
+    assert len(text.encode("utf-8")) <= 12 * 1024, "README.md over 12 KB: move detail to docs/"
+    links = re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", text)
+    assert len(links) >= 10
+    missing = [t for t in links if not t.startswith("http") and not (ROOT / t).exists()]
+    assert not missing, f"README links to files that do not exist: {missing}"
+    for _, body in code_blocks(text, "bash"):  # no command that works only from the clone's root
+        assert "training/models" not in body and "docs/examples" not in body

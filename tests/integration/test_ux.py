@@ -504,6 +504,9 @@ def test_evaluate_twice_shows_the_results_then_writes_beside_them(tmp_path, monk
     assert "results/null_tiny-v1-2.json" in capsys.readouterr().out
     assert json.loads((tmp_path / "results" / "null_tiny-v1-2.json").read_text())["seed_offset"] == 1
     assert json.loads(first.read_text())["seed_offset"] == 0
+    assert cli_main(argv + ["--seed-offset", "1"]) == 0  # that other run again: found beside, shown
+    assert "results/null_tiny-v1-2.json (computed before" in capsys.readouterr().out
+    assert not (tmp_path / "results" / "null_tiny-v1-3.json").exists()
 
 
 def test_third_party_warnings_print_above_the_bar_not_inside_it(capsys):

@@ -33,13 +33,18 @@ def same_run_results(path: Path, args: argparse.Namespace) -> dict | None:
     return kept if same else None
 
 
-def beside(path: Path) -> Path:
-    """The first free ``STEM-k.SUFFIX`` (k = 2, 3, ...) beside ``path``."""
-    k = 2
+def default_results(path: Path, args: argparse.Namespace) -> tuple[Path, dict | None]:
+    """Where a run without ``--out`` goes: the first of ``path``, ``STEM-2.SUFFIX``, ``STEM-3.SUFFIX``, ...
+    that holds this run's results (returned with them, to show), is being written (a partial file:
+    resumed), or is free."""
+    k = 1
     while True:
-        p = path.with_name(f"{path.stem}-{k}{path.suffix}")
+        p = path if k == 1 else path.with_name(f"{path.stem}-{k}{path.suffix}")
         if not p.exists() or p.with_name(p.name + ".partial.jsonl").exists():
-            return p
+            return p, None
+        kept = same_run_results(p, args)
+        if kept is not None:
+            return p, kept
         k += 1
 
 
@@ -93,12 +98,11 @@ def evaluate_main(argv=None) -> int:
             if args.out is not None:
                 raise UsageError(f"--out {out} already holds results; pass --force to recompute and overwrite them, "
                                  "or choose another --out")
-            kept = same_run_results(out, args)
-            if kept is not None:  # the default file of this very run: show it
+            out, kept = default_results(out, args)
+            if kept is not None:  # this very run's results: show them
                 print(markdown_table([kept]))
                 print(f"\nresults: {out} (computed before; --force recomputes them)")
                 return 0
-            out = beside(out)
         from ..benchmark.suites import load_suite
         from ..costs import CostEstimate, episode_cpu_s, say_cost
 
