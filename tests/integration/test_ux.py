@@ -563,3 +563,9 @@ def test_a_fault_free_suite_confusion_plot_has_room_for_its_labels(tmp_path):
         warnings.simplefilter("error")
         plot_confusion(rs, tmp_path / "c.png")
     assert (tmp_path / "c.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_a_clone_relative_model_path_elsewhere_names_the_agent(tmp_path, monkeypatch, capsys, tiny):
+    monkeypatch.chdir(tmp_path)
+    line = _one_line_error(capsys, ["evaluate", "--agent", "training/models/ppo", "--suite", tiny])
+    assert "--agent ppo" in line and "any folder" in line
