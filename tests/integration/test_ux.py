@@ -547,6 +547,19 @@ def test_long_commands_say_their_cost_first(capsys, tmp_path):
     say_export_cost("thesis-v1")
     err = capsys.readouterr().err
     assert "marine-fdi export-raw: 20 scenarios of thesis-v1: expect about" in err and "MB" in err
+    from marine_fdi_env.cli.sweep import say_sweep_cost
+
+    say_sweep_cost(["all"], ["all"], 1, workers=2)
+    assert capsys.readouterr().err.startswith("marine-fdi sweep: 8 agents x 459 episodes: expect about ")
+    from marine_fdi_env.benchmark.agent_registry import models_dir
+    from marine_fdi_env.cli.train import say_training_cost
+
+    shipped = json.loads((models_dir() / "ppo" / "config.json").read_text())["cpu_minutes"]
+    say_training_cost("ppo", None)
+    assert f"expect about {shipped:.0f} min" in capsys.readouterr().err
+    data = json.loads((models_dir() / "ppo" / "config.json").read_text())["cpu_s_data"] / 60.0
+    say_training_cost("ppo", 7_000_000 // 100)  # a hundredth of the budget: mostly simulating the episodes
+    assert f"expect about {data + (shipped - data) / 100:.0f} min" in capsys.readouterr().err
 
 
 def test_a_fault_free_suite_confusion_plot_has_room_for_its_labels(tmp_path):

@@ -33,7 +33,8 @@ def say_training_cost(algo: str, n_timesteps: int | None) -> None:
     if n_timesteps and cfg.get("n_timesteps"):
         data = float(cfg.get("cpu_s_data") or 0.0) / 60.0  # simulating the episodes does not scale with the budget
         minutes = data + (minutes - data) * n_timesteps / float(cfg["n_timesteps"])
-    say_cost("marine-fdi train", f"{algo} as the shipped {root.name}/{algo} was trained", CostEstimate(60.0 * minutes))
+    say_cost("marine-fdi train", f"training {algo} (from the shipped model's measured CPU time, simulating its "
+             "training episodes included; less when they are cached)", CostEstimate(60.0 * minutes))
 
 
 def _parse_params(items: list[str]) -> dict:
