@@ -11,8 +11,9 @@ prints one JSON object (or one line per metric):
 ``agent_cpu_s_per_episode``      per agent (``reference``, ``sequential``, ``ppo``, ``classifier``):
                                  the same run's CPU seconds per episode minus the environment's
                                  (``sequential`` includes its extra CUSUM features).
-``raw_bytes_per_sample``         bytes ``export-raw`` writes per 100 Hz sample (two scenarios of
-                                 thesis-v1; data and ground truth files).
+``raw_bytes_per_sample``, ``raw_cpu_s_per_sample``
+                                 bytes ``export-raw`` writes per 100 Hz sample (two scenarios of
+                                 thesis-v1; data and ground truth files), and its CPU seconds per sample.
 ``run_file_bytes_per_engine_sample``, ``simulate_engine_samples_per_cpu_s``
                                  ``marine-fdi simulate`` of 8 engines x 300 s: file size per engine-sample,
                                  and engine-samples per CPU second of the whole command.
@@ -22,6 +23,8 @@ prints one JSON object (or one line per metric):
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import json
 import os
 import sys
@@ -63,15 +66,18 @@ def main() -> None:
                                        for a in AGENTS}}
     from marine_fdi_env.cli import main as cli
 
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as tmp, contextlib.redirect_stdout(io.StringIO()):  # the commands' own reports
         t = load_suite("thesis-v1")
         mini = dict(t, scenarios=[s.to_dict() for s in t.scenarios[:2]])
         (Path(tmp) / "mini.json").write_text(json.dumps(mini))
         raw = Path(tmp) / "raw"
+        c0 = time.process_time()
         assert cli(["export-raw", "--suite", str(Path(tmp) / "mini.json"), "--out", str(raw), "--no-progress"]) == 0
+        raw_cpu = time.process_time() - c0
         samples = sum(e["n_samples"] for e in json.loads((raw / "manifest.json").read_text())["scenarios"])
         size = sum(f.stat().st_size for f in raw.rglob("*") if f.is_file())
         out["raw_bytes_per_sample"] = round(size / samples, 1)
+        out["raw_cpu_s_per_sample"] = round(raw_cpu / samples, 7)
         run = Path(tmp) / "run.npz"
         c0 = time.process_time()
         assert cli(["simulate", "--engines", "8", "--duration", "300", "--out", str(run), "--no-progress"]) == 0

@@ -14,14 +14,17 @@ from dataclasses import dataclass
 from .errors import UsageError
 
 __all__ = ["available_memory_bytes", "check_memory", "CostEstimate", "say_cost", "fmt_bytes", "fmt_seconds",
-           "episode_cpu_s", "ENV_EPISODE_CPU_S", "AGENT_EPISODE_CPU_S", "RAW_BYTES_PER_SAMPLE"]
+           "episode_cpu_s", "ENV_EPISODE_CPU_S", "AGENT_EPISODE_CPU_S", "RAW_BYTES_PER_SAMPLE",
+           "RAW_CPU_S_PER_SAMPLE"]
 
 # CPU seconds per 300 s episode (one decision per second, batches of 32) on the development machine: the
-# environment (simulation and observation features) and, on top, each agent's decisions
-ENV_EPISODE_CPU_S = 0.15
-AGENT_EPISODE_CPU_S = {"null": 0.0, "random": 0.0, "oracle": 0.0, "reference": 0.01, "sequential": 0.05,
-                       "ppo": 0.05, "classifier": 0.05, "classifier+reference": 0.05}
-RAW_BYTES_PER_SAMPLE = 365  # export-raw: bytes written per 100 Hz sample (sensor rows and ground truth)
+# environment (simulation and observation features, the reference diagnoser's conclusion included) and, on top,
+# each agent's decisions; `python benchmarks/costs.py --json` (0.082 s at load 6, rounded up)
+ENV_EPISODE_CPU_S = 0.09
+AGENT_EPISODE_CPU_S = {"null": 0.0, "random": 0.0, "oracle": 0.0, "reference": 0.001, "sequential": 0.002,
+                       "ppo": 0.01, "classifier": 0.01, "classifier+reference": 0.01}
+RAW_BYTES_PER_SAMPLE = 382  # export-raw: bytes written per 100 Hz sample (sensor rows and ground truth)
+RAW_CPU_S_PER_SAMPLE = 1.0e-5  # export-raw: CPU seconds per 100 Hz sample (simulating and writing the CSV rows)
 
 
 def episode_cpu_s(agent: str, duration_s: float = 300.0) -> float:
@@ -90,5 +93,6 @@ def say_cost(prog: str, what: str, cost: CostEstimate, *, min_wall_s: float = 60
     if cost.wall_s < min_wall_s and cost.disk_bytes < 1e8:
         return
     disk = f", writes about {fmt_bytes(cost.disk_bytes)}" if cost.disk_bytes else ""
-    print(f"{prog}: {what}: expect about {fmt_seconds(cost.wall_s)} on {cost.workers} worker"
-          f"{'s' if cost.workers != 1 else ''} of this machine's kind{disk}", file=sys.stderr)
+    workers = f" with {cost.workers} workers" if cost.workers > 1 else ""
+    print(f"{prog}: {what}: expect about {fmt_seconds(cost.wall_s)}{workers}{disk} (estimated from measured "
+          "per-unit costs; longer on a loaded machine)", file=sys.stderr)

@@ -18,7 +18,7 @@ from ..benchmark.rawscore import dx_table, score_raw
 def say_export_cost(suite_name: str) -> None:
     """The export's expected time and disk use, said before it starts (:mod:`marine_fdi_env.costs`)."""
     from ..benchmark.suites import load_suite
-    from ..costs import RAW_BYTES_PER_SAMPLE, CostEstimate, episode_cpu_s, say_cost
+    from ..costs import RAW_BYTES_PER_SAMPLE, RAW_CPU_S_PER_SAMPLE, CostEstimate, say_cost
 
     try:
         suite = load_suite(suite_name)
@@ -26,7 +26,7 @@ def say_export_cost(suite_name: str) -> None:
         return  # export_raw names the bad suite
     samples = sum(s.duration_s / float(suite["env"].get("dt", 0.01)) for s in suite.scenarios)
     say_cost("marine-fdi export-raw", f"{len(suite.scenarios)} scenarios of {suite.name}",
-             CostEstimate(sum(episode_cpu_s("null", s.duration_s) for s in suite.scenarios), samples * RAW_BYTES_PER_SAMPLE))
+             CostEstimate(samples * RAW_CPU_S_PER_SAMPLE, samples * RAW_BYTES_PER_SAMPLE))
 
 
 def export_raw_main(argv=None) -> int:

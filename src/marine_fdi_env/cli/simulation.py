@@ -37,8 +37,8 @@ DEFAULT_PARAMS = "thesis-12v28"
 LONG_RUN_STEPS = 10_000
 # what a run costs (benchmarks/costs.py): simulated engine-samples per CPU second of a whole `simulate` (the
 # batched simulator, recording and saving) and bytes of the compressed run file per engine-sample
-SIMULATED_SAMPLES_PER_CPU_S = 2.0e5
-RUN_FILE_BYTES_PER_ENGINE_SAMPLE = 145
+SIMULATED_SAMPLES_PER_CPU_S = 1.25e5
+RUN_FILE_BYTES_PER_ENGINE_SAMPLE = 143
 
 
 FAULT_SPEC_HELP = """\
