@@ -41,7 +41,7 @@ PACKAGE = "marine_fdi_env"
 # layer name -> module name prefixes (relative to the package), most specific first when matched
 LAYERS: dict[str, tuple[str, ...]] = {
     "util": ("_version", "_jit", "_coldstart", "suggest", "plotting", "jsonfile", "errors", "outputs", "progress",
-             "layers"),
+             "costs", "layers"),
     "params": ("engine.params", "engine.submodels"),
     "engine": ("engine",),
     "io": ("runio", "scenarios"),

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from .errors import UsageError
 
-__all__ = ["prepare_out", "differing_fields"]
+__all__ = ["prepare_out", "check_suffix", "differing_fields"]
 
 
 def prepare_out(path: "str | Path", option: str = "--out", *, is_dir: bool = True, create: bool = True) -> Path:
@@ -37,6 +37,16 @@ def prepare_out(path: "str | Path", option: str = "--out", *, is_dir: bool = Tru
             p.mkdir(exist_ok=True)
     elif p.is_dir():
         raise UsageError(f"{option} must be a file path, got the folder {str(p)!r}")
+    return p
+
+
+def check_suffix(path: "str | Path", option: str, allowed: tuple[str, ...], what: str) -> Path:
+    """``path`` if its extension is one of ``allowed`` (the formats it can be written in), else a
+    :class:`UsageError` naming the option, the extensions and what the file holds."""
+    p = Path(path)
+    if p.suffix.lower() not in allowed:
+        raise UsageError(f"{option} {str(p)!r}: {what} ends in {' or '.join(allowed)} (the format it is written in), "
+                         f"got {p.suffix or 'no extension'!r}")
     return p
 
 

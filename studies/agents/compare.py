@@ -3,14 +3,14 @@
     python -m studies.agents.compare                      # evaluate what is missing, write the reports
     python -m studies.agents.compare --force              # re-evaluate the learned agents
     python -m studies.agents.compare --force-baselines    # ... and null, random, reference, oracle too
-    python -m studies.agents.compare --report-only        # only rewrite docs/learned_agents.md and the README tables
+    python -m studies.agents.compare --report-only        # only rewrite docs/learned_agents.md, docs/results.md, the README table
 
 Runs ``marine-fdi evaluate`` (the same code, :func:`marine_fdi_env.benchmark.evaluate.evaluate`) for
 each agent x suite with the ``MarineFDI-v1`` reward and a batch of 32 episodes (the batch size the
 compute columns are measured at), writing ``docs/data/results/AGENT_SUITE.json``; then writes
 ``docs/learned_agents.md`` (every metric on every suite, the must-show checks, training compute
-and size of each shipped model) and the tables of the README's "Benchmark results" section
-(between its ``compare:`` markers; the main table is ``marine-fdi report``'s).
+and size of each shipped model), the tables of ``docs/results.md`` (the main table is ``marine-fdi
+report``'s) and the README's headline table (one row per agent), each between ``compare:`` markers.
 
 Every row is named for what it is: ``classifier`` is the supervised network alone (its own alarm
 and faults), ``classifier+reference`` the hybrid that also takes the reference diagnoser's alarm
@@ -37,6 +37,7 @@ MODELS = ROOT / "training" / "models"
 RESULTS = ROOT / "docs" / "data" / "results"
 REPORT = ROOT / "docs" / "learned_agents.md"
 README = ROOT / "README.md"
+RESULTS_PAGE = ROOT / "docs" / "results.md"
 BATCH_SIZE = 32  # episodes advanced together: the compute columns are measured at this batch size
 REWARD = "v1"
 
@@ -196,16 +197,22 @@ SUMMARY_COLS = (("thesis-v1", "isolation_accuracy", "pct", "thesis iso. acc."),
                 ("single-v1", "agent_compute_s_per_decision", "us", "agent [µs/decision]"))
 
 
+def _cells(agent: str, cols) -> list[str]:
+    """One table row's cells: each (suite, metric, format, title) of ``cols`` for ``agent``."""
+    out = []
+    for suite, key, kind, _ in cols:
+        m = _load(agent, suite)
+        out.append("n/a" if m is None else _fmt(m.get(key), kind))
+    return out
+
+
 def compact_table(agents) -> str:
     """The headline metric of each suite per agent, compute, training cost and size."""
     head = ("| agent | reads the reference | " + " | ".join(c[3] for c in SUMMARY_COLS)
             + " | training [CPU min] | model size |")
     rows = [head, "|---|---|" + "---:|" * (len(SUMMARY_COLS) + 2)]
     for a in agents:
-        cells = ["yes" if WHAT[a][1] else "no"]
-        for suite, key, kind, _ in SUMMARY_COLS:
-            m = _load(a, suite)
-            cells.append("n/a" if m is None else _fmt(m.get(key), kind))
+        cells = ["yes" if WHAT[a][1] else "no"] + _cells(a, SUMMARY_COLS)
         cfg = _model_cfg(a)
         if cfg:
             cells += [f"{cfg['cpu_minutes']:.1f}", f"{_dir_bytes(ROOT / MODEL_DIRS[a]) / 1024:.0f} KiB"]
@@ -416,8 +423,29 @@ def write_report(path: Path = REPORT, notes: str = "") -> Path:
 BEGIN, END = "<!-- compare:begin (python -m studies.agents.compare writes this block) -->", "<!-- compare:end -->"
 
 
+HEADLINE_COLS = (("single-v1", "isolation_accuracy", "pct", "single-v1 isolation"),
+                 ("multi-v1", "isolation_accuracy", "pct", "multi-v1 isolation"),
+                 ("incipient-v1", "detection_rate", "pct", "incipient-v1 detection"),
+                 ("transfer-v2", "isolation_accuracy", "pct", "transfer-v2 isolation"),
+                 ("nominal-v1", "n_false_alarms", "int", "nominal-v1 false alarms"),
+                 ("single-v1", "agent_compute_s_per_decision", "us", "agent [µs/decision]"))
+
+
+def headline_table(agents) -> str:
+    """The README's table: one row per agent (at most 8), one headline metric per suite family."""
+    rows = ["| agent | " + " | ".join(c[3] for c in HEADLINE_COLS) + " |", "|---|" + "---:|" * len(HEADLINE_COLS)]
+    for a in list(agents)[:8]:
+        rows.append(f"| `{a}` | " + " | ".join(_cells(a, HEADLINE_COLS)) + " |")
+    return "\n".join(rows) + "\n"
+
+
 def readme_block() -> str:
-    """The README's generated tables: ``marine-fdi report``'s main table, the summary and must-shows."""
+    """The README's generated block: the headline table and where the rest is."""
+    return "\n".join([BEGIN, "", headline_table(AGENTS), END])
+
+
+def results_block() -> str:
+    """docs/results.md's generated tables: ``marine-fdi report``'s main table, the summary and must-shows."""
     from marine_fdi_env.benchmark.report import load_results, markdown_table
 
     files = [result_path(a, s) for s in SUITE_NAMES for a in AGENTS if result_path(a, s).is_file()]
@@ -435,13 +463,13 @@ def readme_block() -> str:
     return "\n".join(parts)
 
 
-def write_readme(path: Path = README) -> bool:
-    """Replace the block between the compare markers of the README; False if it has none."""
+def write_block(path: Path, block: str) -> bool:
+    """Replace the block between the compare markers of ``path``; False if it has none."""
     text = path.read_text()
     if BEGIN not in text or END not in text:
         return False
     a, b = text.index(BEGIN), text.index(END) + len(END)
-    path.write_text(text[:a] + readme_block() + text[b:])
+    path.write_text(text[:a] + block + text[b:])
     return True
 
 
@@ -499,8 +527,10 @@ def main(argv=None) -> int:
             force_baselines=args.force_baselines, workers=args.workers)
     notes = NOTES_FILE.read_text() if NOTES_FILE.is_file() else ""
     print(f"wrote {write_report(notes=notes)}")
-    if write_readme():
-        print(f"wrote the tables of {README}")
+    if write_block(README, readme_block()):
+        print(f"wrote the headline table of {README}")
+    if write_block(RESULTS_PAGE, results_block()):
+        print(f"wrote the tables of {RESULTS_PAGE}")
     return 0
 
 

@@ -230,3 +230,60 @@ def test_classifier_ewma_inputs_streaming_equals_episode():
             y, h = m(x[:, t:t + 1], h)
             steps.append(y)
     torch.testing.assert_close(torch.cat(steps, 1), whole, rtol=1e-5, atol=1e-5)
+
+
+def test_make_vec_env_works_unchanged_and_the_gated_wrapper_declares():
+    """SB3's make_vec_env asks for render_mode="rgb_array": the env warns and renders nothing."""
+    import warnings
+
+    from stable_baselines3.common.env_util import make_vec_env
+
+    from marine_fdi_env.envs.wrappers import GatedAction
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        venv = make_vec_env("marine_fdi_env:MarineFDI-v1", n_envs=2, seed=0, env_kwargs={"scenario_config": SHORT})
+    assert any("rendering is off" in str(w.message) for w in caught)
+    assert venv.reset().shape == (2, NF) and venv.render_mode is None
+    gated = make_vec_env("marine_fdi_env:MarineFDI-v1", n_envs=2, seed=0, wrapper_class=GatedAction,
+                         env_kwargs={"scenario_config": SHORT})
+    gated.reset()
+    _, rew, _, infos = gated.step(np.array([[0, 5, 9], [1, 0, 0]]))  # quiet; alarm with no fault named
+    assert infos[0]["declared"] == [] and not infos[0]["alarm"]
+    assert infos[1]["declared"] == [] and infos[1]["alarm"]  # unknown: the alarm, no fault
+    assert rew[1] < 0 == rew[0]  # a false alarm on a fault-free episode costs, quiet costs nothing here
+    _, _, _, infos = gated.step(np.array([[1, 3, 0], [1, 3, 21]]))  # one fault; a pair
+    assert infos[0]["declared"] == ["S2.1"] and infos[1]["declared"] == ["S2.1", "bore_damage"]  # 1 + k = fault k
+    with pytest.raises(ValueError, match="3 integers"):
+        GatedAction(gymnasium_env()).action(np.array([2, 0, 0]))
+
+
+def gymnasium_env():
+    import gymnasium
+
+    return gymnasium.make("marine_fdi_env:MarineFDI-v1", scenario_config=SHORT)
+
+
+def test_save_sb3_agent_makes_an_agent_that_evaluates(tmp_path):
+    from stable_baselines3 import PPO
+
+    from marine_fdi_env.training import SB3VecEnv as Exported, save_sb3_agent
+
+    assert Exported is SB3VecEnv
+    venv = SB3VecEnv(2, scenario_config=SHORT, action_mode="gated", reference_features=True, seed=0)
+    model = PPO("MlpPolicy", venv, n_steps=12, batch_size=24, n_epochs=1, seed=0, device="cpu",
+                policy_kwargs={"net_arch": [8]})
+    model.learn(24)
+    folder = save_sb3_agent(model, tmp_path / "mine")
+    cfg = json.loads((folder / "config.json").read_text())
+    assert cfg["name"] == "mine" and cfg["action_mode"] == "gated" and cfg["observation"]["reference_features"]
+    agent = load_agent(str(folder))
+    recs = run_episodes(agent, [ScenarioConfig.from_dict(SHORT).sample(1, scenario_id="x")], {"scenario_config": SHORT})
+    assert recs[0]["agent"] == "mine" and recs[0]["n_decisions"] == 12
+    # the saved agent acts as the policy does on the adapter's inputs (observation + reference features)
+    from marine_fdi_env.training.vec_adapter import reference_features
+
+    raw, infos = venv.venv.reset(seed=5)
+    x = np.concatenate([raw, reference_features(infos["reference"], len(raw))], axis=1)
+    agent.reset([0, 1])
+    assert np.array_equal(agent.act(raw, infos), to_belief(model.predict(x, deterministic=True)[0], "gated"))

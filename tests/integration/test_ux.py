@@ -387,3 +387,198 @@ def test_dataset_help_is_plain_text_and_documents_every_option(capsys):
 
     for action in build_parser()._actions:
         assert action.help, f"{action.option_strings} has no help"
+
+
+# ----------------------------------------------------------------------------- the first hour (issue 42)
+def _one_line_error(capsys, argv) -> str:
+    """Run ``argv``; assert exit code 2 and one line on stderr without a traceback; return that line."""
+    code = cli_main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert code == 2, (argv, code, err)
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+@pytest.mark.parametrize("engines", ["100000000000", "1000000"])
+def test_simulate_too_many_engines_names_the_memory_limit(capsys, tmp_path, engines):
+    line = _one_line_error(capsys, ["simulate", "--engines", engines, "--duration", "300",
+                                    "--out", tmp_path / "big.npz"])
+    assert "--engines" in line and "memory" in line and "available" in line
+    assert not (tmp_path / "big.npz").exists()
+
+
+def test_dataset_too_many_episodes_names_the_memory_limit(capsys, tmp_path):
+    line = _one_line_error(capsys, ["dataset", "--preset", "default", "--episodes", "100000000000",
+                                    "--out", tmp_path / "d"])
+    assert "--episodes" in line and "memory" in line and "available" in line
+    assert not (tmp_path / "d").exists()
+
+
+def test_the_memory_check_compares_with_what_the_machine_has(monkeypatch):
+    from marine_fdi_env import costs
+
+    monkeypatch.setattr(costs, "available_memory_bytes", lambda: 1_000_000)
+    costs.check_memory(999_999, "x", "--n")
+    with pytest.raises(ValueError, match=r"--n: x needs about 1\.5 MB of memory, more than the 1 MB available"):
+        costs.check_memory(1_500_000, "x", "--n")
+
+
+def test_simulate_refuses_to_overwrite_without_force(capsys, tmp_path):
+    out = tmp_path / "run.npz"
+    assert cli_main(["simulate", "--duration", "1", "--out", str(out), "--no-progress"]) == 0
+    stamp = out.stat().st_mtime_ns
+    line = _one_line_error(capsys, ["simulate", "--duration", "1", "--seed", "3", "--out", out])
+    assert "--out" in line and "--force" in line and out.stat().st_mtime_ns == stamp
+    assert cli_main(["simulate", "--duration", "1", "--seed", "3", "--out", str(out), "--no-progress", "--force"]) == 0
+    assert out.stat().st_mtime_ns != stamp
+
+
+@pytest.mark.parametrize("argv, allowed", [
+    (["evaluate", "--agent", "null", "--suite", "{tiny}", "--out", "{tmp}/r.txt"], ".json or .parquet"),
+    (["simulate", "--duration", "1", "--out", "{tmp}/run.csv"], ".npz"),
+    (["score-raw", "--suite", "{tiny}", "--predictions", "{tmp}", "--out", "{tmp}/s.csv"], ".json or .parquet"),
+])
+def test_out_extension_is_checked_against_the_format(capsys, tmp_path, tiny, argv, allowed):
+    line = _one_line_error(capsys, [a.replace("{tmp}", str(tmp_path)).replace("{tiny}", str(tiny)) for a in argv])
+    assert "--out" in line and allowed in line
+    assert len(os.listdir(tmp_path)) == 1  # the suite file only: nothing written
+
+
+@pytest.mark.parametrize("content, field", [
+    ({"agent": "a", "suite": "s", "episodes": []}, "'episodes' is empty"),
+    ({"agent": "a", "suite": "s"}, "'episodes' is missing"),
+    ({"agent": "a", "episodes": []}, "'suite' missing"),
+    ({"agent": "a", "suite": "s", "episodes": [{"scenario_id": "x"}]}, "field 'suite' is missing"),
+])
+def test_report_names_what_a_results_file_lacks(capsys, tmp_path, content, field):
+    f = tmp_path / "r.json"
+    f.write_text(json.dumps(content))
+    line = _one_line_error(capsys, ["report", f, "--out", tmp_path / "rep"])
+    assert str(f) in line and field in line
+
+
+def test_a_sidecar_field_is_validated_by_name(capsys, tmp_path):
+    src = ROOT / "docs" / "examples" / "measured"
+    (tmp_path / "e.csv").write_text((src / "example_engine.csv").read_text())
+    meta = json.loads((src / "example_engine.meta.json").read_text())
+    meta["ambient_temperature_C"] = "warm"
+    (tmp_path / "e.meta.json").write_text(json.dumps(meta))
+    for argv in (["validate", "--data", tmp_path / "e.csv", "--check"],
+                 ["replicas", "--data", tmp_path / "e.csv", "--replicas", "1"]):
+        line = _one_line_error(capsys, argv)
+        assert "e.meta.json" in line and "'ambient_temperature_C'" in line and "'warm'" in line
+
+
+def test_an_operating_point_outside_the_envelope_warns(capsys):
+    assert cli_main(["operating-point", "--params", "wartsila-6l46", "--fuel-setting", "0.05", "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["converged"]
+    assert "below 25% of the rated 500 rpm" in err and "3,227 g/kWh" in err
+    assert cli_main(["operating-point", "--params", "wartsila-6l46", "--fuel-setting", "1.0", "--json"]) == 0
+    assert "warning" not in capsys.readouterr().err
+
+
+def test_the_envelope_bounds():
+    from marine_fdi_env.engine.envelope import envelope_warnings
+
+    rated = 10.0
+    assert envelope_warnings(rated, 200 / 3.6e9, rated) == []
+    assert "below" in envelope_warnings(0.2 * rated, 200 / 3.6e9, rated)[0]
+    assert "overspeed" in envelope_warnings(1.2 * rated, 200 / 3.6e9, rated)[0]
+    assert "g/kWh" in envelope_warnings(rated, 400 / 3.6e9, rated)[0]
+    assert "g/kWh" in envelope_warnings(rated, 120 / 3.6e9, rated)[0]
+
+
+def test_evaluate_twice_shows_the_results_then_writes_beside_them(tmp_path, monkeypatch, capsys, tiny):
+    monkeypatch.chdir(tmp_path)
+    argv = ["evaluate", "--agent", "null", "--suite", str(tiny), "--no-progress"]
+    assert cli_main(argv) == 0
+    first = tmp_path / "results" / "null_tiny-v1.json"
+    stamp = first.stat().st_mtime_ns
+    capsys.readouterr()
+    assert cli_main(argv) == 0  # the same run again: its results, shown
+    out = capsys.readouterr().out
+    assert "computed before" in out and "| tiny-v1 | null |" in out and first.stat().st_mtime_ns == stamp
+    assert cli_main(argv + ["--seed-offset", "1"]) == 0  # another run: a new file beside the first
+    assert "results/null_tiny-v1-2.json" in capsys.readouterr().out
+    assert json.loads((tmp_path / "results" / "null_tiny-v1-2.json").read_text())["seed_offset"] == 1
+    assert json.loads(first.read_text())["seed_offset"] == 0
+    assert cli_main(argv + ["--seed-offset", "1"]) == 0  # that other run again: found beside, shown
+    assert "results/null_tiny-v1-2.json (computed before" in capsys.readouterr().out
+    assert not (tmp_path / "results" / "null_tiny-v1-3.json").exists()
+
+
+def test_third_party_warnings_print_above_the_bar_not_inside_it(capsys):
+    import logging
+    import warnings
+
+    lib = logging.getLogger("some_library")
+    handler = logging.StreamHandler(sys.stderr)
+    lib.addHandler(handler)
+    try:
+        bar = progress_bar(2, 0, "demo")
+        bar.advance(0.5)
+        # what warnings.showwarning does outside pytest (which records warnings instead of printing them)
+        sys.stderr.write(warnings.formatwarning("a library's warning", UserWarning, "lib.py", 1))
+        lib.warning("a library's log record")
+        bar.advance(1.5)
+        bar.close()
+        lib.warning("after the bar")
+    finally:
+        lib.removeHandler(handler)
+    err = capsys.readouterr().err
+    for text in ("a library's warning", "a library's log record", "after the bar"):
+        line = next(ln for ln in err.split("\n") if text in ln)
+        visible = line.split("\r")[-1]  # what a terminal shows of the line: the bar was cleared first
+        assert text in visible and "demo" not in visible, repr(line)
+    assert sys.stderr is not None and not type(sys.stderr).__name__ == "_AboveBar"
+
+
+def test_long_commands_say_their_cost_first(capsys, tmp_path):
+    from marine_fdi_env.costs import CostEstimate, say_cost
+
+    say_cost("marine-fdi x", "a grid", CostEstimate(600.0, 3e8, workers=2))
+    assert capsys.readouterr().err.startswith("marine-fdi x: a grid: expect about ")
+    say_cost("marine-fdi x", "a little", CostEstimate(5.0))
+    assert capsys.readouterr().err == ""
+    from marine_fdi_env.cli.raw import say_export_cost
+
+    say_export_cost("thesis-v1")
+    err = capsys.readouterr().err
+    assert "marine-fdi export-raw: 20 scenarios of thesis-v1: expect about" in err and "MB" in err
+    from marine_fdi_env.cli.sweep import say_sweep_cost
+
+    say_sweep_cost(["all"], ["all"], 1, workers=2)
+    assert capsys.readouterr().err.startswith("marine-fdi sweep: 8 agents x 459 episodes: expect about ")
+    from marine_fdi_env.benchmark.agent_registry import models_dir
+    from marine_fdi_env.cli.train import say_training_cost
+
+    shipped = json.loads((models_dir() / "ppo" / "config.json").read_text())["cpu_minutes"]
+    say_training_cost("ppo", None)
+    assert f"expect about {shipped:.0f} min" in capsys.readouterr().err
+    data = json.loads((models_dir() / "ppo" / "config.json").read_text())["cpu_s_data"] / 60.0
+    say_training_cost("ppo", 7_000_000 // 100)  # a hundredth of the budget: mostly simulating the episodes
+    assert f"expect about {data + (shipped - data) / 100:.0f} min" in capsys.readouterr().err
+
+
+def test_a_fault_free_suite_confusion_plot_has_room_for_its_labels(tmp_path):
+    """A one-row confusion matrix (a fault-free suite) gets a panel tall enough for tight_layout: no
+    matplotlib warning among the report's output."""
+    import warnings
+
+    pytest.importorskip("matplotlib")
+    from marine_fdi_env.benchmark.report import plot_confusion
+
+    rs = load_results(sorted((ROOT / "docs" / "data" / "results").glob("*_nominal-v1.json")))
+    assert len(rs) >= 2
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        plot_confusion(rs, tmp_path / "c.png")
+    assert (tmp_path / "c.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_a_clone_relative_model_path_elsewhere_names_the_agent(tmp_path, monkeypatch, capsys, tiny):
+    monkeypatch.chdir(tmp_path)
+    line = _one_line_error(capsys, ["evaluate", "--agent", "training/models/ppo", "--suite", tiny])
+    assert "--agent ppo" in line and "any folder" in line

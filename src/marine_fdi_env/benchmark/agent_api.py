@@ -154,6 +154,10 @@ def load_agent(spec: str) -> Agent:
 
             known = [e.name for e in list_agents()]
             names = ", ".join(known)
+            tail = find_agent(path.name) if path.name != spec else None
+            if tail is not None:  # a shipped model's folder named by a path relative to the clone
+                raise ValueError(f"no such path {spec!r} here; the shipped agent {tail.name!r} is found by name from "
+                                 f"any folder: --agent {tail.name}")
             raise ValueError(f"unknown agent {spec!r}{did_you_mean(spec, known)}: not a name ({names}; see 'marine-fdi "
                              "agents'), "
                              "no such path, and not path/to/file.py:ClassName")

@@ -46,10 +46,19 @@ from ..engine.faults import FAULT_IDS
 from ..envs.scenario_sampler import ScenarioSpec, with_noise_scale
 from ..envs.vector import MarineFDIVectorEnv
 
-__all__ = ["export_dataset", "load_dataset", "dataset_chunk", "FORMATS"]
+__all__ = ["export_dataset", "load_dataset", "dataset_chunk", "dataset_bytes", "FORMATS"]
 
 FORMATS = ("npz", "parquet")
 _COL = {f: j for j, f in enumerate(FAULT_IDS)}
+
+
+SCENARIO_BYTES = 4000  # one drawn scenario in memory and in scenarios.json (its faults, profile, truth)
+
+
+def dataset_bytes(n_episodes: int, n_decisions: int, n_features: int) -> int:
+    """Bytes of a dense dataset held in memory while it is written: obs (float32), the 26 fault
+    flags and ``valid`` (bool), ``t_s`` (float64) per decision, and each episode's scenario."""
+    return n_episodes * (n_decisions * (4 * n_features + len(FAULT_IDS) + 1 + 8) + SCENARIO_BYTES)
 
 
 def _n_decisions(scenarios, env_kwargs) -> int:

@@ -7,9 +7,13 @@ import numpy as np
 import sys
 from pathlib import Path
 
-from ..benchmark.dataset import FORMATS, export_dataset
+from ..benchmark.dataset import FORMATS, dataset_bytes, export_dataset
+from ..costs import CostEstimate, check_memory, episode_cpu_s, say_cost
+from ..envs.observation import feature_names
 from ..benchmark.suites import load_suite
 from ..envs.scenario_sampler import get_preset
+
+EPISODE_DECISION_PERIOD_S = 1.0  # the environment's decision period, which the exported episodes keep
 
 
 _HELP = """\
@@ -92,6 +96,9 @@ def dataset_main(argv=None) -> int:
             if seed < 0:
                 raise ValueError(f"--seed must be >= 0, got {seed}")
             cfg = get_preset(args.preset)
+            T = int(round(cfg.duration_s / EPISODE_DECISION_PERIOD_S))
+            check_memory(dataset_bytes(episodes, T, len(feature_names(args.observe_sensors))),
+                         f"a dataset of {episodes} episodes of {T} decisions", "--episodes")
             ss = np.random.SeedSequence(seed)
             ent = np.random.default_rng(ss).integers(0, 2**63 - 1, size=episodes)
             scenarios = [cfg.sample(int(e), scenario_id=f"{cfg.name}/{seed}/{i}") for i, e in enumerate(ent)]
@@ -106,6 +113,10 @@ def dataset_main(argv=None) -> int:
         if args.force:
             for name in finished:
                 (out / name).unlink()
+        T = max(int(round(sc.duration_s / EPISODE_DECISION_PERIOD_S)) for sc in scenarios)
+        say_cost("marine-fdi dataset", f"{len(scenarios)} episodes",
+                 CostEstimate(episode_cpu_s("null") * len(scenarios) * T / 300,
+                              dataset_bytes(len(scenarios), T, len(feature_names(args.observe_sensors))), backend.workers))
         path = export_dataset(scenarios, out, env_kwargs, batch_size=args.batch_size,
                               progress=not args.no_progress, backend=backend, fmt=args.format, force=args.force)
     except ValueError as e:

@@ -7,6 +7,45 @@ import sys
 from pathlib import Path
 
 from ..benchmark.evaluate import evaluate
+from ..errors import UsageError
+
+RESULT_SUFFIXES = (".json", ".parquet")  # the formats a results file is written in
+
+
+def same_run_results(path: Path, args: argparse.Namespace) -> dict | None:
+    """The results in ``path`` if they are those of this command's run (agent, suite and its version,
+    seed offset, reward), else None."""
+    from ..benchmark.report import load_results
+    from ..benchmark.suites import load_suite
+
+    try:
+        kept = load_results([path])[0]
+    except ValueError:
+        return None
+    suite = load_suite(args.suite)
+    same = (kept.get("agent_spec") == str(args.agent) and kept.get("suite") == suite.name
+            and kept.get("suite_version") == suite["version"] and kept.get("seed_offset") == args.seed_offset)
+    if args.reward is not None:
+        from ..envs.fdi_env import env_id_for
+        from ..envs.reward import make_reward_config
+
+        same = same and kept.get("env_id") == env_id_for(make_reward_config(args.reward))
+    return kept if same else None
+
+
+def default_results(path: Path, args: argparse.Namespace) -> tuple[Path, dict | None]:
+    """Where a run without ``--out`` goes: the first of ``path``, ``STEM-2.SUFFIX``, ``STEM-3.SUFFIX``, ...
+    that holds this run's results (returned with them, to show), is being written (a partial file:
+    resumed), or is free."""
+    k = 1
+    while True:
+        p = path if k == 1 else path.with_name(f"{path.stem}-{k}{path.suffix}")
+        if not p.exists() or p.with_name(p.name + ".partial.jsonl").exists():
+            return p, None
+        kept = same_run_results(p, args)
+        if kept is not None:
+            return p, kept
+        k += 1
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -20,10 +59,12 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--suite", default="thesis-v1", help="suite name or JSON path (default: thesis-v1)")
     ap.add_argument("--out", type=Path, default=None,
                     help="results file: .json, or .parquet for the episode records as a table "
-                         "(default: results/AGENT_SUITE.json)")
+                         "(default: results/AGENT_SUITE.json; when that holds this run's results they are shown, "
+                         "when it holds another run's a new file RESULTS-2.json is written beside it)")
     ap.add_argument("--seed-offset", type=int, default=0, help="shift every noise seed (new noise, same scenarios)")
     ap.add_argument("--force", action="store_true",
-                    help="recompute and overwrite --out when it already holds results (without it: an error)")
+                    help="recompute and overwrite the results file when it already holds results (without it: an "
+                         "explicit --out is an error, the default file is shown)")
     from .common import add_backend_args
 
     add_backend_args(ap)
@@ -43,18 +84,32 @@ def evaluate_main(argv=None) -> int:
     try:
         from ..benchmark.agent_api import agent_file_stem
         from .common import backend_from_args
-        from ..outputs import prepare_out
+        from ..outputs import check_suffix, prepare_out
         from ..errors import require_extra
 
         backend = backend_from_args(args)
         out = args.out or Path("results") / f"{agent_file_stem(args.agent)}_{Path(args.suite).stem}.json"
+        check_suffix(out, "--out", RESULT_SUFFIXES, "a results file")
         if out.suffix == ".parquet":
             require_extra("pyarrow", "--out *.parquet")
         out = prepare_out(out, "--out", is_dir=False, create=False)  # evaluate() creates it after its checks
         partial = out.with_name(out.name + ".partial.jsonl")
         if out.exists() and not partial.exists() and not args.force:
-            raise ValueError(f"--out {out} already holds results; pass --force to recompute and overwrite them, "
-                             "or choose another --out")
+            if args.out is not None:
+                raise UsageError(f"--out {out} already holds results; pass --force to recompute and overwrite them, "
+                                 "or choose another --out")
+            out, kept = default_results(out, args)
+            if kept is not None:  # this very run's results: show them
+                print(markdown_table([kept]))
+                print(f"\nresults: {out} (computed before; --force recomputes them)")
+                return 0
+        from ..benchmark.suites import load_suite
+        from ..costs import CostEstimate, episode_cpu_s, say_cost
+
+        suite = load_suite(args.suite)
+        say_cost("marine-fdi evaluate", f"{len(suite.scenarios)} episodes of {suite.name}",
+                 CostEstimate(sum(episode_cpu_s(str(args.agent), s.duration_s) for s in suite.scenarios),
+                              workers=backend.workers))
         result = evaluate(args.agent, args.suite, out, seed_offset=args.seed_offset, batch_size=args.batch_size,
                           progress=not args.no_progress, backend=backend,
                           reward=args.reward)

@@ -80,6 +80,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scenario", default=None, metavar="NAME",
                    help=f"thesis scenario: {', '.join(SCENARIOS)} (its faults are added to --fault)")
     p.add_argument("--out", required=True, metavar="FILE.npz", help="output run file (its folder is created if missing, never more levels)")
+    p.add_argument("--force", action="store_true", help="overwrite --out if it exists (without it: an error)")
     p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
                    help=f"progress bar on stderr (default: when stderr is a terminal or the run has "
                         f">= {LONG_RUN_STEPS} samples)")

@@ -15,6 +15,20 @@ from ..benchmark.rawscore import dx_table, score_raw
 
 
 # ----------------------------------------------------------------------------- commands
+def say_export_cost(suite_name: str) -> None:
+    """The export's expected time and disk use, said before it starts (:mod:`marine_fdi_env.costs`)."""
+    from ..benchmark.suites import load_suite
+    from ..costs import RAW_BYTES_PER_SAMPLE, RAW_CPU_S_PER_SAMPLE, CostEstimate, say_cost
+
+    try:
+        suite = load_suite(suite_name)
+    except ValueError:
+        return  # export_raw names the bad suite
+    samples = sum(s.duration_s / float(suite["env"].get("dt", 0.01)) for s in suite.scenarios)
+    say_cost("marine-fdi export-raw", f"{len(suite.scenarios)} scenarios of {suite.name}",
+             CostEstimate(samples * RAW_CPU_S_PER_SAMPLE, samples * RAW_BYTES_PER_SAMPLE))
+
+
 def export_raw_main(argv=None) -> int:
     from .common import interrupted, parse_cli
     from ..outputs import prepare_out
@@ -33,6 +47,7 @@ def export_raw_main(argv=None) -> int:
     t0 = time.perf_counter()
     try:
         out = prepare_out(args.out, create=False)  # export_raw creates it after checking the suite
+        say_export_cost(args.suite)
         man = export_raw(args.suite, out, seed_offset=args.seed_offset, progress=not args.no_progress)
     except ValueError as e:
         print(f"marine-fdi export-raw: error: {e}", file=sys.stderr)
@@ -101,6 +116,10 @@ def score_raw_main(argv=None) -> int:
         return code
     try:
         if args.out is not None:
+            from .evaluate import RESULT_SUFFIXES
+            from ..outputs import check_suffix
+
+            check_suffix(args.out, "--out", RESULT_SUFFIXES, "a results file")
             if args.out.suffix == ".parquet":
                 require_extra("pyarrow", "--out *.parquet")
             prepare_out(args.out, is_dir=False, create=False)

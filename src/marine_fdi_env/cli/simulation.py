@@ -35,6 +35,10 @@ DEFAULT_PARAMS = "thesis-12v28"
 
 # Runs with at least this many samples per engine show a progress bar even when stderr is not a terminal.
 LONG_RUN_STEPS = 10_000
+# what a run costs (benchmarks/costs.py): simulated engine-samples per CPU second of a whole `simulate` (the
+# batched simulator, recording and saving) and bytes of the compressed run file per engine-sample
+SIMULATED_SAMPLES_PER_CPU_S = 1.25e5
+RUN_FILE_BYTES_PER_ENGINE_SAMPLE = 143
 
 
 FAULT_SPEC_HELP = """\
@@ -107,6 +111,12 @@ def cmd_operating_point(args: argparse.Namespace) -> int:
         print(f"{PROG}: warning: the steady-state solver did not converge at fuel setting {u:g}", file=sys.stderr)
     if not out["engine_speed_rev_s"] > 0:
         print(f"{PROG}: warning: the engine does not run at fuel setting {u:g} (speed 0)", file=sys.stderr)
+    else:
+        from ..engine.envelope import envelope_warnings
+
+        for text in envelope_warnings(out["engine_speed_rev_s"], out["sfc_kg_per_J"], params.n_nom_rev_s):
+            print(f"{PROG}: warning: fuel setting {u:g} is outside {params.name}'s operating envelope: {text}",
+                  file=sys.stderr)
     if args.json:
         print(dumps(out))
         return 0
@@ -180,6 +190,12 @@ def cmd_simulate(args: argparse.Namespace, argv: Sequence[str]) -> int:
         raise UsageError(f"--duration ({duration:g} s) must be at least one sample time --dt ({dt:g} s)")
     if args.engines < 1:
         raise UsageError(f"--engines must be a positive integer, got {args.engines}")
+    from ..costs import check_memory
+    from ..engine.simulator import RESULT_BYTES_PER_ENGINE_SAMPLE
+
+    samples = (int(round(duration / dt)) + 1) * args.engines
+    check_memory(samples * RESULT_BYTES_PER_ENGINE_SAMPLE * 1.1, f"{args.engines} engines x {duration:g} s at "
+                 f"--dt {dt:g} s", "--engines")
     if args.seed < 0:
         raise UsageError(f"--seed must be a non-negative integer, got {args.seed}")
     if not (math.isfinite(args.noise_scale) and args.noise_scale >= 0):
@@ -203,15 +219,23 @@ def cmd_simulate(args: argparse.Namespace, argv: Sequence[str]) -> int:
     profile = _make_profile(args.profile if args.profile is not None else (scen.profile if scen else "constant"),
                             duration)
 
-    from ..outputs import prepare_out
+    from ..outputs import check_suffix, prepare_out
 
-    out = prepare_out(args.out, "--out", is_dir=False)
+    out = check_suffix(args.out, "--out", (".npz",), "a run file")
+    out = prepare_out(out, "--out", is_dir=False, create=False)
+    if out.exists() and not args.force:
+        raise UsageError(f"--out {out} already exists; pass --force to overwrite it, or choose another --out")
 
+    from ..costs import CostEstimate, say_cost
+
+    say_cost(PROG + " simulate", f"{samples:,} engine-samples",
+             CostEstimate(samples / SIMULATED_SAMPLES_PER_CPU_S, samples * RUN_FILE_BYTES_PER_ENGINE_SAMPLE))
     sim = Simulator(params, n_engines=args.engines, seeds=args.seed, faults=specs, profiles=profile,
                     dt=dt, noise_scale=args.noise_scale)
     steps = int(round(duration / dt))
     with np.errstate(all="ignore"):
         result = sim.run(duration, progress=_want_progress(args.progress, steps))
+    prepare_out(out, "--out", is_dir=False)
     save_run(result, out, command_line=[PROG, *argv], extra={"scenario": scen.name if scen else None})
 
     T, N = result.measurements.shape[:2]

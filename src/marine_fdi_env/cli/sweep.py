@@ -12,6 +12,22 @@ from ..benchmark.suites import SUITE_NAMES
 from ..benchmark.sweep import TABLE, run_sweep
 
 
+def say_sweep_cost(agents: list[str], suites: list[str], n_offsets: int, workers: int) -> None:
+    """The grid's expected time, said before it starts (:mod:`marine_fdi_env.costs`)."""
+    from ..benchmark.agent_registry import list_agents
+    from ..benchmark.suites import load_suite
+    from ..costs import CostEstimate, episode_cpu_s, say_cost
+
+    names = [e.name for e in list_agents() if e.available] if "all" in agents else agents
+    try:
+        loaded = [load_suite(s) for s in (SUITE_NAMES if "all" in suites else suites)]
+    except ValueError:
+        return  # run_sweep names the bad suite
+    episodes = sum(len(s.scenarios) for s in loaded) * n_offsets
+    cpu = n_offsets * sum(episode_cpu_s(a, sc.duration_s) for a in names for s in loaded for sc in s.scenarios)
+    say_cost("marine-fdi sweep", f"{len(names)} agents x {episodes} episodes", CostEstimate(cpu, workers=workers))
+
+
 def sweep_main(argv=None) -> int:
     from .common import add_backend_args, backend_from_args, interrupted, parse_cli
     from ..outputs import prepare_out
@@ -37,6 +53,7 @@ def sweep_main(argv=None) -> int:
         backend = backend_from_args(args)
         require_extra("pyarrow", "sweep (its table episodes.parquet)")
         out = prepare_out(args.out, create=False)  # run_sweep creates it after checking agents and suites
+        say_sweep_cost(args.agents, args.suites, len(args.seed_offsets), backend.workers)
         res = run_sweep(args.agents, args.suites, args.seed_offsets, out, backend=backend,
                         batch_size=args.batch_size, progress=not args.no_progress)
     except ValueError as e:

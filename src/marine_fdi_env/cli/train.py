@@ -17,6 +17,26 @@ __all__ = ["train_main"]
 
 
 # ----------------------------------------------------------------------------- CLI
+def say_training_cost(algo: str, n_timesteps: int | None) -> None:
+    """The expected training time, from the shipped model of ``algo`` (its measured CPU minutes,
+    scaled by the PPO budget), said before training starts."""
+    from ..benchmark.agent_registry import models_dir
+    from ..costs import CostEstimate, say_cost
+    from ..jsonfile import read_json
+
+    root = models_dir()
+    cfg_file = root / algo / "config.json" if root is not None else None
+    if cfg_file is None or not cfg_file.is_file():
+        return
+    cfg = read_json(cfg_file, "model config")
+    minutes = float(cfg.get("cpu_minutes") or 0.0)
+    if n_timesteps and cfg.get("n_timesteps"):
+        data = float(cfg.get("cpu_s_data") or 0.0) / 60.0  # simulating the episodes does not scale with the budget
+        minutes = data + (minutes - data) * n_timesteps / float(cfg["n_timesteps"])
+    say_cost("marine-fdi train", f"training {algo} (from the shipped model's measured CPU time, simulating its "
+             "training episodes included; less when they are cached)", CostEstimate(60.0 * minutes))
+
+
 def _parse_params(items: list[str]) -> dict:
     import yaml
 
@@ -65,6 +85,7 @@ def train_main(argv=None) -> int:
     cmd = ["marine-fdi", "train"] + [a for a in argv if a != "--no-cache"]
     if args.seed < 0:
         cmd = [a if a != str(args.seed) else str(seed) for a in cmd]
+    say_training_cost(args.algo, over.get("n_timesteps"))
     try:
         cfg = train_agent(args.algo, seed, out, env_id=args.env, overrides=over, use_cache=not args.no_cache,
                           command=shlex.join(cmd), seed_drawn=args.seed < 0)

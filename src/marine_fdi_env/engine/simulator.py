@@ -40,6 +40,9 @@ __all__ = ["Simulator", "SimulationResult", "Block", "EngineFailure", "TRUTH_VAR
 TRUTH_VARIABLES: tuple[str, ...] = (
     "u", "x1", "x3", "x4", "n", "torque", "power", "p6", "T6", "p_max", "T_in", "T_out", "T1", "T_co", "lam",
 )
+# bytes a recorded run holds per engine and sample: measurements, truth and fault values (float64) and the
+# fault flags (bool) of SimulationResult
+RESULT_BYTES_PER_ENGINE_SAMPLE = 8 * (N_SENSORS + len(TRUTH_VARIABLES) + len(FAULT_IDS)) + len(FAULT_IDS)
 _NOISE_BLOCK = 128
 _CHUNK = 512  # samples of fuel setting and fault values precomputed at a time
 DEFAULT_LIMITER_LAMBDA = 1.3

@@ -12,6 +12,7 @@ from gymnasium import spaces
 from .core import EpisodeBatch
 from .hypotheses import HYPOTHESES, N_HYPOTHESES, check_action
 from .observation import feature_names, observation_bounds
+from .rendering import supported_render_mode
 from .reward import RewardConfig, RewardConfigV1, make_reward_config
 from .scenario_sampler import ScenarioConfig, ScenarioSpec, get_preset
 
@@ -98,7 +99,9 @@ class MarineFDIEnv(gym.Env):
     ``nominal``, ``incipient``, ``transfer``, ``sensor-kinds``), a
     :class:`~marine_fdi_env.envs.scenario_sampler.ScenarioConfig` or its dict.
     ``reset(options={"scenario": ScenarioSpec | dict})`` runs a given scenario instead of a drawn
-    one (the frozen suites do this).
+    one (the frozen suites do this).  ``render_mode``: ``"ansi"`` (one line of text per decision) or
+    None; another mode warns and renders nothing, as Gymnasium's own environments do (so that
+    Stable-Baselines3's ``make_vec_env``, which asks for ``"rgb_array"``, works unchanged).
 
     ## info
     ``t_s``, ``scenario_id``, ``profile``, ``true_faults`` (id, class, onset, magnitude, end),
@@ -124,9 +127,7 @@ class MarineFDIEnv(gym.Env):
                  observe_sequential: bool = False) -> None:
         self.scenario_config = get_preset(scenario_config)
         reward = make_reward_config(reward)
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        self.render_mode = render_mode
+        self.render_mode = supported_render_mode(render_mode, self.metadata["render_modes"])
         self._init_kwargs = dict(scenario_config=self.scenario_config, decision_period_s=decision_period_s,
                                  observe_sensors=observe_sensors, reward=reward, params=params, dt=dt,
                                  observe_sequential=observe_sequential)

@@ -20,6 +20,7 @@ from gymnasium.vector.utils import batch_space
 from .core import EpisodeBatch
 from .hypotheses import HYPOTHESES, N_HYPOTHESES, check_action
 from .observation import feature_names, observation_bounds
+from .rendering import supported_render_mode
 from .reward import RewardConfig, RewardConfigV1, make_reward_config
 from .scenario_sampler import ScenarioConfig, ScenarioSpec, get_preset
 
@@ -43,8 +44,7 @@ class MarineFDIVectorEnv(VectorEnv):
                  render_mode: str | None = None, observe_sequential: bool = False) -> None:
         if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
-        if render_mode is not None:
-            raise ValueError("the vector environment does not render; use render_mode=None")
+        self.render_mode = supported_render_mode(render_mode, self.metadata["render_modes"])
         self.num_envs = int(num_envs)
         self.scenario_config = get_preset(scenario_config)
         reward = make_reward_config(reward)
