@@ -179,3 +179,48 @@ def test_cells_option_of_diagnose(tmp_path):
     # the cell set changes the isolation, never the detection
     assert len({json.dumps(o["module_detection_times_s"]) for o in out.values()}) == 1
     assert ["S3.4"] in out["sized"]["final_minimal_diagnoses"]
+
+
+def test_replay_on_the_peak_records_declares_as_the_streaming_diagnoser():
+    # certainty.validate replays the decision logic on recorded firing times and 2 % peak steps;
+    # on these runs it must end on the streaming diagnoser's declaration
+    from marine_fdi_env.diagnosis.agent import ReferenceDiagnoser
+    from marine_fdi_env.diagnosis.certainty import replay_declarations
+    from marine_fdi_env.engine.simulator import Simulator
+
+    faults = [["S3.4@30:6"], ["S4.2@30:9000"], ["S2.2@30:40000"]]
+    sim = Simulator("thesis-12v28", 3, seeds=[41, 42, 43], faults=faults, profiles="constant")
+    agent = ReferenceDiagnoser(n_engines=3, dt=sim.dt)
+    rec = PeakRecorder(3)
+    out = agent.observe(sim.y[:, None, :], sim.u[:, None])
+    rec.update(out.residuals, out.thresholds, np.zeros(3), sim.dt)
+    for k in range(12):
+        blk = sim.advance(1000)
+        out = agent.observe(blk.measurements, blk.u)
+        rec.update(out.residuals, out.thresholds, np.full(3, (1 + 1000 * k) * sim.dt), sim.dt)
+    for i, f in enumerate(faults):
+        fid = f[0].split("@")[0]
+        rep = replay_declarations(agent.first_violation[i], fid, load_sized_cells(), agent.samples * sim.dt - sim.dt,
+                                  30.0, rec.events[i])
+        assert rep["detected"]
+        assert rep["declared_end"] == declared_faults(agent.diagnoses(i)), (fid, agent.diagnoses(i))
+
+
+def test_comparison_table_of_the_cell_sets(tmp_path):
+    from marine_fdi_env.diagnosis.cell_set_table import cell_set_table, proportion_ci95, summarize_results
+
+    ep = lambda f, decl: {"faults": [{"id": f}], "declared_changes": [[1.0, decl, True]]}  # noqa: E731
+    res = [{"agent": "reference", "suite": "single-v1", "metrics": {"n_faulty": 2, "n_episodes": 2,
+            "isolation_accuracy": 0.5, "detection_rate": 1.0, "false_alarm_episode_rate": None},
+            "episodes": [ep("S3.4", ["S3.4"]), ep("S3.5", ["S3.4"])]}]
+    summary = summarize_results(res)
+    v = summary["reference"]["single-v1"]
+    assert v["isolated"] == 1 and v["wrong_isolations_ever"] == 1 and v["wrong_isolations_end"] == 1
+    (tmp_path / "cell_sets.json").write_text(json.dumps({"agents": summary, "command": "x"}))
+    lines = cell_set_table(tmp_path)
+    assert len(lines) == 2 + 6  # header, rule, 2 diagnosers x 3 cell sets
+    lo, hi = proportion_ci95(1, 2)
+    rows = {tuple(x.strip() for x in line.split("|")[1:3]): line for line in lines[2:]}
+    assert f"50.0 % ({100 * lo:.0f}-{100 * hi:.0f})" in rows[("reference", "sized")]
+    assert rows[("reference", "sized")].split("|")[-3].strip() == "1 / 1"  # single-v1 wrong ever / end
+    assert "50.0 %" not in rows[("reference", "grid")]  # no results of that agent: dashes
