@@ -57,9 +57,10 @@ def test_a_module_the_fault_never_fired_puts_it_in_its_top_band_with_a_short_gra
     c = dataclasses.replace(c, never_fired=never, lag_s=np.full((3, 19, 26), 10.0))
     b = c.bands(np.full(19, 0.5))
     assert b[M["M4.6"], F["S3.4"]] == 2 and b[M["M3.4"], F["S3.4"]] == 0
-    g = c.grace_times()  # (band, sure module, explained module, fault)
-    assert g[0, M["M3.5"], M["M4.6"], F["S3.4"]] == 2.0 and g[0, M["M3.5"], M["M3.4"], F["S3.4"]] == 17.0
-    assert np.isinf(c.settle_times()[0, 0, 0, F["bore_damage"]])  # process faults: no time order
+    rows = np.array([M["M4.6"], M["M3.4"]])
+    g, s = c.timings(np.zeros((2, 26), dtype=int), rows)  # (explained module, fault, sure module)
+    assert g[0, F["S3.4"], M["M3.5"]] == 2.0 and g[1, F["S3.4"], M["M3.5"]] == 17.0
+    assert s[1, F["S3.4"], M["M3.5"]] == 17.0 and np.isinf(s[1, F["bore_damage"], 0])  # process: no time order
 
 
 def _grid(rows):

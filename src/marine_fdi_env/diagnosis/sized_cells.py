@@ -68,6 +68,7 @@ class SizedCells:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "_thr", self.threshold)
+        object.__setattr__(self, "_lag_t", np.ascontiguousarray(self.lag_s.transpose(0, 2, 1)))  # (K, 26, 19)
 
     @property
     def threshold(self) -> np.ndarray:
@@ -97,19 +98,19 @@ class SizedCells:
         nxt = np.where(_SUPPORT, nxt, np.inf).min(axis=1)
         return np.where(rows, nxt, np.inf)
 
-    def grace_times(self, margin_s: float = 2.0, factor: float = 1.5) -> np.ndarray:
-        """(K, 19 sure, 19 explained, 26): how long after a module m that f would explain each sure
-        module of f may still fire, a silent one exonerating f as m's explanation after that: its
-        largest delay behind f's first fired module x ``factor`` + ``margin_s`` (f's first module
-        fired no later than m); ``margin_s`` alone where f never fired m at any size (in every run
-        its sure modules fired before the run ended, m not at all)."""
-        g = factor * self.lag_s[:, :, None, :] + margin_s
-        return np.where(self.never_fired[None, None, :, :], margin_s, g)
-
-    def settle_times(self, margin_s: float = 2.0, factor: float = 1.5) -> np.ndarray:
-        """As :meth:`grace_times`, for the time order: a sure module fired later than that after m
-        was not fired by the f that fired m; process faults (incipient) get no time order (inf)."""
-        return np.where(_IS_SENSOR[None, None, None, :], self.grace_times(margin_s, factor), np.inf)
+    def timings(self, band: np.ndarray, rows: np.ndarray, margin_s: float = 2.0, factor: float = 1.5
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """Grace and settle times (r, 26, 19 sure modules) [s] of every fault as the explanation of
+        the fired modules ``rows`` (r,), in their bands ``band`` (r, 26): how long after such a
+        module m each sure module of the fault may still fire (a silent one then exonerates the
+        fault as m's explanation; one that fired later was not fired by it).  Its largest delay
+        behind the fault's first fired module x ``factor`` + ``margin_s`` (the fault's first module
+        fired no later than m); ``margin_s`` alone where the fault never fired m at any size (in
+        every run its sure modules fired before the run ended, m not at all).  Settle times: process
+        faults (incipient) get no time order (inf)."""
+        g = factor * self._lag_t[band, np.arange(len(FAULT_IDS))[None, :]] + margin_s
+        g = np.where(self.never_fired[rows][:, :, None], margin_s, g)
+        return g, np.where(_IS_SENSOR[None, :, None], g, np.inf)
 
     def top_band(self) -> SureCells:
         """The cells of each fault's largest size alone (the table size), as size-blind cells."""

@@ -35,13 +35,13 @@ __all__ = ["sized_conflicts", "SizedDiagnosisState", "drive_block"]
 
 
 def sized_conflicts(fired: np.ndarray, detection_times: np.ndarray, peaks: np.ndarray, now: float,
-                    cells: SizedCells, support: np.ndarray, grace: np.ndarray, settle: np.ndarray
+                    cells: SizedCells, support: np.ndarray, margin_s: float = 2.0, factor: float = 1.5
                     ) -> tuple[list[int], float]:
     """Bitmasks (over ``FAULT_IDS``) of the faults that can explain each fired module (module
     docstring), and the next time a grace period that matters ends (inf: none).
 
-    fired (19,) bool; detection_times (19,) [s]; peaks (19,) running peak ratios; grace, settle
-    (K, 26, 19, 19) per band, fault, explained module and sure module [s].
+    fired (19,) bool; detection_times (19,) [s]; peaks (19,) running peak ratios; margin_s [s],
+    factor: of the grace and settle times (:meth:`SizedCells.timings`).
     """
     rows = np.flatnonzero(fired)
     if not len(rows):
@@ -50,8 +50,7 @@ def sized_conflicts(fired: np.ndarray, detection_times: np.ndarray, peaks: np.nd
     band = cells.bands(peaks)[rows]  # (r, 26)
     cols = np.arange(N_FAULTS)[None, :]
     sure = cells.sure.transpose(0, 2, 1)[band, cols]  # (r, 26, 19)
-    g = grace[band, cols, rows[:, None]]  # (r, 26, 19): per sure module, given the module explained
-    s = settle[band, cols, rows[:, None]]
+    g, s = cells.timings(band, rows, margin_s, factor)  # (r, 26, 19): per sure module, given the module explained
     # had f fired module m (row r), f's first module fired no later than T_D(m): its silent sure
     # modules are awaited until T_D(m) + grace (counting from f's earliest support module instead
     # would let a module another fault fired earlier end the grace too soon)
@@ -77,9 +76,7 @@ class SizedDiagnosisState(DiagnosisState):
     def __init__(self, cells: SizedCells, *, support=None, max_cardinality: int | None = 2,
                  settle_margin_s: float = 2.0, factor: float = 1.5) -> None:
         self.cells = cells
-        # (K, 26, 19 explained, 19 sure), gathered per conflict in sized_conflicts
-        self._grace = cells.grace_times(settle_margin_s, factor).transpose(0, 3, 2, 1).copy()
-        self._settle = cells.settle_times(settle_margin_s, factor).transpose(0, 3, 2, 1).copy()
+        self._margin_s, self._factor = float(settle_margin_s), float(factor)
         super().__init__(support=support, exoneration=cells.sure[0], max_cardinality=max_cardinality, temporal=True)
 
     def reset(self) -> None:
@@ -104,7 +101,7 @@ class SizedDiagnosisState(DiagnosisState):
 
     def _recompute(self, now: float) -> None:
         conflicts, self._next_expiry = sized_conflicts(self.fired, self.detection_times, self.peaks, now, self.cells,
-                                                       self.support, self._grace, self._settle)
+                                                       self.support, self._margin_s, self._factor)
         k = N_FAULTS if self.max_cardinality is None else int(self.max_cardinality)
         self.diagnoses = sorted((_from_mask(m, FAULT_IDS) for m in _mhs_masks(conflicts, k)), key=_sort_key)
         self.next_peak = self.cells.next_peak(self.peaks, self.fired)
