@@ -27,7 +27,8 @@ import numpy as np
 from marine_fdi_env.diagnosis.cell_sets import DEFAULT_CELLS, check_cells
 from marine_fdi_env.envs.hypotheses import HYPOTHESES, N_HYPOTHESES, UNKNOWN
 
-__all__ = ["ReferenceAgent", "ReferenceThesisAgent", "ReferenceGridAgent", "belief_from_diagnoses", "cells_name"]
+__all__ = ["ReferenceAgent", "ReferenceThesisAgent", "ReferenceGridAgent", "belief_from_diagnoses", "cells_name",
+           "with_cells"]
 
 _INDEX = {h: i for i, h in enumerate(HYPOTHESES)}
 
@@ -75,15 +76,19 @@ class ReferenceAgent:
         return np.stack([belief_from_diagnoses(bool(d), g) for d, g in zip(ref["detected"], ref["diagnoses"])])
 
 
-class ReferenceThesisAgent(ReferenceAgent):
-    """The reference diagnoser with the sure cells of the table sizes (the thesis's way)."""
+
+def with_cells(base: type, cells: str) -> type:
+    """``base`` (an agent class taking ``cells``) with another cell set, as a class constructible
+    without arguments (how the agent registry builds its agents)."""
+    check_cells(cells)
 
     def __init__(self) -> None:
-        super().__init__("thesis")
+        base.__init__(self, cells)
+
+    name = f"{base.__name__.removesuffix('Agent')}{cells.capitalize()}Agent"
+    return type(name, (base,), {"__init__": __init__, "__module__": base.__module__,
+                                "__doc__": f"{base.__name__} with the {cells} cells."})
 
 
-class ReferenceGridAgent(ReferenceAgent):
-    """The reference diagnoser with the size-blind grid cells."""
-
-    def __init__(self) -> None:
-        super().__init__("grid")
+ReferenceThesisAgent = with_cells(ReferenceAgent, "thesis")
+ReferenceGridAgent = with_cells(ReferenceAgent, "grid")

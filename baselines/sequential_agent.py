@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from marine_fdi_env.baselines.reference_agent import belief_from_diagnoses, cells_name
+from marine_fdi_env.baselines.reference_agent import belief_from_diagnoses, cells_name, with_cells
 from marine_fdi_env.diagnosis.cell_sets import DEFAULT_CELLS, check_cells
 
 __all__ = ["SequentialAgent", "SequentialThesisAgent", "SequentialGridAgent"]
@@ -37,15 +37,6 @@ class SequentialAgent:
         return np.stack([belief_from_diagnoses(bool(d), g) for d, g in zip(seq["detected"], seq["diagnoses"])])
 
 
-class SequentialThesisAgent(SequentialAgent):
-    """The sequential diagnoser with the sure cells of the table sizes."""
 
-    def __init__(self) -> None:
-        super().__init__("thesis")
-
-
-class SequentialGridAgent(SequentialAgent):
-    """The sequential diagnoser with the size-blind grid cells."""
-
-    def __init__(self) -> None:
-        super().__init__("grid")
+SequentialThesisAgent = with_cells(SequentialAgent, "thesis")
+SequentialGridAgent = with_cells(SequentialAgent, "grid")

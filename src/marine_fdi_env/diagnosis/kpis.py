@@ -34,6 +34,7 @@ from .agent import ReferenceDiagnoser
 from .batch import BATCH, DIAGNOSERS, PARAMS as _PARAMS, diagnose_batch  # noqa: F401
 from .cell_set_table import cell_set_table, proportion_ci95, summarize_results, wrong_isolations  # noqa: F401
 from .cell_sets import CELL_SETS, DEFAULT_CELLS
+from .decision import declared_faults
 from .modules import MODULE_IDS
 from .residuals import residuals_for_run
 
@@ -113,23 +114,26 @@ def _onset(f: str) -> float:
     return PROCESS_FAULT_DEFAULTS[f].onset_s if f in PROCESS_FAULT_DEFAULTS else SENSOR_ONSET_S
 
 
-def _isolation_delays(rs: list[dict], f: str, on: float, diagnoser: str) -> list[float | None]:
-    """Per run: time after the onset from which the diagnoser declares exactly {f} (to the end of
-    the run), None if it does not at the end: the decision logic replayed on the module firing
-    times, as the streaming diagnoser meets them (:func:`certainty.replay_declarations`)."""
-    from .certainty import SURE_FILES, replay_declarations
-    from .sure_cells import load_sure_cells
+class IsolationClock:
+    """``diagnose_batch`` block callback: per run, since when the diagnoser has declared exactly the
+    run's own fault (``declared_faults`` of its minimal diagnoses, the agents' rule), None while it
+    does not; checked at the end of every block (the decision period of the blocks fed)."""
 
-    sc = load_sure_cells(SURE_FILES[diagnoser])
-    out = []
-    for r in rs:
-        t = np.array([np.nan if v is None else v for v in r["module_detection_times_s"].values()])
-        rep = replay_declarations(t, f, sc, DURATION_S)
-        out.append(None if rep["isolated_from_s"] is None else rep["isolated_from_s"] - on)
-    return out
+    def __init__(self, faults: list[str]) -> None:
+        self.faults = faults
+        self.since: list[float | None] = [None] * len(faults)
+
+    def __call__(self, agent, engines: slice, blk) -> None:
+        t = float(blk.t[-1])
+        for k, i in enumerate(range(engines.start, engines.stop)):
+            decl = declared_faults(agent.diagnoses(k)) if agent.detected[k] else []
+            if decl != [self.faults[i]]:
+                self.since[i] = None
+            elif self.since[i] is None:
+                self.since[i] = t
 
 
-def _delay_stats(rs: list[dict], f: str, on: float, diagnoser: str | None = None) -> dict:
+def _delay_stats(rs: list[dict], f: str, on: float, isolated_since: list | None = None) -> dict:
     delays = [r["first_detection_time_s"] - on for r in rs if r["detected"]]
     contains = [any(d == [f] or f in d for d in r["final_minimal_diagnoses"]) for r in rs]
     single = [[f] in r["final_minimal_diagnoses"] for r in rs]
@@ -142,17 +146,22 @@ def _delay_stats(rs: list[dict], f: str, on: float, diagnoser: str | None = None
         "p90_delay_s": float(np.percentile(delays, 90)) if delays else None,
         "std_delay_s": float(np.std(delays)) if delays else None,
     }
-    if diagnoser is not None:
-        iso = [x for x in _isolation_delays(rs, f, on, diagnoser) if x is not None]
+    if isolated_since is not None:
+        iso = [x - on for x in isolated_since if x is not None]
         out.update({"isolated": len(iso), "median_isolation_delay_s": float(np.median(iso)) if iso else None,
                     "p90_isolation_delay_s": float(np.percentile(iso, 90)) if iso else None})
     return out
 
 
+# samples per block of the isolation clock: the environment's decision period of 1 s
+ISOLATION_BLOCK = 100
+
+
 def single_fault_delays(n_seeds: int, first_seed: int = 10_000, fault_ids=FAULT_IDS,
                         extended_s: float = EXTENDED_S, diagnoser: str = "reference") -> dict:
     """Every single fault at its default magnitude, n_seeds noise seeds, constant fuel setting:
-    detection delays, isolation delays (the diagnoser declares exactly the fault) and diagnoses.
+    detection delays, isolation delays (the diagnoser declares exactly the fault, from the end of
+    the 1 s block in which it does so to the end of the run: :class:`IsolationClock`) and diagnoses.
 
     A fault missed in some seed within the 300 s runs is run again, same seeds, for ``extended_s``
     (with the same seeds fault-free as the false-alarm check of that horizon): ``extended``
@@ -164,17 +173,19 @@ def single_fault_delays(n_seeds: int, first_seed: int = 10_000, fault_ids=FAULT_
             schedules.append([FaultSpec(f, _onset(f))])
             seeds.append(first_seed + 1000 * j + s)
             labels.append(f)
-    reps = diagnose_batch(schedules, seeds, diagnoser=diagnoser)
+    clock = IsolationClock(labels)
+    reps = diagnose_batch(schedules, seeds, diagnoser=diagnoser, block_samples=ISOLATION_BLOCK, on_block=clock)
     out = {}
     for f in fault_ids:
         rs = [r for r, lab in zip(reps, labels) if lab == f]
+        since = [x for x, lab in zip(clock.since, labels) if lab == f]
         on = _onset(f)
         per_module = {}
         for m in MODULE_IDS:
             t = [r["module_detection_times_s"][m] - on for r in rs if r["module_detection_times_s"][m] is not None]
             if t:
                 per_module[m] = {"n": len(t), "median_s": float(np.median(t)), "std_s": float(np.std(t))}
-        out[f] = {"onset_s": on, **_delay_stats(rs, f, on, diagnoser),
+        out[f] = {"onset_s": on, **_delay_stats(rs, f, on, since),
                   "n_diagnoses_median": float(np.median([len(r["final_minimal_diagnoses"]) for r in rs])),
                   "modules": per_module}
         if extended_s > DURATION_S and out[f]["detected"] < len(rs):
@@ -478,7 +489,9 @@ def render(data_dir: Path = Path("docs/data")) -> str:
         lines += [f"### Single faults at their default magnitudes ({cmd})", "",
                   "Constant fuel setting 1.0, table 6.3/6.4 magnitudes, 300 s.  Detection delay = first firing of "
                   "any module minus onset; isolation delay = from when the diagnoser declares exactly the fault (to "
-                  "the end of the run) minus onset; 'alone': runs where {fault} itself is a final minimal diagnosis.",
+                  "the end of the run; checked at the end of every 1 s block, the environment's decision period) "
+                  "minus onset, over the runs isolated at the end; 'alone': runs where {fault} itself is a final "
+                  "minimal diagnosis.  Default cell set (sized).",
                   "", "| fault | thesis | reference: detected | alone | median det. delay [s] | median iso. delay [s] "
                   "| sequential: detected | alone | median det. delay [s] | median iso. delay [s] |",
                   "|---|---|---|---|---|---|---|---|---|---|"]
@@ -715,7 +728,8 @@ def main(argv=None) -> int:
     if args.what == "render":
         text = ("# Diagnosers: measured results\n\nGenerated by `python -m marine_fdi_env.diagnosis.kpis render` "
                 "from `docs/data/diagnoser_*.json` (the reference diagnoser), `docs/data/sequential_*.json` (the "
-                "sequential one), `docs/data/certainty_*.json` and `docs/data/wrong_isolations_single-v1.json`; "
+                "sequential one), `docs/data/certainty_*.json`, `docs/data/wrong_isolations_single-v1.json` and "
+                "`docs/data/cell_sets.json`; "
                 "the commands that wrote them are named with each table.\n\n" + render() + "\n" + render_robustness())
         out = args.out or Path("docs/diagnosis_results.md")
         out.write_text(text.rstrip() + "\n")
