@@ -2,7 +2,8 @@
 
     python -m studies.diagnosis.kpis false-alarms --hours 200        # fault-free, all families, both
     python -m studies.diagnosis.kpis delays --seeds 100              # single faults, delays
-    python -m studies.diagnosis.kpis scenarios --seeds 100           # the 4 examples of 6.4
+    python -m studies.diagnosis.kpis scenarios --seeds 50 --first-seed 1000  # the 4 examples of 6.4
+    python -m studies.diagnosis.kpis cell-sets --results FILE ...    # the cell sets on the suites
     python -m studies.diagnosis.kpis min-detectable --seeds 20       # KPI 6.5.2, bisection
     python -m studies.diagnosis.kpis min-detectable --all --seeds 4  # all 26 faults -> env table
     python -m studies.diagnosis.kpis seal-leak-snr --seeds 16        # why turbine_seal_leak is missed
@@ -31,6 +32,9 @@ from marine_fdi_env.engine.sensors import SENSORS, sensor_index
 from marine_fdi_env.engine.simulator import Simulator
 from marine_fdi_env.diagnosis.agent import ReferenceDiagnoser
 from marine_fdi_env.diagnosis.batch import BATCH, DIAGNOSERS, PARAMS as _PARAMS, diagnose_batch  # noqa: F401
+from .cell_set_table import cell_set_table, proportion_ci95, summarize_results, wrong_isolations  # noqa: F401
+from marine_fdi_env.diagnosis.cell_sets import CELL_SETS, DEFAULT_CELLS
+from marine_fdi_env.diagnosis.decision import declared_faults
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
 from marine_fdi_env.diagnosis.residuals import residuals_for_run
 from studies.paths import PACKAGE_DATA
@@ -111,23 +115,26 @@ def _onset(f: str) -> float:
     return PROCESS_FAULT_DEFAULTS[f].onset_s if f in PROCESS_FAULT_DEFAULTS else SENSOR_ONSET_S
 
 
-def _isolation_delays(rs: list[dict], f: str, on: float, diagnoser: str) -> list[float | None]:
-    """Per run: time after the onset from which the diagnoser declares exactly {f} (to the end of
-    the run), None if it does not at the end: the decision logic replayed on the module firing
-    times, as the streaming diagnoser meets them (:func:`certainty.replay_declarations`)."""
-    from .certainty import SURE_FILES, replay_declarations
-    from marine_fdi_env.diagnosis.sure_cells import load_sure_cells
+class IsolationClock:
+    """``diagnose_batch`` block callback: per run, since when the diagnoser has declared exactly the
+    run's own fault (``declared_faults`` of its minimal diagnoses, the agents' rule), None while it
+    does not; checked at the end of every block (the decision period of the blocks fed)."""
 
-    sc = load_sure_cells(SURE_FILES[diagnoser])
-    out = []
-    for r in rs:
-        t = np.array([np.nan if v is None else v for v in r["module_detection_times_s"].values()])
-        rep = replay_declarations(t, f, sc, DURATION_S)
-        out.append(None if rep["isolated_from_s"] is None else rep["isolated_from_s"] - on)
-    return out
+    def __init__(self, faults: list[str]) -> None:
+        self.faults = faults
+        self.since: list[float | None] = [None] * len(faults)
+
+    def __call__(self, agent, engines: slice, blk) -> None:
+        t = float(blk.t[-1])
+        for k, i in enumerate(range(engines.start, engines.stop)):
+            decl = declared_faults(agent.diagnoses(k)) if agent.detected[k] else []
+            if decl != [self.faults[i]]:
+                self.since[i] = None
+            elif self.since[i] is None:
+                self.since[i] = t
 
 
-def _delay_stats(rs: list[dict], f: str, on: float, diagnoser: str | None = None) -> dict:
+def _delay_stats(rs: list[dict], f: str, on: float, isolated_since: list | None = None) -> dict:
     delays = [r["first_detection_time_s"] - on for r in rs if r["detected"]]
     contains = [any(d == [f] or f in d for d in r["final_minimal_diagnoses"]) for r in rs]
     single = [[f] in r["final_minimal_diagnoses"] for r in rs]
@@ -140,17 +147,22 @@ def _delay_stats(rs: list[dict], f: str, on: float, diagnoser: str | None = None
         "p90_delay_s": float(np.percentile(delays, 90)) if delays else None,
         "std_delay_s": float(np.std(delays)) if delays else None,
     }
-    if diagnoser is not None:
-        iso = [x for x in _isolation_delays(rs, f, on, diagnoser) if x is not None]
+    if isolated_since is not None:
+        iso = [x - on for x in isolated_since if x is not None]
         out.update({"isolated": len(iso), "median_isolation_delay_s": float(np.median(iso)) if iso else None,
                     "p90_isolation_delay_s": float(np.percentile(iso, 90)) if iso else None})
     return out
 
 
+# samples per block of the isolation clock: the environment's decision period of 1 s
+ISOLATION_BLOCK = 100
+
+
 def single_fault_delays(n_seeds: int, first_seed: int = 10_000, fault_ids=FAULT_IDS,
                         extended_s: float = EXTENDED_S, diagnoser: str = "reference") -> dict:
     """Every single fault at its default magnitude, n_seeds noise seeds, constant fuel setting:
-    detection delays, isolation delays (the diagnoser declares exactly the fault) and diagnoses.
+    detection delays, isolation delays (the diagnoser declares exactly the fault, from the end of
+    the 1 s block in which it does so to the end of the run: :class:`IsolationClock`) and diagnoses.
 
     A fault missed in some seed within the 300 s runs is run again, same seeds, for ``extended_s``
     (with the same seeds fault-free as the false-alarm check of that horizon): ``extended``
@@ -162,17 +174,19 @@ def single_fault_delays(n_seeds: int, first_seed: int = 10_000, fault_ids=FAULT_
             schedules.append([FaultSpec(f, _onset(f))])
             seeds.append(first_seed + 1000 * j + s)
             labels.append(f)
-    reps = diagnose_batch(schedules, seeds, diagnoser=diagnoser)
+    clock = IsolationClock(labels)
+    reps = diagnose_batch(schedules, seeds, diagnoser=diagnoser, block_samples=ISOLATION_BLOCK, on_block=clock)
     out = {}
     for f in fault_ids:
         rs = [r for r, lab in zip(reps, labels) if lab == f]
+        since = [x for x, lab in zip(clock.since, labels) if lab == f]
         on = _onset(f)
         per_module = {}
         for m in MODULE_IDS:
             t = [r["module_detection_times_s"][m] - on for r in rs if r["module_detection_times_s"][m] is not None]
             if t:
                 per_module[m] = {"n": len(t), "median_s": float(np.median(t)), "std_s": float(np.std(t))}
-        out[f] = {"onset_s": on, **_delay_stats(rs, f, on, diagnoser),
+        out[f] = {"onset_s": on, **_delay_stats(rs, f, on, since),
                   "n_diagnoses_median": float(np.median([len(r["final_minimal_diagnoses"]) for r in rs])),
                   "modules": per_module}
         if extended_s > DURATION_S and out[f]["detected"] < len(rs):
@@ -186,15 +200,16 @@ def single_fault_delays(n_seeds: int, first_seed: int = 10_000, fault_ids=FAULT_
     return out
 
 
-def scenario_checks(n_seeds: int, first_seed: int = 20_000, diagnoser: str = "reference") -> dict:
-    """The four thesis examples (section 6.4) over n_seeds noise seeds."""
+def scenario_checks(n_seeds: int, first_seed: int = 20_000, diagnoser: str = "reference", cells: str = "sized") -> dict:
+    """The four thesis examples (section 6.4) over n_seeds noise seeds (``marine-fdi simulate --scenario
+    NAME --seed S`` for S = first_seed, ...), with the cell set ``cells``."""
     thesis_counts = {"thesis-6.4.1": 4, "thesis-6.4.2": 1, "thesis-6.4.3": 1, "thesis-6.4.4": 9}
     out = {}
     for name in SCENARIOS:
         sc = get_scenario(name)
         specs = sc.fault_specs()
         seeds = [first_seed + i for i in range(n_seeds)]
-        reps = diagnose_batch([specs] * n_seeds, seeds, sc.profile, sc.duration_s, diagnoser=diagnoser)
+        reps = diagnose_batch([specs] * n_seeds, seeds, sc.profile, sc.duration_s, diagnoser=diagnoser, cells=cells)
         injected = sorted(f.fault_id for f in specs)
         first_onset = min(f.onset_s for f in specs)
         rows = []
@@ -208,9 +223,14 @@ def scenario_checks(n_seeds: int, first_seed: int = 20_000, diagnoser: str = "re
                 "unique": diag == [key], "diagnoses": diag,
                 "module_detection_times_s": {m: t for m, t in r["module_detection_times_s"].items() if t is not None},
             })
+        limit = thesis_counts.get(name)
         out[name] = {
-            "injected": injected, "thesis_final_candidates": thesis_counts.get(name),
-            "seeds": n_seeds,
+            "injected": injected, "thesis_final_candidates": limit,
+            "seeds": n_seeds, "first_seed": first_seed, "cells": cells,
+            "early_runs": sum(x["early"] for x in rows),
+            "injected_in_diagnoses_runs": sum(x["injected_in_diagnoses"] for x in rows),
+            "unique_runs": sum(x["unique"] for x in rows),
+            "within_thesis_count_runs": sum(limit is None or x["n_diagnoses"] <= limit for x in rows),
             "no_early_detection": all(not x["early"] for x in rows),
             "injected_always_in_diagnoses": all(x["injected_in_diagnoses"] for x in rows),
             "max_candidates": max(x["n_diagnoses"] for x in rows),
@@ -419,21 +439,9 @@ _THESIS_NOTES = {
 }
 
 
-def wrong_isolations(results: dict) -> dict:
-    """Per fault, in the single-fault episodes of a results file (``marine-fdi evaluate``): episodes,
-    those where the agent ever declared a set without the true fault (``anytime``) and those where
-    its last declaration lacks it (``end``)."""
-    per = {}
-    for e in results["episodes"]:
-        if len(e["faults"]) != 1:
-            continue
-        f = e["faults"][0]["id"]
-        p = per.setdefault(f, {"episodes": 0, "anytime": 0, "end": 0})
-        p["episodes"] += 1
-        p["anytime"] += int(any(decl and f not in decl for _, decl, _ in e["declared_changes"]))
-        last = e["declared_changes"][-1][1] if e["declared_changes"] else []
-        p["end"] += int(bool(last) and f not in last)
-    return {f: per[f] for f in FAULT_IDS if f in per}
+def _count(k: int, n: int) -> str:
+    lo, hi = proportion_ci95(k, n)
+    return f"{k}/{n} ({100 * lo:.0f}-{100 * hi:.0f} %)"
 
 
 def _fmt(x, spec=".2f", none="-"):
@@ -482,7 +490,9 @@ def render(data_dir: Path = Path("docs/data")) -> str:
         lines += [f"### Single faults at their default magnitudes ({cmd})", "",
                   "Constant fuel setting 1.0, table 6.3/6.4 magnitudes, 300 s.  Detection delay = first firing of "
                   "any module minus onset; isolation delay = from when the diagnoser declares exactly the fault (to "
-                  "the end of the run) minus onset; 'alone': runs where {fault} itself is a final minimal diagnosis.",
+                  "the end of the run; checked at the end of every 1 s block, the environment's decision period) "
+                  "minus onset, over the runs isolated at the end; 'alone': runs where {fault} itself is a final "
+                  "minimal diagnosis.  Default cell set (sized).",
                   "", "| fault | thesis | reference: detected | alone | median det. delay [s] | median iso. delay [s] "
                   "| sequential: detected | alone | median det. delay [s] | median iso. delay [s] |",
                   "|---|---|---|---|---|---|---|---|---|---|"]
@@ -524,18 +534,26 @@ def render(data_dir: Path = Path("docs/data")) -> str:
     scs = {a: load("scenarios", a) for a in agents}
     if any(scs.values()):
         cmd = "; ".join(f"`{d['command']}`" for d in scs.values() if d)
+        first = next(d for d in scs.values() if d)["result"]["thesis-6.4.1"]
         lines += [f"### The thesis's multiple-fault examples ({cmd})", "",
-                  "| example | injected | diagnoser | no detection before onset | injected set among the minimal "
-                  "diagnoses | most candidates (thesis) | unique |", "|---|---|---|---|---|---|---|"]
+                  f"Seeds {first['first_seed']}-{first['first_seed'] + first['seeds'] - 1} (`marine-fdi simulate "
+                  f"--scenario NAME --seed S`), which no design choice looked at (the development seeds were "
+                  "0-49); the default cell set (sized; the others in the table of the cell sets below).  Counts of "
+                  "runs with the exact 95 % interval of the rate.", "",
+                  "| example | injected | diagnoser | detection before the first onset | injected set among the final "
+                  "minimal diagnoses | unique | at most the thesis's candidate count | most candidates (thesis) |",
+                  "|---|---|---|---|---|---|---|---|"]
         names = next(d for d in scs.values() if d)["result"]
         for name in names:
             for a, d in scs.items():
                 if not d:
                     continue
                 v = d["result"][name]
-                lines.append(f"| {name} | {', '.join(v['injected'])} | {label[a]} | {v['no_early_detection']} | "
-                             f"{v['injected_always_in_diagnoses']} | {v['max_candidates']} ({v['thesis_final_candidates']}) "
-                             f"| {v['always_unique']} |")
+                n = v["seeds"]
+                lines.append(f"| {name} | {', '.join(v['injected'])} | {label[a]} | {v['early_runs']}/{n} | "
+                             f"{_count(v['injected_in_diagnoses_runs'], n)} | {_count(v['unique_runs'], n)} | "
+                             f"{_count(v['within_thesis_count_runs'], n)} | {v['max_candidates']} "
+                             f"({v['thesis_final_candidates']}) |")
         sc = scs.get("diagnoser")
         if sc:
             lines += ["", "Module detection times of the first seed (reference), beside the thesis's:", ""]
@@ -590,14 +608,9 @@ def render(data_dir: Path = Path("docs/data")) -> str:
     return "\n".join(lines)
 
 
-# main before issue #13 (sure cells measured at the table magnitudes only): the "before" of the
-# single-v1 wrong-isolation counts
-BEFORE_COMMIT = "ecfb703"
-
-
 def render_robustness(data_dir: Path = Path("docs/data")) -> str:
-    """Wrong isolations before/after the magnitude-grid sure cells: held-out grid (certainty
-    validate) and single-v1 (the results files)."""
+    """Wrong isolations with each cell set: held-out grid (certainty validate) and single-v1 (the
+    results files), and the cell sets side by side on everything (:mod:`.cell_set_table`)."""
     lines = []
     for a in ("reference", "sequential"):
         p = data_dir / f"certainty_{a}.json"
@@ -605,33 +618,31 @@ def render_robustness(data_dir: Path = Path("docs/data")) -> str:
             continue
         v = json.loads(p.read_text())
         res = v["result"]
-        cols = [k for k in ("old", "new") if k in res]
+        cols = [k for k in CELL_SETS if k in res]
         lines += [f"### Wrong isolations of the {a} diagnoser on held-out sizes, seeds and profiles (`{v['command']}`)",
                   "", f"{v['runs']} runs: {v['held_out']['magnitudes']} (sensor offsets of both signs), profiles "
                   f"{', '.join(v['held_out']['profiles'])}, {v['held_out']['seeds_per_cell']} seeds each from "
-                  f"{v['held_out']['first_seed']}.  A run counts when, at some time, the true fault is in no minimal "
-                  "diagnosis while the diagnoser declares a fault.  " + ("'old': the sure cells measured at the table "
-                  "magnitudes only; 'new': over the magnitude grid." if len(cols) == 2 else ""), "",
-                  "| fault | detected runs | " + " | ".join(f"wrong ({c})" for c in cols) + " |",
+                  f"{v['held_out']['first_seed']}.  Wrong: at some time the true fault is in no minimal diagnosis "
+                  "while the diagnoser declares a fault (at the end: so at the end of the run); isolated: the "
+                  "diagnoser declares exactly the true fault at the end.  Cell sets: thesis (the table sizes), grid "
+                  "(sure at every size), sized (the size band the evidence bounds each candidate to).", "",
+                  "| fault | detected runs | " + " | ".join(f"{c}: wrong (at the end) / isolated" for c in cols) + " |",
                   "|---|---|" + "---|" * len(cols)]
-        tot = {c: 0 for c in cols}
+        tot = {c: [0, 0, 0] for c in cols}
         for f in FAULT_IDS:
-            vals = [res[c][f]["wrong"] for c in cols]
+            vals = [(res[c][f]["wrong"], res[c][f]["wrong_end"], res[c][f]["isolated_end"]) for c in cols]
             for c, x in zip(cols, vals):
-                tot[c] += x
-            lines.append(f"| {f} | {res['new'][f]['detected']}/{res['new'][f]['runs']} | "
-                         + " | ".join(str(x) for x in vals) + " |")
-        lines.append("| all | | " + " | ".join(str(tot[c]) for c in cols) + " |")
+                tot[c] = [t + y for t, y in zip(tot[c], x)]
+            d0 = res[cols[0]][f]
+            lines.append(f"| {f} | {d0['detected']}/{d0['runs']} | "
+                         + " | ".join(f"{x[0]} ({x[1]}) / {x[2]}" for x in vals) + " |")
+        lines.append("| all | | " + " | ".join(f"{t[0]} ({t[1]}) / {t[2]}" for t in tot.values()) + " |")
         lines.append("")
     p = data_dir / "wrong_isolations_single-v1.json"
     if p.exists():
         v = json.loads(p.read_text())
         keys = list(v["agents"])
         lines += ["### Wrong isolations on single-v1", "", v["description"]]
-        if any(k.startswith("before_") for k in keys):
-            lines.append(f"`before_*`: the agent's single-v1 results before issue #13, from the repository's history "
-                         f"(`mkdir -p results && git show {BEFORE_COMMIT}:docs/data/results/reference_single-v1.json > "
-                         f"results/before_reference_single-v1.json`).")
         lines += ["",
                   "| fault | episodes | " + " | ".join(f"{k}: ever / at the end" for k in keys) + " |",
                   "|---|---|" + "---|" * len(keys)]
@@ -651,6 +662,18 @@ def render_robustness(data_dir: Path = Path("docs/data")) -> str:
             lines.append(f"| {f} | {n} | " + " | ".join(cells) + " |")
         lines.append("| all | | " + " | ".join(f"{tot[k][0]} / {tot[k][1]}" for k in keys) + " |")
         lines.append("")
+    table = cell_set_table(data_dir)
+    if table:
+        lines += ["### The three cell sets side by side", "",
+                  "Each diagnoser with each cell set (`--cells` / the agents `reference`, `reference-grid`, "
+                  "`reference-thesis`, `sequential`, ...): the thesis's examples on the reported seeds (counts of 50; "
+                  "the scenario commands above with `--cells`), the held-out certainty grid (the tables above) and "
+                  "every frozen suite (isolation accuracy with its exact 95 % interval; suites: "
+                  "`for a in reference reference-grid reference-thesis sequential sequential-grid sequential-thesis; "
+                  "do for s in thesis-v1 single-v1 multi-v1 incipient-v1 transfer-v1 nominal-v1 transfer-v2; do "
+                  "marine-fdi evaluate --agent $a --suite $s --out results/cell_sets/${a}_$s.json; done; done`, then "
+                  "`python -m studies.diagnosis.kpis cell-sets --results results/cell_sets/*.json`).", ""] \
+            + table + [""]
     return "\n".join(lines)
 
 
@@ -681,10 +704,17 @@ def _wrong_isolations_main(args) -> int:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("what", choices=("false-alarms", "delays", "scenarios", "min-detectable", "seal-leak-snr",
-                                     "wrong-isolations", "render"))
+                                     "wrong-isolations", "cell-sets", "render"))
     ap.add_argument("--results", nargs="*", type=Path, default=None,
-                    help="wrong-isolations: NAME=results.json pairs (evaluate results on single-v1)")
+                    help="wrong-isolations: NAME=results.json pairs (evaluate results on single-v1); cell-sets: "
+                         "evaluate results files of the agents with each cell set")
     ap.add_argument("--seeds", type=int, default=10)
+    ap.add_argument("--first-seed", type=int, default=None,
+                    help="scenarios: first noise seed (default 20000; the reported runs use 1000, the development "
+                         "ones 0: docs/diagnosis.md)")
+    ap.add_argument("--cells", choices=CELL_SETS, default=DEFAULT_CELLS,
+                    help="scenarios: the diagnoser's sure cells (default sized; results of the others are written "
+                         "beside, *_scenarios_CELLS.json)")
     ap.add_argument("--hours", type=float, default=200.0, help="false-alarms: fault-free engine-hours (default 200)")
     ap.add_argument("--diagnoser", choices=DIAGNOSERS, default="reference",
                     help="reference (the thesis scheme, default) or sequential (CUSUM tests on its residuals)")
@@ -699,7 +729,8 @@ def main(argv=None) -> int:
     if args.what == "render":
         text = ("# Diagnosers: measured results\n\nGenerated by `python -m studies.diagnosis.kpis render` "
                 "from `docs/data/diagnoser_*.json` (the reference diagnoser), `docs/data/sequential_*.json` (the "
-                "sequential one), `docs/data/certainty_*.json` and `docs/data/wrong_isolations_single-v1.json`; "
+                "sequential one), `docs/data/certainty_*.json`, `docs/data/wrong_isolations_single-v1.json` and "
+                "`docs/data/cell_sets.json`; "
                 "the commands that wrote them are named with each table.\n\n" + render() + "\n" + render_robustness())
         out = args.out or Path("docs/diagnosis_results.md")
         out.write_text(text.rstrip() + "\n")
@@ -707,6 +738,18 @@ def main(argv=None) -> int:
         return 0
     if args.what == "wrong-isolations":
         return _wrong_isolations_main(args)
+    if args.what == "cell-sets":
+        files = [Path(x) for x in (args.results or [])]
+        if not files:
+            ap.error("cell-sets needs --results FILE ... (marine-fdi evaluate results)")
+        out = args.out or Path("docs/data/cell_sets.json")
+        data = {"command": "python -m studies.diagnosis.kpis cell-sets --results "
+                           + " ".join(str(f) for f in files),
+                "agents": summarize_results([json.loads(f.read_text()) for f in files])}
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(data, indent=1) + "\n")
+        print(f"wrote {out}")
+        return 0
     if args.all:
         if args.what != "min-detectable":
             ap.error("--all only applies to min-detectable")
@@ -742,10 +785,18 @@ def main(argv=None) -> int:
         size = f"--seeds {args.seeds}"
         fn = {"delays": single_fault_delays, "scenarios": scenario_checks, "min-detectable": min_detectable,
               "seal-leak-snr": seal_leak_snr}[args.what]
-        result = fn(args.seeds) if args.what == "seal-leak-snr" else fn(args.seeds, diagnoser=args.diagnoser)
+        if args.what == "scenarios":
+            first = 20_000 if args.first_seed is None else args.first_seed
+            size += f" --first-seed {first}" + ("" if args.cells == DEFAULT_CELLS else f" --cells {args.cells}")
+            result = scenario_checks(args.seeds, first, diagnoser=args.diagnoser, cells=args.cells)
+        elif args.first_seed is not None or args.cells != DEFAULT_CELLS:
+            ap.error("--first-seed and --cells apply to scenarios only")
+        else:
+            result = fn(args.seeds) if args.what == "seal-leak-snr" else fn(args.seeds, diagnoser=args.diagnoser)
     data = {"what": args.what, "diagnoser": args.diagnoser, "seeds": args.seeds, "params": PARAMS,
             "command": f"python -m studies.diagnosis.kpis {args.what} {size}{extra}", "result": result}
-    out = args.out or Path("docs/data") / f"{_PREFIX[args.diagnoser]}_{args.what}.json"
+    tail = "" if args.what != "scenarios" or args.cells == DEFAULT_CELLS else f"_{args.cells}"
+    out = args.out or Path("docs/data") / f"{_PREFIX[args.diagnoser]}_{args.what}{tail}.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(data, indent=1, default=lambda o: None if isinstance(o, float) else str(o)) + "\n")
     print(f"wrote {out}")

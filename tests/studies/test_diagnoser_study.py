@@ -20,7 +20,7 @@ def test_decision_bookkeeping_equals_feeding_every_violating_row():
     res = Simulator("thesis-12v28", 3, seeds=31, faults=[["S4.2@2"], ["S2.2@1", "S3.3@4"], []]).run(40.0)
     Y = res.measurements.transpose(1, 0, 2)
     U = res.truth_of("u").T
-    agent = ReferenceDiagnoser(n_engines=3)
+    agent = ReferenceDiagnoser(n_engines=3, cells="grid")
     viol = []
     for a in range(0, Y.shape[1], 250):
         viol.append(agent.observe(Y[:, a:a + 250], U[:, a:a + 250]).violations)

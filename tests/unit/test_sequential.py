@@ -77,7 +77,7 @@ def test_evaluate_runs_the_sequential_agent_with_its_environment_option():
     from marine_fdi_env.benchmark.suites import load_suite
 
     agent = load_agent("sequential")
-    assert agent.env_kwargs == {"observe_sequential": True}
+    assert agent.env_kwargs == {"observe_sequential": True, "diagnosis_cells": "sized"}
     suite = load_suite("thesis-v1")
     recs = run_episodes(agent, suite.scenarios[:2], dict(suite["env"]), suite="thesis-v1")
     assert len(recs) == 2 and all(r["agent"] == "sequential" for r in recs)

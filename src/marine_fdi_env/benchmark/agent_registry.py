@@ -37,6 +37,10 @@ BUILTIN_AGENTS = {
     "random": "marine_fdi_env.baselines.random_agent:RandomAgent",
     "reference": "marine_fdi_env.baselines.reference_agent:ReferenceAgent",
     "sequential": "marine_fdi_env.baselines.sequential_agent:SequentialAgent",
+    "reference-thesis": "marine_fdi_env.baselines.reference_agent:ReferenceThesisAgent",
+    "reference-grid": "marine_fdi_env.baselines.reference_agent:ReferenceGridAgent",
+    "sequential-thesis": "marine_fdi_env.baselines.sequential_agent:SequentialThesisAgent",
+    "sequential-grid": "marine_fdi_env.baselines.sequential_agent:SequentialGridAgent",
     "oracle": "marine_fdi_env.baselines.oracle_agent:OracleAgent",
 }
 # top-level package names of the agents and the training code before they moved under the namespace

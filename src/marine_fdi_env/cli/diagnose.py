@@ -28,7 +28,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
 def _diagnose(args: argparse.Namespace) -> int:
     run = load_run(args.run, allow_nonfinite=True)
     report, block = diagnose_run(run, engine=args.engine, exoneration=args.exoneration,
-                                 diagnoser=getattr(args, "diagnoser", "reference"))
+                                 diagnoser=args.diagnoser, cells=args.cells)
     if args.plots:
         report["plots"] = [str(p) for p in plot_residuals(run, block, Path(args.plots), report)]
 

@@ -114,6 +114,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "consistency-based diagnosis; all: every structural sensitivity counts as sure")
     p.add_argument("--diagnoser", choices=("reference", "sequential"), default="reference",
                    help="reference (the thesis's scheme, default) or sequential (CUSUM tests on its residuals)")
+    p.add_argument("--cells", choices=("thesis", "grid", "sized"), default="sized",
+                   help="which measured sure cells exonerate (with --exoneration sure): sized (default: those of the "
+                        "size the evidence bounds each candidate fault to), grid (sure at every size from 0.5x the "
+                        "detectability limit to the table size) or thesis (the table sizes only)")
     p.set_defaults(func=cmd_diagnose)
 
     # implemented in marine_fdi_env.validation (own argument parsers; see main())

@@ -39,23 +39,25 @@ def check_dropouts(run: RunData, engine: int) -> dict[str, float]:
 
 
 def diagnose_run(run: RunData, engine: int = 0, exoneration: str = "sure",
-                 diagnoser: str = "reference") -> tuple[dict, object]:
+                 diagnoser: str = "reference", cells: str = "sized") -> tuple[dict, object]:
     """Diagnose one engine of a run; returns (JSON-ready report, the residual block output).
     ``diagnoser``: ``reference`` (the thesis's scheme) or ``sequential`` (CUSUM tests on the same
-    residuals, :mod:`marine_fdi_env.diagnosis.sequential`)."""
+    residuals, :mod:`marine_fdi_env.diagnosis.sequential`); ``cells``: the sure cells
+    (:mod:`marine_fdi_env.diagnosis.cell_sets`)."""
     from .batch import make_diagnoser
 
     if not 0 <= engine < run.n_engines:
         raise ValueError(f"--engine must lie in [0, {run.n_engines - 1}], got {engine}")
     dropouts = check_dropouts(run, engine)
-    agent = make_diagnoser(diagnoser, run.params_name or "thesis-12v28", 1, run.dt, exoneration=exoneration)
+    agent = make_diagnoser(diagnoser, run.params_name or "thesis-12v28", 1, run.dt, exoneration=exoneration,
+                           cells=cells)
     u = run.truth_of("u", engine)
     block = agent.observe(run.measurements[:, engine, :], u)
     rep = agent.report(0)
     rep.update({
         "params": run.params_name,
         "engine": engine,
-        "diagnoser": {"name": agent.name, "exoneration": exoneration,
+        "diagnoser": {"name": agent.name, "exoneration": exoneration, "cells": cells,
                       "max_cardinality": getattr(agent, "max_cardinality", None) or agent.stage.max_cardinality},
         "sensor_dropouts_s": dropouts,
         "true_faults": [{k: f[k] for k in ("id", "class", "kind", "onset_s", "magnitude", "unit", "first_active_s")}

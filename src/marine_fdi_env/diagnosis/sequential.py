@@ -54,10 +54,12 @@ import numpy as np
 
 from .._jit import jit
 from .agent import ReferenceDiagnoser
+from .cell_sets import DEFAULT_CELLS, check_cells, decision_state
 from .decision import DiagnosisState, candidate_classes, sorted_diagnoses
 from .incipient_glr import GATE_DELTA, GATE_TAU_S, ORDER, WINDOW_BLOCKS, common_shift, glr_norms, glr_pair_update
 from .modules import MODULE_IDS
-from .sure_cells import load_sure_cells
+from .peak_ratio import ratios, running_peaks
+from .sized_decision import drive_block
 
 __all__ = ["SequentialCalibration", "ReceiverTest", "SequentialStage", "SequentialDiagnoser", "SEQUENTIAL_FEATURES",
            "CALIBRATION_FILE", "SURE_CELLS_FILE", "cusum_blocks", "pressure_ratio"]
@@ -255,11 +257,13 @@ class SequentialStage:
     """The CUSUM tests and the decision logic of N engines, fed with the reference diagnoser's
     residuals and violations (the environment's feature generator already computes them).
 
-    exoneration : as :class:`ReferenceDiagnoser` (``"sure"``: this stage's own measured sure cells).
+    exoneration, cells : as :class:`ReferenceDiagnoser` (``"sure"``: this stage's own measured sure
+    cells, of the cell set ``cells``; ``"sized"`` bounds a fault's size by the reference's running
+    peak ratios, so :meth:`update` then needs the thresholds).
     """
 
     def __init__(self, n_engines: int, dt: float = 0.01, calibration: "SequentialCalibration | str | None" = None,
-                 max_cardinality: int = 2, exoneration: str = "sure", sure_cells_file: str = SURE_CELLS_FILE) -> None:
+                 max_cardinality: int = 2, exoneration: str = "sure", cells: str = DEFAULT_CELLS) -> None:
         self.n = int(n_engines)
         self.dt = float(dt)
         if calibration is None or isinstance(calibration, str):
@@ -272,14 +276,13 @@ class SequentialStage:
             raise ValueError(f"exoneration must be 'sure', 'none' or 'all', got {exoneration!r}")
         self.exoneration = "none" if exoneration is None else exoneration
         self.max_cardinality = max_cardinality
-        self.sure_cells_file = sure_cells_file
+        self.cells = check_cells(cells)
+        self.sized = self.exoneration == "sure" and self.cells == "sized"
         self.reset()
 
     def _new_decision(self) -> DiagnosisState:
         if self.exoneration == "sure":
-            sc = load_sure_cells(self.sure_cells_file)
-            return DiagnosisState(exoneration=sc.sure, max_cardinality=self.max_cardinality, temporal=True,
-                                  settle_s=sc.settle_times(), grace_s=sc.grace_times())
+            return decision_state("sequential", self.cells, self.max_cardinality)
         return DiagnosisState(exoneration=True if self.exoneration == "all" else None,
                               max_cardinality=self.max_cardinality)
 
@@ -303,6 +306,8 @@ class SequentialStage:
         self.gstate[:, 1] = np.nan
         self.decisions = [self._new_decision() for _ in range(self.n)]
         self._next_expiry = np.full(self.n, np.inf)
+        self.peak_run = np.zeros((self.n, N_MODULES))
+        self._next_peak = np.full((self.n, N_MODULES), np.inf)
 
     def reset_engines(self, engines) -> None:
         for i in np.asarray(engines, dtype=np.int64).reshape(-1):
@@ -317,11 +322,14 @@ class SequentialStage:
             self.gstate[i] = (0.0, np.nan, 0.0, 0.0)
             self.decisions[i] = self._new_decision()
             self._next_expiry[i] = np.inf
+            self.peak_run[i] = 0.0
+            self._next_peak[i] = np.inf
 
-    def update(self, residuals, u, ratio, violations, t0) -> None:
+    def update(self, residuals, u, ratio, violations, t0, thresholds=None, peaks=None) -> None:
         """One block: residuals (N, B, 19), u (N, B), ratio (N, B) the measured pressure ratio
         (:func:`pressure_ratio`), violations (N, B, 19) bool or None, t0 (N,) each engine's time
-        of the block's first sample."""
+        of the block's first sample.  Sized cells only: the reference's thresholds (N, B, 19) and
+        its block peaks of |r|/threshold (N, 19) (:attr:`BlockOutput.peaks`; computed if None)."""
         R = np.ascontiguousarray(residuals, dtype=np.float64)
         U = np.ascontiguousarray(u, dtype=np.float64)
         Q = np.ascontiguousarray(ratio, dtype=np.float64)
@@ -336,6 +344,15 @@ class SequentialStage:
         t_end = t0 + (B - 1) * self.dt
         new = before & ~np.isnan(self.first)
         busy = new.any(axis=1) | (t_end > self._next_expiry)
+        if self.sized:
+            if thresholds is None:
+                raise ValueError("the sized cells need the reference's thresholds: pass thresholds=")
+            THR = np.asarray(thresholds, dtype=np.float64)
+            pk = ratios(R, THR).max(axis=1) if peaks is None else np.asarray(peaks, dtype=np.float64)
+            busy |= (pk > self._next_peak).any(axis=1)
+            self._update_sized(np.flatnonzero(busy), R, THR, t0, new)
+            np.maximum(self.peak_run, pk, out=self.peak_run)
+            return
         for i in np.flatnonzero(busy):
             st = self.decisions[i]
             if new[i].any():
@@ -344,6 +361,20 @@ class SequentialStage:
                     st.update(~np.isnan(times) & (times <= t), float(t))
             st.advance(float(t_end[i]))
             self._next_expiry[i] = st._next_expiry
+
+    def _update_sized(self, engines, R, THR, t0, new) -> None:
+        """The decision update of the sized cells (as the reference's, :func:`drive_block`)."""
+        B = R.shape[1]
+        for i in engines:
+            st = self.decisions[i]
+            times = self.first[i]
+            tt = t0[i] + np.arange(B) * self.dt
+            q = running_peaks(ratios(R[i:i + 1], THR[i:i + 1]), self.peak_run[i:i + 1])[0]
+            firings = [(min(B - 1, max(0, int(round((t - t0[i]) / self.dt)))), ~np.isnan(times) & (times <= t))
+                       for t in np.unique(times[new[i]])]
+            drive_block(st, tt, q, firings, float(tt[-1]))
+            self._next_expiry[i] = st._next_expiry
+            self._next_peak[i] = st.next_peak
 
     def features(self) -> np.ndarray:
         """(N, 19 * 4) float32: per module S+/h and S-/h (capped at 10), the last block's z, fired."""
@@ -384,10 +415,10 @@ class SequentialDiagnoser:
 
     def __init__(self, params="thesis-12v28", n_engines: int = 1, dt: float = 0.01, noise_bounds=None,
                  max_cardinality: int = 2, exoneration: str = "sure", inclusion: str = "tabulated",
-                 calibration=None, sure_cells_file: str = SURE_CELLS_FILE) -> None:
+                 calibration=None, cells: str = DEFAULT_CELLS) -> None:
         self.ref = ReferenceDiagnoser(params, n_engines=n_engines, dt=dt, noise_bounds=noise_bounds,
                                       max_cardinality=max_cardinality, exoneration="none", inclusion=inclusion)
-        self.stage = SequentialStage(n_engines, dt, calibration, max_cardinality, exoneration, sure_cells_file)
+        self.stage = SequentialStage(n_engines, dt, calibration, max_cardinality, exoneration, cells)
         self.n, self.dt = self.ref.n, self.ref.dt
 
     def reset(self) -> None:
@@ -400,7 +431,7 @@ class SequentialDiagnoser:
         U = np.asarray(u, dtype=np.float64)
         Y = np.asarray(measurements, dtype=np.float64)
         self.stage.update(out.residuals, U[None] if U.ndim == 1 else U, pressure_ratio(Y[None] if Y.ndim == 2 else Y),
-                          out.violations, t0)
+                          out.violations, t0, out.thresholds, out.peaks)
         return out
 
     @property

@@ -51,7 +51,7 @@ class EpisodeBatch:
 
     def __init__(self, n: int, params: "str | EngineParams" = "thesis-12v28", decision_period_s: float = 1.0,
                  dt: float = 0.01, observe_sensors: bool = False, reward: RewardConfig | RewardConfigV1 | None = None,
-                 noise_scale: float = 1.0, observe_sequential: bool = False) -> None:
+                 noise_scale: float = 1.0, observe_sequential: bool = False, diagnosis_cells: str = "sized") -> None:
         self.n = int(n)
         self.params = load_params(params) if isinstance(params, str) else params
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
@@ -74,9 +74,11 @@ class EpisodeBatch:
         self.observe_sequential = bool(observe_sequential)
         self.obs_size = observation_size(self.observe_sensors, self.observe_sequential)
         self.sim: Simulator | None = None
-        self.diag = ReferenceDiagnoser(self.params, n_engines=self.n, dt=self.dt)
+        # diagnosis_cells: the diagnosers' sure cells (thesis | grid | sized, diagnosis.cell_sets); only
+        # info["reference"] / info["sequential"] depend on it, not the observation
+        self.diag = ReferenceDiagnoser(self.params, n_engines=self.n, dt=self.dt, cells=diagnosis_cells)
         # the sequential diagnoser's tests on the same residuals (observe_sequential only)
-        self.seq = SequentialStage(self.n, dt=self.dt) if self.observe_sequential else None
+        self.seq = SequentialStage(self.n, dt=self.dt, cells=diagnosis_cells) if self.observe_sequential else None
         self.scenarios: list[ScenarioSpec | None] = [None] * self.n
         self._truth: list[list[dict]] = [[] for _ in range(self.n)]  # per slot, computed once per episode
         self.durations = np.ones(self.n)  # episode lengths [s]
@@ -172,7 +174,8 @@ class EpisodeBatch:
         if self.observe_sensors:
             feats = np.concatenate([feats, sensor_features(blk.measurements, blk.u, self._nominal)], axis=1)
         if self.seq is not None:
-            self.seq.update(out.residuals, blk.u, pressure_ratio(blk.measurements), out.violations, t_first)
+            self.seq.update(out.residuals, blk.u, pressure_ratio(blk.measurements), out.violations, t_first,
+                            out.thresholds, out.peaks)
             feats = np.concatenate([feats, self.seq.features()], axis=1)
         elapsed = time.perf_counter() - t0
         sel = np.arange(self.n) if slots is None else np.asarray(slots, dtype=np.int64)

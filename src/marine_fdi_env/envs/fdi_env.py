@@ -95,7 +95,7 @@ class MarineFDIEnv(gym.Env):
     ## Arguments
     ``gymnasium.make("marine_fdi_env:MarineFDI-v0", scenario_config="default",
     decision_period_s=1.0, observe_sensors=False, reward=RewardConfig(), params="thesis-12v28",
-    dt=0.01, observe_sequential=False)`` (``MarineFDI-v1``: ``reward="v1"``, or a ``RewardConfigV1``); ``scenario_config`` is a preset name (``default``, ``single``, ``multi``,
+    dt=0.01, observe_sequential=False, diagnosis_cells="sized")`` (``MarineFDI-v1``: ``reward="v1"``, or a ``RewardConfigV1``); ``scenario_config`` is a preset name (``default``, ``single``, ``multi``,
     ``nominal``, ``incipient``, ``transfer``, ``sensor-kinds``), a
     :class:`~marine_fdi_env.envs.scenario_sampler.ScenarioConfig` or its dict.
     ``reset(options={"scenario": ScenarioSpec | dict})`` runs a given scenario instead of a drawn
@@ -124,15 +124,16 @@ class MarineFDIEnv(gym.Env):
     def __init__(self, scenario_config: "str | ScenarioConfig | dict" = "default", decision_period_s: float = 1.0,
                  observe_sensors: bool = False, reward: "RewardConfig | RewardConfigV1 | dict | str | None" = None,
                  params: str = "thesis-12v28", dt: float = 0.01, render_mode: str | None = None,
-                 observe_sequential: bool = False) -> None:
+                 observe_sequential: bool = False, diagnosis_cells: str = "sized") -> None:
         self.scenario_config = get_preset(scenario_config)
         reward = make_reward_config(reward)
         self.render_mode = supported_render_mode(render_mode, self.metadata["render_modes"])
         self._init_kwargs = dict(scenario_config=self.scenario_config, decision_period_s=decision_period_s,
                                  observe_sensors=observe_sensors, reward=reward, params=params, dt=dt,
-                                 observe_sequential=observe_sequential)
+                                 observe_sequential=observe_sequential, diagnosis_cells=diagnosis_cells)
         self.batch = EpisodeBatch(1, params, decision_period_s, dt, observe_sensors, reward,
-                                  noise_scale=self.scenario_config.noise_scale, observe_sequential=observe_sequential)
+                                  noise_scale=self.scenario_config.noise_scale, observe_sequential=observe_sequential,
+                                  diagnosis_cells=diagnosis_cells)
         low, high = observation_bounds(observe_sensors, observe_sequential)
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
         self.action_space = spaces.Box(0.0, 1.0, (N_HYPOTHESES,), dtype=np.float32)

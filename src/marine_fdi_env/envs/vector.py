@@ -41,7 +41,8 @@ class MarineFDIVectorEnv(VectorEnv):
                  decision_period_s: float = 1.0, observe_sensors: bool = False,
                  reward: "RewardConfig | RewardConfigV1 | dict | str | None" = None, params: str = "thesis-12v28",
                  dt: float = 0.01,
-                 render_mode: str | None = None, observe_sequential: bool = False) -> None:
+                 render_mode: str | None = None, observe_sequential: bool = False,
+                 diagnosis_cells: str = "sized") -> None:
         if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         self.render_mode = supported_render_mode(render_mode, self.metadata["render_modes"])
@@ -49,7 +50,8 @@ class MarineFDIVectorEnv(VectorEnv):
         self.scenario_config = get_preset(scenario_config)
         reward = make_reward_config(reward)
         self.batch = EpisodeBatch(self.num_envs, params, decision_period_s, dt, observe_sensors, reward,
-                                  noise_scale=self.scenario_config.noise_scale, observe_sequential=observe_sequential)
+                                  noise_scale=self.scenario_config.noise_scale, observe_sequential=observe_sequential,
+                                  diagnosis_cells=diagnosis_cells)
         low, high = observation_bounds(observe_sensors, observe_sequential)
         self.single_observation_space = spaces.Box(low, high, dtype=np.float32)
         self.single_action_space = spaces.Box(0.0, 1.0, (N_HYPOTHESES,), dtype=np.float32)
