@@ -35,7 +35,7 @@ def main(argv=None) -> int:
     ap.add_argument("--engines", type=int, default=1024)
     ap.add_argument("--block", type=int, default=100)
     ap.add_argument("--inclusion", choices=("tabulated", "exact"), default="tabulated",
-                    help="the adaptive thresholds' inclusion (tabulated: the default since issue 13)")
+                    help="the adaptive thresholds' inclusion (tabulated: the default)")
     args = ap.parse_args(argv)
     inc = {"inclusion": args.inclusion}
     sc = get_scenario("thesis-6.4.2")

@@ -2,14 +2,14 @@
 
     python benchmarks/diagnoser_cpu.py --json                        # the default (tabulated) inclusion
     python benchmarks/diagnoser_cpu.py --json --inclusion exact
-    # the code before issue 13, same measurement:
-    mkdir -p /tmp/before && git archive ecfb703 src | tar -x -C /tmp/before
-    PYTHONPATH=/tmp/before/src python benchmarks/diagnoser_cpu.py --json
+    # another version of the package, same measurement (a before/after ratio in one run):
+    mkdir -p /tmp/other && git archive COMMIT src | tar -x -C /tmp/other
+    PYTHONPATH=/tmp/other/src python benchmarks/diagnoser_cpu.py --json
 
 :meth:`ReferenceDiagnoser.observe` on one block of ``--block`` samples of ``--engines`` engines
 (manoeuvring profile, 30 s after the start), the two-thread split switched off; the best of
-``--repeats`` process-time measurements divided by the engine-samples.  Works with the package's
-code before issue 13 (no ``inclusion`` argument there).
+``--repeats`` process-time measurements divided by the engine-samples.  Works with versions of the
+package without the ``inclusion`` argument.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ def main(argv=None) -> int:
     ap.add_argument("--block", type=int, default=100)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--inclusion", choices=("tabulated", "exact"), default=None,
-                    help="default: the package's default (tabulated since issue 13)")
+                    help="default: the package's default (tabulated)")
     args = ap.parse_args(argv)
     for mod in (integrators, _agent, _residuals):  # one thread
         mod.THREADED_MIN_ENGINES = 10**9

@@ -18,7 +18,7 @@ prints one JSON object:
                                 the noise-free fixed-step run against the reference, on a run with
                                 a fuel-setting step and a process fault.
 
-Targets (issue #2): >= 1e6 engine-samples/s at N=1024 on 2 cores and >= 100x the scipy reference.
+Targets: >= 1e6 engine-samples/s at N=1024 on 2 cores and >= 100x the scipy reference.
 """
 
 from __future__ import annotations

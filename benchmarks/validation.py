@@ -1,4 +1,4 @@
-"""Validation pipeline: CPU time of the fit's inner call, a model evaluation, and of whole fits (issue 11).
+"""Validation pipeline: CPU time of the fit's inner call, a model evaluation, and of whole fits.
 
     python benchmarks/validation.py --json
     python benchmarks/validation.py --json --trial c381      # also one open-world study trial (about 15 s)

@@ -30,13 +30,12 @@ fired at or after the onset; a run where nothing fired cannot be misdiagnosed), 
 when m fired in every one of them, at every magnitude, sign and profile.  ``lag_s`` = the largest
 delay of a sure module after the fault's first fired module (any module of its support; the
 grace periods); ``spread_s`` = the largest of these lags per fault (the settle time of the
-time-order check: at small sizes a module that is not sure often fires before the sure ones).  (The first version required firing in all runs at the
-table size and, for sensor faults, within 30 s of the first sure module.)
+time-order check: at small sizes a module that is not sure often fires before the sure ones).
 
 **Validation** (``validate``, ``report``): held-out magnitudes (the geometric midpoints of the
 grid), seeds (2e6 + ..., 3 per cell) and profiles (``step`` and ``ramp`` at fuel settings 0.6-1.0,
 ``random``); the
-decision logic is replayed on the measured module firing times with the old and the new sure
+decision logic is replayed on the measured module firing times with each cell set's sure
 cells (the module decisions do not depend on the decision logic), and the runs where the true
 fault is ruled out (in no minimal diagnosis) while the diagnoser declares another are counted per
 fault.

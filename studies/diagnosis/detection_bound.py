@@ -1,5 +1,5 @@
 """How fast *any* test on the residuals could detect an incipient fault: upper bounds for the
-turbine seal leak (issue 13's "table 6.4 size within 300 s in >= 90 % of seeds").
+turbine seal leak (the target "table 6.4 size within 300 s in >= 90 % of seeds").
 
     python -m studies.diagnosis.detection_bound --seeds 50 \\
         [--calibration-record results/sequential_calibration/calibration.npz \\
@@ -34,7 +34,7 @@ the least informed:
   computed; at constant load the gate never closes.  The same gated test on M3.1 and M3.2 *alone*
   (each its own threshold) is what a per-module test could do.  With ``--validation-record`` the
   gated thresholds are checked on the disjoint validation runs.  This row is what the sequential
-  diagnoser's receiver test (:mod:`~marine_fdi_env.diagnosis.incipient_glr`, since 2026-11-26)
+  diagnoser's receiver test (:mod:`~marine_fdi_env.diagnosis.incipient_glr`)
   builds in, with its own calibrated threshold (at p* with the factor 3 of margin).
 
 False-alarm budget: 1 per 200 engine-hours shared by 19 tests, per 300 s run

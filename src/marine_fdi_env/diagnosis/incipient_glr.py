@@ -1,5 +1,5 @@
 """A GLR test for an incipient shift of known polynomial shape on two pooled residuals, paused while
-the load changes: the ``sequential`` diagnoser's receiver test (issue 13, turbine_seal_leak).
+the load changes: the ``sequential`` diagnoser's receiver test (turbine_seal_leak).
 
 The turbine seal leak grows as s² after its onset and moves only the receiver residuals M3.1 and
 M3.2, by less than half a block spread within 300 s; the two chains' fault-free block z are white
