@@ -550,7 +550,10 @@ def test_long_commands_say_their_cost_first(capsys, tmp_path):
     from marine_fdi_env.cli.sweep import say_sweep_cost
 
     say_sweep_cost(["all"], ["all"], 1, workers=2)
-    assert capsys.readouterr().err.startswith("marine-fdi sweep: 8 agents x 459 episodes: expect about ")
+    from marine_fdi_env.benchmark.agent_registry import list_agents
+
+    n_agents = len(list_agents())
+    assert capsys.readouterr().err.startswith(f"marine-fdi sweep: {n_agents} agents x 459 episodes: expect about ")
     from marine_fdi_env.benchmark.agent_registry import models_dir
     from marine_fdi_env.cli.train import say_training_cost
 
