@@ -24,9 +24,10 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--seed-offset", type=int, default=0, help="shift every noise seed (new noise, same scenarios)")
     ap.add_argument("--force", action="store_true",
                     help="recompute and overwrite --out when it already holds results (without it: an error)")
-    from .common import add_backend_args
+    from .common import add_backend_args, add_cache_args
 
     add_backend_args(ap)
+    add_cache_args(ap)
     ap.add_argument("--reward", choices=("v0", "v1"), default=None,
                     help="reward scored in the results' return (default: the suite's, else v1 = MarineFDI-v1)")
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -42,11 +43,12 @@ def evaluate_main(argv=None) -> int:
         return code
     try:
         from ..benchmark.agent_api import agent_file_stem
-        from .common import backend_from_args
+        from .common import backend_from_args, cache_from_args
         from ..outputs import prepare_out
         from ..errors import require_extra
 
         backend = backend_from_args(args)
+        cache, cache_dir = cache_from_args(args)
         out = args.out or Path("results") / f"{agent_file_stem(args.agent)}_{Path(args.suite).stem}.json"
         if out.suffix == ".parquet":
             require_extra("pyarrow", "--out *.parquet")
@@ -57,7 +59,7 @@ def evaluate_main(argv=None) -> int:
                              "or choose another --out")
         result = evaluate(args.agent, args.suite, out, seed_offset=args.seed_offset, batch_size=args.batch_size,
                           progress=not args.no_progress, backend=backend,
-                          reward=args.reward)
+                          reward=args.reward, cache=cache, cache_dir=cache_dir)
     except ValueError as e:
         print(f"marine-fdi evaluate: error: {e}", file=sys.stderr)
         return 2

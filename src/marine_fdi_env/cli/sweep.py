@@ -13,7 +13,7 @@ from ..benchmark.sweep import TABLE, run_sweep
 
 
 def sweep_main(argv=None) -> int:
-    from .common import add_backend_args, backend_from_args, interrupted, parse_cli
+    from .common import add_backend_args, add_cache_args, backend_from_args, cache_from_args, interrupted, parse_cli
     from ..outputs import prepare_out
     from ..errors import require_extra
     from ..benchmark.report import markdown_table
@@ -29,16 +29,18 @@ def sweep_main(argv=None) -> int:
                     help="noise seed offsets (default 0): each reruns the suite's scenarios with new noise")
     ap.add_argument("--out", type=Path, required=True, help="sweep folder (its parent is created if missing)")
     add_backend_args(ap)
+    add_cache_args(ap)
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     args, code = parse_cli(ap, argv)
     if args is None:
         return code
     try:
         backend = backend_from_args(args)
+        cache, cache_dir = cache_from_args(args)
         require_extra("pyarrow", "sweep (its table episodes.parquet)")
         out = prepare_out(args.out, create=False)  # run_sweep creates it after checking agents and suites
         res = run_sweep(args.agents, args.suites, args.seed_offsets, out, backend=backend,
-                        batch_size=args.batch_size, progress=not args.no_progress)
+                        batch_size=args.batch_size, progress=not args.no_progress, cache=cache, cache_dir=cache_dir)
     except ValueError as e:
         print(f"marine-fdi sweep: error: {e}", file=sys.stderr)
         return 2
