@@ -19,6 +19,10 @@ average before and after each command, from ``os.getloadavg``):
 With ``--repeats R`` the one/every pair runs R times, alternating (``every_over_one`` is the median
 ratio).  ``episodes``: the episodes each command scored (agent x episode).  Load from other jobs on
 a shared machine slows every number; compare ratios within one run.
+
+``--other-src DIR`` also runs the one/every pair with another version of the package, alternating
+with this one (``other_*``; e.g. ``mkdir -p /tmp/before && git archive ca28256 src | tar -x -C
+/tmp/before`` and ``--other-src /tmp/before/src``; that version is given no ``--cache`` option).
 """
 
 from __future__ import annotations
@@ -41,11 +45,16 @@ ROOT = Path(__file__).resolve().parents[1]
 NEW_AGENT = f"{ROOT / 'docs' / 'examples' / 'fired_modules_agent.py'}:FiredModulesAgent"
 
 
-def _run(args: list[str], cwd: Path) -> dict:
-    """Wall time and load of one ``marine-fdi`` command (it must succeed)."""
+def _run(args: list[str], cwd: Path, src: Path | None = None) -> dict:
+    """Wall time and load of one ``marine-fdi`` command (it must succeed); ``src``: run that version
+    of the package (without ``--cache`` options)."""
+    env = dict(os.environ)
+    if src is not None:
+        env["PYTHONPATH"] = os.pathsep.join([str(src)] + [p for p in [env.get("PYTHONPATH")] if p])
+        args = [a for i, a in enumerate(args) if a != "--cache" and (i == 0 or args[i - 1] != "--cache")]
     load0 = os.getloadavg()[0]
     t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "marine_fdi_env.cli", *args, "--no-progress"], cwd=cwd,
+    proc = subprocess.run([sys.executable, "-m", "marine_fdi_env.cli", *args, "--no-progress"], cwd=cwd, env=env,
                           capture_output=True, text=True)
     wall = time.perf_counter() - t0
     if proc.returncode != 0:
@@ -60,19 +69,30 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=1, help="runs of the one-agent / every-agent pair")
     ap.add_argument("--skip-full", action="store_true", help="leave out the full sweep")
     ap.add_argument("--keep", type=Path, default=None, help="run in this folder and keep it (default: a temporary one)")
+    ap.add_argument("--other-src", type=Path, default=None, metavar="DIR",
+                    help="also time the one/every pair with the package in DIR (another version), alternating")
     args = ap.parse_args(argv)
     w = ["--workers", str(args.workers)]
     tmp = args.keep or Path(tempfile.mkdtemp(prefix="marine-fdi-sweep-bench-"))
     tmp.mkdir(parents=True, exist_ok=True)
     try:
-        _run(["evaluate", "--agent", "null", "--suite", "thesis-v1", "--out", "warm.json", "--cache", "off"], tmp)
+        versions = [None] + ([args.other_src.resolve()] if args.other_src else [])
+        for src in versions:  # compile a cold numba cache of each version outside the timings
+            _run(["evaluate", "--agent", "null", "--suite", "thesis-v1", "--out", "warm.json", "--cache", "off",
+                  "--force"], tmp, src)
         out: dict = {"workers": args.workers, "cpu_count": os.cpu_count(), "python": platform.python_version()}
-        one, every = [], []
+        one, every, other_one, other_every = [], [], [], []
         for r in range(args.repeats):
-            one.append(_run(["evaluate", "--agent", "reference", "--suite", "single-v1", "--out", f"one{r}.json",
-                             "--cache", "off", *w], tmp))
-            every.append(_run(["sweep", "--agents", "all", "--suites", "single-v1", "--out", f"every{r}",
-                               "--cache", "off", *w], tmp))
+            for src, o, e in ((None, one, every), (versions[-1], other_one, other_every))[:len(versions)]:
+                tag = "" if src is None else "other-"
+                o.append(_run(["evaluate", "--agent", "reference", "--suite", "single-v1", "--out",
+                               f"{tag}one{r}.json", "--cache", "off", *w], tmp, src))
+                e.append(_run(["sweep", "--agents", "all", "--suites", "single-v1", "--out", f"{tag}every{r}",
+                               "--cache", "off", *w], tmp, src))
+        if other_one:
+            out.update(other_src=str(versions[-1]), other_one_agent=other_one, other_every_agent=other_every,
+                       other_every_over_one=round(statistics.median(
+                           e["wall_s"] / o["wall_s"] for o, e in zip(other_one, other_every)), 2))
         n_agents = len(json.loads((tmp / "every0" / "sweep.json").read_text())["agents"])
         out.update(one_agent=one, every_agent=every, n_agents=n_agents,
                    one_agent_s=statistics.median(x["wall_s"] for x in one),
