@@ -161,6 +161,8 @@ def scatter_infos(n: int, pieces: list[tuple[np.ndarray, dict]]) -> dict:
     pieces = [(np.asarray(sl, dtype=np.int64), p) for sl, p in pieces if len(sl)]
     if not pieces:
         return {}
+    if len(pieces) == 1 and len(pieces[0][0]) == n and np.array_equal(pieces[0][0], np.arange(n)):
+        return _every_slot(n, pieces[0][1])  # the same arrays, without the assignments
     out: dict = {}
     mask = np.zeros(n, dtype=bool)
     for sl, _ in pieces:
@@ -174,4 +176,13 @@ def scatter_infos(n: int, pieces: list[tuple[np.ndarray, dict]]) -> dict:
                 arr[sl] = p[key]
             out[key] = arr
         out["_" + key] = mask.copy()
+    return out
+
+
+def _every_slot(n: int, piece: dict) -> dict:
+    """:func:`scatter_infos` of one piece whose slots are 0..n-1 in order: copies of its arrays."""
+    out: dict = {}
+    for key, v in piece.items():
+        out[key] = _every_slot(n, v) if isinstance(v, dict) else v.copy()
+        out["_" + key] = np.ones(n, dtype=bool)
     return out
