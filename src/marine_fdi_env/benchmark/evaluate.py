@@ -326,6 +326,8 @@ def evaluate_agents(agent_specs: list[str], suite_name: str, outs: list[Path], *
         raise ValueError("evaluate_agents needs one output file per agent, and at least one agent")
     suite = load_suite(suite_name)
     specs = [resolve_agent_spec(a) for a in agent_specs]  # names stay names, paths become absolute
+    if len(set(specs)) != len(specs) or len({Path(o).resolve() for o in outs}) != len(outs):
+        raise ValueError("evaluate_agents: each agent and each output file once")
     agents = [cached_agent(s) for s in specs]  # fail early on a bad agent
     env_kwargs, reward_cfg = suite_env_kwargs(suite, reward)
     caches = suite_caches(cache, cache_dir, suite, seed_offset, agents, env_kwargs)

@@ -123,6 +123,8 @@ def score_agents(agents: list, views: list[AgentView], traj: Trajectory, reward:
     the agent's ``act``).
     """
     n, K = traj.n, len(agents)
+    if len({id(a) for a in agents}) != K:
+        raise ValueError("each agent once: one agent object stepped twice would mix the state of two runs")
     seeds = [episode_seed(s.scenario_id, seed_offset) for s in traj.scenarios]
     for a in agents:
         a.reset(list(seeds))

@@ -66,5 +66,6 @@ def evaluate_main(argv=None) -> int:
     except KeyboardInterrupt:
         return interrupted("marine-fdi evaluate")
     print(markdown_table([result]))
-    print(f"\nresults: {out}")
+    cached = result.get("feature_cache")
+    print(f"\nresults: {out}" + (f" (scored on the feature cache {', '.join(cached)})" if cached else ""))
     return 0
