@@ -5,8 +5,9 @@
 
 Runs the real commands (``marine-fdi ...`` in a subprocess each, in a temporary folder; numba's
 cache is warmed first so no compilation is timed) in one run, so ratios compare runs under the
-same load, and prints one JSON object (wall times in seconds, ``load_*``: the 1-minute load
-average before and after each command, from ``os.getloadavg``):
+same load, and prints one JSON object (wall times in seconds; ``cpu_s``: CPU time of the command
+and its worker processes; ``load_*``: the 1-minute load average before and after each command,
+from ``os.getloadavg``):
 
 ``one_agent_s``        ``marine-fdi evaluate --agent reference --suite single-v1 --workers W --cache off``
 ``every_agent_s``      ``marine-fdi sweep --agents all --suites single-v1 --workers W --cache off``
@@ -31,6 +32,7 @@ import argparse
 import json
 import os
 import platform
+import resource
 import shutil
 import statistics
 import subprocess
@@ -53,13 +55,17 @@ def _run(args: list[str], cwd: Path, src: Path | None = None) -> dict:
         env["PYTHONPATH"] = os.pathsep.join([str(src)] + [p for p in [env.get("PYTHONPATH")] if p])
         args = [a for i, a in enumerate(args) if a != "--cache" and (i == 0 or args[i - 1] != "--cache")]
     load0 = os.getloadavg()[0]
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     proc = subprocess.run([sys.executable, "-m", "marine_fdi_env.cli", *args, "--no-progress"], cwd=cwd, env=env,
                           capture_output=True, text=True)
     wall = time.perf_counter() - t0
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     if proc.returncode != 0:
         raise SystemExit(f"marine-fdi {' '.join(args)} failed:\n{proc.stderr}")
-    return {"wall_s": round(wall, 2), "load_before": round(load0, 2), "load_after": round(os.getloadavg()[0], 2)}
+    cpu = (r1.ru_utime + r1.ru_stime) - (r0.ru_utime + r0.ru_stime)
+    return {"wall_s": round(wall, 2), "cpu_s": round(cpu, 2), "load_before": round(load0, 2),
+            "load_after": round(os.getloadavg()[0], 2)}
 
 
 def main(argv=None) -> int:
