@@ -141,7 +141,8 @@ def main(argv=None) -> int:
             shutil.rmtree(tmp, ignore_errors=True)
     one = statistics.median(x["wall_s"] for x in runs["one_node"])
     two = statistics.median(x["wall_s"] for x in runs["two_nodes"])
-    emit({"cpu_count": os.cpu_count(), "episodes": 3672, "folder": str(tmp) if args.keep else None, **runs, "one_node_s": one, "two_nodes_s": two,
+    emit({"cpu_count": os.cpu_count(), "episodes": 3672, "folder": str(tmp) if args.keep else None, **runs,
+          "one_node_s": one, "two_nodes_s": two,
           "speedup": round(one / two, 2), "tables_equal": same}, args.json)
     return 0
 

@@ -18,18 +18,9 @@ from marine_fdi_env.cli import main as cli_main
 from marine_fdi_env.envs import trajectory
 from marine_fdi_env.errors import DataFileError
 
-from test_env_evaluate import SCENARIOS
+from test_env_evaluate import suite_file  # noqa: F401  (a fixture: test_env_evaluate's SCENARIOS as a suite file)
 
 pytest.importorskip("pyarrow")
-
-
-@pytest.fixture
-def tiny(tmp_path):
-    p = tmp_path / "tiny-v1.json"
-    p.write_text(json.dumps({"name": "tiny-v1", "version": 1, "description": "test",
-                             "env": {"decision_period_s": 1.0, "params": "thesis-12v28", "observe_sensors": False},
-                             "scenarios": [s.to_dict() for s in SCENARIOS]}))
-    return p
 
 
 def _strip(episodes):
@@ -49,23 +40,25 @@ def _only_cache(d):
     return files[0]
 
 
-def test_a_written_cache_scores_any_agent_without_simulating(tiny, tmp_path, monkeypatch):
+def test_a_written_cache_scores_any_agent_without_simulating(suite_file, tmp_path, monkeypatch):
     cache = tmp_path / "cache"
-    null = evaluate("null", str(tiny), tmp_path / "n.json", cache="write", cache_dir=cache, batch_size=3, progress=False)
+    null = evaluate("null", str(suite_file), tmp_path / "n.json", cache="write", cache_dir=cache, batch_size=3,
+                    progress=False)
     assert "feature_cache" not in null and not list(cache.glob("*.parts"))
     f = _only_cache(cache)
     assert f.name.startswith("tiny-v1_o0_")
-    plain = {a: evaluate(a, str(tiny), tmp_path / f"{a}.json", progress=False) for a in ("reference", "sequential")}
+    plain = {a: evaluate(a, str(suite_file), tmp_path / f"{a}.json", progress=False)
+             for a in ("reference", "sequential")}
     _no_simulation(monkeypatch)
     for a in ("reference", "sequential"):  # sequential needs observe_sequential: the cache has every option
-        got = evaluate(a, str(tiny), tmp_path / f"{a}c.json", cache="use", cache_dir=cache, progress=False)
+        got = evaluate(a, str(suite_file), tmp_path / f"{a}c.json", cache="use", cache_dir=cache, progress=False)
         assert got["feature_cache"] == [str(f)]
         assert _strip(got["episodes"]) == _strip(plain[a]["episodes"]), a
         assert got["metrics"]["n_episodes"] == 4 and got["episodes"][3]["terminated"]
 
 
-def test_the_cache_holds_the_trajectory_bit_for_bit(tiny, tmp_path):
-    scs = load_suite(str(tiny)).scenarios
+def test_the_cache_holds_the_trajectory_bit_for_bit(suite_file, tmp_path):
+    scs = load_suite(str(suite_file)).scenarios
     traj = trajectory.simulate(scs, {"observe_sensors": True, "observe_sequential": True})
     header = fc.cache_header("tiny-v1", 1, 0, {"observe_sensors": True, "observe_sequential": True}, scs)
     f = fc.write_trajectory(tmp_path / "t.parquet", np.arange(4), traj, header)
@@ -81,16 +74,16 @@ def test_the_cache_holds_the_trajectory_bit_for_bit(tiny, tmp_path):
 
 
 @pytest.mark.parametrize("change", ["code", "params", "content"])
-def test_a_cache_of_other_code_or_parameters_or_damaged_is_refused(change, tiny, tmp_path, monkeypatch, capsys):
+def test_a_cache_of_other_code_or_parameters_or_damaged_is_refused(change, suite_file, tmp_path, monkeypatch, capsys):
     cache = tmp_path / "cache"
-    evaluate("null", str(tiny), tmp_path / "n.json", cache="write", cache_dir=cache, progress=False)
+    evaluate("null", str(suite_file), tmp_path / "n.json", cache="write", cache_dir=cache, progress=False)
     f = _only_cache(cache)
     if change == "code":  # the simulator, the diagnosers or the environment changed since
         real = fc.code_version()
         monkeypatch.setattr(fc, "code_version", lambda: dict(real, source_sha256="0" * 64))
         expect = "made by other code (code.source_sha256"
     elif change == "params":  # the file of another seed offset put where this one's belongs
-        evaluate("null", str(tiny), tmp_path / "n3.json", seed_offset=3, cache="write", cache_dir=cache,
+        evaluate("null", str(suite_file), tmp_path / "n3.json", seed_offset=3, cache="write", cache_dir=cache,
                  progress=False)
         other = next(p for p in cache.glob("*.parquet") if p != f)
         shutil.copy(other, f)
@@ -104,17 +97,17 @@ def test_a_cache_of_other_code_or_parameters_or_damaged_is_refused(change, tiny,
         pq.write_table(t2.replace_schema_metadata(t.schema.metadata), f)
         expect = "checksum does not match its content"
     with pytest.raises(DataFileError, match="remove it, rebuild it with --cache write, or pass --cache off") as e:
-        evaluate("reference", str(tiny), tmp_path / "r.json", cache="use", cache_dir=cache, progress=False)
+        evaluate("reference", str(suite_file), tmp_path / "r.json", cache="use", cache_dir=cache, progress=False)
     assert expect in str(e.value) and str(f) in str(e.value)
     # the command line: one line, exit code 2; --cache off ignores the file
-    args = ["evaluate", "--agent", "reference", "--suite", str(tiny), "--cache-dir", str(cache), "--no-progress"]
+    args = ["evaluate", "--agent", "reference", "--suite", str(suite_file), "--cache-dir", str(cache), "--no-progress"]
     assert cli_main(args + ["--out", str(tmp_path / "c.json")]) == 2
     err = capsys.readouterr().err
     assert expect in err and len(err.strip().splitlines()) == 1
     assert cli_main(args + ["--out", str(tmp_path / "d.json"), "--cache", "off"]) == 0
 
 
-def test_an_interrupted_cache_write_keeps_its_parts_and_resumes(tiny, tmp_path, monkeypatch):
+def test_an_interrupted_cache_write_keeps_its_parts_and_resumes(suite_file, tmp_path, monkeypatch):
     cache = tmp_path / "cache"
     calls = []
     real = ev.evaluate_chunk
@@ -127,25 +120,26 @@ def test_an_interrupted_cache_write_keeps_its_parts_and_resumes(tiny, tmp_path, 
 
     monkeypatch.setattr(ev, "evaluate_chunk", stop_after_one)
     with pytest.raises(KeyboardInterrupt):
-        evaluate("null", str(tiny), tmp_path / "n.json", cache="write", cache_dir=cache, batch_size=1, progress=False)
+        evaluate("null", str(suite_file), tmp_path / "n.json", cache="write", cache_dir=cache, batch_size=1,
+                 progress=False)
     parts = list(next(cache.glob("*.parts")).glob("part_*.parquet"))
     assert len(parts) == 1 and not list(cache.glob("*.parquet"))
     monkeypatch.setattr(ev, "evaluate_chunk", real)
-    evaluate("null", str(tiny), tmp_path / "n.json", cache="write", cache_dir=cache, batch_size=1, progress=False)
+    evaluate("null", str(suite_file), tmp_path / "n.json", cache="write", cache_dir=cache, batch_size=1, progress=False)
     f = _only_cache(cache)
-    plain = evaluate("random", str(tiny), tmp_path / "r0.json", cache="off", progress=False)
+    plain = evaluate("random", str(suite_file), tmp_path / "r0.json", cache="off", progress=False)
     _no_simulation(monkeypatch)
-    got = evaluate("random", str(tiny), tmp_path / "r.json", cache="use", cache_dir=cache, progress=False)
+    got = evaluate("random", str(suite_file), tmp_path / "r.json", cache="use", cache_dir=cache, progress=False)
     assert got["feature_cache"] == [str(f)] and _strip(got["episodes"]) == _strip(plain["episodes"])
 
 
-def test_a_sweep_writes_and_then_reads_the_caches(tiny, tmp_path, monkeypatch):
+def test_a_sweep_writes_and_then_reads_the_caches(suite_file, tmp_path, monkeypatch):
     cache = tmp_path / "cache"
-    a = run_sweep(["null", "reference", "sequential"], [str(tiny)], [0, 2], tmp_path / "a", cache="write",
+    a = run_sweep(["null", "reference", "sequential"], [str(suite_file)], [0, 2], tmp_path / "a", cache="write",
                   cache_dir=cache, progress=False)
     assert len(a["run"]["caches_written"]) == 2 and not a["run"]["caches_read"]
     _no_simulation(monkeypatch)
-    b = run_sweep(["null", "reference", "sequential", "oracle"], [str(tiny)], [0, 2], tmp_path / "b", cache="use",
+    b = run_sweep(["null", "reference", "sequential", "oracle"], [str(suite_file)], [0, 2], tmp_path / "b", cache="use",
                   cache_dir=cache, progress=False)
     assert len(b["run"]["caches_read"]) == 2
     from marine_fdi_env.benchmark.records import read_records

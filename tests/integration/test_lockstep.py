@@ -7,12 +7,13 @@ import numpy as np
 import pytest
 
 from marine_fdi_env.benchmark.agent_api import load_agent
-from marine_fdi_env.benchmark.evaluate import WALL_CLOCK_FIELDS, WALL_CLOCK_METRICS, plan_passes, run_agents, suite_env_kwargs
+from marine_fdi_env.benchmark.evaluate import plan_passes, run_agents, suite_env_kwargs
 from marine_fdi_env.benchmark.metrics import compute_metrics
 from marine_fdi_env.benchmark.suites import SUITE_NAMES, load_suite
 from marine_fdi_env.envs.trajectory import simulate
 
 from test_env_evaluate import SCENARIOS
+from test_scale_out import _no_clock
 from tests import env_runner
 from tests.paths import ROOT
 
@@ -20,14 +21,6 @@ pytest.importorskip("torch")  # the shipped models
 
 # every shipped agent: the baselines, the shipped models, and the hybrid that reads info["reference"]
 AGENTS = ("null", "random", "reference", "sequential", "oracle", "ppo", "classifier", "classifier+reference")
-
-
-def _no_clock(x):
-    if isinstance(x, dict):
-        return {k: _no_clock(v) for k, v in x.items() if k not in WALL_CLOCK_FIELDS + WALL_CLOCK_METRICS}
-    if isinstance(x, list):
-        return [_no_clock(v) for v in x]
-    return x
 
 
 def _assert_lockstep_equals_alone(scenarios, env_kwargs, suite, seed_offset=0, batch_size=32):

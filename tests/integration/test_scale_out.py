@@ -228,7 +228,8 @@ def test_sweep_resumes_after_ctrl_c_without_losing_or_redoing_work(tiny, tmp_pat
     lines = partial.read_text().splitlines()
     kept = [json.loads(x) for x in lines[1:]]
     assert 2 <= len(kept) < 6 and len(kept) % 2 == 0 and not (out / "episodes.parquet").exists()
-    assert sorted(r["agent"] for r in kept[:2]) == ["null", "slow-random"] and kept[0]["scenario_id"] == kept[1]["scenario_id"]
+    assert sorted(r["agent"] for r in kept[:2]) == ["null", "slow-random"]
+    assert kept[0]["scenario_id"] == kept[1]["scenario_id"]
     marked = dict(kept[0], compute_s=12345.0)  # a kept episode must not be recomputed
     partial.write_text("\n".join([lines[0], json.dumps(marked)] + lines[2:]) + "\n")
     res = run_sweep([SLOW_AGENT, "null"], [str(tiny)], [0], out, batch_size=1, progress=True)

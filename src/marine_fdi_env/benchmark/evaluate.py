@@ -269,7 +269,8 @@ def suite_caches(mode: str, cache_dir, suite, seed_offset: int, agents: list, en
     from .feature_cache import SuiteCache, cache_header
 
     scs = [_offset(s, seed_offset) for s in suite.scenarios]
-    return {p.key: SuiteCache(mode, cache_dir, cache_header(suite.name, suite["version"], seed_offset, p.env_kwargs, scs))
+    return {p.key: SuiteCache(mode, cache_dir,
+                              cache_header(suite.name, suite["version"], seed_offset, p.env_kwargs, scs))
             for p in plan_passes(agents, env_kwargs, all_options=True)}
 
 

@@ -188,7 +188,8 @@ def _check_header(path: Path, old, header: dict) -> None:
     if old.get("format") != header["format"]:
         raise _refuse(path, f"feature cache of format {old.get('format')!r}, this code reads {header['format']}")
     if old.get("code") != header["code"]:
-        raise _refuse(path, f"feature cache made by other code ({differing_fields(old.get('code'), header['code'], 'code')})")
+        raise _refuse(path, "feature cache made by other code ("
+                      f"{differing_fields(old.get('code'), header['code'], 'code')})")
     if old.get("params") != header["params"]:
         raise _refuse(path, "feature cache made with other parameters ("
                       f"{differing_fields(old.get('params'), header['params'], 'params')})")

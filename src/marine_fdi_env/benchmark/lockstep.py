@@ -141,7 +141,8 @@ def score_agents(agents: list, views: list[AgentView], traj: Trajectory, reward:
         beliefs, spent = [], []
         for j, (agent, view) in enumerate(zip(agents, views)):
             if shared[view.sequential] is None:
-                shared[view.sequential] = scatter_infos(n, [(np.arange(n), traj.info_arrays(k, active, view.sequential))])
+                info = traj.info_arrays(k, active, view.sequential)
+                shared[view.sequential] = scatter_infos(n, [(np.arange(n), info)])
             infos = dict(shared[view.sequential])
             infos.update(own[j])
             obs = traj.observation(k, view.columns)

@@ -113,7 +113,8 @@ class Trajectory:
         out = {"t_s": self.t[kk, ar].astype(float), **self._constant,
                "active_faults": object_array([[FAULT_IDS[c] for c in cols] for cols in row_members(active)]),
                "engine_failure": {"engine": engine, "time_s": fail_t, "reason": reason},
-               "reference": {"detected": self.reference_detected[kk, ar], "diagnoses": self.reference_diagnoses[kk, ar]}}
+               "reference": {"detected": self.reference_detected[kk, ar],
+                             "diagnoses": self.reference_diagnoses[kk, ar]}}
         if sequential:
             if self.sequential_detected is None:
                 raise ValueError("this trajectory has no sequential diagnoser (made without observe_sequential)")
