@@ -11,7 +11,10 @@ per node.  At the end it stops the nodes it started (their processes, by id; nev
 which stops every Ray instance of the user on the machine).  Prints one JSON object: wall time
 and 1-minute load average before and after each sweep (``one_node``, ``two_nodes``), their
 medians, ``speedup`` (one-node over two-node median), and whether every table is the same record
-for record outside the wall-clock fields (``tables_equal``).  ``--keep`` keeps the sweeps' folders
+for record outside the wall-clock fields (``tables_equal``).  ``two_process_throughput``: what the
+machine gives two CPU-bound processes at once over one alone, measured just before (a Python loop
+of about 2 s, run alone and then twice in parallel, at this script's priority): 2.0 on two free
+cores; on a shared machine it bounds what a second node can add.  ``--keep`` keeps the sweeps' folders
 (docs/data/sweep/ holds the table and run records of one such run).
 
 This machine needs two settings a real cluster may not: ``RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=1``
@@ -62,6 +65,19 @@ def _stop(pids: set[int]) -> None:
             except ProcessLookupError:
                 pass
         time.sleep(3)
+
+
+_SPIN = "import time; t = time.perf_counter(); x = 0\nfor i in range(30_000_000): x += i\nprint(time.perf_counter() - t)"
+
+
+def _two_process_throughput() -> float:
+    """Throughput of two CPU-bound processes at once over one alone (2.0 on two free cores)."""
+    def spin(k: int) -> float:
+        procs = [subprocess.Popen([sys.executable, "-c", _SPIN], stdout=subprocess.PIPE, text=True) for _ in range(k)]
+        return max(float(p.communicate()[0]) for p in procs)
+
+    one = spin(1)
+    return round(2 * one / spin(2), 2)
 
 
 def _ray(args: list[str]) -> None:
@@ -115,6 +131,7 @@ def main(argv=None) -> int:
     node = ["--num-cpus", "1", "--node-ip-address", "127.0.0.1"]
     runs: dict[str, list] = {"one_node": [], "two_nodes": []}
     folders = []
+    capacity = _two_process_throughput()
     try:
         _ray(["start", "--head", "--port", str(args.port), "--temp-dir", str(tmp / "ray"), "--include-dashboard",
               "false", *node])
@@ -142,7 +159,7 @@ def main(argv=None) -> int:
     one = statistics.median(x["wall_s"] for x in runs["one_node"])
     two = statistics.median(x["wall_s"] for x in runs["two_nodes"])
     emit({"cpu_count": os.cpu_count(), "episodes": 3672, "folder": str(tmp) if args.keep else None, **runs,
-          "one_node_s": one, "two_nodes_s": two,
+          "two_process_throughput": capacity, "one_node_s": one, "two_nodes_s": two,
           "speedup": round(one / two, 2), "tables_equal": same}, args.json)
     return 0
 
