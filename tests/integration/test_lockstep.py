@@ -35,15 +35,19 @@ def _assert_lockstep_equals_alone(scenarios, env_kwargs, suite, seed_offset=0, b
     return together
 
 
-@pytest.mark.parametrize("suite", SUITE_NAMES)
-def test_every_shipped_agent_scored_together_equals_it_alone(suite):
-    """The first episode of every shipped suite, every shipped agent in one pass (``sequential``
-    asks for observe_sequential: the others get the columns and infos they have alone)."""
-    s = load_suite(suite)
-    env_kwargs, _ = suite_env_kwargs(s)
-    recs = _assert_lockstep_equals_alone(s.scenarios[:1], env_kwargs, s.name)
-    if s.scenarios[0].faults:  # a non-trivial comparison: the oracle isolates, the trace changes
-        assert len(recs[AGENTS.index("oracle")][0]["declared_changes"]) >= 2
+def test_every_shipped_agent_scored_together_equals_it_alone():
+    """The first episode of every shipped suite (one batch; transfer-v2's noise scale in its own),
+    every shipped agent in one pass (``sequential`` asks for observe_sequential: the others get the
+    columns and infos they have alone)."""
+    suites = [load_suite(name) for name in SUITE_NAMES]
+    env_kwargs = {k: v for k, v in suite_env_kwargs(suites[0])[0].items()}
+    assert all(suite_env_kwargs(s)[0] == env_kwargs for s in suites)  # one environment: one comparison
+    firsts = [s.scenarios[0] for s in suites]
+    recs = _assert_lockstep_equals_alone(firsts, env_kwargs, "first-episodes")
+    oracle = recs[AGENTS.index("oracle")]
+    # a non-trivial comparison: the oracle isolates (its trace changes) on every faulty episode
+    assert all(len(r["declared_changes"]) >= 2 for r, sc in zip(oracle, firsts) if sc.faults)
+    assert sum(1 for sc in firsts if sc.faults) >= 5 and {sc.noise_scale for sc in firsts} == {1.0, 0.7}
 
 
 def test_a_batch_with_an_engine_failure_and_a_seed_offset():
