@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from .errors import UsageError
 
 __all__ = ["available_memory_bytes", "check_memory", "CostEstimate", "say_cost", "fmt_bytes", "fmt_seconds",
-           "episode_cpu_s", "ENV_EPISODE_CPU_S", "AGENT_EPISODE_CPU_S", "RAW_BYTES_PER_SAMPLE",
+           "episode_cpu_s", "lockstep_episode_cpu_s", "ENV_EPISODE_CPU_S", "AGENT_EPISODE_CPU_S", "RAW_BYTES_PER_SAMPLE",
            "RAW_CPU_S_PER_SAMPLE"]
 
 # CPU seconds per 300 s episode (one decision per second, batches of 32) on the development machine: the
@@ -30,8 +30,14 @@ RAW_CPU_S_PER_SAMPLE = 1.0e-5  # export-raw: CPU seconds per 100 Hz sample (simu
 def episode_cpu_s(agent: str, duration_s: float = 300.0) -> float:
     """Expected CPU seconds of one episode of ``agent`` (a name; any other agent is costed as the
     dearest named one)."""
-    own = AGENT_EPISODE_CPU_S.get(agent, max(AGENT_EPISODE_CPU_S.values()))
-    return (ENV_EPISODE_CPU_S + own) * duration_s / 300.0
+    return lockstep_episode_cpu_s([agent], 1, duration_s)
+
+
+def lockstep_episode_cpu_s(agents: list[str], passes: int, duration_s: float = 300.0) -> float:
+    """Expected CPU seconds of one episode scored for every agent of ``agents``: the environment once per
+    simulation pass (agents asking for the same diagnoser share one), each agent's own decisions on top."""
+    own = sum(AGENT_EPISODE_CPU_S.get(a, max(AGENT_EPISODE_CPU_S.values())) for a in agents)
+    return (ENV_EPISODE_CPU_S * passes + own) * duration_s / 300.0
 
 
 def available_memory_bytes() -> int | None:

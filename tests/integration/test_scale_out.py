@@ -208,8 +208,9 @@ def ctrl_c_enabled() -> None:
 
 
 def test_sweep_resumes_after_ctrl_c_without_losing_or_redoing_work(tiny, tmp_path, capsys):
+    """Two agents scored in lockstep: a finished chunk keeps both agents' records."""
     out = tmp_path / "sw"
-    cmd = [sys.executable, "-m", "marine_fdi_env.cli", "sweep", "--agents", SLOW_AGENT, "--suites", str(tiny),
+    cmd = [sys.executable, "-m", "marine_fdi_env.cli", "sweep", "--agents", SLOW_AGENT, "null", "--suites", str(tiny),
            "--out", str(out), "--batch-size", "1", "--backend", "serial", "--no-progress"]
     env = dict(os.environ, SLOW_AGENT_SLEEP_S="0.1")  # 20 decisions: 2 s per chunk
     proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
@@ -217,7 +218,7 @@ def test_sweep_resumes_after_ctrl_c_without_losing_or_redoing_work(tiny, tmp_pat
     partial = out / "sweep.partial.jsonl"
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and proc.poll() is None:
-        if partial.exists() and len(partial.read_text().splitlines()) >= 2:  # header + the first chunk
+        if partial.exists() and len(partial.read_text().splitlines()) >= 3:  # header + the first chunk's two records
             break
         time.sleep(0.05)
     proc.send_signal(signal.SIGINT)  # Ctrl-C
@@ -226,17 +227,20 @@ def test_sweep_resumes_after_ctrl_c_without_losing_or_redoing_work(tiny, tmp_pat
     assert "interrupted" in stderr and "Traceback" not in stderr
     lines = partial.read_text().splitlines()
     kept = [json.loads(x) for x in lines[1:]]
-    assert 1 <= len(kept) < 3 and not (out / "episodes.parquet").exists()
+    assert 2 <= len(kept) < 6 and len(kept) % 2 == 0 and not (out / "episodes.parquet").exists()
+    assert sorted(r["agent"] for r in kept[:2]) == ["null", "slow-random"]
+    assert kept[0]["scenario_id"] == kept[1]["scenario_id"]
     marked = dict(kept[0], compute_s=12345.0)  # a kept episode must not be recomputed
     partial.write_text("\n".join([lines[0], json.dumps(marked)] + lines[2:]) + "\n")
-    res = run_sweep([SLOW_AGENT], [str(tiny)], [0], out, batch_size=1, progress=True)
-    assert f"resuming at {len(kept)}/3" in capsys.readouterr().err
-    assert res["run"]["episodes_run"] == 3 - len(kept)
+    res = run_sweep([SLOW_AGENT, "null"], [str(tiny)], [0], out, batch_size=1, progress=True)
+    assert f"resuming at {len(kept)}/6" in capsys.readouterr().err
+    assert res["run"]["episodes_run"] == 6 - len(kept)
     recs, _ = read_records(out / "episodes.parquet")
-    assert next(r for r in recs if r["scenario_id"] == marked["scenario_id"])["compute_s"] == 12345.0
-    fresh = run_sweep([SLOW_AGENT], [str(tiny)], [0], tmp_path / "fresh", progress=False)
+    assert next(r for r in recs if r["scenario_id"] == marked["scenario_id"] and r["agent"] == marked["agent"])[
+        "compute_s"] == 12345.0
+    fresh = run_sweep([SLOW_AGENT, "null"], [str(tiny)], [0], tmp_path / "fresh", progress=False)
     assert _no_clock(recs) == _no_clock(read_records(tmp_path / "fresh" / "episodes.parquet")[0])
-    assert fresh["run"]["episodes_run"] == 3 and not partial.exists()
+    assert fresh["run"]["episodes_run"] == 6 and not partial.exists()
 
 
 # ----------------------------------------------------------------------------- agents by name

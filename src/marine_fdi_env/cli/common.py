@@ -22,12 +22,14 @@ import argparse
 import json
 import math
 import sys
+from pathlib import Path
 
 import numpy as np
 
 from ..errors import UsageError, require_extra
 
 __all__ = ["PROG", "INTERRUPTED", "USAGE_ERROR", "parse_cli", "interrupted", "add_backend_args", "backend_from_args",
+           "add_cache_args", "cache_from_args",
            "option_value", "positive_seconds", "strict_json", "dumps"]
 
 PROG = "marine-fdi"
@@ -80,6 +82,26 @@ def backend_from_args(args):
     if backend.name == "ray":
         require_extra("ray", "--backend ray")
     return backend
+
+
+def add_cache_args(ap: argparse.ArgumentParser) -> None:
+    """``--cache`` and ``--cache-dir`` (the feature caches of :mod:`marine_fdi_env.benchmark.feature_cache`)."""
+    from ..benchmark.feature_cache import CACHE_MODES, DEFAULT_CACHE_DIR
+
+    ap.add_argument("--cache", choices=CACHE_MODES, default="use",
+                    help="feature caches (a suite's observations and infos, so agents are scored without simulating): "
+                         "use = score on the cache of the suite when --cache-dir has one (default), write = simulate "
+                         "and write it, off = neither. A cache made by other code or with other parameters is "
+                         "refused with a message")
+    ap.add_argument("--cache-dir", type=Path, default=DEFAULT_CACHE_DIR, metavar="DIR",
+                    help=f"where feature caches are (default {DEFAULT_CACHE_DIR})")
+
+
+def cache_from_args(args) -> tuple[str, Path]:
+    """(mode, folder) of ``--cache`` and ``--cache-dir``; writing needs pyarrow (checked before any work)."""
+    if args.cache == "write":
+        require_extra("pyarrow", "--cache write")
+    return args.cache, args.cache_dir
 
 
 def option_value(option: str, fn, *args, **kwargs):

@@ -65,9 +65,10 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--force", action="store_true",
                     help="recompute and overwrite the results file when it already holds results (without it: an "
                          "explicit --out is an error, the default file is shown)")
-    from .common import add_backend_args
+    from .common import add_backend_args, add_cache_args
 
     add_backend_args(ap)
+    add_cache_args(ap)
     ap.add_argument("--reward", choices=("v0", "v1"), default=None,
                     help="reward scored in the results' return (default: the suite's, else v1 = MarineFDI-v1)")
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -83,11 +84,12 @@ def evaluate_main(argv=None) -> int:
         return code
     try:
         from ..benchmark.agent_api import agent_file_stem
-        from .common import backend_from_args
+        from .common import backend_from_args, cache_from_args
         from ..outputs import check_suffix, prepare_out
         from ..errors import require_extra
 
         backend = backend_from_args(args)
+        cache, cache_dir = cache_from_args(args)
         out = args.out or Path("results") / f"{agent_file_stem(args.agent)}_{Path(args.suite).stem}.json"
         check_suffix(out, "--out", RESULT_SUFFIXES, "a results file")
         if out.suffix == ".parquet":
@@ -112,12 +114,13 @@ def evaluate_main(argv=None) -> int:
                               workers=backend.workers))
         result = evaluate(args.agent, args.suite, out, seed_offset=args.seed_offset, batch_size=args.batch_size,
                           progress=not args.no_progress, backend=backend,
-                          reward=args.reward)
+                          reward=args.reward, cache=cache, cache_dir=cache_dir)
     except ValueError as e:
         print(f"marine-fdi evaluate: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         return interrupted("marine-fdi evaluate")
     print(markdown_table([result]))
-    print(f"\nresults: {out}")
+    cached = result.get("feature_cache")
+    print(f"\nresults: {out}" + (f" (scored on the feature cache {', '.join(cached)})" if cached else ""))
     return 0

@@ -14,22 +14,26 @@ from ..benchmark.sweep import TABLE, run_sweep
 
 def say_sweep_cost(agents: list[str], suites: list[str], n_offsets: int, workers: int) -> None:
     """The grid's expected time, said before it starts (:mod:`marine_fdi_env.costs`)."""
+    from ..benchmark.agent_api import BUILTIN_AGENTS, load_agent
     from ..benchmark.agent_registry import list_agents
+    from ..benchmark.evaluate import plan_passes
     from ..benchmark.suites import load_suite
-    from ..costs import CostEstimate, episode_cpu_s, say_cost
+    from ..costs import CostEstimate, lockstep_episode_cpu_s, say_cost
 
     names = [e.name for e in list_agents() if e.available] if "all" in agents else agents
     try:
         loaded = [load_suite(s) for s in (SUITE_NAMES if "all" in suites else suites)]
     except ValueError:
         return  # run_sweep names the bad suite
+    # the simulation passes: the baselines say which diagnoser they need (cheap to make); a model, the default
+    passes = len(plan_passes([load_agent(a) for a in names if a in BUILTIN_AGENTS], {})) or 1
     episodes = sum(len(s.scenarios) for s in loaded) * n_offsets
-    cpu = n_offsets * sum(episode_cpu_s(a, sc.duration_s) for a in names for s in loaded for sc in s.scenarios)
+    cpu = n_offsets * sum(lockstep_episode_cpu_s(names, passes, sc.duration_s) for s in loaded for sc in s.scenarios)
     say_cost("marine-fdi sweep", f"{len(names)} agents x {episodes} episodes", CostEstimate(cpu, workers=workers))
 
 
 def sweep_main(argv=None) -> int:
-    from .common import add_backend_args, backend_from_args, interrupted, parse_cli
+    from .common import add_backend_args, add_cache_args, backend_from_args, cache_from_args, interrupted, parse_cli
     from ..outputs import prepare_out
     from ..errors import require_extra
     from ..benchmark.report import markdown_table
@@ -45,17 +49,19 @@ def sweep_main(argv=None) -> int:
                     help="noise seed offsets (default 0): each reruns the suite's scenarios with new noise")
     ap.add_argument("--out", type=Path, required=True, help="sweep folder (its parent is created if missing)")
     add_backend_args(ap)
+    add_cache_args(ap)
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     args, code = parse_cli(ap, argv)
     if args is None:
         return code
     try:
         backend = backend_from_args(args)
+        cache, cache_dir = cache_from_args(args)
         require_extra("pyarrow", "sweep (its table episodes.parquet)")
         out = prepare_out(args.out, create=False)  # run_sweep creates it after checking agents and suites
         say_sweep_cost(args.agents, args.suites, len(args.seed_offsets), backend.workers)
         res = run_sweep(args.agents, args.suites, args.seed_offsets, out, backend=backend,
-                        batch_size=args.batch_size, progress=not args.no_progress)
+                        batch_size=args.batch_size, progress=not args.no_progress, cache=cache, cache_dir=cache_dir)
     except ValueError as e:
         print(f"marine-fdi sweep: error: {e}", file=sys.stderr)
         return 2
