@@ -27,8 +27,14 @@ import numpy as np
 from marine_fdi_env.diagnosis.cell_sets import DEFAULT_CELLS, check_cells
 from marine_fdi_env.envs.hypotheses import HYPOTHESES, N_HYPOTHESES, UNKNOWN
 
-__all__ = ["ReferenceAgent", "ReferenceThesisAgent", "ReferenceGridAgent", "belief_from_diagnoses", "cells_name",
-           "with_cells"]
+__all__ = [
+    "ReferenceAgent",
+    "ReferenceThesisAgent",
+    "ReferenceGridAgent",
+    "belief_from_diagnoses",
+    "cells_name",
+    "with_cells",
+]
 
 _INDEX = {h: i for i, h in enumerate(HYPOTHESES)}
 
@@ -76,7 +82,6 @@ class ReferenceAgent:
         return np.stack([belief_from_diagnoses(bool(d), g) for d, g in zip(ref["detected"], ref["diagnoses"])])
 
 
-
 def with_cells(base: type, cells: str) -> type:
     """``base`` (an agent class taking ``cells``) with another cell set, as a class constructible
     without arguments (how the agent registry builds its agents)."""
@@ -86,8 +91,11 @@ def with_cells(base: type, cells: str) -> type:
         base.__init__(self, cells)
 
     name = f"{base.__name__.removesuffix('Agent')}{cells.capitalize()}Agent"
-    return type(name, (base,), {"__init__": __init__, "__module__": base.__module__,
-                                "__doc__": f"{base.__name__} with the {cells} cells."})
+    return type(
+        name,
+        (base,),
+        {"__init__": __init__, "__module__": base.__module__, "__doc__": f"{base.__name__} with the {cells} cells."},
+    )
 
 
 ReferenceThesisAgent = with_cells(ReferenceAgent, "thesis")

@@ -37,6 +37,5 @@ class SequentialAgent:
         return np.stack([belief_from_diagnoses(bool(d), g) for d, g in zip(seq["detected"], seq["diagnoses"])])
 
 
-
 SequentialThesisAgent = with_cells(SequentialAgent, "thesis")
 SequentialGridAgent = with_cells(SequentialAgent, "grid")

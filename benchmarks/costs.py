@@ -61,9 +61,12 @@ def main() -> None:
     env_kwargs, _ = suite_env_kwargs(suite)
     scenarios = suite.scenarios[: args.episodes]
     env = cpu_per_episode("null", scenarios, env_kwargs)
-    out = {"env_cpu_s_per_episode": round(env, 3),
-           "agent_cpu_s_per_episode": {a: round(max(0.0, cpu_per_episode(a, scenarios, env_kwargs) - env), 3)
-                                       for a in AGENTS}}
+    out = {
+        "env_cpu_s_per_episode": round(env, 3),
+        "agent_cpu_s_per_episode": {
+            a: round(max(0.0, cpu_per_episode(a, scenarios, env_kwargs) - env), 3) for a in AGENTS
+        },
+    }
     from marine_fdi_env.cli import main as cli
 
     with tempfile.TemporaryDirectory() as tmp, contextlib.redirect_stdout(io.StringIO()):  # the commands' own reports

@@ -16,14 +16,14 @@ import argparse
 import time
 
 import numpy as np
+from _report import emit  # noqa: E402  (benchmarks/ is the script directory)
 
+from marine_fdi_env.benchmark.suites import load_suite
 from marine_fdi_env.diagnosis import agent as _agent
 from marine_fdi_env.diagnosis.cell_sets import CELL_SETS
 from marine_fdi_env.diagnosis.sequential import SequentialDiagnoser
 from marine_fdi_env.engine import integrators
 from marine_fdi_env.engine.simulator import Simulator
-from marine_fdi_env.benchmark.suites import load_suite
-from _report import emit  # noqa: E402  (benchmarks/ is the script directory)
 
 
 def main(argv=None) -> int:
@@ -34,14 +34,24 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=3)
     args = ap.parse_args(argv)
     for mod in (integrators, _agent):  # one thread
-        mod.THREADED_MIN_ENGINES = 10 ** 9
-    scs = load_suite("single-v1").scenarios[:args.engines]
+        mod.THREADED_MIN_ENGINES = 10**9
+    scs = load_suite("single-v1").scenarios[: args.engines]
     best = {}
     for _ in range(args.repeats):
-        sim = Simulator("thesis-12v28", len(scs), seeds=[s.noise_seed for s in scs],
-                        faults=[list(s.faults) for s in scs], profiles=[s.profile for s in scs])
-        agents = {(d, c): (_agent.ReferenceDiagnoser if d == "reference" else SequentialDiagnoser)(
-            "thesis-12v28", n_engines=len(scs), dt=sim.dt, cells=c) for d in ("reference", "sequential") for c in CELL_SETS}
+        sim = Simulator(
+            "thesis-12v28",
+            len(scs),
+            seeds=[s.noise_seed for s in scs],
+            faults=[list(s.faults) for s in scs],
+            profiles=[s.profile for s in scs],
+        )
+        agents = {
+            (d, c): (_agent.ReferenceDiagnoser if d == "reference" else SequentialDiagnoser)(
+                "thesis-12v28", n_engines=len(scs), dt=sim.dt, cells=c
+            )
+            for d in ("reference", "sequential")
+            for c in CELL_SETS
+        }
         cpu = dict.fromkeys(agents, 0.0)
         samples = 0
         while samples < int(round(300.0 / sim.dt)):

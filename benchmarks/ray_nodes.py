@@ -46,8 +46,10 @@ ENV = {"RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "1", "RAY_AUTH_MODE": "token"}
 
 def _pids(marker: str) -> set[int]:
     """Processes whose command line holds ``marker`` (the cluster's temporary folder), and their children."""
-    rows = [ln.split(None, 2) for ln in subprocess.run(["ps", "-eo", "pid,ppid,args"], capture_output=True,
-                                                          text=True).stdout.splitlines()[1:]]
+    rows = [
+        ln.split(None, 2)
+        for ln in subprocess.run(["ps", "-eo", "pid,ppid,args"], capture_output=True, text=True).stdout.splitlines()[1:]
+    ]
     found = {int(p) for p, _, args in (r + [""] * (3 - len(r)) for r in rows) if marker in args}
     grown = True
     while grown:
@@ -67,11 +69,14 @@ def _stop(pids: set[int]) -> None:
         time.sleep(3)
 
 
-_SPIN = "import time; t = time.perf_counter(); x = 0\nfor i in range(30_000_000): x += i\nprint(time.perf_counter() - t)"
+_SPIN = (
+    "import time; t = time.perf_counter(); x = 0\nfor i in range(30_000_000): x += i\nprint(time.perf_counter() - t)"
+)
 
 
 def _two_process_throughput() -> float:
     """Throughput of two CPU-bound processes at once over one alone (2.0 on two free cores)."""
+
     def spin(k: int) -> float:
         procs = [subprocess.Popen([sys.executable, "-c", _SPIN], stdout=subprocess.PIPE, text=True) for _ in range(k)]
         return max(float(p.communicate()[0]) for p in procs)
@@ -81,41 +86,86 @@ def _two_process_throughput() -> float:
 
 
 def _ray(args: list[str]) -> None:
-    proc = subprocess.run([str(Path(sys.executable).with_name("ray")), *args, "--disable-usage-stats"],
-                          env=dict(os.environ, **ENV), capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [str(Path(sys.executable).with_name("ray")), *args, "--disable-usage-stats"],
+        env=dict(os.environ, **ENV),
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     if proc.returncode != 0:
         raise SystemExit(f"ray {' '.join(args)} failed:\n{proc.stderr[-2000:]}")
 
 
 def _nodes(address: str) -> int:
     """The cluster's live nodes."""
-    out = subprocess.run([sys.executable, "-c", "import ray, json; ray.init(address=%r, logging_level='ERROR'); "
-                          "print(json.dumps(len([n for n in ray.nodes() if n['Alive']])))" % address],
-                         env=dict(os.environ, **ENV), capture_output=True, text=True, timeout=120)
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import ray, json; ray.init(address=%r, logging_level='ERROR'); "
+            "print(json.dumps(len([n for n in ray.nodes() if n['Alive']])))" % address,
+        ],
+        env=dict(os.environ, **ENV),
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     return int(out.stdout.strip().splitlines()[-1])
 
 
 def _sweep(address: str, out: Path, cwd: Path) -> dict:
     load0 = os.getloadavg()[0]
     t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "marine_fdi_env.cli", "sweep", "--agents", "all", "--suites", "all",
-                           "--backend", "ray", "--ray-address", address, "--workers", "2", "--cache", "off",
-                           "--out", str(out), "--no-progress"], cwd=cwd, env=dict(os.environ, **ENV),
-                          capture_output=True, text=True)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "marine_fdi_env.cli",
+            "sweep",
+            "--agents",
+            "all",
+            "--suites",
+            "all",
+            "--backend",
+            "ray",
+            "--ray-address",
+            address,
+            "--workers",
+            "2",
+            "--cache",
+            "off",
+            "--out",
+            str(out),
+            "--no-progress",
+        ],
+        cwd=cwd,
+        env=dict(os.environ, **ENV),
+        capture_output=True,
+        text=True,
+    )
     wall = time.perf_counter() - t0
     if proc.returncode != 0:
         raise SystemExit(f"the sweep failed:\n{proc.stderr[-2000:]}")
-    return {"wall_s": round(wall, 2), "load_before": round(load0, 2), "load_after": round(os.getloadavg()[0], 2),
-            "sweep_wall_s": round(json.loads((out / "sweep.json").read_text())["wall_s"], 2)}
+    return {
+        "wall_s": round(wall, 2),
+        "load_before": round(load0, 2),
+        "load_after": round(os.getloadavg()[0], 2),
+        "sweep_wall_s": round(json.loads((out / "sweep.json").read_text())["wall_s"], 2),
+    }
 
 
 def _same_tables(folders: list[Path]) -> bool:
     from marine_fdi_env.benchmark.evaluate import WALL_CLOCK_FIELDS
     from marine_fdi_env.benchmark.records import read_records
 
-    tables = [[{k: v for k, v in r.items() if k not in WALL_CLOCK_FIELDS} for r in read_records(f / "episodes.parquet",
-                                                                                              keep_extra=True)[0]]
-              for f in folders]
+    tables = [
+        [
+            {k: v for k, v in r.items() if k not in WALL_CLOCK_FIELDS}
+            for r in read_records(f / "episodes.parquet", keep_extra=True)[0]
+        ]
+        for f in folders
+    ]
     return all(t == tables[0] for t in tables[1:])
 
 
@@ -133,8 +183,19 @@ def main(argv=None) -> int:
     folders = []
     capacity = _two_process_throughput()
     try:
-        _ray(["start", "--head", "--port", str(args.port), "--temp-dir", str(tmp / "ray"), "--include-dashboard",
-              "false", *node])
+        _ray(
+            [
+                "start",
+                "--head",
+                "--port",
+                str(args.port),
+                "--temp-dir",
+                str(tmp / "ray"),
+                "--include-dashboard",
+                "false",
+                *node,
+            ]
+        )
         head = _pids(str(tmp / "ray"))
         for r in range(args.repeats):
             if _nodes(address) != 1:
@@ -158,9 +219,20 @@ def main(argv=None) -> int:
             shutil.rmtree(tmp, ignore_errors=True)
     one = statistics.median(x["wall_s"] for x in runs["one_node"])
     two = statistics.median(x["wall_s"] for x in runs["two_nodes"])
-    emit({"cpu_count": os.cpu_count(), "episodes": 3672, "folder": str(tmp) if args.keep else None, **runs,
-          "two_process_throughput": capacity, "one_node_s": one, "two_nodes_s": two,
-          "speedup": round(one / two, 2), "tables_equal": same}, args.json)
+    emit(
+        {
+            "cpu_count": os.cpu_count(),
+            "episodes": 3672,
+            "folder": str(tmp) if args.keep else None,
+            **runs,
+            "two_process_throughput": capacity,
+            "one_node_s": one,
+            "two_nodes_s": two,
+            "speedup": round(one / two, 2),
+            "tables_equal": same,
+        },
+        args.json,
+    )
     return 0
 
 

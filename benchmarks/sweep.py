@@ -57,15 +57,24 @@ def _run(args: list[str], cwd: Path, src: Path | None = None) -> dict:
     load0 = os.getloadavg()[0]
     r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "marine_fdi_env.cli", *args, "--no-progress"], cwd=cwd, env=env,
-                          capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-m", "marine_fdi_env.cli", *args, "--no-progress"],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+    )
     wall = time.perf_counter() - t0
     r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     if proc.returncode != 0:
         raise SystemExit(f"marine-fdi {' '.join(args)} failed:\n{proc.stderr}")
     cpu = (r1.ru_utime + r1.ru_stime) - (r0.ru_utime + r0.ru_stime)
-    return {"wall_s": round(wall, 2), "cpu_s": round(cpu, 2), "load_before": round(load0, 2),
-            "load_after": round(os.getloadavg()[0], 2)}
+    return {
+        "wall_s": round(wall, 2),
+        "cpu_s": round(cpu, 2),
+        "load_before": round(load0, 2),
+        "load_after": round(os.getloadavg()[0], 2),
+    }
 
 
 def main(argv=None) -> int:
@@ -75,8 +84,13 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=1, help="runs of the one-agent / every-agent pair")
     ap.add_argument("--skip-full", action="store_true", help="leave out the full sweep")
     ap.add_argument("--keep", type=Path, default=None, help="run in this folder and keep it (default: a temporary one)")
-    ap.add_argument("--other-src", type=Path, default=None, metavar="DIR",
-                    help="also time the one/every pair with the package in DIR (another version), alternating")
+    ap.add_argument(
+        "--other-src",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="also time the one/every pair with the package in DIR (another version), alternating",
+    )
     args = ap.parse_args(argv)
     w = ["--workers", str(args.workers)]
     tmp = args.keep or Path(tempfile.mkdtemp(prefix="marine-fdi-sweep-bench-"))
@@ -84,38 +98,95 @@ def main(argv=None) -> int:
     try:
         versions = [None] + ([args.other_src.resolve()] if args.other_src else [])
         for src in versions:  # compile a cold numba cache of each version outside the timings
-            _run(["evaluate", "--agent", "null", "--suite", "thesis-v1", "--out", "warm.json", "--cache", "off",
-                  "--force"], tmp, src)
+            _run(
+                [
+                    "evaluate",
+                    "--agent",
+                    "null",
+                    "--suite",
+                    "thesis-v1",
+                    "--out",
+                    "warm.json",
+                    "--cache",
+                    "off",
+                    "--force",
+                ],
+                tmp,
+                src,
+            )
         out: dict = {"workers": args.workers, "cpu_count": os.cpu_count(), "python": platform.python_version()}
         one, every, other_one, other_every = [], [], [], []
         for r in range(args.repeats):
-            for src, o, e in ((None, one, every), (versions[-1], other_one, other_every))[:len(versions)]:
+            for src, o, e in ((None, one, every), (versions[-1], other_one, other_every))[: len(versions)]:
                 tag = "" if src is None else "other-"
-                o.append(_run(["evaluate", "--agent", "reference", "--suite", "single-v1", "--out",
-                               f"{tag}one{r}.json", "--cache", "off", *w], tmp, src))
-                e.append(_run(["sweep", "--agents", "all", "--suites", "single-v1", "--out", f"{tag}every{r}",
-                               "--cache", "off", *w], tmp, src))
+                o.append(
+                    _run(
+                        [
+                            "evaluate",
+                            "--agent",
+                            "reference",
+                            "--suite",
+                            "single-v1",
+                            "--out",
+                            f"{tag}one{r}.json",
+                            "--cache",
+                            "off",
+                            *w,
+                        ],
+                        tmp,
+                        src,
+                    )
+                )
+                e.append(
+                    _run(
+                        [
+                            "sweep",
+                            "--agents",
+                            "all",
+                            "--suites",
+                            "single-v1",
+                            "--out",
+                            f"{tag}every{r}",
+                            "--cache",
+                            "off",
+                            *w,
+                        ],
+                        tmp,
+                        src,
+                    )
+                )
         if other_one:
-            out.update(other_src=str(versions[-1]), other_one_agent=other_one, other_every_agent=other_every,
-                       other_every_over_one=round(statistics.median(
-                           e["wall_s"] / o["wall_s"] for o, e in zip(other_one, other_every)), 2))
+            out.update(
+                other_src=str(versions[-1]),
+                other_one_agent=other_one,
+                other_every_agent=other_every,
+                other_every_over_one=round(
+                    statistics.median(e["wall_s"] / o["wall_s"] for o, e in zip(other_one, other_every)), 2
+                ),
+            )
         n_agents = len(json.loads((tmp / "every0" / "sweep.json").read_text())["agents"])
-        out.update(one_agent=one, every_agent=every, n_agents=n_agents,
-                   one_agent_s=statistics.median(x["wall_s"] for x in one),
-                   every_agent_s=statistics.median(x["wall_s"] for x in every),
-                   every_over_one=round(statistics.median(e["wall_s"] / o["wall_s"] for o, e in zip(one, every)), 2),
-                   episodes={"one_agent": 156, "every_agent": 156 * n_agents})
+        out.update(
+            one_agent=one,
+            every_agent=every,
+            n_agents=n_agents,
+            one_agent_s=statistics.median(x["wall_s"] for x in one),
+            every_agent_s=statistics.median(x["wall_s"] for x in every),
+            every_over_one=round(statistics.median(e["wall_s"] / o["wall_s"] for o, e in zip(one, every)), 2),
+            episodes={"one_agent": 156, "every_agent": 156 * n_agents},
+        )
         if not args.skip_full:
             full = _run(["sweep", "--agents", "all", "--suites", "all", "--out", "full", "--cache", "off", *w], tmp)
             run = json.loads((tmp / "full" / "sweep.json").read_text())
             out.update(full_sweep=full, full_sweep_s=full["wall_s"], episodes_full=run["episodes_run"])
-        out["cache_write"] = _run(["evaluate", "--agent", "null", "--suite", "single-v1", "--out", "null.json",
-                                   "--cache", "write", *w], tmp)
+        out["cache_write"] = _run(
+            ["evaluate", "--agent", "null", "--suite", "single-v1", "--out", "null.json", "--cache", "write", *w], tmp
+        )
         out["cache_write_s"] = out["cache_write"]["wall_s"]
         cache = sorted((tmp / "results" / "cache").glob("single-v1_*.parquet"))
         out["cache_bytes"] = cache[0].stat().st_size if cache else None
-        out["new_agent_cached"] = _run(["evaluate", "--agent", NEW_AGENT, "--suite", "single-v1",
-                                        "--out", "new.json"], tmp)
+        out["new_agent_cached"] = _run(
+            ["evaluate", "--agent", NEW_AGENT, "--suite", "single-v1", "--out", "new.json"], tmp
+        )
         out["new_agent_cached_s"] = out["new_agent_cached"]["wall_s"]
         if not json.loads((tmp / "new.json").read_text()).get("feature_cache"):
             raise SystemExit("the new agent was not scored on the cache")

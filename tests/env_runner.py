@@ -21,9 +21,18 @@ from marine_fdi_env.envs.vector import MarineFDIVectorEnv
 __all__ = ["run_episodes"]
 
 
-def run_episodes(agent, scenarios: list[ScenarioSpec], env_kwargs: dict | None = None, *, suite: str = "",
-                 seed_offset: int = 0, batch_size: int = 32, on_episode=None, progress=None,
-                 on_decision=None) -> list[dict]:
+def run_episodes(
+    agent,
+    scenarios: list[ScenarioSpec],
+    env_kwargs: dict | None = None,
+    *,
+    suite: str = "",
+    seed_offset: int = 0,
+    batch_size: int = 32,
+    on_episode=None,
+    progress=None,
+    on_decision=None,
+) -> list[dict]:
     """Run ``agent`` on every scenario; returns the episode records (scenario order).
 
     ``on_episode(record)`` is called as soon as an episode's record is complete; ``progress(x)``
@@ -42,7 +51,7 @@ def run_episodes(agent, scenarios: list[ScenarioSpec], env_kwargs: dict | None =
     for noise_scale, idx in groups.items():
         kw = with_noise_scale(env_kwargs, noise_scale)
         for start in range(0, len(idx), batch_size):
-            part = idx[start:start + batch_size]
+            part = idx[start : start + batch_size]
             chunk = [_offset(scenarios[i], seed_offset) for i in part]
             for i, rec in zip(part, _run_batch(agent, chunk, kw, suite, seed_offset, progress, on_decision)):
                 records[i] = rec
@@ -78,8 +87,9 @@ def _run_batch(agent, scenarios, env_kwargs, suite, seed_offset, progress=None, 
         obs, rew, term, trunc, infos = venv.step(actions)
         if on_decision is not None:
             for i in np.flatnonzero(live):
-                on_decision(scenarios[i].scenario_id, float(infos["decision_time_s"][i]), actions[i],
-                            float(obs_cost[i]) + act_s)
+                on_decision(
+                    scenarios[i].scenario_id, float(infos["decision_time_s"][i]), actions[i], float(obs_cost[i]) + act_s
+                )
             obs_cost = venv.batch.compute_s - feats_before  # the next observation's cost
         for i in np.flatnonzero(live):
             t = float(infos["decision_time_s"][i])
@@ -103,19 +113,28 @@ def _run_batch(agent, scenarios, env_kwargs, suite, seed_offset, progress=None, 
                 fail = infos["engine_failure"]
                 reason = str(fail["reason"][i]) if term[i] else None
                 out[i] = {
-                    "scenario_id": sc.scenario_id, "suite": suite, "seed": int(sc.noise_seed), "agent": agent.name,
-                    "profile": sc.profile, "duration_s": t if term[i] else float(sc.duration_s),
-                    "decision_period_s": period, "n_samples": int(steps[i] * venv.batch.period_samples),
-                    "faults": sc.truth(), "declared_changes": trace[i], "belief_on_truth": share[i],
-                    "terminated": bool(term[i]), "failure_reason": reason or None,
-                    "compute_s": float(feature_s[i] + agent_s[i]), "return": float(ret[i]),
-                    "reward_terms": terms[i], "feature_compute_s": float(feature_s[i]),
-                    "agent_compute_s": float(agent_s[i]), "n_decisions": int(steps[i]),
+                    "scenario_id": sc.scenario_id,
+                    "suite": suite,
+                    "seed": int(sc.noise_seed),
+                    "agent": agent.name,
+                    "profile": sc.profile,
+                    "duration_s": t if term[i] else float(sc.duration_s),
+                    "decision_period_s": period,
+                    "n_samples": int(steps[i] * venv.batch.period_samples),
+                    "faults": sc.truth(),
+                    "declared_changes": trace[i],
+                    "belief_on_truth": share[i],
+                    "terminated": bool(term[i]),
+                    "failure_reason": reason or None,
+                    "compute_s": float(feature_s[i] + agent_s[i]),
+                    "return": float(ret[i]),
+                    "reward_terms": terms[i],
+                    "feature_compute_s": float(feature_s[i]),
+                    "agent_compute_s": float(agent_s[i]),
+                    "n_decisions": int(steps[i]),
                 }
         if progress is not None:
             done = float(np.where(live, steps / n_decisions, 1.0).clip(0.0, 1.0).sum())
             progress(done - reported)
             reported = done
     return out
-
-

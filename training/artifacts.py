@@ -49,9 +49,14 @@ def save_sb3_agent(model, folder: "str | Path", venv=None, *, name: str | None =
         raise ValueError("save_sb3_agent needs the SB3VecEnv the model was trained on (venv=...)")
     out = prepare_out(folder, "folder")
     model.save(out / "model.zip")
-    cfg = {"name": name or out.resolve().name, "algo": "ppo", "action_mode": venv.action_mode, "frame_stack": 1,
-           "observation": dict(_observation_meta(), reference_features=bool(venv.with_reference)),
-           "n_parameters": int(sum(p.numel() for p in model.policy.parameters())),
-           "model_bytes": (out / "model.zip").stat().st_size}
+    cfg = {
+        "name": name or out.resolve().name,
+        "algo": "ppo",
+        "action_mode": venv.action_mode,
+        "frame_stack": 1,
+        "observation": dict(_observation_meta(), reference_features=bool(venv.with_reference)),
+        "n_parameters": int(sum(p.numel() for p in model.policy.parameters())),
+        "model_bytes": (out / "model.zip").stat().st_size,
+    }
     save_meta(out, cfg, "marine_fdi_env.training.agents:SB3Agent")
     return out

@@ -34,9 +34,9 @@ import numpy as np
 from gymnasium import spaces
 from stable_baselines3.common.vec_env import VecEnv
 
+from marine_fdi_env.engine.faults import FAULT_IDS
 from marine_fdi_env.envs.actions import ACTION_MODES, action_space, to_belief
 from marine_fdi_env.envs.hypotheses import N_HYPOTHESES
-from marine_fdi_env.engine.faults import FAULT_IDS
 from marine_fdi_env.envs.vector import MarineFDIVectorEnv
 
 __all__ = ["SB3VecEnv", "ACTION_MODES", "to_belief", "action_space", "reference_features", "N_REFERENCE_FEATURES"]
@@ -68,8 +68,15 @@ class SB3VecEnv(VecEnv):
     later resets continue the slots' own random streams.
     """
 
-    def __init__(self, num_envs: int = 16, scenario_config: Any = "default", action_mode: str = "box",
-                 seed: int | None = None, reference_features: bool = False, **env_kwargs) -> None:
+    def __init__(
+        self,
+        num_envs: int = 16,
+        scenario_config: Any = "default",
+        action_mode: str = "box",
+        seed: int | None = None,
+        reference_features: bool = False,
+        **env_kwargs,
+    ) -> None:
         if action_mode not in ACTION_MODES:
             raise ValueError(f"action_mode must be one of {ACTION_MODES}, got {action_mode!r}")
         self.venv = MarineFDIVectorEnv(num_envs=num_envs, scenario_config=scenario_config, **env_kwargs)
@@ -78,9 +85,11 @@ class SB3VecEnv(VecEnv):
         obs_space = self.venv.single_observation_space
         self.with_reference = bool(reference_features)
         if self.with_reference:
-            obs_space = spaces.Box(np.concatenate([obs_space.low, np.zeros(N_REFERENCE_FEATURES, np.float32)]),
-                                   np.concatenate([obs_space.high, np.ones(N_REFERENCE_FEATURES, np.float32)]),
-                                   dtype=np.float32)
+            obs_space = spaces.Box(
+                np.concatenate([obs_space.low, np.zeros(N_REFERENCE_FEATURES, np.float32)]),
+                np.concatenate([obs_space.high, np.ones(N_REFERENCE_FEATURES, np.float32)]),
+                dtype=np.float32,
+            )
         act_space = action_space(action_mode)
         super().__init__(num_envs, obs_space, act_space)
         self._first_seed = seed

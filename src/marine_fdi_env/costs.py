@@ -13,16 +13,35 @@ from dataclasses import dataclass
 
 from .errors import UsageError
 
-__all__ = ["available_memory_bytes", "check_memory", "CostEstimate", "say_cost", "fmt_bytes", "fmt_seconds",
-           "episode_cpu_s", "lockstep_episode_cpu_s", "ENV_EPISODE_CPU_S", "AGENT_EPISODE_CPU_S", "RAW_BYTES_PER_SAMPLE",
-           "RAW_CPU_S_PER_SAMPLE"]
+__all__ = [
+    "available_memory_bytes",
+    "check_memory",
+    "CostEstimate",
+    "say_cost",
+    "fmt_bytes",
+    "fmt_seconds",
+    "episode_cpu_s",
+    "lockstep_episode_cpu_s",
+    "ENV_EPISODE_CPU_S",
+    "AGENT_EPISODE_CPU_S",
+    "RAW_BYTES_PER_SAMPLE",
+    "RAW_CPU_S_PER_SAMPLE",
+]
 
 # CPU seconds per 300 s episode (one decision per second, batches of 32) on the development machine: the
 # environment (simulation and observation features, the reference diagnoser's conclusion included) and, on top,
 # each agent's decisions; `python benchmarks/costs.py --json` (0.082 s at load 6, rounded up)
 ENV_EPISODE_CPU_S = 0.09
-AGENT_EPISODE_CPU_S = {"null": 0.0, "random": 0.0, "oracle": 0.0, "reference": 0.001, "sequential": 0.002,
-                       "ppo": 0.01, "classifier": 0.01, "classifier+reference": 0.01}
+AGENT_EPISODE_CPU_S = {
+    "null": 0.0,
+    "random": 0.0,
+    "oracle": 0.0,
+    "reference": 0.001,
+    "sequential": 0.002,
+    "ppo": 0.01,
+    "classifier": 0.01,
+    "classifier+reference": 0.01,
+}
 RAW_BYTES_PER_SAMPLE = 382  # export-raw: bytes written per 100 Hz sample (sensor rows and ground truth)
 RAW_CPU_S_PER_SAMPLE = 1.0e-5  # export-raw: CPU seconds per 100 Hz sample (simulating and writing the CSV rows)
 
@@ -76,8 +95,10 @@ def check_memory(need_bytes: float, what: str, option: str) -> None:
     available, before anything is allocated."""
     have = available_memory_bytes()
     if have is not None and need_bytes > have:
-        raise UsageError(f"{option}: {what} needs about {fmt_bytes(need_bytes)} of memory, more than the "
-                         f"{fmt_bytes(have)} available; ask for less")
+        raise UsageError(
+            f"{option}: {what} needs about {fmt_bytes(need_bytes)} of memory, more than the "
+            f"{fmt_bytes(have)} available; ask for less"
+        )
 
 
 @dataclass(frozen=True)
@@ -100,5 +121,8 @@ def say_cost(prog: str, what: str, cost: CostEstimate, *, min_wall_s: float = 60
         return
     disk = f", writes about {fmt_bytes(cost.disk_bytes)}" if cost.disk_bytes else ""
     workers = f" with {cost.workers} workers" if cost.workers > 1 else ""
-    print(f"{prog}: {what}: expect about {fmt_seconds(cost.wall_s)}{workers}{disk} (estimated from measured "
-          "per-unit costs; longer on a loaded machine)", file=sys.stderr)
+    print(
+        f"{prog}: {what}: expect about {fmt_seconds(cost.wall_s)}{workers}{disk} (estimated from measured "
+        "per-unit costs; longer on a loaded machine)",
+        file=sys.stderr,
+    )

@@ -24,8 +24,9 @@ def prepare_out(path: "str | Path", option: str = "--out", *, is_dir: bool = Tru
     parent = p.parent
     if not parent.exists():
         if not parent.parent.is_dir():
-            raise UsageError(f"{option}: folder {str(parent.parent)!r} does not exist (only the parent of "
-                             f"{option} is created)")
+            raise UsageError(
+                f"{option}: folder {str(parent.parent)!r} does not exist (only the parent of {option} is created)"
+            )
         if create:
             parent.mkdir()
     elif not parent.is_dir():
@@ -45,8 +46,10 @@ def check_suffix(path: "str | Path", option: str, allowed: tuple[str, ...], what
     :class:`UsageError` naming the option, the extensions and what the file holds."""
     p = Path(path)
     if p.suffix.lower() not in allowed:
-        raise UsageError(f"{option} {str(p)!r}: {what} ends in {' or '.join(allowed)} (the format it is written in), "
-                         f"got {p.suffix or 'no extension'!r}")
+        raise UsageError(
+            f"{option} {str(p)!r}: {what} ends in {' or '.join(allowed)} (the format it is written in), "
+            f"got {p.suffix or 'no extension'!r}"
+        )
     return p
 
 
@@ -63,11 +66,14 @@ def differing_fields(old, new, prefix: str = "") -> str:
         elif k not in new:
             parts.append(f"{name}: {_short(old[k])} there, missing here")
         elif old[k] != new[k]:
-            parts.append(differing_fields(old[k], new[k], name) if isinstance(old[k], dict) and isinstance(new[k], dict)
-                         else f"{name}: {_short(old[k])} there, {_short(new[k])} here")
+            parts.append(
+                differing_fields(old[k], new[k], name)
+                if isinstance(old[k], dict) and isinstance(new[k], dict)
+                else f"{name}: {_short(old[k])} there, {_short(new[k])} here"
+            )
     return "; ".join(parts) or "no field differs"
 
 
 def _short(v, width: int = 60) -> str:
     text = repr(v)
-    return text if len(text) <= width else text[:width - 3] + "..."
+    return text if len(text) <= width else text[: width - 3] + "..."

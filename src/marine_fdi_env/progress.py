@@ -53,8 +53,9 @@ class _Redirect:
         self.stream = stream
         self.above = _AboveBar(stream)
         self.handlers = []
-        loggers = [logging.getLogger()] + [lg for lg in logging.Logger.manager.loggerDict.values()
-                                           if isinstance(lg, logging.Logger)]
+        loggers = [logging.getLogger()] + [
+            lg for lg in logging.Logger.manager.loggerDict.values() if isinstance(lg, logging.Logger)
+        ]
         for lg in loggers:
             for h in lg.handlers:
                 if isinstance(h, logging.StreamHandler) and h.stream is stream:
@@ -82,7 +83,7 @@ class _Bar:
     def _set(self, n: float) -> None:
         bar = self.bar
         n = min(max(float(n), 0.0), float(bar.total))
-        if n >= bar.total - 1e-6:   # done (up to rounding): the final line is printed once, by close()
+        if n >= bar.total - 1e-6:  # done (up to rounding): the final line is printed once, by close()
             bar.n = bar.total
             return
         bar.n = n
@@ -123,7 +124,13 @@ def progress_bar(total: int, done: int, desc: str, enabled: bool = True, unit: s
     from tqdm import tqdm
 
     stream = sys.stderr
-    bar = tqdm(total=total, initial=done, desc=desc, unit=unit, file=stream,
-               mininterval=0.1 if _isatty(stream) else 10.0,
-               bar_format="{l_bar}{bar}| {n:.1f}/{total_fmt} " + unit + "s [{elapsed}<{remaining}]")
+    bar = tqdm(
+        total=total,
+        initial=done,
+        desc=desc,
+        unit=unit,
+        file=stream,
+        mininterval=0.1 if _isatty(stream) else 10.0,
+        bar_format="{l_bar}{bar}| {n:.1f}/{total_fmt} " + unit + "s [{elapsed}<{remaining}]",
+    )
     return _Bar(bar, _Redirect(stream))

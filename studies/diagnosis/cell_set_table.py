@@ -66,10 +66,14 @@ def summarize_results(results: list[dict]) -> dict:
         wrong = wrong_isolations(r).values()
         ever, end = sum(p["anytime"] for p in wrong), sum(p["end"] for p in wrong)
         out.setdefault(r["agent"], {})[r["suite"]] = {
-            "faulty_episodes": n_faulty, "isolated": None if acc is None else int(round(acc * n_faulty)),
-            "detection_rate": m.get("detection_rate"), "fault_free_episodes": n_free,
+            "faulty_episodes": n_faulty,
+            "isolated": None if acc is None else int(round(acc * n_faulty)),
+            "detection_rate": m.get("detection_rate"),
+            "fault_free_episodes": n_free,
             "false_alarm_episodes": None if fa is None else int(round(fa * n_free)),
-            "wrong_isolations_ever": ever, "wrong_isolations_end": end}
+            "wrong_isolations_ever": ever,
+            "wrong_isolations_end": end,
+        }
     return out
 
 
@@ -95,9 +99,13 @@ def cell_set_table(data_dir: Path = Path("docs/data")) -> list[str]:
         return []
     agents = summary["agents"]
     head = ["diagnoser", "cells"]
-    head += ["6.4.1-6.4.4: injected set among the final minimal diagnoses", "6.4.2, 6.4.3: unique",
-             "runs over the thesis's candidate count (4, 1, 1, 9)", "held-out grid: wrong isolations / detected runs",
-             "held-out grid: isolated at the end"]
+    head += [
+        "6.4.1-6.4.4: injected set among the final minimal diagnoses",
+        "6.4.2, 6.4.3: unique",
+        "runs over the thesis's candidate count (4, 1, 1, 9)",
+        "held-out grid: wrong isolations / detected runs",
+        "held-out grid: isolated at the end",
+    ]
     head += [f"{s} isolation acc." for s in SUITE_ORDER if s != "nominal-v1"]
     head += ["single-v1 wrong isolations ever / at the end", "nominal-v1 episodes with a false alarm"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]

@@ -52,24 +52,42 @@ from pathlib import Path
 
 import numpy as np
 
-from marine_fdi_env.engine.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, FaultSpec
-from marine_fdi_env.engine.simulator import Simulator
 from marine_fdi_env.diagnosis.batch import BATCH, DIAGNOSERS, PARAMS
-from marine_fdi_env.diagnosis.sequential import SequentialDiagnoser
+from marine_fdi_env.diagnosis.cell_sets import size_blind_cells
 from marine_fdi_env.diagnosis.decision import DiagnosisState, declared_faults
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
 from marine_fdi_env.diagnosis.peak_ratio import PeakRecorder, peak_at
+from marine_fdi_env.diagnosis.sequential import SequentialDiagnoser
 from marine_fdi_env.diagnosis.sized_cells import SIZED_FILES, SizedCells, load_sized_cells
 from marine_fdi_env.diagnosis.sized_decision import SizedDiagnosisState
-from marine_fdi_env.diagnosis.cell_sets import size_blind_cells
-from .sized_derivation import derive_sized_cells
 from marine_fdi_env.diagnosis.structure import fault_signature_matrix
-from marine_fdi_env.diagnosis.sure_cells import (SURE_CELLS_FILE, SureCells, grace_times, load_sure_cells, settle_times,  # noqa: F401
-                         sure_cells)
+from marine_fdi_env.diagnosis.sure_cells import (
+    SURE_CELLS_FILE,
+    SureCells,
+    grace_times,
+    load_sure_cells,
+    settle_times,  # noqa: F401
+    sure_cells,
+)
+from marine_fdi_env.engine.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, FaultSpec
+from marine_fdi_env.engine.simulator import Simulator
 from studies.paths import PACKAGE_DATA
 
-__all__ = ["grid_magnitudes", "measure", "derive_sure_cells", "replay_declarations", "validate",
-           "sure_cells", "settle_times", "grace_times", "SENSOR_ONSET_S", "N_GRID", "SURE_FILES"]
+from .sized_derivation import derive_sized_cells
+
+__all__ = [
+    "grid_magnitudes",
+    "measure",
+    "derive_sure_cells",
+    "replay_declarations",
+    "validate",
+    "sure_cells",
+    "settle_times",
+    "grace_times",
+    "SENSOR_ONSET_S",
+    "N_GRID",
+    "SURE_FILES",
+]
 
 SENSOR_ONSET_S = 30.0
 DURATION_S = 300.0
@@ -149,9 +167,17 @@ def _runs(held_out: bool, n_seeds: int, seed0: int | None = None) -> list[dict]:
             for sign in signs:
                 for prof in profiles:
                     for s in range(n_seeds):
-                        runs.append({"fault": f, "magnitude": sign * mag, "grid_index": j,
-                                     "size_index": size_index(mag), "profile": _profile(prof, rng),
-                                     "family": prof, "seed": seed0 + len(runs)})
+                        runs.append(
+                            {
+                                "fault": f,
+                                "magnitude": sign * mag,
+                                "grid_index": j,
+                                "size_index": size_index(mag),
+                                "profile": _profile(prof, rng),
+                                "family": prof,
+                                "seed": seed0 + len(runs),
+                            }
+                        )
 
     for f in FAULT_IDS:
         g = grid_magnitudes(f, held_out)
@@ -171,8 +197,17 @@ def measure(n_seeds: int = 8, held_out: bool = False, progress: bool = True, see
     {"reference": (runs, 19), "sequential": (runs, 19)} seconds after the fault's onset (NaN:
     never), with each run's fault, magnitude, profile and seed."""
     runs = _runs(held_out, n_seeds, seed0)
-    schedules = [[FaultSpec(r["fault"], _onset(r["fault"]), magnitude=r["magnitude"],
-                            kind=None if r["fault"] in PROCESS_FAULT_DEFAULTS else "offset")] for r in runs]
+    schedules = [
+        [
+            FaultSpec(
+                r["fault"],
+                _onset(r["fault"]),
+                magnitude=r["magnitude"],
+                kind=None if r["fault"] in PROCESS_FAULT_DEFAULTS else "offset",
+            )
+        ]
+        for r in runs
+    ]
     seeds = [r["seed"] for r in runs]
     profiles = [r["profile"] for r in runs]
     ref_t = np.full((len(runs), len(MODULE_IDS)), np.nan)
@@ -203,10 +238,15 @@ def measure(n_seeds: int = 8, held_out: bool = False, progress: bool = True, see
     if bar is not None:
         bar.close()
     on = np.array([_onset(r["fault"]) for r in runs])[:, None]
-    return {"held_out": held_out, "n_seeds": n_seeds, "runs": runs, "duration_s": DURATION_S,
-            "sensor_onset_s": SENSOR_ONSET_S,
-            "times_after_onset_s": {"reference": (ref_t - on).tolist(), "sequential": (seq_t - on).tolist()},
-            "peak_events": peaks}
+    return {
+        "held_out": held_out,
+        "n_seeds": n_seeds,
+        "runs": runs,
+        "duration_s": DURATION_S,
+        "sensor_onset_s": SENSOR_ONSET_S,
+        "times_after_onset_s": {"reference": (ref_t - on).tolist(), "sequential": (seq_t - on).tolist()},
+        "peak_events": peaks,
+    }
 
 
 def derive_sure_cells(grid: dict, diagnoser: str) -> dict:
@@ -243,22 +283,39 @@ def derive_sure_cells(grid: dict, diagnoser: str) -> dict:
             # fault's first fired module, not only their spread among themselves (the first format)
             spread[j] = float(lag[idx, j].max())
     return {
-        "format": 2, "module_ids": list(MODULE_IDS), "fault_ids": list(FAULT_IDS),
-        "sure": sure.astype(int).tolist(), "lag_s": lag.round(3).tolist(), "spread_s": spread.round(3).tolist(),
-        "detected_runs": detected_runs.tolist(), "runs": total_runs.tolist(),
-        "settings": {"diagnoser": diagnoser, "grid": f"{N_GRID} magnitudes log-spaced from {LOWEST_SCALE}x the "
-                     "detectability limit (data/env/detectability.json) to the table 6.3/6.4 size; sensor offsets "
-                     "of both signs", "profiles": list(GRID_PROFILES), "seeds_per_cell": grid["n_seeds"],
-                     "first_seed": GRID_SEED0, "duration_s": grid["duration_s"],
-                     "sensor_onset_s": grid["sensor_onset_s"],
-                     "rule": "sure = fired in every run where the fault was detected (any module of its support "
-                             "fired at or after the onset), at every magnitude, sign and profile of the grid"},
+        "format": 2,
+        "module_ids": list(MODULE_IDS),
+        "fault_ids": list(FAULT_IDS),
+        "sure": sure.astype(int).tolist(),
+        "lag_s": lag.round(3).tolist(),
+        "spread_s": spread.round(3).tolist(),
+        "detected_runs": detected_runs.tolist(),
+        "runs": total_runs.tolist(),
+        "settings": {
+            "diagnoser": diagnoser,
+            "grid": f"{N_GRID} magnitudes log-spaced from {LOWEST_SCALE}x the "
+            "detectability limit (data/env/detectability.json) to the table 6.3/6.4 size; sensor offsets "
+            "of both signs",
+            "profiles": list(GRID_PROFILES),
+            "seeds_per_cell": grid["n_seeds"],
+            "first_seed": GRID_SEED0,
+            "duration_s": grid["duration_s"],
+            "sensor_onset_s": grid["sensor_onset_s"],
+            "rule": "sure = fired in every run where the fault was detected (any module of its support "
+            "fired at or after the onset), at every magnitude, sign and profile of the grid",
+        },
         "command": f"python -m studies.diagnosis.certainty derive --diagnoser {diagnoser}",
     }
 
 
-def replay_declarations(times, fault: str, sc: "SureCells | SizedCells", duration_s: float = DURATION_S,
-                        onset_s: float = 0.0, peak_events=None) -> dict:
+def replay_declarations(
+    times,
+    fault: str,
+    sc: "SureCells | SizedCells",
+    duration_s: float = DURATION_S,
+    onset_s: float = 0.0,
+    peak_events=None,
+) -> dict:
     """Replay the decision logic on one run's module firing times (19,) [s from the run's start,
     NaN: never]: the events where the fired set changes and the grace expiries, as the streaming
     diagnoser meets them; with sized cells (:class:`SizedCells`) also the run's recorded running
@@ -273,15 +330,22 @@ def replay_declarations(times, fault: str, sc: "SureCells | SizedCells", duratio
         peak_t = sorted({float(e[0]) for ev in peak_events for e in ev})
         order_all = sorted(set(order) | {x for x in peak_t if order and x >= order[0]})
     else:
-        st = DiagnosisState(exoneration=sc.sure, max_cardinality=2, temporal=True, settle_s=sc.settle_times(),
-                            grace_s=sc.grace_times())
+        st = DiagnosisState(
+            exoneration=sc.sure, max_cardinality=2, temporal=True, settle_s=sc.settle_times(), grace_s=sc.grace_times()
+        )
         order_all = order
 
     def peaks_at(now):
         return None if peak_events is None else np.array([peak_at(ev, now) for ev in peak_events])
 
-    out = {"wrong": False, "wrong_at_s": None, "declared_end": [], "ruled_out_end": False, "detected": bool(order),
-           "isolated_from_s": None}
+    out = {
+        "wrong": False,
+        "wrong_at_s": None,
+        "declared_end": [],
+        "ruled_out_end": False,
+        "detected": bool(order),
+        "isolated_from_s": None,
+    }
     history = []
 
     def look(now):
@@ -331,8 +395,10 @@ def validate(held: dict, diagnoser: str, cell_sets: dict) -> dict:
     for name, sc in cell_sets.items():
         if isinstance(sc, SizedCells) and peaks is None:
             raise ValueError("the held-out runs have no peak records: measure them again with this version")
-        per = {f: {"runs": 0, "detected": 0, "wrong": 0, "wrong_end": 0, "isolated_end": 0, "wrong_examples": []}
-               for f in FAULT_IDS}
+        per = {
+            f: {"runs": 0, "detected": 0, "wrong": 0, "wrong_end": 0, "isolated_end": 0, "wrong_examples": []}
+            for f in FAULT_IDS
+        }
         for k, (r, tt) in enumerate(zip(runs, times)):
             f = r["fault"]
             on = _onset(f)
@@ -346,8 +412,15 @@ def validate(held: dict, diagnoser: str, cell_sets: dict) -> dict:
             if rep["wrong"]:
                 p["wrong"] += 1
                 if len(p["wrong_examples"]) < 3:
-                    p["wrong_examples"].append({"magnitude": r["magnitude"], "profile": r["profile"], "seed": r["seed"],
-                                                "at_s": rep["wrong_at_s"], "declared_end": rep["declared_end"]})
+                    p["wrong_examples"].append(
+                        {
+                            "magnitude": r["magnitude"],
+                            "profile": r["profile"],
+                            "seed": r["seed"],
+                            "at_s": rep["wrong_at_s"],
+                            "declared_end": rep["declared_end"],
+                        }
+                    )
         res[name] = per
     return res
 
@@ -358,9 +431,13 @@ def main(argv=None) -> int:
     ap.add_argument("--diagnoser", choices=DIAGNOSERS, default="reference", help="derive / report: which one")
     ap.add_argument("--seeds", type=int, default=None, help="seeds per grid cell (measure 6, validate 3)")
     ap.add_argument("--work-dir", type=Path, default=Path("results/certainty"))
-    ap.add_argument("--first-seed", type=int, default=HELD_OUT_SEED0,
-                    help=f"validate / report: first seed of the held-out runs (default {HELD_OUT_SEED0}, the "
-                         "reported ones; another value makes a development set beside them)")
+    ap.add_argument(
+        "--first-seed",
+        type=int,
+        default=HELD_OUT_SEED0,
+        help=f"validate / report: first seed of the held-out runs (default {HELD_OUT_SEED0}, the "
+        "reported ones; another value makes a development set beside them)",
+    )
     args = ap.parse_args(argv)
     grid_file = args.work_dir / "grid.json"
     dev = args.first_seed != HELD_OUT_SEED0
@@ -394,24 +471,44 @@ def main(argv=None) -> int:
     if not held_file.exists():
         ap.error(f"{held_file} not found: run 'validate' first")
     held = json.loads(held_file.read_text())
-    sets = {"thesis": size_blind_cells(args.diagnoser, "thesis"), "grid": size_blind_cells(args.diagnoser, "grid"),
-            "sized": load_sized_cells(SIZED_FILES[args.diagnoser])}
+    sets = {
+        "thesis": size_blind_cells(args.diagnoser, "thesis"),
+        "grid": size_blind_cells(args.diagnoser, "grid"),
+        "sized": load_sized_cells(SIZED_FILES[args.diagnoser]),
+    }
     seed_opt = f" --first-seed {args.first_seed}" if dev else ""
-    res = {"diagnoser": args.diagnoser, "runs": len(held["runs"]),
-           "held_out": {"magnitudes": "geometric midpoints of the grid", "profiles": list(HELD_OUT_PROFILES),
-                        "first_seed": args.first_seed, "seeds_per_cell": held["n_seeds"]},
-           "command": f"python -m studies.diagnosis.certainty validate --seeds {held['n_seeds']}{seed_opt} && "
-                      f"python -m studies.diagnosis.certainty report --diagnoser {args.diagnoser}{seed_opt}",
-           "result": validate(held, args.diagnoser, sets)}
-    report = (Path("docs/data") if not dev else args.work_dir) / f"certainty_{args.diagnoser}{'' if not dev else '_' + str(args.first_seed)}.json"
+    res = {
+        "diagnoser": args.diagnoser,
+        "runs": len(held["runs"]),
+        "held_out": {
+            "magnitudes": "geometric midpoints of the grid",
+            "profiles": list(HELD_OUT_PROFILES),
+            "first_seed": args.first_seed,
+            "seeds_per_cell": held["n_seeds"],
+        },
+        "command": f"python -m studies.diagnosis.certainty validate --seeds {held['n_seeds']}{seed_opt} && "
+        f"python -m studies.diagnosis.certainty report --diagnoser {args.diagnoser}{seed_opt}",
+        "result": validate(held, args.diagnoser, sets),
+    }
+    report = (
+        Path("docs/data") if not dev else args.work_dir
+    ) / f"certainty_{args.diagnoser}{'' if not dev else '_' + str(args.first_seed)}.json"
     report.parent.mkdir(parents=True, exist_ok=True)
     report.write_text(json.dumps(res, indent=1) + "\n")
     for name, per in res["result"].items():
-        print(name, "wrong isolations:", sum(p["wrong"] for p in per.values()), "of",
-              sum(p["detected"] for p in per.values()), "detected runs;",
-              {f: p["wrong"] for f, p in per.items() if p["wrong"]}, "at the end:",
-              sum(p["wrong_end"] for p in per.values()), "isolated at the end:",
-              sum(p["isolated_end"] for p in per.values()))
+        print(
+            name,
+            "wrong isolations:",
+            sum(p["wrong"] for p in per.values()),
+            "of",
+            sum(p["detected"] for p in per.values()),
+            "detected runs;",
+            {f: p["wrong"] for f, p in per.items() if p["wrong"]},
+            "at the end:",
+            sum(p["wrong_end"] for p in per.values()),
+            "isolated at the end:",
+            sum(p["isolated_end"] for p in per.values()),
+        )
     print(f"wrote {report}")
     return 0
 

@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from marine_fdi_env.engine.faults import FAULT_IDS
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
 from marine_fdi_env.diagnosis.structure import fault_signature_matrix
+from marine_fdi_env.engine.faults import FAULT_IDS
 
 __all__ = ["derive_sized_cells", "final_peaks", "PEAK_MARGIN", "RULE"]
 
@@ -59,8 +59,9 @@ def derive_sized_cells(grid: dict, diagnoser: str, margin: float = PEAK_MARGIN) 
     peaks = final_peaks(grid)
     fault_of = np.array([FAULT_IDS.index(r["fault"]) for r in runs])
     level = np.array([r["size_index"] for r in runs])
-    n_levels = np.array([int(level[fault_of == j].max()) + 1 if (fault_of == j).any() else 1
-                         for j in range(len(FAULT_IDS))])
+    n_levels = np.array(
+        [int(level[fault_of == j].max()) + 1 if (fault_of == j).any() else 1 for j in range(len(FAULT_IDS))]
+    )
     k_max = int(n_levels.max())
     shape = (k_max, len(MODULE_IDS), len(FAULT_IDS))
     sure = np.zeros(shape, dtype=bool)
@@ -85,18 +86,31 @@ def derive_sized_cells(grid: dict, diagnoser: str, margin: float = PEAK_MARGIN) 
                 peak[k, :, j] = peaks[sel & (level <= k)].max(axis=0)
     peak_json = [[[None if not np.isfinite(v) else round(float(v), 5) for v in row] for row in b] for b in peak]
     return {
-        "format": 3, "module_ids": list(MODULE_IDS), "fault_ids": list(FAULT_IDS),
-        "n_levels": n_levels.tolist(), "magnitudes": magnitudes,
-        "sure": sure.astype(int).tolist(), "lag_s": lag.round(3).tolist(), "peak": peak_json,
+        "format": 3,
+        "module_ids": list(MODULE_IDS),
+        "fault_ids": list(FAULT_IDS),
+        "n_levels": n_levels.tolist(),
+        "magnitudes": magnitudes,
+        "sure": sure.astype(int).tolist(),
+        "lag_s": lag.round(3).tolist(),
+        "peak": peak_json,
         "never_fired": never.astype(int).tolist(),
-        "detected_runs": detected.tolist(), "runs": total.tolist(), "margin": margin, "rule": RULE,
-        "settings": {"diagnoser": diagnoser, "levels": "the grid's 5 magnitudes (0.5x the detectability limit to the "
-                     "table size) and two more at the log-thirds of every gap wider than a factor 4 "
-                     "(certainty.sized_magnitudes); sensor offsets of both signs",
-                     "profiles": sorted({r["family"] for r in runs}), "seeds_per_cell": grid["n_seeds"],
-                     "duration_s": grid["duration_s"], "sensor_onset_s": grid["sensor_onset_s"],
-                     "rule": "band k: sure = fired in every run of levels >= k where the fault was detected; "
-                             "peak = the largest running |r|/threshold of the module over the runs of levels <= k; "
-                             "a running peak q is past level k when q > 1 + margin * max(peak_k - 1, 0)"},
+        "detected_runs": detected.tolist(),
+        "runs": total.tolist(),
+        "margin": margin,
+        "rule": RULE,
+        "settings": {
+            "diagnoser": diagnoser,
+            "levels": "the grid's 5 magnitudes (0.5x the detectability limit to the "
+            "table size) and two more at the log-thirds of every gap wider than a factor 4 "
+            "(certainty.sized_magnitudes); sensor offsets of both signs",
+            "profiles": sorted({r["family"] for r in runs}),
+            "seeds_per_cell": grid["n_seeds"],
+            "duration_s": grid["duration_s"],
+            "sensor_onset_s": grid["sensor_onset_s"],
+            "rule": "band k: sure = fired in every run of levels >= k where the fault was detected; "
+            "peak = the largest running |r|/threshold of the module over the runs of levels <= k; "
+            "a running peak q is past level k when q > 1 + margin * max(peak_k - 1, 0)",
+        },
         "command": f"python -m studies.diagnosis.certainty derive --diagnoser {diagnoser}",
     }

@@ -8,6 +8,7 @@ import shutil
 
 import numpy as np
 import pytest
+from test_env_evaluate import suite_file  # noqa: F401  (a fixture: test_env_evaluate's SCENARIOS as a suite file)
 
 from marine_fdi_env.benchmark import evaluate as ev
 from marine_fdi_env.benchmark import feature_cache as fc
@@ -17,8 +18,6 @@ from marine_fdi_env.benchmark.sweep import run_sweep
 from marine_fdi_env.cli import main as cli_main
 from marine_fdi_env.envs import trajectory
 from marine_fdi_env.errors import DataFileError
-
-from test_env_evaluate import suite_file  # noqa: F401  (a fixture: test_env_evaluate's SCENARIOS as a suite file)
 
 pytest.importorskip("pyarrow")
 
@@ -42,13 +41,15 @@ def _only_cache(d):
 
 def test_a_written_cache_scores_any_agent_without_simulating(suite_file, tmp_path, monkeypatch):
     cache = tmp_path / "cache"
-    null = evaluate("null", str(suite_file), tmp_path / "n.json", cache="write", cache_dir=cache, batch_size=3,
-                    progress=False)
+    null = evaluate(
+        "null", str(suite_file), tmp_path / "n.json", cache="write", cache_dir=cache, batch_size=3, progress=False
+    )
     assert "feature_cache" not in null and not list(cache.glob("*.parts"))
     f = _only_cache(cache)
     assert f.name.startswith("tiny-v1_o0_")
-    plain = {a: evaluate(a, str(suite_file), tmp_path / f"{a}.json", progress=False)
-             for a in ("reference", "sequential")}
+    plain = {
+        a: evaluate(a, str(suite_file), tmp_path / f"{a}.json", progress=False) for a in ("reference", "sequential")
+    }
     _no_simulation(monkeypatch)
     for a in ("reference", "sequential"):  # sequential needs observe_sequential: the cache has every option
         got = evaluate(a, str(suite_file), tmp_path / f"{a}c.json", cache="use", cache_dir=cache, progress=False)
@@ -83,8 +84,9 @@ def test_a_cache_of_other_code_or_parameters_or_damaged_is_refused(change, suite
         monkeypatch.setattr(fc, "code_version", lambda: dict(real, source_sha256="0" * 64))
         expect = "made by other code (code.source_sha256"
     elif change == "params":  # the file of another seed offset put where this one's belongs
-        evaluate("null", str(suite_file), tmp_path / "n3.json", seed_offset=3, cache="write", cache_dir=cache,
-                 progress=False)
+        evaluate(
+            "null", str(suite_file), tmp_path / "n3.json", seed_offset=3, cache="write", cache_dir=cache, progress=False
+        )
         other = next(p for p in cache.glob("*.parquet") if p != f)
         shutil.copy(other, f)
         expect = "made with other parameters (params.seed_offset: 3 there, 0 here"
@@ -120,8 +122,9 @@ def test_an_interrupted_cache_write_keeps_its_parts_and_resumes(suite_file, tmp_
 
     monkeypatch.setattr(ev, "evaluate_chunk", stop_after_one)
     with pytest.raises(KeyboardInterrupt):
-        evaluate("null", str(suite_file), tmp_path / "n.json", cache="write", cache_dir=cache, batch_size=1,
-                 progress=False)
+        evaluate(
+            "null", str(suite_file), tmp_path / "n.json", cache="write", cache_dir=cache, batch_size=1, progress=False
+        )
     parts = list(next(cache.glob("*.parts")).glob("part_*.parquet"))
     assert len(parts) == 1 and not list(cache.glob("*.parquet"))
     monkeypatch.setattr(ev, "evaluate_chunk", real)
@@ -135,12 +138,26 @@ def test_an_interrupted_cache_write_keeps_its_parts_and_resumes(suite_file, tmp_
 
 def test_a_sweep_writes_and_then_reads_the_caches(suite_file, tmp_path, monkeypatch):
     cache = tmp_path / "cache"
-    a = run_sweep(["null", "reference", "sequential"], [str(suite_file)], [0, 2], tmp_path / "a", cache="write",
-                  cache_dir=cache, progress=False)
+    a = run_sweep(
+        ["null", "reference", "sequential"],
+        [str(suite_file)],
+        [0, 2],
+        tmp_path / "a",
+        cache="write",
+        cache_dir=cache,
+        progress=False,
+    )
     assert len(a["run"]["caches_written"]) == 2 and not a["run"]["caches_read"]
     _no_simulation(monkeypatch)
-    b = run_sweep(["null", "reference", "sequential", "oracle"], [str(suite_file)], [0, 2], tmp_path / "b", cache="use",
-                  cache_dir=cache, progress=False)
+    b = run_sweep(
+        ["null", "reference", "sequential", "oracle"],
+        [str(suite_file)],
+        [0, 2],
+        tmp_path / "b",
+        cache="use",
+        cache_dir=cache,
+        progress=False,
+    )
     assert len(b["run"]["caches_read"]) == 2
     from marine_fdi_env.benchmark.records import read_records
 

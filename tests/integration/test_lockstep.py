@@ -5,15 +5,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_env_evaluate import SCENARIOS
+from test_scale_out import _no_clock
 
 from marine_fdi_env.benchmark.agent_api import load_agent
 from marine_fdi_env.benchmark.evaluate import plan_passes, run_agents, suite_env_kwargs
 from marine_fdi_env.benchmark.metrics import compute_metrics
 from marine_fdi_env.benchmark.suites import SUITE_NAMES, load_suite
 from marine_fdi_env.envs.trajectory import simulate
-
-from test_env_evaluate import SCENARIOS
-from test_scale_out import _no_clock
 from tests import env_runner
 from tests.paths import ROOT
 
@@ -25,11 +24,11 @@ AGENTS = ("null", "random", "reference", "sequential", "oracle", "ppo", "classif
 
 def _assert_lockstep_equals_alone(scenarios, env_kwargs, suite, seed_offset=0, batch_size=32):
     agents = [load_agent(a) for a in AGENTS]
-    together, _ = run_agents(agents, scenarios, env_kwargs, suite=suite, seed_offset=seed_offset,
-                             batch_size=batch_size)
+    together, _ = run_agents(agents, scenarios, env_kwargs, suite=suite, seed_offset=seed_offset, batch_size=batch_size)
     for name, mine in zip(AGENTS, together):
-        alone = env_runner.run_episodes(load_agent(name), scenarios, env_kwargs, suite=suite,
-                                        seed_offset=seed_offset, batch_size=batch_size)
+        alone = env_runner.run_episodes(
+            load_agent(name), scenarios, env_kwargs, suite=suite, seed_offset=seed_offset, batch_size=batch_size
+        )
         assert _no_clock(mine) == _no_clock(alone), name
         assert _no_clock(compute_metrics(mine)) == _no_clock(compute_metrics(alone)), name
     return together
@@ -67,9 +66,17 @@ def test_observation_options_share_one_pass_and_other_arguments_get_their_own():
         def __init__(self, **kw):
             self.env_kwargs = kw
 
-    passes = plan_passes([Wants(), Wants(observe_sequential=True), Wants(observe_sensors=True),
-                          Wants(decision_period_s=2.0), Wants(diagnosis_cells="sized"), Wants(diagnosis_cells="grid")],
-                         {"decision_period_s": 1.0, "observe_sensors": False})
+    passes = plan_passes(
+        [
+            Wants(),
+            Wants(observe_sequential=True),
+            Wants(observe_sensors=True),
+            Wants(decision_period_s=2.0),
+            Wants(diagnosis_cells="sized"),
+            Wants(diagnosis_cells="grid"),
+        ],
+        {"decision_period_s": 1.0, "observe_sensors": False},
+    )
     # an option at the environment's default value (decision_period_s 1.0, diagnosis_cells "sized") makes the
     # same simulation as one left out: one pass, which leaves it out
     assert [p.agents for p in passes] == [(0, 1, 2, 4), (3,), (5,)]
@@ -86,10 +93,11 @@ def test_an_agent_with_sensor_features_sees_its_own_columns():
     full = simulate(sc, {"observe_sensors": True, "observe_sequential": True})
     plain = simulate(sc, {})
     assert full.obs.shape[2] == plain.obs.shape[2] + 20 + 19 * 4
-    np.testing.assert_array_equal(full.obs[:, :, :plain.obs.shape[2]], plain.obs)
+    np.testing.assert_array_equal(full.obs[:, :, : plain.obs.shape[2]], plain.obs)
     assert np.array_equal(full.reference_detected, plain.reference_detected)
-    assert [[list(map(list, d)) for d in row] for row in full.reference_diagnoses] == \
-        [[list(map(list, d)) for d in row] for row in plain.reference_diagnoses]
+    assert [[list(map(list, d)) for d in row] for row in full.reference_diagnoses] == [
+        [list(map(list, d)) for d in row] for row in plain.reference_diagnoses
+    ]
     agent = load_agent(f"{ROOT / 'docs' / 'examples' / 'fired_modules_agent.py'}:FiredModulesAgent")
     _assert_one(agent, sc)
 

@@ -40,8 +40,8 @@ import shlex
 from importlib import metadata
 from pathlib import Path
 
-from marine_fdi_env.cli import main as cli_main
 from marine_fdi_env.benchmark.suites import SUITE_NAMES, load_suite
+from marine_fdi_env.cli import main as cli_main
 from tests.paths import ROOT
 
 README = ROOT / "README.md"

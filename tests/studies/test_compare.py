@@ -15,17 +15,31 @@ from marine_fdi_env.benchmark.metrics import compute_metrics  # noqa: E402
 
 def _episode(sid: str, delay):
     trace = [[1.0, [], False]] + ([[10.0 + delay, [], True]] if delay is not None else [])
-    return {"scenario_id": sid, "suite": "incipient-v1", "seed": 0, "agent": "a", "profile": "constant",
-            "duration_s": 300.0, "decision_period_s": 1.0, "n_samples": 30000,
-            "faults": [{"id": "bore_damage", "class": "process", "onset_s": 10.0, "magnitude": 1.0, "end_s": None}],
-            "declared_changes": trace, "belief_on_truth": [], "terminated": False, "failure_reason": None,
-            "compute_s": 0.0, "return": 0.0, "reward_terms": {}}
+    return {
+        "scenario_id": sid,
+        "suite": "incipient-v1",
+        "seed": 0,
+        "agent": "a",
+        "profile": "constant",
+        "duration_s": 300.0,
+        "decision_period_s": 1.0,
+        "n_samples": 30000,
+        "faults": [{"id": "bore_damage", "class": "process", "onset_s": 10.0, "magnitude": 1.0, "end_s": None}],
+        "declared_changes": trace,
+        "belief_on_truth": [],
+        "terminated": False,
+        "failure_reason": None,
+        "compute_s": 0.0,
+        "return": 0.0,
+        "reward_terms": {},
+    }
 
 
 def _write(tmp_path, agent, suite, delays):
     eps = [_episode(f"e{i}", d) for i, d in enumerate(delays)]
-    (tmp_path / f"{agent}_{suite}.json").write_text(json.dumps({"agent": agent, "suite": suite,
-                                                                 "metrics": compute_metrics(eps), "episodes": eps}))
+    (tmp_path / f"{agent}_{suite}.json").write_text(
+        json.dumps({"agent": agent, "suite": suite, "metrics": compute_metrics(eps), "episodes": eps})
+    )
 
 
 @pytest.fixture
@@ -47,8 +61,11 @@ def test_not_reached_reference_loses_to_any_censored_median(results):
     assert censored[1] is True and "not reached" in censored[0] and "90.0 s" in censored[0]
     paired = next(v for k, v in checks.items() if "paired" in k)
     # both detect e0, e1: 25 s vs 45 s, ratio 0.56 -> not met
-    assert paired[1] is False and "25.0 s vs 45.0 s" in paired[0] and "the 2 episodes" in next(
-        k for k in checks if "paired" in k)
+    assert (
+        paired[1] is False
+        and "25.0 s vs 45.0 s" in paired[0]
+        and "the 2 episodes" in next(k for k in checks if "paired" in k)
+    )
 
 
 def test_an_agent_that_does_not_reach_its_median_fails(results):

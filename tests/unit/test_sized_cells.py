@@ -70,7 +70,7 @@ def test_shipped_sized_cells_are_consistent():
         assert not (c.sure & ~support[None]).any()
         # the envelope grows with the size level
         for j in range(26):
-            env = c.peak[:c.n_levels[j], :, j]
+            env = c.peak[: c.n_levels[j], :, j]
             assert np.isfinite(env).all() and np.all(np.diff(env, axis=0) >= 0)
         # band 0 pools every size, the grid's and the added ones: never more sure cells than the grid
         assert not (c.sure[0] & ~grid.sure).any()
@@ -97,8 +97,9 @@ def _replay_643(cells: str) -> list:
     for t, m, q in events:
         fired.add(m)
         peaks[M[m]] = q
-        st.update([x in fired for x in MODULE_IDS], t, peaks) if cells == "sized" else \
-            st.update([x in fired for x in MODULE_IDS], t)
+        st.update([x in fired for x in MODULE_IDS], t, peaks) if cells == "sized" else st.update(
+            [x in fired for x in MODULE_IDS], t
+        )
     st.advance(300.0)
     return st.diagnoses
 

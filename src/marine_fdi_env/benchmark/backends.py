@@ -15,7 +15,8 @@ neighbours), so serial, process and Ray runs agree bit for bit (tested).
 Ray is optional (``pip install 'marine-fdi-env[ray]'``) and imported only when asked for.  With
 ``ray_address`` (or the ``RAY_ADDRESS`` environment variable; ``auto`` = the cluster ``ray start``
 made on this machine) :func:`run_tasks` connects to an existing cluster; otherwise it starts a new
-local instance with ``num_cpus = workers`` and no dashboard, and stops it at the end.  If Ray is already initialised in this process (a test, a
+local instance with ``num_cpus = workers`` and no dashboard, and stops it at the end.  If Ray is already
+initialised in this process (a test, a
 notebook) that instance is used and left running.
 """
 
@@ -72,9 +73,14 @@ def chunk_size(n_items: int, batch_size: int, workers: int) -> int:
     return max(1, math.ceil(n_items / n_chunks))
 
 
-def run_tasks(backend: Backend, fn: Callable, tasks: Sequence[tuple], *,
-              on_result: Callable[[int, Any], None],
-              on_progress: Callable[[int, float], None] | None = None) -> None:
+def run_tasks(
+    backend: Backend,
+    fn: Callable,
+    tasks: Sequence[tuple],
+    *,
+    on_result: Callable[[int, Any], None],
+    on_progress: Callable[[int, float], None] | None = None,
+) -> None:
     """Run ``fn(*tasks[i], progress=cb)`` for every i on ``backend``.
 
     ``on_result(i, result)`` and ``on_progress(i, x)`` are called in this process and thread.
@@ -208,8 +214,13 @@ def ray_connect(backend: Backend):
         # ray.init() would join that one); join it with --ray-address auto
         try:
             with _sigint_blocked_for_children():
-                ray.init(address="local", num_cpus=backend.workers, include_dashboard=False,
-                         logging_level=logging.WARNING, log_to_driver=False)
+                ray.init(
+                    address="local",
+                    num_cpus=backend.workers,
+                    include_dashboard=False,
+                    logging_level=logging.WARNING,
+                    log_to_driver=False,
+                )
         except KeyboardInterrupt:  # Ctrl-C while Ray was starting: delivered once it had started
             if ray.is_initialized():
                 ray.shutdown()

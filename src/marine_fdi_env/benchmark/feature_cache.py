@@ -51,8 +51,18 @@ from ..envs.scenario_sampler import ScenarioSpec
 from ..envs.trajectory import Trajectory, assemble
 from ..errors import DataFileError, MissingExtra
 
-__all__ = ["CACHE_MODES", "DEFAULT_CACHE_DIR", "FORMAT", "code_version", "cache_header", "cache_path",
-           "write_trajectory", "read_trajectory", "cached_indices", "SuiteCache"]
+__all__ = [
+    "CACHE_MODES",
+    "DEFAULT_CACHE_DIR",
+    "FORMAT",
+    "code_version",
+    "cache_header",
+    "cache_path",
+    "write_trajectory",
+    "read_trajectory",
+    "cached_indices",
+    "SuiteCache",
+]
 
 CACHE_MODES = ("use", "write", "off")
 DEFAULT_CACHE_DIR = Path("results") / "cache"
@@ -87,8 +97,13 @@ def code_version() -> dict:
     """The code a trajectory depends on: package version, source hash, numpy/numba/Python versions."""
     import numba
 
-    return {"package": __version__, "source_sha256": _source_sha256(), "numpy": np.__version__,
-            "numba": numba.__version__, "python": platform.python_version()}
+    return {
+        "package": __version__,
+        "source_sha256": _source_sha256(),
+        "numpy": np.__version__,
+        "numba": numba.__version__,
+        "python": platform.python_version(),
+    }
 
 
 def _jsonable(v):
@@ -101,14 +116,25 @@ def _jsonable(v):
     return v
 
 
-def cache_header(suite_name: str, suite_version, seed_offset: int, env_kwargs: dict,
-                 scenarios: list[ScenarioSpec]) -> dict:
+def cache_header(
+    suite_name: str, suite_version, seed_offset: int, env_kwargs: dict, scenarios: list[ScenarioSpec]
+) -> dict:
     """The header a cache of these episodes (seed offset applied) on this environment must carry."""
     env = {k: _jsonable(v) for k, v in sorted(env_kwargs.items()) if k != "reward"}
     scen = hashlib.sha256(json.dumps([s.to_dict() for s in scenarios], sort_keys=True).encode()).hexdigest()
-    return {"kind": KIND, "format": FORMAT, "code": code_version(),
-            "params": {"suite": suite_name, "suite_version": suite_version, "seed_offset": int(seed_offset),
-                       "n_episodes": len(scenarios), "scenarios_sha256": scen, "env": env}}
+    return {
+        "kind": KIND,
+        "format": FORMAT,
+        "code": code_version(),
+        "params": {
+            "suite": suite_name,
+            "suite_version": suite_version,
+            "seed_offset": int(seed_offset),
+            "n_episodes": len(scenarios),
+            "scenarios_sha256": scen,
+            "env": env,
+        },
+    }
 
 
 def cache_path(cache_dir: "str | Path", header: dict) -> Path:
@@ -129,10 +155,15 @@ def _columns(idx: np.ndarray, traj: Trajectory) -> dict:
     d = traj.n_decisions
     jj = np.repeat(np.arange(traj.n), d)
     kk = np.concatenate([np.arange(x) for x in d]) if traj.n else np.zeros(0, dtype=np.int64)
-    cols = {"episode": idx[jj].astype(np.int32), "step": kk.astype(np.int32), "t_s": traj.t[kk, jj],
-            "feature_s": traj.feature_s[kk, jj], "obs": np.ascontiguousarray(traj.obs[kk, jj], dtype=np.float32),
-            "reference_detected": traj.reference_detected[kk, jj],
-            "reference_diagnoses": [_dumps(x) for x in traj.reference_diagnoses[kk, jj]]}
+    cols = {
+        "episode": idx[jj].astype(np.int32),
+        "step": kk.astype(np.int32),
+        "t_s": traj.t[kk, jj],
+        "feature_s": traj.feature_s[kk, jj],
+        "obs": np.ascontiguousarray(traj.obs[kk, jj], dtype=np.float32),
+        "reference_detected": traj.reference_detected[kk, jj],
+        "reference_diagnoses": [_dumps(x) for x in traj.reference_diagnoses[kk, jj]],
+    }
     if traj.observe_sequential:
         cols["sequential_detected"] = traj.sequential_detected[kk, jj]
         cols["sequential_diagnoses"] = [_dumps(x) for x in traj.sequential_diagnoses[kk, jj]]
@@ -152,12 +183,25 @@ def write_trajectory(path: "str | Path", idx, traj: Trajectory, header: dict) ->
     pa, pq = _pyarrow("a feature cache")
     idx = np.asarray(idx, dtype=np.int64)
     cols = _columns(idx, traj)
-    meta = {"header": header, "feature_names": list(traj.feature_names), "decision_period_s": traj.decision_period_s,
-            "period_samples": traj.period_samples, "observe_sequential": traj.observe_sequential,
-            "episodes": [{"index": int(e), "scenario": sc.to_dict(), "n_decisions": int(traj.n_decisions[j]),
-                          "terminated": bool(traj.terminated[j]), "failure": traj.failures[j],
-                          "failure_step": int(traj.failure_step[j]), "compute_s": float(traj.compute_s[j])}
-                         for j, (e, sc) in enumerate(zip(idx.tolist(), traj.scenarios))]}
+    meta = {
+        "header": header,
+        "feature_names": list(traj.feature_names),
+        "decision_period_s": traj.decision_period_s,
+        "period_samples": traj.period_samples,
+        "observe_sequential": traj.observe_sequential,
+        "episodes": [
+            {
+                "index": int(e),
+                "scenario": sc.to_dict(),
+                "n_decisions": int(traj.n_decisions[j]),
+                "terminated": bool(traj.terminated[j]),
+                "failure": traj.failures[j],
+                "failure_step": int(traj.failure_step[j]),
+                "compute_s": float(traj.compute_s[j]),
+            }
+            for j, (e, sc) in enumerate(zip(idx.tolist(), traj.scenarios))
+        ],
+    }
     meta["checksum"] = _checksum(cols, meta)
     D = len(traj.feature_names)
     arrays = {}
@@ -188,11 +232,15 @@ def _check_header(path: Path, old, header: dict) -> None:
     if old.get("format") != header["format"]:
         raise _refuse(path, f"feature cache of format {old.get('format')!r}, this code reads {header['format']}")
     if old.get("code") != header["code"]:
-        raise _refuse(path, "feature cache made by other code ("
-                      f"{differing_fields(old.get('code'), header['code'], 'code')})")
+        raise _refuse(
+            path, f"feature cache made by other code ({differing_fields(old.get('code'), header['code'], 'code')})"
+        )
     if old.get("params") != header["params"]:
-        raise _refuse(path, "feature cache made with other parameters ("
-                      f"{differing_fields(old.get('params'), header['params'], 'params')})")
+        raise _refuse(
+            path,
+            "feature cache made with other parameters ("
+            f"{differing_fields(old.get('params'), header['params'], 'params')})",
+        )
 
 
 def _metadata(path: Path, read) -> tuple[object, dict]:
@@ -269,16 +317,23 @@ def _trajectory(cols: dict, meta: dict) -> tuple[np.ndarray, Trajectory]:
 
     seq = bool(meta["observe_sequential"])
     traj = Trajectory(
-        scenarios=[ScenarioSpec.from_dict(e["scenario"]) for e in eps], feature_names=tuple(meta["feature_names"]),
-        decision_period_s=float(meta["decision_period_s"]), period_samples=int(meta["period_samples"]),
-        obs=grid(cols["obs"], np.float32, 0.0, (len(meta["feature_names"]),)), t=grid(cols["t_s"], float, 0.0),
-        feature_s=grid(cols["feature_s"], float, 0.0), reference_detected=grid(cols["reference_detected"], bool, False),
+        scenarios=[ScenarioSpec.from_dict(e["scenario"]) for e in eps],
+        feature_names=tuple(meta["feature_names"]),
+        decision_period_s=float(meta["decision_period_s"]),
+        period_samples=int(meta["period_samples"]),
+        obs=grid(cols["obs"], np.float32, 0.0, (len(meta["feature_names"]),)),
+        t=grid(cols["t_s"], float, 0.0),
+        feature_s=grid(cols["feature_s"], float, 0.0),
+        reference_detected=grid(cols["reference_detected"], bool, False),
         reference_diagnoses=grid(_parse(cols["reference_diagnoses"]), object, None),
         sequential_detected=grid(cols["sequential_detected"], bool, False) if seq else None,
         sequential_diagnoses=grid(_parse(cols["sequential_diagnoses"]), object, None) if seq else None,
-        n_decisions=n_dec, terminated=np.array([e["terminated"] for e in eps], dtype=bool),
-        failures=[e["failure"] for e in eps], failure_step=np.array([e["failure_step"] for e in eps], dtype=np.int64),
-        compute_s=np.array([e["compute_s"] for e in eps], dtype=float))
+        n_decisions=n_dec,
+        terminated=np.array([e["terminated"] for e in eps], dtype=bool),
+        failures=[e["failure"] for e in eps],
+        failure_step=np.array([e["failure_step"] for e in eps], dtype=np.int64),
+        compute_s=np.array([e["compute_s"] for e in eps], dtype=float),
+    )
     return idx, traj
 
 

@@ -97,23 +97,43 @@ class _Episodes:
             ok = ~np.isnan(share)
             term = bool(tr.terminated[i])
             feature_s = float(tr.compute_s[i])
-            out.append({
-                "scenario_id": sc.scenario_id, "suite": suite, "seed": int(sc.noise_seed), "agent": name,
-                "profile": sc.profile, "duration_s": float(t[-1]) if term else float(sc.duration_s),
-                "decision_period_s": tr.decision_period_s, "n_samples": int(d * tr.period_samples),
-                "faults": sc.truth(), "declared_changes": self.trace[r],
-                "belief_on_truth": np.column_stack((t[ok], share[ok])).tolist(),
-                "terminated": term, "failure_reason": (tr.failures[i] or {}).get("reason") or None if term else None,
-                "compute_s": float(feature_s + self.agent_s[r]), "return": float(self.ret[r]),
-                "reward_terms": {k: float(v[r]) for k, v in self.terms.items()}, "feature_compute_s": feature_s,
-                "agent_compute_s": float(self.agent_s[r]), "n_decisions": d,
-            })
+            out.append(
+                {
+                    "scenario_id": sc.scenario_id,
+                    "suite": suite,
+                    "seed": int(sc.noise_seed),
+                    "agent": name,
+                    "profile": sc.profile,
+                    "duration_s": float(t[-1]) if term else float(sc.duration_s),
+                    "decision_period_s": tr.decision_period_s,
+                    "n_samples": int(d * tr.period_samples),
+                    "faults": sc.truth(),
+                    "declared_changes": self.trace[r],
+                    "belief_on_truth": np.column_stack((t[ok], share[ok])).tolist(),
+                    "terminated": term,
+                    "failure_reason": (tr.failures[i] or {}).get("reason") or None if term else None,
+                    "compute_s": float(feature_s + self.agent_s[r]),
+                    "return": float(self.ret[r]),
+                    "reward_terms": {k: float(v[r]) for k, v in self.terms.items()},
+                    "feature_compute_s": feature_s,
+                    "agent_compute_s": float(self.agent_s[r]),
+                    "n_decisions": d,
+                }
+            )
         return out
 
 
-def score_agents(agents: list, views: list[AgentView], traj: Trajectory, reward: RewardConfig | RewardConfigV1,
-                 *, suite: str = "", seed_offset: int = 0, progress: Callable[[float], None] | None = None,
-                 on_decision: Callable | None = None) -> list[list[dict]]:
+def score_agents(
+    agents: list,
+    views: list[AgentView],
+    traj: Trajectory,
+    reward: RewardConfig | RewardConfigV1,
+    *,
+    suite: str = "",
+    seed_offset: int = 0,
+    progress: Callable[[float], None] | None = None,
+    on_decision: Callable | None = None,
+) -> list[list[dict]]:
     """Step ``agents`` (seen through ``views``) in lockstep on ``traj``; their episode records
     (one list per agent, in the trajectory's episode order).
 
@@ -155,8 +175,9 @@ def score_agents(agents: list, views: list[AgentView], traj: Trajectory, reward:
         rows = np.concatenate([j * n + live for j in range(K)])
         t = traj.t[k, live]
         stacked = np.concatenate([b[live] for b in beliefs])
-        out = scorer.score(stacked, rows, np.tile(active[live], (K, 1)), np.tile(first[live], K),
-                           np.tile(last[live], K), np.tile(t, K))
+        out = scorer.score(
+            stacked, rows, np.tile(active[live], (K, 1)), np.tile(first[live], K), np.tile(last[live], K), np.tile(t, K)
+        )
         ending = traj.n_decisions[live] == k + 1
         scorer.end_terms(out, rows, rows[np.tile(ending, K)])
         eps.add(k, rows, np.tile(t, K), stacked, out)
@@ -165,17 +186,28 @@ def score_agents(agents: list, views: list[AgentView], traj: Trajectory, reward:
         m = len(live)
         for j in range(K):
             sl = slice(j * m, (j + 1) * m)
-            own[j] = scatter_infos(n, [(live, {
-                "declared": object_array([list(d) for d in out.declared[sl]]), "alarm": out.alarm[sl],
-                "belief_on_truth": out.belief_on_truth[sl].astype(float),
-                "reward_terms": {name: v[sl].astype(float) for name, v in out.terms.items()},
-                "decision_time_s": t.astype(float)})])
+            own[j] = scatter_infos(
+                n,
+                [
+                    (
+                        live,
+                        {
+                            "declared": object_array([list(d) for d in out.declared[sl]]),
+                            "alarm": out.alarm[sl],
+                            "belief_on_truth": out.belief_on_truth[sl].astype(float),
+                            "reward_terms": {name: v[sl].astype(float) for name, v in out.terms.items()},
+                            "decision_time_s": t.astype(float),
+                        },
+                    )
+                ],
+            )
             own[j].update(scatter_infos(n, [(stopped, {"termination_reason": reasons})]))
             if on_decision is not None:
                 cost = traj.feature_s[k, live]
                 for i, c in zip(live, cost):
-                    on_decision(j, traj.scenarios[i].scenario_id, float(traj.t[k, i]), beliefs[j][i],
-                                float(c) + spent[j])
+                    on_decision(
+                        j, traj.scenarios[i].scenario_id, float(traj.t[k, i]), beliefs[j][i], float(c) + spent[j]
+                    )
         if progress is not None:
             progress(len(live) / traj.steps)
     return [eps.records(j, a.name, suite) for j, a in enumerate(agents)]

@@ -33,9 +33,9 @@ import os
 import time
 from pathlib import Path
 
-from .._version import __version__
 import numpy as np
 
+from .._version import __version__
 from .backends import Backend, chunk_size, run_tasks
 from .evaluate import cached_agent, chunk_tasks, evaluate_chunk, suite_caches, suite_env_kwargs
 from .records import sweep_results  # noqa: F401 - part of this module's API
@@ -52,7 +52,7 @@ def _expand_agents(agents: list[str]) -> list[str]:
 
     out: list[str] = []
     for a in agents:
-        for x in ([e.name for e in list_agents()] if a == "all" else [a]):
+        for x in [e.name for e in list_agents()] if a == "all" else [a]:
             if x not in out:
                 out.append(x)
     return out
@@ -61,7 +61,7 @@ def _expand_agents(agents: list[str]) -> list[str]:
 def _expand_suites(suites: list[str]) -> list[str]:
     out: list[str] = []
     for s in suites:
-        for x in (SUITE_NAMES if s == "all" else [s]):
+        for x in SUITE_NAMES if s == "all" else [s]:
             if x not in out:
                 out.append(x)
     return out
@@ -81,8 +81,9 @@ def _load_partial(path: Path, header: dict) -> dict[tuple, dict]:
         from ..outputs import differing_fields
 
         what = differing_fields((old or {}).get("grid"), header["grid"], "grid" if old is None else "")
-        raise ValueError(f"{path} belongs to another sweep ({what}); rerun that command to finish it, or remove the "
-                         "file")
+        raise ValueError(
+            f"{path} belongs to another sweep ({what}); rerun that command to finish it, or remove the file"
+        )
     done = {}
     for ln in lines[1:]:
         try:
@@ -93,9 +94,18 @@ def _load_partial(path: Path, header: dict) -> dict[tuple, dict]:
     return done
 
 
-def run_sweep(agents: list[str], suites: list[str], seed_offsets: list[int], out_dir: "str | Path", *,
-              backend: Backend | None = None, batch_size: int = 32, progress: bool = True, cache: str = "off",
-              cache_dir=None) -> dict:
+def run_sweep(
+    agents: list[str],
+    suites: list[str],
+    seed_offsets: list[int],
+    out_dir: "str | Path",
+    *,
+    backend: Backend | None = None,
+    batch_size: int = 32,
+    progress: bool = True,
+    cache: str = "off",
+    cache_dir=None,
+) -> dict:
     """Run (or resume, or extend) a sweep into ``out_dir``; returns the contents of metrics.json.
 
     ``cache``: ``use`` (score on the suites' feature caches in ``cache_dir`` where there are),
@@ -144,17 +154,28 @@ def run_sweep(agents: list[str], suites: list[str], seed_offsets: list[int], out
         for k in offsets:
             caches = suite_caches(cache, cache_dir, suite, k, [loaded[a] for a in agents], env_kwargs)
             all_caches += caches.values()
-            lacks = np.array([[(a, suite.name, k, sc.scenario_id) not in done for a in agents]
-                              for sc in suite.scenarios], dtype=bool).reshape(len(suite.scenarios), len(agents))
+            lacks = np.array(
+                [[(a, suite.name, k, sc.scenario_id) not in done for a in agents] for sc in suite.scenarios], dtype=bool
+            ).reshape(len(suite.scenarios), len(agents))
             need = lacks.any(axis=1)
             for c in caches.values():
                 need[c.missing()] = True  # episodes a feature cache being written has no trajectory of
             todo = np.flatnonzero(need)
             for idx, given in chunk_tasks(caches, todo, chunk_size(len(todo), batch_size, backend.workers)):
                 run = [a for a, m in zip(agents, lacks[idx].any(axis=0)) if m] or agents
-                tasks.append(([specs[a] for a in run], [suite.scenarios[i].to_dict() for i in idx], env_kwargs,
-                              suite.name, k, batch_size, given or None, any(c.keep for c in caches.values()),
-                              cache == "write"))
+                tasks.append(
+                    (
+                        [specs[a] for a in run],
+                        [suite.scenarios[i].to_dict() for i in idx],
+                        env_kwargs,
+                        suite.name,
+                        k,
+                        batch_size,
+                        given or None,
+                        any(c.keep for c in caches.values()),
+                        cache == "write",
+                    )
+                )
                 plan.append((run, k, idx, caches))
     n_before = len(done)
     if tasks and not (all_caches and all(c.trajectory is not None for c in all_caches)):
@@ -196,8 +217,12 @@ def run_sweep(agents: list[str], suites: list[str], seed_offsets: list[int], out
     records = [done[key] for key in grid_keys]
     in_grid = set(grid_keys)
     records += [r for key, r in earlier.items() if key not in in_grid]
-    info = {"kind": "marine-fdi sweep", "package_version": __version__, "grid": header["grid"],
-            "suites": {o.name: {"version": o["version"], "env": o["env"]} for o in suite_objs.values()}}
+    info = {
+        "kind": "marine-fdi sweep",
+        "package_version": __version__,
+        "grid": header["grid"],
+        "suites": {o.name: {"version": o["version"], "env": o["env"]} for o in suite_objs.values()},
+    }
     tmp = table.with_name(TABLE + ".tmp")
     write_records(tmp, records, info, extra=("agent_spec", "seed_offset"))
     os.replace(tmp, table)
@@ -207,11 +232,22 @@ def run_sweep(agents: list[str], suites: list[str], seed_offsets: list[int], out
     from .report import markdown_table
 
     (out_dir / "metrics.md").write_text(markdown_table(results))
-    run = {"backend": backend.name, "workers": backend.workers, "ray_address": backend.ray_address,
-           "batch_size": batch_size, "wall_s": wall, "episodes_run": len(done) - n_before,
-           "episodes_resumed": n_before, "load_average_before": list(load0), "load_average_after": list(load1),
-           "cpu_count": os.cpu_count(), "agents": {a: loaded[a].name for a in agents},
-           "cache": cache, "caches_read": read, "caches_written": written}
+    run = {
+        "backend": backend.name,
+        "workers": backend.workers,
+        "ray_address": backend.ray_address,
+        "batch_size": batch_size,
+        "wall_s": wall,
+        "episodes_run": len(done) - n_before,
+        "episodes_resumed": n_before,
+        "load_average_before": list(load0),
+        "load_average_after": list(load1),
+        "cpu_count": os.cpu_count(),
+        "agents": {a: loaded[a].name for a in agents},
+        "cache": cache,
+        "caches_read": read,
+        "caches_written": written,
+    }
     (out_dir / "sweep.json").write_text(json.dumps(run, indent=1) + "\n")
     partial.unlink()
     metrics["run"] = run

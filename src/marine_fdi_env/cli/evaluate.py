@@ -23,8 +23,12 @@ def same_run_results(path: Path, args: argparse.Namespace) -> dict | None:
     except ValueError:
         return None
     suite = load_suite(args.suite)
-    same = (kept.get("agent_spec") == str(args.agent) and kept.get("suite") == suite.name
-            and kept.get("suite_version") == suite["version"] and kept.get("seed_offset") == args.seed_offset)
+    same = (
+        kept.get("agent_spec") == str(args.agent)
+        and kept.get("suite") == suite.name
+        and kept.get("suite_version") == suite["version"]
+        and kept.get("seed_offset") == args.seed_offset
+    )
     if args.reward is not None:
         from ..envs.fdi_env import env_id_for
         from ..envs.reward import make_reward_config
@@ -52,41 +56,56 @@ def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
         prog="marine-fdi evaluate",
         description="Run an agent on a frozen evaluation suite and print its metrics. With no arguments: the "
-                    "reference diagnoser on thesis-v1.")
-    ap.add_argument("--agent", default="reference",
-                    help="an agent name (see 'marine-fdi agents': null, random, reference, sequential, oracle, "
-                         "the shipped models), a directory with agent.json, or path/to/file.py:ClassName (default: reference)")
+        "reference diagnoser on thesis-v1.",
+    )
+    ap.add_argument(
+        "--agent",
+        default="reference",
+        help="an agent name (see 'marine-fdi agents': null, random, reference, sequential, oracle, "
+        "the shipped models), a directory with agent.json, or path/to/file.py:ClassName (default: reference)",
+    )
     ap.add_argument("--suite", default="thesis-v1", help="suite name or JSON path (default: thesis-v1)")
-    ap.add_argument("--out", type=Path, default=None,
-                    help="results file: .json, or .parquet for the episode records as a table "
-                         "(default: results/AGENT_SUITE.json; when that holds this run's results they are shown, "
-                         "when it holds another run's a new file RESULTS-2.json is written beside it)")
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="results file: .json, or .parquet for the episode records as a table "
+        "(default: results/AGENT_SUITE.json; when that holds this run's results they are shown, "
+        "when it holds another run's a new file RESULTS-2.json is written beside it)",
+    )
     ap.add_argument("--seed-offset", type=int, default=0, help="shift every noise seed (new noise, same scenarios)")
-    ap.add_argument("--force", action="store_true",
-                    help="recompute and overwrite the results file when it already holds results (without it: an "
-                         "explicit --out is an error, the default file is shown)")
+    ap.add_argument(
+        "--force",
+        action="store_true",
+        help="recompute and overwrite the results file when it already holds results (without it: an "
+        "explicit --out is an error, the default file is shown)",
+    )
     from .common import add_backend_args, add_cache_args
 
     add_backend_args(ap)
     add_cache_args(ap)
-    ap.add_argument("--reward", choices=("v0", "v1"), default=None,
-                    help="reward scored in the results' return (default: the suite's, else v1 = MarineFDI-v1)")
+    ap.add_argument(
+        "--reward",
+        choices=("v0", "v1"),
+        default=None,
+        help="reward scored in the results' return (default: the suite's, else v1 = MarineFDI-v1)",
+    )
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     return ap
 
 
 def evaluate_main(argv=None) -> int:
-    from .common import interrupted, parse_cli
     from ..benchmark.report import markdown_table
+    from .common import interrupted, parse_cli
 
     args, code = parse_cli(build_parser(), argv)
     if args is None:
         return code
     try:
         from ..benchmark.agent_api import agent_file_stem
-        from .common import backend_from_args, cache_from_args
-        from ..outputs import check_suffix, prepare_out
         from ..errors import require_extra
+        from ..outputs import check_suffix, prepare_out
+        from .common import backend_from_args, cache_from_args
 
         backend = backend_from_args(args)
         cache, cache_dir = cache_from_args(args)
@@ -98,8 +117,10 @@ def evaluate_main(argv=None) -> int:
         partial = out.with_name(out.name + ".partial.jsonl")
         if out.exists() and not partial.exists() and not args.force:
             if args.out is not None:
-                raise UsageError(f"--out {out} already holds results; pass --force to recompute and overwrite them, "
-                                 "or choose another --out")
+                raise UsageError(
+                    f"--out {out} already holds results; pass --force to recompute and overwrite them, "
+                    "or choose another --out"
+                )
             out, kept = default_results(out, args)
             if kept is not None:  # this very run's results: show them
                 print(markdown_table([kept]))
@@ -109,12 +130,25 @@ def evaluate_main(argv=None) -> int:
         from ..costs import CostEstimate, episode_cpu_s, say_cost
 
         suite = load_suite(args.suite)
-        say_cost("marine-fdi evaluate", f"{len(suite.scenarios)} episodes of {suite.name}",
-                 CostEstimate(sum(episode_cpu_s(str(args.agent), s.duration_s) for s in suite.scenarios),
-                              workers=backend.workers))
-        result = evaluate(args.agent, args.suite, out, seed_offset=args.seed_offset, batch_size=args.batch_size,
-                          progress=not args.no_progress, backend=backend,
-                          reward=args.reward, cache=cache, cache_dir=cache_dir)
+        say_cost(
+            "marine-fdi evaluate",
+            f"{len(suite.scenarios)} episodes of {suite.name}",
+            CostEstimate(
+                sum(episode_cpu_s(str(args.agent), s.duration_s) for s in suite.scenarios), workers=backend.workers
+            ),
+        )
+        result = evaluate(
+            args.agent,
+            args.suite,
+            out,
+            seed_offset=args.seed_offset,
+            batch_size=args.batch_size,
+            progress=not args.no_progress,
+            backend=backend,
+            reward=args.reward,
+            cache=cache,
+            cache_dir=cache_dir,
+        )
     except ValueError as e:
         print(f"marine-fdi evaluate: error: {e}", file=sys.stderr)
         return 2

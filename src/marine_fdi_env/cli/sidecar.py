@@ -13,8 +13,12 @@ __all__ = ["NUMERIC_FIELDS", "check_sidecar_numbers"]
 
 # field -> unit, as the sidecar format defines them (marine_fdi_env.validation.dataset; docs/measured_data.md)
 NUMERIC_FIELDS = {
-    "ambient_pressure_bar": "bar", "ambient_pressure_Pa": "Pa", "ambient_temperature_C": "°C",
-    "ambient_temperature_K": "K", "charge_air_coolant_temperature_C": "°C", "rated_power_kW": "kW",
+    "ambient_pressure_bar": "bar",
+    "ambient_pressure_Pa": "Pa",
+    "ambient_temperature_C": "°C",
+    "ambient_temperature_K": "K",
+    "charge_air_coolant_temperature_C": "°C",
+    "rated_power_kW": "kW",
 }
 
 

@@ -21,17 +21,23 @@ from dataclasses import dataclass
 import numpy as np
 
 from marine_fdi_env._jit import jit
-from marine_fdi_env.engine.constants import model_constants
-from marine_fdi_env.engine.integrators import THREADED_MIN_ENGINES, _executor
 from marine_fdi_env.diagnosis.cell_sets import DEFAULT_CELLS, check_cells, decision_state
 from marine_fdi_env.diagnosis.decision import DiagnosisState, candidate_classes, sorted_diagnoses
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
 from marine_fdi_env.diagnosis.peak_ratio import ratios, running_peaks
-from marine_fdi_env.diagnosis.sized_decision import SizedDiagnosisState, drive_block
 from marine_fdi_env.diagnosis.residuals import (
-    _SIDE_COLS, _T_OUT_COL, INCLUSIONS, compute_residuals_batch, inclusion_arrays, new_state)
+    _SIDE_COLS,
+    _T_OUT_COL,
+    INCLUSIONS,
+    compute_residuals_batch,
+    inclusion_arrays,
+    new_state,
+)
+from marine_fdi_env.diagnosis.sized_decision import SizedDiagnosisState, drive_block
+from marine_fdi_env.engine.constants import model_constants
+from marine_fdi_env.engine.integrators import THREADED_MIN_ENGINES, _executor
 from marine_fdi_env.engine.params import EngineParams, load_params
-from marine_fdi_env.engine.sensors import NOISE_BOUNDS, N_SENSORS
+from marine_fdi_env.engine.sensors import N_SENSORS, NOISE_BOUNDS
 
 __all__ = ["ReferenceDiagnoser", "BlockOutput", "N_FEATURES_PER_MODULE"]
 
@@ -110,8 +116,11 @@ def _post_process(R, THR, viol, peak, stats) -> None:
         _violations_and_peaks(R, THR, viol, peak, stats, 0, n)
         return
     edges = np.linspace(0, n, 9).astype(np.int64)
-    list(_executor().map(lambda r: _violations_and_peaks(R, THR, viol, peak, stats, r[0], r[1]),
-                         list(zip(edges[:-1], edges[1:]))))
+    list(
+        _executor().map(
+            lambda r: _violations_and_peaks(R, THR, viol, peak, stats, r[0], r[1]), list(zip(edges[:-1], edges[1:]))
+        )
+    )
 
 
 class ReferenceDiagnoser:
@@ -140,9 +149,17 @@ class ReferenceDiagnoser:
 
     name = "reference"
 
-    def __init__(self, params: "str | EngineParams" = "thesis-12v28", n_engines: int = 1, dt: float = 0.01,
-                 noise_bounds=None, max_cardinality: int = 2, exoneration: str = "sure",
-                 inclusion: str = "tabulated", cells: str = DEFAULT_CELLS) -> None:
+    def __init__(
+        self,
+        params: "str | EngineParams" = "thesis-12v28",
+        n_engines: int = 1,
+        dt: float = 0.01,
+        noise_bounds=None,
+        max_cardinality: int = 2,
+        exoneration: str = "sure",
+        inclusion: str = "tabulated",
+        cells: str = DEFAULT_CELLS,
+    ) -> None:
         self.params = load_params(params) if isinstance(params, str) else params
         if not isinstance(n_engines, (int, np.integer)) or n_engines < 1:
             raise ValueError(f"n_engines must be a positive integer, got {n_engines!r}")
@@ -203,8 +220,9 @@ class ReferenceDiagnoser:
     def _new_decision(self) -> DiagnosisState:
         if self.exoneration == "sure":
             return decision_state("reference", self.cells, self.max_cardinality)
-        return DiagnosisState(exoneration=True if self.exoneration == "all" else None,
-                              max_cardinality=self.max_cardinality)
+        return DiagnosisState(
+            exoneration=True if self.exoneration == "all" else None, max_cardinality=self.max_cardinality
+        )
 
     # ------------------------------------------------------------------------------ streaming
     def observe(self, measurements, u) -> BlockOutput:
@@ -226,8 +244,9 @@ class ReferenceDiagnoser:
         U = np.ascontiguousarray(U)
         R = np.empty((N, B, N_MODULES))
         THR = np.empty((N, B, N_MODULES))
-        compute_residuals_batch(self.c, Y, U, self.dt, self.noise_bounds, _SIDE_COLS, _T_OUT_COL, R, THR, self.state,
-                                self._table)
+        compute_residuals_batch(
+            self.c, Y, U, self.dt, self.noise_bounds, _SIDE_COLS, _T_OUT_COL, R, THR, self.state, self._table
+        )
         viol = np.empty((N, B, N_MODULES), dtype=np.bool_)
         peak = np.empty((N, N_MODULES))
         stats = np.empty((N, N_MODULES, 4))
@@ -268,8 +287,15 @@ class ReferenceDiagnoser:
                 self._next_expiry[i] = st._next_expiry
         self.samples += B
         feats = self._features(peak)
-        return BlockOutput(residuals=R, thresholds=THR, violations=viol, detected=self.detected.copy(), features=feats,
-                           stats=stats, peaks=peak)
+        return BlockOutput(
+            residuals=R,
+            thresholds=THR,
+            violations=viol,
+            detected=self.detected.copy(),
+            features=feats,
+            stats=stats,
+            peaks=peak,
+        )
 
     def _observe_sized(self, engines, R, THR, viol, tt, new_mod) -> None:
         """The decision update of the sized cells for the engines that need one: every sample where
@@ -277,7 +303,7 @@ class ReferenceDiagnoser:
         for i in engines:
             st: SizedDiagnosisState = self.decisions[i]
             v = viol[i]
-            q = running_peaks(ratios(R[i:i + 1], THR[i:i + 1]), self.peak_run[i:i + 1])[0]
+            q = running_peaks(ratios(R[i : i + 1], THR[i : i + 1]), self.peak_run[i : i + 1])[0]
             fired = np.logical_or.accumulate(v, axis=0) | st.fired
             changed = np.empty(len(v), dtype=bool)
             changed[0] = (fired[0] != st.fired).any()

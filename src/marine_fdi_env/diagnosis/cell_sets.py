@@ -44,8 +44,11 @@ def size_blind_cells(diagnoser: str, cells: str) -> SureCells:
     if check_cells(cells) == "grid":
         return load_sure_cells(_GRID_FILES[diagnoser])
     if cells == "thesis":
-        return load_sure_cells(_THESIS_FILE) if diagnoser == "reference" else \
-            load_sized_cells(SIZED_FILES[diagnoser]).top_band()
+        return (
+            load_sure_cells(_THESIS_FILE)
+            if diagnoser == "reference"
+            else load_sized_cells(SIZED_FILES[diagnoser]).top_band()
+        )
     raise ValueError("the sized cells are not size-blind: use decision_state")
 
 
@@ -57,5 +60,10 @@ def decision_state(diagnoser: str, cells: str, max_cardinality: int | None = 2) 
     if check_cells(cells) == "sized":
         return SizedDiagnosisState(load_sized_cells(SIZED_FILES[diagnoser]), max_cardinality=max_cardinality)
     sc = size_blind_cells(diagnoser, cells)
-    return DiagnosisState(exoneration=sc.sure, max_cardinality=max_cardinality, temporal=True,
-                          settle_s=sc.settle_times(), grace_s=sc.grace_times())
+    return DiagnosisState(
+        exoneration=sc.sure,
+        max_cardinality=max_cardinality,
+        temporal=True,
+        settle_s=sc.settle_times(),
+        grace_s=sc.grace_times(),
+    )

@@ -61,8 +61,17 @@ from .modules import MODULE_IDS
 from .peak_ratio import ratios, running_peaks
 from .sized_decision import drive_block
 
-__all__ = ["SequentialCalibration", "ReceiverTest", "SequentialStage", "SequentialDiagnoser", "SEQUENTIAL_FEATURES",
-           "CALIBRATION_FILE", "SURE_CELLS_FILE", "cusum_blocks", "pressure_ratio"]
+__all__ = [
+    "SequentialCalibration",
+    "ReceiverTest",
+    "SequentialStage",
+    "SequentialDiagnoser",
+    "SEQUENTIAL_FEATURES",
+    "CALIBRATION_FILE",
+    "SURE_CELLS_FILE",
+    "cusum_blocks",
+    "pressure_ratio",
+]
 
 N_MODULES = len(MODULE_IDS)
 CALIBRATION_FILE = "sequential.json"
@@ -92,8 +101,14 @@ class ReceiverTest:
     def from_dict(cls, d: dict | None) -> "ReceiverTest":
         if d is None:
             return cls()
-        out = cls(tuple(d["modules"]), float(d["h"]), int(d["order"]), int(d["window_blocks"]),
-                  float(d["gate_tau_s"]), float(d["gate_delta"]))
+        out = cls(
+            tuple(d["modules"]),
+            float(d["h"]),
+            int(d["order"]),
+            int(d["window_blocks"]),
+            float(d["gate_tau_s"]),
+            float(d["gate_delta"]),
+        )
         if len(out.modules) != 2 or any(m not in MODULE_IDS for m in out.modules):
             raise ValueError(f"sequential calibration: receiver modules must be two of {MODULE_IDS}, got {out.modules}")
         if not (out.h > 0 and out.order >= 0 and out.window_blocks >= 1 and out.gate_tau_s > 0 and out.gate_delta > 0):
@@ -136,8 +151,18 @@ class SequentialCalibration:
                 raise ValueError(f"sequential calibration: {k!r} must have {N_MODULES} values")
         if not np.all(np.diff(arr["u_nodes"]) > 0) or not np.all(arr["scale"] > 0):
             raise ValueError("sequential calibration: u_nodes must increase and every scale be > 0")
-        return cls(float(d["block_s"]), arr["u_nodes"], arr["mean"], arr["scale"], arr["k"], arr["h"],
-                   arr["warmup_s"], arr["r_max"], d, ReceiverTest.from_dict(d.get("receiver")))
+        return cls(
+            float(d["block_s"]),
+            arr["u_nodes"],
+            arr["mean"],
+            arr["scale"],
+            arr["k"],
+            arr["h"],
+            arr["warmup_s"],
+            arr["r_max"],
+            d,
+            ReceiverTest.from_dict(d.get("receiver")),
+        )
 
 
 @lru_cache(maxsize=None)
@@ -146,8 +171,10 @@ def load_calibration(name: str = CALIBRATION_FILE) -> SequentialCalibration:
     try:
         return SequentialCalibration.from_dict(json.loads(path.read_text()))
     except FileNotFoundError:
-        raise ValueError(f"no sequential calibration {name!r} in marine_fdi_env/data/diagnosis; build it with "
-                         "python -m studies.diagnosis.sequential_calibration") from None
+        raise ValueError(
+            f"no sequential calibration {name!r} in marine_fdi_env/data/diagnosis; build it with "
+            "python -m studies.diagnosis.sequential_calibration"
+        ) from None
 
 
 def pressure_ratio(measurements) -> np.ndarray:
@@ -157,8 +184,10 @@ def pressure_ratio(measurements) -> np.ndarray:
 
     Y = np.asarray(measurements, dtype=np.float64)
     with np.errstate(invalid="ignore", divide="ignore"):
-        r = 0.5 * (Y[..., sensor_index("S3.1")] / Y[..., sensor_index("S4.1")]
-                   + Y[..., sensor_index("S3.2")] / Y[..., sensor_index("S4.2")])
+        r = 0.5 * (
+            Y[..., sensor_index("S3.1")] / Y[..., sensor_index("S4.1")]
+            + Y[..., sensor_index("S3.2")] / Y[..., sensor_index("S4.2")]
+        )
     return r
 
 
@@ -178,8 +207,34 @@ def _interp(u, nodes, values, m):
 
 
 @jit
-def cusum_blocks(R, U, RATIO, VIOL, dt, t0, block, nodes, mean, scale, k, h, warm, r_max, acc, st, first, feats,
-                 pair, gpar, gnorms, gnum, gcount, gpos, gavg, gstate):
+def cusum_blocks(
+    R,
+    U,
+    RATIO,
+    VIOL,
+    dt,
+    t0,
+    block,
+    nodes,
+    mean,
+    scale,
+    k,
+    h,
+    warm,
+    r_max,
+    acc,
+    st,
+    first,
+    feats,
+    pair,
+    gpar,
+    gnorms,
+    gnum,
+    gcount,
+    gpos,
+    gavg,
+    gstate,
+):
     """Advance the tests of N engines over a block of samples (compiled).
 
     R (N, B, 19) residuals, U (N, B) fuel setting, RATIO (N, B) measured pressure ratio x3/x4,
@@ -231,11 +286,29 @@ def cusum_blocks(R, U, RATIO, VIOL, dt, t0, block, nodes, mean, scale, k, h, war
                 a, b = pair[0], pair[1]
                 # only while neither chain has fired on its own evidence: a chain already known to be
                 # faulty would lend its fault to the other through the pooled sum
-                active = (t + 0.5 * dt >= warm[a] and t + 0.5 * dt >= warm[b]
-                          and ratio <= r_max[a] and ratio <= r_max[b]
-                          and first[i, a] != first[i, a] and first[i, b] != first[i, b])
-                g, c1, c2 = glr_pair_update(i, feats[i, a, 2], feats[i, b, 2], u, active, gnum, gcount, gpos, gavg,
-                                            gnorms, gpar[1], gpar[2], gpar[3])
+                active = (
+                    t + 0.5 * dt >= warm[a]
+                    and t + 0.5 * dt >= warm[b]
+                    and ratio <= r_max[a]
+                    and ratio <= r_max[b]
+                    and first[i, a] != first[i, a]
+                    and first[i, b] != first[i, b]
+                )
+                g, c1, c2 = glr_pair_update(
+                    i,
+                    feats[i, a, 2],
+                    feats[i, b, 2],
+                    u,
+                    active,
+                    gnum,
+                    gcount,
+                    gpos,
+                    gavg,
+                    gnorms,
+                    gpar[1],
+                    gpar[2],
+                    gpar[3],
+                )
                 gstate[i, 0] = g
                 gstate[i, 2] = c1
                 gstate[i, 3] = c2
@@ -262,8 +335,15 @@ class SequentialStage:
     peak ratios, so :meth:`update` then needs the thresholds).
     """
 
-    def __init__(self, n_engines: int, dt: float = 0.01, calibration: "SequentialCalibration | str | None" = None,
-                 max_cardinality: int = 2, exoneration: str = "sure", cells: str = DEFAULT_CELLS) -> None:
+    def __init__(
+        self,
+        n_engines: int,
+        dt: float = 0.01,
+        calibration: "SequentialCalibration | str | None" = None,
+        max_cardinality: int = 2,
+        exoneration: str = "sure",
+        cells: str = DEFAULT_CELLS,
+    ) -> None:
         self.n = int(n_engines)
         self.dt = float(dt)
         if calibration is None or isinstance(calibration, str):
@@ -283,8 +363,9 @@ class SequentialStage:
     def _new_decision(self) -> DiagnosisState:
         if self.exoneration == "sure":
             return decision_state("sequential", self.cells, self.max_cardinality)
-        return DiagnosisState(exoneration=True if self.exoneration == "all" else None,
-                              max_cardinality=self.max_cardinality)
+        return DiagnosisState(
+            exoneration=True if self.exoneration == "all" else None, max_cardinality=self.max_cardinality
+        )
 
     def _receiver_arrays(self) -> None:
         r = self.cal.receiver
@@ -338,9 +419,34 @@ class SequentialStage:
         t0 = np.ascontiguousarray(t0, dtype=np.float64)
         before = np.isnan(self.first)
         c = self.cal
-        cusum_blocks(R, U, Q, V, self.dt, t0, self.block, c.u_nodes, c.mean, c.scale, c.k, c.h, c.warmup_s,
-                     c.r_max, self.acc, self.st, self.first, self.feats, self._pair, self._gpar, self._gnorms,
-                     self.gnum, self.gcount, self.gpos, self.gavg, self.gstate)
+        cusum_blocks(
+            R,
+            U,
+            Q,
+            V,
+            self.dt,
+            t0,
+            self.block,
+            c.u_nodes,
+            c.mean,
+            c.scale,
+            c.k,
+            c.h,
+            c.warmup_s,
+            c.r_max,
+            self.acc,
+            self.st,
+            self.first,
+            self.feats,
+            self._pair,
+            self._gpar,
+            self._gnorms,
+            self.gnum,
+            self.gcount,
+            self.gpos,
+            self.gavg,
+            self.gstate,
+        )
         t_end = t0 + (B - 1) * self.dt
         new = before & ~np.isnan(self.first)
         busy = new.any(axis=1) | (t_end > self._next_expiry)
@@ -369,9 +475,11 @@ class SequentialStage:
             st = self.decisions[i]
             times = self.first[i]
             tt = t0[i] + np.arange(B) * self.dt
-            q = running_peaks(ratios(R[i:i + 1], THR[i:i + 1]), self.peak_run[i:i + 1])[0]
-            firings = [(min(B - 1, max(0, int(round((t - t0[i]) / self.dt)))), ~np.isnan(times) & (times <= t))
-                       for t in np.unique(times[new[i]])]
+            q = running_peaks(ratios(R[i : i + 1], THR[i : i + 1]), self.peak_run[i : i + 1])[0]
+            firings = [
+                (min(B - 1, max(0, int(round((t - t0[i]) / self.dt)))), ~np.isnan(times) & (times <= t))
+                for t in np.unique(times[new[i]])
+            ]
             drive_block(st, tt, q, firings, float(tt[-1]))
             self._next_expiry[i] = st._next_expiry
             self._next_peak[i] = st.next_peak
@@ -413,11 +521,27 @@ class SequentialDiagnoser:
 
     name = "sequential"
 
-    def __init__(self, params="thesis-12v28", n_engines: int = 1, dt: float = 0.01, noise_bounds=None,
-                 max_cardinality: int = 2, exoneration: str = "sure", inclusion: str = "tabulated",
-                 calibration=None, cells: str = DEFAULT_CELLS) -> None:
-        self.ref = ReferenceDiagnoser(params, n_engines=n_engines, dt=dt, noise_bounds=noise_bounds,
-                                      max_cardinality=max_cardinality, exoneration="none", inclusion=inclusion)
+    def __init__(
+        self,
+        params="thesis-12v28",
+        n_engines: int = 1,
+        dt: float = 0.01,
+        noise_bounds=None,
+        max_cardinality: int = 2,
+        exoneration: str = "sure",
+        inclusion: str = "tabulated",
+        calibration=None,
+        cells: str = DEFAULT_CELLS,
+    ) -> None:
+        self.ref = ReferenceDiagnoser(
+            params,
+            n_engines=n_engines,
+            dt=dt,
+            noise_bounds=noise_bounds,
+            max_cardinality=max_cardinality,
+            exoneration="none",
+            inclusion=inclusion,
+        )
         self.stage = SequentialStage(n_engines, dt, calibration, max_cardinality, exoneration, cells)
         self.n, self.dt = self.ref.n, self.ref.dt
 
@@ -430,8 +554,15 @@ class SequentialDiagnoser:
         out = self.ref.observe(measurements, u)
         U = np.asarray(u, dtype=np.float64)
         Y = np.asarray(measurements, dtype=np.float64)
-        self.stage.update(out.residuals, U[None] if U.ndim == 1 else U, pressure_ratio(Y[None] if Y.ndim == 2 else Y),
-                          out.violations, t0, out.thresholds, out.peaks)
+        self.stage.update(
+            out.residuals,
+            U[None] if U.ndim == 1 else U,
+            pressure_ratio(Y[None] if Y.ndim == 2 else Y),
+            out.violations,
+            t0,
+            out.thresholds,
+            out.peaks,
+        )
         return out
 
     @property

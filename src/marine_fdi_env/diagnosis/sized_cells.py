@@ -93,13 +93,17 @@ class SizedCells:
         of some fault of its support moves up (inf: none); inf elsewhere."""
         q = np.asarray(peaks, dtype=float)
         n = (self._thr < q[None, :, None]).sum(axis=0)  # (19, 26)
-        nxt = np.take_along_axis(np.concatenate([self._thr, np.full((1,) + self.peak.shape[1:], np.inf)]),
-                                 np.minimum(n, self.n_bands)[None], axis=0)[0]
+        nxt = np.take_along_axis(
+            np.concatenate([self._thr, np.full((1,) + self.peak.shape[1:], np.inf)]),
+            np.minimum(n, self.n_bands)[None],
+            axis=0,
+        )[0]
         nxt = np.where(_SUPPORT, nxt, np.inf).min(axis=1)
         return np.where(rows, nxt, np.inf)
 
-    def timings(self, band: np.ndarray, rows: np.ndarray, margin_s: float = 2.0, factor: float = 1.5
-                ) -> tuple[np.ndarray, np.ndarray]:
+    def timings(
+        self, band: np.ndarray, rows: np.ndarray, margin_s: float = 2.0, factor: float = 1.5
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Grace and settle times (r, 26, 19 sure modules) [s] of every fault as the explanation of
         the fired modules ``rows`` (r,), in their bands ``band`` (r, 26): how long after such a
         module m each sure module of the fault may still fire (a silent one then exonerates the

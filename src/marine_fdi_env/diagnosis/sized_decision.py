@@ -34,9 +34,16 @@ from .sized_cells import SizedCells
 __all__ = ["sized_conflicts", "SizedDiagnosisState", "drive_block"]
 
 
-def sized_conflicts(fired: np.ndarray, detection_times: np.ndarray, peaks: np.ndarray, now: float,
-                    cells: SizedCells, support: np.ndarray, margin_s: float = 2.0, factor: float = 1.5
-                    ) -> tuple[list[int], float]:
+def sized_conflicts(
+    fired: np.ndarray,
+    detection_times: np.ndarray,
+    peaks: np.ndarray,
+    now: float,
+    cells: SizedCells,
+    support: np.ndarray,
+    margin_s: float = 2.0,
+    factor: float = 1.5,
+) -> tuple[list[int], float]:
     """Bitmasks (over ``FAULT_IDS``) of the faults that can explain each fired module (module
     docstring), and the next time a grace period that matters ends (inf: none).
 
@@ -73,8 +80,15 @@ class SizedDiagnosisState(DiagnosisState):
     """:class:`~marine_fdi_env.diagnosis.decision.DiagnosisState` with the sized cells: ``update``
     and ``advance`` also take the modules' running peak ratios (19,) at that time."""
 
-    def __init__(self, cells: SizedCells, *, support=None, max_cardinality: int | None = 2,
-                 settle_margin_s: float = 2.0, factor: float = 1.5) -> None:
+    def __init__(
+        self,
+        cells: SizedCells,
+        *,
+        support=None,
+        max_cardinality: int | None = 2,
+        settle_margin_s: float = 2.0,
+        factor: float = 1.5,
+    ) -> None:
         self.cells = cells
         self._margin_s, self._factor = float(settle_margin_s), float(factor)
         super().__init__(support=support, exoneration=cells.sure[0], max_cardinality=max_cardinality, temporal=True)
@@ -100,8 +114,9 @@ class SizedDiagnosisState(DiagnosisState):
         return False
 
     def _recompute(self, now: float) -> None:
-        conflicts, self._next_expiry = sized_conflicts(self.fired, self.detection_times, self.peaks, now, self.cells,
-                                                       self.support, self._margin_s, self._factor)
+        conflicts, self._next_expiry = sized_conflicts(
+            self.fired, self.detection_times, self.peaks, now, self.cells, self.support, self._margin_s, self._factor
+        )
         k = N_FAULTS if self.max_cardinality is None else int(self.max_cardinality)
         self.diagnoses = sorted((_from_mask(m, FAULT_IDS) for m in _mhs_masks(conflicts, k)), key=_sort_key)
         self.next_peak = self.cells.next_peak(self.peaks, self.fired)

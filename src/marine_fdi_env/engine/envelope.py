@@ -31,20 +31,27 @@ class Envelope:
 ENVELOPE = Envelope()
 
 
-def envelope_warnings(speed_rev_s: float, sfc_kg_per_J: float, rated_speed_rev_s: float,
-                      envelope: Envelope = ENVELOPE) -> list[str]:
+def envelope_warnings(
+    speed_rev_s: float, sfc_kg_per_J: float, rated_speed_rev_s: float, envelope: Envelope = ENVELOPE
+) -> list[str]:
     """One sentence per bound a steady state violates (empty when it is inside the envelope)."""
     out = []
     frac = speed_rev_s / rated_speed_rev_s
     rpm, rated_rpm = 60.0 * speed_rev_s, 60.0 * rated_speed_rev_s
     if frac < envelope.min_speed_fraction:
-        out.append(f"engine speed {rpm:.0f} rpm is below {envelope.min_speed_fraction:.0%} of the rated "
-                   f"{rated_rpm:.0f} rpm: below the engine's stable speed range")
+        out.append(
+            f"engine speed {rpm:.0f} rpm is below {envelope.min_speed_fraction:.0%} of the rated "
+            f"{rated_rpm:.0f} rpm: below the engine's stable speed range"
+        )
     elif frac > envelope.max_speed_fraction:
-        out.append(f"engine speed {rpm:.0f} rpm is above {envelope.max_speed_fraction:.0%} of the rated "
-                   f"{rated_rpm:.0f} rpm: beyond the overspeed limit")
+        out.append(
+            f"engine speed {rpm:.0f} rpm is above {envelope.max_speed_fraction:.0%} of the rated "
+            f"{rated_rpm:.0f} rpm: beyond the overspeed limit"
+        )
     sfc = sfc_kg_per_J * 3.6e9
     if math.isfinite(sfc) and not envelope.min_sfc_g_per_kWh <= sfc <= envelope.max_sfc_g_per_kWh:
-        out.append(f"specific fuel consumption {sfc:,.0f} g/kWh is outside the plausible "
-                   f"{envelope.min_sfc_g_per_kWh:.0f}-{envelope.max_sfc_g_per_kWh:.0f} g/kWh of a diesel engine")
+        out.append(
+            f"specific fuel consumption {sfc:,.0f} g/kWh is outside the plausible "
+            f"{envelope.min_sfc_g_per_kWh:.0f}-{envelope.max_sfc_g_per_kWh:.0f} g/kWh of a diesel engine"
+        )
     return out

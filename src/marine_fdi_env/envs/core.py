@@ -30,15 +30,25 @@ __all__ = ["EpisodeBatch", "StepOutcome"]
 class EpisodeBatch:
     """Episodes of N engines, advanced one decision period at a time."""
 
-    def __init__(self, n: int, params: "str | EngineParams" = "thesis-12v28", decision_period_s: float = 1.0,
-                 dt: float = 0.01, observe_sensors: bool = False, reward: RewardConfig | RewardConfigV1 | None = None,
-                 noise_scale: float = 1.0, observe_sequential: bool = False, diagnosis_cells: str = "sized") -> None:
+    def __init__(
+        self,
+        n: int,
+        params: "str | EngineParams" = "thesis-12v28",
+        decision_period_s: float = 1.0,
+        dt: float = 0.01,
+        observe_sensors: bool = False,
+        reward: RewardConfig | RewardConfigV1 | None = None,
+        noise_scale: float = 1.0,
+        observe_sequential: bool = False,
+        diagnosis_cells: str = "sized",
+    ) -> None:
         self.n = int(n)
         self.params = load_params(params) if isinstance(params, str) else params
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
-        if not (isinstance(decision_period_s, (int, float)) and math.isfinite(decision_period_s)
-                and decision_period_s > 0):
+        if not (
+            isinstance(decision_period_s, (int, float)) and math.isfinite(decision_period_s) and decision_period_s > 0
+        ):
             raise ValueError(f"decision_period_s must be a positive number of seconds, got {decision_period_s!r}")
         k = decision_period_s / dt
         if abs(k - round(k)) > 1e-9 * max(1.0, k) or round(k) < 1:
@@ -84,8 +94,9 @@ class EpisodeBatch:
         slots = [int(s) for s in slots]
         for sc in scenarios:
             if sc.noise_scale != self.noise_scale:
-                raise ValueError(f"scenario field 'noise_scale' ({sc.noise_scale}) must equal the environment's "
-                                 f"({self.noise_scale})")
+                raise ValueError(
+                    f"scenario field 'noise_scale' ({sc.noise_scale}) must equal the environment's ({self.noise_scale})"
+                )
         seeds = [sc.noise_seed for sc in scenarios]
         faults = [list(sc.faults) for sc in scenarios]
         profiles = [sc.profile for sc in scenarios]
@@ -94,9 +105,15 @@ class EpisodeBatch:
             if len(slots) != self.n:
                 raise RuntimeError("the first start must start every slot")
             order = np.argsort(slots)
-            self.sim = Simulator(self.params, n_engines=self.n, seeds=[seeds[i] for i in order],
-                                 faults=[faults[i] for i in order], profiles=[profiles[i] for i in order],
-                                 dt=self.dt, noise_scale=self.noise_scale)
+            self.sim = Simulator(
+                self.params,
+                n_engines=self.n,
+                seeds=[seeds[i] for i in order],
+                faults=[faults[i] for i in order],
+                profiles=[profiles[i] for i in order],
+                dt=self.dt,
+                noise_scale=self.noise_scale,
+            )
         else:
             self.sim.restart_engines(slots, seeds, faults, profiles)
         self.diag.reset_engines(slots, first_sample_index=1)
@@ -131,20 +148,28 @@ class EpisodeBatch:
         t_first = (self.diag.samples - self.diag._offset) * self.dt  # each engine's time of the period's first sample
         out = self.diag.observe(blk.measurements, blk.u)
         t_now = self.t = self.sim.local_time
-        feats = module_features(out.residuals, out.thresholds, self.diag.first_violation, t_now, self.durations,
-                                out.stats)
+        feats = module_features(
+            out.residuals, out.thresholds, self.diag.first_violation, t_now, self.durations, out.stats
+        )
         if self.observe_sensors:
             feats = np.concatenate([feats, sensor_features(blk.measurements, blk.u, self._nominal)], axis=1)
         if self.seq is not None:
-            self.seq.update(out.residuals, blk.u, pressure_ratio(blk.measurements), out.violations, t_first,
-                            out.thresholds, out.peaks)
+            self.seq.update(
+                out.residuals,
+                blk.u,
+                pressure_ratio(blk.measurements),
+                out.violations,
+                t_first,
+                out.thresholds,
+                out.peaks,
+            )
             feats = np.concatenate([feats, self.seq.features()], axis=1)
         elapsed = time.perf_counter() - t0
         sel = np.arange(self.n) if slots is None else np.asarray(slots, dtype=np.int64)
         self.obs[sel] = feats[sel]
         self.compute_s += elapsed / self.n
         failed = []
-        for f in self.sim.failures[self._failures_seen:]:
+        for f in self.sim.failures[self._failures_seen :]:
             self._fail(f)
             failed.append(f.engine)
         self._failures_seen = len(self.sim.failures)
@@ -173,14 +198,12 @@ class EpisodeBatch:
     def reference_declaration(self, slot: int) -> dict:
         """The reference diagnoser's current conclusion for a slot (the ``reference`` agent's input)."""
         st = self.diag.decisions[slot]
-        return {"detected": bool(st.detected),
-                "diagnoses": [sorted(d) for d in st.diagnoses] if st.detected else []}
+        return {"detected": bool(st.detected), "diagnoses": [sorted(d) for d in st.diagnoses] if st.detected else []}
 
     def sequential_declaration(self, slot: int) -> dict:
         """The sequential diagnoser's current conclusion for a slot (``observe_sequential`` only)."""
         st = self.seq.decisions[slot]
-        return {"detected": bool(st.detected),
-                "diagnoses": [sorted(d) for d in st.diagnoses] if st.detected else []}
+        return {"detected": bool(st.detected), "diagnoses": [sorted(d) for d in st.diagnoses] if st.detected else []}
 
     def info(self, slot: int) -> dict:
         """The info of one slot now (the single environment's ``info``)."""
@@ -188,8 +211,10 @@ class EpisodeBatch:
         fail = self.failure[slot]
         extra = {}
         if self.seq is not None:
-            extra["sequential"] = {"detected": bool(parts["sequential"]["detected"][0]),
-                                   "diagnoses": parts["sequential"]["diagnoses"][0]}
+            extra["sequential"] = {
+                "detected": bool(parts["sequential"]["detected"][0]),
+                "diagnoses": parts["sequential"]["diagnoses"][0],
+            }
         return {
             "t_s": float(parts["t_s"][0]),
             "scenario_id": parts["scenario_id"][0],
@@ -197,8 +222,10 @@ class EpisodeBatch:
             "true_faults": parts["true_faults"][0],
             "active_faults": parts["active_faults"][0],
             "engine_failure": None if fail is None else dict(fail),
-            "reference": {"detected": bool(parts["reference"]["detected"][0]),
-                          "diagnoses": parts["reference"]["diagnoses"][0]},
+            "reference": {
+                "detected": bool(parts["reference"]["detected"][0]),
+                "diagnoses": parts["reference"]["diagnoses"][0],
+            },
             **extra,
         }
 
@@ -226,9 +253,15 @@ class EpisodeBatch:
                 engine[j], fail_t[j], reason[j] = fail["engine"], fail["time_s"], fail["reason"]
             ref = self.reference_declaration(s)
             detected[j], diagnoses[j] = ref["detected"], ref["diagnoses"]
-        out = {"t_s": self.t[slots].astype(float), "scenario_id": sid, "profile": prof, "true_faults": truth,
-               "active_faults": act_ids, "engine_failure": {"engine": engine, "time_s": fail_t, "reason": reason},
-               "reference": {"detected": detected, "diagnoses": diagnoses}}
+        out = {
+            "t_s": self.t[slots].astype(float),
+            "scenario_id": sid,
+            "profile": prof,
+            "true_faults": truth,
+            "active_faults": act_ids,
+            "engine_failure": {"engine": engine, "time_s": fail_t, "reason": reason},
+            "reference": {"detected": detected, "diagnoses": diagnoses},
+        }
         if self.seq is not None:
             sdet = np.zeros(k, dtype=bool)
             sdiag = np.empty(k, dtype=object)

@@ -39,8 +39,12 @@ class FaultWindows:
         self._fwin[:, slot] = np.array([[inf], [inf], [inf], [1.0]])  # never active
         for k, f in enumerate(faults):
             self._fcol[slot, k] = _FAULT_COL[f.fault_id]
-            self._fwin[:, slot, k] = (f.onset_s, inf if f.end_s is None else f.end_s,
-                                      inf if f.period_s is None else f.period_s, 1.0 if f.duty is None else f.duty)
+            self._fwin[:, slot, k] = (
+                f.onset_s,
+                inf if f.end_s is None else f.end_s,
+                inf if f.period_s is None else f.period_s,
+                1.0 if f.duty is None else f.duty,
+            )
 
     def active(self, slots, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(active (len(slots), 26) bool, first onset, last onset) of the slots' faults at the times

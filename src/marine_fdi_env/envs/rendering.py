@@ -17,6 +17,7 @@ def supported_render_mode(render_mode: str | None, supported: Sequence[str]) -> 
     ``make_vec_env``) work unchanged."""
     if render_mode is None or render_mode in supported:
         return render_mode
-    logger.warn(f"render_mode={render_mode!r} is not supported (supported: {list(supported) or 'none'}); "
-                "rendering is off")
+    logger.warn(
+        f"render_mode={render_mode!r} is not supported (supported: {list(supported) or 'none'}); rendering is off"
+    )
     return None

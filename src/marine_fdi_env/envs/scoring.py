@@ -68,8 +68,15 @@ class DecisionScorer:
         if self.v1 is not None:
             self.v1.start(slot, min((f.onset_s for f in faults), default=math.inf))
 
-    def score(self, beliefs: np.ndarray, slots, active: np.ndarray, first_onset: np.ndarray,
-              last_onset: np.ndarray, t: np.ndarray) -> StepOutcome:
+    def score(
+        self,
+        beliefs: np.ndarray,
+        slots,
+        active: np.ndarray,
+        first_onset: np.ndarray,
+        last_onset: np.ndarray,
+        t: np.ndarray,
+    ) -> StepOutcome:
         """Score the declarations ``beliefs`` (len(slots), 28) made at times ``t`` with the faults
         ``active`` ((len(slots), 26) bool; first and last onset of the active ones)."""
         slots = np.asarray(slots, dtype=np.int64)

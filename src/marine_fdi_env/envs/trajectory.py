@@ -69,14 +69,24 @@ class Trajectory:
         idx = np.asarray(idx, dtype=np.int64)
         S = int(self.n_decisions[idx].max(initial=1))
         cut = lambda a: None if a is None else a[:S, idx]  # noqa: E731
-        return replace(self, scenarios=[self.scenarios[i] for i in idx], obs=self.obs[:S, idx], t=self.t[:S, idx],
-                       feature_s=self.feature_s[:S, idx], reference_detected=cut(self.reference_detected),
-                       reference_diagnoses=cut(self.reference_diagnoses),
-                       sequential_detected=cut(self.sequential_detected),
-                       sequential_diagnoses=cut(self.sequential_diagnoses), n_decisions=self.n_decisions[idx],
-                       terminated=self.terminated[idx], failures=[self.failures[i] for i in idx],
-                       failure_step=self.failure_step[idx], compute_s=self.compute_s[idx], _windows=None,
-                       _constant=None)
+        return replace(
+            self,
+            scenarios=[self.scenarios[i] for i in idx],
+            obs=self.obs[:S, idx],
+            t=self.t[:S, idx],
+            feature_s=self.feature_s[:S, idx],
+            reference_detected=cut(self.reference_detected),
+            reference_diagnoses=cut(self.reference_diagnoses),
+            sequential_detected=cut(self.sequential_detected),
+            sequential_diagnoses=cut(self.sequential_diagnoses),
+            n_decisions=self.n_decisions[idx],
+            terminated=self.terminated[idx],
+            failures=[self.failures[i] for i in idx],
+            failure_step=self.failure_step[idx],
+            compute_s=self.compute_s[idx],
+            _windows=None,
+            _constant=None,
+        )
 
     # ------------------------------------------------------------------------------ per decision
     def last(self, k: int) -> np.ndarray:
@@ -107,19 +117,25 @@ class Trajectory:
         for i in np.flatnonzero(shows):
             fail_t[i], reason[i] = self.failures[i]["time_s"], self.failures[i]["reason"]
         if self._constant is None:
-            self._constant = {"scenario_id": object_array([s.scenario_id for s in self.scenarios]),
-                              "profile": object_array([s.profile for s in self.scenarios]),
-                              "true_faults": object_array([s.truth() for s in self.scenarios])}
-        out = {"t_s": self.t[kk, ar].astype(float), **self._constant,
-               "active_faults": object_array([[FAULT_IDS[c] for c in cols] for cols in row_members(active)]),
-               "engine_failure": {"engine": engine, "time_s": fail_t, "reason": reason},
-               "reference": {"detected": self.reference_detected[kk, ar],
-                             "diagnoses": self.reference_diagnoses[kk, ar]}}
+            self._constant = {
+                "scenario_id": object_array([s.scenario_id for s in self.scenarios]),
+                "profile": object_array([s.profile for s in self.scenarios]),
+                "true_faults": object_array([s.truth() for s in self.scenarios]),
+            }
+        out = {
+            "t_s": self.t[kk, ar].astype(float),
+            **self._constant,
+            "active_faults": object_array([[FAULT_IDS[c] for c in cols] for cols in row_members(active)]),
+            "engine_failure": {"engine": engine, "time_s": fail_t, "reason": reason},
+            "reference": {"detected": self.reference_detected[kk, ar], "diagnoses": self.reference_diagnoses[kk, ar]},
+        }
         if sequential:
             if self.sequential_detected is None:
                 raise ValueError("this trajectory has no sequential diagnoser (made without observe_sequential)")
-            out["sequential"] = {"detected": self.sequential_detected[kk, ar],
-                                 "diagnoses": self.sequential_diagnoses[kk, ar]}
+            out["sequential"] = {
+                "detected": self.sequential_detected[kk, ar],
+                "diagnoses": self.sequential_diagnoses[kk, ar],
+            }
         return out
 
 
@@ -133,7 +149,11 @@ def assemble(parts: list[tuple[np.ndarray, Trajectory]]) -> Trajectory:
     first = parts[0][1]
     for _, p in parts[1:]:
         if (p.feature_names, p.decision_period_s, p.period_samples, p.observe_sequential) != (
-                first.feature_names, first.decision_period_s, first.period_samples, first.observe_sequential):
+            first.feature_names,
+            first.decision_period_s,
+            first.period_samples,
+            first.observe_sequential,
+        ):
             raise ValueError("the parts were made with other observation options or decision periods")
     S = max(p.steps for _, p in parts)
 
@@ -143,7 +163,7 @@ def assemble(parts: list[tuple[np.ndarray, Trajectory]]) -> Trajectory:
             return None
         out = np.full((S, N) + arrays[0].shape[2:], fill, dtype=dtype)
         for (i, _), a in zip(parts, arrays):
-            out[:a.shape[0], np.asarray(i, dtype=np.int64)] = a
+            out[: a.shape[0], np.asarray(i, dtype=np.int64)] = a
         return out
 
     def per_episode(name: str):
@@ -157,14 +177,24 @@ def assemble(parts: list[tuple[np.ndarray, Trajectory]]) -> Trajectory:
     for i, p in parts:
         for j, e in enumerate(np.asarray(i, dtype=np.int64).tolist()):
             scenarios[e], failures[e] = p.scenarios[j], p.failures[j]
-    return Trajectory(scenarios=scenarios, feature_names=first.feature_names, decision_period_s=first.decision_period_s,
-                      period_samples=first.period_samples, obs=put("obs", np.float32, 0.0), t=put("t", float, 0.0),
-                      feature_s=put("feature_s", float, 0.0), reference_detected=put("reference_detected", bool, False),
-                      reference_diagnoses=put("reference_diagnoses", object, None),
-                      sequential_detected=put("sequential_detected", bool, False),
-                      sequential_diagnoses=put("sequential_diagnoses", object, None),
-                      n_decisions=per_episode("n_decisions"), terminated=per_episode("terminated"), failures=failures,
-                      failure_step=per_episode("failure_step"), compute_s=per_episode("compute_s"))
+    return Trajectory(
+        scenarios=scenarios,
+        feature_names=first.feature_names,
+        decision_period_s=first.decision_period_s,
+        period_samples=first.period_samples,
+        obs=put("obs", np.float32, 0.0),
+        t=put("t", float, 0.0),
+        feature_s=put("feature_s", float, 0.0),
+        reference_detected=put("reference_detected", bool, False),
+        reference_diagnoses=put("reference_diagnoses", object, None),
+        sequential_detected=put("sequential_detected", bool, False),
+        sequential_diagnoses=put("sequential_diagnoses", object, None),
+        n_decisions=per_episode("n_decisions"),
+        terminated=per_episode("terminated"),
+        failures=failures,
+        failure_step=per_episode("failure_step"),
+        compute_s=per_episode("compute_s"),
+    )
 
 
 def feature_columns(have: tuple[str, ...], want: list[str]) -> np.ndarray | None:
@@ -175,8 +205,10 @@ def feature_columns(have: tuple[str, ...], want: list[str]) -> np.ndarray | None
     pos = {name: j for j, name in enumerate(have)}
     missing = [name for name in want if name not in pos]
     if missing:
-        raise ValueError(f"the trajectory has no feature {missing[0]!r} ({len(missing)} missing); it was made "
-                         "with other observation options")
+        raise ValueError(
+            f"the trajectory has no feature {missing[0]!r} ({len(missing)} missing); it was made "
+            "with other observation options"
+        )
     return np.array([pos[name] for name in want], dtype=np.int64)
 
 
@@ -258,11 +290,22 @@ def simulate(scenarios: list[ScenarioSpec], env_kwargs: dict | None = None, prog
         record(np.flatnonzero(live))
     seq = b.seq is not None
     return Trajectory(
-        scenarios=list(scenarios), feature_names=tuple(venv.feature_names), decision_period_s=b.decision_period_s,
-        period_samples=b.period_samples, obs=np.stack(rows["obs"]), t=np.stack(rows["t"]),
-        feature_s=np.stack(rows["feature_s"]), reference_detected=np.stack(rows["rdet"]),
-        reference_diagnoses=np.stack(rows["rdiag"]), sequential_detected=np.stack(rows["sdet"]) if seq else None,
-        sequential_diagnoses=np.stack(rows["sdiag"]) if seq else None, n_decisions=n_dec, terminated=term,
-        failures=[{"time_s": f["time_s"], "reason": f["reason"]} if ended else None
-                  for f, ended in zip(b.failure, term)],
-        failure_step=fstep, compute_s=compute_s)
+        scenarios=list(scenarios),
+        feature_names=tuple(venv.feature_names),
+        decision_period_s=b.decision_period_s,
+        period_samples=b.period_samples,
+        obs=np.stack(rows["obs"]),
+        t=np.stack(rows["t"]),
+        feature_s=np.stack(rows["feature_s"]),
+        reference_detected=np.stack(rows["rdet"]),
+        reference_diagnoses=np.stack(rows["rdiag"]),
+        sequential_detected=np.stack(rows["sdet"]) if seq else None,
+        sequential_diagnoses=np.stack(rows["sdiag"]) if seq else None,
+        n_decisions=n_dec,
+        terminated=term,
+        failures=[
+            {"time_s": f["time_s"], "reason": f["reason"]} if ended else None for f, ended in zip(b.failure, term)
+        ],
+        failure_step=fstep,
+        compute_s=compute_s,
+    )

@@ -37,21 +37,36 @@ class MarineFDIVectorEnv(VectorEnv):
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def __init__(self, num_envs: int = 1, scenario_config: "str | ScenarioConfig | dict" = "default",
-                 decision_period_s: float = 1.0, observe_sensors: bool = False,
-                 reward: "RewardConfig | RewardConfigV1 | dict | str | None" = None, params: str = "thesis-12v28",
-                 dt: float = 0.01,
-                 render_mode: str | None = None, observe_sequential: bool = False,
-                 diagnosis_cells: str = "sized") -> None:
+    def __init__(
+        self,
+        num_envs: int = 1,
+        scenario_config: "str | ScenarioConfig | dict" = "default",
+        decision_period_s: float = 1.0,
+        observe_sensors: bool = False,
+        reward: "RewardConfig | RewardConfigV1 | dict | str | None" = None,
+        params: str = "thesis-12v28",
+        dt: float = 0.01,
+        render_mode: str | None = None,
+        observe_sequential: bool = False,
+        diagnosis_cells: str = "sized",
+    ) -> None:
         if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         self.render_mode = supported_render_mode(render_mode, self.metadata["render_modes"])
         self.num_envs = int(num_envs)
         self.scenario_config = get_preset(scenario_config)
         reward = make_reward_config(reward)
-        self.batch = EpisodeBatch(self.num_envs, params, decision_period_s, dt, observe_sensors, reward,
-                                  noise_scale=self.scenario_config.noise_scale, observe_sequential=observe_sequential,
-                                  diagnosis_cells=diagnosis_cells)
+        self.batch = EpisodeBatch(
+            self.num_envs,
+            params,
+            decision_period_s,
+            dt,
+            observe_sensors,
+            reward,
+            noise_scale=self.scenario_config.noise_scale,
+            observe_sequential=observe_sequential,
+            diagnosis_cells=diagnosis_cells,
+        )
         low, high = observation_bounds(observe_sensors, observe_sequential)
         self.single_observation_space = spaces.Box(low, high, dtype=np.float32)
         self.single_action_space = spaces.Box(0.0, 1.0, (N_HYPOTHESES,), dtype=np.float32)
@@ -137,10 +152,23 @@ class MarineFDIVectorEnv(VectorEnv):
         rewards[live] = out.reward
         infos = scatter_infos(n, [(ended, final), (advancing, b.info_arrays(advancing))])
         declared = object_array([list(d) for d in out.declared])
-        infos.update(scatter_infos(n, [(live, {"declared": declared, "alarm": out.alarm,
-                                          "belief_on_truth": out.belief_on_truth.astype(float),
-                                          "reward_terms": {k: v.astype(float) for k, v in out.terms.items()},
-                                          "decision_time_s": decision_t})]))
+        infos.update(
+            scatter_infos(
+                n,
+                [
+                    (
+                        live,
+                        {
+                            "declared": declared,
+                            "alarm": out.alarm,
+                            "belief_on_truth": out.belief_on_truth.astype(float),
+                            "reward_terms": {k: v.astype(float) for k, v in out.terms.items()},
+                            "decision_time_s": decision_t,
+                        },
+                    )
+                ],
+            )
+        )
         stopped = np.flatnonzero(terminated)
         reasons = object_array([f"engine failure: {b.failure[i]['reason']}" for i in stopped])
         infos.update(scatter_infos(n, [(stopped, {"termination_reason": reasons})]))

@@ -51,6 +51,10 @@ class GatedAction(gym.ActionWrapper):
 
     def action(self, action) -> np.ndarray:
         a = np.asarray(action)
-        if a.shape != (3,) or not np.issubdtype(a.dtype, np.integer) or not self.action_space.contains(a.astype(np.int64)):
+        if (
+            a.shape != (3,)
+            or not np.issubdtype(a.dtype, np.integer)
+            or not self.action_space.contains(a.astype(np.int64))
+        ):
             raise ValueError(f"action must be 3 integers (alarm 0/1, fault 0-26, second fault 0-26), got {action!r}")
         return to_belief(a[None], "gated")[0]
