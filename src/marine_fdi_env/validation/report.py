@@ -49,7 +49,9 @@ from ..plotting import pyplot
 from .data_check import column_registry, describe
 from .dataset import DatasetError, MeasuredDataset, list_shipped, load_data_arg
 from .evidence import BESIDE_VALVE_DEFAULT, add_valve_options
-from .fitting import channel_rmse, predict_setting
+from .explanation_report import explain
+from .explanation_report import summary_lines as explanation_summary_lines
+from .fitting import FitResult, channel_rmse, predict_setting
 from .matching import TARGETS
 from .mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
 from .problem import Problem
@@ -229,8 +231,10 @@ def _step_dict(pr: Problem, step: Mapping[str, Any]) -> dict[str, Any]:
     return d
 
 
-def holdout_evaluation(sel: Selection, holdout: MeasuredDataset, conditions: str = "parameter_set") -> dict[str, Any]:
-    """RMSE per channel of the base model (as it is) and of the fitted engine on data the fit did not see.
+def holdout_evaluation(sel: Selection, holdout: MeasuredDataset, conditions: str = "parameter_set",
+                       fit: FitResult | None = None) -> dict[str, Any]:
+    """RMSE per channel of the base model (as it is) and of the fitted engine on data the fit did not see (``fit``:
+    another fit of the same data than the selection's, e.g. an explanation of :mod:`.explanations`).
 
     The fitted engine predicts with its valve schedules (the hold-out's points are not among the fitted ones);
     sensor calibrations apply where the hold-out has the same column.  ``conditions``: where the hold-out did not
@@ -251,7 +255,8 @@ def holdout_evaluation(sel: Selection, holdout: MeasuredDataset, conditions: str
         cond["assumption"] = ("the hold-out was run on the test bed of the fitted data: what it did not record ("
                               + (", ".join(cond["filled"]) or "nothing") + ") is taken from the fitted data")
     pb, _, _ = ho.predict()
-    s = sel.fit.schedule_setting(pr)
+    fit = sel.fit if fit is None else fit
+    s = fit.schedule_setting(pr)
     s = s.replace(sensors={c: v for c, v in s.sensors.items() if c in ho.channels})
     pe, conv, vals = ho.predict(s)
     rb, re_ = channel_rmse(ho, pb), channel_rmse(ho, pe)
@@ -271,7 +276,7 @@ def holdout_evaluation(sel: Selection, holdout: MeasuredDataset, conditions: str
                             "holdout_rmse_base_without_suspect": rb_c[c],
                             "holdout_rmse_extended_without_suspect": re_c[c],
                             "tolerance": float(ho.tolerance[j]), "n": int(ho.measured_mask[:, j].sum()),
-                            "touched_by_selected": _touches(sel.selected.mechanisms, holdout.column_quantity[c], c)}
+                            "touched_by_selected": _touches(fit.combination.mechanisms, holdout.column_quantity[c], c)}
                         for j, c in enumerate(ho.channels)},
            "_problem": ho, "_pred_base": pb, "_pred_extended": pe}
     if holdout.engine_ids():
@@ -298,8 +303,12 @@ def run_validation(ds: MeasuredDataset, *, holdout: MeasuredDataset | None = Non
                    alpha_unexplained: float = ALPHA_UNEXPLAINED, cv_all: bool = False, max_folds: int | None = None,
                    progress=None, notes: Sequence[str] = (), command: str | None = None,
                    tolerances: Mapping[str, float] | None = None, held_out_valves: str = "schedule",
-                   beside_valve: str = BESIDE_VALVE_DEFAULT) -> tuple[dict[str, Any], Selection, dict | None]:
+                   beside_valve: str = BESIDE_VALVE_DEFAULT, explanations: bool = True
+                   ) -> tuple[dict[str, Any], Selection, dict | None]:
     """Run the pipeline; returns (JSON report, selection, hold-out evaluation with predictions or None).
+    ``explanations``: also every structure the data do not decide against, the measurement that would decide and
+    each one's hold-out prediction (:mod:`.explanation_report`; the keys ``explanations``, ``explanations_outside``,
+    ``deciding``, ``explanation_rule``).
     ``tolerances``: per channel in its units (default: the sidecar's, else 1 % / 5 K).  ``held_out_valves``: how
     cross-validation predicts a valve's opening at a held-out point (:data:`~.problem.HELD_OUT_VALVES`).
     ``beside_valve``: how a cause joining a model with a valve earns its place
@@ -309,6 +318,8 @@ def run_validation(ds: MeasuredDataset, *, holdout: MeasuredDataset | None = Non
                         max_folds=max_folds, progress=progress, beside_valve=beside_valve)
     ho = holdout_evaluation(sel, holdout) if holdout is not None else None
     rep = build_report(sel, ho, notes, command)
+    if explanations:
+        rep.update(_clean(explain(sel, holdout=holdout, say=progress)))
     if ho is not None:
         hf = holdout_evaluation(sel, holdout, conditions="fit")
         if hf["conditions"]["filled"]:
@@ -354,6 +365,9 @@ def build_parser(prog: str = "marine-fdi validate") -> argparse.ArgumentParser:
     ap.add_argument("--cv-all", action="store_true", help="cross-validate every candidate (slower)")
     add_valve_options(ap)
     ap.add_argument("--markdown", metavar="FILE.md", help="also write the report's tables as Markdown")
+    ap.add_argument("--no-explanations", action="store_true",
+                    help="skip the set of explanations the data do not decide between, their profile intervals and "
+                         "the deciding measurement (faster)")
     ap.add_argument("--replicas", type=int, default=0, metavar="N",
                     help="also ask whether data like these would name the same causes again: N replicas of the data "
                          "per hypothesis (the named causes and 4 alternatives), each run through the whole pipeline "
@@ -383,6 +397,7 @@ def _summary_lines(rep: Mapping[str, Any]) -> list[str]:
         if "holdout" in rep:
             row += f" {_f(v.get('holdout_rmse_base')):>12s} {_f(v.get('holdout_rmse_extended')):>12s}"
         lines.append(row)
+    lines += explanation_summary_lines(rep)
     for u in rep["unexplained"]:
         lines.append("  " + u["text"])
     for o in rep["outliers"]:
@@ -485,7 +500,8 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
                                       alpha_unexplained=args.alpha_unexplained, cv_all=args.cv_all,
                                       max_folds=args.max_folds, progress=say, notes=notes,
                                       command="marine-fdi validate " + " ".join(argv), tolerances=tolerances,
-                                      held_out_valves=args.held_out_valves, beside_valve=args.beside_valve)
+                                      held_out_valves=args.held_out_valves, beside_valve=args.beside_valve,
+                                      explanations=not args.no_explanations)
         if args.replicas:
             from .replicas import replicate
 

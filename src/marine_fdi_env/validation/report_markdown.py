@@ -6,6 +6,8 @@ from __future__ import annotations
 import math
 from typing import Any, Mapping
 
+from .explanation_report import markdown_lines as explanation_markdown
+
 __all__ = ["markdown_summary"]
 
 
@@ -130,6 +132,7 @@ def markdown_summary(rep: Mapping[str, Any], title: str | None = None) -> str:
         for mid, a in rep["activity"].items():
             L.append(f"| `{mid}` | " + " | ".join(_g(x, '.3f') for x in a) + " |")
         L.append("")
+    L += explanation_markdown(rep)
     nuis = rep.get("nuisance", {}).get("extended") or {}
     if nuis:
         L.append("Calibration within the base model's uncertainty (multipliers, prior 1 ± 0.03, box ±0.06): "
