@@ -17,7 +17,8 @@ from .deciding import deciding_measurements
 from .explanations import BAND, EXCLUDE_ALPHA, Explanation, ExplanationSet, explanation_set, nested_in
 from .problem import Problem
 
-__all__ = ["DECIDE_TOP", "explain", "explanation_name", "explanations_json", "markdown_lines", "summary_lines"]
+__all__ = ["DECIDE_TOP", "explain", "explanation_name", "explanations_json", "interval", "markdown_lines",
+           "summary_lines"]
 
 #: how many of the best-ranked explanations the deciding measurement compares (the set's, else the set's only
 #: member and the best admissible structure outside it)
@@ -92,8 +93,8 @@ def _why_outside(e: Explanation, best: Explanation) -> str:
         return "not admissible: " + e.why_not
     if nested_in(e, best):
         return "#1 without some of its causes, which each earn their place by the selection's test"
-    return (f"ΔAIC {e.delta_aic:.1f} > {BAND:g} and worse point by point (paired p = {e.p_worse:.2g} < "
-            f"{EXCLUDE_ALPHA:g})")
+    return (f"ΔAIC {e.delta_aic:.1f} > {BAND:g}, worse point by point (paired p = {e.p_worse:.2g} < "
+            f"{EXCLUDE_ALPHA:g}) and in sample (ΔAICc {e.delta_aicc_in:.1f} > {BAND:g})")
 
 
 def explanations_json(problem: Problem, es: ExplanationSet, names: Mapping[int, str], deciding: Sequence[Any],
@@ -110,7 +111,7 @@ def explanations_json(problem: Problem, es: ExplanationSet, names: Mapping[int, 
     for e in es.outside():
         outside.append({"name": names[id(e)], "labels": list(e.labels), "k": e.fit.k, "origin": e.structure.origin,
                         "in_sample_score": e.in_sample_score, "cv_score": e.cv_score, "delta_aic": e.delta_aic,
-                        "p_worse": e.p_worse, "why": _why_outside(e, best), "parameters": e.fit.values(),
+                        "p_worse": e.p_worse, "delta_aicc_in_sample": e.delta_aicc_in, "why": _why_outside(e, best), "parameters": e.fit.values(),
                         "support": {k: [int(i) + 1 for i in v] for k, v in e.fit.support.items()}})
     return {"explanations": members, "explanations_outside": outside, "deciding": list(deciding),
             "explanation_rule": {"rule": es.rule, "band_delta_aic": BAND, "exclude_alpha": EXCLUDE_ALPHA,
@@ -120,7 +121,8 @@ def explanations_json(problem: Problem, es: ExplanationSet, names: Mapping[int, 
 def _evidence(d: Mapping[str, Any]) -> str:
     if d["rank"] == 1:
         return "best"
-    return f"ΔAIC {d['delta_aic']:.1f}, paired p = {d['p_worse']:.2g}"
+    return (f"ΔAIC {d['delta_aic']:.1f}, paired p = {d['p_worse']:.2g}, in-sample ΔAICc "
+            f"{d['delta_aicc_in_sample']:.1f}")
 
 
 def summary_lines(rep: Mapping[str, Any]) -> list[str]:
@@ -144,9 +146,10 @@ def summary_lines(rep: Mapping[str, Any]) -> list[str]:
     return lines
 
 
-def _interval(p: Mapping[str, Any]) -> str:
-    lo = f"{p['lower']:.3g}" + ("|" if p["lower_open"] else "")
-    hi = ("|" if p["upper_open"] else "") + f"{p['upper']:.3g}"
+def interval(p: Mapping[str, Any]) -> str:
+    """A profile interval for Markdown: ``value [lo, hi]``, an end at the plausible range's bound marked."""
+    lo = f"{p['lower']:.3g}" + (" (bound)" if p["lower_open"] else "")
+    hi = f"{p['upper']:.3g}" + (" (bound)" if p["upper_open"] else "")
     return f"{p['value']:.3g} [{lo}, {hi}]" + ("" if p["identified"] else " not identified")
 
 
@@ -161,11 +164,11 @@ def markdown_lines(rep: Mapping[str, Any]) -> list[str]:
     if len(ex) > 1:
         L += ["**The data do not decide between:** " + "; ".join(f"#{d['rank']} {d['name']}" for d in ex) + ".", ""]
     L += ["| # | explanation | named by the selection | k | in-sample score | CV score | evidence vs #1 | parameters "
-          "(value [95 % profile interval]; `|` an end at the plausible range's bound) |",
+          "(value [95 % profile interval]) |",
           "|---|---|---|---|---|---|---|---|"]
     for d in ex:
         prof = d.get("profiles") or {}
-        params = "; ".join(f"`{k}` {_interval(v)}" for k, v in prof.items()) or "–"
+        params = "; ".join(f"`{k}` {interval(v)}" for k, v in prof.items()) or "–"
         L.append(f"| {d['rank']} | {d['name']} | {'yes' if d['named'] else 'no'} | {d['k']} | "
                  f"{d['in_sample_score']:.3g} | {d['cv_score']:.3g} | {_evidence(d)} | {params} |")
     L.append("")
@@ -194,11 +197,11 @@ def markdown_lines(rep: Mapping[str, Any]) -> list[str]:
         L.append("")
     out = rep.get("explanations_outside") or []
     if out:
-        L += ["Tried and outside the set:", "", "| explanation | k | in-sample score | CV score | ΔAIC | paired p | why |",
-              "|---|---|---|---|---|---|---|"]
+        L += ["Tried and outside the set:", "", "| explanation | k | in-sample score | CV score | ΔAIC | paired p | "
+              "in-sample ΔAICc | why |", "|---|---|---|---|---|---|---|---|"]
         for o in out:
             L.append(f"| {o['name']} | {o['k']} | {o['in_sample_score']:.3g} | {o['cv_score']:.3g} | "
-                     f"{o['delta_aic']:.1f} | {o['p_worse']:.2g} | {o['why']} |")
+                     f"{o['delta_aic']:.1f} | {o['p_worse']:.2g} | {o['delta_aicc_in_sample']:.1f} | {o['why']} |")
         L.append("")
     for p in rep.get("deciding") or []:
         if p["measurements"]:

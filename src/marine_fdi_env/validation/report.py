@@ -380,9 +380,11 @@ def build_parser(prog: str = "marine-fdi validate") -> argparse.ArgumentParser:
 def _summary_lines(rep: Mapping[str, Any]) -> list[str]:
     lines = [f"{rep['dataset']['name']} ({rep['model']['params']}, matched on {rep['model']['target']}, "
              f"{rep['cv']['scheme']}): selected causes: {', '.join(rep['selected_labels']) or 'none'}"]
+    prof = next((e.get("profiles") or {} for e in rep.get("explanations") or () if e["named"]), {})
     for lab, ps in rep["parameters"].items():
-        lines.append("  " + lab + ": " + ", ".join(f"{k} = {_f(v['value'])} ± {_f(v['stderr'])}"
-                                                   for k, v in ps.items()))
+        lines.append("  " + lab + ": " + ", ".join(
+            f"{k} = {_f(v['value'])} " + (_profile(prof[f"{lab}.{k}"]) if f"{lab}.{k}" in prof else
+                                          f"± {_f(v['stderr'])}") for k, v in ps.items()))
     for lab, alts in (rep.get("alternatives") or {}).items():
         if alts:
             lines.append(f"  {lab}: hardly told from " + ", ".join(a["mechanism"] for a in alts))
@@ -411,6 +413,13 @@ def _summary_lines(rep: Mapping[str, Any]) -> list[str]:
 
 def _f(x) -> str:
     return "-" if x is None else f"{x:.4g}"
+
+
+def _profile(p: Mapping[str, Any]) -> str:
+    """A profile interval in words: ``[lo, hi] (95 % profile)``, an end at its bound marked, "not identified"."""
+    lo = ("bound " if p["lower_open"] else "") + _f(p["lower"])
+    hi = ("bound " if p["upper_open"] else "") + _f(p["upper"])
+    return f"[{lo}, {hi}] (95 % profile{'' if p['identified'] else '; not identified'})"
 
 
 def _out_path(text: str, option: str) -> Path:

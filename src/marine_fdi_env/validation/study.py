@@ -211,7 +211,7 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
     named = sorted(sel.selected_labels)
     res = {**base, "truth": syn.truth, "selected": named, "model_error": syn.settings["model_error"],
            "seconds": time.perf_counter() - t0, "unexplained": [
-               {k: u.get(k) for k in ("channel", "kind", "region", "load_range", "magnitude", "left_by")}
+               {k: u.get(k) for k in ("channel", "kind", "region", "load_range", "magnitude", "left_by", "scale")}
                for u in sel.unexplained]}
     res["calibration_scan"] = sel.calibration_scans
     res["named_any"] = bool(named)
