@@ -6,12 +6,12 @@ the fitted engine file runs) is solved on a grid: loads :data:`LOADS` of the rat
 propeller law's speed) at the data's ambient conditions, the mean and the four corners of the recorded range of
 ambient pressure and intake temperature (the parameter set's where the data recorded none), the back pressure over
 load as the data recorded it; loads within :data:`NEAR` of a measured load are left out (the data already hold a
-reading there, and both explanations were fitted to it).  For two explanations A and B every channel's difference
-``|a - b|`` is taken over the grid against the scale a new reading would scatter by about either prediction: the channel's tolerance, or the
-explanations' own misfit on that channel where it is larger (``sqrt((rmse_A² + rmse_B²)/2)`` of their in-sample
-residuals; a channel both miss by 30 K decides nothing at 10 K).  The largest is the measurement that decides:
-"measure X at load Y: A predicts a, B predicts b (n tolerances apart)", with its ratio to that scale.  A difference
-below about three of them would not decide on one reading.
+reading there, and both explanations were fitted to it). For two explanations A and B every channel's difference
+``|a - b|`` is taken over the grid against the scale a new reading would scatter by about either prediction: the
+channel's tolerance, or the explanations' own misfit on that channel where it is larger (``sqrt((rmse_A² +
+rmse_B²)/2)`` of their in-sample residuals; a channel both miss by 30 K decides nothing at 10 K). The largest is the
+measurement that decides: "measure X at load Y: A predicts a, B predicts b (n tolerances apart)", with its ratio to
+that scale. A difference below about three of them would not decide on one reading.
 """
 
 from __future__ import annotations

@@ -5,23 +5,22 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
 from ..plotting import pyplot
 from .deciding import LOADS, deciding_measurements, readings_over_load
-from .explanation_report import _compared, explanation_name
+from .explanation_report import compared, explanation_name
 
 __all__ = ["plot_explanations"]
 
 
 def plot_explanations(sel, directory: str | Path, name: str, channels: int = 3) -> list[Path]:
     """``NAME_explanations.png``: the deciding channels (at most ``channels``) over load, each at the ambient
-    conditions of its deciding point, one line per compared explanation (the set's best two, or its only member and the closest structure
-    outside it, dashed), the measured points and each deciding point; nothing when fewer than two explanations."""
+    conditions of its deciding point, one line per compared explanation (the set's best two, or its only member and
+    the closest structure outside it, dashed), the measured points and each deciding point; nothing when fewer than
+    two explanations."""
     es = sel.explanations
     if es is None:
         return []
-    cmp_ = _compared(es)
+    cmp_ = compared(es)
     if len(cmp_) < 2:
         return []
     pr = sel.problem

@@ -17,7 +17,7 @@ from .deciding import deciding_measurements
 from .explanations import BAND, EXCLUDE_ALPHA, Explanation, ExplanationSet, explanation_set, nested_in
 from .problem import Problem
 
-__all__ = ["DECIDE_TOP", "explain", "explanation_name", "explanations_json", "interval", "markdown_lines",
+__all__ = ["DECIDE_TOP", "compared", "explain", "explanation_name", "explanations_json", "interval", "markdown_lines",
            "summary_lines"]
 
 #: how many of the best-ranked explanations the deciding measurement compares (the set's, else the set's only
@@ -38,7 +38,9 @@ def explanation_name(problem: Problem, e: Explanation) -> str:
     return " + ".join(parts) or "nothing (the calibrated base model)"
 
 
-def _compared(es: ExplanationSet) -> list[Explanation]:
+def compared(es: ExplanationSet) -> list[Explanation]:
+    """The explanations the deciding measurement compares: the set's best :data:`DECIDE_TOP` with a cause, else its
+    only one and the best admissible structure outside it."""
     top = [e for e in es.members if e.fit.combination.mechanisms][:DECIDE_TOP]
     if len(top) < DECIDE_TOP and (r := es.runner_up()) is not None and r.fit.combination.mechanisms:
         top.append(r)
@@ -60,7 +62,7 @@ def explain(sel, *, holdout=None, profiles: bool = True, deciding: bool = True,
     names = {id(e): explanation_name(pr, e) for e in es.tried}
     dec = []
     if deciding:
-        cmp_ = _compared(es)
+        cmp_ = compared(es)
         if len(cmp_) >= 2:
             dec = deciding_measurements(pr, [(f"#{i + 1} {names[id(e)]}", e.fit) for i, e in enumerate(cmp_)])
     holdouts: dict[int, dict[str, Any]] = {}
@@ -111,7 +113,8 @@ def explanations_json(problem: Problem, es: ExplanationSet, names: Mapping[int, 
     for e in es.outside():
         outside.append({"name": names[id(e)], "labels": list(e.labels), "k": e.fit.k, "origin": e.structure.origin,
                         "in_sample_score": e.in_sample_score, "cv_score": e.cv_score, "delta_aic": e.delta_aic,
-                        "p_worse": e.p_worse, "delta_aicc_in_sample": e.delta_aicc_in, "why": _why_outside(e, best), "parameters": e.fit.values(),
+                        "p_worse": e.p_worse, "delta_aicc_in_sample": e.delta_aicc_in, "why": _why_outside(e, best),
+                        "parameters": e.fit.values(),
                         "support": {k: [int(i) + 1 for i in v] for k, v in e.fit.support.items()}})
     return {"explanations": members, "explanations_outside": outside, "deciding": list(deciding),
             "explanation_rule": {"rule": es.rule, "band_delta_aic": BAND, "exclude_alpha": EXCLUDE_ALPHA,
@@ -183,7 +186,8 @@ def markdown_lines(rep: Mapping[str, Any]) -> list[str]:
         L.append("")
     ho = [(d, d["holdout"]) for d in ex if d.get("holdout")]
     if ho:
-        L += ["Hold-out prediction of each explanation (RMSE base → explanation; in brackets without the readings the "
+        L += ["Hold-out prediction of each explanation (RMSE base → explanation; in brackets without the readings "
+              "the "
               "loader flags):", "", "| # | conditions | " + " | ".join(f"`{c}`" for c in ho[0][1]["parameter_set"])
               + " |", "|---|---|" + "---|" * len(ho[0][1]["parameter_set"])]
         for d, h in ho:
@@ -192,7 +196,8 @@ def markdown_lines(rep: Mapping[str, Any]) -> list[str]:
                     continue
                 L.append(f"| {d['rank']} | {cond} | " + " | ".join(
                     f"{_g(v['holdout_rmse_base'])} → {_g(v['holdout_rmse_extended'])} "
-                    f"({_g(v['holdout_rmse_base_without_suspect'])} → {_g(v['holdout_rmse_extended_without_suspect'])})"
+                    f"({_g(v['holdout_rmse_base_without_suspect'])} → "
+                    f"{_g(v['holdout_rmse_extended_without_suspect'])})"
                     for v in chans.values()) + " |")
         L.append("")
     out = rep.get("explanations_outside") or []

@@ -9,23 +9,26 @@ the evidence of a structure relative to the best is
 
     ``ΔAIC = M ln(S̃ / S̃_best)``  (``exp(-ΔAIC/2)`` its likelihood ratio on the estimated scale).
 
-**The set** holds every admissible structure that the data do not exclude.  A structure is excluded only when the
+**The set** holds every admissible structure that the data do not exclude. A structure is excluded only when the
 evidence is against it on every count: outside the band on the cross-validated criterion (``ΔAIC >`` :data:`BAND`,
 2: a likelihood ratio below e^-1, "barely worth mentioning" on Jeffreys' scale), consistently worse point by point
 (one-sided paired t-test of the per-point cross-validated losses against the best, ``p <`` :data:`EXCLUDE_ALPHA`: a
 cross-validated difference that one or two held-out points carry is not evidence between structures), and outside
-the band in sample too (AICc on the in-sample robust cost with the scale estimated, ``M ln(S) + 2K + 2K(K+1)/(M-K-1)``
-with ``K = k + 1``, against the best's).  Cross-validation alone is biased between structures of equal fit: a
-mechanism whose fit sits at the bounds of its range refits less from fold to fold and predicts the left-out point
-better than the true one (development seeds 9 and 17 of condition (f): a blade-speed-ratio loss at both its bounds
-ahead of the true map change, cross-validated 3 AIC units and p = 0.009-0.03 better, 0.2-0.8 worse in sample).  A structure that is the best one without some of its causes
-(each remaining valve at the same points) is excluded by the best's admissibility: each of its causes earned its
-place against the structure without it (:func:`nested_in`).  **Admissible** (:func:`admissibility`): every valve opens
-somewhere, no parameter sits at a bound of its plausible range that the data want beyond (as the selection's
-eligibility), and every cause earns its place against the structure without it by the selection's own test
-(:func:`~.evidence.earns`: gain ≥ ``min_gain`` and the F-test at ``alpha`` over the first step's candidates, in sample
-for a physical mechanism beside a valve), so that "the named causes plus a mechanism the data do not ask for" is not
-an explanation of its own.  The first of the set is the named model unless the search found a better admissible one.
+the band in sample too (AICc on the in-sample robust cost with the scale estimated, ``M ln(S) + 2K +
+2K(K+1)/(M-K-1)`` with ``K = k + 1``, against the best's). Cross-validation alone is biased between structures of
+equal fit: a mechanism whose fit sits at the bounds of its range refits less from fold to fold and predicts the
+left-out point better than the true one (development seeds 9 and 17 of condition (f): a blade-speed-ratio loss at
+both its bounds ahead of the true map change, cross-validated 3 AIC units and p = 0.009-0.03 better, within 1 AIC
+unit of it in sample). A structure that is the best one without some of its causes (each remaining valve at the same
+points) is excluded by the best's admissibility: each of its causes earned its place against the structure without
+it (:func:`nested_in`).
+
+**Admissible** (:func:`admissibility`): every valve opens somewhere, no parameter sits at a bound of its plausible
+range that the data want beyond (as the selection's eligibility), and every cause earns its place against the
+structure without it by the selection's own test (:func:`~.evidence.earns`: gain ≥ ``min_gain`` and the F-test at
+``alpha`` over the first step's candidates, in sample for a physical mechanism beside a valve), so that "the named
+causes plus a mechanism the data do not ask for" is not an explanation of its own. The first of the set is the named
+model unless the search found a better admissible one.
 
 Profile-likelihood intervals (:mod:`.profiles`) are computed for the set's members.
 """
@@ -42,7 +45,7 @@ import numpy as np
 from .candidates import CandidateScore, paired_p
 from .eligibility import why_pinned
 from .evidence import BESIDE_VALVE_DEFAULT, IN_SAMPLE_ALONE, earns, judged_in_sample
-from .explanation_search import Structure, accepted_steps, candidate_structures, support_key
+from .explanation_search import Structure, candidate_structures, support_key
 from .fitting import Combination, FitResult, cell_losses, channel_rmse, fit_combination, predict_setting
 from .nuisance import NUISANCE
 from .problem import Problem
@@ -219,7 +222,8 @@ def admissibility(problem: Problem, e: Explanation, scored: Callable[[FitResult,
 def nested_in(e: Explanation, other: Explanation) -> bool:
     """Whether ``e`` is ``other`` without some of its causes, each remaining valve at the same points."""
     return set(e.labels) < set(other.labels) and all(
-        sorted(e.fit.support.get(m.id, ())) == sorted(other.fit.support.get(m.id, ())) for m in e.fit.combination.valves)
+        sorted(e.fit.support.get(m.id, ())) == sorted(other.fit.support.get(m.id, ()))
+        for m in e.fit.combination.valves)
 
 
 def explanation_set(problem: Problem, named: FitResult, steps: Sequence[dict[str, Any]], *, alpha: float = 0.01,
