@@ -136,11 +136,11 @@ def test_an_ambiguous_draw_is_explained_by_its_alternative_within_the_band():
     meet, and the draw is the same on a second call (deterministic in the seed)."""
     from marine_fdi_env.validation.ambiguity import ambiguous_draw
 
-    d = ambiguous_draw(1)
+    d = ambiguous_draw(1, loaded)
     assert d is not None and d["truth"] == ["turbocharger_map"] and d["alternative"] == ["turbine_efficiency_bsr"]
     assert 0.0 <= d["misfit"] <= d["bound"]
     ambiguous_draw.cache_clear()
-    assert ambiguous_draw(1)["specs"] == d["specs"]
+    assert ambiguous_draw(1, loaded)["specs"] == d["specs"]
 
 
 def test_set_summary_counts_coverage_first_rank_and_sizes():

@@ -19,7 +19,7 @@ noisy data are then A's, as every study trial's (:func:`~.synthesize.synthesize`
 from __future__ import annotations
 
 import functools
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -56,12 +56,12 @@ def _k(truth: list[dict[str, Any]]) -> int:
 
 
 @functools.lru_cache(maxsize=64)
-def ambiguous_draw(seed: int, *, params: str = "wartsila-6l46", points: int = 8, noise: float = 0.01
-                   ) -> dict[str, Any] | None:
+def ambiguous_draw(seed: int, load: Callable[[Any], Any], *, params: str = "wartsila-6l46", points: int = 8,
+                   noise: float = 0.01) -> dict[str, Any] | None:
     """The (f) draw of ``seed``: ``{specs, truth, alternative, misfit, bound, attempt}`` (``specs`` for
     :func:`~.synthesize.synthesize`; ``misfit``: the alternative's sum of squared misfit on the clean data in noise
-    standard deviations), or None when no draw of :data:`ATTEMPTS` is ambiguous.  Cached (a trial asks twice)."""
-    from .study import loaded
+    standard deviations), or None when no draw of :data:`ATTEMPTS` is ambiguous.  ``load``: the study's round trip
+    of a synthesis through a CSV file and the loader (:func:`~.study.loaded`).  Cached (a trial asks twice)."""
     from .synthesize import synthesize
 
     truth_ids, alt_ids = PAIRS[int(seed) % len(PAIRS)]
@@ -70,7 +70,7 @@ def ambiguous_draw(seed: int, *, params: str = "wartsila-6l46", points: int = 8,
         specs = _specs(truth_ids, rng)
         try:
             clean = synthesize(params, specs, points=points, noise=0.0, seed=int(seed) * 31 + 7)
-            pr = Problem(loaded(clean))
+            pr = Problem(load(clean))
         except ValueError:
             continue
         comb = Combination(tuple(get_mechanism(m) for m in alt_ids))

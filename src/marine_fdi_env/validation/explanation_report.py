@@ -47,12 +47,12 @@ def compared(es: ExplanationSet) -> list[Explanation]:
     return top
 
 
-def explain(sel, *, holdout=None, profiles: bool = True, deciding: bool = True,
-            say: Callable[[str], None] | None = None) -> dict[str, Any]:
+def explain(sel, *, holdout: Callable[[Any, str], Mapping[str, Any]] | None = None, profiles: bool = True,
+            deciding: bool = True, say: Callable[[str], None] | None = None) -> dict[str, Any]:
     """The explanation set of a :class:`~.selection.Selection` (stored in ``sel.explanations``), the deciding
-    measurements between its best explanations, and with ``holdout`` (a dataset) each member's hold-out evaluation
-    at both conditions of :func:`~.report.holdout_evaluation`.  Returns the report's keys
-    (:func:`explanations_json`)."""
+    measurements between its best explanations, and with ``holdout`` (``holdout(fit, conditions)``: a hold-out
+    evaluation of a fit at ``"parameter_set"`` or ``"fit"`` conditions, as :func:`~.report.holdout_evaluation`)
+    each member's.  Returns the report's keys (:func:`explanations_json`)."""
     st = sel.settings
     es = explanation_set(sel.problem, sel.fit, sel.steps, alpha=st["alpha"], min_gain=st["min_gain"],
                          penalty=st["penalty"], max_folds=st.get("max_folds"), beside_valve=st["beside_valve"],
@@ -67,14 +67,8 @@ def explain(sel, *, holdout=None, profiles: bool = True, deciding: bool = True,
             dec = deciding_measurements(pr, [(f"#{i + 1} {names[id(e)]}", e.fit) for i, e in enumerate(cmp_)])
     holdouts: dict[int, dict[str, Any]] = {}
     if holdout is not None:
-        from .report import _clean, holdout_evaluation
-
         for e in es.members:
-            h = {}
-            for cond in ("parameter_set", "fit"):
-                r = holdout_evaluation(sel, holdout, conditions=cond, fit=e.fit)
-                h[cond] = _clean({k: v for k, v in r.items() if not k.startswith("_")})
-            holdouts[id(e)] = h
+            holdouts[id(e)] = {cond: holdout(e.fit, cond) for cond in ("parameter_set", "fit")}
     return explanations_json(pr, es, names, dec, holdouts)
 
 

@@ -319,7 +319,11 @@ def run_validation(ds: MeasuredDataset, *, holdout: MeasuredDataset | None = Non
     ho = holdout_evaluation(sel, holdout) if holdout is not None else None
     rep = build_report(sel, ho, notes, command)
     if explanations:
-        rep.update(_clean(explain(sel, holdout=holdout, say=progress)))
+        def each(fit, cond):  # a member's hold-out evaluation, JSON-ready
+            r = holdout_evaluation(sel, holdout, conditions=cond, fit=fit)
+            return _clean({k: v for k, v in r.items() if not k.startswith("_")})
+
+        rep.update(_clean(explain(sel, holdout=each if holdout is not None else None, say=progress)))
     if ho is not None:
         hf = holdout_evaluation(sel, holdout, conditions="fit")
         if hf["conditions"]["filled"]:

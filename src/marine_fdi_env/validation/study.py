@@ -123,7 +123,7 @@ def trial_draw(condition: str, seed: int, *, control: bool = False
     if condition == "f":  # drawn until two structures fit each other's data (:mod:`.ambiguity`); a control needs none
         from .ambiguity import ambiguous_draw
 
-        d = None if control else ambiguous_draw(int(seed))
+        d = None if control else ambiguous_draw(int(seed), loaded)
         return (d["specs"] if d else []), [], None
     rng = np.random.default_rng([int(seed), ord(condition), 7919])
     mechs = _draw_mechanisms(rng, cond["n_mech"])
@@ -227,7 +227,7 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
         if condition == "f" and not control:
             from .ambiguity import ambiguous_draw
 
-            d = ambiguous_draw(int(seed))
+            d = ambiguous_draw(int(seed), loaded)
             alt = d["alternative"]
             res["ambiguity"] = {k: d[k] for k in ("alternative", "alternative_support", "misfit", "bound", "attempt")}
         res.update(set_outcome(sel, truth_labels, alt))
