@@ -40,6 +40,9 @@ CONDITIONS = {
           "perturb": 0.01, "noise_model": "typical", "noise": 0.01, "n_mech": 2},
     "e": {"title": "an effect outside the library on one channel (model error 1 %)",
           "perturb": 0.01, "noise_model": "typical", "noise": 0.01, "n_mech": 0},
+    "f": {"title": "ambiguity by construction: data from one of two structures that fit each other's clean data "
+                   "within the band (a waste gate / gate and map at other points; a map change / a blade-speed-ratio "
+                   "loss)", "perturb": 0.0, "noise_model": "typical", "noise": 0.01, "n_mech": None},
 }
 
 
@@ -62,13 +65,15 @@ def _draw_mechanisms(rng: np.random.Generator, n: int) -> list[str]:
 
 
 #: what the pipeline is told of the noise in a study trial: ``stated`` its own tolerances (1 %, 5 K: what every
-#: result of the study uses), ``noise`` each channel's true noise (:func:`noise_tolerances`, an ablation)
-TOLERANCE_MODES = ("stated", "noise")
+#: result of the study uses), ``noise`` each channel's true noise (:func:`noise_tolerances`, an ablation),
+#: ``noise2x`` twice each channel's true noise (a loosely stated sensor: what judging at the data's own scatter,
+#: :mod:`.data_scale`, must make up for)
+TOLERANCE_MODES = ("stated", "noise", "noise2x")
 
 
 def _trial_settings(params: str = "wartsila-6l46", points: int = 8, max_folds: int | None = None, prune: bool = True,
                     tolerance: str = "stated", exchange: bool = True, held_out_valves: str = "schedule",
-                    beside_valve: str = BESIDE_VALVE_DEFAULT, **_) -> dict[str, Any]:
+                    beside_valve: str = BESIDE_VALVE_DEFAULT, explanations: bool = True, **_) -> dict[str, Any]:
     """What a trial's outcome depends on besides its condition and seed (a resumed study keeps only trials run with
     the same).  ``tolerance`` is recorded only when it is not the default, ``exchange`` only when it is on: every
     file written before the exchange step (2026-11-26) was run without it.  ``calibration_scan``: the level of the
@@ -80,9 +85,14 @@ def _trial_settings(params: str = "wartsila-6l46", points: int = 8, max_folds: i
     cause joining a model with a valve earns its place (:data:`~.evidence.BESIDE_VALVE`), recorded unless it is
     ``cross_validated``: every file before 2026-11-26 (ninth session) judged it so; the files 340-360 record
     ``in_sample``, 360-380 ``in_sample_exchange``, those after it ``in_sample_pairs`` (the default since the twelfth
-    session)."""
+    session).  ``explanations``: whether the trial records its explanation set (:mod:`.study_sets`), recorded when
+    on (files before it have no set); ``local_scan``: every trial since the data-scale scan (:mod:`.data_scale`)
+    judges a channel's window scan at the data's scatter below a loose tolerance (files without the key at the
+    tolerance)."""
     out = {"params": str(params), "points": int(points), "max_folds": max_folds, "prune": bool(prune),
-           "calibration_scan": "per named calibration"}
+           "calibration_scan": "per named calibration", "local_scan": "data scale below a loose tolerance"}
+    if explanations:
+        out["explanations"] = True
     if tolerance != "stated":
         out["tolerance"] = str(tolerance)
     if exchange:
@@ -110,6 +120,11 @@ def trial_draw(condition: str, seed: int, *, control: bool = False
     A control drops the draw; in (e) it keeps the channel the paired trial's effect is on (the shadow channel): a
     finding there is the control's false hit."""
     cond = CONDITIONS[condition]
+    if condition == "f":  # drawn until two structures fit each other's data (:mod:`.ambiguity`); a control needs none
+        from .ambiguity import ambiguous_draw
+
+        d = None if control else ambiguous_draw(int(seed), loaded)
+        return (d["specs"] if d else []), [], None
     rng = np.random.default_rng([int(seed), ord(condition), 7919])
     mechs = _draw_mechanisms(rng, cond["n_mech"])
     effects = ([draw_effect(rng, DEFAULT_COLUMNS, family=list(FAMILIES)[int(seed) % len(FAMILIES)])]
@@ -137,30 +152,32 @@ def loaded(syn: Synthesis, name: str = "trial", workdir: str | Path | None = Non
 
 
 def trial_data(condition: str, seed: int, *, control: bool = False, params: str = "wartsila-6l46",
-               points: int = 8) -> Synthesis:
-    """The data of one trial of the study (:func:`trial` runs the pipeline on them); raises ValueError when the
-    hidden engine cannot run at the drawn points (the trial is then skipped)."""
+               points: int = 8, draw: tuple[list[str], list[dict[str, Any]], str | None] | None = None) -> Synthesis:
+    """The data of one trial of the study (:func:`trial` runs the pipeline on them; ``draw``: its
+    :func:`trial_draw`, when already made); raises ValueError when the hidden engine cannot run at the drawn points
+    (the trial is then skipped)."""
     cond = CONDITIONS[condition]
-    mechs, effects, _ = trial_draw(condition, seed, control=control)
+    mechs, effects, _ = trial_draw(condition, seed, control=control) if draw is None else draw
     return synthesize(params, mechs or ["none"], points=points, noise=cond["noise"], seed=int(seed) * 31 + 7,
                       noise_model=cond["noise_model"], perturb=cond["perturb"], effects=effects)
 
 
 def trial(condition: str, seed: int, *, control: bool = False, params: str = "wartsila-6l46", points: int = 8,
           max_folds: int | None = None, prune: bool = True, tolerance: str = "stated", exchange: bool = True,
-          held_out_valves: str = "schedule", beside_valve: str = BESIDE_VALVE_DEFAULT,
+          held_out_valves: str = "schedule", beside_valve: str = BESIDE_VALVE_DEFAULT, explanations: bool = True,
           workdir: str | Path | None = None) -> dict[str, Any]:
     """One trial of the study: synthesise with the condition's hidden effects (none when ``control``), write and
     reload the data, run the selection (``prune``: its final removal step, on by default; ``tolerance``: one of
     :data:`TOLERANCE_MODES`; ``exchange``: the selection's exchange step, on by default; ``held_out_valves``: one of
-    :data:`~.problem.HELD_OUT_VALVES`; ``beside_valve``: one of :data:`~.evidence.BESIDE_VALVE`) and compare with the
-    truth."""
+    :data:`~.problem.HELD_OUT_VALVES`; ``beside_valve``: one of :data:`~.evidence.BESIDE_VALVE`; ``explanations``:
+    also the explanation set, :mod:`.study_sets`) and compare with the truth."""
     from marine_fdi_env.validation.dataset import DatasetError
     from marine_fdi_env.validation.problem import Problem
     from marine_fdi_env.validation.selection import select_causes
 
     t0 = time.perf_counter()
-    mechs, effects, shadow = trial_draw(condition, seed, control=control)
+    draw = trial_draw(condition, seed, control=control)
+    mechs, effects, shadow = draw
     if tolerance not in TOLERANCE_MODES:
         raise ValueError(f"tolerance must be one of {', '.join(TOLERANCE_MODES)}, got {tolerance!r}")
     base = {"condition": condition, "control": bool(control), "seed": int(seed), "mechanisms": mechs,
@@ -168,9 +185,15 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
                                                                   prune=prune, tolerance=tolerance,
                                                                   exchange=exchange,
                                                                   held_out_valves=held_out_valves,
-                                                                  beside_valve=beside_valve)}
+                                                                  beside_valve=beside_valve,
+                                                                  explanations=explanations)}
+    if condition == "f" and not control and not mechs:
+        from .ambiguity import ATTEMPTS
+
+        return {**base, "outcome": "skipped", "why": f"no draw of {ATTEMPTS} within the band",
+                "seconds": time.perf_counter() - t0}
     try:
-        syn = trial_data(condition, seed, control=control, params=params, points=points)
+        syn = trial_data(condition, seed, control=control, params=params, points=points, draw=draw)
     except ValueError as e:
         return {**base, "outcome": "skipped", "why": str(e)[:300], "seconds": time.perf_counter() - t0}
     try:
@@ -179,14 +202,16 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
         return {**base, "outcome": "skipped", "why": "loader: " + " ".join(str(e).split())[:300],
                 "seconds": time.perf_counter() - t0}
     problem = Problem(ds, held_out_valves=held_out_valves)
-    if tolerance == "noise":
-        problem = Problem(ds, tolerances=noise_tolerances(syn, problem.channels), held_out_valves=held_out_valves)
+    if tolerance in ("noise", "noise2x"):
+        factor = 2.0 if tolerance == "noise2x" else 1.0
+        problem = Problem(ds, tolerances={c: factor * v for c, v in noise_tolerances(syn, problem.channels).items()},
+                          held_out_valves=held_out_valves)
     sel = select_causes(problem, max_folds=max_folds, prune=prune, exchange=exchange, beside_valve=beside_valve)
     truth_labels = sorted(t["label"] for t in syn.truth)
     named = sorted(sel.selected_labels)
     res = {**base, "truth": syn.truth, "selected": named, "model_error": syn.settings["model_error"],
            "seconds": time.perf_counter() - t0, "unexplained": [
-               {k: u.get(k) for k in ("channel", "kind", "region", "load_range", "magnitude", "left_by")}
+               {k: u.get(k) for k in ("channel", "kind", "region", "load_range", "magnitude", "left_by", "scale")}
                for u in sel.unexplained]}
     res["calibration_scan"] = sel.calibration_scans
     res["named_any"] = bool(named)
@@ -195,6 +220,17 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
         res["shadow_channel"] = shadow
         res["unexplained_on_shadow_channel"] = any(u["channel"] == shadow for u in sel.unexplained)
     res["exact"] = named == truth_labels
+    if explanations:
+        from .study_sets import set_outcome
+
+        alt = None
+        if condition == "f" and not control:
+            from .ambiguity import ambiguous_draw
+
+            d = ambiguous_draw(int(seed), loaded)
+            alt = d["alternative"]
+            res["ambiguity"] = {k: d[k] for k in ("alternative", "alternative_support", "misfit", "bound", "attempt")}
+        res.update(set_outcome(sel, truth_labels, alt))
     res["alternatives"] = {k: [a["mechanism"] for a in v] for k, v in sel.alternatives.items()}
     res["exact_up_to_equivalence"] = len(named) == len(truth_labels) and all(
         any(t == n or t in equivalents(n) for n in named) for t in truth_labels)
@@ -231,6 +267,8 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
         add = np.asarray(syn.settings["effects_added"][e["channel"]])
         res["effect_size"] = effect_size(add, np.asarray(syn.clean[e["channel"]]) - add,
                                          float(sel.problem.tolerance[j]))
+        res["effect_size_noise"] = effect_size(add, np.asarray(syn.clean[e["channel"]]) - add,
+                                               float(np.mean(syn.noise_sd(e["channel"]))))
         res["found_on_channel"] = [{k: u.get(k) for k in ("kind", "region", "load_range")} for u in hits]
         res["unexplained_right_channel"] = bool(hits)
         res["unexplained_right_region"] = bool(region_ok)
@@ -339,6 +377,14 @@ def summarise(results: Sequence[dict[str, Any]], condition: str) -> dict[str, An
                     sum(r["unexplained_right_channel"] for r in tr if a <= r["effect_size"]["beyond_calibration"] < b),
                     sum(a <= r["effect_size"]["beyond_calibration"] < b for r in tr))
                 for a, b in zip(edges[:-1], edges[1:])}
+        if tr and all("effect_size_noise" in r for r in tr):
+            edges = (0.0,) + SIZE_BINS + (math.inf,)
+            out["unexplained_by_size_beyond_calibration_in_noise_sd"] = {
+                (f"{a:g}-{b:g}" if math.isfinite(b) else f">={a:g}"): "{}/{}".format(
+                    sum(r["unexplained_right_channel"] for r in tr
+                        if a <= r["effect_size_noise"]["beyond_calibration"] < b),
+                    sum(a <= r["effect_size_noise"]["beyond_calibration"] < b for r in tr))
+                for a, b in zip(edges[:-1], edges[1:])}
         out["unexplained_right_region_rate"] = sum(r["unexplained_right_region"] for r in tr) / len(tr) if tr else None
         out["named_a_cause_rate"] = sum(r["named_any"] for r in tr) / len(tr) if tr else None
     else:
@@ -360,10 +406,14 @@ def summarise(results: Sequence[dict[str, Any]], condition: str) -> dict[str, An
     by: dict[str, list[int]] = {}
     for r in tr:
         for m in r.get("mechanisms") or [r["effects"][0]["family"] if r.get("effects") else "none"]:
+            m = m.split(":")[0]  # a condition-(f) draw is a spec with its values
             b = by.setdefault(m, [0, 0])
             b[0] += 1
             b[1] += bool(r["exact"] if condition != "e" else r.get("unexplained_right_channel"))
     out["by_mechanism"] = {k: f"{v[1]}/{v[0]}" for k, v in sorted(by.items())}
+    from .study_sets import set_summary
+
+    out.update(set_summary(results, condition))
     return out
 
 

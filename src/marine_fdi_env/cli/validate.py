@@ -55,6 +55,9 @@ def build_parser(prog: str = "marine-fdi validate") -> argparse.ArgumentParser:
     ap.add_argument("--cv-all", action="store_true", help="cross-validate every candidate (slower)")
     add_valve_options(ap)
     ap.add_argument("--markdown", metavar="FILE.md", help="also write the report's tables as Markdown")
+    ap.add_argument("--no-explanations", action="store_true",
+                    help="skip the set of explanations the data do not decide between, their profile intervals and "
+                         "the deciding measurement (faster)")
     ap.add_argument("--replicas", type=int, default=0, metavar="N",
                     help="also ask whether data like these would name the same causes again: N replicas of the data "
                          "per hypothesis (the named causes and 4 alternatives), each run through the whole pipeline "
@@ -144,7 +147,8 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
                                       alpha_unexplained=args.alpha_unexplained, cv_all=args.cv_all,
                                       max_folds=args.max_folds, progress=say, notes=notes,
                                       command="marine-fdi validate " + " ".join(argv), tolerances=tolerances,
-                                      held_out_valves=args.held_out_valves, beside_valve=args.beside_valve)
+                                      held_out_valves=args.held_out_valves, beside_valve=args.beside_valve,
+                                      explanations=not args.no_explanations)
         if args.replicas:
             from ..validation.replicas import replicate
 

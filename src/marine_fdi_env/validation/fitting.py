@@ -71,7 +71,7 @@ from .problem import HELD_OUT_VALVES, Problem, Setting
 
 __all__ = ["ROBUST_SCALE", "robust_loss", "Combination", "FitResult", "fit_combination", "cross_validate",
            "cell_losses", "channel_rmse", "L1_LAMBDA", "SUPPORT_FRACTION", "POINT_ALPHA", "predict_setting",
-           "FoldData", "fold_data", "fit_sensor", "loco_predictions", "HELD_OUT_VALVES"]
+           "FoldData", "fold_data", "fit_sensor", "loco_predictions", "HELD_OUT_VALVES", "support_objective"]
 
 ROBUST_SCALE = 3.0  # soft_l1 scale in tolerance units
 L1_LAMBDA = 2.0
@@ -502,6 +502,21 @@ def _stderr(obj: _Objective, z: np.ndarray, M: int, k: int) -> np.ndarray:
     except np.linalg.LinAlgError:
         return np.full(n, np.nan)
     return np.sqrt(np.clip(np.diag(cov), 0.0, None))
+
+
+def support_objective(problem: Problem, fit: FitResult):
+    """The objective of ``fit`` with its valve supports held (what a confirmation refit minimises): ``(residuals,
+    z, lower, upper, names)``, ``residuals(z)`` the vector whose half sum of squares is the fit's cost, ``z`` the
+    fit's optimum in the layout [nuisance | globals | sqrt of each valve's opening at its support rows], and the
+    parameters' names (``valve_id[row]`` for an opening's square root)."""
+    comb = fit.combination
+    free = {m.id: np.array(fit.support.get(m.id, []), dtype=int) for m in comb.valves}
+    obj = _Objective(problem, comb, fit.rows, free, 0.0)
+    z = np.concatenate([fit.nuisance, fit.x] + [np.sqrt(np.maximum(np.nan_to_num(fit.openings[m.id][free[m.id]]), 0.0))
+                                                for m in comb.valves])
+    lo, hi = obj.bounds()
+    names = [g.name for g in NUISANCE] + comb.names + [f"{m.id}[{int(i)}]" for m in comb.valves for i in free[m.id]]
+    return obj, z, lo, hi, names
 
 
 def predict_setting(problem: Problem, fit: FitResult, rows) -> np.ndarray:

@@ -44,7 +44,9 @@ import numpy as np
 from ..engine.params import EngineParams, engine_file_dict, list_parameter_sets
 from .dataset import MeasuredDataset, load_data_arg
 from .evidence import BESIDE_VALVE_DEFAULT
-from .fitting import channel_rmse, predict_setting
+from .explanation_report import explain
+from .explanation_report import summary_lines as explanation_summary_lines
+from .fitting import FitResult, channel_rmse, predict_setting
 from .mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
 from .problem import Problem
 from .report_markdown import markdown_summary
@@ -223,8 +225,10 @@ def _step_dict(pr: Problem, step: Mapping[str, Any]) -> dict[str, Any]:
     return d
 
 
-def holdout_evaluation(sel: Selection, holdout: MeasuredDataset, conditions: str = "parameter_set") -> dict[str, Any]:
-    """RMSE per channel of the base model (as it is) and of the fitted engine on data the fit did not see.
+def holdout_evaluation(sel: Selection, holdout: MeasuredDataset, conditions: str = "parameter_set",
+                       fit: FitResult | None = None) -> dict[str, Any]:
+    """RMSE per channel of the base model (as it is) and of the fitted engine on data the fit did not see (``fit``:
+    another fit of the same data than the selection's, e.g. an explanation of :mod:`.explanations`).
 
     The fitted engine predicts with its valve schedules (the hold-out's points are not among the fitted ones);
     sensor calibrations apply where the hold-out has the same column.  ``conditions``: where the hold-out did not
@@ -245,7 +249,8 @@ def holdout_evaluation(sel: Selection, holdout: MeasuredDataset, conditions: str
         cond["assumption"] = ("the hold-out was run on the test bed of the fitted data: what it did not record ("
                               + (", ".join(cond["filled"]) or "nothing") + ") is taken from the fitted data")
     pb, _, _ = ho.predict()
-    s = sel.fit.schedule_setting(pr)
+    fit = sel.fit if fit is None else fit
+    s = fit.schedule_setting(pr)
     s = s.replace(sensors={c: v for c, v in s.sensors.items() if c in ho.channels})
     pe, conv, vals = ho.predict(s)
     rb, re_ = channel_rmse(ho, pb), channel_rmse(ho, pe)
@@ -265,7 +270,7 @@ def holdout_evaluation(sel: Selection, holdout: MeasuredDataset, conditions: str
                             "holdout_rmse_base_without_suspect": rb_c[c],
                             "holdout_rmse_extended_without_suspect": re_c[c],
                             "tolerance": float(ho.tolerance[j]), "n": int(ho.measured_mask[:, j].sum()),
-                            "touched_by_selected": _touches(sel.selected.mechanisms, holdout.column_quantity[c], c)}
+                            "touched_by_selected": _touches(fit.combination.mechanisms, holdout.column_quantity[c], c)}
                         for j, c in enumerate(ho.channels)},
            "_problem": ho, "_pred_base": pb, "_pred_extended": pe}
     if holdout.engine_ids():
@@ -292,8 +297,12 @@ def run_validation(ds: MeasuredDataset, *, holdout: MeasuredDataset | None = Non
                    alpha_unexplained: float = ALPHA_UNEXPLAINED, cv_all: bool = False, max_folds: int | None = None,
                    progress=None, notes: Sequence[str] = (), command: str | None = None,
                    tolerances: Mapping[str, float] | None = None, held_out_valves: str = "schedule",
-                   beside_valve: str = BESIDE_VALVE_DEFAULT) -> tuple[dict[str, Any], Selection, dict | None]:
+                   beside_valve: str = BESIDE_VALVE_DEFAULT, explanations: bool = True
+                   ) -> tuple[dict[str, Any], Selection, dict | None]:
     """Run the pipeline; returns (JSON report, selection, hold-out evaluation with predictions or None).
+    ``explanations``: also every structure the data do not decide against, the measurement that would decide and
+    each one's hold-out prediction (:mod:`.explanation_report`; the keys ``explanations``, ``explanations_outside``,
+    ``deciding``, ``explanation_rule``).
     ``tolerances``: per channel in its units (default: the sidecar's, else 1 % / 5 K).  ``held_out_valves``: how
     cross-validation predicts a valve's opening at a held-out point (:data:`~.problem.HELD_OUT_VALVES`).
     ``beside_valve``: how a cause joining a model with a valve earns its place
@@ -303,6 +312,12 @@ def run_validation(ds: MeasuredDataset, *, holdout: MeasuredDataset | None = Non
                         max_folds=max_folds, progress=progress, beside_valve=beside_valve)
     ho = holdout_evaluation(sel, holdout) if holdout is not None else None
     rep = build_report(sel, ho, notes, command)
+    if explanations:
+        def each(fit, cond):  # a member's hold-out evaluation, JSON-ready
+            r = holdout_evaluation(sel, holdout, conditions=cond, fit=fit)
+            return clean_json({k: v for k, v in r.items() if not k.startswith("_")})
+
+        rep.update(clean_json(explain(sel, holdout=each if holdout is not None else None, say=progress)))
     if ho is not None:
         hf = holdout_evaluation(sel, holdout, conditions="fit")
         if hf["conditions"]["filled"]:
@@ -314,9 +329,11 @@ def run_validation(ds: MeasuredDataset, *, holdout: MeasuredDataset | None = Non
 def summary_lines(rep: Mapping[str, Any]) -> list[str]:
     lines = [f"{rep['dataset']['name']} ({rep['model']['params']}, matched on {rep['model']['target']}, "
              f"{rep['cv']['scheme']}): selected causes: {', '.join(rep['selected_labels']) or 'none'}"]
+    prof = next((e.get("profiles") or {} for e in rep.get("explanations") or () if e["named"]), {})
     for lab, ps in rep["parameters"].items():
-        lines.append("  " + lab + ": " + ", ".join(f"{k} = {_f(v['value'])} ± {_f(v['stderr'])}"
-                                                   for k, v in ps.items()))
+        lines.append("  " + lab + ": " + ", ".join(
+            f"{k} = {_f(v['value'])} " + (_profile(prof[f"{lab}.{k}"]) if f"{lab}.{k}" in prof else
+                                          f"± {_f(v['stderr'])}") for k, v in ps.items()))
     for lab, alts in (rep.get("alternatives") or {}).items():
         if alts:
             lines.append(f"  {lab}: hardly told from " + ", ".join(a["mechanism"] for a in alts))
@@ -331,6 +348,7 @@ def summary_lines(rep: Mapping[str, Any]) -> list[str]:
         if "holdout" in rep:
             row += f" {_f(v.get('holdout_rmse_base')):>12s} {_f(v.get('holdout_rmse_extended')):>12s}"
         lines.append(row)
+    lines += explanation_summary_lines(rep)
     for u in rep["unexplained"]:
         lines.append("  " + u["text"])
     for o in rep["outliers"]:
@@ -344,6 +362,13 @@ def summary_lines(rep: Mapping[str, Any]) -> list[str]:
 
 def _f(x) -> str:
     return "-" if x is None else f"{x:.4g}"
+
+
+def _profile(p: Mapping[str, Any]) -> str:
+    """A profile interval in words: ``[lo, hi] (95 % profile)``, an end at its bound marked, "not identified"."""
+    lo = ("bound " if p["lower_open"] else "") + _f(p["lower"])
+    hi = ("bound " if p["upper_open"] else "") + _f(p["upper"])
+    return f"[{lo}, {hi}] (95 % profile{'' if p['identified'] else '; not identified'})"
 
 
 def out_path(text: str, option: str) -> Path:

@@ -6,6 +6,9 @@ from __future__ import annotations
 import math
 from typing import Any, Mapping
 
+from .explanation_report import interval as explanation_interval
+from .explanation_report import markdown_lines as explanation_markdown
+
 __all__ = ["markdown_summary"]
 
 
@@ -115,11 +118,15 @@ def markdown_summary(rep: Mapping[str, Any], title: str | None = None) -> str:
     if any(rep.get("alternatives", {}).values()) or rep.get("cause_notes"):
         L.append("")
     if rep["parameters"]:
-        L.append("| cause | parameter | value | standard error | unit |")
-        L.append("|---|---|---|---|---|")
+        prof = next((e.get("profiles") or {} for e in rep.get("explanations") or () if e["named"]), {})
+        L.append("| cause | parameter | value | 95 % profile interval | "
+                 "standard error (Fisher) | unit |")
+        L.append("|---|---|---|---|---|---|")
         for lab, ps in rep["parameters"].items():
             for k, v in ps.items():
-                L.append(f"| `{lab}` | `{k}` | {_g(v['value'])} | {_g(v['stderr'], '.2g')} | {v['unit']} |")
+                p = prof.get(f"{lab}.{k}")
+                L.append(f"| `{lab}` | `{k}` | {_g(v['value'])} | {explanation_interval(p) if p else '–'} | "
+                         f"{_g(v['stderr'], '.2g')} | {v['unit']} |")
         L.append("")
     if rep.get("activity"):
         L.append("Where the valve-type causes act (diverted flow fraction per measured point, file row order; "
@@ -130,6 +137,7 @@ def markdown_summary(rep: Mapping[str, Any], title: str | None = None) -> str:
         for mid, a in rep["activity"].items():
             L.append(f"| `{mid}` | " + " | ".join(_g(x, '.3f') for x in a) + " |")
         L.append("")
+    L += explanation_markdown(rep)
     nuis = rep.get("nuisance", {}).get("extended") or {}
     if nuis:
         L.append("Calibration within the base model's uncertainty (multipliers, prior 1 ± 0.03, box ±0.06): "

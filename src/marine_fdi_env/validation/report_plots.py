@@ -32,7 +32,8 @@ def _load_axis(pr: Problem) -> tuple[np.ndarray, str]:
 def write_plots(sel: Selection, directory: str | Path, holdout: Mapping[str, Any] | None = None,
                 prefix: str | None = None) -> list[Path]:
     """Model against measurement per channel (base as it is, calibrated base, fitted extension, cross-validated
-    predictions), the valve activity, the cross-validated RMSE per channel, and the hold-out if any."""
+    predictions), the valve activity, the cross-validated RMSE per channel, the hold-out if any, and where the
+    explanations differ when the selection has them (:mod:`.explanation_plots`)."""
     plt = pyplot()
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
@@ -161,5 +162,9 @@ def write_plots(sel: Selection, directory: str | Path, holdout: Mapping[str, Any
         fig.savefig(f, dpi=100)
         plt.close(fig)
         files.append(f)
+    if sel.explanations is not None:
+        from .explanation_plots import plot_explanations
+
+        files += plot_explanations(sel, d, name)
     return files
 

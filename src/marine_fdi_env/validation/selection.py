@@ -146,6 +146,8 @@ class Selection:
     #: its gain and offset leave, reported or not (``p``, ``p_at_floor``, ``z``, ``kind``, ``load_range``, ``d`` and
     #: ``tolerance`` in column units, ``unit``, ``level``: the level it was judged at): readable at any level
     calibration_scans: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: every structure the data do not decide against (:func:`~.explanations.explanation_set`), when asked for
+    explanations: Any = None
 
     @property
     def selected_causes(self) -> list[str]:

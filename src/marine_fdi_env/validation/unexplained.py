@@ -15,6 +15,7 @@ import numpy as np
 from scipy import stats
 
 from .calibration_scan import structure_scan
+from .data_scale import channel_scales
 from .discrepancy import (_VAR_QUANTITY, DiscrepancyReport, _replicate_groups, operating_variables,
                           theil_sen_detrend)
 from .matching import MatchResult
@@ -130,18 +131,23 @@ def _region_findings(report: DiscrepancyReport, alpha: float) -> list[dict[str, 
 
 
 def local_excess(match: MatchResult, tolerances: Mapping[str, float], alpha: float, max_width: int | None = None,
-                 channels: Sequence[str] | None = None, noise: float | None = None) -> list[dict[str, Any]]:
+                 channels: Sequence[str] | None = None, noise: float | None = None,
+                 scales: Mapping[str, float | None] | None = None) -> list[dict[str, Any]]:
     """Per channel, the most significant window of :func:`window_excess` when ``p < alpha`` and ``|d|`` exceeds the
-    tolerance: ``{channel, kind: "local", region: "load a-b", load_range, points, magnitude, ...}``.  The scan's null
-    is simulated at the data's noise level, the median over all channels (``noise_ratio``, in tolerances, at least
-    1: :func:`~.window_scan.noise_ratio`; ``noise`` when given)."""
+    tolerance: ``{channel, kind: "local", region: "load a-b", load_range, points, magnitude, scale, ...}``.  The
+    scan's null is simulated at the data's noise level, the median over all channels (``noise_ratio``, in
+    tolerances, at least 1: :func:`~.window_scan.noise_ratio`; ``noise`` when given); on a channel whose ``scales``
+    entry is a number (the data's scale below a loose tolerance, :mod:`.data_scale`) at that scale instead
+    (``scale: "data"``)."""
     ds = match.dataset
     load = operating_variables(match)["load"]
     noise = _data_noise(match, tolerances, load) if noise is None else noise
     out = []
     for col in (channels or match.channels):
         tol = float(tolerances[col])
-        best = window_excess(match.residual(col), load, tol, max_width, noise=noise)
+        own = (scales or {}).get(col)
+        best = (window_excess(match.residual(col), load, tol, max_width, noise=noise) if own is None else
+                window_excess(match.residual(col), load, float(own), max_width, noise=1.0))
         if best is None or not (best["p"] < alpha and abs(best["d"]) >= tol):
             continue
         lo, hi = best["load_range"]
@@ -157,15 +163,18 @@ def local_excess(match: MatchResult, tolerances: Mapping[str, float], alpha: flo
                     "points": sorted(int(i) + 1 for i in best["positions"]), "magnitude": best["d"],
                     "score": abs(best["d"]) / tol, "p_value": best["p"], "p_at_floor": best["p_at_floor"],
                     "noise": best["sigma"], "noise_ratio": best["noise"], "unit": unit,
-                    "significant": True,
-                    "text": f"unexplained: {col}, {region} (local, magnitude {best['d']:+.4g} {unit})"})
+                    "significant": True, "scale": "tolerance" if own is None else "data",
+                    "text": f"unexplained: {col}, {region} (local, magnitude {best['d']:+.4g} {unit}"
+                            + ("" if own is None else f"; judged at the data's scatter {own:.3g} {unit}, below the "
+                                                      f"tolerance {tol:.3g}") + ")"})
     return out
 
 
 def unexplained_findings(match: MatchResult, report: DiscrepancyReport, tol: Mapping[str, float], alpha: float,
                      calibrated: Sequence[str] = (), scans: dict[str, dict[str, Any]] | None = None
                      ) -> list[dict[str, Any]]:
-    """Family-significant region findings and local excesses (Bonferroni over the channels); on the channels of
+    """Family-significant region findings and local excesses (Bonferroni over the channels; each channel's window
+    scan at the data's own scale where that is below its tolerance, :mod:`.data_scale`); on the channels of
     ``calibrated`` (a named sensor calibration) also what the gain and offset leave (:func:`calibration_left`),
     Bonferroni over the calibrated channels only.
 
@@ -179,8 +188,10 @@ def unexplained_findings(match: MatchResult, report: DiscrepancyReport, tol: Map
     out = _region_findings(report, alpha)
     n_ch = max(len(report.channels), 1)
     have = {u["channel"] for u in out}
-    noise = _data_noise(match, tol, operating_variables(match)["load"])
-    for f in local_excess(match, tol, alpha / n_ch, noise=noise):
+    load = operating_variables(match)["load"]
+    noise = _data_noise(match, tol, load)
+    scales = channel_scales({c: match.residual(c) for c in match.channels}, tol, load)
+    for f in local_excess(match, tol, alpha / n_ch, noise=noise, scales=scales):
         if f["channel"] not in have or all(u["kind"] != "local" for u in out if u["channel"] == f["channel"]):
             out.append(f)
     cal = [c for c in calibrated if c in match.channels]

@@ -93,9 +93,9 @@ def scan_null(n: int, wmax: int, noise: float = 1.0) -> np.ndarray:
     return _NULL_CACHE[key]
 
 
-def noise_ratio(R: np.ndarray, load: np.ndarray) -> float:
-    """The data's noise in tolerances (at least 1): per channel (columns of ``R``, residuals already divided by
-    their tolerance) the scatter of successive differences in load order (``sqrt(mean(Δr²)/2)``, blind to smooth
+def noise_ratio(R: np.ndarray, load: np.ndarray, floor: float = 1.0) -> float:
+    """The data's noise in tolerances (at least ``floor``): per channel (columns of ``R``, residuals already divided
+    by their tolerance) the scatter of successive differences in load order (``sqrt(mean(Δr²)/2)``, blind to smooth
     biases and trends), the median over channels (blind to one channel's effect)."""
     R = np.asarray(R, dtype=float)
     if R.ndim == 1:
@@ -107,7 +107,7 @@ def noise_ratio(R: np.ndarray, load: np.ndarray) -> float:
         r = r[np.isfinite(r)]
         if r.size >= 4:
             per.append(math.sqrt(float(np.mean(np.diff(r) ** 2)) / 2.0))
-    return max(1.0, float(np.median(per))) if per else 1.0
+    return max(floor, float(np.median(per))) if per else max(floor, 1.0)
 
 
 def window_excess(r: np.ndarray, load: np.ndarray, tol: float, max_width: int | None = None,
