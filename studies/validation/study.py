@@ -173,6 +173,7 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
     also the explanation set, :mod:`.study_sets`) and compare with the truth."""
     from marine_fdi_env.validation.dataset import DatasetError
     from marine_fdi_env.validation.problem import Problem
+    from marine_fdi_env.validation.rules import SelectionRules
     from marine_fdi_env.validation.selection import select_causes
 
     t0 = time.perf_counter()
@@ -201,12 +202,14 @@ def trial(condition: str, seed: int, *, control: bool = False, params: str = "wa
     except DatasetError as e:
         return {**base, "outcome": "skipped", "why": "loader: " + " ".join(str(e).split())[:300],
                 "seconds": time.perf_counter() - t0}
-    problem = Problem(ds, held_out_valves=held_out_valves)
+    rules = SelectionRules(max_folds=max_folds, prune=prune, exchange=exchange, beside_valve=beside_valve,
+                           held_out_valves=held_out_valves)
+    problem = Problem(ds, held_out_valves=rules.held_out_valves)
     if tolerance in ("noise", "noise2x"):
         factor = 2.0 if tolerance == "noise2x" else 1.0
         problem = Problem(ds, tolerances={c: factor * v for c, v in noise_tolerances(syn, problem.channels).items()},
-                          held_out_valves=held_out_valves)
-    sel = select_causes(problem, max_folds=max_folds, prune=prune, exchange=exchange, beside_valve=beside_valve)
+                          held_out_valves=rules.held_out_valves)
+    sel = select_causes(problem, rules=rules)
     truth_labels = sorted(t["label"] for t in syn.truth)
     named = sorted(sel.selected_labels)
     res = {**base, "truth": syn.truth, "selected": named, "model_error": syn.settings["model_error"],
@@ -422,7 +425,7 @@ def study_main(argv: Sequence[str] | None = None) -> int:
     [--no-prune] [--no-exchange] [--tolerance stated|noise] [--held-out-valves schedule|support|state]
     [--beside-valve in_sample_pairs|in_sample_exchange|in_sample|cross_validated] [--trials d346,...] [--out FILE.json]``:
     the open-world hidden-effect study."""
-    from marine_fdi_env.validation.evidence import add_valve_options
+    from marine_fdi_env.cli.selection_options import add_valve_options
 
     ap = argparse.ArgumentParser(prog="python -m studies.validation.study",
                                  description="Open-world hidden-effect study: " + "; ".join(

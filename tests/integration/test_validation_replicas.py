@@ -13,6 +13,7 @@ from marine_fdi_env.validation.mechanisms import PHYSICAL_MECHANISMS
 from marine_fdi_env.validation.problem import Problem
 from marine_fdi_env.validation.replicas import (hypotheses, markdown_table, noise_scale, replica_readings, replicate,
                                                 run_replica)
+from marine_fdi_env.validation.rules import SelectionRules
 from marine_fdi_env.validation.selection import select_causes
 from marine_fdi_env.validation.synthesize import synthesize
 from tests.paths import TEST_DATA
@@ -115,7 +116,7 @@ def test_replicas_of_each_hypothesis_name_it(waste_gate_selection):
     pr = sel.problem
     Y = replica_readings(pr, hypotheses(sel, [])[0], noise_scale(sel, "tolerance"), 1, 0, 0, "tolerance")
     one = run_replica(pr.ds, pr.params, pr.target, dict(zip(pr.channels, pr.tolerance)), pr.channels, Y,
-                      {"pairs": False, "max_causes": 1}, _LIB)
+                      SelectionRules(pairs=False, max_causes=1, held_out_valves=pr.held_out_valves), _LIB)
     assert one["named"] == rep["runs"]["named"][0]["named"]
     assert one["acts"] == rep["runs"]["named"][0]["acts"]
 
@@ -123,8 +124,8 @@ def test_replicas_of_each_hypothesis_name_it(waste_gate_selection):
 def test_every_replica_follows_the_rules_the_data_were_selected_with(waste_gate_selection, monkeypatch):
     """A replica asks whether *this* pipeline would name the same causes again, so each runs with the data's
     selection rules: the valve rules (``beside_valve``, ``held_out_valves``) and the exchange step too, not the
-    defaults (until 2026-11-27 those three were dropped; ``marine-fdi validate --beside-valve ... --replicas N``
-    judged the replicas by another rule than the data).  No cause may be named here, so each run is a base fit."""
+    defaults (else ``marine-fdi validate --beside-valve ... --replicas N`` would judge the replicas by another rule
+    than the data).  No cause may be named here, so each run is a base fit."""
     import marine_fdi_env.validation.replicas as replicas
 
     _, sel0 = waste_gate_selection
@@ -143,8 +144,9 @@ def test_every_replica_follows_the_rules_the_data_were_selected_with(waste_gate_
     assert len(seen) == 2
     for hov, kw in seen:
         assert hov == "support"
-        assert kw["beside_valve"] == "cross_validated" and kw["exchange"] is False
-        assert kw["max_causes"] == 0 and kw["pairs"] is False
+        r = kw["rules"]
+        assert r.beside_valve == "cross_validated" and r.exchange is False
+        assert r.max_causes == 0 and r.pairs is False and r.held_out_valves == "support"
     assert rep["settings"]["selection"]["beside_valve"] == "cross_validated"
     assert rep["settings"]["selection"]["held_out_valves"] == "support"
 

@@ -8,8 +8,8 @@ import pytest
 from marine_fdi_env.validation.data_scale import channel_noise, channel_scales
 from marine_fdi_env.validation.problem import Problem
 from marine_fdi_env.validation.selection import select_causes
-from studies.validation.study import loaded
 from marine_fdi_env.validation.synthesize import synthesize
+from studies.validation.study import loaded
 
 
 def test_channel_scales_estimate_the_noise_below_the_tolerance_only():

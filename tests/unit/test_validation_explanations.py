@@ -13,8 +13,8 @@ from marine_fdi_env.validation.fitting import Combination, cross_validate, fit_c
 from marine_fdi_env.validation.mechanisms import get_mechanism
 from marine_fdi_env.validation.problem import Problem
 from marine_fdi_env.validation.profiles import fit_profiles, profile_interval, profile_threshold
-from studies.validation.study import loaded
 from marine_fdi_env.validation.synthesize import synthesize
+from studies.validation.study import loaded
 
 
 # --------------------------------------------------------------------------------------- profiles

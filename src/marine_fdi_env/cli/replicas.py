@@ -9,12 +9,13 @@ from pathlib import Path
 from typing import Sequence
 
 from ..validation.dataset import load_data_arg
-from ..validation.evidence import add_valve_options
 from ..validation.mechanisms import PHYSICAL_MECHANISMS
 from ..validation.problem import Problem
 from ..validation.replicas import NOISE_MODELS, markdown_table, replicate
+from ..validation.rules import SelectionRules
 from ..validation.selection import select_causes
 from .common import parse_cli
+from .selection_options import add_valve_options
 from .sidecar import check_sidecar_numbers
 
 
@@ -55,14 +56,16 @@ def replicas_main(argv: Sequence[str] | None = None) -> int:
                              f"known: {', '.join(sorted(known))}")
         check_sidecar_numbers(args.data)
         ds = load_data_arg(args.data, args.params)
-        pr = Problem(ds, params=args.params, target=args.target, held_out_valves=args.held_out_valves)
+        rules = SelectionRules(max_folds=args.max_folds, beside_valve=args.beside_valve,
+                               held_out_valves=args.held_out_valves)
+        pr = Problem(ds, params=args.params, target=args.target, held_out_valves=rules.held_out_valves)
         if args.tolerance:
             pr = Problem(ds, params=args.params, target=args.target, tolerances=pr.stated_tolerances(args.tolerance),
-                         held_out_valves=args.held_out_valves)
+                         held_out_valves=rules.held_out_valves)
         say = None if args.no_progress else (lambda s: print(f"replicas: {s}", file=sys.stderr))
         if say:
             say("selecting causes on the data (as marine-fdi validate)")
-        sel = select_causes(pr, max_folds=args.max_folds, beside_valve=args.beside_valve)
+        sel = select_causes(pr, rules=rules)
         if say:
             say(f"named on the data: {' + '.join(sel.selected_labels) or '(nothing)'}")
         rep = replicate(sel, replicas=args.replicas, noise=args.noise, seed=args.seed, alternatives=alts,

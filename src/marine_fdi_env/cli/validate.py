@@ -12,13 +12,14 @@ from ..errors import UsageError
 from ..plotting import pyplot
 from ..validation.data_check import column_registry, describe
 from ..validation.dataset import DatasetError, list_shipped, load_data_arg
-from ..validation.evidence import add_valve_options
 from ..validation.matching import TARGETS
 from ..validation.problem import Problem
 from ..validation.report import clean_json, out_path, run_validation, split_engine, summary_lines
 from ..validation.report_markdown import markdown_summary
 from ..validation.report_plots import write_plots
+from ..validation.rules import SelectionRules
 from ..validation.unexplained import ALPHA_UNEXPLAINED
+from .selection_options import add_valve_options
 from .sidecar import check_sidecar_numbers
 
 
@@ -142,13 +143,12 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
                 print(f"hold-out: {what}, {holdout.n_points} points (predicted, not fitted)")
             print("--check: nothing fitted, nothing written")
             return 0
-        rep, sel, ho = run_validation(ds, holdout=holdout, target=args.target, params=params,
-                                      max_causes=args.max_causes, alpha=args.alpha,
-                                      alpha_unexplained=args.alpha_unexplained, cv_all=args.cv_all,
-                                      max_folds=args.max_folds, progress=say, notes=notes,
-                                      command="marine-fdi validate " + " ".join(argv), tolerances=tolerances,
-                                      held_out_valves=args.held_out_valves, beside_valve=args.beside_valve,
-                                      explanations=not args.no_explanations)
+        rules = SelectionRules(max_causes=args.max_causes, alpha=args.alpha, alpha_unexplained=args.alpha_unexplained,
+                               cv_all=args.cv_all, max_folds=args.max_folds, beside_valve=args.beside_valve,
+                               held_out_valves=args.held_out_valves)
+        rep, sel, ho = run_validation(ds, holdout=holdout, target=args.target, params=params, rules=rules,
+                                      progress=say, notes=notes, command="marine-fdi validate " + " ".join(argv),
+                                      tolerances=tolerances, explanations=not args.no_explanations)
         if args.replicas:
             from ..validation.replicas import replicate
 

@@ -9,10 +9,9 @@ from typing import Sequence
 from .candidates import f_test_p
 from .fitting import Combination
 from .mechanisms import Mechanism, SensorCalibration
-from .problem import HELD_OUT_VALVES
 
-__all__ = ["BESIDE_VALVE", "BESIDE_VALVE_DEFAULT", "EXCHANGE_IN_SAMPLE", "IN_SAMPLE_ALONE", "add_valve_options",
-           "earns", "judged_in_sample"]
+__all__ = ["BESIDE_VALVE", "BESIDE_VALVE_DEFAULT", "EXCHANGE_IN_SAMPLE", "IN_SAMPLE_ALONE", "earns",
+           "judged_in_sample"]
 
 
 #: how a cause joining a model that has a valve must earn its place (:func:`earns`): ``in_sample_pairs`` (the
@@ -36,29 +35,6 @@ EXCHANGE_IN_SAMPLE = ("in_sample_exchange", "in_sample_pairs")
 IN_SAMPLE_ALONE = ("in_sample_pairs",)
 #: the default of :data:`BESIDE_VALVE`, everywhere it is a parameter or an option
 BESIDE_VALVE_DEFAULT = BESIDE_VALVE[0]
-
-
-def add_valve_options(ap) -> None:
-    """The command-line options of how valves are cross-validated and judged (``--held-out-valves``,
-    ``--beside-valve``), shared by ``marine-fdi validate`` and the study."""
-    ap.add_argument("--held-out-valves", default="schedule", choices=HELD_OUT_VALVES,
-                    help="how cross-validation predicts a valve's opening at a left-out point: the schedule through "
-                         "the other points (default; every study file), or where the fit on all points opens it, "
-                         "interpolated among the open points (support: tried 2026-11-26, not adopted: it names a "
-                         "second mechanism beside a valve too often; docs/figures/validation/held_out_valves/), or "
-                         "estimated as a state from the left-out point's other channels, each channel predicted "
-                         "without its own reading (state: tried 2026-11-26, not adopted: it lets model error in as a "
-                         "valve or beside one; docs/figures/validation/held_out_state/)")
-    ap.add_argument("--beside-valve", default=BESIDE_VALVE_DEFAULT, choices=BESIDE_VALVE,
-                    help="how a cause joining a model with a valve earns its place: a physical mechanism by its "
-                         "in-sample gain and F-test, the exchange step's swap of a physical cause for a sensor "
-                         "calibration by its in-sample gain, and a pair holding the step's best single valve by its "
-                         "second member's in-sample evidence beside the valve (in_sample_pairs, the default since "
-                         "2026-11-27: the valve's held-out openings dilute and scatter the cross-validated score); "
-                         "as that but with a cross-validated score that must be lower at all and pairs by their "
-                         "penalised score (in_sample_exchange, the rule of the study file 360-380); the physical "
-                         "mechanism only (in_sample, the rule of 340-360); or by the cross-validated gain and F-test "
-                         "as every other candidate (cross_validated, the rule of every study file before 340-360)")
 
 
 def judged_in_sample(reference: Combination, added: Sequence[Mechanism], rule: str = BESIDE_VALVE_DEFAULT) -> bool:

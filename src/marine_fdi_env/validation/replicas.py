@@ -48,15 +48,14 @@ from .dataset import MeasuredDataset
 from .fitting import Combination, fit_combination, predict_setting
 from .mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
 from .problem import Problem
+from .rules import SelectionRules
 from .selection import Selection, select_causes
 
 __all__ = ["Hypothesis", "NOISE_MODELS", "hypotheses", "noise_scale", "replica_readings", "run_replica",
            "replicate", "summarise", "markdown_table"]
 
 NOISE_MODELS = ("residual", "tolerance")
-#: settings of :func:`~.selection.select_causes` a replica reuses from the selection on the data (``exchange`` and
-#: ``beside_valve`` since 2026-11-27: before, a replica ran with their defaults whatever the data's selection used;
-#: every replica file in docs/ selected on the data with the defaults too, so none of them is changed by it)
+#: the rules (:class:`~.rules.SelectionRules`) a replica reuses from the selection on the data
 _PASSED = ("max_causes", "alpha", "alpha_unexplained", "min_gain", "penalty", "cv_all", "max_folds", "pairs", "prune",
            "exchange", "beside_valve")
 
@@ -151,16 +150,14 @@ def replica_readings(problem: Problem, hyp: Hypothesis, scale: np.ndarray, seed:
 
 
 def run_replica(ds: MeasuredDataset, params, target: str, tolerances: Mapping[str, float], channels: Sequence[str],
-                Y: np.ndarray, settings: Mapping[str, Any], mechanisms: Sequence[Mechanism] | None = None,
-                held_out_valves: str = "schedule") -> dict[str, Any]:
+                Y: np.ndarray, rules: SelectionRules, mechanisms: Sequence[Mechanism] | None = None) -> dict[str, Any]:
     """Run the pipeline on ``ds`` with readings ``Y`` of ``channels``: what it names, where valves act, what it
-    leaves unexplained.  ``mechanisms``: the candidates (default the library, as on the data); ``settings`` and
-    ``held_out_valves``: the selection's and the problem's, as on the data."""
+    leaves unexplained.  ``mechanisms``: the candidates (default the library, as on the data); ``rules``: the
+    selection's, as on the data."""
     t0 = time.perf_counter()
     rep = ds.with_readings({c: Y[:, j] for j, c in enumerate(channels)})
-    pr = Problem(rep, params=params, target=target, tolerances=tolerances,
-                 held_out_valves=held_out_valves)
-    s = select_causes(pr, mechanisms, **settings)
+    pr = Problem(rep, params=params, target=target, tolerances=tolerances, held_out_valves=rules.held_out_valves)
+    s = select_causes(pr, mechanisms, rules=rules)
     return {"named": sorted(s.selected_labels), "acts": {k: list(v) for k, v in _acts(s.fit).items()},
             "unexplained": sorted({u["channel"] for u in s.unexplained}), "seconds": time.perf_counter() - t0}
 
@@ -203,11 +200,11 @@ def replicate(sel: Selection, *, replicas: int = 10, noise: str = "residual", se
     scale = noise_scale(sel, noise)
     hyps = hypotheses(sel, alternatives, top)
     settings = {k: sel.settings[k] for k in _PASSED if k in sel.settings}
+    rules = SelectionRules(held_out_valves=problem.held_out_valves, **settings)
     tol = dict(zip(problem.channels, map(float, problem.tolerance)))
     jobs = [(h, r) for h in range(len(hyps)) for r in range(int(replicas))]
     args = {j: (problem.ds, problem.params, problem.target, tol, problem.channels,
-                replica_readings(problem, hyps[j[0]], scale, seed, *j, noise), settings, mechanisms,
-                problem.held_out_valves) for j in jobs}
+                replica_readings(problem, hyps[j[0]], scale, seed, *j, noise), rules, mechanisms) for j in jobs}
     results: dict[tuple[int, int], dict[str, Any]] = {}
     bar = None
     if progress:

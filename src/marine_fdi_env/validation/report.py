@@ -43,7 +43,6 @@ import numpy as np
 
 from ..engine.params import EngineParams, engine_file_dict, list_parameter_sets
 from .dataset import MeasuredDataset, load_data_arg
-from .evidence import BESIDE_VALVE_DEFAULT
 from .explanation_report import explain
 from .explanation_report import summary_lines as explanation_summary_lines
 from .fitting import FitResult, channel_rmse, predict_setting
@@ -51,8 +50,9 @@ from .mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
 from .problem import Problem
 from .report_markdown import markdown_summary
 from .report_plots import write_plots
+from .rules import SelectionRules
 from .selection import Selection, select_causes
-from .unexplained import ALPHA_UNEXPLAINED, family_significant
+from .unexplained import family_significant
 
 __all__ = ["run_validation", "build_report", "write_plots", "load_data_arg", "split_engine", "markdown_summary",
            "holdout_evaluation", "fitted_engine", "clean_json", "out_path", "summary_lines"]
@@ -293,23 +293,19 @@ def _rmse_masked(pr: Problem, pred: np.ndarray, keep: np.ndarray, j: int, rows=N
 
 
 def run_validation(ds: MeasuredDataset, *, holdout: MeasuredDataset | None = None, target: str = "auto",
-                   params: str | EngineParams | None = None, max_causes: int = 4, alpha: float = 0.01,
-                   alpha_unexplained: float = ALPHA_UNEXPLAINED, cv_all: bool = False, max_folds: int | None = None,
+                   params: str | EngineParams | None = None, rules: SelectionRules | None = None,
                    progress=None, notes: Sequence[str] = (), command: str | None = None,
-                   tolerances: Mapping[str, float] | None = None, held_out_valves: str = "schedule",
-                   beside_valve: str = BESIDE_VALVE_DEFAULT, explanations: bool = True
+                   tolerances: Mapping[str, float] | None = None, explanations: bool = True
                    ) -> tuple[dict[str, Any], Selection, dict | None]:
     """Run the pipeline; returns (JSON report, selection, hold-out evaluation with predictions or None).
+    ``rules``: how causes are named (:class:`~.rules.SelectionRules`, default its defaults).
     ``explanations``: also every structure the data do not decide against, the measurement that would decide and
     each one's hold-out prediction (:mod:`.explanation_report`; the keys ``explanations``, ``explanations_outside``,
     ``deciding``, ``explanation_rule``).
-    ``tolerances``: per channel in its units (default: the sidecar's, else 1 % / 5 K).  ``held_out_valves``: how
-    cross-validation predicts a valve's opening at a held-out point (:data:`~.problem.HELD_OUT_VALVES`).
-    ``beside_valve``: how a cause joining a model with a valve earns its place
-    (:data:`~.evidence.BESIDE_VALVE`)."""
-    pr = Problem(ds, target=target, params=params, tolerances=tolerances, held_out_valves=held_out_valves)
-    sel = select_causes(pr, max_causes=max_causes, alpha=alpha, alpha_unexplained=alpha_unexplained, cv_all=cv_all,
-                        max_folds=max_folds, progress=progress, beside_valve=beside_valve)
+    ``tolerances``: per channel in its units (default: the sidecar's, else 1 % / 5 K)."""
+    rules = rules or SelectionRules()
+    pr = Problem(ds, target=target, params=params, tolerances=tolerances, held_out_valves=rules.held_out_valves)
+    sel = select_causes(pr, rules=rules, progress=progress)
     ho = holdout_evaluation(sel, holdout) if holdout is not None else None
     rep = build_report(sel, ho, notes, command)
     if explanations:

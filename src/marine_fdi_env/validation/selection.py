@@ -76,15 +76,24 @@ import numpy as np
 from .candidates import CandidateScore
 from .columns import QUANTITIES
 from .discrepancy import DiscrepancyReport, analyse_discrepancies
-from .evidence import BESIDE_VALVE, BESIDE_VALVE_DEFAULT
-from .fitting import (Combination, FitResult, ROBUST_SCALE, cell_losses, channel_rmse, cross_validate,
-                      fit_combination, fold_data, loco_predictions)
+from .fitting import (
+    ROBUST_SCALE,
+    Combination,
+    FitResult,
+    cell_losses,
+    channel_rmse,
+    cross_validate,
+    fit_combination,
+    fold_data,
+    loco_predictions,
+)
 from .forward_step import CurrentModel, StepRules, forward_step
 from .matching import MatchResult
 from .mechanisms import Mechanism, SensorCalibration, library, sensor_reference
 from .problem import Problem, Setting
 from .revision import exchange_step, removal_step
-from .unexplained import ALPHA_UNEXPLAINED, point_outliers, unexplained_findings
+from .rules import SelectionRules
+from .unexplained import point_outliers, unexplained_findings
 
 __all__ = ["CandidateScore", "Selection", "select_causes", "match_result", "ROBUST_SCALE"]
 
@@ -196,44 +205,35 @@ def select_causes(
     problem: Problem,
     mechanisms: Sequence[Mechanism] | None = None,
     *,
-    max_causes: int = 4,
-    alpha: float = 0.01,
-    alpha_unexplained: float = ALPHA_UNEXPLAINED,
-    min_gain: float = 0.10,
-    penalty: float = 2.0,
-    cv_all: bool = False,
-    max_folds: int | None = None,
-    pairs: bool = True,
-    prune: bool = True,
-    exchange: bool = True,
-    beside_valve: str = BESIDE_VALVE_DEFAULT,
+    rules: SelectionRules | None = None,
     progress=None,
+    **changes: Any,
 ) -> Selection:
     """Greedy forward selection of named mechanisms (see the module docstring).
 
     mechanisms : candidates (default: :func:`~.mechanisms.library` with one sensor calibration per channel).
-    cv_all : cross-validate every candidate.  By default a candidate is cross-validated only if it can
-        still win: its in-sample penalised score (a lower bound of its cross-validated one: a fit predicts
-        the data it saw better than data it did not) is below the best cross-validated penalised score of
-        an *eligible* candidate of the step so far (one pinned at a bound or a calibration that leaves
-        structure cannot win, so it screens nothing out; until 2026-11-26 it did, found with
-        :mod:`.replicas`) and improves the current model by ``min_gain`` in-sample.
-    alpha_unexplained : family-wise level (over the channels) of what is reported as unexplained
-        (:data:`ALPHA_UNEXPLAINED`).
-    max_folds : at most this many cross-validation folds (interleaved k-fold) for single-engine data.
-    pairs : also try every pair of physical mechanisms added together at each step
-        (:func:`~.pairs.pair_candidates`).
-    prune : at the end, remove named causes that no longer earn their place among the others
-        (:func:`~.revision.removal_step`).
-    exchange : then try each named physical cause replaced by a sensor calibration
-        (:func:`~.revision.exchange_step`; off: the selection before 2026-11-26, an ablation).
-    beside_valve : how a cause joining a model with a valve earns its place (a physical mechanism, and the exchange
-        step's swap), one of :data:`~.evidence.BESIDE_VALVE` (:func:`~.evidence.earns`,
-        :func:`~.revision.exchange_step`).
+    rules : the selection's rules (:class:`~.rules.SelectionRules`; default: its defaults with the problem's
+        ``held_out_valves``); ``changes`` replace single rules (``select_causes(pr, pairs=False)``).  With
+        ``cv_all`` off a candidate is cross-validated only if it can still win: its in-sample penalised score (a
+        lower bound of its cross-validated one: a fit predicts the data it saw better than data it did not) is
+        below the best cross-validated penalised score of an *eligible* candidate of the step so far (one pinned at
+        a bound or a calibration that leaves structure cannot win, so it screens nothing out; found with
+        :mod:`.replicas`) and improves the current model by ``min_gain`` in-sample.  ``pairs``:
+        :func:`~.pairs.pair_candidates`; ``prune``: :func:`~.revision.removal_step`; ``exchange``:
+        :func:`~.revision.exchange_step` (off: an ablation); ``beside_valve``: :func:`~.evidence.earns`.
     progress : optional callable receiving one-line status messages.
     """
-    if beside_valve not in BESIDE_VALVE:
-        raise ValueError(f"beside_valve must be one of {', '.join(BESIDE_VALVE)}, got {beside_valve!r}")
+    given = rules is not None
+    rules = (rules or SelectionRules()).replace(**changes)
+    if not given and "held_out_valves" not in changes:
+        rules = rules.replace(held_out_valves=problem.held_out_valves)
+    if rules.held_out_valves != problem.held_out_valves:
+        raise ValueError(f"the rules' held_out_valves ({rules.held_out_valves!r}) differ from the problem's "
+                         f"({problem.held_out_valves!r}): build the Problem with the rules' held_out_valves")
+    max_causes, alpha, alpha_unexplained = rules.max_causes, rules.alpha, rules.alpha_unexplained
+    min_gain, penalty = rules.min_gain, rules.penalty
+    cv_all, max_folds, pairs = rules.cv_all, rules.max_folds, rules.pairs
+    prune, exchange, beside_valve = rules.prune, rules.exchange, rules.beside_valve
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
     if mechanisms is None:
@@ -252,7 +252,7 @@ def select_causes(
     L_base, M = cell_losses(problem, base_pred)
     S_base = float(L_base.sum() / M)
     cur = CurrentModel(Combination(), base_fit, base_pred, L_base, S_base, S_base, current_folds)
-    rules = StepRules(n_cells=M, rows=problem.rows_with_data(), alpha=alpha, min_gain=min_gain, penalty=penalty,
+    step_rules = StepRules(n_cells=M, rows=problem.rows_with_data(), alpha=alpha, min_gain=min_gain, penalty=penalty,
                       cv_all=cv_all, max_folds=max_folds, max_causes=max_causes, pairs=pairs,
                       beside_valve=beside_valve)
     steps: list[dict[str, Any]] = []
@@ -260,7 +260,7 @@ def select_causes(
     cause_notes: dict[str, list[str]] = {}
     say(f"calibrated base model: S = {S_base:.4g} over {M} cells ({scheme}, {len(folds)} folds)")
     for step in range(1, max_causes + 1):
-        outcome = forward_step(problem, cur, mechanisms, rules, step, say)
+        outcome = forward_step(problem, cur, mechanisms, step_rules, step, say)
         if outcome is None:
             break
         steps.append(outcome.record)
@@ -269,7 +269,7 @@ def select_causes(
         alternatives.update(outcome.alternatives)
         cause_notes.update(outcome.cause_notes)
         cur = outcome.model
-    cur = _revise(problem, cur, steps, alternatives, cause_notes, mechanisms, rules, prune, exchange, say)
+    cur = _revise(problem, cur, steps, alternatives, cause_notes, mechanisms, step_rules, prune, exchange, say)
     current, current_fit = cur.combination, cur.fit
     final_setting = current_fit.setting(problem)
     # what is left is judged channel by channel against the model fitted without that channel: an anomaly of one

@@ -1,0 +1,55 @@
+"""The selection's rules in one object (validation/rules.py): checked on construction, shared by validate, the
+replicas and the study, and consistent with the problem they select on."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from marine_fdi_env.cli.validate import validate_main
+from marine_fdi_env.validation.evidence import BESIDE_VALVE_DEFAULT
+from marine_fdi_env.validation.rules import SelectionRules
+from marine_fdi_env.validation.selection import select_causes
+
+
+def test_the_defaults_are_the_pipelines():
+    r = SelectionRules()
+    assert (r.max_causes, r.alpha, r.min_gain, r.penalty, r.max_folds) == (4, 0.01, 0.10, 2.0, None)
+    assert r.pairs and r.prune and r.exchange and not r.cv_all
+    assert r.beside_valve == BESIDE_VALVE_DEFAULT and r.held_out_valves == "schedule"
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        r.alpha = 0.05  # type: ignore[misc]
+
+
+@pytest.mark.parametrize("bad, field", [({"beside_valve": "leave_one_out"}, "beside_valve"),
+                                        ({"held_out_valves": "median"}, "held_out_valves"),
+                                        ({"alpha": 0.0}, "alpha"), ({"alpha_unexplained": 1.5}, "alpha_unexplained"),
+                                        ({"max_causes": -1}, "max_causes"), ({"max_folds": 1}, "max_folds")])
+def test_a_bad_rule_is_refused_by_name(bad, field):
+    with pytest.raises(ValueError, match=field):
+        SelectionRules(**bad)
+    with pytest.raises(ValueError, match=field):
+        SelectionRules().replace(**bad)
+
+
+def test_an_unknown_rule_is_refused():
+    with pytest.raises(TypeError, match="unknown selection rule"):
+        SelectionRules().replace(alhpa=0.05)
+    with pytest.raises(TypeError, match="unknown selection rule"):
+        select_causes(None, alhpa=0.05)
+
+
+class _Problem:
+    held_out_valves = "support"
+
+
+def test_rules_must_agree_with_the_problems_held_out_valves():
+    """The problem is built with the valve rule; rules that say otherwise are refused before any fit."""
+    with pytest.raises(ValueError, match="held_out_valves"):
+        select_causes(_Problem(), rules=SelectionRules(held_out_valves="schedule"))
+
+
+def test_validate_refuses_a_bad_level_with_exit_code_2(capsys):
+    assert validate_main(["--data", "man_12v32_40_fpp_iso", "--out", "x.json", "--alpha", "2"]) == 2
+    assert "--alpha must lie in (0, 1)" in capsys.readouterr().err
