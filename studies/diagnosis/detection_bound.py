@@ -30,7 +30,7 @@ the least informed:
   ``GATE_TAU_S`` = 30 s.  The recorded GLR peaks above the white-noise threshold all come from load
   *reductions* to u ≈ 0.3 (steps, ramps, manoeuvring), 100-200 s after the change: the residuals'
   slow transient model error, not noise.  Gate parameters chosen on the calibration runs' peaks
-  (every τ in 30-120 s and δ in 0.01-0.02 gave the same largest peak), before any detection was
+  (every τ in 30-120 s and δ in 0.01-0.02 gives the same largest peak), before any detection is
   computed; at constant load the gate never closes.  The same gated test on M3.1 and M3.2 *alone*
   (each its own threshold) is what a per-module test could do.  With ``--validation-record`` the
   gated thresholds are checked on the disjoint validation runs.  This row is what the sequential

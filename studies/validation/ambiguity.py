@@ -9,10 +9,10 @@ the explanation set's band at the study's noise, i.e. when the sum over the cell
 standard deviations is at most ``BAND + 2 max(0, k_A - k_B)`` (the in-sample ΔAIC of B against A on the clean
 data is then at most the band when B has no more parameters than A; a B with more parameters is held to the band
 on its misfit alone, which admits more draws than the AIC would); else it is drawn again, up to :data:`ATTEMPTS`
-times (deterministic in the seed).  Two other pairs were tried on the development seeds 0-23 and dropped, because
-no draw fell within the band at the study's eleven channels and 1 % noise: a charge-air bypass at part load against
+times (deterministic in the seed).  Two other pairs are not drawn, because on the development seeds 0-23 no draw
+falls within the band at the study's eleven channels and 1 % noise: a charge-air bypass at part load against
 a map change (either way; the exhaust temperatures tell them apart: B's misfit 40-1000 noise variances), and gate
-and map against the gate alone (the gate alone then opens at seven of eight points, misfit 100-360).  The
+and map against the gate alone (the gate alone opens at seven of eight points, misfit 100-360).  The
 noisy data are then A's, as every study trial's (:func:`~.synthesize.synthesize`, the same loads and seed).
 """
 

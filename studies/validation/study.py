@@ -4,9 +4,8 @@
 (b) model error, (c) reading-proportional noise, (d) two mechanisms, (e) out-of-library effects
 (:data:`CONDITIONS`), each with its negative control (the same data without the hidden effect), on data drawn by
 :func:`~.synthesize.synthesize`, and reports identification rates (:func:`summarise`).  A trial is fixed by its
-condition and seed (:func:`trial_draw`, :func:`trial_data`); :func:`trial` runs the whole pipeline on it.  Split
-out of :mod:`.synthesize` on 2026-11-27, behaviour unchanged (the command was ``python -m
-marine_fdi_env.validation.synthesize study``; ``... study pool`` pools study files, :mod:`.study_pool`).
+condition and seed (:func:`trial_draw`, :func:`trial_data`); :func:`trial` runs the whole pipeline on it.
+``python -m studies.validation.study pool`` pools study files (:mod:`.study_pool`).
 """
 
 from __future__ import annotations
@@ -75,20 +74,19 @@ def _trial_settings(params: str = "wartsila-6l46", points: int = 8, max_folds: i
                     tolerance: str = "stated", exchange: bool = True, held_out_valves: str = "schedule",
                     beside_valve: str = BESIDE_VALVE_DEFAULT, explanations: bool = True, **_) -> dict[str, Any]:
     """What a trial's outcome depends on besides its condition and seed (a resumed study keeps only trials run with
-    the same).  ``tolerance`` is recorded only when it is not the default, ``exchange`` only when it is on: every
-    file written before the exchange step (2026-11-26) was run without it.  ``calibration_scan``: the level of the
-    scan of what a named calibration leaves (:func:`~.unexplained.calibration_left`), over the calibrated channels
-    since 2026-11-26; files without the key scanned at the level over every channel, and differ from a rerun only
-    in unexplained findings on channels with a named calibration.  ``held_out_valves``: how cross-validation
-    predicts a valve's opening at a held-out point (:data:`~.problem.HELD_OUT_VALVES`), recorded only when it is
-    not the default ``schedule`` (every file before 2026-11-26 followed the schedule).  ``beside_valve``: how a
-    cause joining a model with a valve earns its place (:data:`~.evidence.BESIDE_VALVE`), recorded unless it is
-    ``cross_validated``: every file before 2026-11-26 (ninth session) judged it so; the files 340-360 record
-    ``in_sample``, 360-380 ``in_sample_exchange``, those after it ``in_sample_pairs`` (the default since the twelfth
-    session).  ``explanations``: whether the trial records its explanation set (:mod:`.study_sets`), recorded when
-    on (files before it have no set); ``local_scan``: every trial since the data-scale scan (:mod:`.data_scale`)
-    judges a channel's window scan at the data's scatter below a loose tolerance (files without the key at the
-    tolerance)."""
+    the same).  ``tolerance`` is recorded only when it is not the default, ``exchange`` only when it is on (a file
+    without the key is a selection without the exchange step: ``--no-exchange``).  ``calibration_scan``: the level
+    of the scan of what a named calibration leaves (:func:`~.unexplained.calibration_left`), over the calibrated
+    channels; files without the key scan at the level over every channel, and differ from a rerun only in
+    unexplained findings on channels with a named calibration.  ``held_out_valves``: how cross-validation predicts a
+    valve's opening at a held-out point (:data:`~.problem.HELD_OUT_VALVES`), recorded only when it is not the
+    default ``schedule`` (a file without the key follows the schedule).  ``beside_valve``: how a cause joining a
+    model with a valve earns its place (:data:`~.evidence.BESIDE_VALVE`), recorded unless it is
+    ``cross_validated`` (a file without the key judges it so; the files 340-360 record ``in_sample``, 360-380
+    ``in_sample_exchange``, 380-400 ``in_sample_pairs``, the default).  ``explanations``: whether the trial records
+    its explanation set (:mod:`.study_sets`), recorded when on (files without it have no set); ``local_scan``: a
+    trial with the key judges a channel's window scan at the data's scatter below a loose tolerance
+    (:mod:`.data_scale`; files without the key at the tolerance)."""
     out = {"params": str(params), "points": int(points), "max_folds": max_folds, "prune": bool(prune),
            "calibration_scan": "per named calibration", "local_scan": "data scale below a loose tolerance"}
     if explanations:
@@ -293,7 +291,7 @@ def study(conditions: Sequence[str], seeds: Sequence[int], *, controls: bool = T
 
     ``checkpoint`` (a JSON-lines file) keeps every finished trial; a rerun with the same file resumes
     where the last one stopped (trials are deterministic in their seed, so nothing changes); trials it holds that
-    were run with other settings (:func:`_trial_settings`: parameter set, points, folds, removal step) are run
+    ran with other settings (:func:`_trial_settings`: parameter set, points, folds, removal step) are run
     again, not mixed in."""
     pairs = ([(c, int(s)) for c, s in trials] if trials is not None else
              [(c, int(s)) for c in conditions for s in seeds])

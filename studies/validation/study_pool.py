@@ -3,20 +3,20 @@
 ``python -m studies.validation.study pool FILE.json ...`` reads study files written by
 ``python -m studies.validation.study --out`` (each a range of seeds), refuses a trial counted twice, and prints per condition the
 hits over the trials of every file and pooled, the pooled rate's two-sided 95 % Clopper-Pearson interval, the
-target of issue 11 and two verdicts: the point estimate against the bar (how the issue states its targets) and
+target and two verdicts: the point estimate against the bar (how the targets are stated) and
 what the interval says (above the bar, containing it, or below it).  Twenty trials bound a rate only loosely
 (20/20: the true rate is above 86 % with 95 % confidence), so a verdict on one range is mostly noise; the
 pooled interval says how much a pooled verdict is worth.
 
 Targets: identification (the exact set of named causes) >= 95 % in (a), (b), (c); the exact pair >= 80 % in
 (d); the out-of-library effect reported unexplained on its channel >= 90 % in (e); the truth in the explanation
-set >= 95 % in (f) (issue 37); negative controls naming a cause <= 5 % in every condition.  Trials that recorded
+set >= 95 % in (f); negative controls naming a cause <= 5 % in every condition.  Trials that recorded
 their explanation set (:mod:`.study_sets`) also pool into a table of set coverage, first-ranked identification and
 set sizes per condition.
 
-Also pooled, not targets of the issue: the (e) rate by effect size (what a gain and an offset of the reading leave
-of the effect, in tolerances, binned at :data:`SIZE_BINS`: the bins of the study's summary since 83ddd7b
-(2026-11-25), fixed with the first fresh range, before the others were run), and the controls with a *local*
+Also pooled, not targets: the (e) rate by effect size (what a gain and an offset of the reading leave
+of the effect, in tolerances, binned at :data:`SIZE_BINS`: the bins of the study's summary (83ddd7b), fixed
+before the first fresh range ran), and the controls with a *local*
 unexplained finding (a window, step or kink on some channel).  The pipeline reports those at a family-wise 5 %
 (:data:`~.unexplained.ALPHA_UNEXPLAINED`); where the control's data are the model plus noise, (a) and (c), every such
 finding is a false alarm and the rate is held to that level (in (b), (d) and (e) the engine differs from the model by

@@ -39,7 +39,7 @@ one sweep of the speed loop from the centre's converged speed, linearised with t
 by at most 0.21 % and M3.1-M3.4 by 0.03 % against full solves (measured over 16 runs x 200 s,
 constant and manoeuvring), well inside SAFETY.  The model values of M3.q, M3.(3,4), M4.q and
 M4.(5,6) share their intermediates (m1, slip, mass flow, Ψ_sc, Π_turbo) per point.  The one-sided
-form Σ_i |g(y + d̄_i e_i) - g(y)| was measured and rejected: it lowers the T_in inclusion (M3.3/4)
+form Σ_i |g(y + d̄_i e_i) - g(y)| is not used: measured, it lowers the T_in inclusion (M3.3/4)
 by up to 15 % and T6 (M2.3/4) by 3.4 %, not covered by SAFETY.  ``ONE_SIDED`` and
 ``LINEAR_SPEED`` switch these choices (compile-time constants, for measurements).
 

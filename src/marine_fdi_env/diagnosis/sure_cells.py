@@ -9,10 +9,10 @@ fault magnitudes, profiles and seeds); this module only reads them, so that the 
 File format (JSON): ``module_ids``, ``fault_ids``; ``sure`` (19 x 26 bool) and ``lag_s``
 (19 x 26, the largest delay of a sure module after the fault's first fired module over the
 measured runs); ``spread_s`` (26,), the settle time's basis: the largest delay of a fault's sure
-modules after its first fired module (the first format: their spread among themselves);
-``settings`` and ``command`` say how it was measured.  The first file of the project
-(``format`` absent) held fire counts at the table magnitudes only: ``fire_counts``,
-``runs_per_fault``, ``sure_lag_s``, ``sure_spread_s``; it is still read.
+modules after its first fired module (in a file of the first format: their spread among themselves);
+``settings`` and ``command`` say how it is measured.  A file without ``format`` holds fire counts
+at the table magnitudes only: ``fire_counts``, ``runs_per_fault``, ``sure_lag_s``,
+``sure_spread_s``; it is read too.
 """
 
 from __future__ import annotations

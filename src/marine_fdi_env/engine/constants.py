@@ -249,7 +249,7 @@ def constants_at_ambient(c: ModelConstants, p: EngineParams) -> ModelConstants:
 # The compiled code takes the model constants as a named tuple of floats.  ModelConstants also holds
 # the valve schedules of the gas-path submodels as arrays, and a tuple holding arrays is reference
 # counted at every compiled call that receives it (an atomic increment and decrement per array and
-# call, which the compiler cannot remove): that was about 2/3 of the reference diagnoser's kernel time
+# call, which the compiler cannot remove): that costs about 2/3 of the reference diagnoser's kernel time
 # (measured, 5.3 -> 1.6 µs per engine-sample) and half of the simulator's (1.7 -> 0.8 µs, one thread,
 # ``benchmarks/simulator_cpu.py``).  Only the gas-path submodels' functions read the schedules; they
 # get the full constants as a separate argument ``csm``, None for a model without them, which removes

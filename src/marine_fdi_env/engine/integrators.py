@@ -326,7 +326,7 @@ def advance_batch(
     readings, UAPP (N, K) applied fuel setting, STATE (N, K, 19) [x1, x3, x4, ALG] if record.
     Batches of at least ``THREADED_MIN_ENGINES`` engines run as two contiguous halves on two
     threads (the compiled loop releases the GIL; engines are independent, so the results equal
-    the single-thread loop bit for bit).  numba's own parallel loop was measured 30 % slower than
+    the single-thread loop bit for bit).  numba's own parallel loop measures 30 % slower than
     serial on the 2-core target machine.  One call per block of samples instead of one per sample
     removes the Python overhead per sample (70 µs -> 2 µs for one engine).
     """

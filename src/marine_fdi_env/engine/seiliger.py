@@ -1,6 +1,6 @@
 """The six-point Seiliger cycle, rebuilt stage by stage from table B.1.
 
-The closed forms of eq. 3.8-3.10 were garbled by the PDF extraction; this module evaluates the
+The closed forms of eq. 3.8-3.10 are garbled in the PDF extraction; this module evaluates the
 cycle one process at a time instead (all quantities per kg of trapped charge):
 
 ====  =========================  =============================================================

@@ -10,7 +10,7 @@ constant nominal fuel setting 1.0.  That is, detected within ``300 s - onset``:
 * process faults: their table 6.4 fault functions (rates, evolution κ) with their default onsets
   (15-30 s); unit: the table 6.4 unit of the magnitude.
 
-It was found by bisection on a log scale (bracketed from the table 6.3 / 6.4 magnitude by factors
+It is found by bisection on a log scale (bracketed from the table 6.3 / 6.4 magnitude by factors
 of 2, then bisected to a 5 % bracket; the limit is the upper, detected end) with
 ``python -m studies.diagnosis.kpis min-detectable --all --seeds 4``, which regenerates
 ``marine_fdi_env/data/env/detectability.json``.  A fault never detected at any magnitude tried
