@@ -697,7 +697,7 @@ def render(data_dir: Path = Path("docs/data")) -> str:
             f"### The thesis's multiple-fault examples ({cmd})",
             "",
             f"Seeds {first['first_seed']}-{first['first_seed'] + first['seeds'] - 1} (`marine-fdi simulate "
-            f"--scenario NAME --seed S`), which no design choice looked at (the development seeds were "
+            f"--scenario NAME --seed S`), which no design choice looked at (the development seeds are "
             "0-49); the default cell set (sized; the others in the table of the cell sets below).  Counts of "
             "runs with the exact 95 % interval of the rate.",
             "",

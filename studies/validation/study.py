@@ -440,7 +440,7 @@ def study_main(argv: Sequence[str] | None = None) -> int:
                     help="without the selection's final removal step (to measure what it changes)")
     ap.add_argument("--no-exchange", action="store_true",
                     help="without the selection's exchange step (a named physical cause replaced by a sensor "
-                         "calibration that explains the data better): the selection before 2026-11-26")
+                         "calibration that explains the data better): the selection of the study files 0:20 to 260:280")
     ap.add_argument("--tolerance", default="stated", choices=TOLERANCE_MODES,
                     help="what the pipeline is told of the noise: its own tolerances (default; every result of the "
                     "study) or each channel's true noise (an ablation: what misstated tolerances cost)")

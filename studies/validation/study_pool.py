@@ -186,7 +186,7 @@ def pool_markdown(res: Mapping[str, Any]) -> str:
             bar = f"{'≥' if v['sense'] == 'min' else '≤'} {100 * v['bar']:.0f} %"
             lines.append(f"| {label} | " + " | ".join(f"{k}/{n}" for k, n in per) +
                          f" | {_cell(v)} | {bar} | {'yes' if v['met'] else '**no**'} | {v['interval_says']} |")
-    lines += ["", "Not a target of the issue: negative controls with a *local* unexplained finding, reported at a "
+    lines += ["", "Not a target of the study: negative controls with a *local* unexplained finding, reported at a "
               "family-wise 5 %; in (a) and (c) the controls are the model plus noise, so every finding is a false "
               "alarm and the rate is held to that level (in (b), (d), (e) the engine is a few per cent off the "
               "model and a finding may be real).", "", head, lines[1]]
@@ -215,9 +215,10 @@ def pool_markdown(res: Mapping[str, Any]) -> str:
                          f"{v.get('median_set_size', '–')} ({sizes_txt}) | {_cell(v.get('control_set_names_a_cause'))} |")
     sizes = res["conditions"].get("e", {}).get("by_size")
     if sizes:
-        lines += ["", "Not a target of the issue: (e) by how much of the effect a sensor's gain and offset leave at the "
+        lines += ["", "Not a target of the study: (e) by how much of the effect a sensor's gain and offset leave at the "
                   "measured points (`effect_size.beyond_calibration`, in tolerances; bins fixed in the study's summary "
-                  "since 83ddd7b, 2026-11-25). The issue's 90 % is shown for reference: it is stated for all effects, not per size.",
+                  "before the first fresh range ran). The study's target of 90 % is shown for reference: it is stated "
+                  "for all effects, not per size.",
                   "", head, lines[1]]
         for lab, r in sizes.items():
             v = r["pooled"]

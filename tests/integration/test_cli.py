@@ -363,7 +363,7 @@ def test_console_script_help():
 
 
 def test_validate_and_synthesize_are_wired(tmp_path, capsys):
-    # the validation commands (issue #4) are reachable through the marine-fdi entry point
+    # the validation commands are reachable through the marine-fdi entry point
     from marine_fdi_env.cli import main
 
     data = tmp_path / "synth.csv"

@@ -154,8 +154,8 @@ def test_every_replica_follows_the_rules_the_data_were_selected_with(waste_gate_
 def test_a_candidate_pinned_at_a_bound_does_not_screen_the_others_out():
     """Found with the replicas of the Birka protocol (tests/data/protocol_replica_flow_law.json: the data as the
     fitted flow law would give them): the cylinder-outlet calibration fits best in the first step but wants a gain
-    below its plausible range, so it is not eligible.  Its cross-validated score used to screen every other
-    candidate out (their in-sample scores were already worse than it), and nothing was named; only an eligible
+    below its plausible range, so it is not eligible.  Its cross-validated score would screen every other
+    candidate out (their in-sample scores are already worse than it), and nothing would be named; only an eligible
     candidate may screen others out, and the true mechanism is named (the waste gate fits about as well, with
     more parameters)."""
     import json
@@ -177,7 +177,7 @@ def test_a_candidate_pinned_at_a_bound_does_not_screen_the_others_out():
     sel = select_causes(q, lib, pairs=False)
     first = {c.added: c for c in sel.steps[0]["candidates"]}
     assert first[f"sensor_calibration[{ch}]"].screened.startswith("not eligible")
-    assert first["turbine_flow_law"].cross_validated  # no longer screened out by the ineligible calibration
+    assert first["turbine_flow_law"].cross_validated  # not screened out by the ineligible calibration
     assert sel.selected_labels[0] == "turbine_flow_law", sel.selected_labels
 
 

@@ -1,4 +1,4 @@
-"""The detection bounds of issue 13's seal-leak must-show (studies.diagnosis.detection_bound)."""
+"""The detection bounds of the seal-leak target (studies.diagnosis.detection_bound)."""
 
 import math
 

@@ -27,8 +27,8 @@ def test_the_study_trial_whose_step_was_named_a_calibration_now_reports_it():
 def test_a_named_calibration_is_scanned_at_the_level_of_its_own_claim():
     """Open-world trial e222 (development seed; about 5 s): a 6 % fuel-flow dip around 48 % load is named as the
     flow meter's calibration.  What the gain and offset leave is a window at 44-57 % load with scan p = 0.027: above
-    5 % / 13 channels (the level until 2026-11-26, when nothing was reported) and below 5 % / 1 named calibration,
-    the level of the one claim being tested.  It is now reported on the right channel, in the right region."""
+    5 % / 13 channels (at that level nothing is reported) and below 5 % / 1 named calibration, the level of the one
+    claim being tested: it is reported on the right channel, in the right region."""
     r = trial("e", 222)
     assert r["selected"] == ["sensor_calibration[fuel_flow_kg_per_h]"]
     left = [u for u in r["unexplained"] if u["channel"] == "fuel_flow_kg_per_h"]

@@ -126,7 +126,7 @@ def test_the_exchange_step_names_the_calibration_a_physical_cause_had_absorbed()
     names cylinder heat loss with friction as a pair (the heat loss absorbs part of the gauge's error, so the gauge's
     calibration then leaves structure and is not eligible) and then ambient + turbine flow law to mop up.  With the
     exchange step the heat loss is replaced by the calibration, the removal step drops the other two, and the
-    exact pair is named.  Without it (the selection before 2026-11-26) the four causes stay."""
+    exact pair is named.  Without it (``--no-exchange``) the four causes stay."""
     truth = ["friction_losses", "sensor_calibration[max_cylinder_pressure_bar_gauge]"]
     assert trial("d", 260)["selected"] == sorted(truth)
     assert len(trial("d", 260, exchange=False)["selected"]) == 4

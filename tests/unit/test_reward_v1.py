@@ -33,7 +33,7 @@ PIN = ScenarioConfig(name="pin", duration_s=40.0, onset_range_s=(5.0, 20.0), sec
 
 
 def _make(env_id: str, **kw):
-    with warnings.catch_warnings():  # gymnasium: "MarineFDI-v0 is out of date" now that v1 exists
+    with warnings.catch_warnings():  # gymnasium: "MarineFDI-v0 is out of date" because v1 exists
         warnings.simplefilter("ignore", DeprecationWarning)
         return gym.make(f"marine_fdi_env:{env_id}", **kw)
 

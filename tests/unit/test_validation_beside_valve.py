@@ -27,7 +27,7 @@ def test_only_a_physical_mechanism_joining_a_model_with_a_valve_is_beside_a_valv
 
 def test_a_calibration_added_beside_a_valve_keeps_the_cross_validated_bar_under_every_rule():
     """Judged in sample at a forward step, a calibration beside a bypass valve named a spurious turbine-inlet
-    temperature calibration in development trial d317 (tried 2026-11-26, not kept): only the exchange step's swap of
+    temperature calibration in development trial d317 (an ablation, not the default): only the exchange step's swap of
     a physical cause for a calibration is judged in sample (``in_sample_exchange``)."""
     gate = Combination((MECH["waste_gate"],))
     cal = SensorCalibration(channel="charge_air_pressure_bar_gauge", reference=2.0)

@@ -47,7 +47,7 @@ def test_channel_noise_is_unbiased_on_noise_and_less_moved_by_a_bump_than_the_me
 
 @pytest.mark.parametrize("bump", [True, False])
 def test_a_bump_below_a_loose_tolerance_is_reported_at_the_data_scale(bump):
-    """The issue's example at a smaller size: 14 points of the base model with noise 0.5 % of each channel's typical
+    """A bump below a loose tolerance, small: 14 points of the base model with noise 0.5 % of each channel's typical
     reading (2.5 K on the turbine outlet, whose tolerance is 5 K) and a 10 K bump around 60 % load (two tolerances
     at its peak, four noise levels).  Judged at the tolerance, the window scan misses it; judged at the data's
     scatter it is reported on its channel, saying which scale it used; without the bump nothing is."""

@@ -104,7 +104,7 @@ def test_problem_runs_each_row_at_its_own_boundary_conditions():
     j = pr.channels.index("cylinder_exhaust_temperature_mean_C")
     assert np.all(pr.tolerance_cells[:, j] > pr.tolerance[j])
     # the rows are grouped by their boundary conditions once per set of rows (a fit solves the same rows thousands of
-    # times; until 2026-11-27 the cache never hit), each row in one group
+    # times: the second call must hit the cache), each row in one group
     rows = np.arange(ds.n_points)
     assert pr._groups(rows) is pr._groups(rows)
     assert sorted(i for _, idx in pr._groups(rows) for i in idx) == list(rows)

@@ -23,8 +23,8 @@ def _p_values(R: np.ndarray, noise: float) -> np.ndarray:
 @pytest.mark.parametrize("n, noise", [(8, 1.0), (8, 1.5), (12, 1.5)])
 def test_the_scan_holds_its_level_on_pure_noise(n, noise):
     """4000 channels of Gaussian noise (drawn apart from the null's seed): the share with p < 5 % is 5 % within
-    four binomial standard deviations (0.014).  The Bonferroni p-value used before 2026-11-25 (best window's normal
-    p-value x number of windows) flagged about 9 % of channels with noise 1.5x the tolerance at a nominal 1 %."""
+    four binomial standard deviations (0.014).  The Bonferroni p-value (best window's normal p-value x number of
+    windows) flags about 9 % of channels with noise 1.5x the tolerance at a nominal 1 %."""
     rng = np.random.default_rng(1234)
     R = rng.normal(0.0, noise, (4000, n))
     p = _p_values(R, noise)
@@ -34,7 +34,7 @@ def test_the_scan_holds_its_level_on_pure_noise(n, noise):
         z = ws._scan(R, 1.0, n // 2)[0]
         n_win = len(ws._windows(n, n // 2))
         bonferroni = np.minimum(1.0, 2 * __import__("scipy").stats.norm.sf(z) * n_win)
-        assert np.mean(bonferroni < 0.01) > 0.04  # the old test's level was broken here
+        assert np.mean(bonferroni < 0.01) > 0.04  # Bonferroni's level is broken here
 
 
 def test_the_null_is_the_same_numbers_on_every_call():

@@ -1,6 +1,5 @@
 """What the data hardly tell from an accepted cause (:mod:`.selection`): the other candidates of its step
-cross-validated within :data:`ALTERNATIVE_MARGIN`, and its structural equivalents (:mod:`.mechanisms`).  Split out
-of :mod:`.selection` on 2026-11-27, behaviour unchanged."""
+cross-validated within :data:`ALTERNATIVE_MARGIN`, and its structural equivalents (:mod:`.mechanisms`)."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """Sensor calibrations as candidates of a selection step (:mod:`.selection`, step 5): fitted cheaply on the current
 model's readings, the most promising refitted as whole models, and an accepted one followed by a refit of the whole
-model.  Split out of :mod:`.selection` on 2026-11-27, behaviour unchanged."""
+model."""
 
 from __future__ import annotations
 
@@ -57,9 +57,9 @@ def calibrations_to_refit(scored: Sequence[CandidateScore], current_S: float, mi
     with every parameter free, as the physical candidates are.
 
     A calibration fitted on the current model's readings (:func:`sensor_candidate`) keeps the nuisance that the
-    uncorrected channel pulled, while a physical candidate refits it: the comparison favoured physical mechanisms,
-    and a turbine flow law or a friction + heat-loss pair was named where one sensor read wrong (study trials a48,
-    a51, b58, d40, 2026-11-25).  Refitting every calibration would cost as much as the physical candidates again;
+    uncorrected channel pulled, while a physical candidate refits it: compared so, the physical mechanisms are
+    favoured, and a turbine flow law or a friction + heat-loss pair is named where one sensor reads wrong (study
+    trials a48, a51, b58, d40).  Refitting every calibration would cost as much as the physical candidates again;
     the miscalibrated channel is the one whose calibration on the current readings gains most, so the best two
     (those that improve the current score by ``min_gain`` already on the current readings) are refitted."""
     cal = [c for c in scored if isinstance(c.combination.mechanisms[-1], SensorCalibration)
@@ -76,9 +76,9 @@ def refit_with_calibration(problem: Problem, best: CandidateScore, previous: Fit
     channels), but that model's nuisance and mechanisms were fitted to the channel *before* its correction: a
     miscalibrated sensor pulls them.  Left so, the next step compares every physical candidate (each fitted with all
     parameters free) against a model that is still bent, and whichever is tried first takes the gain of merely
-    refitting: in trials with a calibration and model error, every physical candidate of the next step gained about
-    a third and one of them was named on top of the true calibration (study trials a25, b8, c14, d17, d33, d38,
-    2026-11-25).  So the whole model is refitted with the calibration before the next step."""
+    refitting: in trials with a calibration and model error, every physical candidate of the next step gained about a
+    third and one of them was named on top of the true calibration (study trials a25, b8, c14, d17, d33, d38).  So the
+    whole model is refitted with the calibration before the next step."""
     comb = best.combination
     fit = fit_combination(problem, comb, start=best.fit, known=best.fit.values(), support=previous.support)
     c = CandidateScore(comb, best.added, fit, 2.0 * fit.data_cost / M)

@@ -1,6 +1,6 @@
 """A candidate combination scored against the current model of a selection step (:mod:`.selection`, step 4 of
 its docstring): the cross-validated score, the penalised score ``S exp(2 k / M)``, the gain and the F-test of the
-drop per added parameter.  Split out of :mod:`.selection` on 2026-11-27, behaviour unchanged."""
+drop per added parameter."""
 
 from __future__ import annotations
 

@@ -1,7 +1,6 @@
 """Whether a scored candidate may be named (:mod:`.selection`, end of its docstring): a sensor calibration only
 when its gain and offset leave no local departure on its channel (:func:`structure_left`); no candidate whose valve
-opens nowhere or whose fit sits at a bound of its plausible range that the data want beyond (:func:`why_pinned`).
-Split out of :mod:`.selection` on 2026-11-27, behaviour unchanged."""
+opens nowhere or whose fit sits at a bound of its plausible range that the data want beyond (:func:`why_pinned`)."""
 
 from __future__ import annotations
 

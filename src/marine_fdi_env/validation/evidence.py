@@ -1,6 +1,6 @@
 """How a cause earns its place in a model (:mod:`.selection`, step 5): the gain and the F-test, cross-validated
 everywhere, in sample for a physical mechanism beside a valve under the rules of :data:`BESIDE_VALVE`; and the
-command-line options of those valve rules.  Split out of :mod:`.selection` on 2026-11-27, behaviour unchanged."""
+command-line options of those valve rules."""
 
 from __future__ import annotations
 
@@ -14,18 +14,17 @@ __all__ = ["BESIDE_VALVE", "BESIDE_VALVE_DEFAULT", "EXCHANGE_IN_SAMPLE", "IN_SAM
            "judged_in_sample"]
 
 
-#: how a cause joining a model that has a valve must earn its place (:func:`earns`): ``in_sample_pairs`` (the
-#: default since 2026-11-27, twelfth session: ``in_sample_exchange`` without the cross-validated guard, i.e. in
-#: sample the gain and F-test alone decide (:func:`earns` ``cv_guard``), and a pair that holds the step's best
-#: single candidate, a valve, replaces it when its second member earns its place beside the valve so, not by the
-#: penalised score; development check on 135 trials with a valve: d225 and d358 gained, none lost,
-#: docs/figures/validation/in_sample_pairs/), ``in_sample_exchange`` (a physical mechanism in sample with a
-#: cross-validated score that must be lower at all, and the exchange step's swap of a physical cause for a sensor
-#: calibration beside the valve too: the tenth session's rule, of the study file 360-380), ``in_sample`` (physical
-#: mechanisms only: the ninth session's rule, of the study files 340-360) or ``cross_validated`` (the rule of every
-#: other candidate, and of every study file before the ninth session; an ablation).  A calibration added at a
-#: forward step keeps the cross-validated bar under every rule: judged in sample it named a spurious turbine-inlet
-#: temperature calibration beside a bypass valve in development trial d317 (tried 2026-11-26, not kept;
+#: how a cause joining a model that has a valve must earn its place (:func:`earns`): ``in_sample_pairs`` (the default:
+#: ``in_sample_exchange`` without the cross-validated guard, i.e. in sample the gain and F-test alone decide
+#: (:func:`earns` ``cv_guard``), and a pair that holds the step's best single candidate, a valve, replaces it when its
+#: second member earns its place beside the valve so, not by the penalised score; development check on 135 trials with a
+#: valve: d225 and d358 gained, none lost, docs/figures/validation/in_sample_pairs/), ``in_sample_exchange`` (a physical
+#: mechanism in sample with a cross-validated score that must be lower at all, and the exchange step's swap of a
+#: physical cause for a sensor calibration beside the valve too: the rule of the study file 360-380), ``in_sample``
+#: (physical mechanisms only: the rule of the study files 340-360) or ``cross_validated`` (the rule of every other
+#: candidate, and of every study file up to 320-340; an ablation).  A calibration added at a forward step keeps the
+#: cross-validated bar under every rule: judged in sample it named a spurious turbine-inlet temperature calibration
+#: beside a bypass valve in development trial d317 (an ablation, not the default:
 #: docs/figures/validation/beside_valve/).
 BESIDE_VALVE = ("in_sample_pairs", "in_sample_exchange", "in_sample", "cross_validated")
 #: the rules under which the exchange step's swap beside a valve is judged in sample

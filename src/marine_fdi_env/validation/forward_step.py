@@ -3,8 +3,7 @@
 Every remaining mechanism is added to the current model and fitted (:func:`score_singles`), the promising ones are
 cross-validated (:func:`cross_validate_promising`), the best single candidate is judged (:func:`judge_best_single`)
 and pairs of physical mechanisms are tried beside it (:func:`best_pair`).  :func:`forward_step` runs the four and
-says what the step decided.  Split out of :func:`~.selection.select_causes` on 2026-11-27 (fourteenth session),
-behaviour unchanged: the same fits in the same order.
+says what the step decided.
 """
 
 from __future__ import annotations

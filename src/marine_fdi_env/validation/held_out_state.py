@@ -6,12 +6,12 @@ The default (``held_out_valves="schedule"``, :mod:`.fitting`) interpolates the o
 training points, which misses by tens of tolerances at the last shut point, the first open one and the highest
 load: an error every model with the valve shares, and one that dominates its cross-validated score.
 
-Here (``held_out_valves="state"``, tried 2026-11-26, eleventh session) the opening at a held-out point is
+Here (``held_out_valves="state"``, an ablation) the opening at a held-out point is
 estimated from that point's own readings, **leaving out the channel being predicted**: channel ``j`` at row ``r``
 is predicted with the opening that best explains the other channels of ``r`` under the fold's fit (its global
 parameters and nuisance from the training rows).  That is an honest prediction of cell ``(r, j)``: it never saw
 ``y[r, j]``.  What it tests is the model's cross-channel structure at the point, which is what a per-point state
-claims; the schedule tested a load dependence the model does not claim.
+claims; the schedule tests a load dependence the model does not claim.
 
 Estimate, per valve, as the full fit selects a support (module docstring of :mod:`.fitting`): the opening
 minimising ``Σ_c ρ(r_c) + 2 λ o / o_v`` (the relaxation's sparsity penalty) decides whether the valve acts
@@ -20,11 +20,11 @@ solves the readings on a grid of openings over ``[0, opening_max]``, interpolate
 channel, and minimises on a fine grid refined by a bounded scalar search; the prediction is then solved at the
 chosen opening.  Several valves: coordinate-wise, two rounds.
 
-Not adopted (``docs/figures/validation/held_out_state/``): on the study's development seeds 300-339, run with the
-cross-validated bar for every candidate (no dilution left to make up for), it lost two (b) trials and traded one (d)
-trial for another.  An opening free at every held-out point is a per-point knob on the turbocharger's power
-balance: under model error a waste gate imitates a BSR efficiency loss, and a third cause beside a valve passes the
-10 % bar.
+An ablation, not the default (``docs/figures/validation/held_out_state/``): on the study's development seeds 300-339,
+run with the cross-validated bar for every candidate (no dilution left to make up for), it lost two (b) trials and
+traded one (d) trial for another.  An opening free at every held-out point is a per-point knob on the turbocharger's
+power balance: under model error a waste gate imitates a BSR efficiency loss, and a third cause beside a valve passes
+the 10 % bar.
 """
 
 from __future__ import annotations

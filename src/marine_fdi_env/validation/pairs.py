@@ -1,6 +1,5 @@
 """Pairs of physical mechanisms added together at a selection step (:mod:`.selection`, step 5), and the test each
-member of an accepted pair must pass against the other alone.  Split out of :mod:`.selection` on 2026-11-27,
-behaviour unchanged."""
+member of an accepted pair must pass against the other alone."""
 
 from __future__ import annotations
 

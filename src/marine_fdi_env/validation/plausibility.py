@@ -2,7 +2,7 @@
 values (warnings, kept), duplicate operating points, and an engine far from the others at the same set point.
 
 Used by :func:`~.dataset.load_dataset`; each check reports through the loader's ``err``/``warn`` callables (message,
-1-based rows, column).  Split out of :mod:`.dataset` on 2026-11-27, behaviour unchanged.
+1-based rows, column).
 """
 
 from __future__ import annotations

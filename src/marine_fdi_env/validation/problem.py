@@ -39,8 +39,8 @@ from .matching import _rack_settings, _resolve_target, _target_values, load_law_
 __all__ = ["Setting", "Problem", "BASE_SETTING", "FAIL_RESIDUAL", "VALVES", "HELD_OUT_VALVES"]
 
 #: how cross-validation predicts a valve's opening at a held-out point (:mod:`.fitting`'s docstring): ``schedule``
-#: (the default), ``support`` or ``state`` (each tried 2026-11-26 and not adopted: ablations,
-#: ``Problem(..., held_out_valves="support")``; ``state``: :mod:`.held_out_state`)
+#: (the default), ``support`` or ``state`` (ablations, not the default: each lets model error pass as a valve or
+#: as a cause beside one; ``Problem(..., held_out_valves="support")``; ``state``: :mod:`.held_out_state`)
 HELD_OUT_VALVES = ("schedule", "support", "state")
 
 FAIL_RESIDUAL = 50.0  # normalised residual of a cell whose point has no steady state
@@ -86,7 +86,7 @@ class Problem:
     target : what fixes each point (as :func:`~.matching.match_operating_points`).
     tolerances : per column in its units (default: sidecar ``tolerances``, else the defaults).
     held_out_valves : how cross-validation predicts a valve's opening at a held-out point, ``"schedule"`` (default),
-        ``"support"`` (tried 2026-11-26, not adopted) or ``"state"`` (tried 2026-11-26, not adopted;
+        ``"support"`` or ``"state"`` (ablations, not the default;
         :mod:`.held_out_state`): :data:`HELD_OUT_VALVES`.
     """
 
@@ -218,7 +218,7 @@ class Problem:
             key = tuple(float(b[k][i]) if math.isfinite(b[k][i]) else None for k in ("p_amb_Pa", "T_amb_K", "p_ex_Pa"))
             groups.setdefault(key, []).append(int(i))
         out = [(tuple(math.nan if x is None else x for x in k), np.array(v, dtype=int)) for k, v in groups.items()]
-        self._group_cache[rows_key] = out  # until 2026-11-27 stored under the last group's key: it never hit
+        self._group_cache[rows_key] = out  # keyed by the rows asked for, so that the next call with them hits
         return out
 
     def point_engine(self, setting: Setting, row: int) -> EngineParams:

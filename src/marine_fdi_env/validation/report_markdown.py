@@ -1,5 +1,4 @@
-"""The Markdown summary of a validation report (:mod:`.report`, ``marine-fdi validate --markdown FILE.md``).
-Split out of :mod:`.report` on 2026-11-27, behaviour unchanged."""
+"""The Markdown summary of a validation report (:mod:`.report`, ``marine-fdi validate --markdown FILE.md``)."""
 
 from __future__ import annotations
 

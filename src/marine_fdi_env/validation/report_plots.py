@@ -1,6 +1,5 @@
 """Plots of a validation report (:mod:`.report`, ``marine-fdi validate --plots DIR``): model against measurement
-before and after the extension, cross-validated RMSE per channel, and the hold-out engines.  Split out of
-:mod:`.report` on 2026-11-27, behaviour unchanged."""
+before and after the extension, cross-validated RMSE per channel, and the hold-out engines."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """The selection's revision after its forward steps (:mod:`.selection`, step 5): every named cause must still earn
 its place among the others (:func:`removal_step`), and a named physical cause may be exchanged for a sensor
-calibration (:func:`exchange_step`).  Split out of :mod:`.selection` on 2026-11-27, behaviour unchanged."""
+calibration (:func:`exchange_step`)."""
 
 from __future__ import annotations
 
@@ -74,7 +74,7 @@ def exchange_step(problem: Problem, current: Combination, current_fit: FitResult
     Forward selection never takes a cause back, and a calibration is only eligible when its gain and offset leave no
     local departure on its channel (:func:`~.eligibility.structure_left`). When a physical mechanism has absorbed
     part of a miscalibrated sensor, what the calibration would leave on top of it is bent, so the true calibration
-    stays ineligible, and further mechanisms are named to mop up (study trial d260, 2026-11-26: friction + a p_max
+    stays ineligible, and further mechanisms are named to mop up (study trial d260: friction + a p_max
     gauge reading 5 % high named as cylinder heat loss + friction, then ambient + turbine flow law; the p_max
     calibration scored best at step 2 but left structure on top of the heat loss). So at the end each named physical
     cause is taken out in turn (the others refitted, as :func:`removal_step` does), every sensor calibration not yet
@@ -83,8 +83,8 @@ def exchange_step(problem: Problem, current: Combination, current_fit: FitResult
     calibration leaves no local departure against the model without the cause, and no parameter is pinned; the best
     such exchange is made, and the caller runs the removal step again. Beside a valve (the model after the exchange
     keeps one) and with ``beside_valve`` in :data:`~.evidence.EXCHANGE_IN_SAMPLE` the gain is the in-sample one (as
-    :func:`~.evidence.earns`: the valve's held-out openings dilute the cross-validated gain; study trial d346,
-    2026-11-26: the swap back to the true calibration gained 7.0 % cross-validated); the penalised cross-validated
+    :func:`~.evidence.earns`: the valve's held-out openings dilute the cross-validated gain; study trial d346:
+    the swap back to the true calibration gained 7.0 % cross-validated); the penalised cross-validated
     score must still be lower."""
     phys = [m for m in current.mechanisms if not isinstance(m, SensorCalibration)]
     named = {m.channel for m in current.mechanisms if isinstance(m, SensorCalibration)}

@@ -22,8 +22,8 @@ Pipeline (:func:`select_causes`), on a :class:`~.problem.Problem`:
    of the drop of the cross-validated loss per added parameter against the candidate's loss per
    residual degree of freedom gives ``p < alpha / (number of candidates tried in the step)``
    (Bonferroni, alpha = 0.01).  A physical mechanism joining a model that has a valve is judged on the same
-   gain and F-test of its *in-sample* scores (:func:`~.evidence.earns`, since 2026-11-26; without a
-   cross-validated guard since 2026-11-27): the valve's held-out openings add an error to both models that
+   gain and F-test of its *in-sample* scores (:func:`~.evidence.earns`, without a
+   cross-validated guard): the valve's held-out openings add an error to both models that
    dilutes and scatters the cross-validated gain.  Each step also tries pairs of physical mechanisms added
    together (:func:`~.pairs.pair_candidates`); a pair replaces the best single candidate when its penalised
    score is lower, it passes the same tests (Bonferroni over singles and pairs) and each member earns its place
@@ -36,8 +36,8 @@ Pipeline (:func:`select_causes`), on a :class:`~.problem.Problem`:
    are not credited with the gain of merely refitting.  Selection stops at the first step where nothing
    qualifies; then every named cause must still earn its place against all the others
    (:func:`~.revision.removal_step`: the weakest that does not is removed, and the test repeated).  Then each
-   named physical cause is tried replaced by a sensor calibration (:func:`~.revision.exchange_step`, since
-   2026-11-26; beside a valve judged by its in-sample gain, since the tenth session), and the removal step runs
+   named physical cause is tried replaced by a sensor calibration (:func:`~.revision.exchange_step`;
+   beside a valve judged by its in-sample gain), and the removal step runs
    again after an exchange.
 6. **Unexplained.**  Each channel is judged against the final model refitted *without that channel*
    (:func:`~.fitting.loco_predictions`): an anomaly of one sensor bends a fit that includes it and would
@@ -49,7 +49,7 @@ Pipeline (:func:`select_causes`), on a :class:`~.problem.Problem`:
    (:mod:`.unexplained`).  On a channel with a named sensor calibration, what its gain and offset leave is also
    scanned for steps, kinks and windows (:func:`~.unexplained.calibration_left`, :mod:`.calibration_scan`): the
    bias, trend and change-point tests cannot see it.
-   That scan tests the named calibrations only, at ``ALPHA_UNEXPLAINED`` over their number (since 2026-11-26).
+   That scan tests the named calibrations only, at ``ALPHA_UNEXPLAINED`` over their number.
    A sensor calibration is only eligible when the gain and offset it fits on the model without its channel
    leave no such local departure: a gain and an offset are a complete explanation of a sensor or none.
    A candidate whose fit sits at a bound of its plausible range that is not a natural limit is not eligible
@@ -57,7 +57,7 @@ Pipeline (:func:`select_causes`), on a :class:`~.problem.Problem`:
    refitting lowers the in-sample loss significantly); a bound merely touched because two parameters trade off is
    kept, with a note.  Parameters the data do not determine are noted, not a reason to reject.
 
-The parts, one module each (split out of this one on 2026-11-27): one forward step (:mod:`.forward_step`), a
+The parts, one module each: one forward step (:mod:`.forward_step`), a
 scored candidate (:mod:`.candidates`), the evidence a cause must give (:mod:`.evidence`), eligibility
 (:mod:`.eligibility`), sensor calibrations as candidates (:mod:`.calibration_candidates`), pairs (:mod:`.pairs`),
 the removal and exchange steps (:mod:`.revision`), what the data hardly tell from a named cause

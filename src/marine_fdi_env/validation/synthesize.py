@@ -149,8 +149,8 @@ def _relative_basis(column: str, values: np.ndarray, p_amb_Pa: float) -> float:
     absolute pressure for a gauge column), the basis of the pipeline's 1 % tolerance
     (:func:`~.discrepancy.column_tolerance`), so that an amplitude of 4 % is 4 tolerances on every channel.
 
-    Until 2026-11-25 it was the mean *gauge* reading: on charge-air and turbine inlet pressure the "4-7 tolerance"
-    effects of condition (e) were about 2.4-4.3 and 1.9-3.4 tolerances (a 5 % step: 3.0 and 2.4)."""
+    Not the mean *gauge* reading: on charge-air and turbine inlet pressure the "4-7 tolerance" effects of condition
+    (e) would then be about 2.4-4.3 and 1.9-3.4 tolerances (a 5 % step: 3.0 and 2.4)."""
     spec = lookup_column(column)
     return float(np.mean(np.abs(spec.to_si(values, p_amb_Pa)))) / spec.scale
 

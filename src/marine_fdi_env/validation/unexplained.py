@@ -26,9 +26,9 @@ __all__ = ["ALPHA_UNEXPLAINED", "point_outliers", "family_significant", "local_e
 
 #: family-wise level (Bonferroni over the channels) at which a discrepancy left by the final model is reported as
 #: unexplained.  Naming a cause asserts a physical explanation and is held to ``alpha`` (1 %); an unexplained finding
-#: asks an engineer to look at a channel and a load region, and is held to the customary 5 %.  Chosen 2026-11-25
-#: after the study's condition (e) showed effects of 4-7 tolerances whose scan p-values lay between 0.001 and 0.004
-#: per channel (trials e66, e69, e75, e77): above 0.01/13, below 0.05/13.  The price, measured on the negative
+#: asks an engineer to look at a channel and a load region, and is held to the customary 5 %.  Chosen on
+#: the study's condition (e), whose effects of 4-7 tolerances give scan p-values between 0.001 and 0.004 per
+#: channel (trials e66, e69, e75, e77): above 0.01/13, below 0.05/13.  The price, measured on the negative
 #: controls, is in docs/validation.md.
 ALPHA_UNEXPLAINED = 0.05
 
@@ -178,12 +178,13 @@ def unexplained_findings(match: MatchResult, report: DiscrepancyReport, tol: Map
     ``calibrated`` (a named sensor calibration) also what the gain and offset leave (:func:`calibration_left`),
     Bonferroni over the calibrated channels only.
 
-    Why not over every channel (as until 2026-11-26): the scan tests one claim per named calibration, "this gain
+    Why not over every channel: the scan tests one claim per named calibration, "this gain
     and offset explain that sensor", on the channel the calibration names; the other channels are not scanned, so
     they do not enter its multiplicity.  ``alpha`` (5 %) is then the rate at which a true calibration's report
-    carries a spurious "left by the calibration" finding; dividing by 13 channels held it to 0.4 % and cost the
-    out-of-library effects the selection names as a calibration.  Measured on development trials in
-    docs/validation.md ("What changed this round").  ``scans``, when given, receives every calibration scan
+    carries a spurious "left by the calibration" finding; dividing by 13 channels would hold it to 0.4 % and cost
+    the out-of-library effects the selection names as a calibration.  Measured on development trials in
+    docs/validation.md ("The selection's rules one at a time: what each is designed on and what it changes", "The
+    calibration scan at the level of its own claim").  ``scans``, when given, receives every calibration scan
     (:func:`calibration_left`)."""
     out = _region_findings(report, alpha)
     n_ch = max(len(report.channels), 1)

@@ -8,21 +8,20 @@ bump's own spread is not noise; the tolerance is the floor).  The scan takes the
 
 Its p-value is the probability that noise alone gives a scan statistic as large: simulated once per (number of
 points, widest window, noise level) with :data:`NULL_SAMPLES` draws from a fixed seed (the same numbers on every
-run) and cached.  Until 2026-11-25 it was the best window's normal p-value times the number of windows
-(Bonferroni), which erred both ways:
+run) and cached.  Not the best window's normal p-value times the number of windows (Bonferroni), which errs both
+ways:
 
-* the windows overlap, so with noise at the tolerance Bonferroni was about 2x conservative (8 points: false alarm
+* the windows overlap, so with noise at the tolerance Bonferroni is about 2x conservative (8 points: false alarm
   rate 0.045 % at a nominal 0.077 %);
 * ``s_rest`` from four to six points is a poor estimate of a noise larger than the tolerance, and a normal p-value
-  ignores that: with noise 1.5x the tolerance the scan flagged 9 % of pure-noise channels at a nominal 1 %.
+  ignores that: with noise 1.5x the tolerance that scan flags 9 % of pure-noise channels at a nominal 1 %.
 
-The null's noise level is the dataset's (:func:`noise_ratio`, at least the tolerance), so the test holds its level
-when the data as a whole are noisier than the tolerance says (tested).  It does not when only some channels are:
-the level is a median over channels.  In the study's condition (c) (noise 1.5 % of each reading against a 1 %
-tolerance of the mean reading) the engine and turbocharger speeds and the cylinder-outlet temperature carry noise
-of 1.3-2 tolerances while most other channels carry less, and 5-6 of 20 negative controls still show a local
-finding on one of them (before: 6 of 20).  A per-channel noise level robust to the channel's own effect is the
-next step (not done).
+The null's noise level is the dataset's (:func:`noise_ratio`, at least the tolerance), so the test holds its level when
+the data as a whole are noisier than the tolerance says (tested).  It does not when only some channels are: the level is
+a median over channels.  In the study's condition (c) (noise 1.5 % of each reading against a 1 % tolerance of the mean
+reading) the engine and turbocharger speeds and the cylinder-outlet temperature carry noise of 1.3-2 tolerances while
+most other channels carry less, and 5-6 of 20 negative controls still show a local finding on one of them (with the
+Bonferroni p-value: 6 of 20).  A per-channel noise level robust to the channel's own effect is the next step (not done).
 """
 
 from __future__ import annotations
