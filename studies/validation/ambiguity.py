@@ -31,8 +31,7 @@ from marine_fdi_env.validation.problem import Problem
 __all__ = ["ATTEMPTS", "DRAWS", "PAIRS", "ambiguous_draw"]
 
 #: (true structure, the structure that fits its data within the band) by ``seed % 2``
-PAIRS = ((("waste_gate",), ("waste_gate", "turbocharger_map")),
-         (("turbocharger_map",), ("turbine_efficiency_bsr",)))
+PAIRS = ((("waste_gate",), ("waste_gate", "turbocharger_map")), (("turbocharger_map",), ("turbine_efficiency_bsr",)))
 #: parameter ranges of the true structures (uniform): effects a few noise levels large, where the pairs overlap
 DRAWS = {
     "waste_gate": {"above": (0.7, 0.9), "opening": (0.08, 0.2), "turbine_area_scale": (0.8, 0.95)},
@@ -56,8 +55,9 @@ def _k(truth: list[dict[str, Any]]) -> int:
 
 
 @functools.lru_cache(maxsize=64)
-def ambiguous_draw(seed: int, load: Callable[[Any], Any], *, params: str = "wartsila-6l46", points: int = 8,
-                   noise: float = 0.01) -> dict[str, Any] | None:
+def ambiguous_draw(
+    seed: int, load: Callable[[Any], Any], *, params: str = "wartsila-6l46", points: int = 8, noise: float = 0.01
+) -> dict[str, Any] | None:
     """The (f) draw of ``seed``: ``{specs, truth, alternative, misfit, bound, attempt}`` (``specs`` for
     :func:`~.synthesize.synthesize`; ``misfit``: the alternative's sum of squared misfit on the clean data in noise
     standard deviations), or None when no draw of :data:`ATTEMPTS` is ambiguous.  ``load``: the study's round trip
@@ -82,8 +82,14 @@ def ambiguous_draw(seed: int, load: Callable[[Any], Any], *, params: str = "wart
         misfit = float(np.nansum(((pred - pr.Y) / sd) ** 2))
         bound = BAND + 2.0 * max(0, _k(clean.truth) - fit.k)
         if misfit <= bound:
-            return {"specs": specs, "truth": sorted(t["label"] for t in clean.truth), "alternative": sorted(alt_ids),
-                    "alternative_fit": fit.values(), "alternative_support": {k: [i + 1 for i in v]
-                                                                             for k, v in fit.support.items()},
-                    "misfit": misfit, "bound": bound, "attempt": attempt}
+            return {
+                "specs": specs,
+                "truth": sorted(t["label"] for t in clean.truth),
+                "alternative": sorted(alt_ids),
+                "alternative_fit": fit.values(),
+                "alternative_support": {k: [i + 1 for i in v] for k, v in fit.support.items()},
+                "misfit": misfit,
+                "bound": bound,
+                "attempt": attempt,
+            }
     return None

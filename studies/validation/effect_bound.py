@@ -57,10 +57,22 @@ from scipy import optimize, stats
 
 from marine_fdi_env.validation.binomial import proportion_ci95
 from marine_fdi_env.validation.calibration_scan import orthonormal_directions
+
 from .study_pool import SIZE_BINS, size_bin
 
-__all__ = ["separation", "oracle_rate", "family_scan_rate", "shape_family", "trial_bound", "bound", "summarise",
-           "scale_for", "plot", "LEVELS", "main"]
+__all__ = [
+    "separation",
+    "oracle_rate",
+    "family_scan_rate",
+    "shape_family",
+    "trial_bound",
+    "bound",
+    "summarise",
+    "scale_for",
+    "plot",
+    "LEVELS",
+    "main",
+]
 
 #: (name, family-wise level, spread over the compared channels?)
 LEVELS = (("one channel, 5 %", 0.05, False), ("family-wise 5 % over the channels", 0.05, True))
@@ -108,13 +120,19 @@ def shape_family(loads: Sequence[float]) -> np.ndarray:
     rows = []
     for kind in EFFECT_KINDS:
         for c in SCAN_CENTRES:
-            for w in (SCAN_WIDTHS if kind != "bend" else SCAN_WIDTHS[:1]):
+            for w in SCAN_WIDTHS if kind != "bend" else SCAN_WIDTHS[:1]:
                 rows.append(effect_shape({"kind": kind, "center": float(c), "width": float(w)}, x))
     return np.asarray(rows)
 
 
-def family_scan_rate(added: Sequence[float], reading: Sequence[float], noise_sd: Sequence[float] | float,
-                     loads: Sequence[float], alpha: float, rng: np.random.Generator) -> float:
+def family_scan_rate(
+    added: Sequence[float],
+    reading: Sequence[float],
+    noise_sd: Sequence[float] | float,
+    loads: Sequence[float],
+    alpha: float,
+    rng: np.random.Generator,
+) -> float:
     """Rate at which the scan over :func:`shape_family` (two-sided, see the module docstring), at level ``alpha``
     (threshold simulated with :data:`SCAN_NULL_DRAWS` draws), reports the effect ``added`` (Monte Carlo over
     :data:`SCAN_ALT_DRAWS` noise draws)."""
@@ -139,28 +157,38 @@ def trial_bound(result: Mapping[str, Any]) -> dict[str, Any]:
 
     Raises ValueError when the result is not an (e) trial with an effect, or when the re-drawn effect differs from
     the one the file records (the file was written by another version of the study)."""
-    from .study import trial_data
     from marine_fdi_env.validation.synthesize import SET_POINT_COLUMNS
+
+    from .study import trial_data
 
     if result.get("condition") != "e" or result.get("control") or not result.get("effects"):
         raise ValueError("not an (e) trial with an out-of-library effect")
     ts = result.get("trial_settings") or {}
-    syn = trial_data("e", int(result["seed"]), params=str(ts.get("params", "wartsila-6l46")),
-                     points=int(ts.get("points", 8)))
+    syn = trial_data(
+        "e", int(result["seed"]), params=str(ts.get("params", "wartsila-6l46")), points=int(ts.get("points", 8))
+    )
     eff = syn.effects[0]
     rec = result["effects"][0]
     if eff["channel"] != rec["channel"] or not math.isclose(eff["amplitude"], rec["amplitude"], rel_tol=1e-9):
-        raise ValueError(f"seed {result['seed']}: the re-drawn effect ({eff['channel']}, {eff['amplitude']:.6g}) is "
-                         f"not the file's ({rec['channel']}, {rec['amplitude']:.6g}): another version of the study")
+        raise ValueError(
+            f"seed {result['seed']}: the re-drawn effect ({eff['channel']}, {eff['amplitude']:.6g}) is "
+            f"not the file's ({rec['channel']}, {rec['amplitude']:.6g}): another version of the study"
+        )
     c = eff["channel"]
     added = np.asarray(syn.settings["effects_added"][c], dtype=float)
     reading = np.asarray(syn.clean[c], dtype=float) - added
     z = separation(added, reading, syn.noise_sd(c))
     n_ch = sum(1 for k in syn.columns if k not in SET_POINT_COLUMNS)
     tol = _tolerance(syn, c)
-    out = {"seed": int(result["seed"]), "channel": c, "kind": eff["kind"], "z": z, "n_channels": n_ch,
-           "tolerance": tol,
-           "pipeline_hit": bool(result.get("unexplained_right_channel"))}
+    out = {
+        "seed": int(result["seed"]),
+        "channel": c,
+        "kind": eff["kind"],
+        "z": z,
+        "n_channels": n_ch,
+        "tolerance": tol,
+        "pipeline_hit": bool(result.get("unexplained_right_channel")),
+    }
     if "effect_size" in result:  # the study's own size: what a gain and an offset leave, in tolerances
         out["beyond_calibration"] = float(result["effect_size"]["beyond_calibration"])
         out["size_bin"] = size_bin(out["beyond_calibration"])
@@ -178,6 +206,7 @@ def trial_bound(result: Mapping[str, Any]) -> dict[str, Any]:
 def _tolerance(syn, column: str) -> float:
     """The pipeline's tolerance of ``column`` on the trial's data (written and loaded as the study does)."""
     from marine_fdi_env.validation.discrepancy import column_tolerance
+
     from .study import loaded
 
     return float(column_tolerance(loaded(syn), column))
@@ -207,9 +236,11 @@ def scale_for(z: Sequence[float], alpha: float, target: float) -> float:
 def bound(results: Sequence[Mapping[str, Any]], target: float = 0.9) -> dict[str, Any]:
     """Per (e) trial of ``results`` (skipped trials and controls left out) and in summary: the oracle's rates at
     :data:`LEVELS`, the pipeline's hit rate on the same trials, and the amplitude factor for ``target``."""
-    trials = [trial_bound(r) for r in results
-              if r.get("condition") == "e" and not r.get("control") and r.get("outcome") != "skipped"
-              and r.get("effects")]
+    trials = [
+        trial_bound(r)
+        for r in results
+        if r.get("condition") == "e" and not r.get("control") and r.get("outcome") != "skipped" and r.get("effects")
+    ]
     if not trials:
         raise ValueError("no (e) trial in the results")
     return {"summary": summarise(trials, target), "trials": trials}
@@ -220,29 +251,39 @@ def summarise(trials: Sequence[Mapping[str, Any]], target: float = 0.9) -> dict[
     values of :func:`trial_bound`."""
     z = [t["z"] for t in trials]
     n_ch = trials[0]["n_channels"]
-    out: dict[str, Any] = {"n_trials": len(trials),
-                           "pipeline_rate": sum(t["pipeline_hit"] for t in trials) / len(trials),
-                           "z_median": float(np.median(z)), "target": target}
+    out: dict[str, Any] = {
+        "n_trials": len(trials),
+        "pipeline_rate": sum(t["pipeline_hit"] for t in trials) / len(trials),
+        "z_median": float(np.median(z)),
+        "target": target,
+    }
     for name, level, spread in LEVELS:
         a = _alpha(level, spread, n_ch)
-        out[name] = {"alpha": a, "oracle_rate": float(np.mean([t[name] for t in trials])),
-                     "family_scan_rate": float(np.mean([t["scan: " + name] for t in trials])),
-                     "family_scan_rate_at_tolerance": float(np.mean([t["scan at the tolerance: " + name]
-                                                                     for t in trials])),
-                     "amplitude_factor_for_target": scale_for(z, a, target)}
+        out[name] = {
+            "alpha": a,
+            "oracle_rate": float(np.mean([t[name] for t in trials])),
+            "family_scan_rate": float(np.mean([t["scan: " + name] for t in trials])),
+            "family_scan_rate_at_tolerance": float(np.mean([t["scan at the tolerance: " + name] for t in trials])),
+            "amplitude_factor_for_target": scale_for(z, a, target),
+        }
     return out
 
 
 def _table(rows: Sequence[tuple[str, dict[str, Any]]]) -> str:
-    lines = ["| trials | n | level | pipeline: unexplained on the right channel | oracle (knows the shape) | "
-             "scan over the family | scan over the family, noise floored at the tolerance | amplitude factor for the "
-             "oracle to reach 90 % |", "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| trials | n | level | pipeline: unexplained on the right channel | oracle (knows the shape) | "
+        "scan over the family | scan over the family, noise floored at the tolerance | amplitude factor for the "
+        "oracle to reach 90 % |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for label, s in rows:
         for name, _, _ in LEVELS:
             v = s[name]
-            lines.append(f"| {label} | {s['n_trials']} | {name} | {s['pipeline_rate']:.0%} | {v['oracle_rate']:.0%} | "
-                         f"{v['family_scan_rate']:.0%} | {v['family_scan_rate_at_tolerance']:.0%} | "
-                         f"{v['amplitude_factor_for_target']:.2f}x |")
+            lines.append(
+                f"| {label} | {s['n_trials']} | {name} | {s['pipeline_rate']:.0%} | {v['oracle_rate']:.0%} | "
+                f"{v['family_scan_rate']:.0%} | {v['family_scan_rate_at_tolerance']:.0%} | "
+                f"{v['amplitude_factor_for_target']:.2f}x |"
+            )
     return "\n".join(lines)
 
 
@@ -262,33 +303,65 @@ def plot(out: Mapping[str, Any], path: str | Path, n_bins: int = 8) -> Path:
     fig, ax = plt.subplots(figsize=(8.5, 5.2))
     n_ch = trials[0]["n_channels"]
     for (name, level, spread), style in zip(LEVELS, ("-", "--")):
-        ax.plot(grid, oracle_rate(grid, _alpha(level, spread, n_ch)), "k" + style, lw=1.2,
-                label=f"oracle (knows the shape), {name.replace(' over the channels', '')}")
+        ax.plot(
+            grid,
+            oracle_rate(grid, _alpha(level, spread, n_ch)),
+            "k" + style,
+            lw=1.2,
+            label=f"oracle (knows the shape), {name.replace(' over the channels', '')}",
+        )
     rng = np.random.default_rng(0)  # fixed: the same file draws the same figure
-    ax.scatter(z, hit + rng.uniform(-0.03, 0.03, z.size), marker="|", s=30, color="0.55", alpha=0.6,
-               label=f"one effect, reported (1) or not (0): {int(hit.sum())}/{hit.size} reported")
+    ax.scatter(
+        z,
+        hit + rng.uniform(-0.03, 0.03, z.size),
+        marker="|",
+        s=30,
+        color="0.55",
+        alpha=0.6,
+        label=f"one effect, reported (1) or not (0): {int(hit.sum())}/{hit.size} reported",
+    )
     order = np.argsort(z, kind="stable")
     bins = [b for b in np.array_split(order, min(n_bins, z.size)) if b.size]
     centre = np.array([float(np.exp(np.mean(np.log(z[b])))) for b in bins])
-    for key, style, label in (("scan: " + fw, "s:", "true noise"), ("scan at the tolerance: " + fw, "o:",
-                                                                    "noise floored at the tolerance")):
-        ax.plot(centre, [np.mean([trials[i][key] for i in b]) for b in bins], style, color="tab:blue", ms=4, lw=1,
-                mfc="white" if style[0] == "o" else "tab:blue",
-                label=f"scan over the family ({label}), family-wise 5 %")
+    for key, style, label in (
+        ("scan: " + fw, "s:", "true noise"),
+        ("scan at the tolerance: " + fw, "o:", "noise floored at the tolerance"),
+    ):
+        ax.plot(
+            centre,
+            [np.mean([trials[i][key] for i in b]) for b in bins],
+            style,
+            color="tab:blue",
+            ms=4,
+            lw=1,
+            mfc="white" if style[0] == "o" else "tab:blue",
+            label=f"scan over the family ({label}), family-wise 5 %",
+        )
     k = np.array([int(hit[b].sum()) for b in bins])
     n = np.array([b.size for b in bins])
     ci = np.array([proportion_ci95(int(ki), int(ni)) for ki, ni in zip(k, n)])
     rate = k / n
-    ax.errorbar(centre, rate, yerr=[rate - ci[:, 0], ci[:, 1] - rate], fmt="D", color="tab:red", mec="k", ms=6,
-                capsize=3, lw=1.5, label=f"pipeline: {len(bins)} bins of {int(np.median(n))} effects, exact 95 % "
-                                         "interval")
+    ax.errorbar(
+        centre,
+        rate,
+        yerr=[rate - ci[:, 0], ci[:, 1] - rate],
+        fmt="D",
+        color="tab:red",
+        mec="k",
+        ms=6,
+        capsize=3,
+        lw=1.5,
+        label=f"pipeline: {len(bins)} bins of {int(np.median(n))} effects, exact 95 % interval",
+    )
     ax.set_xscale("log")
     ax.set_xlabel("z: the effect beyond a gain and offset, in noise units (log)")
     ax.set_ylabel("reported unexplained on the right channel")
     ax.set_ylim(-0.08, 1.08)
     ax.set_yticks([0, 0.25, 0.5, 0.75, 1])
-    ax.set_title(f"Out-of-library effects (study condition e, {z.size} effects): the pipeline against what a test "
-                 "could report", fontsize=9)
+    ax.set_title(
+        f"Out-of-library effects (study condition e, {z.size} effects): the pipeline against what a test could report",
+        fontsize=9,
+    )
     ax.grid(alpha=0.3)
     fig.legend(*ax.get_legend_handles_labels(), loc="lower center", ncol=2, fontsize=7, frameon=False)
     fig.tight_layout(rect=(0, 0.15, 1, 1))
@@ -300,15 +373,26 @@ def plot(out: Mapping[str, Any], path: str | Path, n_bins: int = 8) -> Path:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m studies.validation.effect_bound",
-                                 description="How often could any test tell the open-world study's (e) effects "
-                                             "from a sensor calibration? (an oracle bound, see the module docstring)")
-    ap.add_argument("--study", nargs="+", required=True, metavar="FILE.json",
-                    help="study files written by `python -m studies.validation.study --out`")
+    ap = argparse.ArgumentParser(
+        prog="python -m studies.validation.effect_bound",
+        description="How often could any test tell the open-world study's (e) effects "
+        "from a sensor calibration? (an oracle bound, see the module docstring)",
+    )
+    ap.add_argument(
+        "--study",
+        nargs="+",
+        required=True,
+        metavar="FILE.json",
+        help="study files written by `python -m studies.validation.study --out`",
+    )
     ap.add_argument("--target", type=float, default=0.9, help="rate for the amplitude factor (default 0.9)")
     ap.add_argument("--out", default=None, help="write the per-trial values and summaries as JSON here")
-    ap.add_argument("--plot", default=None, metavar="FILE.png", help="plot z against the pipeline's hits over the "
-                    "oracle's rate curves (needs matplotlib)")
+    ap.add_argument(
+        "--plot",
+        default=None,
+        metavar="FILE.png",
+        help="plot z against the pipeline's hits over the oracle's rate curves (needs matplotlib)",
+    )
     args = ap.parse_args(list(argv) if argv is not None else None)
     rows, out = [], {}
     for f in args.study:
@@ -331,8 +415,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         pooled = summarise(every, args.target)
         rows.append(("pooled", pooled))
         out["pooled"] = {"summary": pooled}
-        by_size = {lab: summarise(mine, args.target) for lab in (size_bin(x) for x in (0.0,) + SIZE_BINS)
-                   if (mine := [t for t in every if t.get("size_bin") == lab])}
+        by_size = {
+            lab: summarise(mine, args.target)
+            for lab in (size_bin(x) for x in (0.0,) + SIZE_BINS)
+            if (mine := [t for t in every if t.get("size_bin") == lab])
+        }
         rows += [(f"pooled, {lab} tolerances beyond a calibration", v) for lab, v in by_size.items()]
         out["pooled_by_size"] = by_size
     print(_table(rows))

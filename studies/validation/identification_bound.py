@@ -49,8 +49,9 @@ __all__ = ["passes_bar", "trial_check", "check", "summarise", "CONDITIONS", "mai
 CONDITIONS = ("a", "b", "c", "d")
 
 
-def passes_bar(S_a: float, k_a: int, S_b: float, k_b: int, M: int, *, min_gain: float = 0.10,
-               alpha: float = 0.01) -> tuple[bool, float]:
+def passes_bar(
+    S_a: float, k_a: int, S_b: float, k_b: int, M: int, *, min_gain: float = 0.10, alpha: float = 0.01
+) -> tuple[bool, float]:
     """Whether model ``a`` passes the selection's bar against model ``b``, in sample: ``(verdict, p)``.
 
     ``S``: mean robust loss per measured cell (1 = errors at the tolerance), ``k``: free parameters, ``M``: measured
@@ -74,6 +75,7 @@ def passes_bar(S_a: float, k_a: int, S_b: float, k_b: int, M: int, *, min_gain: 
 def _problem(condition: str, seed: int, params: str, points: int):
     """The trial's data and :class:`~.problem.Problem`, written and loaded as the study does."""
     from marine_fdi_env.validation.problem import Problem
+
     from .study import loaded, trial_data
 
     syn = trial_data(condition, seed, params=params, points=points)
@@ -100,10 +102,14 @@ def trial_check(result: Mapping[str, Any], *, min_gain: float = 0.10, alpha: flo
     truth = sorted(t["label"] for t in syn.truth)
     recorded = sorted(t["label"] for t in result.get("truth", []))
     if truth != recorded:
-        raise ValueError(f"({cond}) seed {seed}: the re-drawn truth {truth} is not the file's {recorded}: another "
-                         "version of the study")
-    refs = {c: sensor_reference(c, problem.Y[:, j], QUANTITIES[problem.ds.column_quantity[c]].kind)
-            for j, c in enumerate(problem.channels)}
+        raise ValueError(
+            f"({cond}) seed {seed}: the re-drawn truth {truth} is not the file's {recorded}: another "
+            "version of the study"
+        )
+    refs = {
+        c: sensor_reference(c, problem.Y[:, j], QUANTITIES[problem.ds.column_quantity[c]].kind)
+        for j, c in enumerate(problem.channels)
+    }
     lib = {m.label: m for m in library(problem.channels, refs)}
     named = list(result.get("selected", []))
     unknown = [x for x in truth + named if x not in lib]
@@ -121,16 +127,31 @@ def trial_check(result: Mapping[str, Any], *, min_gain: float = 0.10, alpha: flo
     S_t, S_n = 2.0 * f_truth.data_cost / M, 2.0 * f_named.data_cost / M
     truth_wins, p = passes_bar(S_t, f_truth.k, S_n, f_named.k, M, min_gain=min_gain, alpha=alpha)
     named_wins, p_named = passes_bar(S_n, f_named.k, S_t, f_truth.k, M, min_gain=min_gain, alpha=alpha)
-    return {"condition": cond, "seed": seed, "truth": truth, "named": sorted(named), "M": int(M),
-            "S_truth": S_t, "k_truth": int(f_truth.k), "S_named": S_n, "k_named": int(f_named.k),
-            "p": None if math.isnan(p) else p, "p_named": None if math.isnan(p_named) else p_named,
-            "data_prefer": "truth" if truth_wins else "named" if named_wins else "neither"}
+    return {
+        "condition": cond,
+        "seed": seed,
+        "truth": truth,
+        "named": sorted(named),
+        "M": int(M),
+        "S_truth": S_t,
+        "k_truth": int(f_truth.k),
+        "S_named": S_n,
+        "k_named": int(f_named.k),
+        "p": None if math.isnan(p) else p,
+        "p_named": None if math.isnan(p_named) else p_named,
+        "data_prefer": "truth" if truth_wins else "named" if named_wins else "neither",
+    }
 
 
 def check(results: Sequence[Mapping[str, Any]], *, progress: bool = True, **kw) -> dict[str, Any]:
     """Per condition of (a)-(d): the scored trials, the hits, and :func:`trial_check` of every miss."""
-    scored = [r for r in results if r.get("condition") in CONDITIONS and not r.get("control")
-              and r.get("outcome") not in (None, "skipped", "control")]
+    scored = [
+        r
+        for r in results
+        if r.get("condition") in CONDITIONS
+        and not r.get("control")
+        and r.get("outcome") not in (None, "skipped", "control")
+    ]
     if not scored:
         raise ValueError("no scored trial of conditions (a)-(d) in the results")
     misses = [r for r in scored if not r.get("exact")]
@@ -138,6 +159,7 @@ def check(results: Sequence[Mapping[str, Any]], *, progress: bool = True, **kw) 
     if progress and misses:
         try:
             from tqdm import tqdm
+
             bar = tqdm(total=len(misses), unit="miss", desc="identification bound", file=sys.stderr)
         except ImportError:  # pragma: no cover - tqdm is a core dependency
             bar = None
@@ -148,8 +170,13 @@ def check(results: Sequence[Mapping[str, Any]], *, progress: bool = True, **kw) 
             bar.update(1)
     if bar is not None:
         bar.close()
-    counts = {c: {"n": sum(r["condition"] == c for r in scored),
-                  "hits": sum(r["condition"] == c and bool(r.get("exact")) for r in scored)} for c in CONDITIONS}
+    counts = {
+        c: {
+            "n": sum(r["condition"] == c for r in scored),
+            "hits": sum(r["condition"] == c and bool(r.get("exact")) for r in scored),
+        }
+        for c in CONDITIONS
+    }
     return {"summary": summarise(counts, checked), "counts": counts, "misses": checked}
 
 
@@ -163,33 +190,50 @@ def summarise(counts: Mapping[str, Mapping[str, int]], checked: Sequence[Mapping
             continue
         mine = [m for m in checked if m["condition"] == c]
         sel = sum(m["data_prefer"] == "truth" for m in mine)
-        out[c] = {"n": int(k["n"]), "hits": int(k["hits"]), "misses": len(mine), "selection_missed": sel,
-                  "data_prefer_named": sum(m["data_prefer"] == "named" for m in mine),
-                  "data_cannot_tell": sum(m["data_prefer"] == "neither" for m in mine),
-                  "identification_rate": k["hits"] / k["n"],
-                  "identifiable_rate": (k["hits"] + sel) / k["n"]}
+        out[c] = {
+            "n": int(k["n"]),
+            "hits": int(k["hits"]),
+            "misses": len(mine),
+            "selection_missed": sel,
+            "data_prefer_named": sum(m["data_prefer"] == "named" for m in mine),
+            "data_cannot_tell": sum(m["data_prefer"] == "neither" for m in mine),
+            "identification_rate": k["hits"] / k["n"],
+            "identifiable_rate": (k["hits"] + sel) / k["n"],
+        }
     return out
 
 
 def _table(rows: Sequence[tuple[str, Mapping[str, Any]]]) -> str:
-    lines = ["| trials | condition | n | named exactly | misses | the data prefer the truth (selection missed) | "
-             "the data prefer the named set | neither fits clearly better (data cannot tell) | "
-             "at most identifiable |", "|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| trials | condition | n | named exactly | misses | the data prefer the truth (selection missed) | "
+        "the data prefer the named set | neither fits clearly better (data cannot tell) | "
+        "at most identifiable |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for label, s in rows:
         for c, v in s.items():
-            lines.append(f"| {label} | ({c}) | {v['n']} | {v['hits']} = {v['identification_rate']:.1%} | "
-                         f"{v['misses']} | {v['selection_missed']} | {v['data_prefer_named']} | "
-                         f"{v['data_cannot_tell']} | "
-                         f"{v['hits'] + v['selection_missed']} = {v['identifiable_rate']:.1%} |")
+            lines.append(
+                f"| {label} | ({c}) | {v['n']} | {v['hits']} = {v['identification_rate']:.1%} | "
+                f"{v['misses']} | {v['selection_missed']} | {v['data_prefer_named']} | "
+                f"{v['data_cannot_tell']} | "
+                f"{v['hits'] + v['selection_missed']} = {v['identifiable_rate']:.1%} |"
+            )
     return "\n".join(lines)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m studies.validation.identification_bound",
-                                 description="Could the data of the study's missed (a)-(d) trials tell the truth "
-                                             "from the named causes? (see the module docstring)")
-    ap.add_argument("--study", nargs="+", required=True, metavar="FILE.json",
-                    help="study files written by `python -m studies.validation.study --out`")
+    ap = argparse.ArgumentParser(
+        prog="python -m studies.validation.identification_bound",
+        description="Could the data of the study's missed (a)-(d) trials tell the truth "
+        "from the named causes? (see the module docstring)",
+    )
+    ap.add_argument(
+        "--study",
+        nargs="+",
+        required=True,
+        metavar="FILE.json",
+        help="study files written by `python -m studies.validation.study --out`",
+    )
     ap.add_argument("--out", default=None, help="write the per-miss fits and summaries as JSON here")
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = ap.parse_args(list(argv) if argv is not None else None)

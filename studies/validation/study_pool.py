@@ -1,7 +1,8 @@
 """Pool open-world study files and hold each condition to its target, with exact binomial intervals.
 
 ``python -m studies.validation.study pool FILE.json ...`` reads study files written by
-``python -m studies.validation.study --out`` (each a range of seeds), refuses a trial counted twice, and prints per condition the
+``python -m studies.validation.study --out`` (each a range of seeds), refuses a trial counted twice, and prints per
+condition the
 hits over the trials of every file and pooled, the pooled rate's two-sided 95 % Clopper-Pearson interval, the
 target and two verdicts: the point estimate against the bar (how the targets are stated) and
 what the interval says (above the bar, containing it, or below it).  Twenty trials bound a rate only loosely
@@ -82,8 +83,10 @@ def load_trials(paths: Sequence[str | Path]) -> list[tuple[str, list[dict[str, A
         for t in trials:
             key = (t["condition"], int(t["seed"]), bool(t["control"]))
             if key in seen:
-                raise ValueError(f"{p}: trial ({key[0]}, seed {key[1]}{', control' if key[2] else ''}) is also in "
-                                 f"{seen[key]}: a trial counted twice")
+                raise ValueError(
+                    f"{p}: trial ({key[0]}, seed {key[1]}{', control' if key[2] else ''}) is also in "
+                    f"{seen[key]}: a trial counted twice"
+                )
             seen[key] = p.name
         seeds = sorted({int(t["seed"]) for t in trials})
         out.append((f"{seeds[0]}-{seeds[-1]}", trials))
@@ -106,8 +109,16 @@ def _verdict(k: int, n: int, bar: float, sense: str) -> dict[str, Any]:
         says = "refuted"
     else:
         says = "undecided"
-    return {"k": k, "n": n, "rate": rate, "ci95": [lo, hi], "bar": bar, "sense": sense, "met": met,
-            "interval_says": says}
+    return {
+        "k": k,
+        "n": n,
+        "rate": rate,
+        "ci95": [lo, hi],
+        "bar": bar,
+        "sense": sense,
+        "met": met,
+        "interval_says": says,
+    }
 
 
 def pool(files: Sequence[tuple[str, list[dict[str, Any]]]]) -> dict[str, Any]:
@@ -128,13 +139,16 @@ def pool(files: Sequence[tuple[str, list[dict[str, Any]]]]) -> dict[str, Any]:
         kc, nc = (sum(x[i] for x in ctl_per) for i in (0, 1))
         kl, nl = (sum(x[i] for x in loc_per) for i in (0, 1))
         out["conditions"][c] = {
-            "what": what, "per_file": per, "pooled": _verdict(k, n, bar, sense) if n else None,
+            "what": what,
+            "per_file": per,
+            "pooled": _verdict(k, n, bar, sense) if n else None,
             **({"by_size": _by_size(files, bar)} if c == "e" else {}),
             **({"sets": sets} if (sets := _sets(files, c)) else {}),
             "controls_per_file": ctl_per,
             "controls_pooled": _verdict(kc, nc, CONTROL_BAR, "max") if nc else None,
             "controls_local_per_file": loc_per,
-            "controls_local_pooled": (_verdict(kl, nl, LOCAL_LEVEL, "max") | {"held": c in NOISE_ONLY}) if nl else None}
+            "controls_local_pooled": (_verdict(kl, nl, LOCAL_LEVEL, "max") | {"held": c in NOISE_ONLY}) if nl else None,
+        }
     return out
 
 
@@ -143,8 +157,11 @@ def _by_size(files: Sequence[tuple[str, list[dict[str, Any]]]], bar: float) -> d
     labels = [size_bin(x) for x in (0.0,) + SIZE_BINS]
     per = {lab: [] for lab in labels}
     for _, tr in files:
-        trials = [t for t in tr if t["condition"] == "e" and not t["control"] and t["outcome"] != "skipped"
-                  and "effect_size" in t]
+        trials = [
+            t
+            for t in tr
+            if t["condition"] == "e" and not t["control"] and t["outcome"] != "skipped" and "effect_size" in t
+        ]
         for lab in labels:
             mine = [t for t in trials if size_bin(t["effect_size"]["beyond_calibration"]) == lab]
             per[lab].append([sum(map(_hit, mine)), len(mine)])
@@ -179,54 +196,86 @@ def pool_markdown(res: Mapping[str, Any]) -> str:
     head = "| condition | " + " | ".join(files) + " | pooled [95 % CI] | target | met | the interval says |"
     lines = [head, "|" + "---|" * (len(files) + 5)]
     for c, r in res["conditions"].items():
-        for label, per, v in ((f"({c}) {r['what']}", r["per_file"], r["pooled"]),
-                              (f"({c}) controls naming a cause", r["controls_per_file"], r["controls_pooled"])):
+        for label, per, v in (
+            (f"({c}) {r['what']}", r["per_file"], r["pooled"]),
+            (f"({c}) controls naming a cause", r["controls_per_file"], r["controls_pooled"]),
+        ):
             if v is None:
                 continue
             bar = f"{'≥' if v['sense'] == 'min' else '≤'} {100 * v['bar']:.0f} %"
-            lines.append(f"| {label} | " + " | ".join(f"{k}/{n}" for k, n in per) +
-                         f" | {_cell(v)} | {bar} | {'yes' if v['met'] else '**no**'} | {v['interval_says']} |")
-    lines += ["", "Not a target of the study: negative controls with a *local* unexplained finding, reported at a "
-              "family-wise 5 %; in (a) and (c) the controls are the model plus noise, so every finding is a false "
-              "alarm and the rate is held to that level (in (b), (d), (e) the engine is a few per cent off the "
-              "model and a finding may be real).", "", head, lines[1]]
+            lines.append(
+                f"| {label} | "
+                + " | ".join(f"{k}/{n}" for k, n in per)
+                + f" | {_cell(v)} | {bar} | {'yes' if v['met'] else '**no**'} | {v['interval_says']} |"
+            )
+    lines += [
+        "",
+        "Not a target of the study: negative controls with a *local* unexplained finding, reported at a "
+        "family-wise 5 %; in (a) and (c) the controls are the model plus noise, so every finding is a false "
+        "alarm and the rate is held to that level (in (b), (d), (e) the engine is a few per cent off the "
+        "model and a finding may be real).",
+        "",
+        head,
+        lines[1],
+    ]
     for c, r in res["conditions"].items():
         v = r.get("controls_local_pooled")
         if v is None:
             continue
         held = v["held"]
-        lines.append(f"| ({c}) controls with a local finding | " +
-                     " | ".join(f"{k}/{n}" for k, n in r["controls_local_per_file"]) + f" | {_cell(v)} | " +
-                     (f"≤ {100 * v['bar']:.0f} % (level) | {'yes' if v['met'] else '**no**'} | {v['interval_says']} |"
-                      if held else "– | – | – |"))
+        lines.append(
+            f"| ({c}) controls with a local finding | "
+            + " | ".join(f"{k}/{n}" for k, n in r["controls_local_per_file"])
+            + f" | {_cell(v)} | "
+            + (
+                f"≤ {100 * v['bar']:.0f} % (level) | {'yes' if v['met'] else '**no**'} | {v['interval_says']} |"
+                if held
+                else "– | – | – |"
+            )
+        )
     sets = [(c, r["sets"]) for c, r in res["conditions"].items() if r.get("sets")]
     if sets:
-        lines += ["", "The explanation sets (trials that recorded one): set coverage (the truth's causes are a member's; "
-                  "in (e) a member names no cause) against the selection's own identification, first-ranked "
-                  "identification, the median set size, controls whose set names a cause:", "",
-                  "| condition | set coverage [95 % CI] | selection names the truth [95 % CI] | first-ranked is the truth "
-                  "[95 % CI] | median set size (sizes) | controls' set names a cause [95 % CI] |",
-                  "|---|---|---|---|---|---|"]
+        lines += [
+            "",
+            "The explanation sets (trials that recorded one): set coverage (the truth's causes are a member's; "
+            "in (e) a member names no cause) against the selection's own identification, first-ranked "
+            "identification, the median set size, controls whose set names a cause:",
+            "",
+            "| condition | set coverage [95 % CI] | selection names the truth [95 % CI] | first-ranked is the truth "
+            "[95 % CI] | median set size (sizes) | controls' set names a cause [95 % CI] |",
+            "|---|---|---|---|---|---|",
+        ]
         for c, v in sets:
-            cov, named, first = (v.get(k) for k in ("set_coverage", "named_identification",
-                                                    "first_ranked_identification"))
+            cov, named, first = (
+                v.get(k) for k in ("set_coverage", "named_identification", "first_ranked_identification")
+            )
             sizes_txt = ", ".join(f"{k}: {n}" for k, n in (v.get("set_sizes") or {}).items())
-            lines.append(f"| ({c}) | {_cell(cov)} | {_cell(named)} | {_cell(first)} | "
-                         f"{v.get('median_set_size', '–')} ({sizes_txt}) | {_cell(v.get('control_set_names_a_cause'))} |")
+            lines.append(
+                f"| ({c}) | {_cell(cov)} | {_cell(named)} | {_cell(first)} | "
+                f"{v.get('median_set_size', '–')} ({sizes_txt}) | {_cell(v.get('control_set_names_a_cause'))} |"
+            )
     sizes = res["conditions"].get("e", {}).get("by_size")
     if sizes:
-        lines += ["", "Not a target of the study: (e) by how much of the effect a sensor's gain and offset leave at the "
-                  "measured points (`effect_size.beyond_calibration`, in tolerances; bins fixed in the study's summary "
-                  "before the first fresh range ran). The study's target of 90 % is shown for reference: it is stated "
-                  "for all effects, not per size.",
-                  "", head, lines[1]]
+        lines += [
+            "",
+            "Not a target of the study: (e) by how much of the effect a sensor's gain and offset leave at the "
+            "measured points (`effect_size.beyond_calibration`, in tolerances; bins fixed in the study's summary "
+            "before the first fresh range ran). The study's target of 90 % is shown for reference: it is stated "
+            "for all effects, not per size.",
+            "",
+            head,
+            lines[1],
+        ]
         for lab, r in sizes.items():
             v = r["pooled"]
             if v is None:
                 continue
-            lines.append(f"| (e) unexplained on the right channel, {lab} tolerances beyond a calibration | " +
-                         " | ".join(f"{k}/{n}" for k, n in r["per_file"]) + f" | {_cell(v)} | "
-                         f"(≥ {100 * v['bar']:.0f} %) | {'yes' if v['met'] else 'no'} | {v['interval_says']} |")
+            lines.append(
+                f"| (e) unexplained on the right channel, {lab} tolerances beyond a calibration | "
+                + " | ".join(f"{k}/{n}" for k, n in r["per_file"])
+                + f" | {_cell(v)} | "
+                f"(≥ {100 * v['bar']:.0f} %) | {'yes' if v['met'] else 'no'} | {v['interval_says']} |"
+            )
     return "\n".join(lines)
 
 
@@ -242,12 +291,14 @@ def pool_plot(res: Mapping[str, Any], path: str | Path) -> Path:
 
     plt = pyplot()
     conds = list(res["conditions"])
-    fig, axes = plt.subplots(1, 2, figsize=(10, 0.55 * len(conds) + 2.0), sharey=True,
-                             gridspec_kw={"width_ratios": [3, 2]})
+    fig, axes = plt.subplots(
+        1, 2, figsize=(10, 0.55 * len(conds) + 2.0), sharey=True, gridspec_kw={"width_ratios": [3, 2]}
+    )
     jitter = np.random.default_rng(0)  # fixed: the same file draws the same figure
-    for ax, per_key, pooled_key, title in ((axes[0], "per_file", "pooled", "trials: the target's rate"),
-                                           (axes[1], "controls_per_file", "controls_pooled",
-                                            "negative controls naming a cause")):
+    for ax, per_key, pooled_key, title in (
+        (axes[0], "per_file", "pooled", "trials: the target's rate"),
+        (axes[1], "controls_per_file", "controls_pooled", "negative controls naming a cause"),
+    ):
         for i, c in enumerate(conds):
             r, y = res["conditions"][c], -i
             rates = [k / n for k, n in r[per_key] if n]
@@ -260,29 +311,46 @@ def pool_plot(res: Mapping[str, Any], path: str | Path) -> Path:
             ax.scatter([v["rate"]], [y], marker="D", s=40, color=colour, edgecolor="k", zorder=4)
             ax.plot([v["bar"], v["bar"]], [y - 0.35, y + 0.35], color="tab:red", lw=1.5, zorder=1)
             if ax is axes[1]:  # the left panel says it in the row's label
-                ax.text(0.98, y, f"{v['k']}/{v['n']}, {v['interval_says']}", transform=ax.get_yaxis_transform(),
-                        ha="right", va="center", fontsize=7)
+                ax.text(
+                    0.98,
+                    y,
+                    f"{v['k']}/{v['n']}, {v['interval_says']}",
+                    transform=ax.get_yaxis_transform(),
+                    ha="right",
+                    va="center",
+                    fontsize=7,
+                )
         ax.set_title(title, fontsize=10)
         ax.grid(axis="x", alpha=0.3)
         ax.xaxis.set_major_formatter(lambda x, _: f"{100 * x:.0f} %")
     lowest = min(k / n for c in conds for k, n in res["conditions"][c]["per_file"] if n)
     axes[0].set_xlim(min(0.5, lowest - 0.05), 1.02)
-    axes[1].set_xlim(-0.01, max(0.2, max(k / n for c in conds for k, n in res["conditions"][c]["controls_per_file"]
-                                         if n) + 0.02))
+    axes[1].set_xlim(
+        -0.01, max(0.2, max(k / n for c in conds for k, n in res["conditions"][c]["controls_per_file"] if n) + 0.02)
+    )
     labels = []
     for c in conds:
         v = res["conditions"][c]["pooled"]
-        labels.append(f"({c}) {res['conditions'][c]['what']}" + (
-            f"\n{v['k']}/{v['n']} = {100 * v['rate']:.1f} %, {v['interval_says']}" if v else ""))
+        labels.append(
+            f"({c}) {res['conditions'][c]['what']}"
+            + (f"\n{v['k']}/{v['n']} = {100 * v['rate']:.1f} %, {v['interval_says']}" if v else "")
+        )
     axes[0].set_yticks([-i for i in range(len(conds))], labels, fontsize=8)
-    handles = [axes[0].scatter([], [], s=14, color="0.6", label="one range of seeds"),
-               axes[0].plot([], [], color="tab:red", lw=1.5, label="target")[0]]
-    handles += [axes[0].plot([], [], color=colour, lw=2.5, marker="D", markeredgecolor="k",
-                             label=f"pooled, 95 % interval: {verdict}")[0]
-                for verdict, colour in VERDICT_COLOURS.items()]
+    handles = [
+        axes[0].scatter([], [], s=14, color="0.6", label="one range of seeds"),
+        axes[0].plot([], [], color="tab:red", lw=1.5, label="target")[0],
+    ]
+    handles += [
+        axes[0].plot(
+            [], [], color=colour, lw=2.5, marker="D", markeredgecolor="k", label=f"pooled, 95 % interval: {verdict}"
+        )[0]
+        for verdict, colour in VERDICT_COLOURS.items()
+    ]
     fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=7, frameon=False)
-    fig.suptitle(f"Open-world study, {len(res['files'])} ranges of seeds pooled ({res['files'][0]} to "
-                 f"{res['files'][-1]})", fontsize=10)
+    fig.suptitle(
+        f"Open-world study, {len(res['files'])} ranges of seeds pooled ({res['files'][0]} to {res['files'][-1]})",
+        fontsize=10,
+    )
     fig.tight_layout(rect=(0, 0.06, 1, 1))
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -294,10 +362,17 @@ def pool_plot(res: Mapping[str, Any], path: str | Path) -> Path:
 def pool_main(argv: Sequence[str] | None = None) -> int:
     """``python -m studies.validation.study pool FILE.json ... [--markdown OUT.md] [--out OUT.json]
     [--plot OUT.png]``."""
-    ap = argparse.ArgumentParser(prog="python -m studies.validation.study pool",
-                                 description="Pool study files (one range of seeds each) and hold every condition "
-                                             "to its target with exact 95 %% intervals.")
-    ap.add_argument("files", nargs="+", metavar="FILE.json", help="study files written by `python -m studies.validation.study --out`")
+    ap = argparse.ArgumentParser(
+        prog="python -m studies.validation.study pool",
+        description="Pool study files (one range of seeds each) and hold every condition "
+        "to its target with exact 95 %% intervals.",
+    )
+    ap.add_argument(
+        "files",
+        nargs="+",
+        metavar="FILE.json",
+        help="study files written by `python -m studies.validation.study --out`",
+    )
     ap.add_argument("--markdown", metavar="OUT.md", help="also write the table as Markdown")
     ap.add_argument("--out", metavar="OUT.json", help="also write the pooled counts and verdicts as JSON")
     ap.add_argument("--plot", metavar="OUT.png", help="also draw the table as a forest plot (needs matplotlib)")

@@ -22,17 +22,32 @@ def set_outcome(sel, truth_labels: Sequence[str], alternative: Sequence[str] | N
     """What a trial records of its explanation set (no profiles, no deciding measurement: the study scores the set
     only); ``alternative``: the structure a condition-(f) trial was constructed to be confused with."""
     st = sel.settings
-    es = explanation_set(sel.problem, sel.fit, sel.steps, alpha=st["alpha"], min_gain=st["min_gain"],
-                         penalty=st["penalty"], max_folds=st.get("max_folds"), beside_valve=st["beside_valve"],
-                         base_cv=sel.base_pred, profiles=False)
+    es = explanation_set(
+        sel.problem,
+        sel.fit,
+        sel.steps,
+        alpha=st["alpha"],
+        min_gain=st["min_gain"],
+        penalty=st["penalty"],
+        max_folds=st.get("max_folds"),
+        beside_valve=st["beside_valve"],
+        base_cv=sel.base_pred,
+        profiles=False,
+    )
     members = [sorted(e.labels) for e in es.members]
     truth = sorted(truth_labels)
-    out = {"set": members, "set_size": len(members), "truth_in_set": truth in members,
-           "first_ranked": members[0], "first_ranked_exact": members[0] == truth,
-           "set_names_a_cause": any(members), "set_supports": [
-               {k: [int(i) + 1 for i in v] for k, v in e.fit.support.items()} for e in es.members],
-           "set_delta_aic": [e.delta_aic for e in es.members], "set_structures_tried": len(es.tried),
-           "set_seconds": es.seconds}
+    out = {
+        "set": members,
+        "set_size": len(members),
+        "truth_in_set": truth in members,
+        "first_ranked": members[0],
+        "first_ranked_exact": members[0] == truth,
+        "set_names_a_cause": any(members),
+        "set_supports": [{k: [int(i) + 1 for i in v] for k, v in e.fit.support.items()} for e in es.members],
+        "set_delta_aic": [e.delta_aic for e in es.members],
+        "set_structures_tried": len(es.tried),
+        "set_seconds": es.seconds,
+    }
     if alternative is not None:
         out["alternative_in_set"] = sorted(alternative) in members
     return out

@@ -12,9 +12,9 @@ import shutil
 
 import pytest
 
-from marine_fdi_env.validation.columns import COLUMNS, GROUP_PATTERNS
-from marine_fdi_env.cli.validate import validate_main
 from marine_fdi_env.cli.synthesize import synthesize_main
+from marine_fdi_env.cli.validate import validate_main
+from marine_fdi_env.validation.columns import COLUMNS, GROUP_PATTERNS
 from tests.paths import ROOT
 
 EXAMPLE = ROOT / "docs" / "examples" / "measured" / "example_engine.csv"
@@ -43,13 +43,30 @@ def test_columns_lists_every_registered_stem_and_group(capsys):
 
 def test_check_the_protocol_says_what_becomes_of_every_column(tmp_path, capsys):
     report = tmp_path / "r.json"
-    assert validate_main(["--data", "birka_me1_test_protocol", "--check", "--out", str(report),
-                          "--tolerance", "turbine_outlet_temperature_C=10",
-                          "--tolerance", "charge_air_pressure_bar_gauge=2%"]) == 0
+    assert (
+        validate_main(
+            [
+                "--data",
+                "birka_me1_test_protocol",
+                "--check",
+                "--out",
+                str(report),
+                "--tolerance",
+                "turbine_outlet_temperature_C=10",
+                "--tolerance",
+                "charge_air_pressure_bar_gauge=2%",
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     # nothing is silent: each of the file's 33 columns has a line with its role
-    header = (ROOT / "src" / "marine_fdi_env" / "data" / "measured" /
-              "birka_me1_test_protocol.csv").read_text().splitlines()[0].split(",")
+    header = (
+        (ROOT / "src" / "marine_fdi_env" / "data" / "measured" / "birka_me1_test_protocol.csv")
+        .read_text()
+        .splitlines()[0]
+        .split(",")
+    )
     for col in header:
         assert re.search(rf"^  {re.escape(col)}\s+(channel|setpoint|boundary|member|not_modelled)\s", out, re.M), col
     for col in ("sfoc_iso_g_per_kWh", "relative_humidity_percent", "charge_air_cooler_pressure_drop_mbar"):
@@ -58,7 +75,9 @@ def test_check_the_protocol_says_what_becomes_of_every_column(tmp_path, capsys):
     assert "left out: row 2 compressor_inlet_temperature_C = 0" in out and "runs at 32" in out
     assert "fixed by power" in out and "leave-one-point-out (6 folds)" in out
     # tolerances: the stated ones with their source, the defaults with their basis
-    assert re.search(r"turbine_outlet_temperature_C\s+10\s+\S+\s+--tolerance$", _row(out, "turbine_outlet_temperature_C"))
+    assert re.search(
+        r"turbine_outlet_temperature_C\s+10\s+\S+\s+--tolerance$", _row(out, "turbine_outlet_temperature_C")
+    )
     # 2 % of the mean absolute charge-air pressure: twice the default 1 % (0.03197 bar)
     tol = float(_row(out, "charge_air_pressure_bar_gauge").split()[1])
     assert tol == pytest.approx(2 * 0.03197, rel=2e-3)
@@ -114,9 +133,23 @@ def test_docs_example_is_checked_clean(capsys):
 
 def test_synthesized_sidecar_calls_gauge_columns_gauge(tmp_path):
     out = tmp_path / "s.csv"
-    assert synthesize_main(["--params", "wartsila-6l46", "--points", "3", "--seed", "1", "--out", str(out),
-                            "--columns", "load_fraction,power_kW,charge_air_pressure_bar_gauge,"
-                                         "charge_air_pressure_bar_abs"]) == 0
+    assert (
+        synthesize_main(
+            [
+                "--params",
+                "wartsila-6l46",
+                "--points",
+                "3",
+                "--seed",
+                "1",
+                "--out",
+                str(out),
+                "--columns",
+                "load_fraction,power_kW,charge_air_pressure_bar_gauge,charge_air_pressure_bar_abs",
+            ]
+        )
+        == 0
+    )
     cols = json.loads((tmp_path / "s.meta.json").read_text())["columns"]
     assert "gauge" in cols["charge_air_pressure_bar_gauge"] and "absolute" not in cols["charge_air_pressure_bar_gauge"]
     assert "absolute" in cols["charge_air_pressure_bar_abs"]

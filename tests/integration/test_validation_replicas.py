@@ -11,8 +11,14 @@ import pytest
 from marine_fdi_env.validation import DataWarning, load_dataset
 from marine_fdi_env.validation.mechanisms import PHYSICAL_MECHANISMS
 from marine_fdi_env.validation.problem import Problem
-from marine_fdi_env.validation.replicas import (hypotheses, markdown_table, noise_scale, replica_readings, replicate,
-                                                run_replica)
+from marine_fdi_env.validation.replicas import (
+    hypotheses,
+    markdown_table,
+    noise_scale,
+    replica_readings,
+    replicate,
+    run_replica,
+)
 from marine_fdi_env.validation.rules import SelectionRules
 from marine_fdi_env.validation.selection import select_causes
 from marine_fdi_env.validation.synthesize import synthesize
@@ -25,8 +31,9 @@ _LIB = tuple(m for m in PHYSICAL_MECHANISMS if m.id in ("waste_gate", "turbine_f
 @pytest.fixture(scope="module")
 def waste_gate_selection(tmp_path_factory):
     d = tmp_path_factory.mktemp("replicas")
-    syn = synthesize("wartsila-6l46", ["waste_gate:above=0.75,opening=0.25,turbine_area_scale=0.8"], points=7,
-                     noise=0.005, seed=21)
+    syn = synthesize(
+        "wartsila-6l46", ["waste_gate:above=0.75,opening=0.25,turbine_area_scale=0.8"], points=7, noise=0.005, seed=21
+    )
     path = d / "wg.csv"
     syn.write(path)
     with warnings.catch_warnings():
@@ -115,8 +122,16 @@ def test_replicas_of_each_hypothesis_name_it(waste_gate_selection):
     # a replica run directly gives the same answer as inside replicate (the seeding is per replica)
     pr = sel.problem
     Y = replica_readings(pr, hypotheses(sel, [])[0], noise_scale(sel, "tolerance"), 1, 0, 0, "tolerance")
-    one = run_replica(pr.ds, pr.params, pr.target, dict(zip(pr.channels, pr.tolerance)), pr.channels, Y,
-                      SelectionRules(pairs=False, max_causes=1, held_out_valves=pr.held_out_valves), _LIB)
+    one = run_replica(
+        pr.ds,
+        pr.params,
+        pr.target,
+        dict(zip(pr.channels, pr.tolerance)),
+        pr.channels,
+        Y,
+        SelectionRules(pairs=False, max_causes=1, held_out_valves=pr.held_out_valves),
+        _LIB,
+    )
     assert one["named"] == rep["runs"]["named"][0]["named"]
     assert one["acts"] == rep["runs"]["named"][0]["acts"]
 
@@ -207,8 +222,24 @@ def test_validate_replicas_option_writes_them_to_the_report(waste_gate_selection
     path = tmp_path / "wg.csv"
     syn.write(path)
     out, md = tmp_path / "r.json", tmp_path / "r.md"
-    assert validate_main(["--data", str(path), "--out", str(out), "--markdown", str(md), "--max-causes", "0",
-                          "--replicas", "2", "--quiet"]) == 0
+    assert (
+        validate_main(
+            [
+                "--data",
+                str(path),
+                "--out",
+                str(out),
+                "--markdown",
+                str(md),
+                "--max-causes",
+                "0",
+                "--replicas",
+                "2",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     rep = json.loads(out.read_text())
     s = rep["replicas"]["summary"]
     assert [h["hypothesis"] for h in s] == ["named"] and s[0]["replicas"] == 2

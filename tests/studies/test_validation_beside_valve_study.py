@@ -70,11 +70,13 @@ def test_the_study_reruns_only_the_listed_trials(monkeypatch, capsys):
         return {"condition": c, "seed": s, "control": control}
 
     monkeypatch.setattr(synth, "trial", fake)
-    monkeypatch.setattr(synth, "summarise", lambda results, c: {"n": sum(r["condition"] == c for r in results),
-                                                                "by_mechanism": {}})
+    monkeypatch.setattr(
+        synth, "summarise", lambda results, c: {"n": sum(r["condition"] == c for r in results), "by_mechanism": {}}
+    )
     res = synth.study(["a"], range(5), trials=[("d", 346), ("b", 12)], progress=False, controls=True)
-    assert sorted(calls) == sorted([("d", 346, False, None), ("b", 12, False, None), ("d", 346, True, None),
-                                    ("b", 12, True, None)])
+    assert sorted(calls) == sorted(
+        [("d", 346, False, None), ("b", 12, False, None), ("d", 346, True, None), ("b", 12, True, None)]
+    )
     assert list(res["conditions"]) == ["d", "b"]  # the listed conditions, not the ignored --conditions
     calls.clear()
     assert synth.study_main(["--trials", "d346, b12", "--no-controls", "--beside-valve", "in_sample"]) == 0

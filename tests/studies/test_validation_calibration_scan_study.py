@@ -46,13 +46,28 @@ def test_the_study_counts_true_calibrations_the_scan_says_leave_structure():
     from studies.validation.study import summarise
 
     def rec(seed, named, left):
-        truth = [{"id": "sensor_calibration", "label": "sensor_calibration[fuel_flow_kg_per_h]",
-                  "channel": "fuel_flow_kg_per_h"}]
+        truth = [
+            {
+                "id": "sensor_calibration",
+                "label": "sensor_calibration[fuel_flow_kg_per_h]",
+                "channel": "fuel_flow_kg_per_h",
+            }
+        ]
         sel = ["sensor_calibration[fuel_flow_kg_per_h]"] if named else ["friction_losses"]
         unex = [{"channel": "fuel_flow_kg_per_h", "kind": "local", "left_by": "sensor_calibration"}] if left else []
-        return {"condition": "a", "control": False, "seed": seed, "outcome": "identified" if named else "wrong",
-                "truth": truth, "selected": sel, "exact": named, "named_any": True, "unexplained": unex,
-                "calibration_scan": {}, "mechanisms": ["sensor_calibration"]}
+        return {
+            "condition": "a",
+            "control": False,
+            "seed": seed,
+            "outcome": "identified" if named else "wrong",
+            "truth": truth,
+            "selected": sel,
+            "exact": named,
+            "named_any": True,
+            "unexplained": unex,
+            "calibration_scan": {},
+            "mechanisms": ["sensor_calibration"],
+        }
 
     out = summarise([rec(1, True, True), rec(2, True, False), rec(3, False, True), rec(4, True, False)], "a")
     assert out["true_calibration_left_by_it"] == "1/3"  # seed 3's calibration was not named: not counted

@@ -1,4 +1,5 @@
-"""The oracle bound on telling an out-of-library effect from a sensor calibration (studies/validation/effect_bound.py)."""
+"""The oracle bound on telling an out-of-library effect from a sensor calibration
+(studies/validation/effect_bound.py)."""
 
 from __future__ import annotations
 
@@ -76,8 +77,14 @@ def test_a_trial_is_redrawn_from_its_seed_and_a_foreign_file_is_refused():
     mechs, effects, _ = trial_draw("e", 5)
     syn = trial_data("e", 5)
     assert syn.effects == effects and not mechs
-    rec = {"condition": "e", "control": False, "seed": 5, "effects": effects, "unexplained_right_channel": True,
-           "trial_settings": {"params": "wartsila-6l46", "points": 8}}
+    rec = {
+        "condition": "e",
+        "control": False,
+        "seed": 5,
+        "effects": effects,
+        "unexplained_right_channel": True,
+        "trial_settings": {"params": "wartsila-6l46", "points": 8},
+    }
     t = eb.trial_bound(rec)
     assert t["channel"] == effects[0]["channel"] and t["z"] > 0 and t["n_channels"] == 11
     assert t["one channel, 5 %"] > t["family-wise 5 % over the channels"]

@@ -25,11 +25,25 @@ def test_set_summary_counts_coverage_first_rank_and_sizes():
     from studies.validation.study_sets import set_summary
 
     def rec(truth_in, first, size, control=False, names=False):
-        return {"condition": "f", "control": control, "truth_in_set": truth_in, "first_ranked_exact": first,
-                "exact": first, "set_size": size, "set": [[]] * size, "set_names_a_cause": names}
+        return {
+            "condition": "f",
+            "control": control,
+            "truth_in_set": truth_in,
+            "first_ranked_exact": first,
+            "exact": first,
+            "set_size": size,
+            "set": [[]] * size,
+            "set_names_a_cause": names,
+        }
 
-    rs = [rec(True, True, 1), rec(True, False, 2), rec(False, False, 1), rec(True, True, 3),
-          rec(True, True, 1, control=True, names=False), rec(True, True, 1, control=True, names=True)]
+    rs = [
+        rec(True, True, 1),
+        rec(True, False, 2),
+        rec(False, False, 1),
+        rec(True, True, 3),
+        rec(True, True, 1, control=True, names=False),
+        rec(True, True, 1, control=True, names=True),
+    ]
     s = set_summary(rs, "f")
     assert (s["set_coverage"]["k"], s["set_coverage"]["n"]) == (3, 4)
     assert s["first_ranked_identification"]["k"] == 2 and s["median_set_size"] == 1.5

@@ -5,8 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from marine_fdi_env.validation.fitting import (L1_LAMBDA, SUPPORT_FRACTION, Combination, cell_losses,
-                                               cross_validate, fit_combination, robust_loss)
+from marine_fdi_env.validation.fitting import (
+    L1_LAMBDA,
+    SUPPORT_FRACTION,
+    Combination,
+    cell_losses,
+    cross_validate,
+    fit_combination,
+    robust_loss,
+)
 from marine_fdi_env.validation.held_out_state import state_predictions
 from marine_fdi_env.validation.mechanisms import PHYSICAL_MECHANISMS
 from marine_fdi_env.validation.problem import Problem
@@ -58,7 +65,8 @@ def _state(pr: Problem, rows) -> np.ndarray:
 def test_a_held_out_opening_estimated_from_the_other_channels_reproduces_every_reading(tmp_path):
     """Noise-free readings of the model itself: each channel, predicted with the opening its point's other channels
     ask for, comes back within 1 % of a tolerance (the grid's interpolation error is about 2e-4 tolerances); where
-    the gate is shut the sparsity decision keeps it shut and the prediction is the shut model's (to the solver's convergence).  The
+    the gate is shut the sparsity decision keeps it shut and the prediction is the shut model's (to the solver's
+    convergence).  The
     schedule's guess at the first open point (half-way between its neighbours) misses by tolerances."""
     pr = _gated(tmp_path)
     rows = np.arange(pr.n_points)
@@ -73,7 +81,8 @@ def test_a_held_out_opening_estimated_from_the_other_channels_reproduces_every_r
 
 def test_a_channel_is_predicted_without_its_own_reading(tmp_path):
     """The prediction of cell (r, j) never sees y[r, j] (an honest held-out prediction): a reading moved by 20
-    tolerances leaves its own prediction unchanged (to 1e-12, the solver's convergence), while the other channels' predictions, whose
+    tolerances leaves its own prediction unchanged (to 1e-12, the solver's convergence), while the other channels'
+    predictions, whose
     openings were estimated with it, move."""
     pr = _gated(tmp_path)
     before = _state(pr, [6])

@@ -1,4 +1,5 @@
-"""Could the data of a missed study trial tell the truth from the named causes? (studies/validation/identification_bound.py)"""
+"""Could the data of a missed study trial tell the truth from the named causes?
+(studies/validation/identification_bound.py)"""
 
 from __future__ import annotations
 

@@ -18,8 +18,8 @@ import pytest
 from marine_fdi_env.validation import DataWarning, load_dataset
 from marine_fdi_env.validation.problem import Problem
 from marine_fdi_env.validation.selection import select_causes
-from studies.validation.study import CONDITIONS, study, trial
 from marine_fdi_env.validation.synthesize import synthesize
+from studies.validation.study import CONDITIONS, study, trial
 
 
 def _load(path):
@@ -43,8 +43,10 @@ def test_study_trial_and_its_control(condition, seed, tmp_path, monkeypatch):
         raise AssertionError("a finished trial was run again")
 
     import studies.validation.study as synth
+
     monkeypatch.setattr(synth, "trial", no_rerun)
     again = study([condition], [seed], controls=True, progress=False, points=7, checkpoint=ckpt)
+
     def dump(x):
         return json.dumps(x, default=float, sort_keys=True)
 
@@ -134,13 +136,21 @@ def test_the_exchange_step_names_the_calibration_a_physical_cause_had_absorbed()
 
 def test_two_mechanisms_that_only_fit_together_are_named_as_a_pair(tmp_path):
     """The data of study trial d/6: extra friction (more fuel, hotter exhaust) and a manifold heat loss (cooler
-    turbine inlet) at once.  Alone, each explains little (friction 7 % of the base's loss in-sample), and the best single
+    turbine inlet) at once.  Alone, each explains little (friction 7 % of the base's loss in-sample), and the best
+    single
     candidate of the first step is a 38 % gain on the cylinder-outlet thermocouples that absorbs the one channel
     the two disagree on; taking it (plain greedy selection did) left fuel flow 360 kg/h off and named neither.
     The pair, fitted jointly, must be named exactly, and each member must have earned its place."""
     d = CONDITIONS["d"]
-    syn = synthesize("wartsila-6l46", ["friction_losses", "exhaust_heat_loss"], points=8, noise=d["noise"],
-                     seed=6 * 31 + 7, noise_model=d["noise_model"], perturb=d["perturb"])
+    syn = synthesize(
+        "wartsila-6l46",
+        ["friction_losses", "exhaust_heat_loss"],
+        points=8,
+        noise=d["noise"],
+        seed=6 * 31 + 7,
+        noise_model=d["noise_model"],
+        perturb=d["perturb"],
+    )
     path = tmp_path / "d6.csv"
     syn.write(path)
     sel = select_causes(Problem(_load(path)))

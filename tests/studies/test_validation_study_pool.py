@@ -15,8 +15,7 @@ FIG = ROOT / "docs" / "figures" / "validation"
 
 
 def _trial(c, seed, hit, control=False, named=False):
-    t = {"condition": c, "seed": seed, "control": control, "outcome": "control" if control else "x",
-         "named_any": named}
+    t = {"condition": c, "seed": seed, "control": control, "outcome": "control" if control else "x", "named_any": named}
     t["unexplained_right_channel" if c == "e" else "exact"] = hit
     return t
 
@@ -46,8 +45,11 @@ def test_pool_matches_each_files_own_summary():
 
 def test_verdicts_follow_the_exact_interval(tmp_path):
     # 20/20 at a 95 % bar: met, but 20 trials cannot confirm it (Clopper-Pearson lower bound 0.025^(1/20) = 83.2 %)
-    a = _write(tmp_path, "a.json", [_trial("a", s, True) for s in range(20)] +
-               [_trial("a", s, False, control=True) for s in range(20)])
+    a = _write(
+        tmp_path,
+        "a.json",
+        [_trial("a", s, True) for s in range(20)] + [_trial("a", s, False, control=True) for s in range(20)],
+    )
     v = pool(load_trials([a]))["conditions"]["a"]
     assert v["pooled"]["met"] and v["pooled"]["interval_says"] == "undecided"
     assert v["pooled"]["ci95"][0] == pytest.approx(0.025 ** (1 / 20), rel=1e-9)
@@ -69,8 +71,11 @@ def test_a_trial_counted_twice_or_a_bad_file_is_refused(tmp_path, capsys):
     with pytest.raises(ValueError, match="counted twice"):
         load_trials([a, b])
     (tmp_path / "empty.json").write_text("{}")
-    for argv, msg in (([str(a), str(b)], "counted twice"), ([str(tmp_path / "nope.json")], "not a readable"),
-                      ([str(tmp_path / "empty.json")], "no trials")):
+    for argv, msg in (
+        ([str(a), str(b)], "counted twice"),
+        ([str(tmp_path / "nope.json")], "not a readable"),
+        ([str(tmp_path / "empty.json")], "no trials"),
+    ):
         assert pool_main(argv) == 2
         assert msg in capsys.readouterr().err
     out = tmp_path / "pool.json"
@@ -98,8 +103,7 @@ def test_local_findings_of_the_controls_are_held_to_the_level_only_where_they_ar
     assert "| (b) controls with a local finding | 4/20 | 4/20 = 20.0 % [5.7, 43.7] | – | – | – |" in md
 
 
-def test_the_forest_plot_is_drawn_and_a_missing_matplotlib_is_one_line_before_any_work(tmp_path, capsys,
-                                                                                        monkeypatch):
+def test_the_forest_plot_is_drawn_and_a_missing_matplotlib_is_one_line_before_any_work(tmp_path, capsys, monkeypatch):
     pytest.importorskip("matplotlib")
     trials = [_trial(c, s, s % 7 != 0) for c in "abcde" for s in range(20)]
     trials += [_trial(c, s, False, control=True, named=s == 3) for c in "abcde" for s in range(20)]
@@ -118,8 +122,9 @@ def test_the_study_command_and_its_pool_run_from_the_studies_folder():
     """``python -m studies.validation.study [pool]`` from the repository's root."""
     import subprocess
 
-    run = lambda *a: subprocess.run([sys.executable, "-m", *a], capture_output=True, text=True,  # noqa: E731
-                                    cwd=ROOT)
+    def run(*a):
+        return subprocess.run([sys.executable, "-m", *a], capture_output=True, text=True, cwd=ROOT)
+
     new = run("studies.validation.study", "--help")
     assert new.returncode == 0 and "--conditions" in new.stdout
     pooled = run("studies.validation.study", "pool", "--help")
@@ -155,7 +160,6 @@ def test_e_by_size_leaves_out_trials_without_a_size(tmp_path):
     trials.append(_trial("e", 8, True))  # written before sizes were recorded
     res = pool(load_trials([_write(tmp_path, "e.json", trials)]))["conditions"]["e"]
     assert res["pooled"]["n"] == 9
-    assert {lab: r["per_file"][0] for lab, r in res["by_size"].items()} == {
-        "0-3": [2, 3], "3-5": [1, 2], ">=5": [1, 3]}
+    assert {lab: r["per_file"][0] for lab, r in res["by_size"].items()} == {"0-3": [2, 3], "3-5": [1, 2], ">=5": [1, 3]}
     md = pool_markdown(pool(load_trials([_write(tmp_path, "e2.json", trials)])))
     assert "| (e) unexplained on the right channel, >=5 tolerances beyond a calibration | 1/3 |" in md

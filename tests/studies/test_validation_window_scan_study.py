@@ -4,7 +4,6 @@ a dataset is estimated blind to biases, trends and one channel's effect."""
 
 from __future__ import annotations
 
-
 import pytest
 
 from studies.validation.study import trial

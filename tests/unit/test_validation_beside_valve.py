@@ -5,9 +5,9 @@ from __future__ import annotations
 import pytest
 from scipy import stats
 
+from marine_fdi_env.validation.evidence import BESIDE_VALVE, earns, judged_in_sample
 from marine_fdi_env.validation.fitting import Combination
 from marine_fdi_env.validation.mechanisms import PHYSICAL_MECHANISMS, SensorCalibration
-from marine_fdi_env.validation.evidence import BESIDE_VALVE, earns, judged_in_sample
 
 MECH = {m.id: m for m in PHYSICAL_MECHANISMS}
 M = 88  # measured cells of a study trial: 8 points x 11 channels
@@ -67,7 +67,6 @@ def test_without_the_cross_validated_guard_the_in_sample_gain_and_f_test_alone_d
     F = (0.9543 - 0.7664) * M / (0.7664 * M / (M - 7))  # fewer parameters: the drop counts as one
     assert why == "" and gain == pytest.approx(1 - 0.7664 / 0.9543) and p == pytest.approx(stats.f.sf(F, 1, M - 7))
     assert "in-sample gain" in earns(ref, (11.85, 0.90, 7), M, 0.10, thr, in_sample=True, cv_guard=False)[2]
-    assert "in-sample p" in earns((10.43, 0.9543, 6), (11.85, 0.80, 9), M, 0.10, thr, in_sample=True,
-                                   cv_guard=False)[2]
+    assert "in-sample p" in earns((10.43, 0.9543, 6), (11.85, 0.80, 9), M, 0.10, thr, in_sample=True, cv_guard=False)[2]
     # the guard only ever applies in sample: cross-validated, the gain is the cross-validated one either way
     assert earns(ref, cand, M, 0.10, thr, in_sample=False, cv_guard=False)[2].startswith("gain -13.6%")

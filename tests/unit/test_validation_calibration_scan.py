@@ -94,6 +94,8 @@ def test_the_report_says_what_each_named_calibration_leaves():
     quiet["calibration_scans"][col]["p"] = 0.4
     assert line(quiet).endswith("nothing significant left")
     own = copy.deepcopy(rep)
-    own["unexplained"] = [dict(u, left_by="sensor_calibration") if u["channel"] == col and u["kind"] == "local"
-                          else u for u in own["unexplained"]]
+    own["unexplained"] = [
+        dict(u, left_by="sensor_calibration") if u["channel"] == col and u["kind"] == "local" else u
+        for u in own["unexplained"]
+    ]
     assert line(own).endswith("structure left, reported above")

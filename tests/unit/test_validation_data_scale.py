@@ -51,8 +51,21 @@ def test_a_bump_below_a_loose_tolerance_is_reported_at_the_data_scale(bump):
     reading (2.5 K on the turbine outlet, whose tolerance is 5 K) and a 10 K bump around 60 % load (two tolerances
     at its peak, four noise levels).  Judged at the tolerance, the window scan misses it; judged at the data's
     scatter it is reported on its channel, saying which scale it used; without the bump nothing is."""
-    eff = [{"kind": "bump", "family": "temperature", "channel": "turbine_outlet_temperature_C", "center": 0.6,
-            "width": 0.08, "amplitude": 10.0, "relative": False}] if bump else []
+    eff = (
+        [
+            {
+                "kind": "bump",
+                "family": "temperature",
+                "channel": "turbine_outlet_temperature_C",
+                "center": 0.6,
+                "width": 0.08,
+                "amplitude": 10.0,
+                "relative": False,
+            }
+        ]
+        if bump
+        else []
+    )
     syn = synthesize("wartsila-6l46", ["none"], points=14, noise=0.005, seed=2, effects=eff)
     sel = select_causes(Problem(loaded(syn)))
     assert sel.selected_labels == []

@@ -97,8 +97,12 @@ def test_protocol_every_column_has_a_role_and_nothing_is_dropped():
     with pytest.warns(DataWarning) as rec:
         ds = load_shipped(PROTOCOL)
     text = " ".join(str(w.message) for w in rec)
-    header = (ROOT / "src" / "marine_fdi_env" / "data" / "measured" /
-              f"{PROTOCOL}.csv").read_text().splitlines()[0].split(",")
+    header = (
+        (ROOT / "src" / "marine_fdi_env" / "data" / "measured" / f"{PROTOCOL}.csv")
+        .read_text()
+        .splitlines()[0]
+        .split(",")
+    )
     inv = {r["column"]: r for r in ds.column_inventory()}
     assert set(inv) == set(header)  # every column is accounted for
     roles = {c: r["role"] for c, r in inv.items()}
@@ -114,8 +118,9 @@ def test_protocol_every_column_has_a_role_and_nothing_is_dropped():
     assert ds.values["p_max_Pa"][0] == pytest.approx(96e5 + 1025e2)
     # per-row boundary conditions; the 0 C inlet temperature of the 50 % row is found and left out
     np.testing.assert_allclose(ds.boundary["p_amb_Pa"], [102500, 102400, 102400, 102500, 102500, 102600])
-    assert [(o["column"], o["row"], o["value"]) for o in ds.boundary_outliers] == \
-        [("compressor_inlet_temperature_C", 2, 0.0)]
+    assert [(o["column"], o["row"], o["value"]) for o in ds.boundary_outliers] == [
+        ("compressor_inlet_temperature_C", 2, 0.0)
+    ]
     assert ds.boundary["T_amb_K"][1] == pytest.approx(32 + 273.15)  # the other rows' median
     assert "row 2" in text and "recording error" in text
     np.testing.assert_allclose(ds.boundary["p_ex_Pa"] - ds.boundary["p_amb_Pa"], [0, 400, 800, 1100, 1500, 1800])
@@ -141,8 +146,9 @@ def test_per_row_ambient_values_are_checked(tmp_path):
 
 def test_boundary_outlier_needs_a_real_departure(tmp_path):
     """Readings within a few kelvin of each other are never recording errors (the robust scale has a 1 K floor)."""
-    rows = "\n".join(f"{lf},{lf * 5890:.0f},{t}" for lf, t in [(0.25, 28), (0.5, 29), (0.75, 31), (0.85, 32),
-                                                               (1.0, 34), (1.1, 36)])
+    rows = "\n".join(
+        f"{lf},{lf * 5890:.0f},{t}" for lf, t in [(0.25, 28), (0.5, 29), (0.75, 31), (0.85, 32), (1.0, 34), (1.1, 36)]
+    )
     path = _write(tmp_path, "load_fraction,power_kW,compressor_inlet_temperature_C\n" + rows + "\n", META)
     ds = _quiet(load_dataset, path)
     assert ds.boundary_outliers == ()
@@ -169,8 +175,11 @@ def test_registry_is_consistent():
 
 # --------------------------------------------------------------------------------------- bad input
 def test_header_problems_all_reported(tmp_path):
-    path = _write(tmp_path, "speed,power_kW,power_kW,colour_index,charge_air_pressure_bar,load_fraction\n"
-                            "400,3000,3000,1,2.0,0.5\n", META)
+    path = _write(
+        tmp_path,
+        "speed,power_kW,power_kW,colour_index,charge_air_pressure_bar,load_fraction\n400,3000,3000,1,2.0,0.5\n",
+        META,
+    )
     with pytest.raises(DatasetError) as ei:
         load_dataset(path)
     errs = _errors(ei.value)
@@ -190,11 +199,15 @@ def test_same_quantity_twice_is_a_duplicated_column(tmp_path):
 
 
 def test_non_numeric_values_every_cell_listed(tmp_path):
-    path = _write(tmp_path, "engine,load_fraction,speed_rpm,fuel_flow_kg_per_h\n"
-                            "A,0.25,315,abc\n"
-                            "A,0.5,fast,587\n"
-                            "A,0.75,454,8 38\n"
-                            "A,1.0,500,1141\n", META)
+    path = _write(
+        tmp_path,
+        "engine,load_fraction,speed_rpm,fuel_flow_kg_per_h\n"
+        "A,0.25,315,abc\n"
+        "A,0.5,fast,587\n"
+        "A,0.75,454,8 38\n"
+        "A,1.0,500,1141\n",
+        META,
+    )
     with pytest.raises(DatasetError) as ei:
         load_dataset(path)
     errs = _errors(ei.value)
@@ -205,13 +218,17 @@ def test_non_numeric_values_every_cell_listed(tmp_path):
 
 
 def test_duplicate_operating_points_listed_with_their_rows(tmp_path):
-    path = _write(tmp_path, "engine,load_fraction,speed_rpm,fuel_flow_kg_per_h\n"
-                            "A,0.5,397,587\n"
-                            "B,0.5,397,590\n"  # other engine: not a duplicate
-                            "A,0.5,397,588\n"
-                            "A,1.0,500,1141\n"
-                            "B,1.0,500,1150\n"
-                            "B,1.0,500,1150\n", META)
+    path = _write(
+        tmp_path,
+        "engine,load_fraction,speed_rpm,fuel_flow_kg_per_h\n"
+        "A,0.5,397,587\n"
+        "B,0.5,397,590\n"  # other engine: not a duplicate
+        "A,0.5,397,588\n"
+        "A,1.0,500,1141\n"
+        "B,1.0,500,1150\n"
+        "B,1.0,500,1150\n",
+        META,
+    )
     with pytest.raises(DatasetError) as ei:
         load_dataset(path)
     errs = _errors(ei.value)
@@ -222,11 +239,15 @@ def test_duplicate_operating_points_listed_with_their_rows(tmp_path):
 
 def test_points_outside_the_envelope_listed(tmp_path):
     # wartsila-6l46: 500 rpm, 5890 kW; envelope: load <= 1.15, speed <= 550 rpm, power <= 6773.5 kW
-    path = _write(tmp_path, "load_fraction,speed_rpm,power_kW,charge_air_pressure_bar_abs\n"
-                            "0.5,397,2945,2.4\n"
-                    "1.2,520,7000,4.0\n"
-                    "0.9,600,5300,-0.5\n"
-                    "-0.1,300,100,1.0\n", META)
+    path = _write(
+        tmp_path,
+        "load_fraction,speed_rpm,power_kW,charge_air_pressure_bar_abs\n"
+        "0.5,397,2945,2.4\n"
+        "1.2,520,7000,4.0\n"
+        "0.9,600,5300,-0.5\n"
+        "-0.1,300,100,1.0\n",
+        META,
+    )
     with pytest.raises(DatasetError) as ei:
         load_dataset(path)
     errs = _errors(ei.value)
@@ -240,8 +261,12 @@ def test_points_outside_the_envelope_listed(tmp_path):
 
 
 def test_gauge_pressure_below_minus_ambient_is_an_error_slightly_negative_a_warning(tmp_path):
-    path = _write(tmp_path, "load_fraction,speed_rpm,charge_air_pressure_bar_gauge\n"
-                            "0.25,315,-0.05\n0.5,397,-1.5\n0.75,454,-2.0\n1.0,500,3.1\n", META)
+    path = _write(
+        tmp_path,
+        "load_fraction,speed_rpm,charge_air_pressure_bar_gauge\n"
+        "0.25,315,-0.05\n0.5,397,-1.5\n0.75,454,-2.0\n1.0,500,3.1\n",
+        META,
+    )
     with pytest.raises(DatasetError) as ei:
         load_dataset(path)
     errs = _errors(ei.value)
@@ -251,11 +276,15 @@ def test_gauge_pressure_below_minus_ambient_is_an_error_slightly_negative_a_warn
 
 
 def test_every_kind_of_problem_in_one_error(tmp_path):
-    path = _write(tmp_path, "engine,load_fraction,speed,speed_rpm,fuel_flow_kg_per_h,weird\n"
-                            "A,0.5,1,397,x,1\n"
-                            "A,0.5,1,397,587,1\n"
-                            "A,1.3,1,500,1141,1\n"
-                            "A,0.75,1,454\n", META)
+    path = _write(
+        tmp_path,
+        "engine,load_fraction,speed,speed_rpm,fuel_flow_kg_per_h,weird\n"
+        "A,0.5,1,397,x,1\n"
+        "A,0.5,1,397,587,1\n"
+        "A,1.3,1,500,1141,1\n"
+        "A,0.75,1,454\n",
+        META,
+    )
     with pytest.raises(DatasetError) as ei:
         load_dataset(path)
     text = "\n".join(_errors(ei.value))
@@ -268,8 +297,12 @@ def test_every_kind_of_problem_in_one_error(tmp_path):
 
 
 def test_missing_cells_are_nan_and_reported_not_errors(tmp_path):
-    path = _write(tmp_path, "load_fraction,speed_rpm,fuel_flow_kg_per_h,turbine_outlet_temperature_C\n"
-                            "0.25,315,,300\n0.5,397,587,NA\n0.75,454,838,\n1.0,500,1141,350\n", META)
+    path = _write(
+        tmp_path,
+        "load_fraction,speed_rpm,fuel_flow_kg_per_h,turbine_outlet_temperature_C\n"
+        "0.25,315,,300\n0.5,397,587,NA\n0.75,454,838,\n1.0,500,1141,350\n",
+        META,
+    )
     ds = load_dataset(path)
     assert math.isnan(ds.raw["fuel_flow_kg_per_h"][0])
     assert ds.quality["columns"]["turbine_outlet_temperature_C"]["missing_rows"] == [2, 3]
@@ -296,8 +329,11 @@ def test_column_problem_messages():
 
 
 def test_write_dataset_round_trip(tmp_path):
-    cols = {"load_fraction": [0.25, 0.5, 1.0], "speed_rpm": [315, 397, 500],
-            "turbine_outlet_temperature_C": [300.0, float("nan"), 350.0]}
+    cols = {
+        "load_fraction": [0.25, 0.5, 1.0],
+        "speed_rpm": [315, 397, 500],
+        "turbine_outlet_temperature_C": [300.0, float("nan"), 350.0],
+    }
     path = write_dataset(tmp_path / "rt.csv", cols, META, engines=["X", "X", "X"])
     ds = load_dataset(path)
     assert ds.engine_ids() == ["X"]

@@ -32,7 +32,7 @@ def _brute_profile_b(x, y, b_grid):
     """min over a of the sum of squares, for every b of the grid (a = <y, e> / <e, e>, e = exp(-b x))."""
     E = np.exp(-np.outer(b_grid, x))
     a = (E @ y) / np.sum(E * E, axis=1)
-    return np.sum(((a[:, None] * E) - y) ** 2, axis=1) / 0.02 ** 2
+    return np.sum(((a[:, None] * E) - y) ** 2, axis=1) / 0.02**2
 
 
 def test_profile_interval_matches_a_brute_force_scan():
@@ -69,8 +69,9 @@ def gate_case():
     """Data from a waste gate opening above 75 % load, its smallest opening (3.5 % of the turbine area, at the
     point nearest the threshold) about the size the noise can hide; the gate fitted with three supports: the true
     one, the true one without that point, and three part-load points (wrong)."""
-    syn = synthesize("wartsila-6l46", ["waste_gate:above=0.75,opening=0.06,turbine_area_scale=0.85"], points=8,
-                     noise=0.01, seed=2)
+    syn = synthesize(
+        "wartsila-6l46", ["waste_gate:above=0.75,opening=0.06,turbine_area_scale=0.85"], points=8, noise=0.01, seed=2
+    )
     pr = Problem(loaded(syn))
     base = fit_combination(pr, Combination())
     base_cv, _ = cross_validate(pr, Combination(), base)

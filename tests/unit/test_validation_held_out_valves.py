@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from marine_fdi_env.validation.fitting import (Combination, FitResult)
+from marine_fdi_env.validation.fitting import Combination, FitResult
 from marine_fdi_env.validation.mechanisms import PHYSICAL_MECHANISMS
 
 LOADS = np.array([0.25, 0.36, 0.52, 0.67, 0.77, 0.85, 0.96, 1.08])
@@ -23,9 +23,21 @@ def _fold(openings: list[float], held_out: list[int], support: list[int] | None)
     rows = np.setdiff1d(np.arange(LOADS.size), held_out)
     o = np.array(openings, dtype=float)
     o[held_out] = np.nan
-    return FitResult(Combination((GATE,)), np.ones(1), np.ones(1), np.ones(1), {"waste_gate": o},
-                     {"waste_gate": [int(r) for r in rows if o[r] > 0]}, 0.0, 0.0, 0, 0, rows,
-                     np.full(rows.size, np.nan), held_out_support=None if support is None else {"waste_gate": support})
+    return FitResult(
+        Combination((GATE,)),
+        np.ones(1),
+        np.ones(1),
+        np.ones(1),
+        {"waste_gate": o},
+        {"waste_gate": [int(r) for r in rows if o[r] > 0]},
+        0.0,
+        0.0,
+        0,
+        0,
+        rows,
+        np.full(rows.size, np.nan),
+        held_out_support=None if support is None else {"waste_gate": support},
+    )
 
 
 def test_a_held_out_point_is_shut_where_the_full_fit_shuts_it_and_interpolated_among_open_points_elsewhere():

@@ -22,9 +22,17 @@ from marine_fdi_env.validation.discrepancy import analyse_discrepancies, change_
 from marine_fdi_env.validation.matching import infer_load_law, match_operating_points, predict_columns
 
 PARAMS = "man-12v32-40"
-COLS = ["load_fraction", "speed_rpm", "power_kW", "fuel_flow_kg_per_h", "sfc_g_per_kWh",
-        "charge_air_pressure_bar_abs", "compressor_outlet_temperature_C", "turbine_outlet_temperature_C",
-        "air_flow_kg_per_kWh"]
+COLS = [
+    "load_fraction",
+    "speed_rpm",
+    "power_kW",
+    "fuel_flow_kg_per_h",
+    "sfc_g_per_kWh",
+    "charge_air_pressure_bar_abs",
+    "compressor_outlet_temperature_C",
+    "turbine_outlet_temperature_C",
+    "air_flow_kg_per_kWh",
+]
 
 
 def _quiet(f, *a, **k):
@@ -98,8 +106,9 @@ def test_matching_on_fuel_flow_and_rack():
     np.testing.assert_allclose(r.u[ds.values["load_fraction"] == 1.0], 1.0)
     man = load_shipped("man_12v32_40_fpp_iso")  # no fuel-flow column: SFC x power
     mf = match_operating_points(man, target="fuel_flow")
-    np.testing.assert_allclose(mf.model_si["fuel_mass_flow_kg_s"], man.values["sfc_kg_per_J"] * man.values["power_W"],
-                               rtol=1e-6)
+    np.testing.assert_allclose(
+        mf.model_si["fuel_mass_flow_kg_s"], man.values["sfc_kg_per_J"] * man.values["power_W"], rtol=1e-6
+    )
     assert mf.target_columns == ("sfc_g_per_kWh",) and "power_kW" in mf.channels
 
 
@@ -158,10 +167,13 @@ def test_negative_control_no_significant_discrepancy(synthetic, model):
             assert c.n == 24 and c.mean_abs_rel_error < 0.01
 
 
-@pytest.mark.parametrize("channel, bias", [
-    ("turbine_outlet_temperature_C", lambda load: 4.0 + 30.0 * load),  # K
-    ("charge_air_pressure_bar_abs", lambda load: 0.02 + 0.12 * load),  # bar
-])
+@pytest.mark.parametrize(
+    "channel, bias",
+    [
+        ("turbine_outlet_temperature_C", lambda load: 4.0 + 30.0 * load),  # K
+        ("charge_air_pressure_bar_abs", lambda load: 0.02 + 0.12 * load),  # bar
+    ],
+)
 def test_injected_linear_bias_is_the_top_discrepancy(synthetic, model, channel, bias):
     clean, noisy, tmp = synthetic
     cols = dict(noisy)

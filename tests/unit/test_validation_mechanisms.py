@@ -9,15 +9,22 @@ import warnings
 import numpy as np
 import pytest
 
+from marine_fdi_env.cli.synthesize import synthesize_main
 from marine_fdi_env.engine.params import load_params
 from marine_fdi_env.validation import DataWarning, load_dataset, load_shipped
 from marine_fdi_env.validation.fitting import Combination, fit_combination, predict_setting
-from marine_fdi_env.validation.mechanisms import (MECHANISM_IDS, PHYSICAL_MECHANISMS, BypassValveM, Param,
-                                                  SensorCalibration, WasteGateM, equivalents,
-                                                  parse_mechanism_spec)
+from marine_fdi_env.validation.mechanisms import (
+    MECHANISM_IDS,
+    PHYSICAL_MECHANISMS,
+    BypassValveM,
+    Param,
+    SensorCalibration,
+    WasteGateM,
+    equivalents,
+    parse_mechanism_spec,
+)
 from marine_fdi_env.validation.nuisance import NUISANCE
 from marine_fdi_env.validation.problem import BASE_SETTING, Problem
-from marine_fdi_env.cli.synthesize import synthesize_main
 from marine_fdi_env.validation.synthesize import DEFAULT_COLUMNS, synthesize
 
 
@@ -28,10 +35,20 @@ def _quiet(f, *a, **k):
 
 
 def test_library_is_complete_and_documented():
-    assert set(MECHANISM_IDS) == {"cpp_load", "friction_losses", "ambient_conditions", "turbocharger_map",
-                                  "intercooler_effectiveness", "cylinder_heat_loss", "turbine_flow_law",
-                                  "turbine_efficiency_bsr", "exhaust_heat_loss", "waste_gate", "bypass_valve",
-                                  "sensor_calibration"}
+    assert set(MECHANISM_IDS) == {
+        "cpp_load",
+        "friction_losses",
+        "ambient_conditions",
+        "turbocharger_map",
+        "intercooler_effectiveness",
+        "cylinder_heat_loss",
+        "turbine_flow_law",
+        "turbine_efficiency_bsr",
+        "exhaust_heat_loss",
+        "waste_gate",
+        "bypass_valve",
+        "sensor_calibration",
+    }
     for m in list(PHYSICAL_MECHANISMS) + [SensorCalibration(channel="speed_rpm", reference=400.0)]:
         d = m.describe()
         assert len(d["explanation"]) > 150, m.id  # a physical explanation, not a label
@@ -55,11 +72,18 @@ def test_pinned_only_at_bounds_that_are_not_natural():
 def test_parse_mechanism_spec():
     assert parse_mechanism_spec("none") == ("none", {}, None)
     assert parse_mechanism_spec("turbocharger_map:eta_scale=1.1") == ("turbocharger_map", {"eta_scale": 1.1}, None)
-    assert parse_mechanism_spec("waste_gate:above=0.8,opening=0.2") == ("waste_gate", {"above": 0.8, "opening": 0.2},
-                                                                         None)
+    assert parse_mechanism_spec("waste_gate:above=0.8,opening=0.2") == (
+        "waste_gate",
+        {"above": 0.8, "opening": 0.2},
+        None,
+    )
     assert parse_mechanism_spec("sensor_calibration:channel=speed_rpm,gain=1.05")[2] == "speed_rpm"
-    for bad, msg in (("nope", "unknown mechanism"), ("turbocharger_map:eta=1", "unknown parameter"),
-                     ("turbocharger_map:eta_scale=x", "must be a number"), ("none:a=1", "takes no parameters")):
+    for bad, msg in (
+        ("nope", "unknown mechanism"),
+        ("turbocharger_map:eta=1", "unknown parameter"),
+        ("turbocharger_map:eta_scale=x", "must be a number"),
+        ("none:a=1", "takes no parameters"),
+    ):
         with pytest.raises(ValueError, match=msg):
             parse_mechanism_spec(bad)
 
@@ -113,8 +137,9 @@ def test_problem_runs_each_row_at_its_own_boundary_conditions():
 @pytest.fixture(scope="module")
 def bypass_data():
     """Noise-free data with a bypass open below load 0.55 at 7 points and an untouched turbine."""
-    syn = synthesize("wartsila-6l46", ["bypass_valve:below=0.55,opening=0.12"], points=7, noise=0.0, seed=11,
-                     columns=DEFAULT_COLUMNS)
+    syn = synthesize(
+        "wartsila-6l46", ["bypass_valve:below=0.55,opening=0.12"], points=7, noise=0.0, seed=11, columns=DEFAULT_COLUMNS
+    )
     return syn
 
 
@@ -139,8 +164,9 @@ def test_valve_support_found_without_enumeration(bypass_data, tmp_path):
 
 
 def test_waste_gate_with_rematched_turbine_recovered(tmp_path):
-    syn = synthesize("wartsila-6l46", ["waste_gate:above=0.7,opening=0.25,turbine_area_scale=0.8"], points=7,
-                     noise=0.0, seed=5)
+    syn = synthesize(
+        "wartsila-6l46", ["waste_gate:above=0.7,opening=0.25,turbine_area_scale=0.8"], points=7, noise=0.0, seed=5
+    )
     path = tmp_path / "wg.csv"
     syn.write(path)
     pr = Problem(_quiet(load_dataset, path))
@@ -154,11 +180,11 @@ def test_nuisance_absorbs_small_model_error_within_its_box():
     """Data from an engine whose turbine area is 4 % smaller: the calibrated base finds it (the nuisance's
     turbine_area near 0.96), within the box of ±6 %."""
     p = load_params("wartsila-6l46")
-    syn = synthesize(p.replace(A_eff_m2=0.96 * p.A_eff_m2, name="wartsila-6l46"), ["none"], points=7, noise=0.0,
-                     seed=2)
-    from marine_fdi_env.validation.dataset import write_dataset
+    syn = synthesize(p.replace(A_eff_m2=0.96 * p.A_eff_m2, name="wartsila-6l46"), ["none"], points=7, noise=0.0, seed=2)
     import tempfile
     from pathlib import Path
+
+    from marine_fdi_env.validation.dataset import write_dataset
 
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / "ne.csv"
@@ -171,29 +197,58 @@ def test_nuisance_absorbs_small_model_error_within_its_box():
 
 
 def test_synthesized_data_load_and_hide_the_effect(tmp_path):
-    syn = synthesize("wartsila-6l46", ["turbocharger_map", "sensor_calibration:channel=turbine_outlet_temperature_C"],
-                     points=6, noise=0.01, seed=1, perturb=0.03)
+    syn = synthesize(
+        "wartsila-6l46",
+        ["turbocharger_map", "sensor_calibration:channel=turbine_outlet_temperature_C"],
+        points=6,
+        noise=0.01,
+        seed=1,
+        perturb=0.03,
+    )
     path = tmp_path / "s.csv"
     syn.write(path, tmp_path / "truth.json")
     text = path.read_text() + (tmp_path / "s.meta.json").read_text()
     assert "turbocharger_map" not in text and "sensor_calibration" not in text
     truth = json.loads((tmp_path / "truth.json").read_text())
     assert [m["id"] for m in truth["mechanisms"]] == ["turbocharger_map", "sensor_calibration"]
-    assert set(truth["settings"]["model_error"]) == {"A_eff_m2", "a_eta_per_Pa2", "eta_com", "eta_comb", "X_cv_nom",
-                                                     "X_ct_nom", "s_sl_nom"}
+    assert set(truth["settings"]["model_error"]) == {
+        "A_eff_m2",
+        "a_eta_per_Pa2",
+        "eta_com",
+        "eta_comb",
+        "X_cv_nom",
+        "X_ct_nom",
+        "s_sl_nom",
+    }
     ds = _quiet(load_dataset, path)
     assert ds.n_points == 6 and set(ds.columns) == set(DEFAULT_COLUMNS)
 
 
 def test_synthesize_cli(tmp_path, capsys):
     out = tmp_path / "new" / "d.csv"  # the parent of --out is created
-    assert synthesize_main(["--params", "man-12v32-40", "--mechanism", "waste_gate:above=0.8", "--points", "5",
-                            "--out", str(out), "--truth", str(tmp_path / "t.json")]) == 0
+    assert (
+        synthesize_main(
+            [
+                "--params",
+                "man-12v32-40",
+                "--mechanism",
+                "waste_gate:above=0.8",
+                "--points",
+                "5",
+                "--out",
+                str(out),
+                "--truth",
+                str(tmp_path / "t.json"),
+            ]
+        )
+        == 0
+    )
     assert out.exists() and (tmp_path / "t.json").exists()
-    for argv, msg in ((["--params", "nope", "--out", str(tmp_path / "x.csv")], "unknown parameter set"),
-                      (["--params", "man-12v32-40", "--mechanism", "nope", "--out", str(tmp_path / "x.csv")],
-                       "unknown mechanism"),
-                      (["--params", "man-12v32-40", "--out", str(tmp_path / "a" / "b" / "x.csv")], "does not exist")):
+    for argv, msg in (
+        (["--params", "nope", "--out", str(tmp_path / "x.csv")], "unknown parameter set"),
+        (["--params", "man-12v32-40", "--mechanism", "nope", "--out", str(tmp_path / "x.csv")], "unknown mechanism"),
+        (["--params", "man-12v32-40", "--out", str(tmp_path / "a" / "b" / "x.csv")], "does not exist"),
+    ):
         capsys.readouterr()
         assert synthesize_main(argv) == 2
         assert msg in capsys.readouterr().err

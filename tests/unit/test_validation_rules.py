@@ -22,10 +22,17 @@ def test_the_defaults_are_the_pipelines():
         r.alpha = 0.05  # type: ignore[misc]
 
 
-@pytest.mark.parametrize("bad, field", [({"beside_valve": "leave_one_out"}, "beside_valve"),
-                                        ({"held_out_valves": "median"}, "held_out_valves"),
-                                        ({"alpha": 0.0}, "alpha"), ({"alpha_unexplained": 1.5}, "alpha_unexplained"),
-                                        ({"max_causes": -1}, "max_causes"), ({"max_folds": 1}, "max_folds")])
+@pytest.mark.parametrize(
+    "bad, field",
+    [
+        ({"beside_valve": "leave_one_out"}, "beside_valve"),
+        ({"held_out_valves": "median"}, "held_out_valves"),
+        ({"alpha": 0.0}, "alpha"),
+        ({"alpha_unexplained": 1.5}, "alpha_unexplained"),
+        ({"max_causes": -1}, "max_causes"),
+        ({"max_folds": 1}, "max_folds"),
+    ],
+)
 def test_a_bad_rule_is_refused_by_name(bad, field):
     with pytest.raises(ValueError, match=field):
         SelectionRules(**bad)

@@ -15,16 +15,16 @@ import warnings
 import numpy as np
 import pytest
 
+from marine_fdi_env.cli.validate import validate_main
 from marine_fdi_env.engine.operating_point import MODE_U, solve_points
 from marine_fdi_env.engine.params import load_params
 from marine_fdi_env.engine.submodels import NO_SUBMODELS
 from marine_fdi_env.validation import DataWarning, load_dataset, load_shipped
 from marine_fdi_env.validation.problem import Problem
-from marine_fdi_env.cli.validate import validate_main
 from marine_fdi_env.validation.report import run_validation
 from marine_fdi_env.validation.selection import match_result
-from marine_fdi_env.validation.unexplained import local_excess
 from marine_fdi_env.validation.synthesize import effect_region, synthesize
+from marine_fdi_env.validation.unexplained import local_excess
 
 
 def _load(path):
@@ -43,8 +43,8 @@ def test_a_bound_is_widened_within_the_submodels_validity(tmp_path):
     """The binding-bound test widens one bound of one parameter (a quarter of its span, halved until the submodel
     accepts the value), keeps the mechanism's type, label and other parameters, and the widened mechanism still
     builds its submodel at the new bound."""
-    from marine_fdi_env.validation.mechanisms import TurbineEfficiencyBSRM
     from marine_fdi_env.validation.eligibility import relaxed_mechanism
+    from marine_fdi_env.validation.mechanisms import TurbineEfficiencyBSRM
 
     syn = synthesize("wartsila-6l46", ["none"], points=5, noise=0.005, seed=3)
     path = tmp_path / "x.csv"
@@ -91,8 +91,9 @@ def test_leave_one_channel_out_refit_at_a_natural_upper_bound(tmp_path):
     from marine_fdi_env.validation.fitting import Combination, fit_combination, loco_predictions
     from marine_fdi_env.validation.mechanisms import get_mechanism
 
-    syn = synthesize("wartsila-6l46", ["intercooler_effectiveness:effectiveness=1.0,dT_outlet_K=6"], points=6,
-                     noise=0.003, seed=5)
+    syn = synthesize(
+        "wartsila-6l46", ["intercooler_effectiveness:effectiveness=1.0,dT_outlet_K=6"], points=6, noise=0.003, seed=5
+    )
     path = tmp_path / "x.csv"
     syn.write(path)
     pr = Problem(_load(path))
@@ -106,8 +107,15 @@ def test_leave_one_channel_out_refit_at_a_natural_upper_bound(tmp_path):
 
 
 def test_effect_region_and_local_excess_on_a_known_bump(tmp_path):
-    e = {"kind": "bump", "channel": "turbine_outlet_temperature_C", "center": 0.6, "width": 0.1, "amplitude": 30.0,
-         "relative": False, "family": "temperature"}
+    e = {
+        "kind": "bump",
+        "channel": "turbine_outlet_temperature_C",
+        "center": 0.6,
+        "width": 0.1,
+        "amplitude": 30.0,
+        "relative": False,
+        "family": "temperature",
+    }
     lo, hi = effect_region(e)
     assert lo == pytest.approx(0.6 - 0.1177, abs=2e-3) and hi == pytest.approx(0.6 + 0.1177, abs=2e-3)
     syn = synthesize("wartsila-6l46", ["none"], points=9, noise=0.005, seed=4, effects=[e])
@@ -120,16 +128,24 @@ def test_effect_region_and_local_excess_on_a_known_bump(tmp_path):
     assert not [f for f in found if f["channel"] != e["channel"]]
 
 
-@pytest.mark.parametrize("channel", ["charge_air_pressure_bar_gauge", "turbine_inlet_pressure_bar_gauge",
-                                     "fuel_flow_kg_per_h"])
+@pytest.mark.parametrize(
+    "channel", ["charge_air_pressure_bar_gauge", "turbine_inlet_pressure_bar_gauge", "fuel_flow_kg_per_h"]
+)
 def test_a_relative_effect_is_as_many_tolerances_as_its_amplitude_says(channel, tmp_path):
     """An out-of-library step of 5 % is 5 of the pipeline's tolerances (1 % of the mean reading in SI, absolute for a
     gauge pressure) on the loaded data, on gauge and absolute channels alike; measured noise-free, the ratio can only
     differ by the effect's own share of the mean reading (< 5 % of 5 tolerances, the step covers part of the loads)."""
     from marine_fdi_env.validation.discrepancy import column_tolerance
 
-    e = {"kind": "step", "channel": channel, "center": 0.6, "width": 0.1, "amplitude": 0.05, "relative": True,
-         "family": "pressure"}
+    e = {
+        "kind": "step",
+        "channel": channel,
+        "center": 0.6,
+        "width": 0.1,
+        "amplitude": 0.05,
+        "relative": True,
+        "family": "pressure",
+    }
     runs = {}
     for name, eff in (("with", [e]), ("without", [])):
         syn = synthesize("wartsila-6l46", ["none"], points=6, noise=0.0, seed=3, effects=eff)
@@ -145,13 +161,15 @@ def test_a_relative_effect_is_as_many_tolerances_as_its_amplitude_says(channel, 
 @pytest.fixture(scope="module")
 def waste_gate_validation(tmp_path_factory):
     d = tmp_path_factory.mktemp("wg")
-    syn = synthesize("wartsila-6l46", ["waste_gate:above=0.75,opening=0.25,turbine_area_scale=0.8"], points=7,
-                     noise=0.005, seed=21)
+    syn = synthesize(
+        "wartsila-6l46", ["waste_gate:above=0.75,opening=0.25,turbine_area_scale=0.8"], points=7, noise=0.005, seed=21
+    )
     path = d / "wg.csv"
     syn.write(path)
     out, eng = d / "report.json", d / "out" / "engine.json"
-    rc = validate_main(["--data", str(path), "--out", str(out), "--save-params", str(eng), "--max-causes", "1",
-                        "--quiet"])
+    rc = validate_main(
+        ["--data", str(path), "--out", str(out), "--save-params", str(eng), "--max-causes", "1", "--quiet"]
+    )
     return syn, rc, json.loads(out.read_text()), eng
 
 
@@ -202,8 +220,11 @@ def test_validate_params_runs_the_fitted_engine_with_its_submodels(waste_gate_va
     assert pr.base_setting.submodels.waste_gate is not None
     pred, conv, vals = pr.predict()
     assert conv.all()
-    j = pr.channels.index("charge_air_pressure_bar_abs") if "charge_air_pressure_bar_abs" in pr.channels else \
-        [i for i, c in enumerate(pr.channels) if c.startswith("charge_air_pressure")][0]
+    j = (
+        pr.channels.index("charge_air_pressure_bar_abs")
+        if "charge_air_pressure_bar_abs" in pr.channels
+        else [i for i, c in enumerate(pr.channels) if c.startswith("charge_air_pressure")][0]
+    )
     # the fit is within about 1 % noise of the synthetic readings at every point; without the gate the open
     # points over-boost by far more (turbine area x0.8 with 20 % of the exhaust bypassed)
     rel = np.abs(pred[:, j] / pr.Y[:, j] - 1)
@@ -231,8 +252,10 @@ def test_a_holdout_takes_the_unrecorded_boundary_conditions_from_the_fitted_test
     assert shop.assume_boundary(tb) == ["ambient pressure", "intake temperature", "back pressure (over load)"]
     assert np.all(shop.p_amb_rows == tb["p_amb_Pa"])
     load = shop.load_axis()
-    np.testing.assert_allclose(shop.boundary["p_ex_Pa"] - tb["p_amb_Pa"],
-                               np.interp(load, tb["back_pressure"]["load_fraction"], tb["back_pressure"]["dp_Pa"]))
+    np.testing.assert_allclose(
+        shop.boundary["p_ex_Pa"] - tb["p_amb_Pa"],
+        np.interp(load, tb["back_pressure"]["load_fraction"], tb["back_pressure"]["dp_Pa"]),
+    )
     # the measured power over the parameter set's rating (5890 kW; the protocol states 5850 kW)
     assert tb["back_pressure"]["load_fraction"] == pytest.approx(np.array([1463, 2925, 4388, 4973, 5850, 6435]) / 5890)
     after = shop.predict()[0]
@@ -261,16 +284,31 @@ def test_validate_bad_input(tmp_path, capsys):
         (["--data", "man_12v32_40_fpp_iso", "--max-folds", "1", "--out", out], "--max-folds"),
         (["--data", "man_12v32_40_fpp_iso", "--out", str(tmp_path / "no" / "no" / "r.json")], "does not exist"),
         (["--data", "man_12v32_40_fpp_iso"], "--out"),
-        (["--data", "birka_6l46_shop_test", "--holdout", "x.csv", "--holdout-engine", "ME1", "--out", out],
-         "not allowed with"),
+        (
+            ["--data", "birka_6l46_shop_test", "--holdout", "x.csv", "--holdout-engine", "ME1", "--out", out],
+            "not allowed with",
+        ),
         (["--data", "man_12v32_40_fpp_iso", "--tolerance", "boost=2", "--out", out], "not a compared channel"),
         (["--data", "man_12v32_40_fpp_iso", "--tolerance", "speed_rpm", "--out", out], "COLUMN=VALUE"),
         (["--data", "man_12v32_40_fpp_iso", "--tolerance", "speed_rpm=-1", "--out", out], "must be positive"),
         (["--data", "man_12v32_40_fpp_iso", "--tolerance", "speed_rpm=fast", "--out", out], "not a number"),
-        (["--data", "man_12v32_40_fpp_iso", "--tolerance", "turbine_outlet_temperature_C=1%", "--out", out],
-         "not in %"),
-        (["--data", "man_12v32_40_fpp_iso", "--tolerance", "speed_rpm=2", "--tolerance", "speed_rpm=3", "--out", out],
-         "given twice"),
+        (
+            ["--data", "man_12v32_40_fpp_iso", "--tolerance", "turbine_outlet_temperature_C=1%", "--out", out],
+            "not in %",
+        ),
+        (
+            [
+                "--data",
+                "man_12v32_40_fpp_iso",
+                "--tolerance",
+                "speed_rpm=2",
+                "--tolerance",
+                "speed_rpm=3",
+                "--out",
+                out,
+            ],
+            "given twice",
+        ),
     ]
     capsys.readouterr()
     for argv, msg in cases:
@@ -314,11 +352,16 @@ def test_validate_tolerance_option_sets_the_residual_scale(tmp_path):
     argv = ["--data", "man_12v32_40_fpp_iso", "--out", str(out), "--max-causes", "0", "--quiet"]
     assert validate_main(argv) == 0
     default = json.loads(out.read_text())["channels"]
-    assert validate_main(argv + ["--tolerance", "charge_air_pressure_bar_abs=2%",
-                                 "--tolerance", "turbine_outlet_temperature_C=8"]) == 0
+    assert (
+        validate_main(
+            argv + ["--tolerance", "charge_air_pressure_bar_abs=2%", "--tolerance", "turbine_outlet_temperature_C=8"]
+        )
+        == 0
+    )
     told = json.loads(out.read_text())["channels"]
     assert told["charge_air_pressure_bar_abs"]["tolerance"] == pytest.approx(
-        2 * default["charge_air_pressure_bar_abs"]["tolerance"], rel=1e-12)
+        2 * default["charge_air_pressure_bar_abs"]["tolerance"], rel=1e-12
+    )
     assert told["turbine_outlet_temperature_C"]["tolerance"] == 8.0
     assert default["turbine_outlet_temperature_C"]["tolerance"] == 5.0
     for c in set(default) - {"charge_air_pressure_bar_abs", "turbine_outlet_temperature_C"}:

@@ -20,25 +20,36 @@ from .sidecar import check_sidecar_numbers
 
 
 def replicas_main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="marine-fdi replicas",
-                                 description="Would the pipeline name the same causes again on data like these? "
-                                             "(a parametric bootstrap at the data's design; module docstring)")
+    ap = argparse.ArgumentParser(
+        prog="marine-fdi replicas",
+        description="Would the pipeline name the same causes again on data like these? "
+        "(a parametric bootstrap at the data's design; module docstring)",
+    )
     ap.add_argument("--data", required=True, metavar="NAME|FILE.csv", help="shipped dataset name or CSV path")
     ap.add_argument("--params", default=None, help="parameter set or engine file (default: the dataset's)")
     ap.add_argument("--target", default="auto", help="what fixes each point (as marine-fdi validate)")
     ap.add_argument("--replicas", type=int, default=10, help="replicas per hypothesis (default 10)")
     ap.add_argument("--noise", default="residual", choices=NOISE_MODELS, help="replica noise (default residual)")
-    ap.add_argument("--alternatives", default=None, metavar="ID,...",
-                    help="physical mechanisms to put in place of the first named one (default: the best --top of "
-                         "the first selection step)")
+    ap.add_argument(
+        "--alternatives",
+        default=None,
+        metavar="ID,...",
+        help="physical mechanisms to put in place of the first named one (default: the best --top of "
+        "the first selection step)",
+    )
     ap.add_argument("--top", type=int, default=4, help="number of alternatives by default (default 4)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--max-folds", type=int, default=None, help="as marine-fdi validate")
     ap.add_argument("--workers", type=int, default=1, help="processes (default 1)")
     ap.add_argument("--out", default=None, metavar="FILE.json")
     ap.add_argument("--markdown", default=None, metavar="FILE.md")
-    ap.add_argument("--tolerance", action="append", default=[], metavar="COLUMN=VALUE",
-                    help="a channel's tolerance in its units or as P%% of its mean value (as marine-fdi validate)")
+    ap.add_argument(
+        "--tolerance",
+        action="append",
+        default=[],
+        metavar="COLUMN=VALUE",
+        help="a channel's tolerance in its units or as P%% of its mean value (as marine-fdi validate)",
+    )
     add_valve_options(ap)
     ap.add_argument("--no-progress", action="store_true")
     args, code = parse_cli(ap, list(argv) if argv is not None else None)
@@ -52,24 +63,40 @@ def replicas_main(argv: Sequence[str] | None = None) -> int:
             raise ValueError("--replicas and --workers must be >= 1")
         known = {m.id for m in PHYSICAL_MECHANISMS}
         if alts is not None and not set(alts) <= known:  # before the selection's minutes, not after
-            raise ValueError(f"--alternatives: unknown physical mechanism(s) {', '.join(sorted(set(alts) - known))}; "
-                             f"known: {', '.join(sorted(known))}")
+            raise ValueError(
+                f"--alternatives: unknown physical mechanism(s) {', '.join(sorted(set(alts) - known))}; "
+                f"known: {', '.join(sorted(known))}"
+            )
         check_sidecar_numbers(args.data)
         ds = load_data_arg(args.data, args.params)
-        rules = SelectionRules(max_folds=args.max_folds, beside_valve=args.beside_valve,
-                               held_out_valves=args.held_out_valves)
+        rules = SelectionRules(
+            max_folds=args.max_folds, beside_valve=args.beside_valve, held_out_valves=args.held_out_valves
+        )
         pr = Problem(ds, params=args.params, target=args.target, held_out_valves=rules.held_out_valves)
         if args.tolerance:
-            pr = Problem(ds, params=args.params, target=args.target, tolerances=pr.stated_tolerances(args.tolerance),
-                         held_out_valves=rules.held_out_valves)
+            pr = Problem(
+                ds,
+                params=args.params,
+                target=args.target,
+                tolerances=pr.stated_tolerances(args.tolerance),
+                held_out_valves=rules.held_out_valves,
+            )
         say = None if args.no_progress else (lambda s: print(f"replicas: {s}", file=sys.stderr))
         if say:
             say("selecting causes on the data (as marine-fdi validate)")
         sel = select_causes(pr, rules=rules)
         if say:
             say(f"named on the data: {' + '.join(sel.selected_labels) or '(nothing)'}")
-        rep = replicate(sel, replicas=args.replicas, noise=args.noise, seed=args.seed, alternatives=alts,
-                        top=args.top, workers=args.workers, progress=not args.no_progress)
+        rep = replicate(
+            sel,
+            replicas=args.replicas,
+            noise=args.noise,
+            seed=args.seed,
+            alternatives=alts,
+            top=args.top,
+            workers=args.workers,
+            progress=not args.no_progress,
+        )
     except ValueError as e:
         print(f"replicas: error: {e}", file=sys.stderr)
         return 2
@@ -82,4 +109,3 @@ def replicas_main(argv: Sequence[str] | None = None) -> int:
         Path(args.markdown).parent.mkdir(parents=True, exist_ok=True)
         Path(args.markdown).write_text(table + "\n")
     return 0
-

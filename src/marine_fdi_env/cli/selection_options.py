@@ -14,21 +14,29 @@ __all__ = ["add_valve_options"]
 def add_valve_options(ap: argparse.ArgumentParser) -> None:
     """``--held-out-valves`` and ``--beside-valve``: how valves are cross-validated and how a cause beside a valve
     earns its place (:class:`~marine_fdi_env.validation.rules.SelectionRules`)."""
-    ap.add_argument("--held-out-valves", default="schedule", choices=HELD_OUT_VALVES,
-                    help="how cross-validation predicts a valve's opening at a left-out point: the schedule through "
-                         "the other points (default; every study file), or where the fit on all points opens it, "
-                         "interpolated among the open points (support: an ablation; it names a second mechanism "
-                         "beside a valve too often; docs/figures/validation/held_out_valves/), or estimated as a "
-                         "state from the left-out point's other channels, each channel predicted without its own "
-                         "reading (state: an ablation; it lets model error in as a valve or beside one; "
-                         "docs/figures/validation/held_out_state/)")
-    ap.add_argument("--beside-valve", default=BESIDE_VALVE_DEFAULT, choices=BESIDE_VALVE,
-                    help="how a cause joining a model with a valve earns its place: a physical mechanism by its "
-                         "in-sample gain and F-test, the exchange step's swap of a physical cause for a sensor "
-                         "calibration by its in-sample gain, and a pair holding the step's best single valve by its "
-                         "second member's in-sample evidence beside the valve (in_sample_pairs, the default: the "
-                         "valve's held-out openings dilute and scatter the cross-validated score); as that but with "
-                         "a cross-validated score that must be lower at all and pairs by their penalised score "
-                         "(in_sample_exchange, the rule of the study file 360-380); the physical mechanism only "
-                         "(in_sample, the rule of 340-360); or by the cross-validated gain and F-test as every other "
-                         "candidate (cross_validated, the rule of every study file before 340-360)")
+    ap.add_argument(
+        "--held-out-valves",
+        default="schedule",
+        choices=HELD_OUT_VALVES,
+        help="how cross-validation predicts a valve's opening at a left-out point: the schedule through "
+        "the other points (default; every study file), or where the fit on all points opens it, "
+        "interpolated among the open points (support: an ablation; it names a second mechanism "
+        "beside a valve too often; docs/figures/validation/held_out_valves/), or estimated as a "
+        "state from the left-out point's other channels, each channel predicted without its own "
+        "reading (state: an ablation; it lets model error in as a valve or beside one; "
+        "docs/figures/validation/held_out_state/)",
+    )
+    ap.add_argument(
+        "--beside-valve",
+        default=BESIDE_VALVE_DEFAULT,
+        choices=BESIDE_VALVE,
+        help="how a cause joining a model with a valve earns its place: a physical mechanism by its "
+        "in-sample gain and F-test, the exchange step's swap of a physical cause for a sensor "
+        "calibration by its in-sample gain, and a pair holding the step's best single valve by its "
+        "second member's in-sample evidence beside the valve (in_sample_pairs, the default: the "
+        "valve's held-out openings dilute and scatter the cross-validated score); as that but with "
+        "a cross-validated score that must be lower at all and pairs by their penalised score "
+        "(in_sample_exchange, the rule of the study file 360-380); the physical mechanism only "
+        "(in_sample, the rule of 340-360); or by the cross-validated gain and F-test as every other "
+        "candidate (cross_validated, the rule of every study file before 340-360)",
+    )

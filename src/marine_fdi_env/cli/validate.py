@@ -24,45 +24,82 @@ from .sidecar import check_sidecar_numbers
 
 
 def build_parser(prog: str = "marine-fdi validate") -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog=prog, description="Validate the engine model against measured data: "
-                                 "discrepancies, named causes, cross-validated gain, the fitted engine.")
-    ap.add_argument("--data", metavar="FILE.csv",
-                    help="measured data (CSV with sidecar FILE.meta.json) or a shipped dataset name "
-                         f"({', '.join(list_shipped())})")
+    ap = argparse.ArgumentParser(
+        prog=prog,
+        description="Validate the engine model against measured data: "
+        "discrepancies, named causes, cross-validated gain, the fitted engine.",
+    )
+    ap.add_argument(
+        "--data",
+        metavar="FILE.csv",
+        help=f"measured data (CSV with sidecar FILE.meta.json) or a shipped dataset name ({', '.join(list_shipped())})",
+    )
     g = ap.add_mutually_exclusive_group()
     g.add_argument("--holdout", metavar="FILE.csv", help="data the fit does not see; the report gives its RMSE")
     g.add_argument("--holdout-engine", metavar="ID", help="leave this engine of --data out and predict it")
     ap.add_argument("--out", metavar="report.json", help="JSON report (required unless --check)")
-    ap.add_argument("--check", action="store_true",
-                    help="only load and check --data: what each column becomes, the assumptions, the readings left "
-                         "out, the tolerance of every compared channel; no fit (seconds)")
+    ap.add_argument(
+        "--check",
+        action="store_true",
+        help="only load and check --data: what each column becomes, the assumptions, the readings left "
+        "out, the tolerance of every compared channel; no fit (seconds)",
+    )
     ap.add_argument("--columns", action="store_true", help="list the column names the loader knows and stop")
     ap.add_argument("--plots", metavar="DIR", help="write model-vs-measurement plots here (needs matplotlib)")
-    ap.add_argument("--params", metavar="NAME|FILE.json", help="parameter set overriding the sidecar's ("
-                    + ", ".join(list_parameter_sets()) + ") or a fitted-engine file")
-    ap.add_argument("--save-params", metavar="ENGINE.json",
-                    help="write the fitted engine (parameter set + selected submodels) for operating-point, simulate, "
-                         "the environment and --params")
+    ap.add_argument(
+        "--params",
+        metavar="NAME|FILE.json",
+        help="parameter set overriding the sidecar's ("
+        + ", ".join(list_parameter_sets())
+        + ") or a fitted-engine file",
+    )
+    ap.add_argument(
+        "--save-params",
+        metavar="ENGINE.json",
+        help="write the fitted engine (parameter set + selected submodels) for operating-point, simulate, "
+        "the environment and --params",
+    )
     ap.add_argument("--target", default="auto", help="what fixes each operating point: " + ", ".join(TARGETS))
     ap.add_argument("--max-causes", type=int, default=4, help="most mechanisms to combine (default 4)")
-    ap.add_argument("--max-folds", type=int, default=None,
-                    help="cross-validate single-engine data with at most this many folds (default: leave one out)")
+    ap.add_argument(
+        "--max-folds",
+        type=int,
+        default=None,
+        help="cross-validate single-engine data with at most this many folds (default: leave one out)",
+    )
     ap.add_argument("--alpha", type=float, default=0.01, help="significance level of a named cause (default 0.01)")
-    ap.add_argument("--alpha-unexplained", type=float, default=ALPHA_UNEXPLAINED,
-                    help=f"family-wise level of what is reported as unexplained (default {ALPHA_UNEXPLAINED:g})")
-    ap.add_argument("--tolerance", action="append", default=[], metavar="COLUMN=VALUE",
-                    help="a channel's tolerance (its noise and what is not worth naming), in the column's units or "
-                         "as P%% of its mean value; repeatable; default: the sidecar's tolerances, else 1 %% and 5 K")
+    ap.add_argument(
+        "--alpha-unexplained",
+        type=float,
+        default=ALPHA_UNEXPLAINED,
+        help=f"family-wise level of what is reported as unexplained (default {ALPHA_UNEXPLAINED:g})",
+    )
+    ap.add_argument(
+        "--tolerance",
+        action="append",
+        default=[],
+        metavar="COLUMN=VALUE",
+        help="a channel's tolerance (its noise and what is not worth naming), in the column's units or "
+        "as P%% of its mean value; repeatable; default: the sidecar's tolerances, else 1 %% and 5 K",
+    )
     ap.add_argument("--cv-all", action="store_true", help="cross-validate every candidate (slower)")
     add_valve_options(ap)
     ap.add_argument("--markdown", metavar="FILE.md", help="also write the report's tables as Markdown")
-    ap.add_argument("--no-explanations", action="store_true",
-                    help="skip the set of explanations the data do not decide between, their profile intervals and "
-                         "the deciding measurement (faster)")
-    ap.add_argument("--replicas", type=int, default=0, metavar="N",
-                    help="also ask whether data like these would name the same causes again: N replicas of the data "
-                         "per hypothesis (the named causes and 4 alternatives), each run through the whole pipeline "
-                         "(marine-fdi replicas; about 5 x N pipeline runs; default 0: no)")
+    ap.add_argument(
+        "--no-explanations",
+        action="store_true",
+        help="skip the set of explanations the data do not decide between, their profile intervals and "
+        "the deciding measurement (faster)",
+    )
+    ap.add_argument(
+        "--replicas",
+        type=int,
+        default=0,
+        metavar="N",
+        help="also ask whether data like these would name the same causes again: N replicas of the data "
+        "per hypothesis (the named causes and 4 alternatives), each run through the whole pipeline "
+        "(marine-fdi replicas; about 5 x N pipeline runs; default 0: no)",
+    )
     ap.add_argument("--workers", type=int, default=1, help="processes for --replicas (default 1)")
     ap.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     return ap
@@ -125,37 +162,62 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
         notes = []
         if args.holdout_engine is not None:
             ds, holdout = split_engine(ds, args.holdout_engine)
-            notes.append(f"engine {args.holdout_engine} left out of the fit and the cross-validation; "
-                         "it is the hold-out")
+            notes.append(
+                f"engine {args.holdout_engine} left out of the fit and the cross-validation; it is the hold-out"
+            )
         elif args.holdout is not None:
             try:
-                holdout = load_data_arg(args.holdout, args.params if args.params in list_parameter_sets() else
-                                        ds.params_name)
+                holdout = load_data_arg(
+                    args.holdout, args.params if args.params in list_parameter_sets() else ds.params_name
+                )
             except DatasetError as e:
                 raise ValueError(f"--holdout: {e}") from None
         problem = Problem(ds, target=args.target, params=params) if args.tolerance or args.check else None
         tolerances = problem.stated_tolerances(args.tolerance) if args.tolerance else None
         if args.check:
-            print(describe(ds, problem, tolerances or dict(zip(problem.channels, problem.tolerance)), args.tolerance,
-                           max_folds=args.max_folds))
+            print(
+                describe(
+                    ds,
+                    problem,
+                    tolerances or dict(zip(problem.channels, problem.tolerance)),
+                    args.tolerance,
+                    max_folds=args.max_folds,
+                )
+            )
             if holdout is not None:
                 what = f"engine {args.holdout_engine} of {ds.name}" if args.holdout_engine else holdout.name
                 print(f"hold-out: {what}, {holdout.n_points} points (predicted, not fitted)")
             print("--check: nothing fitted, nothing written")
             return 0
-        rules = SelectionRules(max_causes=args.max_causes, alpha=args.alpha, alpha_unexplained=args.alpha_unexplained,
-                               cv_all=args.cv_all, max_folds=args.max_folds, beside_valve=args.beside_valve,
-                               held_out_valves=args.held_out_valves)
-        rep, sel, ho = run_validation(ds, holdout=holdout, target=args.target, params=params, rules=rules,
-                                      progress=say, notes=notes, command="marine-fdi validate " + " ".join(argv),
-                                      tolerances=tolerances, explanations=not args.no_explanations)
+        rules = SelectionRules(
+            max_causes=args.max_causes,
+            alpha=args.alpha,
+            alpha_unexplained=args.alpha_unexplained,
+            cv_all=args.cv_all,
+            max_folds=args.max_folds,
+            beside_valve=args.beside_valve,
+            held_out_valves=args.held_out_valves,
+        )
+        rep, sel, ho = run_validation(
+            ds,
+            holdout=holdout,
+            target=args.target,
+            params=params,
+            rules=rules,
+            progress=say,
+            notes=notes,
+            command="marine-fdi validate " + " ".join(argv),
+            tolerances=tolerances,
+            explanations=not args.no_explanations,
+        )
         if args.replicas:
             from ..validation.replicas import replicate
 
             if say:
                 say(f"replicas: {args.replicas} per hypothesis, each through the whole pipeline")
-            rep["replicas"] = clean_json(replicate(sel, replicas=args.replicas, workers=args.workers,
-                                               progress=not args.quiet))
+            rep["replicas"] = clean_json(
+                replicate(sel, replicas=args.replicas, workers=args.workers, progress=not args.quiet)
+            )
     except RuntimeError as e:  # a missing optional extra
         print(f"{prog}: error: {e}", file=sys.stderr)
         return 2

@@ -8,8 +8,8 @@
 """
 
 from .dataset import (
-    DataWarning,
     DatasetError,
+    DataWarning,
     MeasuredDataset,
     list_shipped,
     load_dataset,
@@ -17,5 +17,12 @@ from .dataset import (
     write_dataset,
 )
 
-__all__ = ["DataWarning", "DatasetError", "MeasuredDataset", "list_shipped", "load_dataset", "load_shipped",
-           "write_dataset"]
+__all__ = [
+    "DataWarning",
+    "DatasetError",
+    "MeasuredDataset",
+    "list_shipped",
+    "load_dataset",
+    "load_shipped",
+    "write_dataset",
+]

@@ -25,18 +25,26 @@ def step_alternatives(best: CandidateScore, cv: Sequence[CandidateScore], margin
         close = c.cv_score <= best.cv_score * (1.0 + margin)
         struct = c.combination.mechanisms[-1].id in eq
         if close or struct:
-            out.append({"mechanism": c.added, "cv_score": c.cv_score, "relative": c.cv_score / best.cv_score - 1.0,
-                        "why": "structurally equivalent on steady-state data" if struct else
-                               f"cross-validated score within {margin:.0%}"})
+            out.append(
+                {
+                    "mechanism": c.added,
+                    "cv_score": c.cv_score,
+                    "relative": c.cv_score / best.cv_score - 1.0,
+                    "why": "structurally equivalent on steady-state data"
+                    if struct
+                    else f"cross-validated score within {margin:.0%}",
+                }
+            )
     for m in sorted(eq - {c.combination.mechanisms[-1].id for c in cv}):
-        out.append({"mechanism": m, "cv_score": None, "relative": None,
-                    "why": "structurally equivalent on steady-state data"})
+        out.append(
+            {"mechanism": m, "cv_score": None, "relative": None, "why": "structurally equivalent on steady-state data"}
+        )
     return out
 
 
-
-def pair_alternatives(best: CandidateScore, pairs: Sequence[CandidateScore], margin: float
-                      ) -> dict[str, list[dict[str, Any]]]:
+def pair_alternatives(
+    best: CandidateScore, pairs: Sequence[CandidateScore], margin: float
+) -> dict[str, list[dict[str, Any]]]:
     """Per member of an accepted pair: the mechanisms that replace it in another cross-validated pair with the
     other member within ``margin`` of the pair's score, and its structural equivalents."""
     out = {}
@@ -49,10 +57,22 @@ def pair_alternatives(best: CandidateScore, pairs: Sequence[CandidateScore], mar
                 continue
             z = next(x for x in c.members if x is not other)
             if c.cv_score <= best.cv_score * (1.0 + margin):
-                alts.append({"mechanism": z.added, "cv_score": c.cv_score, "relative": c.cv_score / best.cv_score - 1,
-                             "why": f"with {other.added}: cross-validated score within {margin:.0%}"})
+                alts.append(
+                    {
+                        "mechanism": z.added,
+                        "cv_score": c.cv_score,
+                        "relative": c.cv_score / best.cv_score - 1,
+                        "why": f"with {other.added}: cross-validated score within {margin:.0%}",
+                    }
+                )
         for e in sorted(equivalents(mid)):
-            alts.append({"mechanism": e, "cv_score": None, "relative": None,
-                         "why": "structurally equivalent on steady-state data"})
+            alts.append(
+                {
+                    "mechanism": e,
+                    "cv_score": None,
+                    "relative": None,
+                    "why": "structurally equivalent on steady-state data",
+                }
+            )
         out[m.added] = alts
     return out

@@ -21,11 +21,16 @@ __all__ = ["BOUNDARY_OUTLIER_Z", "boundary_conditions", "cylinder_groups"]
 BOUNDARY_OUTLIER_Z = 5.0  # robust z-score above which a boundary reading is a recording error
 # resolution floors of the robust scale of boundary readings (a MAD of 0 must not flag 0.5 K differences)
 _BOUNDARY_FLOOR = {"ambient_temperature_K": 1.0, "ambient_pressure_Pa": 200.0, "exhaust_back_pressure_Pa": 300.0}
-_BOUNDARY_KEY = {"ambient_pressure_Pa": "p_amb_Pa", "ambient_temperature_K": "T_amb_K",
-                 "exhaust_back_pressure_Pa": "dp_ex_Pa"}
+_BOUNDARY_KEY = {
+    "ambient_pressure_Pa": "p_amb_Pa",
+    "ambient_temperature_K": "T_amb_K",
+    "exhaust_back_pressure_Pa": "dp_ex_Pa",
+}
 
 
-def boundary_conditions(raw, column_quantity, column_role, column_spec, n, warn) -> tuple[dict[str, np.ndarray], list[dict]]:
+def boundary_conditions(
+    raw, column_quantity, column_role, column_spec, n, warn
+) -> tuple[dict[str, np.ndarray], list[dict]]:
     """Per-row boundary conditions (SI, NaN where not recorded) with recording errors left out.
 
     A reading is a recording error when its robust z-score against the other rows (deviation from their
@@ -50,12 +55,22 @@ def boundary_conditions(raw, column_quantity, column_role, column_spec, n, warn)
                 z = abs(si[i] - med) / scale if scale > 0 else math.inf
                 if z > BOUNDARY_OUTLIER_Z:
                     clean[i] = med
-                    outliers.append({"column": h, "row": int(i) + 1, "value": float(raw[h][i]),
-                                     "replacement": float(spec.from_si(med, 0.0) if spec.gauge else spec.from_si(med)),
-                                     "robust_z": float(z)})
-                    warn(f"boundary reading {raw[h][i]:g} is {z:.0f} robust standard deviations from the other rows' "
-                         f"median {spec.from_si(med, 0.0) if spec.gauge else spec.from_si(med):g}: a recording error; "
-                         "left out, the row runs at that median", rows=(int(i) + 1,), column=h)
+                    outliers.append(
+                        {
+                            "column": h,
+                            "row": int(i) + 1,
+                            "value": float(raw[h][i]),
+                            "replacement": float(spec.from_si(med, 0.0) if spec.gauge else spec.from_si(med)),
+                            "robust_z": float(z),
+                        }
+                    )
+                    warn(
+                        f"boundary reading {raw[h][i]:g} is {z:.0f} robust standard deviations from the other rows' "
+                        f"median {spec.from_si(med, 0.0) if spec.gauge else spec.from_si(med):g}: a recording error; "
+                        "left out, the row runs at that median",
+                        rows=(int(i) + 1,),
+                        column=h,
+                    )
         out[key] = clean
     return out, outliers
 
@@ -70,8 +85,9 @@ def cylinder_groups(raw, column_quantity, column_role, column_spec, n, p_amb, wa
         g = column_spec[h].group
         out.setdefault(g, {"columns": [], "quantity": column_quantity[h]})["columns"].append(h)
     for g, d in out.items():
-        mean_col = next((c for c, q in column_quantity.items()
-                         if q == d["quantity"] and column_role.get(c) != "member"), None)
+        mean_col = next(
+            (c for c, q in column_quantity.items() if q == d["quantity"] and column_role.get(c) != "member"), None
+        )
         members = np.column_stack([column_spec[c].to_si(raw[c], p_amb) for c in d["columns"]])
         cnt = np.sum(np.isfinite(members), axis=1)
         with warnings.catch_warnings():
@@ -86,13 +102,20 @@ def cylinder_groups(raw, column_quantity, column_role, column_spec, n, p_amb, wa
             d["spread"] = spread_si / spec.scale
             rec = spec.to_si(raw[mean_col], p_amb)
             dev = np.abs(rec - mean_si)
-            bad = np.isfinite(dev) & (dev > np.maximum(0.01 * np.abs(mean_si) if QUANTITIES[d["quantity"]].kind != "temperature"
-                                                       else 2.0, 1e-9))
+            bad = np.isfinite(dev) & (
+                dev
+                > np.maximum(0.01 * np.abs(mean_si) if QUANTITIES[d["quantity"]].kind != "temperature" else 2.0, 1e-9)
+            )
             if np.any(bad):
-                warn(f"the recorded mean differs from the mean of {', '.join(d['columns'])} (kept as recorded)",
-                     rows=rows_where(bad), column=mean_col)
+                warn(
+                    f"the recorded mean differs from the mean of {', '.join(d['columns'])} (kept as recorded)",
+                    rows=rows_where(bad),
+                    column=mean_col,
+                )
         else:
             d["spread"] = spread_si
-            warn(f"per-cylinder group {g!r} has no engine-mean column: its members are listed, not compared",
-                 column=d["columns"][0])
+            warn(
+                f"per-cylinder group {g!r} has no engine-mean column: its members are listed, not compared",
+                column=d["columns"][0],
+            )
     return out

@@ -9,7 +9,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from .candidates import CandidateScore
-from .fitting import (FitResult, FoldData, cross_validate, fit_combination, fit_sensor, fold_data, robust_loss)
+from .fitting import FitResult, FoldData, cross_validate, fit_combination, fit_sensor, fold_data, robust_loss
 from .mechanisms import SensorCalibration
 from .problem import Problem
 
@@ -26,14 +26,26 @@ def sensor_fit(problem: Problem, current: FitResult, in_pred: np.ndarray, mech: 
     pred = in_pred.copy()
     pred[:, j] = g * in_pred[:, j] + o
     r = problem.normalised_residuals(pred)[rows][problem.measured_mask[rows]]
-    return FitResult(comb, current.nuisance.copy(), np.concatenate([current.x, [g, o]]),
-                     np.concatenate([current.stderr, [np.nan, np.nan]]), dict(current.openings), dict(current.support),
-                     current.cost, 0.5 * float(np.sum(robust_loss(r))), current.n_cells, current.k + 2, rows, current.u,
-                     at_bound=np.concatenate([current.at_bound, [False, False]]))
+    return FitResult(
+        comb,
+        current.nuisance.copy(),
+        np.concatenate([current.x, [g, o]]),
+        np.concatenate([current.stderr, [np.nan, np.nan]]),
+        dict(current.openings),
+        dict(current.support),
+        current.cost,
+        0.5 * float(np.sum(robust_loss(r))),
+        current.n_cells,
+        current.k + 2,
+        rows,
+        current.u,
+        at_bound=np.concatenate([current.at_bound, [False, False]]),
+    )
 
 
-def sensor_candidate(problem: Problem, current: FitResult, in_pred: np.ndarray, folds: FoldData,
-                     mech: SensorCalibration) -> tuple[FitResult, np.ndarray]:
+def sensor_candidate(
+    problem: Problem, current: FitResult, in_pred: np.ndarray, folds: FoldData, mech: SensorCalibration
+) -> tuple[FitResult, np.ndarray]:
     """``current`` plus a sensor calibration, fitted on ``current``'s readings (in-sample and per fold):
     (the fit, its cross-validated predictions)."""
     j = problem.channels.index(mech.channel)
@@ -51,8 +63,7 @@ def sensor_candidate(problem: Problem, current: FitResult, in_pred: np.ndarray, 
 CALIBRATION_REFITS = 2
 
 
-def calibrations_to_refit(scored: Sequence[CandidateScore], current_S: float, min_gain: float
-                          ) -> list[CandidateScore]:
+def calibrations_to_refit(scored: Sequence[CandidateScore], current_S: float, min_gain: float) -> list[CandidateScore]:
     """The :data:`CALIBRATION_REFITS` most promising sensor calibrations of a step, to be fitted and cross-validated
     with every parameter free, as the physical candidates are.
 
@@ -62,13 +73,26 @@ def calibrations_to_refit(scored: Sequence[CandidateScore], current_S: float, mi
     trials a48, a51, b58, d40).  Refitting every calibration would cost as much as the physical candidates again;
     the miscalibrated channel is the one whose calibration on the current readings gains most, so the best two
     (those that improve the current score by ``min_gain`` already on the current readings) are refitted."""
-    cal = [c for c in scored if isinstance(c.combination.mechanisms[-1], SensorCalibration)
-           and current_S > 0 and (current_S - c.in_sample_score) / current_S >= min_gain]
+    cal = [
+        c
+        for c in scored
+        if isinstance(c.combination.mechanisms[-1], SensorCalibration)
+        and current_S > 0
+        and (current_S - c.in_sample_score) / current_S >= min_gain
+    ]
     return sorted(cal, key=lambda c: c.in_sample_score)[:CALIBRATION_REFITS]
 
 
-def refit_with_calibration(problem: Problem, best: CandidateScore, previous: FitResult, M: int, penalty: float,
-                           max_folds: int | None, step: dict[str, Any], say):
+def refit_with_calibration(
+    problem: Problem,
+    best: CandidateScore,
+    previous: FitResult,
+    M: int,
+    penalty: float,
+    max_folds: int | None,
+    step: dict[str, Any],
+    say,
+):
     """The model with an accepted sensor calibration, refitted as a whole and cross-validated: (fit, cross-validated
     predictions, point losses, score, penalised score, folds).
 
@@ -83,7 +107,10 @@ def refit_with_calibration(problem: Problem, best: CandidateScore, previous: Fit
     fit = fit_combination(problem, comb, start=best.fit, known=best.fit.values(), support=previous.support)
     c = CandidateScore(comb, best.added, fit, 2.0 * fit.data_cost / M)
     c.score(problem, *cross_validate(problem, comb, fit, max_folds=max_folds), M, penalty, best.cv_score, best.fit.k)
-    step["refit"] = {"cv_score_on_previous_readings": best.cv_score, "cv_score_refitted": c.cv_score,
-                     "fit": fit.values()}
+    step["refit"] = {
+        "cv_score_on_previous_readings": best.cv_score,
+        "cv_score_refitted": c.cv_score,
+        "fit": fit.values(),
+    }
     say(f"refitted with {best.added}: CV {best.cv_score:.4g} -> {c.cv_score:.4g}")
     return fit, c.cv_pred, c.point_losses, c.cv_score, c.penalised, fold_data(problem, c.folds, max_folds)

@@ -58,14 +58,15 @@ def shape_dictionary(x: Sequence[float]) -> tuple[np.ndarray, list[tuple[str, fl
     for w in range(2, n // 2 + 1):
         for a in range(0, n - w + 1):
             v = np.zeros(n)
-            v[a:a + w] = 1.0
+            v[a : a + w] = 1.0
             rows.append(v)
             where.append(("window", float(x[a]), float(x[a + w - 1])))
     return np.asarray(rows), where
 
 
-def orthonormal_directions(shapes: np.ndarray, reading: np.ndarray, noise_sd: np.ndarray | float = 1.0
-                           ) -> tuple[np.ndarray, np.ndarray]:
+def orthonormal_directions(
+    shapes: np.ndarray, reading: np.ndarray, noise_sd: np.ndarray | float = 1.0
+) -> tuple[np.ndarray, np.ndarray]:
     """Unit vectors (columns) of the shapes' (rows) parts orthogonal to [1, reading], all whitened by ``noise_sd``
     per point (what a gain and an offset absorb projected out), and the indices of the shapes kept (those left with
     more than 1e-6 of the largest shape's norm)."""
@@ -79,8 +80,9 @@ def orthonormal_directions(shapes: np.ndarray, reading: np.ndarray, noise_sd: np
     return U[:, keep] / norm[keep], keep
 
 
-def structure_scan(residual: Sequence[float], load: Sequence[float], reading: Sequence[float], tol: float,
-                   noise: float = 1.0) -> dict[str, Any] | None:
+def structure_scan(
+    residual: Sequence[float], load: Sequence[float], reading: Sequence[float], tol: float, noise: float = 1.0
+) -> dict[str, Any] | None:
     """The scan of the module docstring on one calibrated channel: ``residual`` (model minus measurement, column
     units), ``load`` and ``reading`` (the calibrated model reading) per point, ``tol`` the channel's tolerance and
     ``noise`` the data's noise in tolerances.
@@ -110,6 +112,12 @@ def structure_scan(residual: Sequence[float], load: Sequence[float], reading: Se
     fitted = proj[j] * U[:, j] * tol
     kind, lo, hi = where[int(keep[j])]
     acts = np.flatnonzero(shapes[int(keep[j])] != 0)
-    return {"p": (1 + n_ge) / (NULL_DRAWS + 1), "p_at_floor": n_ge == 0, "z": z, "kind": kind,
-            "load_range": [lo, hi], "d": float(fitted[np.argmax(np.abs(fitted))]),
-            "positions": sorted(int(order[i]) for i in acts)}
+    return {
+        "p": (1 + n_ge) / (NULL_DRAWS + 1),
+        "p_at_floor": n_ge == 0,
+        "z": z,
+        "kind": kind,
+        "load_range": [lo, hi],
+        "d": float(fitted[np.argmax(np.abs(fitted))]),
+        "positions": sorted(int(order[i]) for i in acts),
+    }

@@ -46,8 +46,18 @@ class CandidateScore:
     def cross_validated(self) -> bool:
         return self.cv_pred is not None
 
-    def score(self, problem: Problem, pred: np.ndarray, folds, M: int, penalty: float, current_S: float,
-              current_k: int, current_L: np.ndarray | None = None, rows: np.ndarray | None = None) -> None:
+    def score(
+        self,
+        problem: Problem,
+        pred: np.ndarray,
+        folds,
+        M: int,
+        penalty: float,
+        current_S: float,
+        current_k: int,
+        current_L: np.ndarray | None = None,
+        rows: np.ndarray | None = None,
+    ) -> None:
         """Record the cross-validated predictions ``pred`` (and fold fits): score, penalised score, gain and F-test
         against the current model (score ``current_S``, ``current_k`` parameters), the paired test over ``rows``
         when the current model's point losses ``current_L`` are given."""
@@ -61,16 +71,25 @@ class CandidateScore:
             self.p_value_points = paired_p(current_L, L, rows)
 
     def as_dict(self) -> dict[str, Any]:
-        d = {"mechanism": self.added, "id": self.combination.mechanisms[-1].id,
-             "combination": list(self.combination.labels), "n_params": self.fit.k,
-             "in_sample_score": self.in_sample_score, "cv_score": finite_or_none(self.cv_score),
-             "penalised_score": finite_or_none(self.penalised), "gain_vs_current": finite_or_none(self.gain),
-             "p_value": finite_or_none(self.p_value), "p_value_points": finite_or_none(self.p_value_points),
-             "fit": self.fit.values(), "fit_stderr": dict(zip(self.combination.names, map(float, self.fit.stderr))),
-             "nuisance": self.fit.nuisance_values()}
+        d = {
+            "mechanism": self.added,
+            "id": self.combination.mechanisms[-1].id,
+            "combination": list(self.combination.labels),
+            "n_params": self.fit.k,
+            "in_sample_score": self.in_sample_score,
+            "cv_score": finite_or_none(self.cv_score),
+            "penalised_score": finite_or_none(self.penalised),
+            "gain_vs_current": finite_or_none(self.gain),
+            "p_value": finite_or_none(self.p_value),
+            "p_value_points": finite_or_none(self.p_value_points),
+            "fit": self.fit.values(),
+            "fit_stderr": dict(zip(self.combination.names, map(float, self.fit.stderr))),
+            "nuisance": self.fit.nuisance_values(),
+        }
         if self.combination.valves:
-            d["openings"] = {k: [None if not math.isfinite(x) else float(x) for x in v]
-                             for k, v in self.fit.openings.items()}
+            d["openings"] = {
+                k: [None if not math.isfinite(x) else float(x) for x in v] for k, v in self.fit.openings.items()
+            }
         if self.screened:
             d["screened"] = self.screened
         if self.notes:
@@ -80,7 +99,6 @@ class CandidateScore:
 
 def finite_or_none(x: float) -> float | None:
     return None if x is None or not math.isfinite(x) else float(x)
-
 
 
 def f_test_p(S_current: float, S_cand: float, k_current: int, k_cand: int, M: int) -> float:

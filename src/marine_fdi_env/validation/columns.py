@@ -38,8 +38,18 @@ from typing import Callable, Mapping
 import numpy as np
 
 __all__ = [
-    "Quantity", "ColumnSpec", "QUANTITIES", "COLUMNS", "ID_COLUMNS", "ModelContext", "lookup_column",
-    "column_problem", "resolve_quantity", "quantity_stems", "ROLES", "AMBIGUOUS_CHARGE_AIR_T",
+    "Quantity",
+    "ColumnSpec",
+    "QUANTITIES",
+    "COLUMNS",
+    "ID_COLUMNS",
+    "ModelContext",
+    "lookup_column",
+    "column_problem",
+    "resolve_quantity",
+    "quantity_stems",
+    "ROLES",
+    "AMBIGUOUS_CHARGE_AIR_T",
     "GROUP_PATTERNS",
 ]
 
@@ -88,62 +98,168 @@ def _per_power(key: str) -> Callable[[Summary, ModelContext], float]:
 _Q = [
     Quantity("engine_speed_rev_s", "rev/s", "ratio", "engine speed", _s("engine_speed_rev_s"), "setpoint"),
     Quantity("power_W", "W", "ratio", "brake power", _s("power_W"), "setpoint"),
-    Quantity("load_fraction", "-", "dimensionless", "brake power / rated power",
-             lambda s, ctx: float(s["power_W"]) / ctx.rated_power_W, "setpoint"),
+    Quantity(
+        "load_fraction",
+        "-",
+        "dimensionless",
+        "brake power / rated power",
+        lambda s, ctx: float(s["power_W"]) / ctx.rated_power_W,
+        "setpoint",
+    ),
     Quantity("torque_Nm", "N m", "ratio", "brake torque", _s("torque_Nm")),
-    Quantity("fuel_setting", "-", "dimensionless", "model fuel setting u (1 = nominal fuel per cycle)",
-             _s("fuel_setting"), "setpoint"),
+    Quantity(
+        "fuel_setting",
+        "-",
+        "dimensionless",
+        "model fuel setting u (1 = nominal fuel per cycle)",
+        _s("fuel_setting"),
+        "setpoint",
+    ),
     Quantity("fuel_rack", "index", "index", "fuel rack position as recorded (no model counterpart)", None, "setpoint"),
     Quantity("fuel_mass_flow_kg_s", "kg/s", "ratio", "fuel mass flow", _s("fuel_mass_flow_kg_s"), "setpoint"),
     Quantity("sfc_kg_per_J", "kg/J", "ratio", "specific fuel consumption", _s("sfc_kg_per_J")),
-    Quantity("sfc_iso_kg_per_J", "kg/J", "ratio", "specific fuel consumption corrected to ISO 3046-1 conditions",
-             None, "not_modelled",
-             "the ISO correction needs the fuel's heating value, which the data do not record; the measured fuel "
-             "flow carries the same information and is compared (the report gives the implied correction factor)"),
-    Quantity("charge_air_pressure_Pa", "Pa", "ratio", "charge-air (scavenge) pressure, absolute",
-             _s("charge_air_pressure_Pa")),
-    Quantity("exhaust_receiver_pressure_Pa", "Pa", "ratio", "exhaust receiver (turbine inlet) pressure, absolute",
-             _s("exhaust_receiver_pressure_Pa")),
+    Quantity(
+        "sfc_iso_kg_per_J",
+        "kg/J",
+        "ratio",
+        "specific fuel consumption corrected to ISO 3046-1 conditions",
+        None,
+        "not_modelled",
+        "the ISO correction needs the fuel's heating value, which the data do not record; the measured fuel "
+        "flow carries the same information and is compared (the report gives the implied correction factor)",
+    ),
+    Quantity(
+        "charge_air_pressure_Pa",
+        "Pa",
+        "ratio",
+        "charge-air (scavenge) pressure, absolute",
+        _s("charge_air_pressure_Pa"),
+    ),
+    Quantity(
+        "exhaust_receiver_pressure_Pa",
+        "Pa",
+        "ratio",
+        "exhaust receiver (turbine inlet) pressure, absolute",
+        _s("exhaust_receiver_pressure_Pa"),
+    ),
     Quantity("p_max_Pa", "Pa", "ratio", "maximum cylinder pressure, absolute (engine mean)", _s("p_max_Pa")),
-    Quantity("compressor_outlet_temperature_K", "K", "temperature", "charge air after the compressor",
-             _s("compressor_outlet_temperature_K")),
-    Quantity("charge_air_cooler_outlet_temperature_K", "K", "temperature",
-             "charge air after the cooler (the model's T_c: constant in the base model, eq. 3.37)",
-             _s("charge_air_cooler_outlet_temperature_K")),
-    Quantity("inlet_air_temperature_K", "K", "temperature",
-             "air at the cylinder inlet, after cooler and inlet duct (z1 of eq. 3.37)",
-             _s("inlet_air_temperature_K")),
-    Quantity("turbine_inlet_temperature_K", "K", "temperature", "exhaust before the turbine (its thermocouple)",
-             _s("turbine_inlet_temperature_K")),
-    Quantity("turbine_outlet_temperature_K", "K", "temperature", "exhaust at the turbine outlet",
-             _s("turbine_outlet_temperature_K")),
-    Quantity("cylinder_outlet_temperature_K", "K", "temperature",
-             "gas leaving the cylinders (engine mean of the cylinder outlet thermocouples; model: exhaust and slip "
-             "air mixed, before manifold heat loss and bypass air)", _s("cylinder_outlet_temperature_K")),
-    Quantity("turbocharger_speed_rev_s", "rev/s", "ratio", "turbocharger rotor speed",
-             _s("turbocharger_speed_rpm", 1.0 / 60.0)),
-    Quantity("air_mass_flow_kg_s", "kg/s", "ratio", "compressor air mass flow (cylinders and bypass)",
-             _s("air_mass_flow_kg_s")),
+    Quantity(
+        "compressor_outlet_temperature_K",
+        "K",
+        "temperature",
+        "charge air after the compressor",
+        _s("compressor_outlet_temperature_K"),
+    ),
+    Quantity(
+        "charge_air_cooler_outlet_temperature_K",
+        "K",
+        "temperature",
+        "charge air after the cooler (the model's T_c: constant in the base model, eq. 3.37)",
+        _s("charge_air_cooler_outlet_temperature_K"),
+    ),
+    Quantity(
+        "inlet_air_temperature_K",
+        "K",
+        "temperature",
+        "air at the cylinder inlet, after cooler and inlet duct (z1 of eq. 3.37)",
+        _s("inlet_air_temperature_K"),
+    ),
+    Quantity(
+        "turbine_inlet_temperature_K",
+        "K",
+        "temperature",
+        "exhaust before the turbine (its thermocouple)",
+        _s("turbine_inlet_temperature_K"),
+    ),
+    Quantity(
+        "turbine_outlet_temperature_K",
+        "K",
+        "temperature",
+        "exhaust at the turbine outlet",
+        _s("turbine_outlet_temperature_K"),
+    ),
+    Quantity(
+        "cylinder_outlet_temperature_K",
+        "K",
+        "temperature",
+        "gas leaving the cylinders (engine mean of the cylinder outlet thermocouples; model: exhaust and slip "
+        "air mixed, before manifold heat loss and bypass air)",
+        _s("cylinder_outlet_temperature_K"),
+    ),
+    Quantity(
+        "turbocharger_speed_rev_s",
+        "rev/s",
+        "ratio",
+        "turbocharger rotor speed",
+        _s("turbocharger_speed_rpm", 1.0 / 60.0),
+    ),
+    Quantity(
+        "air_mass_flow_kg_s",
+        "kg/s",
+        "ratio",
+        "compressor air mass flow (cylinders and bypass)",
+        _s("air_mass_flow_kg_s"),
+    ),
     Quantity("exhaust_mass_flow_kg_s", "kg/s", "ratio", "exhaust mass flow", _s("exhaust_mass_flow_kg_s")),
-    Quantity("specific_air_flow_kg_per_J", "kg/J", "ratio", "air mass flow / brake power",
-             _per_power("air_mass_flow_kg_s")),
-    Quantity("specific_exhaust_flow_kg_per_J", "kg/J", "ratio", "exhaust mass flow / brake power",
-             _per_power("exhaust_mass_flow_kg_s")),
+    Quantity(
+        "specific_air_flow_kg_per_J", "kg/J", "ratio", "air mass flow / brake power", _per_power("air_mass_flow_kg_s")
+    ),
+    Quantity(
+        "specific_exhaust_flow_kg_per_J",
+        "kg/J",
+        "ratio",
+        "exhaust mass flow / brake power",
+        _per_power("exhaust_mass_flow_kg_s"),
+    ),
     Quantity("air_excess_ratio", "-", "dimensionless", "air excess ratio lambda", _s("air_excess_ratio")),
     # boundary conditions of a row
-    Quantity("ambient_pressure_Pa", "Pa", "ratio", "ambient (test-bed) pressure", None, "boundary",
-             "boundary condition: the row's ambient pressure (compressor inlet, gauge readings, turbine back "
-             "pressure)"),
-    Quantity("ambient_temperature_K", "K", "temperature", "air temperature at the compressor inlet", None,
-             "boundary", "boundary condition: the row's compressor inlet temperature (T_amb of the model)"),
-    Quantity("exhaust_back_pressure_Pa", "Pa", "ratio", "exhaust pressure after the turbine above ambient", None,
-             "boundary", "boundary condition: the turbine back pressure p_ex = ambient + back pressure"),
+    Quantity(
+        "ambient_pressure_Pa",
+        "Pa",
+        "ratio",
+        "ambient (test-bed) pressure",
+        None,
+        "boundary",
+        "boundary condition: the row's ambient pressure (compressor inlet, gauge readings, turbine back pressure)",
+    ),
+    Quantity(
+        "ambient_temperature_K",
+        "K",
+        "temperature",
+        "air temperature at the compressor inlet",
+        None,
+        "boundary",
+        "boundary condition: the row's compressor inlet temperature (T_amb of the model)",
+    ),
+    Quantity(
+        "exhaust_back_pressure_Pa",
+        "Pa",
+        "ratio",
+        "exhaust pressure after the turbine above ambient",
+        None,
+        "boundary",
+        "boundary condition: the turbine back pressure p_ex = ambient + back pressure",
+    ),
     # recorded, no model counterpart
-    Quantity("relative_humidity", "-", "dimensionless", "relative humidity of the intake air", None, "not_modelled",
-             "the model's air is dry (table 4.1 gas properties); humidity changes c_p and R by well under 1 %"),
-    Quantity("cooler_pressure_drop_Pa", "Pa", "ratio", "pressure drop over the charge-air cooler", None,
-             "not_modelled", "the model has no cooler pressure drop (compressor outlet = charge-air pressure); "
-                             "recorded drops are below 1 % of the charge-air pressure"),
+    Quantity(
+        "relative_humidity",
+        "-",
+        "dimensionless",
+        "relative humidity of the intake air",
+        None,
+        "not_modelled",
+        "the model's air is dry (table 4.1 gas properties); humidity changes c_p and R by well under 1 %",
+    ),
+    Quantity(
+        "cooler_pressure_drop_Pa",
+        "Pa",
+        "ratio",
+        "pressure drop over the charge-air cooler",
+        None,
+        "not_modelled",
+        "the model has no cooler pressure drop (compressor outlet = charge-air pressure); "
+        "recorded drops are below 1 % of the charge-air pressure",
+    ),
 ]
 QUANTITIES: dict[str, Quantity] = {q.name: q for q in _Q}
 
@@ -202,20 +318,39 @@ _SPEED = {"rpm": (1.0 / 60.0, 0.0, False), "rev_s": (1.0, 0.0, False), "rev_per_
 _POWER = {"W": (1.0, 0.0, False), "kW": (1e3, 0.0, False), "MW": (1e6, 0.0, False)}
 _TORQUE = {"Nm": (1.0, 0.0, False), "kNm": (1e3, 0.0, False)}
 _PRESSURE = {
-    "bar_abs": (1e5, 0.0, False), "bar_gauge": (1e5, 0.0, True),
-    "kPa_abs": (1e3, 0.0, False), "kPa_gauge": (1e3, 0.0, True),
-    "MPa_abs": (1e6, 0.0, False), "Pa_abs": (1.0, 0.0, False),
-    "mbar_abs": (1e2, 0.0, False), "mbar_gauge": (1e2, 0.0, True),
+    "bar_abs": (1e5, 0.0, False),
+    "bar_gauge": (1e5, 0.0, True),
+    "kPa_abs": (1e3, 0.0, False),
+    "kPa_gauge": (1e3, 0.0, True),
+    "MPa_abs": (1e6, 0.0, False),
+    "Pa_abs": (1.0, 0.0, False),
+    "mbar_abs": (1e2, 0.0, False),
+    "mbar_gauge": (1e2, 0.0, True),
 }
-_ABS_PRESSURE = {"hPa": (1e2, 0.0, False), "mbar": (1e2, 0.0, False), "bar": (1e5, 0.0, False),
-                 "kPa": (1e3, 0.0, False), "Pa": (1.0, 0.0, False)}  # ambient pressure: absolute by nature
-_DIFF_PRESSURE = {"mbar": (1e2, 0.0, False), "kPa": (1e3, 0.0, False), "Pa": (1.0, 0.0, False),
-                  "bar": (1e5, 0.0, False)}  # differences (back pressure above ambient, pressure drops)
+_ABS_PRESSURE = {
+    "hPa": (1e2, 0.0, False),
+    "mbar": (1e2, 0.0, False),
+    "bar": (1e5, 0.0, False),
+    "kPa": (1e3, 0.0, False),
+    "Pa": (1.0, 0.0, False),
+}  # ambient pressure: absolute by nature
+_DIFF_PRESSURE = {
+    "mbar": (1e2, 0.0, False),
+    "kPa": (1e3, 0.0, False),
+    "Pa": (1.0, 0.0, False),
+    "bar": (1e5, 0.0, False),
+}  # differences (back pressure above ambient, pressure drops)
 _TEMPERATURE = {"C": (1.0, 273.15, False), "K": (1.0, 0.0, False)}
-_MASS_FLOW = {"kg_per_h": (1.0 / 3600.0, 0.0, False), "kg_per_s": (1.0, 0.0, False),
-              "t_per_h": (1000.0 / 3600.0, 0.0, False)}
-_SPECIFIC = {"g_per_kWh": (1e-3 / 3.6e6, 0.0, False), "kg_per_kWh": (1.0 / 3.6e6, 0.0, False),
-             "kg_per_J": (1.0, 0.0, False)}
+_MASS_FLOW = {
+    "kg_per_h": (1.0 / 3600.0, 0.0, False),
+    "kg_per_s": (1.0, 0.0, False),
+    "t_per_h": (1000.0 / 3600.0, 0.0, False),
+}
+_SPECIFIC = {
+    "g_per_kWh": (1e-3 / 3.6e6, 0.0, False),
+    "kg_per_kWh": (1.0 / 3.6e6, 0.0, False),
+    "kg_per_J": (1.0, 0.0, False),
+}
 _SPECIFIC_FLOW = {"kg_per_kWh": (1.0 / 3.6e6, 0.0, False), "kg_per_J": (1.0, 0.0, False)}
 _PERCENT = {"percent": (0.01, 0.0, False), "fraction": (1.0, 0.0, False)}
 _RACK = {"mm": (1.0, 0.0, False), "index": (1.0, 0.0, False)}
@@ -269,11 +404,18 @@ _ASSUMED_GAUGE = {"mean_max_cylinder_pressure_bar": "p_max_Pa", "max_cylinder_pr
 
 # per-cylinder groups: pattern -> (group (the engine-mean quantity), unit table, gauge assumed)
 GROUP_PATTERNS: dict[str, tuple[re.Pattern, str, dict, bool]] = {
-    "cylinder_exhaust_temperature": (re.compile(r"^cylinder_(\d+)_exhaust_temperature_(C|K)$"),
-                                     "cylinder_outlet_temperature_K", _TEMPERATURE, False),
-    "cylinder_max_pressure": (re.compile(r"^cylinder_(\d+)_max_pressure_(bar|bar_abs|bar_gauge)$"), "p_max_Pa",
-                              {"bar": (1e5, 0.0, True), "bar_abs": (1e5, 0.0, False),
-                               "bar_gauge": (1e5, 0.0, True)}, True),
+    "cylinder_exhaust_temperature": (
+        re.compile(r"^cylinder_(\d+)_exhaust_temperature_(C|K)$"),
+        "cylinder_outlet_temperature_K",
+        _TEMPERATURE,
+        False,
+    ),
+    "cylinder_max_pressure": (
+        re.compile(r"^cylinder_(\d+)_max_pressure_(bar|bar_abs|bar_gauge)$"),
+        "p_max_Pa",
+        {"bar": (1e5, 0.0, True), "bar_abs": (1e5, 0.0, False), "bar_gauge": (1e5, 0.0, True)},
+        True,
+    ),
 }
 
 
@@ -308,8 +450,19 @@ def lookup_column(name: str) -> ColumnSpec | None:
         m = pat.match(name)
         if m:
             scale, offset, gauge = units[m.group(2)]
-            return ColumnSpec(name, group, m.group(2), quantity, scale, offset, gauge, role="member",
-                              gauge_assumed=assumed and m.group(2) == "bar", group=group, index=int(m.group(1)))
+            return ColumnSpec(
+                name,
+                group,
+                m.group(2),
+                quantity,
+                scale,
+                offset,
+                gauge,
+                role="member",
+                gauge_assumed=assumed and m.group(2) == "bar",
+                group=group,
+                index=int(m.group(1)),
+            )
     return None
 
 
@@ -328,7 +481,7 @@ def column_problem(name: str) -> str | None:
             units = ", ".join(f"{stem}_{u}" for u in _units_of(stem))
             return f"missing unit suffix: {name!r} has no unit (use one of {units})"
         if name.startswith(stem + "_"):
-            unit = name[len(stem) + 1:]
+            unit = name[len(stem) + 1 :]
             units = ", ".join(f"{stem}_{u}" for u in _units_of(stem))
             hint = " ('bar' is ambiguous: say bar_abs or bar_gauge)" if unit in ("bar", "kPa", "MPa", "Pa") else ""
             return f"unknown unit {unit!r} in column {name!r}{hint}; known: {units}"
@@ -343,12 +496,19 @@ def resolve_quantity(column: str, spec: ColumnSpec, meta: Mapping) -> tuple[str,
     explicit = (meta.get("column_quantities") or {}).get(column)
     if explicit is not None:
         if explicit not in QUANTITIES:
-            raise ValueError(f"sidecar column_quantities[{column!r}] = {explicit!r} is not a known quantity; "
-                             f"known: {', '.join(QUANTITIES)}")
+            raise ValueError(
+                f"sidecar column_quantities[{column!r}] = {explicit!r} is not a known quantity; "
+                f"known: {', '.join(QUANTITIES)}"
+            )
         return explicit, f"{column}: quantity {explicit} (sidecar column_quantities)", False
     if spec.quantity != AMBIGUOUS_CHARGE_AIR_T:
         return spec.quantity, None, False
-    return "charge_air_cooler_outlet_temperature_K", (
-        f"{column}: where it is measured (after the compressor or after the cooler) is not stated by the sidecar "
-        "key \"column_quantities\"; taken as the air after the cooler. Set \"column_quantities\": "
-        f"{{\"{column}\": \"compressor_outlet_temperature_K\"}} (or ...cooler_outlet...) to decide"), True
+    return (
+        "charge_air_cooler_outlet_temperature_K",
+        (
+            f"{column}: where it is measured (after the compressor or after the cooler) is not stated by the sidecar "
+            'key "column_quantities"; taken as the air after the cooler. Set "column_quantities": '
+            f'{{"{column}": "compressor_outlet_temperature_K"}} (or ...cooler_outlet...) to decide'
+        ),
+        True,
+    )

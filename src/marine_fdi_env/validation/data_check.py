@@ -40,16 +40,23 @@ def _default_basis(ds: MeasuredDataset, column: str) -> str:
     return f"{100 * REL_TOL:g} % of the mean" + (" absolute reading" if ds.spec(column).gauge else "")
 
 
-def describe(ds: MeasuredDataset, problem: Problem, tolerances: Mapping[str, float], stated: Sequence[str] = (),
-             max_folds: int | None = None) -> str:
+def describe(
+    ds: MeasuredDataset,
+    problem: Problem,
+    tolerances: Mapping[str, float],
+    stated: Sequence[str] = (),
+    max_folds: int | None = None,
+) -> str:
     """The dataset as the pipeline will use it: points, roles of every column, warnings and notes, boundary
     outliers, the operating-point target, the cross-validation scheme and each compared channel's tolerance.
 
     tolerances : the tolerance per compared channel that the fit will use (column units).  stated : the
     ``--tolerance`` items, only to say where each tolerance comes from."""
     L = [ds.quality_report()]
-    L.append(f"  engine parameter set: {problem.params.name}; operating points fixed by {problem.target} "
-             f"({', '.join(c for c in problem.target_columns if c)})")
+    L.append(
+        f"  engine parameter set: {problem.params.name}; operating points fixed by {problem.target} "
+        f"({', '.join(c for c in problem.target_columns if c)})"
+    )
     scheme, folds = problem.folds(max_folds)
     L.append(f"  cross-validation: {scheme} ({len(folds)} folds)")
     L.append("")
@@ -61,12 +68,23 @@ def describe(ds: MeasuredDataset, problem: Problem, tolerances: Mapping[str, flo
         if r["column"] in problem.target_columns:
             role, what = "setpoint", "fixes the operating point (the target)"
         elif r["column"] in problem.channels:
-            role, what = "channel", r["what"].replace("set point (fixes the operating point, or compared when "
-                                                      "something else fixes it)", "compared with the model")
+            role, what = (
+                "channel",
+                r["what"].replace(
+                    "set point (fixes the operating point, or compared when something else fixes it)",
+                    "compared with the model",
+                ),
+            )
         elif role == "setpoint":
-            what = "set point, not compared (" + ("the model has no counterpart" if
-                                                   QUANTITIES[r["quantity"]].model is None else
-                                                   "redundant with the target") + ")"
+            what = (
+                "set point, not compared ("
+                + (
+                    "the model has no counterpart"
+                    if QUANTITIES[r["quantity"]].model is None
+                    else "redundant with the target"
+                )
+                + ")"
+            )
         else:
             what = r["what"]
         if role in ("channel", "setpoint") and ds.spec(r["column"]).gauge:
@@ -80,11 +98,15 @@ def describe(ds: MeasuredDataset, problem: Problem, tolerances: Mapping[str, flo
         how = src[c] if src[c] != "default" else f"default ({_default_basis(ds, c)})"
         L.append(f"  {c:{w}s}  {tolerances[c]:12.4g}  {mean:12.4g}  {how}")
     for o in ds.boundary_outliers:
-        L.append(f"  left out: row {o['row']} {o['column']} = {o['value']:g} (robust z {o['robust_z']:.1f}); the row "
-                 f"runs at {o['replacement']:g}")
+        L.append(
+            f"  left out: row {o['row']} {o['column']} = {o['value']:g} (robust z {o['robust_z']:.1f}); the row "
+            f"runs at {o['replacement']:g}"
+        )
     for s in ds.suspect:
-        L.append(f"  suspect reading, kept (errors are given with and without it): row {s['row']} {s['column']} = "
-                 f"{s['value']:g} ({s['why']})")
+        L.append(
+            f"  suspect reading, kept (errors are given with and without it): row {s['row']} {s['column']} = "
+            f"{s['value']:g} ({s['why']})"
+        )
     return "\n".join(L)
 
 
@@ -102,15 +124,26 @@ def column_registry() -> str:
             name = f"{stem}, {name}"
         q = QUANTITIES.get(quantity)
         role = specs[0].effective_role if q is not None else "channel"
-        what = q.description if q is not None else "charge-air temperature: where it was measured is set by the " \
-                                                     "sidecar's column_quantities (default: after the cooler)"
+        what = (
+            q.description
+            if q is not None
+            else "charge-air temperature: where it was measured is set by the "
+            "sidecar's column_quantities (default: after the cooler)"
+        )
         if any(s.gauge_assumed for s in specs):
             what += "; plain bar is taken as gauge with a warning (sidecar pressure_reference decides)"
         rows.append((name, role, what, units if len(units) > 1 else []))
     for group, (pat, quantity, units, _assumed) in GROUP_PATTERNS.items():
         stem = pat.pattern.strip("^$").replace(r"(\d+)", "<n>").split("_(")[0]
-        rows.append((f"{stem}_<unit>", "member", f"one cylinder of {group}: the group's spread is the measurement "
-                     "spread of the engine mean" + ("; plain bar is taken as gauge" if _assumed else ""), list(units)))
+        rows.append(
+            (
+                f"{stem}_<unit>",
+                "member",
+                f"one cylinder of {group}: the group's spread is the measurement "
+                "spread of the engine mean" + ("; plain bar is taken as gauge" if _assumed else ""),
+                list(units),
+            )
+        )
     rows.append(("engine", "id", "engine id (several engines in one file: leave-one-engine-out cross-validation)", []))
     w = max(len(r[0]) for r in rows if len(r[0]) <= 48)
     out = [f"{'column':{w}s}  {'role':12s}  quantity"]
@@ -119,7 +152,9 @@ def column_registry() -> str:
         if units:
             out.append(f"{'':{w}s}  {'':12s}  <unit>: {', '.join(units)}")
     out.append("")
-    out.append("Pressures say gauge or absolute in the unit (bar_gauge, bar_abs). Sidecar keys: engine_params "
-               "(required), ambient, rated_power_kW, load_law, column_quantities, pressure_reference, tolerances, "
-               "fuel_rack_at_nominal, source (see docs/measured_data.md).")
+    out.append(
+        "Pressures say gauge or absolute in the unit (bar_gauge, bar_abs). Sidecar keys: engine_params "
+        "(required), ambient, rated_power_kW, load_law, column_quantities, pressure_reference, tolerances, "
+        "fuel_rack_at_nominal, source (see docs/measured_data.md)."
+    )
     return "\n".join(out)

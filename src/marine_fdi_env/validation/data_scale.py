@@ -40,8 +40,12 @@ def channel_noise(r: np.ndarray, load: np.ndarray) -> float:
     return float(np.median(np.abs(d)) / (0.6745 * math.sqrt(2.0)))
 
 
-def channel_scales(residuals: Mapping[str, np.ndarray], tolerances: Mapping[str, float], load: np.ndarray,
-                   channels: Sequence[str] | None = None) -> dict[str, float | None]:
+def channel_scales(
+    residuals: Mapping[str, np.ndarray],
+    tolerances: Mapping[str, float],
+    load: np.ndarray,
+    channels: Sequence[str] | None = None,
+) -> dict[str, float | None]:
     """Per channel, the data's scale (its units) where it is below the channel's tolerance, else None (the
     tolerance is the scale): the module docstring's larger of the dataset's and the channel's own noise."""
     channels = list(channels or residuals)

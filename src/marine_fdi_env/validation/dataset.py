@@ -62,9 +62,20 @@ from .columns import ID_COLUMNS, QUANTITIES, ColumnSpec, column_problem, lookup_
 from .plausibility import ENVELOPE, SETPOINT_QUANTITIES, check_across_engines, check_duplicates, check_values
 
 __all__ = [
-    "MeasuredDataset", "DatasetError", "DataWarning", "Problem", "load_dataset", "load_shipped",
-    "list_shipped", "shipped_path", "write_dataset", "parse_ambient", "normalise_load_law", "MISSING_TOKENS",
-    "ENVELOPE", "BOUNDARY_OUTLIER_Z",
+    "MeasuredDataset",
+    "DatasetError",
+    "DataWarning",
+    "Problem",
+    "load_dataset",
+    "load_shipped",
+    "list_shipped",
+    "shipped_path",
+    "write_dataset",
+    "parse_ambient",
+    "normalise_load_law",
+    "MISSING_TOKENS",
+    "ENVELOPE",
+    "BOUNDARY_OUTLIER_Z",
 ]
 
 MISSING_TOKENS = frozenset({"", "na", "nan", "n/a", "none", "null"})
@@ -90,8 +101,9 @@ class Problem:
         if self.rows:
             lines = ", ".join(str(r + 1) for r in self.rows)
             rows = ", ".join(str(r) for r in self.rows)
-            where.append(f"row{'s' if len(self.rows) > 1 else ''} {rows} (line{'s' if len(self.rows) > 1 else ''} "
-                         f"{lines})")
+            where.append(
+                f"row{'s' if len(self.rows) > 1 else ''} {rows} (line{'s' if len(self.rows) > 1 else ''} {lines})"
+            )
         if self.column is not None:
             where.append(f"column {self.column!r}")
         return (", ".join(where) + ": " if where else "") + self.message
@@ -168,8 +180,10 @@ class MeasuredDataset:
                 what = "set point (fixes the operating point, or compared when something else fixes it)"
             elif role == "member":
                 g = next((k for k, v in self.groups.items() if c in v["columns"]), "")
-                what = f"one cylinder of group {g!r}: its spread is the measurement spread of " \
-                       f"{self.groups[g]['mean_column'] if g else 'the mean'}"
+                what = (
+                    f"one cylinder of group {g!r}: its spread is the measurement spread of "
+                    f"{self.groups[g]['mean_column'] if g else 'the mean'}"
+                )
             else:
                 what = q.reason if q else ""
             out.append({"column": c, "role": role, "quantity": self.column_quantity.get(c), "what": what})
@@ -218,16 +232,29 @@ class MeasuredDataset:
             amb["p_amb_Pa"] = np.asarray(amb["p_amb_Pa"])[m]
         groups = {g: dict(v, spread=v["spread"][m], n=v["n"][m]) for g, v in self.groups.items()}
         return MeasuredDataset(
-            name=self.name, params_name=self.params_name, meta=self.meta, columns=self.columns,
-            column_quantity=self.column_quantity, values={k: v[m] for k, v in self.values.items()},
-            raw={k: v[m] for k, v in self.raw.items()}, engines=eng, provenance=self.provenance,
-            ambient=amb, load_law=self.load_law, load_law_text=self.load_law_text,
-            rated_power_W=self.rated_power_W, quality=_quality(self.columns, {k: v[m] for k, v in self.raw.items()},
-                                                               eng, self.warnings),
-            warnings=self.warnings, notes=self.notes, path=self.path, column_role=self.column_role,
-            column_spec=self.column_spec, boundary={k: v[m] for k, v in self.boundary.items()},
-            boundary_outliers=tuple(o for o in self.boundary_outliers if m[o["row"] - 1]), groups=groups,
-            suspect=tuple(dict(x, row=int(np.sum(m[:x["row"]]))) for x in self.suspect if m[x["row"] - 1]),
+            name=self.name,
+            params_name=self.params_name,
+            meta=self.meta,
+            columns=self.columns,
+            column_quantity=self.column_quantity,
+            values={k: v[m] for k, v in self.values.items()},
+            raw={k: v[m] for k, v in self.raw.items()},
+            engines=eng,
+            provenance=self.provenance,
+            ambient=amb,
+            load_law=self.load_law,
+            load_law_text=self.load_law_text,
+            rated_power_W=self.rated_power_W,
+            quality=_quality(self.columns, {k: v[m] for k, v in self.raw.items()}, eng, self.warnings),
+            warnings=self.warnings,
+            notes=self.notes,
+            path=self.path,
+            column_role=self.column_role,
+            column_spec=self.column_spec,
+            boundary={k: v[m] for k, v in self.boundary.items()},
+            boundary_outliers=tuple(o for o in self.boundary_outliers if m[o["row"] - 1]),
+            groups=groups,
+            suspect=tuple(dict(x, row=int(np.sum(m[: x["row"]]))) for x in self.suspect if m[x["row"] - 1]),
         )
 
     def with_readings(self, readings: Mapping[str, Iterable[float]]) -> "MeasuredDataset":
@@ -247,8 +274,9 @@ class MeasuredDataset:
     def quality_report(self) -> str:
         """The data-quality summary as text."""
         q = self.quality
-        lines = [f"{self.name}: {q['n_points']} points"
-                 + (f", engines {', '.join(q['engines'])}" if q["engines"] else "")]
+        lines = [
+            f"{self.name}: {q['n_points']} points" + (f", engines {', '.join(q['engines'])}" if q["engines"] else "")
+        ]
         for col, c in q["columns"].items():
             if c["missing"]:
                 lines.append(f"  {col}: {c['missing']} missing (rows {', '.join(map(str, c['missing_rows']))})")
@@ -296,16 +324,26 @@ def parse_ambient(meta: Mapping[str, Any], params: EngineParams) -> tuple[dict[s
         Tc = float(src["charge_air_coolant_temperature_C"]) + 273.15
     recorded = p is not None or T is not None
     if p is None:
-        notes.append(f"ambient pressure not recorded: gauge pressures made absolute with the parameter set's "
-                     f"p_amb = {params.p_amb_Pa / 1e5:g} bar")
+        notes.append(
+            f"ambient pressure not recorded: gauge pressures made absolute with the parameter set's "
+            f"p_amb = {params.p_amb_Pa / 1e5:g} bar"
+        )
     if p is not None and abs(p - params.p_amb_Pa) > 0.005 * params.p_amb_Pa:
-        notes.append(f"recorded ambient pressure {p / 1e5:g} bar differs from the parameter set's "
-                     f"{params.p_amb_Pa / 1e5:g} bar (the base model runs at the parameter set's)")
+        notes.append(
+            f"recorded ambient pressure {p / 1e5:g} bar differs from the parameter set's "
+            f"{params.p_amb_Pa / 1e5:g} bar (the base model runs at the parameter set's)"
+        )
     if T is not None and abs(T - params.T_amb_K) > 0.5:
-        notes.append(f"recorded ambient temperature {T - 273.15:g} C differs from the parameter set's "
-                     f"{params.T_amb_K - 273.15:g} C (the base model runs at the parameter set's)")
-    return {"p_amb_Pa": p if p is not None else params.p_amb_Pa, "T_amb_K": T, "coolant_T_K": Tc,
-            "recorded": recorded}, notes
+        notes.append(
+            f"recorded ambient temperature {T - 273.15:g} C differs from the parameter set's "
+            f"{params.T_amb_K - 273.15:g} C (the base model runs at the parameter set's)"
+        )
+    return {
+        "p_amb_Pa": p if p is not None else params.p_amb_Pa,
+        "T_amb_K": T,
+        "coolant_T_K": Tc,
+        "recorded": recorded,
+    }, notes
 
 
 def _parse_cell(text: str) -> float | None:
@@ -393,17 +431,30 @@ def load_dataset(
     n = len(data)
     raw, engines = _read_cells(data, header, seen, column_quantity, err)
 
-    ambient, rated, boundary, b_outliers = _ambient_and_boundary(meta_d, p, raw, column_quantity, column_role,
-                                                                 column_spec, n, notes, warn)
+    ambient, rated, boundary, b_outliers = _ambient_and_boundary(
+        meta_d, p, raw, column_quantity, column_role, column_spec, n, notes, warn
+    )
     p_amb_rows = ambient["p_amb_Pa"]
 
-    values = {column_quantity[h]: column_spec[h].to_si(raw[h], p_amb_rows) for h in column_quantity
-              if column_role[h] != "member"}
+    values = {
+        column_quantity[h]: column_spec[h].to_si(raw[h], p_amb_rows)
+        for h in column_quantity
+        if column_role[h] != "member"
+    }
     groups = cylinder_groups(raw, column_quantity, column_role, column_spec, n, p_amb_rows, warn)
     suspect: list[dict[str, Any]] = []
     if p is not None:
-        check_values(raw, values, {c: q for c, q in column_quantity.items() if column_role[c] != "member"}, p,
-                     rated, ambient, engines, err, warn)
+        check_values(
+            raw,
+            values,
+            {c: q for c, q in column_quantity.items() if column_role[c] != "member"},
+            p,
+            rated,
+            ambient,
+            engines,
+            err,
+            warn,
+        )
         check_duplicates(raw, column_quantity, engines, err)
         check_across_engines(raw, column_quantity, engines, warn, suspect)
     for h in column_quantity:
@@ -450,15 +501,21 @@ def load_dataset(
     )
 
 
-def _read_sidecar(path: Path, meta: str | Path | Mapping[str, Any] | None, params: str | None, err,
-                  warn) -> dict[str, Any]:
+def _read_sidecar(
+    path: Path, meta: str | Path | Mapping[str, Any] | None, params: str | None, err, warn
+) -> dict[str, Any]:
     """The sidecar as a dict (``meta`` itself when it is one; ``{}`` when it is missing or unreadable, with the
     problem reported)."""
     if isinstance(meta, Mapping):
         meta_d = dict(meta)
     else:
-        meta_path = Path(meta) if meta is not None else path.with_name(
-            path.name[:-4] + ".meta.json" if path.name.endswith(".csv") else path.name + ".meta.json")
+        meta_path = (
+            Path(meta)
+            if meta is not None
+            else path.with_name(
+                path.name[:-4] + ".meta.json" if path.name.endswith(".csv") else path.name + ".meta.json"
+            )
+        )
         meta_d = {}
         try:
             meta_d = json.loads(meta_path.read_text())
@@ -469,15 +526,18 @@ def _read_sidecar(path: Path, meta: str | Path | Mapping[str, Any] | None, param
             if params is None:
                 err(f"no sidecar {meta_path.name}: it must name the engine parameter set (engine_params)")
             else:
-                warn(f"no sidecar {meta_path.name}: parameter set {params!r} from the caller, ambient and load "
-                     "law unknown")
+                warn(
+                    f"no sidecar {meta_path.name}: parameter set {params!r} from the caller, ambient and load "
+                    "law unknown"
+                )
         except json.JSONDecodeError as e:
             err(f"sidecar {meta_path.name} is not valid JSON: {e}")
     return meta_d
 
 
-def _resolve_columns(header: list[str], meta_d: Mapping[str, Any], err, warn) -> tuple[
-        dict[str, int], dict[str, str], dict[str, str], dict[str, ColumnSpec], list[str]]:
+def _resolve_columns(
+    header: list[str], meta_d: Mapping[str, Any], err, warn
+) -> tuple[dict[str, int], dict[str, str], dict[str, str], dict[str, ColumnSpec], list[str]]:
     """Header checks (unknown, missing unit, duplicated names and duplicated quantities) and what each column is:
     (column index by name, quantity, role and spec of every usable column, notes)."""
     seen: dict[str, int] = {}
@@ -499,7 +559,7 @@ def _resolve_columns(header: list[str], meta_d: Mapping[str, Any], err, warn) ->
     by_quantity: dict[str, str] = {}
     pref = meta_d.get("pressure_reference") or {}
     if not isinstance(pref, Mapping):
-        err("sidecar key 'pressure_reference' must be an object {column: \"gauge\" | \"absolute\"}")
+        err('sidecar key \'pressure_reference\' must be an object {column: "gauge" | "absolute"}')
         pref = {}
     assumed_gauge: list[str] = []
     for j, h in known:
@@ -516,7 +576,7 @@ def _resolve_columns(header: list[str], meta_d: Mapping[str, Any], err, warn) ->
         if h in pref:
             ref = pref[h]
             if ref not in ("gauge", "absolute"):
-                err(f"sidecar pressure_reference[{h!r}] must be \"gauge\" or \"absolute\", got {ref!r}", column=h)
+                err(f'sidecar pressure_reference[{h!r}] must be "gauge" or "absolute", got {ref!r}', column=h)
                 continue
             if not q.endswith("_Pa"):
                 err("sidecar pressure_reference names a column that is not a pressure", column=h)
@@ -536,16 +596,20 @@ def _resolve_columns(header: list[str], meta_d: Mapping[str, Any], err, warn) ->
         column_spec[h] = spec
 
     if assumed_gauge:
-        warn(f"{', '.join(assumed_gauge)}: the unit does not say gauge or absolute and the source does not state it: "
-             "taken as gauge (the convention of the other pressures of a shop-test protocol); the difference is the "
-             "ambient pressure (about 1 bar, 0.5 % of a maximum cylinder pressure). Set \"pressure_reference\" in "
-             "the sidecar to decide", column=assumed_gauge[0])
+        warn(
+            f"{', '.join(assumed_gauge)}: the unit does not say gauge or absolute and the source does not state it: "
+            "taken as gauge (the convention of the other pressures of a shop-test protocol); the difference is the "
+            'ambient pressure (about 1 bar, 0.5 % of a maximum cylinder pressure). Set "pressure_reference" in '
+            "the sidecar to decide",
+            column=assumed_gauge[0],
+        )
 
     return seen, column_quantity, column_role, column_spec, notes
 
 
-def _read_cells(data: list[list[str]], header: list[str], seen: Mapping[str, int], column_quantity: Mapping[str, str],
-                err) -> tuple[dict[str, np.ndarray], list[str] | None]:
+def _read_cells(
+    data: list[list[str]], header: list[str], seen: Mapping[str, int], column_quantity: Mapping[str, str], err
+) -> tuple[dict[str, np.ndarray], list[str] | None]:
     """The cells of every usable column as floats in the file's units (NaN where missing), and the engine id per
     row (``None`` without an engine column)."""
     n = len(data)
@@ -572,10 +636,17 @@ def _read_cells(data: list[list[str]], header: list[str], seen: Mapping[str, int
     return raw, engines
 
 
-def _ambient_and_boundary(meta_d: Mapping[str, Any], p: EngineParams | None, raw: Mapping[str, np.ndarray],
-                          column_quantity: Mapping[str, str], column_role: Mapping[str, str],
-                          column_spec: Mapping[str, ColumnSpec], n: int, notes: list[str],
-                          warn) -> tuple[dict[str, Any], float, dict[str, np.ndarray], list[dict[str, Any]]]:
+def _ambient_and_boundary(
+    meta_d: Mapping[str, Any],
+    p: EngineParams | None,
+    raw: Mapping[str, np.ndarray],
+    column_quantity: Mapping[str, str],
+    column_role: Mapping[str, str],
+    column_spec: Mapping[str, ColumnSpec],
+    n: int,
+    notes: list[str],
+    warn,
+) -> tuple[dict[str, Any], float, dict[str, np.ndarray], list[dict[str, Any]]]:
     """Ambient conditions (per row where the file records them), rated power, and the per-row boundary conditions
     with their recording errors left out: (ambient, rated power in W, boundary, outliers); ``notes`` gains what was
     assumed."""
@@ -591,20 +662,29 @@ def _ambient_and_boundary(meta_d: Mapping[str, Any], p: EngineParams | None, raw
         ambient["p_amb_Pa"] = np.where(np.isfinite(boundary["p_amb_Pa"]), boundary["p_amb_Pa"], fill)
         ambient["recorded"] = True
         amb_notes = [x for x in amb_notes if not x.startswith("ambient pressure")]
-        notes.append("ambient pressure recorded per row: a boundary condition of each row (gauge readings and the "
-                     "model's compressor inlet)")
+        notes.append(
+            "ambient pressure recorded per row: a boundary condition of each row (gauge readings and the "
+            "model's compressor inlet)"
+        )
     if np.any(np.isfinite(boundary["T_amb_K"])):
         ambient["recorded"] = True
         amb_notes = [x for x in amb_notes if not x.startswith("recorded ambient temperature")]
         notes.append("compressor inlet temperature recorded per row: a boundary condition of each row")
     notes.extend(amb_notes)
-    boundary["p_ex_Pa"] = np.broadcast_to(ambient["p_amb_Pa"], (n,)) + boundary.pop("dp_ex_Pa")  # NaN where not recorded
+    boundary["p_ex_Pa"] = np.broadcast_to(ambient["p_amb_Pa"], (n,)) + boundary.pop(
+        "dp_ex_Pa"
+    )  # NaN where not recorded
     return ambient, rated, boundary, b_outliers
 
 
 # --------------------------------------------------------------------------------------- writer
-def write_dataset(path: str | Path, columns: Mapping[str, Iterable], meta: Mapping[str, Any],
-                  engines: Iterable[str] | None = None, digits: int = 6) -> Path:
+def write_dataset(
+    path: str | Path,
+    columns: Mapping[str, Iterable],
+    meta: Mapping[str, Any],
+    engines: Iterable[str] | None = None,
+    digits: int = 6,
+) -> Path:
     """Write a CSV (+ ``.meta.json`` sidecar) in the measured-data format; NaN becomes an empty cell.
 
     ``columns`` maps registered column names to values in the column's units.
@@ -624,7 +704,9 @@ def write_dataset(path: str | Path, columns: Mapping[str, Iterable], meta: Mappi
         for i in range(n):
             cells = [("" if not math.isfinite(float(c[i])) else f"{float(c[i]):.{digits}g}") for c in cols]
             w.writerow(([eng[i]] if eng is not None else []) + cells)
-    meta_path = path.with_name(path.name[:-4] + ".meta.json" if path.name.endswith(".csv") else path.name + ".meta.json")
+    meta_path = path.with_name(
+        path.name[:-4] + ".meta.json" if path.name.endswith(".csv") else path.name + ".meta.json"
+    )
     meta_path.write_text(json.dumps(dict(meta), indent=2) + "\n")
     return path
 

@@ -59,17 +59,36 @@ class Decider:
         return abs(self.a_value - self.b_value) / self.scale
 
     def text(self) -> str:
-        misfit = "" if self.scale <= self.tolerance else (
-            f"; {self.n_scales:.1f} times the explanations' misfit of {self.scale:.3g} {self.unit} on this channel")
-        return (f"measure {self.channel} at {100 * self.load:.0f} % load (intake {self.T_amb_K - 273.15:.0f} °C, "
-                f"ambient {self.p_amb_Pa / 100:.0f} hPa): {self.a} predicts {self.a_value:.4g}, {self.b} predicts "
-                f"{self.b_value:.4g} {self.unit} ({self.n_tolerances:.1f} tolerances apart{misfit})")
+        misfit = (
+            ""
+            if self.scale <= self.tolerance
+            else (
+                f"; {self.n_scales:.1f} times the explanations' misfit of {self.scale:.3g} {self.unit} on this channel"
+            )
+        )
+        return (
+            f"measure {self.channel} at {100 * self.load:.0f} % load (intake {self.T_amb_K - 273.15:.0f} °C, "
+            f"ambient {self.p_amb_Pa / 100:.0f} hPa): {self.a} predicts {self.a_value:.4g}, {self.b} predicts "
+            f"{self.b_value:.4g} {self.unit} ({self.n_tolerances:.1f} tolerances apart{misfit})"
+        )
 
     def as_dict(self) -> dict[str, Any]:
-        return {"channel": self.channel, "unit": self.unit, "load": self.load, "p_amb_Pa": self.p_amb_Pa,
-                "T_amb_K": self.T_amb_K, "a": self.a, "b": self.b, "a_value": self.a_value, "b_value": self.b_value,
-                "tolerance": self.tolerance, "scale": self.scale, "n_tolerances": self.n_tolerances,
-                "n_scales": self.n_scales, "text": self.text()}
+        return {
+            "channel": self.channel,
+            "unit": self.unit,
+            "load": self.load,
+            "p_amb_Pa": self.p_amb_Pa,
+            "T_amb_K": self.T_amb_K,
+            "a": self.a,
+            "b": self.b,
+            "a_value": self.a_value,
+            "b_value": self.b_value,
+            "tolerance": self.tolerance,
+            "scale": self.scale,
+            "n_tolerances": self.n_tolerances,
+            "n_scales": self.n_scales,
+            "text": self.text(),
+        }
 
 
 def ambient_cases(problem: Problem) -> list[tuple[float, float]]:
@@ -87,8 +106,9 @@ def ambient_cases(problem: Problem) -> list[tuple[float, float]]:
     return list(dict.fromkeys(out))
 
 
-def readings_over_load(problem: Problem, fit: FitResult, loads: Sequence[float], p_amb_Pa: float,
-                       T_amb_K: float) -> np.ndarray:
+def readings_over_load(
+    problem: Problem, fit: FitResult, loads: Sequence[float], p_amb_Pa: float, T_amb_K: float
+) -> np.ndarray:
     """Readings (loads x channels, the channels' units; NaN where the model has no steady state) of ``fit``'s
     fitted engine at ``loads`` of the rated power, at the given ambient conditions and the data's back pressure."""
     setting = fit.schedule_setting(problem)
@@ -96,8 +116,11 @@ def readings_over_load(problem: Problem, fit: FitResult, loads: Sequence[float],
     loads = np.asarray(loads, dtype=float)
     tb = problem.test_bed_conditions() or {}
     bp = tb.get("back_pressure")
-    dp = (np.interp(loads, bp["load_fraction"], bp["dp_Pa"]) if bp else
-          np.full(loads.size, problem.params.p_ex_Pa - problem.params.p_amb_Pa))
+    dp = (
+        np.interp(loads, bp["load_fraction"], bp["dp_Pa"])
+        if bp
+        else np.full(loads.size, problem.params.p_ex_Pa - problem.params.p_amb_Pa)
+    )
     pa = p_amb_Pa + setting.dp_amb_Pa
     out = np.full((loads.size, len(problem.channels)), np.nan)
     P = loads * problem.ds.rated_power_W
@@ -114,8 +137,9 @@ def readings_over_load(problem: Problem, fit: FitResult, loads: Sequence[float],
     return out
 
 
-def deciding_measurements(problem: Problem, explanations: Sequence[tuple[str, FitResult]], *, per_pair: int = 3
-                          ) -> list[dict[str, Any]]:
+def deciding_measurements(
+    problem: Problem, explanations: Sequence[tuple[str, FitResult]], *, per_pair: int = 3
+) -> list[dict[str, Any]]:
     """For each pair of ``explanations`` (name, fit), best first: the ``per_pair`` channels whose predictions differ
     most in tolerances anywhere on the grid of the module docstring, each at its most telling point."""
     cases = ambient_cases(problem)
@@ -128,7 +152,7 @@ def deciding_measurements(problem: Problem, explanations: Sequence[tuple[str, Fi
     out = []
     names = [n for n, _ in explanations]
     for i, a in enumerate(names):
-        for b in names[i + 1:]:
+        for b in names[i + 1 :]:
             best: list[Decider] = []
             for j, c in enumerate(problem.channels):
                 top = None
@@ -142,11 +166,30 @@ def deciding_measurements(problem: Problem, explanations: Sequence[tuple[str, Fi
                         top = (float(d[n]), n, pa, ta, k)
                 if top is not None:
                     _, n, pa, ta, k = top
-                    best.append(Decider(c, problem.ds.spec(c).unit, float(LOADS[n]), pa, ta, a, b,
-                                        float(pred[a][k][n, j]), float(pred[b][k][n, j]), float(tol[j]), scale))
+                    best.append(
+                        Decider(
+                            c,
+                            problem.ds.spec(c).unit,
+                            float(LOADS[n]),
+                            pa,
+                            ta,
+                            a,
+                            b,
+                            float(pred[a][k][n, j]),
+                            float(pred[b][k][n, j]),
+                            float(tol[j]),
+                            scale,
+                        )
+                    )
             best.sort(key=lambda d: -d.n_scales)
-            out.append({"a": a, "b": b, "measurements": [d.as_dict() for d in best[:per_pair]],
-                        "at_measured_loads": _at_measured(problem, explanations, a, b)})
+            out.append(
+                {
+                    "a": a,
+                    "b": b,
+                    "measurements": [d.as_dict() for d in best[:per_pair]],
+                    "at_measured_loads": _at_measured(problem, explanations, a, b),
+                }
+            )
     return out
 
 

@@ -48,15 +48,27 @@ from .columns import QUANTITIES
 from .matching import MatchResult
 
 __all__ = [
-    "ChannelDiscrepancy", "DiscrepancyReport", "analyse_discrepancies", "linear_trend", "change_point",
-    "robust_zscores", "operating_variables", "default_tolerance", "column_tolerance", "KINDS", "VARIABLES",
+    "ChannelDiscrepancy",
+    "DiscrepancyReport",
+    "analyse_discrepancies",
+    "linear_trend",
+    "change_point",
+    "robust_zscores",
+    "operating_variables",
+    "default_tolerance",
+    "column_tolerance",
+    "KINDS",
+    "VARIABLES",
 ]
 
 KINDS = ("bias", "trend", "change_point", "outlier")
 VARIABLES = ("load", "speed", "charge_pressure")
 _VAR_UNIT = {"load": "", "speed": " rpm", "charge_pressure": " bar"}
-_VAR_QUANTITY = {"load": ("load_fraction", "power_W"), "speed": ("engine_speed_rev_s",),
-                 "charge_pressure": ("charge_air_pressure_Pa",)}
+_VAR_QUANTITY = {
+    "load": ("load_fraction", "power_W"),
+    "speed": ("engine_speed_rev_s",),
+    "charge_pressure": ("charge_air_pressure_Pa",),
+}
 _VAR_LABEL = {"load": "load", "speed": "speed", "charge_pressure": "charge pressure"}
 
 REL_TOL = 0.01
@@ -75,16 +87,37 @@ def linear_trend(x, r, sigma: float | None = None, min_dof: int = 3) -> dict[str
     """
     x, r = np.asarray(x, float), np.asarray(r, float)
     n = int(x.size)
-    nan = {"slope": math.nan, "intercept": math.nan, "r2": math.nan, "p_value": math.nan,
-           "magnitude": math.nan, "n": n, "noise": "none"}
+    nan = {
+        "slope": math.nan,
+        "intercept": math.nan,
+        "r2": math.nan,
+        "p_value": math.nan,
+        "magnitude": math.nan,
+        "n": n,
+        "noise": "none",
+    }
     if n < 3 or np.ptp(x) == 0:
         return nan
     if np.ptp(r) == 0:  # exactly flat residuals: no trend (linregress would divide by zero)
-        return {"slope": 0.0, "intercept": float(r[0]), "r2": 0.0, "p_value": 1.0, "magnitude": 0.0, "n": n,
-                "noise": "estimated"}
+        return {
+            "slope": 0.0,
+            "intercept": float(r[0]),
+            "r2": 0.0,
+            "p_value": 1.0,
+            "magnitude": 0.0,
+            "n": n,
+            "noise": "estimated",
+        }
     lr = stats.linregress(x, r)
-    out = {"slope": float(lr.slope), "intercept": float(lr.intercept), "r2": float(lr.rvalue**2),
-           "p_value": float(lr.pvalue), "magnitude": float(lr.slope * np.ptp(x)), "n": n, "noise": "estimated"}
+    out = {
+        "slope": float(lr.slope),
+        "intercept": float(lr.intercept),
+        "r2": float(lr.rvalue**2),
+        "p_value": float(lr.pvalue),
+        "magnitude": float(lr.slope * np.ptp(x)),
+        "n": n,
+        "noise": "estimated",
+    }
     if n - 2 < min_dof:
         if sigma is not None and sigma > 0:
             se = sigma / math.sqrt(float(np.sum((x - x.mean()) ** 2)))
@@ -150,11 +183,21 @@ def change_point(x, r, min_side: int = 2, sigma: float | None = None, min_dof: i
         noise = "tolerance"
         F = gain / df1 / sigma**2
         p = float(stats.chi2.sf(gain / sigma**2, df1))
-    return {"location": x0, "slope_left": float(coef[1]), "slope_right": float(coef[1] + coef[2]),
-            "slope_change": float(coef[2]), "sse_linear": sse_lin, "sse_piecewise": sse_pw,
-            "sse_improvement": gain, "sse_improvement_rel": gain / sse_lin if sse_lin > 0 else 0.0,
-            "F": float(F), "p_value": p, "magnitude": magnitude, "n": int(n),
-            "noise": noise}
+    return {
+        "location": x0,
+        "slope_left": float(coef[1]),
+        "slope_right": float(coef[1] + coef[2]),
+        "slope_change": float(coef[2]),
+        "sse_linear": sse_lin,
+        "sse_piecewise": sse_pw,
+        "sse_improvement": gain,
+        "sse_improvement_rel": gain / sse_lin if sse_lin > 0 else 0.0,
+        "F": float(F),
+        "p_value": p,
+        "magnitude": magnitude,
+        "n": int(n),
+        "noise": noise,
+    }
 
 
 def robust_zscores(d) -> np.ndarray:
@@ -245,23 +288,30 @@ class DiscrepancyReport:
 
     def summary_table(self) -> str:
         """Per-channel bias, RMSE and relative error, then the ranked discrepancies, as text."""
-        lines = [f"{self.dataset} (matched on {self.target}): residual = model - measured",
-                 f"{'channel':34s} {'n':>3s} {'bias':>10s} {'RMSE':>10s} {'mean|rel|':>9s} {'tol':>8s}"]
+        lines = [
+            f"{self.dataset} (matched on {self.target}): residual = model - measured",
+            f"{'channel':34s} {'n':>3s} {'bias':>10s} {'RMSE':>10s} {'mean|rel|':>9s} {'tol':>8s}",
+        ]
         for c in self.channels.values():
-            lines.append(f"{c.channel:34s} {c.n:3d} {c.bias:10.4g} {c.rmse:10.4g} {c.mean_abs_rel_error:9.2%} "
-                         f"{c.tolerance:8.3g}")
+            lines.append(
+                f"{c.channel:34s} {c.n:3d} {c.bias:10.4g} {c.rmse:10.4g} {c.mean_abs_rel_error:9.2%} {c.tolerance:8.3g}"
+            )
         lines.append(f"ranked discrepancies (p < {self.alpha}, |magnitude| >= tolerance):")
         if not self.discrepancies:
             lines.append("  none")
         for k, d in enumerate(self.discrepancies, 1):
-            lines.append(f"  {k:2d}. {d['channel']:34s} {d['kind']:12s} {d['region']:28s} "
-                         f"magnitude {d['magnitude']:+.4g}  score {d['score']:.1f}  p {d['p_value']:.2g}")
+            lines.append(
+                f"  {k:2d}. {d['channel']:34s} {d['kind']:12s} {d['region']:28s} "
+                f"magnitude {d['magnitude']:+.4g}  score {d['score']:.1f}  p {d['p_value']:.2g}"
+            )
         return "\n".join(lines)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-serialisable form (numpy arrays as lists)."""
         return {
-            "dataset": self.dataset, "target": self.target, "alpha": self.alpha,
+            "dataset": self.dataset,
+            "target": self.target,
+            "alpha": self.alpha,
             "channels": {k: v.as_dict() for k, v in self.channels.items()},
             "discrepancies": self.discrepancies,
             "operating": {k: v.tolist() for k, v in self.operating.items()},
@@ -287,21 +337,31 @@ def operating_variables(match: MatchResult) -> dict[str, np.ndarray]:
     if load_meas is None and "power_W" in v:
         load_meas = v["power_W"] / rated
     load = pick(load_meas, m["power_W"] / rated if "power_W" in m else None)
-    speed = pick(v["engine_speed_rev_s"] * 60 if "engine_speed_rev_s" in v else None,
-                 m["engine_speed_rev_s"] * 60 if "engine_speed_rev_s" in m else None)
-    pc = pick(v["charge_air_pressure_Pa"] / 1e5 if "charge_air_pressure_Pa" in v else None,
-              m["charge_air_pressure_Pa"] / 1e5 if "charge_air_pressure_Pa" in m else None)
+    speed = pick(
+        v["engine_speed_rev_s"] * 60 if "engine_speed_rev_s" in v else None,
+        m["engine_speed_rev_s"] * 60 if "engine_speed_rev_s" in m else None,
+    )
+    pc = pick(
+        v["charge_air_pressure_Pa"] / 1e5 if "charge_air_pressure_Pa" in v else None,
+        m["charge_air_pressure_Pa"] / 1e5 if "charge_air_pressure_Pa" in m else None,
+    )
     return {"load": load, "speed": speed, "charge_pressure": pc}
 
 
-def default_tolerance(match: MatchResult, column: str, rel_tol: float = REL_TOL,
-                      temperature_tol_K: float = TEMPERATURE_TOL_K, load_tol: float = LOAD_TOL) -> float:
+def default_tolerance(
+    match: MatchResult,
+    column: str,
+    rel_tol: float = REL_TOL,
+    temperature_tol_K: float = TEMPERATURE_TOL_K,
+    load_tol: float = LOAD_TOL,
+) -> float:
     """Smallest discrepancy worth naming on ``column``, in the column's units."""
     return column_tolerance(match.dataset, column, rel_tol, temperature_tol_K, load_tol)
 
 
-def column_tolerance(ds, column: str, rel_tol: float = REL_TOL, temperature_tol_K: float = TEMPERATURE_TOL_K,
-                     load_tol: float = LOAD_TOL) -> float:
+def column_tolerance(
+    ds, column: str, rel_tol: float = REL_TOL, temperature_tol_K: float = TEMPERATURE_TOL_K, load_tol: float = LOAD_TOL
+) -> float:
     """Smallest discrepancy worth naming on a dataset's ``column``, in the column's units: 1 % of the mean measured
     value (ratio quantities), 5 K (temperatures), 0.01 (load fraction)."""
     spec = ds.spec(column)
@@ -345,7 +405,7 @@ def analyse_discrepancies(
     tolerances = dict(tolerances)
     out: dict[str, ChannelDiscrepancy] = {}
     findings: list[dict[str, Any]] = []
-    for col in (channels if channels is not None else match.channels):
+    for col in channels if channels is not None else match.channels:
         r_all = match.residual(col)
         meas_si = ds.to_si(col, match.measured[col])
         pred_si = ds.to_si(col, match.predicted[col])
@@ -357,8 +417,9 @@ def analyse_discrepancies(
         q = ds.column_quantity[col]
         unit = ds.spec(col).unit
         if n == 0:
-            out[col] = ChannelDiscrepancy(col, q, unit, 0, int(ds.n_points), math.nan, math.nan, math.nan, math.nan,
-                                          math.nan, tol, math.nan)
+            out[col] = ChannelDiscrepancy(
+                col, q, unit, 0, int(ds.n_points), math.nan, math.nan, math.nan, math.nan, math.nan, tol, math.nan
+            )
             continue
         bias = float(np.mean(r))
         rmse = float(np.sqrt(np.mean(r * r)))
@@ -387,18 +448,42 @@ def analyse_discrepancies(
             good = np.isfinite(x) & keep
             trends[var] = linear_trend(x[good], r[good], sigma=tol)
             cps[var] = change_point(x[good], r[good], sigma=tol)
-        ch = ChannelDiscrepancy(col, q, unit, n, int(ds.n_points - n), bias, rmse, std, rel,
-                                float(np.max(np.abs(r))), tol, p_bias, trends, cps, outliers, by_engine,
-                                bias_noise, tuple(sorted(i + 1 for i in drop)))
+        ch = ChannelDiscrepancy(
+            col,
+            q,
+            unit,
+            n,
+            int(ds.n_points - n),
+            bias,
+            rmse,
+            std,
+            rel,
+            float(np.max(np.abs(r))),
+            tol,
+            p_bias,
+            trends,
+            cps,
+            outliers,
+            by_engine,
+            bias_noise,
+            tuple(sorted(i + 1 for i in drop)),
+        )
         out[col] = ch
         findings.extend(_channel_findings(ch, alpha, tol))
 
-    findings.sort(key=lambda f: (-f["score"] if math.isfinite(f["score"]) else -1e300))
+    findings.sort(key=lambda f: -f["score"] if math.isfinite(f["score"]) else -1e300)
     ranked = [f for f in findings if f["significant"]]
     for k, f in enumerate(ranked, 1):
         f["rank"] = k
-    return DiscrepancyReport(dataset=ds.name, target=match.target, channels=out, discrepancies=ranked,
-                             findings=findings, operating=ops, alpha=alpha)
+    return DiscrepancyReport(
+        dataset=ds.name,
+        target=match.target,
+        channels=out,
+        discrepancies=ranked,
+        findings=findings,
+        operating=ops,
+        alpha=alpha,
+    )
 
 
 def _bias_p_value(r: np.ndarray, tol: float, min_dof: int = 3) -> tuple[float, str]:
@@ -431,8 +516,14 @@ def _replicate_groups(ds, idx: np.ndarray) -> list[np.ndarray]:
     return [np.array(g) for g in groups.values() if len(g) >= 2]
 
 
-def _outliers(ds, idx: np.ndarray, r_abs: np.ndarray, ops: Mapping[str, np.ndarray], z_outlier: float,
-              weight: np.ndarray | None = None) -> list[dict]:
+def _outliers(
+    ds,
+    idx: np.ndarray,
+    r_abs: np.ndarray,
+    ops: Mapping[str, np.ndarray],
+    z_outlier: float,
+    weight: np.ndarray | None = None,
+) -> list[dict]:
     """Points whose residual deviates from the local structure by a robust z-score above ``z_outlier``.
 
     With replicated set points (several engines at the same load) the structure is the median residual
@@ -463,8 +554,16 @@ def _outliers(ds, idx: np.ndarray, r_abs: np.ndarray, ops: Mapping[str, np.ndarr
     out = []
     for k in np.flatnonzero(np.abs(z) > z_outlier):
         i = int(idx[pos[k]])
-        out.append({"point": i + 1, "label": ds.point_label(i), "residual": float(r_abs[pos[k]]),
-                    "deviation": float(d[k] * w[pos[k]]), "robust_z": float(z[k]), "weight": float(w[pos[k]])})
+        out.append(
+            {
+                "point": i + 1,
+                "label": ds.point_label(i),
+                "residual": float(r_abs[pos[k]]),
+                "deviation": float(d[k] * w[pos[k]]),
+                "robust_z": float(z[k]),
+                "weight": float(w[pos[k]]),
+            }
+        )
     return out
 
 
@@ -476,12 +575,22 @@ def _pick_variable(items: list[tuple[str, dict]], key, rel_tie: float) -> tuple[
     return min(close, key=lambda vd: order.get(vd[0], 99))
 
 
-def _finding(ch: ChannelDiscrepancy, kind: str, region: str, magnitude: float, p: float, alpha: float, tol: float,
-             **extra) -> dict[str, Any]:
+def _finding(
+    ch: ChannelDiscrepancy, kind: str, region: str, magnitude: float, p: float, alpha: float, tol: float, **extra
+) -> dict[str, Any]:
     score = abs(magnitude) / tol if tol > 0 and math.isfinite(magnitude) else math.nan
     sig = bool(math.isfinite(p) and p < alpha and math.isfinite(score) and score >= 1.0)
-    return {"channel": ch.channel, "kind": kind, "region": region, "magnitude": float(magnitude),
-            "score": float(score), "p_value": float(p), "significant": sig, "unit": ch.unit, **extra}
+    return {
+        "channel": ch.channel,
+        "kind": kind,
+        "region": region,
+        "magnitude": float(magnitude),
+        "score": float(score),
+        "p_value": float(p),
+        "significant": sig,
+        "unit": ch.unit,
+        **extra,
+    }
 
 
 def _channel_findings(ch: ChannelDiscrepancy, alpha: float, tol: float) -> list[dict[str, Any]]:
@@ -490,20 +599,60 @@ def _channel_findings(ch: ChannelDiscrepancy, alpha: float, tol: float) -> list[
     tr = [(v, t) for v, t in ch.trends.items() if math.isfinite(t["r2"])]
     if tr:
         var, t = _pick_variable(tr, lambda d: 1.0 - d["r2"], 0.05)
-        f.append(_finding(ch, "trend", "all", t["magnitude"], min(1.0, t["p_value"] * len(tr)), alpha, tol,
-                          variable=var, slope=t["slope"], r2=t["r2"], noise=t["noise"], p_value_raw=t["p_value"]))
+        f.append(
+            _finding(
+                ch,
+                "trend",
+                "all",
+                t["magnitude"],
+                min(1.0, t["p_value"] * len(tr)),
+                alpha,
+                tol,
+                variable=var,
+                slope=t["slope"],
+                r2=t["r2"],
+                noise=t["noise"],
+                p_value_raw=t["p_value"],
+            )
+        )
     # change point: the variable with the best piecewise fit (smallest SSE; ties -> load)
     cp = [(v, c) for v, c in ch.change_points.items() if c is not None]
     if cp:
         var, c = _pick_variable(cp, lambda d: d["sse_piecewise"], 0.05)
-        f.append(_finding(ch, "change_point", _fmt_region(var, c["location"]), c["magnitude"],
-                          min(1.0, c["p_value"] * len(cp)), alpha, tol, variable=var, p_value_raw=c["p_value"], location=c["location"], slope_change=c["slope_change"],
-                          sse_improvement=c["sse_improvement"], sse_improvement_rel=c["sse_improvement_rel"],
-                          F=c["F"], noise=c["noise"]))
+        f.append(
+            _finding(
+                ch,
+                "change_point",
+                _fmt_region(var, c["location"]),
+                c["magnitude"],
+                min(1.0, c["p_value"] * len(cp)),
+                alpha,
+                tol,
+                variable=var,
+                p_value_raw=c["p_value"],
+                location=c["location"],
+                slope_change=c["slope_change"],
+                sse_improvement=c["sse_improvement"],
+                sse_improvement_rel=c["sse_improvement_rel"],
+                F=c["F"],
+                noise=c["noise"],
+            )
+        )
     for o in ch.outliers:
         # p-value of a robust z under normal residuals (two-sided)
         p = float(2 * stats.norm.sf(abs(o["robust_z"]))) if math.isfinite(o["robust_z"]) else 0.0
         # ratio quantities: the tolerance of a point scales with its value like the residuals do
-        f.append(_finding(ch, "outlier", o["label"], o["deviation"], p, alpha, tol * o["weight"],
-                          robust_z=o["robust_z"], point=o["point"]))
+        f.append(
+            _finding(
+                ch,
+                "outlier",
+                o["label"],
+                o["deviation"],
+                p,
+                alpha,
+                tol * o["weight"],
+                robust_z=o["robust_z"],
+                point=o["point"],
+            )
+        )
     return f

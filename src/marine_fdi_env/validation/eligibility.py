@@ -16,8 +16,18 @@ from .mechanisms import Mechanism, SensorCalibration
 from .problem import Problem
 from .window_scan import noise_ratio, window_excess
 
-__all__ = ["BINDING_ALPHA", "CALIBRATION_EXPLAINS", "RELAX_SPAN", "binding_bounds", "params_at_bound",
-           "relaxed_mechanism", "shut_valves", "structure_left", "undetermined_params", "why_pinned"]
+__all__ = [
+    "BINDING_ALPHA",
+    "CALIBRATION_EXPLAINS",
+    "RELAX_SPAN",
+    "binding_bounds",
+    "params_at_bound",
+    "relaxed_mechanism",
+    "shut_valves",
+    "structure_left",
+    "undetermined_params",
+    "why_pinned",
+]
 
 #: share of a channel's RMS discrepancy a calibration must remove to explain it although structure is left
 CALIBRATION_EXPLAINS = 0.75
@@ -42,27 +52,36 @@ def structure_left(problem: Problem, loco: np.ndarray, mech: SensorCalibration, 
     noise = noise_ratio((loco - problem.Y) / problem.tolerance_cells, load)
     best = window_excess(g * loco[:, j] + o - problem.Y[:, j], load, tol, noise=noise)
     if best is not None and best["p"] < alpha and abs(best["d"]) >= tol:
-        rms_b, rms_a = float(np.sqrt(np.mean(before ** 2))), float(np.sqrt(np.mean(after ** 2)))
+        rms_b, rms_a = float(np.sqrt(np.mean(before**2))), float(np.sqrt(np.mean(after**2)))
         if rms_a <= (1.0 - CALIBRATION_EXPLAINS) * rms_b:
             return ""
         lo, hi = best["load_range"]
-        return (f"load {lo:.3g}-{hi:.3g}, {best['d']:+.3g}, p {'<' if best['p_at_floor'] else '='} {best['p']:.2g}; "
-                f"the calibration removes only {1 - rms_a / rms_b:.0%} of the channel's error")
+        return (
+            f"load {lo:.3g}-{hi:.3g}, {best['d']:+.3g}, p {'<' if best['p_at_floor'] else '='} {best['p']:.2g}; "
+            f"the calibration removes only {1 - rms_a / rms_b:.0%} of the channel's error"
+        )
     return ""
 
 
 def shut_valves(fit: FitResult) -> list[str]:
     """Valves of the fit that act at no measured point (then they are not valves, and the candidate is not
     eligible); bounds are judged by :func:`binding_bounds`."""
-    return [f"{m.label} opens at no measured point" for m in fit.combination.mechanisms
-            if m.pointwise and not fit.support.get(m.id)]
+    return [
+        f"{m.label} opens at no measured point"
+        for m in fit.combination.mechanisms
+        if m.pointwise and not fit.support.get(m.id)
+    ]
 
 
 def params_at_bound(fit: FitResult) -> list[tuple[Mechanism, Any, str]]:
     """(mechanism, parameter, side) of the parameters sitting at a bound that is not a natural limit."""
     vals = fit.values()
-    return [(m, p, side) for m in fit.combination.mechanisms for p in m.params
-            if (side := p.pinned(vals[f"{m.label}.{p.name}"]))]
+    return [
+        (m, p, side)
+        for m in fit.combination.mechanisms
+        for p in m.params
+        if (side := p.pinned(vals[f"{m.label}.{p.name}"]))
+    ]
 
 
 def undetermined_params(fit: FitResult) -> list[str]:
@@ -75,8 +94,11 @@ def undetermined_params(fit: FitResult) -> list[str]:
     for m in fit.combination.mechanisms:
         for p in m.params:
             key = f"{m.label}.{p.name}"
-            if not p.pinned(vals[key]) and math.isfinite(se.get(key, math.nan)) \
-                    and se[key] > 0.5 * (p.bounds[1] - p.bounds[0]):
+            if (
+                not p.pinned(vals[key])
+                and math.isfinite(se.get(key, math.nan))
+                and se[key] > 0.5 * (p.bounds[1] - p.bounds[0])
+            ):
                 out.append(f"{key} not determined by the data (standard error {se[key]:.3g})")
     return out
 
@@ -101,8 +123,9 @@ def relaxed_mechanism(m: Mechanism, name: str, side: str, problem: Problem) -> M
         b = (lo - f * span, hi) if side == "lower" else (lo, hi + f * span)
         x = b[0] if side == "lower" else b[1]
         try:
-            m.apply(problem.base_setting, {q.name: (x if q.name == name else q.default) for q in params},
-                    problem.params)
+            m.apply(
+                problem.base_setting, {q.name: (x if q.name == name else q.default) for q in params}, problem.params
+            )
         except ValueError:
             continue
         wide = tuple(dataclasses.replace(q, bounds=b) if q.name == name else q for q in params)
@@ -135,8 +158,10 @@ def binding_bounds(problem: Problem, c: "CandidateScore", known: Mapping[str, fl
         if pv < BINDING_ALPHA:
             out.append(f"{m.label}.{p.name} at its {side} bound {bound:g} (widening it gains p = {pv:.2g})")
         else:
-            c.notes.append(f"{m.label}.{p.name} touches its {side} bound {bound:g} but the data do not want more "
-                           f"(widening it gains p = {pv:.2g})")
+            c.notes.append(
+                f"{m.label}.{p.name} touches its {side} bound {bound:g} but the data do not want more "
+                f"(widening it gains p = {pv:.2g})"
+            )
     return out
 
 

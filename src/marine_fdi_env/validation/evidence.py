@@ -10,8 +10,7 @@ from .candidates import f_test_p
 from .fitting import Combination
 from .mechanisms import Mechanism, SensorCalibration
 
-__all__ = ["BESIDE_VALVE", "BESIDE_VALVE_DEFAULT", "EXCHANGE_IN_SAMPLE", "IN_SAMPLE_ALONE", "earns",
-           "judged_in_sample"]
+__all__ = ["BESIDE_VALVE", "BESIDE_VALVE_DEFAULT", "EXCHANGE_IN_SAMPLE", "IN_SAMPLE_ALONE", "earns", "judged_in_sample"]
 
 
 #: how a cause joining a model that has a valve must earn its place (:func:`earns`): ``in_sample_pairs`` (the default:
@@ -45,8 +44,15 @@ def judged_in_sample(reference: Combination, added: Sequence[Mechanism], rule: s
     return all(not m.pointwise and not isinstance(m, SensorCalibration) for m in added)
 
 
-def earns(ref: tuple[float, float, int], cand: tuple[float, float, int], M: int, min_gain: float, threshold: float,
-          in_sample: bool, cv_guard: bool = True) -> tuple[float, float, str]:
+def earns(
+    ref: tuple[float, float, int],
+    cand: tuple[float, float, int],
+    M: int,
+    min_gain: float,
+    threshold: float,
+    in_sample: bool,
+    cv_guard: bool = True,
+) -> tuple[float, float, str]:
     """Whether a model ``cand`` earns its place against ``ref`` (each ``(cross-validated S, in-sample S, k)``):
     ``(gain, p, why not)``, ``why not`` empty when it does.
 
@@ -67,12 +73,16 @@ def earns(ref: tuple[float, float, int], cand: tuple[float, float, int], M: int,
     if in_sample:
         gain = (ref_in - s_in) / ref_in if ref_in > 0 else 0.0
         p = f_test_p(ref_in, s_in, ref_k, k, M)
-        bad = ((f"in-sample gain {gain:.1%} below {min_gain:.0%}", gain < min_gain),
-               (f"in-sample p = {p:.2g} not below {threshold:.2g}", p >= threshold),
-               (f"cross-validated score {cv:.4g} not below {ref_cv:.4g}", cv_guard and not cv < ref_cv))
+        bad = (
+            (f"in-sample gain {gain:.1%} below {min_gain:.0%}", gain < min_gain),
+            (f"in-sample p = {p:.2g} not below {threshold:.2g}", p >= threshold),
+            (f"cross-validated score {cv:.4g} not below {ref_cv:.4g}", cv_guard and not cv < ref_cv),
+        )
     else:
         gain = (ref_cv - cv) / ref_cv if ref_cv > 0 else 0.0
         p = f_test_p(ref_cv, cv, ref_k, k, M)
-        bad = ((f"gain {gain:.1%} below {min_gain:.0%}", gain < min_gain),
-               (f"p = {p:.2g} not below {threshold:.2g}", p >= threshold))
+        bad = (
+            (f"gain {gain:.1%} below {min_gain:.0%}", gain < min_gain),
+            (f"p = {p:.2g} not below {threshold:.2g}", p >= threshold),
+        )
     return gain, p, " and ".join(w for w, b in bad if b)

@@ -36,17 +36,32 @@ def plot_explanations(sel, directory: str | Path, name: str, channels: int = 3) 
         j = pr.channels.index(m["channel"])
         for k, e in enumerate(cmp_):  # at the ambient conditions of this panel's deciding point
             y = readings_over_load(pr, e.fit, LOADS, m["p_amb_Pa"], m["T_amb_K"])
-            ax.plot(100 * LOADS, y[:, j], "-" if e.in_set else "--", color=f"C{k}",
-                    label=labels[k] + ("" if e.in_set else " (outside the set)"))
+            ax.plot(
+                100 * LOADS,
+                y[:, j],
+                "-" if e.in_set else "--",
+                color=f"C{k}",
+                label=labels[k] + ("" if e.in_set else " (outside the set)"),
+            )
         ok = pr.measured_mask[:, j]
-        ax.errorbar(100 * load[ok], pr.Y[ok, j], yerr=pr.tolerance_cells[ok, j], fmt="o", color="k", ms=4,
-                    capsize=2, label="measured (± tolerance)")
-        ax.plot([100 * m["load"]] * 2, [m["a_value"], m["b_value"]], "x-", color="C3", lw=2,
-                label="the deciding point")
+        ax.errorbar(
+            100 * load[ok],
+            pr.Y[ok, j],
+            yerr=pr.tolerance_cells[ok, j],
+            fmt="o",
+            color="k",
+            ms=4,
+            capsize=2,
+            label="measured (± tolerance)",
+        )
+        ax.plot([100 * m["load"]] * 2, [m["a_value"], m["b_value"]], "x-", color="C3", lw=2, label="the deciding point")
         ax.set_xlabel("load [%]")
         ax.set_ylabel(f"[{m['unit']}]")
-        ax.set_title(f"{m['channel']}: {m['n_tolerances']:.1f} tolerances apart at {100 * m['load']:.0f} %\n"
-                     f"(intake {m['T_amb_K'] - 273.15:.0f} °C, {m['p_amb_Pa'] / 100:.0f} hPa)", fontsize=8)
+        ax.set_title(
+            f"{m['channel']}: {m['n_tolerances']:.1f} tolerances apart at {100 * m['load']:.0f} %\n"
+            f"(intake {m['T_amb_K'] - 273.15:.0f} °C, {m['p_amb_Pa'] / 100:.0f} hPa)",
+            fontsize=8,
+        )
         ax.grid(alpha=0.3)
     handles, names = axes.flat[0].get_legend_handles_labels()
     fig.legend(handles, names, loc="lower center", ncol=2, fontsize=7, frameon=False)

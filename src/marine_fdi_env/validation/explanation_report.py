@@ -17,8 +17,16 @@ from .deciding import deciding_measurements
 from .explanations import BAND, EXCLUDE_ALPHA, Explanation, ExplanationSet, explanation_set, nested_in
 from .problem import Problem
 
-__all__ = ["DECIDE_TOP", "compared", "explain", "explanation_name", "explanations_json", "interval", "markdown_lines",
-           "summary_lines"]
+__all__ = [
+    "DECIDE_TOP",
+    "compared",
+    "explain",
+    "explanation_name",
+    "explanations_json",
+    "interval",
+    "markdown_lines",
+    "summary_lines",
+]
 
 #: how many of the best-ranked explanations the deciding measurement compares (the set's, else the set's only
 #: member and the best admissible structure outside it)
@@ -47,16 +55,32 @@ def compared(es: ExplanationSet) -> list[Explanation]:
     return top
 
 
-def explain(sel, *, holdout: Callable[[Any, str], Mapping[str, Any]] | None = None, profiles: bool = True,
-            deciding: bool = True, say: Callable[[str], None] | None = None) -> dict[str, Any]:
+def explain(
+    sel,
+    *,
+    holdout: Callable[[Any, str], Mapping[str, Any]] | None = None,
+    profiles: bool = True,
+    deciding: bool = True,
+    say: Callable[[str], None] | None = None,
+) -> dict[str, Any]:
     """The explanation set of a :class:`~.selection.Selection` (stored in ``sel.explanations``), the deciding
     measurements between its best explanations, and with ``holdout`` (``holdout(fit, conditions)``: a hold-out
     evaluation of a fit at ``"parameter_set"`` or ``"fit"`` conditions, as :func:`~.report.holdout_evaluation`)
     each member's.  Returns the report's keys (:func:`explanations_json`)."""
     st = sel.settings
-    es = explanation_set(sel.problem, sel.fit, sel.steps, alpha=st["alpha"], min_gain=st["min_gain"],
-                         penalty=st["penalty"], max_folds=st.get("max_folds"), beside_valve=st["beside_valve"],
-                         base_cv=sel.base_pred, profiles=profiles, say=say)
+    es = explanation_set(
+        sel.problem,
+        sel.fit,
+        sel.steps,
+        alpha=st["alpha"],
+        min_gain=st["min_gain"],
+        penalty=st["penalty"],
+        max_folds=st.get("max_folds"),
+        beside_valve=st["beside_valve"],
+        base_cv=sel.base_pred,
+        profiles=profiles,
+        say=say,
+    )
     sel.explanations = es
     pr = sel.problem
     names = {id(e): explanation_name(pr, e) for e in es.tried}
@@ -75,10 +99,18 @@ def explain(sel, *, holdout: Callable[[Any, str], Mapping[str, Any]] | None = No
 def _holdout_summary(h: Mapping[str, Any]) -> dict[str, Any]:
     out = {}
     for cond, r in h.items():
-        out[cond] = {c: {k: v.get(k) for k in ("holdout_rmse_base", "holdout_rmse_extended",
-                                                 "holdout_rmse_base_without_suspect",
-                                                 "holdout_rmse_extended_without_suspect")}
-                     for c, v in r["channels"].items()}
+        out[cond] = {
+            c: {
+                k: v.get(k)
+                for k in (
+                    "holdout_rmse_base",
+                    "holdout_rmse_extended",
+                    "holdout_rmse_base_without_suspect",
+                    "holdout_rmse_extended_without_suspect",
+                )
+            }
+            for c, v in r["channels"].items()
+        }
         if r.get("conditions", {}).get("filled") == [] and cond == "fit":
             out[cond] = None
     return out
@@ -89,12 +121,15 @@ def _why_outside(e: Explanation, best: Explanation) -> str:
         return "not admissible: " + e.why_not
     if nested_in(e, best):
         return "#1 without some of its causes, which each earn their place by the selection's test"
-    return (f"ΔAIC {e.delta_aic:.1f} > {BAND:g}, worse point by point (paired p = {e.p_worse:.2g} < "
-            f"{EXCLUDE_ALPHA:g}) and in sample (ΔAICc {e.delta_aicc_in:.1f} > {BAND:g})")
+    return (
+        f"ΔAIC {e.delta_aic:.1f} > {BAND:g}, worse point by point (paired p = {e.p_worse:.2g} < "
+        f"{EXCLUDE_ALPHA:g}) and in sample (ΔAICc {e.delta_aicc_in:.1f} > {BAND:g})"
+    )
 
 
-def explanations_json(problem: Problem, es: ExplanationSet, names: Mapping[int, str], deciding: Sequence[Any],
-                      holdouts: Mapping[int, Any]) -> dict[str, Any]:
+def explanations_json(
+    problem: Problem, es: ExplanationSet, names: Mapping[int, str], deciding: Sequence[Any], holdouts: Mapping[int, Any]
+) -> dict[str, Any]:
     members = []
     for i, e in enumerate(es.members):
         d = e.as_dict(problem, i + 1)
@@ -105,21 +140,41 @@ def explanations_json(problem: Problem, es: ExplanationSet, names: Mapping[int, 
     best = es.members[0]
     outside = []
     for e in es.outside():
-        outside.append({"name": names[id(e)], "labels": list(e.labels), "k": e.fit.k, "origin": e.structure.origin,
-                        "in_sample_score": e.in_sample_score, "cv_score": e.cv_score, "delta_aic": e.delta_aic,
-                        "p_worse": e.p_worse, "delta_aicc_in_sample": e.delta_aicc_in, "why": _why_outside(e, best),
-                        "parameters": e.fit.values(),
-                        "support": {k: [int(i) + 1 for i in v] for k, v in e.fit.support.items()}})
-    return {"explanations": members, "explanations_outside": outside, "deciding": list(deciding),
-            "explanation_rule": {"rule": es.rule, "band_delta_aic": BAND, "exclude_alpha": EXCLUDE_ALPHA,
-                                 "n_cells": es.n_cells, "structures_tried": len(es.tried), "seconds": es.seconds}}
+        outside.append(
+            {
+                "name": names[id(e)],
+                "labels": list(e.labels),
+                "k": e.fit.k,
+                "origin": e.structure.origin,
+                "in_sample_score": e.in_sample_score,
+                "cv_score": e.cv_score,
+                "delta_aic": e.delta_aic,
+                "p_worse": e.p_worse,
+                "delta_aicc_in_sample": e.delta_aicc_in,
+                "why": _why_outside(e, best),
+                "parameters": e.fit.values(),
+                "support": {k: [int(i) + 1 for i in v] for k, v in e.fit.support.items()},
+            }
+        )
+    return {
+        "explanations": members,
+        "explanations_outside": outside,
+        "deciding": list(deciding),
+        "explanation_rule": {
+            "rule": es.rule,
+            "band_delta_aic": BAND,
+            "exclude_alpha": EXCLUDE_ALPHA,
+            "n_cells": es.n_cells,
+            "structures_tried": len(es.tried),
+            "seconds": es.seconds,
+        },
+    }
 
 
 def _evidence(d: Mapping[str, Any]) -> str:
     if d["rank"] == 1:
         return "best"
-    return (f"ΔAIC {d['delta_aic']:.1f}, paired p = {d['p_worse']:.2g}, in-sample ΔAICc "
-            f"{d['delta_aicc_in_sample']:.1f}")
+    return f"ΔAIC {d['delta_aic']:.1f}, paired p = {d['p_worse']:.2g}, in-sample ΔAICc {d['delta_aicc_in_sample']:.1f}"
 
 
 def summary_lines(rep: Mapping[str, Any]) -> list[str]:
@@ -129,8 +184,9 @@ def summary_lines(rep: Mapping[str, Any]) -> list[str]:
         return []
     lines = []
     if len(ex) > 1:
-        lines.append("  the data do not decide between: " + "; ".join(
-            f"#{d['rank']} {d['name']} ({_evidence(d)})" for d in ex))
+        lines.append(
+            "  the data do not decide between: " + "; ".join(f"#{d['rank']} {d['name']} ({_evidence(d)})" for d in ex)
+        )
     else:
         lines.append(f"  the data decide for: {ex[0]['name']}")
     out = rep.get("explanations_outside") or []
@@ -156,56 +212,87 @@ def markdown_lines(rep: Mapping[str, Any]) -> list[str]:
     if not ex:
         return []
     rule = rep["explanation_rule"]
-    L = ["Explanations (every model structure the data do not decide against; structures tried: "
-         f"{rule['structures_tried']}; {rule['rule']}):", ""]
+    L = [
+        "Explanations (every model structure the data do not decide against; structures tried: "
+        f"{rule['structures_tried']}; {rule['rule']}):",
+        "",
+    ]
     if len(ex) > 1:
         L += ["**The data do not decide between:** " + "; ".join(f"#{d['rank']} {d['name']}" for d in ex) + ".", ""]
-    L += ["| # | explanation | named by the selection | k | in-sample score | CV score | evidence vs #1 | parameters "
-          "(value [95 % profile interval]) |",
-          "|---|---|---|---|---|---|---|---|"]
+    L += [
+        "| # | explanation | named by the selection | k | in-sample score | CV score | evidence vs #1 | parameters "
+        "(value [95 % profile interval]) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for d in ex:
         prof = d.get("profiles") or {}
         params = "; ".join(f"`{k}` {interval(v)}" for k, v in prof.items()) or "–"
-        L.append(f"| {d['rank']} | {d['name']} | {'yes' if d['named'] else 'no'} | {d['k']} | "
-                 f"{d['in_sample_score']:.3g} | {d['cv_score']:.3g} | {_evidence(d)} | {params} |")
+        L.append(
+            f"| {d['rank']} | {d['name']} | {'yes' if d['named'] else 'no'} | {d['k']} | "
+            f"{d['in_sample_score']:.3g} | {d['cv_score']:.3g} | {_evidence(d)} | {params} |"
+        )
     L.append("")
     vs = [(d, v, pts) for d in ex for v, pts in (d.get("valve_states") or {}).items()]
     if vs:
-        L += ["Valve states per measured point (load; diverted flow fraction where open):", "",
-              "| # | valve | " + " | ".join(f"{100 * p['load']:.0f} %" for p in vs[0][2]) + " |",
-              "|---|---|" + "---|" * len(vs[0][2])]
+        L += [
+            "Valve states per measured point (load; diverted flow fraction where open):",
+            "",
+            "| # | valve | " + " | ".join(f"{100 * p['load']:.0f} %" for p in vs[0][2]) + " |",
+            "|---|---|" + "---|" * len(vs[0][2]),
+        ]
         for d, v, pts in vs:
-            L.append(f"| {d['rank']} | {v} | " + " | ".join(f"open {p['fraction']:.3f}" if p["open"] else "shut"
-                                                           for p in pts) + " |")
+            L.append(
+                f"| {d['rank']} | {v} | "
+                + " | ".join(f"open {p['fraction']:.3f}" if p["open"] else "shut" for p in pts)
+                + " |"
+            )
         L.append("")
     ho = [(d, d["holdout"]) for d in ex if d.get("holdout")]
     if ho:
-        L += ["Hold-out prediction of each explanation (RMSE base → explanation; in brackets without the readings "
-              "the "
-              "loader flags):", "", "| # | conditions | " + " | ".join(f"`{c}`" for c in ho[0][1]["parameter_set"])
-              + " |", "|---|---|" + "---|" * len(ho[0][1]["parameter_set"])]
+        L += [
+            "Hold-out prediction of each explanation (RMSE base → explanation; in brackets without the readings "
+            "the "
+            "loader flags):",
+            "",
+            "| # | conditions | " + " | ".join(f"`{c}`" for c in ho[0][1]["parameter_set"]) + " |",
+            "|---|---|" + "---|" * len(ho[0][1]["parameter_set"]),
+        ]
         for d, h in ho:
             for cond, chans in h.items():
                 if not chans:
                     continue
-                L.append(f"| {d['rank']} | {cond} | " + " | ".join(
-                    f"{_g(v['holdout_rmse_base'])} → {_g(v['holdout_rmse_extended'])} "
-                    f"({_g(v['holdout_rmse_base_without_suspect'])} → "
-                    f"{_g(v['holdout_rmse_extended_without_suspect'])})"
-                    for v in chans.values()) + " |")
+                L.append(
+                    f"| {d['rank']} | {cond} | "
+                    + " | ".join(
+                        f"{_g(v['holdout_rmse_base'])} → {_g(v['holdout_rmse_extended'])} "
+                        f"({_g(v['holdout_rmse_base_without_suspect'])} → "
+                        f"{_g(v['holdout_rmse_extended_without_suspect'])})"
+                        for v in chans.values()
+                    )
+                    + " |"
+                )
         L.append("")
     out = rep.get("explanations_outside") or []
     if out:
-        L += ["Tried and outside the set:", "", "| explanation | k | in-sample score | CV score | ΔAIC | paired p | "
-              "in-sample ΔAICc | why |", "|---|---|---|---|---|---|---|---|"]
+        L += [
+            "Tried and outside the set:",
+            "",
+            "| explanation | k | in-sample score | CV score | ΔAIC | paired p | in-sample ΔAICc | why |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
         for o in out:
-            L.append(f"| {o['name']} | {o['k']} | {o['in_sample_score']:.3g} | {o['cv_score']:.3g} | "
-                     f"{o['delta_aic']:.1f} | {o['p_worse']:.2g} | {o['delta_aicc_in_sample']:.1f} | {o['why']} |")
+            L.append(
+                f"| {o['name']} | {o['k']} | {o['in_sample_score']:.3g} | {o['cv_score']:.3g} | "
+                f"{o['delta_aic']:.1f} | {o['p_worse']:.2g} | {o['delta_aicc_in_sample']:.1f} | {o['why']} |"
+            )
         L.append("")
     for p in rep.get("deciding") or []:
         if p["measurements"]:
-            L += [f"The measurement that decides between {p['a']} and {p['b']} (where their fitted engines differ "
-                  f"most in tolerances; at the measured points at most {p['at_measured_loads']:.1f}):", ""]
+            L += [
+                f"The measurement that decides between {p['a']} and {p['b']} (where their fitted engines differ "
+                f"most in tolerances; at the measured points at most {p['at_measured_loads']:.1f}):",
+                "",
+            ]
             L += [f"* {m['text']}" for m in p["measurements"]]
             L.append("")
     return L

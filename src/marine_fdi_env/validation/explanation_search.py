@@ -26,7 +26,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 from .candidates import CandidateScore
 from .fitting import Combination, FitResult, fit_combination
-from .mechanisms import Mechanism, VALVE_MECHANISMS
+from .mechanisms import VALVE_MECHANISMS, Mechanism
 from .problem import Problem
 
 __all__ = ["MAX_STARTS", "START_BAND", "Structure", "accepted_steps", "candidate_structures", "support_key"]
@@ -79,10 +79,12 @@ def _is_addon(c: CandidateScore, acc: CandidateScore, n_before: int) -> bool:
     """Whether ``c`` is the accepted candidate plus more mechanisms with the accepted candidate's valve points."""
     added = acc.combination.mechanisms[n_before:]
     if not all(m in c.combination.mechanisms for m in added) or len(c.combination.mechanisms) <= len(
-            acc.combination.mechanisms):
+        acc.combination.mechanisms
+    ):
         return False
-    return all(sorted(c.fit.support.get(m.id, ())) == sorted(acc.fit.support.get(m.id, ())) for m in added
-               if m.pointwise)
+    return all(
+        sorted(c.fit.support.get(m.id, ())) == sorted(acc.fit.support.get(m.id, ())) for m in added if m.pointwise
+    )
 
 
 def _starts(step: Mapping[str, Any], acc: CandidateScore, M: int, penalty: float) -> list[CandidateScore]:
@@ -108,15 +110,22 @@ def _starts(step: Mapping[str, Any], acc: CandidateScore, M: int, penalty: float
         d = M * math.log(_penalised_in(c, M, penalty) / ref_in)
         if d > START_BAND:
             continue
-        other_points = any(v in {m.id for m in c.combination.valves} and sorted(c.fit.support.get(v, ())) != pts
-                           for v, pts in valves.items())
+        other_points = any(
+            v in {m.id for m in c.combination.valves} and sorted(c.fit.support.get(v, ())) != pts
+            for v, pts in valves.items()
+        )
         groups[1 if other_points else 2].append((d, c))
     out = [c for g in groups for _, c in sorted(g, key=lambda t: t[0])]
     return out[:MAX_STARTS]
 
 
-def candidate_structures(problem: Problem, named: FitResult, steps: Sequence[Mapping[str, Any]], penalty: float,
-                         say: Callable[[str], None] | None = None) -> list[Structure]:
+def candidate_structures(
+    problem: Problem,
+    named: FitResult,
+    steps: Sequence[Mapping[str, Any]],
+    penalty: float,
+    say: Callable[[str], None] | None = None,
+) -> list[Structure]:
     """The structures of the module docstring, the named one first (duplicates by mechanisms and supports
     removed; a valve that opens nowhere is dropped from the structure it was added to)."""
     say = say or (lambda s: None)
@@ -129,8 +138,10 @@ def candidate_structures(problem: Problem, named: FitResult, steps: Sequence[Map
         s = Structure(fit, origin)
         if s.key not in out:
             out[s.key] = s
-            say(f"explanations: {' + '.join(fit.combination.labels) or 'nothing'} "
-                f"{dict(support_key(fit)) or ''} in-sample {2 * fit.data_cost / M:.4g} ({origin})")
+            say(
+                f"explanations: {' + '.join(fit.combination.labels) or 'nothing'} "
+                f"{dict(support_key(fit)) or ''} in-sample {2 * fit.data_cost / M:.4g} ({origin})"
+            )
             return s
         return None
 
@@ -140,31 +151,46 @@ def candidate_structures(problem: Problem, named: FitResult, steps: Sequence[Map
         return list(out.values())
     known = named.values()
     if comb.valves:
-        add(fit_combination(problem, comb, start=named, known=known, uncertainty=False),
-            "the named causes, every valve's points chosen again with all of them in place")
+        add(
+            fit_combination(problem, comb, start=named, known=known, uncertainty=False),
+            "the named causes, every valve's points chosen again with all of them in place",
+        )
     first_alt: Structure | None = None
     for i, (step, acc) in enumerate(accepted_steps(steps)):
         n_acc = len(acc.members or (acc,))
-        added_at = acc.combination.mechanisms[len(acc.combination.mechanisms) - n_acc:]
+        added_at = acc.combination.mechanisms[len(acc.combination.mechanisms) - n_acc :]
         for c in _starts(step, acc, M, penalty):
-            later = [m for m in comb.mechanisms if m not in c.combination.mechanisms and m not in added_at
-                     and m not in acc.combination.mechanisms]
+            later = [
+                m
+                for m in comb.mechanisms
+                if m not in c.combination.mechanisms and m not in added_at and m not in acc.combination.mechanisms
+            ]
             full = Combination(c.combination.mechanisms + tuple(later))
             origin = f"step {step['step']}: {c.added} in place of {acc.added}" + (
-                ", then " + " + ".join(m.label for m in later) if later else "")
+                ", then " + " + ".join(m.label for m in later) if later else ""
+            )
             held = {k: v for k, v in c.fit.support.items() if k in {m.id for m in full.valves}}
-            f1 = fit_combination(problem, full, start=c.fit, known={**known, **c.fit.values()}, support=held,
-                                 uncertainty=False)
+            f1 = fit_combination(
+                problem, full, start=c.fit, known={**known, **c.fit.values()}, support=held, uncertainty=False
+            )
             s1 = add(f1, origin + " (its valve points held)")
             if i == 0 and first_alt is None and s1 is not None:
                 first_alt = s1
             if full.valves:
-                add(fit_combination(problem, full, start=f1, known=f1.values(), uncertainty=False),
-                    origin + " (every valve's points chosen again)")
+                add(
+                    fit_combination(problem, full, start=f1, known=f1.values(), uncertainty=False),
+                    origin + " (every valve's points chosen again)",
+                )
     for base in [s for s in (out.get(Structure(named, "").key), first_alt) if s is not None]:
         for v in _valves_missing(base.combination):
-            f = fit_combination(problem, base.combination.plus(v), start=base.fit, known=base.fit.values(),
-                                support=dict(base.fit.support), uncertainty=False)
+            f = fit_combination(
+                problem,
+                base.combination.plus(v),
+                start=base.fit,
+                known=base.fit.values(),
+                support=dict(base.fit.support),
+                uncertainty=False,
+            )
             add(f, f"{base.origin}, with {v.label} added")
     return list(out.values())
 

@@ -51,8 +51,17 @@ from .nuisance import NUISANCE
 from .problem import Problem
 from .profiles import ProfileInterval, fit_profiles
 
-__all__ = ["BAND", "EXCLUDE_ALPHA", "Explanation", "ExplanationSet", "admissibility", "aicc_in_sample",
-           "cross_validate_held", "explanation_set", "nested_in"]
+__all__ = [
+    "BAND",
+    "EXCLUDE_ALPHA",
+    "Explanation",
+    "ExplanationSet",
+    "admissibility",
+    "aicc_in_sample",
+    "cross_validate_held",
+    "explanation_set",
+    "nested_in",
+]
 
 #: ΔAIC on the cross-validated robust cost within which a structure is in the set whatever the paired test says
 BAND = 2.0
@@ -71,8 +80,17 @@ def cross_validate_held(problem: Problem, fit: FitResult, max_folds: int | None 
         train = np.setdiff1d(rows, test)
         if train.size == 0 or not problem.measured_mask[train].any():
             continue
-        f = fit_combination(problem, comb, train, start=fit, known=fit.values(), support=fit.support,
-                            uncertainty=False, max_nfev=25 * (len(NUISANCE) + comb.n_global + 1), eliminate=False)
+        f = fit_combination(
+            problem,
+            comb,
+            train,
+            start=fit,
+            known=fit.values(),
+            support=fit.support,
+            uncertainty=False,
+            max_nfev=25 * (len(NUISANCE) + comb.n_global + 1),
+            eliminate=False,
+        )
         pred[test] = predict_setting(problem, f, test)
     return pred
 
@@ -117,10 +135,16 @@ class Explanation:
         for m in self.fit.combination.valves:
             sup = set(self.fit.support.get(m.id, ()))
             frac = vals[m.activity_key()]
-            out[m.id] = [{"point": i + 1, "load": float(load[i]), "open": i in sup,
-                          "opening": float(self.fit.openings[m.id][i]) if i in sup else 0.0,
-                          "fraction": float(frac[i]) if i in sup and conv[i] else 0.0}
-                         for i in range(problem.n_points)]
+            out[m.id] = [
+                {
+                    "point": i + 1,
+                    "load": float(load[i]),
+                    "open": i in sup,
+                    "opening": float(self.fit.openings[m.id][i]) if i in sup else 0.0,
+                    "fraction": float(frac[i]) if i in sup and conv[i] else 0.0,
+                }
+                for i in range(problem.n_points)
+            ]
         return out
 
     def as_dict(self, problem: Problem, rank: int | None = None) -> dict[str, Any]:
@@ -128,15 +152,26 @@ class Explanation:
         rin = channel_rmse(problem, predict_setting(problem, fit, np.arange(problem.n_points)))
         rcv = channel_rmse(problem, self.cv_pred)
         d: dict[str, Any] = {
-            "rank": rank, "labels": list(self.labels), "named": self.named, "origin": self.structure.origin,
-            "support": {k: [i + 1 for i in v] for k, v in support_key(fit)}, "k": fit.k,
-            "in_sample_score": self.in_sample_score, "robust_cost": fit.data_cost, "cv_score": self.cv_score,
-            "penalised_score": self.penalised, "delta_aic": self.delta_aic, "p_worse": self.p_worse,
+            "rank": rank,
+            "labels": list(self.labels),
+            "named": self.named,
+            "origin": self.structure.origin,
+            "support": {k: [i + 1 for i in v] for k, v in support_key(fit)},
+            "k": fit.k,
+            "in_sample_score": self.in_sample_score,
+            "robust_cost": fit.data_cost,
+            "cv_score": self.cv_score,
+            "penalised_score": self.penalised,
+            "delta_aic": self.delta_aic,
+            "p_worse": self.p_worse,
             "delta_aicc_in_sample": self.delta_aicc_in,
-            "in_set": self.in_set, "admissible": None if self.why_not is None else not self.why_not,
-            "parameters": fit.values(), "nuisance": fit.nuisance_values(),
+            "in_set": self.in_set,
+            "admissible": None if self.why_not is None else not self.why_not,
+            "parameters": fit.values(),
+            "nuisance": fit.nuisance_values(),
             "channels": {c: {"rmse_in_sample": rin[c], "cv_rmse": rcv[c]} for c in problem.channels},
-            "valve_states": self.valve_states(problem)}
+            "valve_states": self.valve_states(problem),
+        }
         if self.why_not:
             d["why_not"] = self.why_not
         if self.profiles:
@@ -164,17 +199,24 @@ class ExplanationSet:
         return next((e for e in self.tried if not e.in_set and e.why_not == ""), None)
 
     def as_dict(self, problem: Problem) -> dict[str, Any]:
-        return {"rule": self.rule, "band_delta_aic": BAND, "exclude_alpha": EXCLUDE_ALPHA, "n_cells": self.n_cells,
-                "seconds": self.seconds,
-                "members": [e.as_dict(problem, i + 1) for i, e in enumerate(self.members)],
-                "outside": [e.as_dict(problem) for e in self.outside()]}
+        return {
+            "rule": self.rule,
+            "band_delta_aic": BAND,
+            "exclude_alpha": EXCLUDE_ALPHA,
+            "n_cells": self.n_cells,
+            "seconds": self.seconds,
+            "members": [e.as_dict(problem, i + 1) for i, e in enumerate(self.members)],
+            "outside": [e.as_dict(problem) for e in self.outside()],
+        }
 
 
-RULE = (f"structures ranked by the penalised cross-validated score (ΔAIC = M ln of its ratio to the best); excluded "
-        f"when ΔAIC > {BAND:g}, a one-sided paired t-test of the per-point cross-validated losses gives "
-        f"p < {EXCLUDE_ALPHA:g} and the in-sample AICc is more than {BAND:g} above the best's, or when it is the best "
-        "without some of its causes; every member admissible (each valve opens, no parameter pinned at a bound the "
-        "data want beyond, each cause earns its place by the selection's test)")
+RULE = (
+    f"structures ranked by the penalised cross-validated score (ΔAIC = M ln of its ratio to the best); excluded "
+    f"when ΔAIC > {BAND:g}, a one-sided paired t-test of the per-point cross-validated losses gives "
+    f"p < {EXCLUDE_ALPHA:g} and the in-sample AICc is more than {BAND:g} above the best's, or when it is the best "
+    "without some of its causes; every member admissible (each valve opens, no parameter pinned at a bound the "
+    "data want beyond, each cause earns its place by the selection's test)"
+)
 
 
 def aicc_in_sample(e: "Explanation", M: int) -> float:
@@ -183,16 +225,25 @@ def aicc_in_sample(e: "Explanation", M: int) -> float:
     return M * math.log(max(e.in_sample_score, 1e-300)) + 2 * K + 2 * K * (K + 1) / max(M - K - 1, 1)
 
 
-def _score(problem: Problem, s: Structure, M: int, penalty: float, max_folds: int | None,
-           cv: np.ndarray | None = None) -> Explanation:
+def _score(
+    problem: Problem, s: Structure, M: int, penalty: float, max_folds: int | None, cv: np.ndarray | None = None
+) -> Explanation:
     pred = cross_validate_held(problem, s.fit, max_folds) if cv is None else cv
     L, _ = cell_losses(problem, pred)
     S = float(L.sum() / M)
     return Explanation(s, pred, L, S, S * math.exp(penalty * s.fit.k / M), 2.0 * s.fit.data_cost / M)
 
 
-def admissibility(problem: Problem, e: Explanation, scored: Callable[[FitResult, str], Explanation], *, M: int,
-                  min_gain: float, threshold: float, beside_valve: str) -> tuple[str, list[Explanation]]:
+def admissibility(
+    problem: Problem,
+    e: Explanation,
+    scored: Callable[[FitResult, str], Explanation],
+    *,
+    M: int,
+    min_gain: float,
+    threshold: float,
+    beside_valve: str,
+) -> tuple[str, list[Explanation]]:
     """Why ``e`` is not an explanation ("" when it is; module docstring) and the reduced structures it was tested
     against (each without one cause, valve supports held)."""
     fit = e.fit
@@ -212,8 +263,15 @@ def admissibility(problem: Problem, e: Explanation, scored: Callable[[FitResult,
         r = scored(f, f"{' + '.join(fit.combination.labels)} without {m.label}")
         reduced.append(r)
         in_sample = judged_in_sample(comb, [m], beside_valve)
-        gain, p, why = earns((r.cv_score, r.in_sample_score, f.k), (e.cv_score, e.in_sample_score, fit.k), M,
-                             min_gain, threshold, in_sample, cv_guard=beside_valve not in IN_SAMPLE_ALONE)
+        gain, p, why = earns(
+            (r.cv_score, r.in_sample_score, f.k),
+            (e.cv_score, e.in_sample_score, fit.k),
+            M,
+            min_gain,
+            threshold,
+            in_sample,
+            cv_guard=beside_valve not in IN_SAMPLE_ALONE,
+        )
         if why:
             return f"{m.label} does not earn its place ({why})", reduced
     return "", reduced
@@ -222,15 +280,25 @@ def admissibility(problem: Problem, e: Explanation, scored: Callable[[FitResult,
 def nested_in(e: Explanation, other: Explanation) -> bool:
     """Whether ``e`` is ``other`` without some of its causes, each remaining valve at the same points."""
     return set(e.labels) < set(other.labels) and all(
-        sorted(e.fit.support.get(m.id, ())) == sorted(other.fit.support.get(m.id, ()))
-        for m in e.fit.combination.valves)
+        sorted(e.fit.support.get(m.id, ())) == sorted(other.fit.support.get(m.id, ())) for m in e.fit.combination.valves
+    )
 
 
-def explanation_set(problem: Problem, named: FitResult, steps: Sequence[dict[str, Any]], *, alpha: float = 0.01,
-                    min_gain: float = 0.10, penalty: float = 2.0, max_folds: int | None = None,
-                    beside_valve: str = BESIDE_VALVE_DEFAULT, base_cv: np.ndarray | None = None,
-                    profiles: bool = True, extra: Sequence[FitResult] = (),
-                    say: Callable[[str], None] | None = None) -> ExplanationSet:
+def explanation_set(
+    problem: Problem,
+    named: FitResult,
+    steps: Sequence[dict[str, Any]],
+    *,
+    alpha: float = 0.01,
+    min_gain: float = 0.10,
+    penalty: float = 2.0,
+    max_folds: int | None = None,
+    beside_valve: str = BESIDE_VALVE_DEFAULT,
+    base_cv: np.ndarray | None = None,
+    profiles: bool = True,
+    extra: Sequence[FitResult] = (),
+    say: Callable[[str], None] | None = None,
+) -> ExplanationSet:
     """The explanations of ``problem`` around the selection's named model ``named`` (its fit) and steps (module
     docstring).  ``base_cv``: the calibrated base model's cross-validated predictions (the structure without any
     cause).  ``extra``: fits of further structures to weigh (a hypothesis of one's own; each valve's support as
@@ -263,12 +331,16 @@ def explanation_set(problem: Problem, named: FitResult, steps: Sequence[dict[str
         if e.key in checked:
             return
         checked.add(e.key)
-        e.why_not = (admissibility(problem, e, scored, M=M, min_gain=min_gain, threshold=threshold,
-                                   beside_valve=beside_valve)[0] if e.fit.combination.mechanisms else "")
+        e.why_not = (
+            admissibility(problem, e, scored, M=M, min_gain=min_gain, threshold=threshold, beside_valve=beside_valve)[0]
+            if e.fit.combination.mechanisms
+            else ""
+        )
 
     def excluded(e: Explanation) -> bool:
-        return e is not best and (nested_in(e, best) or (e.delta_aic > BAND and e.p_worse < EXCLUDE_ALPHA
-                                                         and e.delta_aicc_in > BAND))
+        return e is not best and (
+            nested_in(e, best) or (e.delta_aic > BAND and e.p_worse < EXCLUDE_ALPHA and e.delta_aicc_in > BAND)
+        )
 
     best: Explanation | None = None
     while True:
@@ -287,8 +359,9 @@ def explanation_set(problem: Problem, named: FitResult, steps: Sequence[dict[str
             e.delta_aicc_in = aicc_in_sample(e, M) - aicc_in_sample(best, M)
             e.p_worse = 1.0 if e is best else paired_p(e.point_losses, best.point_losses, rows)
         pending = [e for e in cache.values() if e.key not in checked and not excluded(e)]
-        if not pending and not any(not e.why_not and e.why_not is not None and e.penalised < best.penalised
-                                   for e in cache.values()):
+        if not pending and not any(
+            not e.why_not and e.why_not is not None and e.penalised < best.penalised for e in cache.values()
+        ):
             break
         for e in pending:
             check(e)
@@ -300,6 +373,5 @@ def explanation_set(problem: Problem, named: FitResult, steps: Sequence[dict[str
         for e in members:
             if e.fit.combination.mechanisms:
                 e.profiles = fit_profiles(problem, e.fit)
-    say(f"explanations: {len(members)} in the set of {len(tried)} structures tried "
-        f"({time.perf_counter() - t0:.1f} s)")
+    say(f"explanations: {len(members)} in the set of {len(tried)} structures tried ({time.perf_counter() - t0:.1f} s)")
     return ExplanationSet(members, tried, M, time.perf_counter() - t0, RULE)

@@ -68,9 +68,26 @@ from .mechanisms import Mechanism, ValveMechanism
 from .nuisance import NUISANCE, nuisance_bounds, prior_residuals, scales_of
 from .problem import HELD_OUT_VALVES, Problem, Setting
 
-__all__ = ["ROBUST_SCALE", "robust_loss", "Combination", "FitResult", "fit_combination", "cross_validate",
-           "cell_losses", "channel_rmse", "L1_LAMBDA", "SUPPORT_FRACTION", "POINT_ALPHA", "predict_setting",
-           "FoldData", "fold_data", "fit_sensor", "loco_predictions", "HELD_OUT_VALVES", "support_objective"]
+__all__ = [
+    "ROBUST_SCALE",
+    "robust_loss",
+    "Combination",
+    "FitResult",
+    "fit_combination",
+    "cross_validate",
+    "cell_losses",
+    "channel_rmse",
+    "L1_LAMBDA",
+    "SUPPORT_FRACTION",
+    "POINT_ALPHA",
+    "predict_setting",
+    "FoldData",
+    "fold_data",
+    "fit_sensor",
+    "loco_predictions",
+    "HELD_OUT_VALVES",
+    "support_objective",
+]
 
 ROBUST_SCALE = 3.0  # soft_l1 scale in tolerance units
 L1_LAMBDA = 2.0
@@ -275,9 +292,14 @@ class FitResult:
         for m in self.combination.globals:
             d = {}
             for p in m.params:
-                d[p.name] = {"value": float(self.x[k]), "stderr": float(self.stderr[k]), "unit": p.unit,
-                             "at_bound": bool(self.at_bound[k]) if self.at_bound.size > k else False,
-                             "bounds": [float(b) for b in p.bounds], "description": p.description}
+                d[p.name] = {
+                    "value": float(self.x[k]),
+                    "stderr": float(self.stderr[k]),
+                    "unit": p.unit,
+                    "at_bound": bool(self.at_bound[k]) if self.at_bound.size > k else False,
+                    "bounds": [float(b) for b in p.bounds],
+                    "description": p.description,
+                }
                 k += 1
             out[m.label] = d
         return out
@@ -295,8 +317,15 @@ def _clip_into(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
 class _Objective:
     """Residual vector of one fit: layout [nuisance | globals | v of each valve at its free rows]."""
 
-    def __init__(self, problem: Problem, comb: Combination, rows: np.ndarray, free: Mapping[str, np.ndarray],
-                 l1: float, penalised: set[str] | None = None):
+    def __init__(
+        self,
+        problem: Problem,
+        comb: Combination,
+        rows: np.ndarray,
+        free: Mapping[str, np.ndarray],
+        l1: float,
+        penalised: set[str] | None = None,
+    ):
         self.problem, self.comb, self.rows, self.free, self.l1 = problem, comb, rows, free, l1
         self.penalised = {m.id for m in comb.valves} if penalised is None else penalised
         self.mask = problem.measured_mask[rows]
@@ -305,12 +334,12 @@ class _Objective:
 
     def split(self, z):
         nuis = z[:N_NUIS]
-        xg = z[N_NUIS:N_NUIS + self.ng]
+        xg = z[N_NUIS : N_NUIS + self.ng]
         openings, k = {}, N_NUIS + self.ng
         for m in self.comb.valves:
             o = np.zeros(self.problem.n_points)
             idx = self.free[m.id]
-            o[idx] = z[k:k + idx.size] ** 2
+            o[idx] = z[k : k + idx.size] ** 2
             openings[m.id] = o
             k += idx.size
         return nuis, xg, openings
@@ -328,7 +357,7 @@ class _Objective:
             for m in self.comb.valves:
                 n = self.nv[m.id]
                 if m.id in self.penalised:
-                    parts.append(math.sqrt(2.0 * self.l1 / m.opening_scale) * z[k:k + n])
+                    parts.append(math.sqrt(2.0 * self.l1 / m.opening_scale) * z[k : k + n])
                 k += n
         return np.concatenate(parts)
 
@@ -347,17 +376,26 @@ def _solve(obj: _Objective, starts: Sequence[np.ndarray], max_nfev: int):
         z0 = _clip_into(np.asarray(z0, float), lo, hi)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
-            res = least_squares(obj, z0, bounds=(lo, hi), x_scale=hi - lo, diff_step=1e-6, xtol=1e-7, ftol=1e-7,
-                                max_nfev=max_nfev)
+            res = least_squares(
+                obj, z0, bounds=(lo, hi), x_scale=hi - lo, diff_step=1e-6, xtol=1e-7, ftol=1e-7, max_nfev=max_nfev
+            )
         if best is None or res.cost < best.cost:
             best = res
     return best
 
 
-def fit_combination(problem: Problem, comb: Combination, rows=None, *, start: "FitResult | None" = None,
-                    known: Mapping[str, float] | None = None, max_nfev: int | None = None,
-                    uncertainty: bool = True, support: Mapping[str, Sequence[int]] | None = None,
-                    eliminate: bool = True) -> FitResult:
+def fit_combination(
+    problem: Problem,
+    comb: Combination,
+    rows=None,
+    *,
+    start: "FitResult | None" = None,
+    known: Mapping[str, float] | None = None,
+    max_nfev: int | None = None,
+    uncertainty: bool = True,
+    support: Mapping[str, Sequence[int]] | None = None,
+    eliminate: bool = True,
+) -> FitResult:
     """Fit ``comb`` (with the nuisance) on ``rows`` (default all with data); valve supports are selected as in the
     module docstring except for the valves whose support ``support`` fixes (a greedy step keeps the supports the
     current model selected and selects only the new valve's; cross-validation folds select every support anew).
@@ -388,14 +426,18 @@ def fit_combination(problem: Problem, comb: Combination, rows=None, *, start: "F
     relax = [m for m in comb.valves if m.id not in fixed]
     rowset = set(rows.tolist())
     if relax:
-        free = {m.id: (rows.copy() if m.id not in fixed else np.array([i for i in fixed[m.id] if i in rowset], int))
-                for m in comb.valves}
+        free = {
+            m.id: (rows.copy() if m.id not in fixed else np.array([i for i in fixed[m.id] if i in rowset], int))
+            for m in comb.valves
+        }
         obj = _Objective(problem, comb, rows, free, L1_LAMBDA, penalised={m.id for m in relax})
-        starts = [np.concatenate([nuis0, g] + [v_start(m, free[m.id], m.opening_scale) for m in comb.valves])
-                  for g in g_starts]
+        starts = [
+            np.concatenate([nuis0, g] + [v_start(m, free[m.id], m.opening_scale) for m in comb.valves])
+            for g in g_starts
+        ]
         res = _solve(obj, starts, budget + 30 * sum(obj.nv.values()))
         nfev += res.nfev
-        nuis0, xg0 = res.x[:N_NUIS], res.x[N_NUIS:N_NUIS + comb.n_global]
+        nuis0, xg0 = res.x[:N_NUIS], res.x[N_NUIS : N_NUIS + comb.n_global]
         _, _, op = obj.split(res.x)
         for m in relax:
             relaxed[m.id] = op[m.id].copy()
@@ -433,7 +475,7 @@ def fit_combination(problem: Problem, comb: Combination, rows=None, *, start: "F
                 continue
             for i in support[m.id]:
                 sup2 = {k: [j for j in v if not (k == m.id and j == i)] for k, v in support.items()}
-                o2, r2 = refit(sup2, res.x[:N_NUIS], [res.x[N_NUIS:N_NUIS + comb.n_global]], op)
+                o2, r2 = refit(sup2, res.x[:N_NUIS], [res.x[N_NUIS : N_NUIS + comb.n_global]], op)
                 nfev_add = r2.nfev
                 c2 = float(np.sum(robust_loss(o2.data_residuals(r2.x))))
                 dof = max(M - k_now - N_NUIS, 1)
@@ -460,7 +502,7 @@ def fit_combination(problem: Problem, comb: Combination, rows=None, *, start: "F
     lo, hi = obj.bounds()
     ng = comb.n_global
     if uncertainty and ng:
-        stderr = _stderr(obj, z, M, k)[N_NUIS:N_NUIS + ng]
+        stderr = _stderr(obj, z, M, k)[N_NUIS : N_NUIS + ng]
     else:
         stderr = np.full(ng, np.nan)
     at_bound = (np.abs(z - lo) < 1e-6 * (hi - lo)) | (np.abs(hi - z) < 1e-6 * (hi - lo))
@@ -468,9 +510,25 @@ def fit_combination(problem: Problem, comb: Combination, rows=None, *, start: "F
     vals, conv = problem.solve(setting, rows)
     u = np.full(rows.size, np.nan)
     u[conv] = vals["fuel_setting"][conv]
-    return FitResult(comb, np.asarray(nuis, float), np.asarray(xg, float), stderr, openings, support,
-                     float(res.cost), data_cost, M, k, rows, u, bool(res.success),
-                     at_bound[N_NUIS:N_NUIS + ng], nfev, relaxed, eliminated)
+    return FitResult(
+        comb,
+        np.asarray(nuis, float),
+        np.asarray(xg, float),
+        stderr,
+        openings,
+        support,
+        float(res.cost),
+        data_cost,
+        M,
+        k,
+        rows,
+        u,
+        bool(res.success),
+        at_bound[N_NUIS : N_NUIS + ng],
+        nfev,
+        relaxed,
+        eliminated,
+    )
 
 
 def _fd_step(z: float, lo: float, hi: float) -> float:
@@ -491,10 +549,10 @@ def _stderr(obj: _Objective, z: np.ndarray, M: int, k: int) -> np.ndarray:
         h = _fd_step(z[j], lo[j], hi[j])
         zj = z.copy()
         zj[j] += h
-        J[:r0.size, j] = (obj.data_residuals(zj) - r0) / h
-        J[r0.size:, j] = (prior_residuals(zj[:N_NUIS]) - prior_residuals(z[:N_NUIS])) / h
+        J[: r0.size, j] = (obj.data_residuals(zj) - r0) / h
+        J[r0.size :, j] = (prior_residuals(zj[:N_NUIS]) - prior_residuals(z[:N_NUIS])) / h
     w = np.concatenate([1.0 / np.sqrt(1.0 + (r0 / ROBUST_SCALE) ** 2), np.ones(N_NUIS)])
-    s2 = float(np.sum(w[:r0.size] * r0 * r0)) / max(M - k, 1)
+    s2 = float(np.sum(w[: r0.size] * r0 * r0)) / max(M - k, 1)
     A = J.T @ (w[:, None] * J)
     try:
         cov = s2 * np.linalg.pinv(A)
@@ -511,8 +569,10 @@ def support_objective(problem: Problem, fit: FitResult):
     comb = fit.combination
     free = {m.id: np.array(fit.support.get(m.id, []), dtype=int) for m in comb.valves}
     obj = _Objective(problem, comb, fit.rows, free, 0.0)
-    z = np.concatenate([fit.nuisance, fit.x] + [np.sqrt(np.maximum(np.nan_to_num(fit.openings[m.id][free[m.id]]), 0.0))
-                                                for m in comb.valves])
+    z = np.concatenate(
+        [fit.nuisance, fit.x]
+        + [np.sqrt(np.maximum(np.nan_to_num(fit.openings[m.id][free[m.id]]), 0.0)) for m in comb.valves]
+    )
     lo, hi = obj.bounds()
     names = [g.name for g in NUISANCE] + comb.names + [f"{m.id}[{int(i)}]" for m in comb.valves for i in free[m.id]]
     return obj, z, lo, hi, names
@@ -535,11 +595,13 @@ def predict_setting(problem: Problem, fit: FitResult, rows) -> np.ndarray:
             comb = fit.combination
 
             def setting_of(state):
-                return comb.setting(problem, fit.nuisance, fit.x,
-                                    {k: np.full(problem.n_points, v) for k, v in state.items()})
+                return comb.setting(
+                    problem, fit.nuisance, fit.x, {k: np.full(problem.n_points, v) for k, v in state.items()}
+                )
 
-            out[~fitted] = state_predictions(problem, setting_of, comb.valves, held, robust_loss, L1_LAMBDA,
-                                             SUPPORT_FRACTION)
+            out[~fitted] = state_predictions(
+                problem, setting_of, comb.valves, held, robust_loss, L1_LAMBDA, SUPPORT_FRACTION
+            )
             return out
         if fit.held_out_support is not None:
             s = fit.combination.setting(problem, fit.nuisance, fit.x, fit.held_out_openings(problem, held))
@@ -549,8 +611,9 @@ def predict_setting(problem: Problem, fit: FitResult, rows) -> np.ndarray:
     return out
 
 
-def cross_validate(problem: Problem, comb: Combination, full: FitResult | None = None, *,
-                   max_folds: int | None = None) -> tuple[np.ndarray, list]:
+def cross_validate(
+    problem: Problem, comb: Combination, full: FitResult | None = None, *, max_folds: int | None = None
+) -> tuple[np.ndarray, list]:
     """Cross-validated predictions (points x channels) of ``comb`` (refit per fold, supports included) and the
     fold fits (a valve's opening at a held-out point as ``problem.held_out_valves`` says, module docstring)."""
     n, C = problem.n_points, len(problem.channels)
@@ -564,8 +627,15 @@ def cross_validate(problem: Problem, comb: Combination, full: FitResult | None =
         train = np.setdiff1d(all_rows, test)
         if train.size == 0 or not problem.measured_mask[train].any():
             continue
-        f = fit_combination(problem, comb, train, start=full, uncertainty=False,
-                            max_nfev=25 * (N_NUIS + comb.n_global + 1), eliminate=False)
+        f = fit_combination(
+            problem,
+            comb,
+            train,
+            start=full,
+            uncertainty=False,
+            max_nfev=25 * (N_NUIS + comb.n_global + 1),
+            eliminate=False,
+        )
         if comb.valves and problem.held_out_valves == "support":
             f.held_out_support = {k: list(v) for k, v in full.support.items()}
         f.held_out_state = bool(comb.valves) and problem.held_out_valves == "state"
@@ -666,7 +736,7 @@ def loco_predictions(problem: Problem, fit: FitResult, rows=None) -> np.ndarray:
     w = 1.0 / np.sqrt(1.0 + (r0 / ROBUST_SCALE) ** 2)
     P = np.zeros((n_par, n_par))
     for k, g in enumerate(NUISANCE):
-        P[k, k] = 1.0 / g.sigma ** 2
+        P[k, k] = 1.0 / g.sigma**2
     P[N_NUIS:, N_NUIS:] += 1e-9 * np.eye(n_par - N_NUIS)  # keep the system regular
     H = J.T @ (w[:, None] * J) + P
     # cell -> channel of the flattened measured cells (row-major over rows x channels)

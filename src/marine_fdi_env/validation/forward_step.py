@@ -19,14 +19,30 @@ from .calibration_candidates import calibrations_to_refit, refit_with_calibratio
 from .candidates import CandidateScore
 from .eligibility import structure_left, why_pinned
 from .evidence import IN_SAMPLE_ALONE, earns, judged_in_sample
-from .fitting import (Combination, FitResult, FoldData, cross_validate, fit_combination, fold_data,
-                      loco_predictions, predict_setting)
+from .fitting import (
+    Combination,
+    FitResult,
+    FoldData,
+    cross_validate,
+    fit_combination,
+    fold_data,
+    loco_predictions,
+    predict_setting,
+)
 from .mechanisms import Mechanism, SensorCalibration
 from .pairs import members_earn_their_place, pair_candidates
 from .problem import Problem
 
-__all__ = ["CurrentModel", "StepOutcome", "StepRules", "best_pair", "cross_validate_promising", "forward_step",
-           "judge_best_single", "score_singles"]
+__all__ = [
+    "CurrentModel",
+    "StepOutcome",
+    "StepRules",
+    "best_pair",
+    "cross_validate_promising",
+    "forward_step",
+    "judge_best_single",
+    "score_singles",
+]
 
 Say = Callable[[str], None]
 
@@ -94,9 +110,16 @@ class StepOutcome:
     cause_notes: dict[str, list[str]]
 
 
-def score_singles(problem: Problem, cur: CurrentModel, pool: Sequence[Mechanism], known: Mapping[str, float],
-                  in_pred: np.ndarray, rules: StepRules, step: int,
-                  say: Say) -> tuple[list[CandidateScore], dict[str, np.ndarray]]:
+def score_singles(
+    problem: Problem,
+    cur: CurrentModel,
+    pool: Sequence[Mechanism],
+    known: Mapping[str, float],
+    in_pred: np.ndarray,
+    rules: StepRules,
+    step: int,
+    say: Say,
+) -> tuple[list[CandidateScore], dict[str, np.ndarray]]:
     """Every mechanism of ``pool`` added to the current model and fitted; sensor calibrations on the current
     model's readings ``in_pred``, the most promising of them then refitted as whole models
     (:func:`~.calibration_candidates.calibrations_to_refit`).  Returns the candidates and the cross-validated
@@ -121,9 +144,17 @@ def score_singles(problem: Problem, cur: CurrentModel, pool: Sequence[Mechanism]
     return scored, sensor_cv
 
 
-def cross_validate_promising(problem: Problem, cur: CurrentModel, scored: Sequence[CandidateScore],
-                             sensor_cv: Mapping[str, np.ndarray], known: Mapping[str, float], loco_cur: np.ndarray,
-                             rules: StepRules, step: int, say: Say) -> None:
+def cross_validate_promising(
+    problem: Problem,
+    cur: CurrentModel,
+    scored: Sequence[CandidateScore],
+    sensor_cv: Mapping[str, np.ndarray],
+    known: Mapping[str, float],
+    loco_cur: np.ndarray,
+    rules: StepRules,
+    step: int,
+    say: Say,
+) -> None:
     """Cross-validate, best in-sample first, the candidates that can still win (all with ``rules.cv_all``), and
     mark the ones that are not eligible (pinned at a bound, or a calibration that leaves structure on its channel:
     :mod:`.eligibility`).  A candidate's in-sample penalised score is a lower bound of its cross-validated one, so
@@ -137,8 +168,10 @@ def cross_validate_promising(problem: Problem, cur: CurrentModel, scored: Sequen
                 c.screened = f"not cross-validated: in-sample gain {in_gain:.1%} below {rules.min_gain:.0%}"
                 continue
             if in_pen >= best_pen:
-                c.screened = (f"not cross-validated: in-sample penalised score {in_pen:.4g} already above the best "
-                              f"cross-validated one {best_pen:.4g}")
+                c.screened = (
+                    f"not cross-validated: in-sample penalised score {in_pen:.4g} already above the best "
+                    f"cross-validated one {best_pen:.4g}"
+                )
                 continue
         if c.added in sensor_cv:
             pred, c_folds = sensor_cv[c.added], None
@@ -154,40 +187,74 @@ def cross_validate_promising(problem: Problem, cur: CurrentModel, scored: Sequen
         elif isinstance(c.combination.mechanisms[-1], SensorCalibration):
             left = structure_left(problem, loco_cur, c.combination.mechanisms[-1], rules.alpha)
             if left:
-                c.screened = ("not eligible: the calibrated channel keeps a local departure (" + left +
-                              "): a gain and an offset do not explain it")
+                c.screened = (
+                    "not eligible: the calibrated channel keeps a local departure ("
+                    + left
+                    + "): a gain and an offset do not explain it"
+                )
         if not c.screened:
             best_pen = min(best_pen, c.penalised)
 
 
-def judge_best_single(cur: CurrentModel, scored: Sequence[CandidateScore],
-                      rules: StepRules) -> tuple[CandidateScore | None, bool, str, list[CandidateScore]]:
+def judge_best_single(
+    cur: CurrentModel, scored: Sequence[CandidateScore], rules: StepRules
+) -> tuple[CandidateScore | None, bool, str, list[CandidateScore]]:
     """The best eligible cross-validated candidate, whether it is accepted and why: a lower penalised score than
     the current model's and the evidence of :func:`~.evidence.earns` at ``alpha / len(scored)``.  Returns (best,
     accepted, decision, the eligible cross-validated candidates best first)."""
     M = rules.n_cells
     cv = sorted((c for c in scored if c.cross_validated and not c.screened), key=lambda c: c.penalised)
     threshold = rules.alpha / len(scored)
-    best, accept, why = None, False, (f"rejected: no candidate improves the in-sample score by {rules.min_gain:.0%} "
-                                      "without being pinned at the limit of its plausible range")
+    best, accept, why = (
+        None,
+        False,
+        (
+            f"rejected: no candidate improves the in-sample score by {rules.min_gain:.0%} "
+            "without being pinned at the limit of its plausible range"
+        ),
+    )
     if cv:
         best = cv[0]
         in_sample = judged_in_sample(cur.combination, best.combination.mechanisms[-1:], rules.beside_valve)
-        _, _, short = earns((cur.score, cur.in_sample_score(M), cur.fit.k),
-                            (best.cv_score, best.in_sample_score, best.fit.k), M, rules.min_gain, threshold, in_sample,
-                            cv_guard=rules.cv_guard)
+        _, _, short = earns(
+            (cur.score, cur.in_sample_score(M), cur.fit.k),
+            (best.cv_score, best.in_sample_score, best.fit.k),
+            M,
+            rules.min_gain,
+            threshold,
+            in_sample,
+            cv_guard=rules.cv_guard,
+        )
         accept = best.penalised < cur.penalised and not short
-        why = ("accepted" + (" (beside a valve: judged in sample)" if in_sample else "") if accept else
-               "rejected: " + "; ".join(s for s, bad in (
-                   (f"penalised score {best.penalised:.4g} not below the current {cur.penalised:.4g}",
-                    best.penalised >= cur.penalised),
-                   (short + f" (threshold alpha/{len(scored)})", bool(short))) if bad))
+        why = (
+            "accepted" + (" (beside a valve: judged in sample)" if in_sample else "")
+            if accept
+            else "rejected: "
+            + "; ".join(
+                s
+                for s, bad in (
+                    (
+                        f"penalised score {best.penalised:.4g} not below the current {cur.penalised:.4g}",
+                        best.penalised >= cur.penalised,
+                    ),
+                    (short + f" (threshold alpha/{len(scored)})", bool(short)),
+                )
+                if bad
+            )
+        )
     return best, accept, why, cv
 
 
-def best_pair(problem: Problem, cur: CurrentModel, scored: Sequence[CandidateScore], best: CandidateScore | None,
-              accept: bool, known: Mapping[str, float], rules: StepRules,
-              say: Say) -> tuple[CandidateScore | None, list[CandidateScore]]:
+def best_pair(
+    problem: Problem,
+    cur: CurrentModel,
+    scored: Sequence[CandidateScore],
+    best: CandidateScore | None,
+    accept: bool,
+    known: Mapping[str, float],
+    rules: StepRules,
+    say: Say,
+) -> tuple[CandidateScore | None, list[CandidateScore]]:
     """The pair of physical mechanisms that replaces the step's best single candidate, if any, and every pair
     tried (:func:`~.pairs.pair_candidates`).
 
@@ -200,25 +267,60 @@ def best_pair(problem: Problem, cur: CurrentModel, scored: Sequence[CandidateSco
     if not rules.pairs or len(cur.combination.mechanisms) + 2 > rules.max_causes:
         return None, []
     bar = min(cur.penalised, best.penalised if accept else math.inf)
-    pairs = pair_candidates(problem, cur.combination, cur.fit, scored, known, M, rules.penalty, cur.score, bar,
-                            rules.min_gain, rules.max_folds, say)
+    pairs = pair_candidates(
+        problem,
+        cur.combination,
+        cur.fit,
+        scored,
+        known,
+        M,
+        rules.penalty,
+        cur.score,
+        bar,
+        rules.min_gain,
+        rules.max_folds,
+        say,
+    )
     p_threshold = rules.alpha / (len(scored) + len(pairs))
-    lead_valve = (best.combination.mechanisms[-1] if accept and rules.beside_valve in IN_SAMPLE_ALONE
-                  and best.combination.mechanisms[-1].pointwise else None)
+    lead_valve = (
+        best.combination.mechanisms[-1]
+        if accept and rules.beside_valve in IN_SAMPLE_ALONE and best.combination.mechanisms[-1].pointwise
+        else None
+    )
     s_in_cur = cur.in_sample_score(M)
     for c in sorted((c for c in pairs if c.cross_validated), key=lambda c: c.penalised):
         in_sample = judged_in_sample(cur.combination, c.combination.mechanisms[-2:], rules.beside_valve)
         c_bar = cur.penalised if lead_valve in c.combination.mechanisms[-2:] else bar
-        if not c.penalised < c_bar or earns((cur.score, s_in_cur, cur.fit.k), (c.cv_score, c.in_sample_score, c.fit.k),
-                                            M, rules.min_gain, p_threshold, in_sample, rules.cv_guard)[2]:
+        if (
+            not c.penalised < c_bar
+            or earns(
+                (cur.score, s_in_cur, cur.fit.k),
+                (c.cv_score, c.in_sample_score, c.fit.k),
+                M,
+                rules.min_gain,
+                p_threshold,
+                in_sample,
+                rules.cv_guard,
+            )[2]
+        ):
             continue
         c.fit = fit_combination(problem, c.combination, start=c.fit, known=known, support=cur.fit.support)
         pins = why_pinned(problem, c, known, cur.fit.support)
         if pins:
             c.screened = "not eligible: " + "; ".join(pins)
             continue
-        left = members_earn_their_place(problem, c, M, rules.min_gain, p_threshold, rules.max_folds, rules.penalty,
-                                        cur.score, cur.fit.k, rules.beside_valve)
+        left = members_earn_their_place(
+            problem,
+            c,
+            M,
+            rules.min_gain,
+            p_threshold,
+            rules.max_folds,
+            rules.penalty,
+            cur.score,
+            cur.fit.k,
+            rules.beside_valve,
+        )
         if left:
             c.screened = "not eligible: " + left
             continue
@@ -226,25 +328,33 @@ def best_pair(problem: Problem, cur: CurrentModel, scored: Sequence[CandidateSco
     return None, pairs
 
 
-def _pair_decision(cur: CurrentModel, pair: CandidateScore, best: CandidateScore | None, accept: bool,
-                   n_tried: int, rules: StepRules) -> str:
+def _pair_decision(
+    cur: CurrentModel, pair: CandidateScore, best: CandidateScore | None, accept: bool, n_tried: int, rules: StepRules
+) -> str:
     """Why an accepted pair replaced the step's best single candidate."""
-    evidence = ("beside a valve, judged in sample; "
-                if judged_in_sample(cur.combination, pair.combination.mechanisms[-2:], rules.beside_valve) else
-                f"p = {pair.p_value:.2g} below alpha/{n_tried}; ")
+    evidence = (
+        "beside a valve, judged in sample; "
+        if judged_in_sample(cur.combination, pair.combination.mechanisms[-2:], rules.beside_valve)
+        else f"p = {pair.p_value:.2g} below alpha/{n_tried}; "
+    )
     if accept and pair.penalised < best.penalised:
         why = f"penalised score {pair.penalised:.4g} below the best single candidate's {best.penalised:.4g})"
     elif accept:
-        why = (f"it holds the best single candidate, the valve {best.added}, and its second member earns its place "
-               f"beside it in sample)")
+        why = (
+            f"it holds the best single candidate, the valve {best.added}, and its second member earns its place "
+            f"beside it in sample)"
+        )
     else:
-        why = (f"penalised score {pair.penalised:.4g} below the current {cur.penalised:.4g}; no single candidate "
-               "qualified)")
+        why = (
+            f"penalised score {pair.penalised:.4g} below the current {cur.penalised:.4g}; no single candidate "
+            "qualified)"
+        )
     return "accepted the pair (" + evidence + why
 
 
-def forward_step(problem: Problem, cur: CurrentModel, mechanisms: Sequence[Mechanism], rules: StepRules, step: int,
-                 say: Say) -> StepOutcome | None:
+def forward_step(
+    problem: Problem, cur: CurrentModel, mechanisms: Sequence[Mechanism], rules: StepRules, step: int, say: Say
+) -> StepOutcome | None:
     """One greedy step from ``cur``: ``None`` when there is nothing left to try (every mechanism in the model, or
     ``max_causes`` reached), else what the step decided (its model ``None`` when it accepted nothing)."""
     pool = [m for m in mechanisms if m.label not in cur.combination.labels]
@@ -259,16 +369,31 @@ def forward_step(problem: Problem, cur: CurrentModel, mechanisms: Sequence[Mecha
     pair, pairs = best_pair(problem, cur, scored, best, accept, known, rules, say)
     if pair is not None:
         n_tried = len(scored) + len(pairs)
-        record = {"step": step, "best": pair.added, "accepted": True, "pair": True,
-                  "decision": _pair_decision(cur, pair, best, accept, n_tried, rules),
-                  "threshold_p": rules.alpha / n_tried, "current_score": cur.score, "candidates": scored + pairs}
+        record = {
+            "step": step,
+            "best": pair.added,
+            "accepted": True,
+            "pair": True,
+            "decision": _pair_decision(cur, pair, best, accept, n_tried, rules),
+            "threshold_p": rules.alpha / n_tried,
+            "current_score": cur.score,
+            "candidates": scored + pairs,
+        }
         say(f"step {step}: best pair {pair.added}: accepted")
         alternatives = pair_alternatives(pair, pairs, ALTERNATIVE_MARGIN)
         notes = {m.added: [n for n in pair.notes if m.added in n] for m in pair.members}
-        return StepOutcome(record, CurrentModel.of(pair, fold_data(problem, pair.folds, rules.max_folds)),
-                           alternatives, notes)
-    record = {"step": step, "best": best.added if best else None, "accepted": accept, "decision": why,
-              "threshold_p": rules.alpha / len(scored), "current_score": cur.score, "candidates": scored + pairs}
+        return StepOutcome(
+            record, CurrentModel.of(pair, fold_data(problem, pair.folds, rules.max_folds)), alternatives, notes
+        )
+    record = {
+        "step": step,
+        "best": best.added if best else None,
+        "accepted": accept,
+        "decision": why,
+        "threshold_p": rules.alpha / len(scored),
+        "current_score": cur.score,
+        "candidates": scored + pairs,
+    }
     say(f"step {step}: " + (f"best {best.added}: " if best else "") + why)
     if not accept:
         return StepOutcome(record, None, {}, {})
@@ -277,7 +402,8 @@ def forward_step(problem: Problem, cur: CurrentModel, mechanisms: Sequence[Mecha
     if best.folds is not None:
         model = CurrentModel.of(best, fold_data(problem, best.folds, rules.max_folds))
     else:
-        fit, pred, losses, score, pen, folds = refit_with_calibration(problem, best, cur.fit, rules.n_cells,
-                                                                      rules.penalty, rules.max_folds, record, say)
+        fit, pred, losses, score, pen, folds = refit_with_calibration(
+            problem, best, cur.fit, rules.n_cells, rules.penalty, rules.max_folds, record, say
+        )
         model = CurrentModel(best.combination, fit, pred, losses, score, pen, folds)
     return StepOutcome(record, model, alternatives, notes)

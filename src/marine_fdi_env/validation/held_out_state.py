@@ -46,8 +46,14 @@ GRID = np.concatenate([[0.0], np.geomspace(0.002, 1.0, 48)])
 _FINE = 2001
 
 
-def _readings(problem: Problem, setting_of: Callable[[Mapping[str, float]], Setting], row: int, vid: str,
-              grid: np.ndarray, others: Mapping[str, float]) -> np.ndarray:
+def _readings(
+    problem: Problem,
+    setting_of: Callable[[Mapping[str, float]], Setting],
+    row: int,
+    vid: str,
+    grid: np.ndarray,
+    others: Mapping[str, float],
+) -> np.ndarray:
     """Readings (grid x channels) at ``row`` with valve ``vid`` at each grid opening, the others at ``others``."""
     out = np.empty((grid.size, len(problem.channels)))
     for g, o in enumerate(grid):
@@ -69,14 +75,24 @@ def _argmin(grid: np.ndarray, readings: np.ndarray, cost: Callable[[np.ndarray, 
     lo, hi = fine[max(k - 1, 0)], fine[min(k + 1, fine.size - 1)]
     if hi <= lo:
         return float(fine[k])
-    res = minimize_scalar(lambda o: float(cost(np.array([o]), f(np.array([o])))[0]), bounds=(lo, hi),
-                          method="bounded", options={"xatol": 1e-7 * (g[-1] - g[0])})
-    return float(res.x) if res.fun <= cost(fine[k:k + 1], f(fine[k:k + 1]))[0] else float(fine[k])
+    res = minimize_scalar(
+        lambda o: float(cost(np.array([o]), f(np.array([o])))[0]),
+        bounds=(lo, hi),
+        method="bounded",
+        options={"xatol": 1e-7 * (g[-1] - g[0])},
+    )
+    return float(res.x) if res.fun <= cost(fine[k : k + 1], f(fine[k : k + 1]))[0] else float(fine[k])
 
 
-def state_predictions(problem: Problem, setting_of: Callable[[Mapping[str, float]], Setting],
-                      valves: Sequence[ValveMechanism], rows, loss: Callable[[np.ndarray], np.ndarray],
-                      lam: float, support_fraction: float) -> np.ndarray:
+def state_predictions(
+    problem: Problem,
+    setting_of: Callable[[Mapping[str, float]], Setting],
+    valves: Sequence[ValveMechanism],
+    rows,
+    loss: Callable[[np.ndarray], np.ndarray],
+    lam: float,
+    support_fraction: float,
+) -> np.ndarray:
     """Readings (rows x channels) at held-out ``rows``: each measured channel predicted with the valves' openings
     estimated from the row's *other* measured channels (module docstring); an unmeasured channel with the openings
     estimated from all of them.
@@ -113,8 +129,11 @@ def state_predictions(problem: Problem, setting_of: Callable[[Mapping[str, float
                         cache[key] = _readings(problem, setting_of, int(r), m.id, grid, others)
                     R = cache[key]
                     o_pen = _argmin(grid, R, lambda o, Ro: cell_loss(Ro, keep) + 2.0 * lam * o / m.opening_scale)
-                    state[m.id] = (_argmin(grid[1:], R[1:], lambda o, Ro: cell_loss(Ro, keep))
-                                   if o_pen > support_fraction * m.opening_scale else 0.0)
+                    state[m.id] = (
+                        _argmin(grid[1:], R[1:], lambda o, Ro: cell_loss(Ro, keep))
+                        if o_pen > support_fraction * m.opening_scale
+                        else 0.0
+                    )
             estimates[j] = state
         solved: dict[tuple, np.ndarray] = {}
         for j in range(C):

@@ -36,8 +36,16 @@ from .columns import QUANTITIES, ModelContext, lookup_column
 from .dataset import MeasuredDataset
 
 __all__ = [
-    "LoadLaw", "MatchResult", "SteadyFunction", "base_steady", "infer_load_law", "load_law_of",
-    "match_operating_points", "predict_columns", "TARGETS", "U_BOUNDS",
+    "LoadLaw",
+    "MatchResult",
+    "SteadyFunction",
+    "base_steady",
+    "infer_load_law",
+    "load_law_of",
+    "match_operating_points",
+    "predict_columns",
+    "TARGETS",
+    "U_BOUNDS",
 ]
 
 U_BOUNDS = (0.05, 1.2)
@@ -80,8 +88,10 @@ class LoadLaw:
         ev = self.evidence
         bits = [f"load law {self.law or 'unknown'} ({self.source})"]
         if ev.get("n_points"):
-            bits.append(f"n ~ P^(1/3): R^2 = {ev['r2_propeller']:.4f}; free exponent {ev['exponent']:.3f}; "
-                        f"speed CV {ev['speed_cv']:.3f} over {ev['n_points']} points ({ev['power_source']})")
+            bits.append(
+                f"n ~ P^(1/3): R^2 = {ev['r2_propeller']:.4f}; free exponent {ev['exponent']:.3f}; "
+                f"speed CV {ev['speed_cv']:.3f} over {ev['n_points']} points ({ev['power_source']})"
+            )
         if ev.get("verdict"):
             bits.append(ev["verdict"])
         return "; ".join(bits)
@@ -109,12 +119,17 @@ def infer_load_law(speed, power, *, power_source: str = "power", c_load_W_s3: fl
     sse = float(np.sum((n - k * x) ** 2))
     sst = float(np.sum((n - n.mean()) ** 2))
     r2p = 1.0 - sse / sst if sst > 0 else (1.0 if sse == 0 else -math.inf)
-    ev.update(speed_cv=cv, speed_min=float(n.min()), speed_max=float(n.max()), r2_propeller=r2p,
-              rmse_propeller_rel=float(math.sqrt(sse / n.size) / np.mean(n)))
+    ev.update(
+        speed_cv=cv,
+        speed_min=float(n.min()),
+        speed_max=float(n.max()),
+        r2_propeller=r2p,
+        rmse_propeller_rel=float(math.sqrt(sse / n.size) / np.mean(n)),
+    )
     if power_source == "power":
-        ev["c_fit_W_s3"] = k ** -3.0
+        ev["c_fit_W_s3"] = k**-3.0
         if c_load_W_s3 is not None:
-            ev["c_fit_over_params"] = k ** -3.0 / c_load_W_s3
+            ev["c_fit_over_params"] = k**-3.0 / c_load_W_s3
     if np.ptp(np.log(P)) > 0:
         lr = stats.linregress(np.log(P), np.log(n))
         ev.update(exponent=float(lr.slope), exponent_stderr=float(lr.stderr), r2_power_law=float(lr.rvalue**2))
@@ -125,12 +140,13 @@ def infer_load_law(speed, power, *, power_source: str = "power", c_load_W_s3: fl
         ev["verdict"] = f"speed constant within {cv:.1%} (CV) while power varies: generator / constant-speed law"
     elif r2p >= PROPELLER_R2 and abs(ev["exponent"] - 1.0 / 3.0) <= PROPELLER_EXPONENT_TOL:
         law = "propeller"
-        ev["verdict"] = (f"speed follows P^(1/3) (R^2 = {r2p:.3f}, exponent {ev['exponent']:.3f} vs 1/3): "
-                         "propeller law")
+        ev["verdict"] = f"speed follows P^(1/3) (R^2 = {r2p:.3f}, exponent {ev['exponent']:.3f} vs 1/3): propeller law"
     else:
         law = "independent"
-        ev["verdict"] = (f"speed varies but not as P^(1/3) (R^2 = {r2p:.3f}, exponent {ev['exponent']:.3f}): "
-                         "speed and power set independently (CPP / combinator)")
+        ev["verdict"] = (
+            f"speed varies but not as P^(1/3) (R^2 = {r2p:.3f}, exponent {ev['exponent']:.3f}): "
+            "speed and power set independently (CPP / combinator)"
+        )
     return LoadLaw(law, "inferred", None, ev)
 
 
@@ -149,16 +165,18 @@ def load_law_of(ds: MeasuredDataset) -> LoadLaw:
     """The stated load law of the sidecar, else the one inferred from the data (with evidence in both)."""
     P, src = _power_for_law(ds)
     if P is not None and "engine_speed_rev_s" in ds.values:
-        inferred = infer_load_law(ds.values["engine_speed_rev_s"], P, power_source=src,
-                                  c_load_W_s3=ds.params.c_load_W_s3)
+        inferred = infer_load_law(
+            ds.values["engine_speed_rev_s"], P, power_source=src, c_load_W_s3=ds.params.c_load_W_s3
+        )
     else:
         inferred = LoadLaw(None, "none", None, {"n_points": 0, "verdict": "no speed or no power: cannot infer"})
     if ds.load_law is not None:
         ev = dict(inferred.evidence)
         ev["inferred_law"] = inferred.law
         if inferred.law is not None and inferred.law != ds.load_law:
-            ev["verdict"] = (f"the data suggest {inferred.law} where the sidecar states {ds.load_law}: "
-                             + str(inferred.evidence.get("verdict", "")))
+            ev["verdict"] = f"the data suggest {inferred.law} where the sidecar states {ds.load_law}: " + str(
+                inferred.evidence.get("verdict", "")
+            )
         return LoadLaw(ds.load_law, "metadata", ds.load_law_text, ev)
     return LoadLaw(inferred.law, inferred.source, ds.load_law_text, inferred.evidence)
 
@@ -168,9 +186,15 @@ def _context(params: EngineParams, rated_power_W: float | None) -> ModelContext:
     return ModelContext(rated_power_W=rated_power_W or params.P_nom_W)
 
 
-def predict_columns(summaries: Sequence[Mapping[str, float] | None], columns: Sequence[str], params: EngineParams,
-                    *, rated_power_W: float | None = None, p_amb_Pa: float | None = None,
-                    column_quantity: Mapping[str, str] | None = None) -> dict[str, np.ndarray]:
+def predict_columns(
+    summaries: Sequence[Mapping[str, float] | None],
+    columns: Sequence[str],
+    params: EngineParams,
+    *,
+    rated_power_W: float | None = None,
+    p_amb_Pa: float | None = None,
+    column_quantity: Mapping[str, str] | None = None,
+) -> dict[str, np.ndarray]:
     """Model values of measured-data ``columns`` (in the columns' units) from steady-state summaries.
 
     Columns without a model counterpart (``fuel_rack``) are left out; a ``None`` summary gives NaN.
@@ -279,8 +303,9 @@ def _resolve_target(ds: MeasuredDataset, target: str) -> str:
         return "speed"
     if "fuel_rack" in v:
         return "fuel_rack"
-    raise ValueError(f"{ds.name}: no column fixes the operating point (power, load fraction, fuel flow, speed "
-                     "or fuel rack)")
+    raise ValueError(
+        f"{ds.name}: no column fixes the operating point (power, load fraction, fuel flow, speed or fuel rack)"
+    )
 
 
 def _target_values(ds: MeasuredDataset, target: str) -> tuple[str, np.ndarray, tuple[str, ...]]:
@@ -329,8 +354,10 @@ def _rack_settings(ds: MeasuredDataset) -> tuple[np.ndarray, str]:
                 ref[idx] = rack[at_nom[0]]
         how = "rack at load fraction 1 of the same engine"
     else:
-        raise ValueError(f"{ds.name}: matching on the fuel rack needs fuel_rack_at_nominal in the sidecar or a "
-                         "point at load fraction 1")
+        raise ValueError(
+            f"{ds.name}: matching on the fuel rack needs fuel_rack_at_nominal in the sidecar or a "
+            "point at load fraction 1"
+        )
     return rack / ref, how
 
 
@@ -375,8 +402,10 @@ def match_operating_points(
 
     if tgt == "fuel_rack":
         u_rack, how = _rack_settings(ds)
-        notes.append(f"fuel setting = fuel rack / rack at nominal fuel ({how}); assumes fuel per cycle "
-                     "proportional to the rack (no offset)")
+        notes.append(
+            f"fuel setting = fuel rack / rack at nominal fuel ({how}); assumes fuel per cycle "
+            "proportional to the rack (no offset)"
+        )
         used = (ds.column_of("fuel_rack"),)
         for i in range(n):
             if not math.isfinite(u_rack[i]):
@@ -397,8 +426,10 @@ def match_operating_points(
             f = lambda x: float(steady(x, pt)[key]) - t  # noqa: E731
             f_lo, f_hi = f(lo) + t, f(hi) + t
             if not (min(f_lo, f_hi) <= t <= max(f_lo, f_hi)):
-                status[i] = (f"target {key} = {t:.6g} outside the model's range [{min(f_lo, f_hi):.6g}, "
-                             f"{max(f_lo, f_hi):.6g}] over u in [{lo}, {hi}]")
+                status[i] = (
+                    f"target {key} = {t:.6g} outside the model's range [{min(f_lo, f_hi):.6g}, "
+                    f"{max(f_lo, f_hi):.6g}] over u in [{lo}, {hi}]"
+                )
                 continue
             ui = brentq(f, lo, hi, xtol=1e-14, rtol=max(rtol, 4 * np.finfo(float).eps), maxiter=200)
             u[i] = ui
@@ -407,22 +438,41 @@ def match_operating_points(
             if err > 1e-6:
                 status[i] = f"matched {key} only to {err:.1e} relative"
     if load_law.law in ("constant_speed", "independent") and tgt != "speed" and "engine_speed_rev_s" in ds.values:
-        notes.append(f"load law {load_law.law}: speed is set independently of power, which the base model's "
-                     "propeller law (eq. 3.11) cannot honour; its speed residual measures that mismatch")
+        notes.append(
+            f"load law {load_law.law}: speed is set independently of power, which the base model's "
+            "propeller law (eq. 3.11) cannot honour; its speed residual measures that mismatch"
+        )
 
     for c in ds.columns:
         if ds.column_quantity[c] == "charge_air_cooler_outlet_temperature_K" and params.submodels.intercooler is None:
-            notes.append(f"{c}: the base model's value is the constant parameter T_c_K "
-                         f"({params.T_c_K - 273.15:g} C), not a prediction")
-    predicted = predict_columns(summaries, ds.columns, params, rated_power_W=ds.rated_power_W,
-                                p_amb_Pa=ds.ambient["p_amb_Pa"], column_quantity=ds.column_quantity)
+            notes.append(
+                f"{c}: the base model's value is the constant parameter T_c_K "
+                f"({params.T_c_K - 273.15:g} C), not a prediction"
+            )
+    predicted = predict_columns(
+        summaries,
+        ds.columns,
+        params,
+        rated_power_W=ds.rated_power_W,
+        p_amb_Pa=ds.ambient["p_amb_Pa"],
+        column_quantity=ds.column_quantity,
+    )
     keys = list(next((s for s in summaries if s is not None), {}).keys())
     model_si = {k: np.array([float(s[k]) if s is not None else math.nan for s in summaries]) for k in keys}
     # load fraction is power / rated power: with a power column it is not a channel of its own
     redundant = {ds.column_of("load_fraction")} if "power_W" in ds.values else set()
     channels = tuple(c for c in ds.columns if c in predicted and c not in used and c not in redundant)
     return MatchResult(
-        dataset=ds, params=params, law=load_law, target=tgt, target_columns=tuple(used), u=u,
-        status=tuple(status), predicted=predicted, measured={c: ds.raw[c].copy() for c in ds.columns},
-        model_si=model_si, channels=channels, notes=tuple(notes),
+        dataset=ds,
+        params=params,
+        law=load_law,
+        target=tgt,
+        target_columns=tuple(used),
+        u=u,
+        status=tuple(status),
+        predicted=predicted,
+        measured={c: ds.raw[c].copy() for c in ds.columns},
+        model_si=model_si,
+        channels=channels,
+        notes=tuple(notes),
     )

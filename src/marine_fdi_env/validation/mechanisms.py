@@ -45,14 +45,45 @@ from typing import ClassVar, Mapping, Sequence
 
 import numpy as np
 
-from ..engine.submodels import (BypassValve, CombinatorSpeed, CylinderHeatLoss, ExhaustHeatLoss, ExtraFriction, Intercooler,
-                         Schedule, TurbineEfficiencyBSR, TurbineFlowLaw, TurbochargerMap, WasteGate)
+from ..engine.submodels import (
+    BypassValve,
+    CombinatorSpeed,
+    CylinderHeatLoss,
+    ExhaustHeatLoss,
+    ExtraFriction,
+    Intercooler,
+    Schedule,
+    TurbineEfficiencyBSR,
+    TurbineFlowLaw,
+    TurbochargerMap,
+    WasteGate,
+)
 
 __all__ = [
-    "Param", "Mechanism", "ValveMechanism", "CppLoad", "FrictionLosses", "AmbientConditions", "TurbochargerMapM",
-    "IntercoolerEffectiveness", "CylinderHeatLossM", "TurbineFlowLawM", "TurbineEfficiencyBSRM", "ExhaustHeatLossM",
-    "WasteGateM", "BypassValveM", "SensorCalibration", "MECHANISM_IDS", "PHYSICAL_MECHANISMS", "VALVE_MECHANISMS",
-    "get_mechanism", "library", "sensor_reference", "parse_mechanism_spec", "STRUCTURAL_EQUIVALENTS", "equivalents",
+    "Param",
+    "Mechanism",
+    "ValveMechanism",
+    "CppLoad",
+    "FrictionLosses",
+    "AmbientConditions",
+    "TurbochargerMapM",
+    "IntercoolerEffectiveness",
+    "CylinderHeatLossM",
+    "TurbineFlowLawM",
+    "TurbineEfficiencyBSRM",
+    "ExhaustHeatLossM",
+    "WasteGateM",
+    "BypassValveM",
+    "SensorCalibration",
+    "MECHANISM_IDS",
+    "PHYSICAL_MECHANISMS",
+    "VALVE_MECHANISMS",
+    "get_mechanism",
+    "library",
+    "sensor_reference",
+    "parse_mechanism_spec",
+    "STRUCTURAL_EQUIVALENTS",
+    "equivalents",
 ]
 
 
@@ -99,8 +130,15 @@ class Param:
         return float(rng.uniform(lo, hi))
 
     def as_dict(self) -> dict:
-        return {"name": self.name, "unit": self.unit, "default": self.default, "bounds": list(self.bounds),
-                "draw": [list(d) for d in self.draw], "tolerance": self.tolerance, "description": self.description}
+        return {
+            "name": self.name,
+            "unit": self.unit,
+            "default": self.default,
+            "bounds": list(self.bounds),
+            "draw": [list(d) for d in self.draw],
+            "tolerance": self.tolerance,
+            "description": self.description,
+        }
 
 
 @dataclass(frozen=True)
@@ -137,8 +175,10 @@ class Mechanism:
         given = dict(given or {})
         unknown = set(given) - set(self.param_names)
         if unknown:
-            raise ValueError(f"mechanism {self.label}: unknown parameter(s) {', '.join(sorted(unknown))}; "
-                             f"known: {', '.join(self.param_names)}")
+            raise ValueError(
+                f"mechanism {self.label}: unknown parameter(s) {', '.join(sorted(unknown))}; "
+                f"known: {', '.join(self.param_names)}"
+            )
         out = self.defaults()
         out.update({k: float(v) for k, v in given.items()})
         return out
@@ -148,18 +188,43 @@ class Mechanism:
         raise TypeError(f"{type(self).__name__} does not define how it modifies the model")
 
     def describe(self) -> dict:
-        return {"id": self.id, "label": self.label, "title": self.title, "touches": list(self.touches),
-                "pointwise": self.pointwise, "explanation": " ".join((type(self).__doc__ or "").split()),
-                "parameters": [p.as_dict() for p in self.params]}
+        return {
+            "id": self.id,
+            "label": self.label,
+            "title": self.title,
+            "touches": list(self.touches),
+            "pointwise": self.pointwise,
+            "explanation": " ".join((type(self).__doc__ or "").split()),
+            "parameters": [p.as_dict() for p in self.params],
+        }
 
 
-ALL_OUTPUTS = ("charge_air_pressure_Pa", "exhaust_receiver_pressure_Pa", "p_max_Pa", "compressor_outlet_temperature_K",
-               "turbine_inlet_temperature_K", "turbine_outlet_temperature_K", "air_mass_flow_kg_s",
-               "exhaust_mass_flow_kg_s", "fuel_mass_flow_kg_s", "sfc_kg_per_J", "turbocharger_speed_rev_s",
-               "cylinder_outlet_temperature_K")
-GAS_PATH = ("charge_air_pressure_Pa", "exhaust_receiver_pressure_Pa", "compressor_outlet_temperature_K",
-            "turbine_inlet_temperature_K", "turbine_outlet_temperature_K", "air_mass_flow_kg_s", "exhaust_mass_flow_kg_s",
-            "turbocharger_speed_rev_s", "p_max_Pa", "cylinder_outlet_temperature_K")
+ALL_OUTPUTS = (
+    "charge_air_pressure_Pa",
+    "exhaust_receiver_pressure_Pa",
+    "p_max_Pa",
+    "compressor_outlet_temperature_K",
+    "turbine_inlet_temperature_K",
+    "turbine_outlet_temperature_K",
+    "air_mass_flow_kg_s",
+    "exhaust_mass_flow_kg_s",
+    "fuel_mass_flow_kg_s",
+    "sfc_kg_per_J",
+    "turbocharger_speed_rev_s",
+    "cylinder_outlet_temperature_K",
+)
+GAS_PATH = (
+    "charge_air_pressure_Pa",
+    "exhaust_receiver_pressure_Pa",
+    "compressor_outlet_temperature_K",
+    "turbine_inlet_temperature_K",
+    "turbine_outlet_temperature_K",
+    "air_mass_flow_kg_s",
+    "exhaust_mass_flow_kg_s",
+    "turbocharger_speed_rev_s",
+    "p_max_Pa",
+    "cylinder_outlet_temperature_K",
+)
 
 
 @dataclass(frozen=True)
@@ -181,15 +246,31 @@ class CppLoad(Mechanism):
     @property
     def params(self) -> tuple[Param, ...]:
         return (
-            Param("speed_zero_load_rel", "-", 0.8, (0.3, 1.1), ((0.72, 0.95),), 0.03,
-                  "engine speed at zero load / nominal speed", starts=(0.6, 1.0)),
-            Param("speed_full_load_rel", "-", 1.0, (0.85, 1.1), ((0.97, 1.02),), 0.02,
-                  "engine speed at full load / nominal speed"),
+            Param(
+                "speed_zero_load_rel",
+                "-",
+                0.8,
+                (0.3, 1.1),
+                ((0.72, 0.95),),
+                0.03,
+                "engine speed at zero load / nominal speed",
+                starts=(0.6, 1.0),
+            ),
+            Param(
+                "speed_full_load_rel",
+                "-",
+                1.0,
+                (0.85, 1.1),
+                ((0.97, 1.02),),
+                0.02,
+                "engine speed at full load / nominal speed",
+            ),
         )
 
     def apply(self, setting, values, params):
-        return setting.with_submodel(speed_law=CombinatorSpeed(values["speed_zero_load_rel"],
-                                                               values["speed_full_load_rel"]))
+        return setting.with_submodel(
+            speed_law=CombinatorSpeed(values["speed_zero_load_rel"], values["speed_full_load_rel"])
+        )
 
 
 @dataclass(frozen=True)
@@ -212,15 +293,30 @@ class FrictionLosses(Mechanism):
     @property
     def params(self) -> tuple[Param, ...]:
         return (
-            Param("fmep_offset_bar", "bar", 0.0, (-1.5, 3.0), ((0.6, 1.5),), 0.15,
-                  "constant part of the extra friction mean effective pressure"),
-            Param("fmep_speed2_bar", "bar", 0.0, (-2.0, 3.0), ((0.0, 1.0),), 0.3,
-                  "extra friction mean effective pressure at nominal speed growing with (n/n_nom)^2"),
+            Param(
+                "fmep_offset_bar",
+                "bar",
+                0.0,
+                (-1.5, 3.0),
+                ((0.6, 1.5),),
+                0.15,
+                "constant part of the extra friction mean effective pressure",
+            ),
+            Param(
+                "fmep_speed2_bar",
+                "bar",
+                0.0,
+                (-2.0, 3.0),
+                ((0.0, 1.0),),
+                0.3,
+                "extra friction mean effective pressure at nominal speed growing with (n/n_nom)^2",
+            ),
         )
 
     def apply(self, setting, values, params):
-        return setting.with_submodel(friction=ExtraFriction(values["fmep_offset_bar"] * 1e5,
-                                                            values["fmep_speed2_bar"] * 1e5))
+        return setting.with_submodel(
+            friction=ExtraFriction(values["fmep_offset_bar"] * 1e5, values["fmep_speed2_bar"] * 1e5)
+        )
 
 
 @dataclass(frozen=True)
@@ -241,10 +337,24 @@ class AmbientConditions(Mechanism):
     @property
     def params(self) -> tuple[Param, ...]:
         return (
-            Param("dT_amb_K", "K", 0.0, (-35.0, 35.0), ((-20.0, -10.0), (10.0, 20.0)), 3.0,
-                  "ambient temperature minus the assumed/recorded one"),
-            Param("dp_amb_kPa", "kPa", 0.0, (-10.0, 6.0), ((-5.0, -2.5), (2.5, 4.0)), 0.6,
-                  "ambient pressure minus the assumed/recorded one"),
+            Param(
+                "dT_amb_K",
+                "K",
+                0.0,
+                (-35.0, 35.0),
+                ((-20.0, -10.0), (10.0, 20.0)),
+                3.0,
+                "ambient temperature minus the assumed/recorded one",
+            ),
+            Param(
+                "dp_amb_kPa",
+                "kPa",
+                0.0,
+                (-10.0, 6.0),
+                ((-5.0, -2.5), (2.5, 4.0)),
+                0.6,
+                "ambient pressure minus the assumed/recorded one",
+            ),
         )
 
     def apply(self, setting, values, params):
@@ -271,10 +381,25 @@ class TurbochargerMapM(Mechanism):
     @property
     def params(self) -> tuple[Param, ...]:
         return (
-            Param("eta_scale", "-", 1.0, (0.75, 1.25), ((0.86, 0.92), (1.08, 1.14)), 0.02,
-                  "turbocharger efficiency at the nominal charge pressure / eq. 3.33's"),
-            Param("curvature", "-", 0.3, (0.0, 1.5), ((0.0, 0.3),), 0.08,
-                  "relative efficiency drop per (x4/p1_nom - 1)^2", natural=(True, False)),
+            Param(
+                "eta_scale",
+                "-",
+                1.0,
+                (0.75, 1.25),
+                ((0.86, 0.92), (1.08, 1.14)),
+                0.02,
+                "turbocharger efficiency at the nominal charge pressure / eq. 3.33's",
+            ),
+            Param(
+                "curvature",
+                "-",
+                0.3,
+                (0.0, 1.5),
+                ((0.0, 0.3),),
+                0.08,
+                "relative efficiency drop per (x4/p1_nom - 1)^2",
+                natural=(True, False),
+            ),
         )
 
     def apply(self, setting, values, params):
@@ -295,16 +420,33 @@ class IntercoolerEffectiveness(Mechanism):
 
     id: ClassVar[str] = "intercooler_effectiveness"
     title: ClassVar[str] = "intercooler effectiveness and outlet level"
-    touches: ClassVar[tuple[str, ...]] = ("charge_air_cooler_outlet_temperature_K", "inlet_air_temperature_K") \
-        + ALL_OUTPUTS
+    touches: ClassVar[tuple[str, ...]] = (
+        "charge_air_cooler_outlet_temperature_K",
+        "inlet_air_temperature_K",
+    ) + ALL_OUTPUTS
 
     @property
     def params(self) -> tuple[Param, ...]:
         return (
-            Param("effectiveness", "-", 0.9, (0.3, 1.0), ((0.6, 0.85),), 0.04,
-                  "cooler effectiveness (1: outlet independent of the load)", natural=(False, True)),
-            Param("dT_outlet_K", "K", 0.0, (-40.0, 40.0), ((-20.0, -8.0), (8.0, 20.0)), 2.0,
-                  "cooler outlet at the nominal charge pressure minus the parameter set's T_c"),
+            Param(
+                "effectiveness",
+                "-",
+                0.9,
+                (0.3, 1.0),
+                ((0.6, 0.85),),
+                0.04,
+                "cooler effectiveness (1: outlet independent of the load)",
+                natural=(False, True),
+            ),
+            Param(
+                "dT_outlet_K",
+                "K",
+                0.0,
+                (-40.0, 40.0),
+                ((-20.0, -8.0), (8.0, 20.0)),
+                2.0,
+                "cooler outlet at the nominal charge pressure minus the parameter set's T_c",
+            ),
         )
 
     def apply(self, setting, values, params):
@@ -330,10 +472,25 @@ class CylinderHeatLossM(Mechanism):
     @property
     def params(self) -> tuple[Param, ...]:
         return (
-            Param("n_comp", "-", 1.4, (1.25, 1.42), ((1.30, 1.35),), 0.01,
-                  "compression polytropic exponent (isentropic: kappa_a = 1.4)", natural=(False, True)),
-            Param("dn_exp", "-", 0.0, (-0.15, 0.12), ((-0.08, -0.04), (0.04, 0.08)), 0.012,
-                  "expansion polytropic exponent minus the parameter set's n_exp"),
+            Param(
+                "n_comp",
+                "-",
+                1.4,
+                (1.25, 1.42),
+                ((1.30, 1.35),),
+                0.01,
+                "compression polytropic exponent (isentropic: kappa_a = 1.4)",
+                natural=(False, True),
+            ),
+            Param(
+                "dn_exp",
+                "-",
+                0.0,
+                (-0.15, 0.12),
+                ((-0.08, -0.04), (0.04, 0.08)),
+                0.012,
+                "expansion polytropic exponent minus the parameter set's n_exp",
+            ),
         )
 
     def apply(self, setting, values, params):
@@ -363,10 +520,24 @@ class TurbineFlowLawM(Mechanism):
     @property
     def params(self) -> tuple[Param, ...]:
         return (
-            Param("area_scale", "-", 1.0, (0.5, 1.6), ((0.72, 0.86), (1.14, 1.3)), 0.02,
-                  "turbine effective area / the parameter set's A_eff"),
-            Param("exponent", "-", 2.0, (1.8, 6.0), ((2.8, 4.5),), 0.3,
-                  "pressure-ratio exponent of the ellipse law (2: Stodola; larger: towards a nozzle)"),
+            Param(
+                "area_scale",
+                "-",
+                1.0,
+                (0.5, 1.6),
+                ((0.72, 0.86), (1.14, 1.3)),
+                0.02,
+                "turbine effective area / the parameter set's A_eff",
+            ),
+            Param(
+                "exponent",
+                "-",
+                2.0,
+                (1.8, 6.0),
+                ((2.8, 4.5),),
+                0.3,
+                "pressure-ratio exponent of the ellipse law (2: Stodola; larger: towards a nozzle)",
+            ),
         )
 
     def apply(self, setting, values, params):
@@ -398,15 +569,25 @@ class TurbineEfficiencyBSRM(Mechanism):
     @property
     def params(self) -> tuple[Param, ...]:
         return (
-            Param("bsr_opt_rel", "-", 1.0, (0.5, 2.0), ((0.6, 0.8), (1.25, 1.6)), 0.06,
-                  "blade-speed ratio of best efficiency / the nominal one", starts=(0.7, 1.4)),
-            Param("curvature", "-", 0.5, (0.0, 0.95), ((0.5, 0.9),), 0.15,
-                  "relative efficiency drop per (ν/ν_opt - 1)^2"),
+            Param(
+                "bsr_opt_rel",
+                "-",
+                1.0,
+                (0.5, 2.0),
+                ((0.6, 0.8), (1.25, 1.6)),
+                0.06,
+                "blade-speed ratio of best efficiency / the nominal one",
+                starts=(0.7, 1.4),
+            ),
+            Param(
+                "curvature", "-", 0.5, (0.0, 0.95), ((0.5, 0.9),), 0.15, "relative efficiency drop per (ν/ν_opt - 1)^2"
+            ),
         )
 
     def apply(self, setting, values, params):
-        return setting.with_submodel(turbine_efficiency_bsr=TurbineEfficiencyBSR(values["bsr_opt_rel"],
-                                                                                 values["curvature"]))
+        return setting.with_submodel(
+            turbine_efficiency_bsr=TurbineEfficiencyBSR(values["bsr_opt_rel"], values["curvature"])
+        )
 
 
 @dataclass(frozen=True)
@@ -426,15 +607,32 @@ class ExhaustHeatLossM(Mechanism):
     @property
     def params(self) -> tuple[Param, ...]:
         return (
-            Param("loss_fraction_nom", "-", 0.05, (0.0, 0.4), ((0.06, 0.15),), 0.02,
-                  "relative temperature loss towards ambient at the nominal exhaust flow", natural=(True, False)),
-            Param("flow_exponent", "-", 0.2, (0.0, 1.5), ((0.3, 0.8),), 0.15,
-                  "NTU ~ (flow / nominal flow)^(-exponent)", natural=(True, False)),
+            Param(
+                "loss_fraction_nom",
+                "-",
+                0.05,
+                (0.0, 0.4),
+                ((0.06, 0.15),),
+                0.02,
+                "relative temperature loss towards ambient at the nominal exhaust flow",
+                natural=(True, False),
+            ),
+            Param(
+                "flow_exponent",
+                "-",
+                0.2,
+                (0.0, 1.5),
+                ((0.3, 0.8),),
+                0.15,
+                "NTU ~ (flow / nominal flow)^(-exponent)",
+                natural=(True, False),
+            ),
         )
 
     def apply(self, setting, values, params):
-        return setting.with_submodel(exhaust_heat_loss=ExhaustHeatLoss(values["loss_fraction_nom"],
-                                                                       values["flow_exponent"]))
+        return setting.with_submodel(
+            exhaust_heat_loss=ExhaustHeatLoss(values["loss_fraction_nom"], values["flow_exponent"])
+        )
 
 
 @dataclass(frozen=True)
@@ -498,9 +696,18 @@ class WasteGateM(ValveMechanism):
 
     @property
     def params(self) -> tuple[Param, ...]:
-        return (Param("turbine_area_scale", "-", 0.9, (0.5, 1.2), ((0.7, 0.9),), 0.03,
-                      "turbine effective area of the waste-gated turbocharger / the parameter set's A_eff",
-                      starts=(0.75,)),)
+        return (
+            Param(
+                "turbine_area_scale",
+                "-",
+                0.9,
+                (0.5, 1.2),
+                ((0.7, 0.9),),
+                0.03,
+                "turbine effective area of the waste-gated turbocharger / the parameter set's A_eff",
+                starts=(0.75,),
+            ),
+        )
 
     def apply(self, setting, values, params):
         return setting.replace(area_scale=values["turbine_area_scale"])
@@ -508,8 +715,9 @@ class WasteGateM(ValveMechanism):
     def with_openings(self, setting, openings):
         sub = setting.submodels
         ws = sub.waste_gate if sub.waste_gate is not None else _WG_SHUT
-        return setting.replace(submodels=sub.replace(waste_gate=ws),
-                               valves={**setting.valves, "waste_gate": np.asarray(openings, float)})
+        return setting.replace(
+            submodels=sub.replace(waste_gate=ws), valves={**setting.valves, "waste_gate": np.asarray(openings, float)}
+        )
 
     def with_schedule(self, setting, schedule):
         v = {k: x for k, x in setting.valves.items() if k != "waste_gate"}
@@ -544,13 +752,16 @@ class BypassValveM(ValveMechanism):
     def with_openings(self, setting, openings):
         sub = setting.submodels
         bv = _BP_SHUT[self.junction]
-        return setting.replace(submodels=sub.replace(bypass_valve=bv),
-                               valves={**setting.valves, "bypass_valve": np.asarray(openings, float)})
+        return setting.replace(
+            submodels=sub.replace(bypass_valve=bv),
+            valves={**setting.valves, "bypass_valve": np.asarray(openings, float)},
+        )
 
     def with_schedule(self, setting, schedule):
         v = {k: x for k, x in setting.valves.items() if k != "bypass_valve"}
-        return setting.replace(submodels=setting.submodels.replace(bypass_valve=BypassValve(schedule, self.junction)),
-                               valves=v)
+        return setting.replace(
+            submodels=setting.submodels.replace(bypass_valve=BypassValve(schedule, self.junction)), valves=v
+        )
 
     def activity_key(self) -> str:
         return "bypass_fraction"
@@ -586,8 +797,15 @@ class SensorCalibration(Mechanism):
         r = abs(self.reference) if self.reference and math.isfinite(self.reference) else 1.0
         return (
             Param("gain", "-", 1.0, (0.6, 1.4), ((0.92, 0.96), (1.04, 1.08)), 0.03, "span error of the reading"),
-            Param("offset", "column unit", 0.0, (-0.3 * r, 0.3 * r), ((-0.06 * r, -0.02 * r), (0.02 * r, 0.06 * r)),
-                  0.03 * r, "zero error of the reading, in the column's unit"),
+            Param(
+                "offset",
+                "column unit",
+                0.0,
+                (-0.3 * r, 0.3 * r),
+                ((-0.06 * r, -0.02 * r), (0.02 * r, 0.06 * r)),
+                0.03 * r,
+                "zero error of the reading, in the column's unit",
+            ),
         )
 
     def sample(self, rng: np.random.Generator, full_range: bool = False) -> dict[str, float]:
@@ -626,8 +844,17 @@ _WG_SHUT = WasteGate(Schedule.constant(0.0))
 _BP_SHUT = {j: BypassValve(Schedule.constant(0.0), j) for j in ("receiver", "turbine")}
 
 PHYSICAL_MECHANISMS: tuple[Mechanism, ...] = (
-    CppLoad(), FrictionLosses(), AmbientConditions(), TurbochargerMapM(), IntercoolerEffectiveness(),
-    CylinderHeatLossM(), TurbineFlowLawM(), TurbineEfficiencyBSRM(), ExhaustHeatLossM(), WasteGateM(), BypassValveM(),
+    CppLoad(),
+    FrictionLosses(),
+    AmbientConditions(),
+    TurbochargerMapM(),
+    IntercoolerEffectiveness(),
+    CylinderHeatLossM(),
+    TurbineFlowLawM(),
+    TurbineEfficiencyBSRM(),
+    ExhaustHeatLossM(),
+    WasteGateM(),
+    BypassValveM(),
 )
 VALVE_MECHANISMS = tuple(m for m in PHYSICAL_MECHANISMS if m.pointwise)
 MECHANISM_IDS = tuple(m.id for m in PHYSICAL_MECHANISMS) + (SensorCalibration.id,)
@@ -664,8 +891,9 @@ def sensor_reference(column: str, values, kind: str | None = None) -> float:
 def library(channels: Sequence[str] = (), references: Mapping[str, float] | None = None) -> list[Mechanism]:
     """The physical mechanisms plus one sensor calibration per channel."""
     refs = references or {}
-    return list(PHYSICAL_MECHANISMS) + [SensorCalibration(channel=c, reference=float(refs.get(c, 1.0)))
-                                        for c in channels]
+    return list(PHYSICAL_MECHANISMS) + [
+        SensorCalibration(channel=c, reference=float(refs.get(c, 1.0))) for c in channels
+    ]
 
 
 def parse_mechanism_spec(spec: str) -> tuple[str, dict[str, float], str | None]:
@@ -698,8 +926,9 @@ def parse_mechanism_spec(spec: str) -> tuple[str, dict[str, float], str | None]:
             try:
                 values[key] = float(val)
             except ValueError:
-                raise ValueError(f"mechanism {mech_id}: value of {key!r} must be a number, got {val.strip()!r}") \
-                    from None
+                raise ValueError(
+                    f"mechanism {mech_id}: value of {key!r} must be a number, got {val.strip()!r}"
+                ) from None
             if not math.isfinite(values[key]):
                 raise ValueError(f"mechanism {mech_id}: value of {key!r} must be finite")
     if mech_id != "none":
@@ -707,6 +936,8 @@ def parse_mechanism_spec(spec: str) -> tuple[str, dict[str, float], str | None]:
         known = set(m.param_names) | ({"opening", "above", "below"} if m.pointwise else set())
         unknown = set(values) - known
         if unknown:
-            raise ValueError(f"mechanism {mech_id}: unknown parameter(s) {', '.join(sorted(unknown))}; known: "
-                             f"{', '.join(sorted(known))}" + (", channel" if mech_id == SensorCalibration.id else ""))
+            raise ValueError(
+                f"mechanism {mech_id}: unknown parameter(s) {', '.join(sorted(unknown))}; known: "
+                f"{', '.join(sorted(known))}" + (", channel" if mech_id == SensorCalibration.id else "")
+            )
     return mech_id, values, channel

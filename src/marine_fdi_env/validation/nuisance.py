@@ -43,8 +43,11 @@ class NuisanceGroup:
 
 NUISANCE: tuple[NuisanceGroup, ...] = (
     NuisanceGroup("turbine_area", ("A_eff_m2",), "turbine effective area"),
-    NuisanceGroup("turbocharger_efficiency", ("a_eta_per_Pa2", "b_eta_per_Pa", "c_eta", "a_turbo", "b_turbo_per_Pa",
-                                              "c_turbo_per_Pa2"), "turbocharger and turbine efficiency"),
+    NuisanceGroup(
+        "turbocharger_efficiency",
+        ("a_eta_per_Pa2", "b_eta_per_Pa", "c_eta", "a_turbo", "b_turbo_per_Pa", "c_turbo_per_Pa2"),
+        "turbocharger and turbine efficiency",
+    ),
     NuisanceGroup("compressor_efficiency", ("eta_com",), "compressor temperature rise per turbine drop"),
     NuisanceGroup("combustion_efficiency", ("eta_comb",), "heat released per kg of fuel"),
     NuisanceGroup("heat_release_shape", ("X_cv_nom",), "constant-volume share of the heat release"),

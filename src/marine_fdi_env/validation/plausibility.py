@@ -15,8 +15,7 @@ import numpy as np
 from ..engine.params import EngineParams
 from .columns import QUANTITIES, lookup_column
 
-__all__ = ["ENVELOPE", "SETPOINT_QUANTITIES", "check_across_engines", "check_duplicates", "check_values",
-           "rows_where"]
+__all__ = ["ENVELOPE", "SETPOINT_QUANTITIES", "check_across_engines", "check_duplicates", "check_values", "rows_where"]
 
 # Envelope of a plausible operating point (errors beyond, see check_values for the warnings).
 ENVELOPE = {
@@ -53,32 +52,47 @@ def check_values(raw, values, column_quantity, p: EngineParams, rated, ambient, 
 
         if q == "load_fraction":
             flag(v < 0, "negative load fraction")
-            flag(v > ENVELOPE["load_fraction_max"],
-                 f"load fraction above {ENVELOPE['load_fraction_max']} (outside the engine envelope)")
+            flag(
+                v > ENVELOPE["load_fraction_max"],
+                f"load fraction above {ENVELOPE['load_fraction_max']} (outside the engine envelope)",
+            )
         elif q == "engine_speed_rev_s":
             flag(v <= 0, "speed not positive")
-            flag(v > ENVELOPE["speed_max_rel"] * n_nom,
-                 f"speed above {ENVELOPE['speed_max_rel']} x nominal ({ENVELOPE['speed_max_rel'] * n_nom * 60:g} rpm;"
-                 " outside the engine envelope)")
+            flag(
+                v > ENVELOPE["speed_max_rel"] * n_nom,
+                f"speed above {ENVELOPE['speed_max_rel']} x nominal ({ENVELOPE['speed_max_rel'] * n_nom * 60:g} rpm;"
+                " outside the engine envelope)",
+            )
             flag((v > 0) & (v < 0.2 * n_nom), "speed below 0.2 x nominal (suspicious, kept)", warn)
         elif q == "power_W":
             flag(v < 0, "negative power")
-            flag(v > ENVELOPE["power_max_rel"] * rated,
-                 f"power above {ENVELOPE['power_max_rel']} x rated ({ENVELOPE['power_max_rel'] * rated / 1e3:g} kW;"
-                 " outside the engine envelope)")
+            flag(
+                v > ENVELOPE["power_max_rel"] * rated,
+                f"power above {ENVELOPE['power_max_rel']} x rated ({ENVELOPE['power_max_rel'] * rated / 1e3:g} kW;"
+                " outside the engine envelope)",
+            )
         elif q == "fuel_setting":
-            flag((v < 0) | (v > ENVELOPE["fuel_setting_max"]), f"fuel setting outside [0, {ENVELOPE['fuel_setting_max']}]")
+            flag(
+                (v < 0) | (v > ENVELOPE["fuel_setting_max"]),
+                f"fuel setting outside [0, {ENVELOPE['fuel_setting_max']}]",
+            )
         elif q in ("exhaust_back_pressure_Pa", "cooler_pressure_drop_Pa"):
             flag(v < -5e3, "pressure difference below -50 mbar (suspicious, kept)", warn)
             flag(v > 1e5, "pressure difference above 1 bar (outside any engine's exhaust or cooler)")
         elif q == "ambient_pressure_Pa":
             flag(v <= 0, "ambient pressure not positive")
-            flag((v > 0) & ((v < 850e2) | (v > 1100e2)), "ambient pressure outside [850, 1100] hPa (suspicious, kept)",
-                 warn)
+            flag(
+                (v > 0) & ((v < 850e2) | (v > 1100e2)),
+                "ambient pressure outside [850, 1100] hPa (suspicious, kept)",
+                warn,
+            )
         elif q == "ambient_temperature_K":
             flag(v < 0, "temperature below absolute zero")
-            flag((v >= 0) & ((v < 243.15) | (v > 333.15)), "intake temperature outside [-30, 60] C (suspicious, kept)",
-                 warn)
+            flag(
+                (v >= 0) & ((v < 243.15) | (v > 333.15)),
+                "intake temperature outside [-30, 60] C (suspicious, kept)",
+                warn,
+            )
         elif q == "relative_humidity":
             flag((v < 0) | (v > 1), "relative humidity outside [0, 100] %")
         elif q.endswith("_Pa"):
@@ -87,22 +101,36 @@ def check_values(raw, values, column_quantity, p: EngineParams, rated, ambient, 
             if spec.gauge:
                 flag((v > 0) & (raw[col] < 0), "gauge pressure below ambient (suspicious, kept)", warn)
             elif q == "charge_air_pressure_Pa":
-                flag((v > 0) & (v < 0.9 * ambient["p_amb_Pa"]), "charge-air pressure below ambient (suspicious, kept)",
-                     warn)
+                flag(
+                    (v > 0) & (v < 0.9 * ambient["p_amb_Pa"]),
+                    "charge-air pressure below ambient (suspicious, kept)",
+                    warn,
+                )
         elif kind == "temperature":
             flag(v < 0, "temperature below absolute zero")
-            flag((v >= 0) & ((v < 223.15) | (v > 1273.15)), "temperature outside [-50, 1000] C (suspicious, kept)", warn)
+            flag(
+                (v >= 0) & ((v < 223.15) | (v > 1273.15)), "temperature outside [-50, 1000] C (suspicious, kept)", warn
+            )
         elif q == "sfc_kg_per_J":
             flag(v <= 0, "specific fuel consumption not positive")
             lo, hi = 150e-3 / 3.6e6, 400e-3 / 3.6e6
             flag((v > 0) & ((v < lo) | (v > hi)), "SFC outside [150, 400] g/kWh (suspicious, kept)", warn)
-        elif q in ("fuel_mass_flow_kg_s", "air_mass_flow_kg_s", "exhaust_mass_flow_kg_s",
-                   "specific_air_flow_kg_per_J", "specific_exhaust_flow_kg_per_J", "torque_Nm"):
+        elif q in (
+            "fuel_mass_flow_kg_s",
+            "air_mass_flow_kg_s",
+            "exhaust_mass_flow_kg_s",
+            "specific_air_flow_kg_per_J",
+            "specific_exhaust_flow_kg_per_J",
+            "torque_Nm",
+        ):
             flag(v < 0, "negative value")
             if q == "fuel_mass_flow_kg_s":
                 nominal = p.SFC_nom_kg_per_J * p.P_nom_W
-                flag(v > 1.4 * nominal, f"fuel flow above 1.4 x nominal ({1.4 * nominal * 3600:g} kg/h; suspicious, kept)",
-                     warn)
+                flag(
+                    v > 1.4 * nominal,
+                    f"fuel flow above 1.4 x nominal ({1.4 * nominal * 3600:g} kg/h; suspicious, kept)",
+                    warn,
+                )
         elif q in ("fuel_rack", "air_excess_ratio"):
             flag(v < 0, "negative value")
     # consistency of load fraction and power
@@ -110,8 +138,12 @@ def check_values(raw, values, column_quantity, p: EngineParams, rated, ambient, 
         lf, pw = values["load_fraction"], values["power_W"]
         bad = np.isfinite(lf) & np.isfinite(pw) & (np.abs(pw / rated - lf) > 0.02)
         if np.any(bad):
-            warn(f"load fraction and power / rated power ({rated / 1e3:g} kW) differ by more than 0.02 "
-                 "(suspicious, kept)", rows=rows_where(bad), column=_column_of(column_quantity, "load_fraction"))
+            warn(
+                f"load fraction and power / rated power ({rated / 1e3:g} kW) differ by more than 0.02 "
+                "(suspicious, kept)",
+                rows=rows_where(bad),
+                column=_column_of(column_quantity, "load_fraction"),
+            )
 
 
 def _column_of(column_quantity: Mapping[str, str], quantity: str) -> str | None:
@@ -175,8 +207,19 @@ def check_across_engines(raw, column_quantity, engines, warn, suspect=None) -> N
                 dev = abs(xi - med)
                 if (temp and dev > 25.0) or (not temp and dev > 0.25 * abs(med) and dev > 1e-12):
                     others = ", ".join(f"{engines[k]}: {_fmt(raw[col][k])}" for k in idx if k != i)
-                    warn(f"engine {engines[i]} reads {_fmt(xi)} where the other engines at the same set point read "
-                         f"{others} (suspicious, kept)", rows=(i + 1,), column=col)
+                    warn(
+                        f"engine {engines[i]} reads {_fmt(xi)} where the other engines at the same set point read "
+                        f"{others} (suspicious, kept)",
+                        rows=(i + 1,),
+                        column=col,
+                    )
                     if suspect is not None:
-                        suspect.append({"row": i + 1, "column": col, "value": float(xi), "median_of_others": med,
-                                        "why": "far from the other engines at the same set point"})
+                        suspect.append(
+                            {
+                                "row": i + 1,
+                                "column": col,
+                                "value": float(xi),
+                                "median_of_others": med,
+                                "why": "far from the other engines at the same set point",
+                            }
+                        )

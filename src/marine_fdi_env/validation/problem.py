@@ -5,7 +5,8 @@
 boundary conditions (ambient pressure, compressor inlet temperature, turbine back pressure).  A
 :class:`Setting` is one candidate model: parameter scales (the model-error nuisance of
 :mod:`.nuisance`), submodels, offsets of the ambient state, sensor gains/offsets and per-point valve
-openings.  :meth:`Problem.predict` runs the one engine model (:func:`marine_fdi_env.engine.operating_point.solve_points`)
+openings.  :meth:`Problem.predict` runs the one engine model
+(:func:`marine_fdi_env.engine.operating_point.solve_points`)
 at every point and returns the readings in the columns' units.
 
 Tolerances (the residual scale; the smallest discrepancy worth naming): the sidecar's
@@ -27,8 +28,16 @@ import numpy as np
 
 from ..engine.constants import constants_at_ambient, model_constants
 from ..engine.model import HEALTHY_PF, N_ALG
-from ..engine.operating_point import (LAW_PARAMS, MODE_F, MODE_P, MODE_U, Summary, power_of_speed, solve_raw,
-                               speed_of_power)
+from ..engine.operating_point import (
+    LAW_PARAMS,
+    MODE_F,
+    MODE_P,
+    MODE_U,
+    Summary,
+    power_of_speed,
+    solve_raw,
+    speed_of_power,
+)
 from ..engine.params import EngineParams, load_params
 from ..engine.submodels import NO_SUBMODELS, EngineSubmodels
 from .columns import QUANTITIES, ModelContext
@@ -90,8 +99,15 @@ class Problem:
         :mod:`.held_out_state`): :data:`HELD_OUT_VALVES`.
     """
 
-    def __init__(self, ds: MeasuredDataset, *, params: str | EngineParams | None = None, target: str = "auto",
-                 tolerances: Mapping[str, float] | None = None, held_out_valves: str = "schedule"):
+    def __init__(
+        self,
+        ds: MeasuredDataset,
+        *,
+        params: str | EngineParams | None = None,
+        target: str = "auto",
+        tolerances: Mapping[str, float] | None = None,
+        held_out_valves: str = "schedule",
+    ):
         if held_out_valves not in HELD_OUT_VALVES:
             raise ValueError(f"held_out_valves must be one of {', '.join(HELD_OUT_VALVES)}, got {held_out_valves!r}")
         self.held_out_valves = held_out_valves
@@ -109,8 +125,12 @@ class Problem:
         else:
             _, self.target_si, self.target_columns = _target_values(ds, self.target)
         roles = ds.column_role
-        self.predicted_columns = tuple(c for c in ds.columns if roles.get(c, "channel") in ("channel", "setpoint")
-                                       and QUANTITIES[ds.column_quantity[c]].model is not None)
+        self.predicted_columns = tuple(
+            c
+            for c in ds.columns
+            if roles.get(c, "channel") in ("channel", "setpoint")
+            and QUANTITIES[ds.column_quantity[c]].model is not None
+        )
         redundant = {ds.column_of("load_fraction")} if "power_W" in ds.values else set()
         self.channels = tuple(c for c in self.predicted_columns if c not in self.target_columns and c not in redundant)
         if not self.channels:
@@ -128,8 +148,11 @@ class Problem:
         self.ctx = ModelContext(rated_power_W=ds.rated_power_W)
         # the parameter set as it is, with its own submodels (an engine file written by --save-params keeps its
         # waste gate when it is validated again); candidate mechanisms are added on top of these
-        self.base_setting = BASE_SETTING if self.params.submodels == BASE_SETTING.submodels else \
-            BASE_SETTING.replace(submodels=self.params.submodels)
+        self.base_setting = (
+            BASE_SETTING
+            if self.params.submodels == BASE_SETTING.submodels
+            else BASE_SETTING.replace(submodels=self.params.submodels)
+        )
         self._state = np.full((n, 3), np.nan)
         self._group_cache: dict[bytes, list] = {}
         self._plans: dict[str, tuple] = {}
@@ -158,8 +181,10 @@ class Problem:
             if not eq or not col or not val:
                 raise ValueError(f"--tolerance {item!r}: expected COLUMN=VALUE or COLUMN=P%")
             if col not in self.channels:
-                raise ValueError(f"--tolerance {item!r}: {col!r} is not a compared channel of {self.ds.name}; "
-                                 f"channels: {', '.join(self.channels)}")
+                raise ValueError(
+                    f"--tolerance {item!r}: {col!r} is not a compared channel of {self.ds.name}; "
+                    f"channels: {', '.join(self.channels)}"
+                )
             if col in seen:
                 raise ValueError(f"--tolerance: {col!r} given twice")
             seen.add(col)
@@ -172,8 +197,10 @@ class Problem:
                 raise ValueError(f"--tolerance {item!r}: must be positive")
             if pct:
                 if QUANTITIES[self.ds.column_quantity[col]].kind == "temperature":
-                    raise ValueError(f"--tolerance {item!r}: give a temperature's tolerance in its unit, not "
-                                     "in % (the default is 5 K)")
+                    raise ValueError(
+                        f"--tolerance {item!r}: give a temperature's tolerance in its unit, not "
+                        "in % (the default is 5 K)"
+                    )
                 x = column_tolerance(self.ds, col, rel_tol=x / 100.0)
             out[col] = x
         return out
@@ -224,8 +251,9 @@ class Problem:
     def point_engine(self, setting: Setting, row: int) -> EngineParams:
         """The engine of ``setting`` at the boundary conditions of ``row``."""
         b = self.boundary
-        return self._at_boundary(self.engine(setting), setting,
-                                 tuple(float(b[k][row]) for k in ("p_amb_Pa", "T_amb_K", "p_ex_Pa")))
+        return self._at_boundary(
+            self.engine(setting), setting, tuple(float(b[k][row]) for k in ("p_amb_Pa", "T_amb_K", "p_ex_Pa"))
+        )
 
     @staticmethod
     def _at_boundary(eng: EngineParams, setting: Setting, key: tuple[float, float, float]) -> EngineParams:
@@ -279,8 +307,9 @@ class Problem:
             mode, a0, a1, law = self._inputs(p, idx)
             y = self._state[idx]
             c = c_eng if p is eng else constants_at_ambient(c_eng, p)  # = model_constants(p), cheaper
-            a_, x_, ok = solve_raw(c, mode, a0, np.asarray(a1, float), law, y, HEALTHY_PF,
-                                   np.ascontiguousarray(ov_all[idx]))
+            a_, x_, ok = solve_raw(
+                c, mode, a0, np.asarray(a1, float), law, y, HEALTHY_PF, np.ascontiguousarray(ov_all[idx])
+            )
             st = self._state[idx]
             st[ok] = y[ok]
             self._state[idx] = st
@@ -290,16 +319,23 @@ class Problem:
             conv[k] = ok
         st = self._state[rows]
         b = self.boundary
-        p_amb = np.where(np.isfinite(b["p_amb_Pa"][rows]), b["p_amb_Pa"][rows], eng.p_amb_Pa) + setting.dp_amb_Pa * \
-            np.isfinite(b["p_amb_Pa"][rows])
+        p_amb = np.where(
+            np.isfinite(b["p_amb_Pa"][rows]), b["p_amb_Pa"][rows], eng.p_amb_Pa
+        ) + setting.dp_amb_Pa * np.isfinite(b["p_amb_Pa"][rows])
         T_amb = np.where(np.isfinite(b["T_amb_K"][rows]), b["T_amb_K"][rows] + setting.dT_amb_K, eng.T_amb_K)
         vals = Summary(eng, x1, st[:, 0], st[:, 1], alg, conv, p_amb, T_amb)
         self.n_evaluations += 1
         self.eval_seconds += time.perf_counter() - t0
         return vals, conv
 
-    def readings(self, setting: Setting, vals: Mapping[str, np.ndarray], conv: np.ndarray, rows: np.ndarray,
-                 columns: Sequence[str]) -> np.ndarray:
+    def readings(
+        self,
+        setting: Setting,
+        vals: Mapping[str, np.ndarray],
+        conv: np.ndarray,
+        rows: np.ndarray,
+        columns: Sequence[str],
+    ) -> np.ndarray:
         """Model readings of ``columns`` (their units, sensor gains/offsets applied), NaN where not converged."""
         ds = self.ds
         out = np.empty((rows.size, len(columns)))
@@ -343,15 +379,15 @@ class Problem:
         eng = self.ds.engine_ids()
         if len(eng) >= 2:
             e = np.array(self.ds.engines)
-            return "leave-one-engine-out", [(str(x), np.array([i for i in rows if e[i] == x], dtype=int))
-                                            for x in eng]
+            return "leave-one-engine-out", [(str(x), np.array([i for i in rows if e[i] == x], dtype=int)) for x in eng]
         if max_folds is None or rows.size <= max_folds:
             return "leave-one-point-out", [(f"point {i + 1}", np.array([i], dtype=int)) for i in rows]
         order = rows[np.argsort(self.load_axis()[rows], kind="stable")]
         # interleaved folds: each fold takes every k-th point in load order, so that each leaves out points
         # spread over the load range (contiguous blocks would test extrapolation, not the model)
-        return f"{max_folds}-fold (interleaved in load)", [(f"fold {k + 1}", np.sort(order[k::max_folds]))
-                                                          for k in range(max_folds)]
+        return f"{max_folds}-fold (interleaved in load)", [
+            (f"fold {k + 1}", np.sort(order[k::max_folds])) for k in range(max_folds)
+        ]
 
     def test_bed_conditions(self) -> dict[str, Any] | None:
         """The boundary conditions this data recorded, as a test bed's: mean ambient pressure [Pa] and intake
@@ -366,9 +402,13 @@ class Problem:
         dp = b["p_ex_Pa"] - np.where(np.isfinite(b["p_amb_Pa"]), b["p_amb_Pa"], self.params.p_amb_Pa)
         ok = np.isfinite(dp) & np.isfinite(load)
         order = np.argsort(load[ok], kind="stable")
-        out = {"p_amb_Pa": mean("p_amb_Pa"), "T_amb_K": mean("T_amb_K"),
-               "back_pressure": ({"load_fraction": load[ok][order].tolist(), "dp_Pa": dp[ok][order].tolist()}
-                                 if ok.any() else None)}
+        out = {
+            "p_amb_Pa": mean("p_amb_Pa"),
+            "T_amb_K": mean("T_amb_K"),
+            "back_pressure": (
+                {"load_fraction": load[ok][order].tolist(), "dp_Pa": dp[ok][order].tolist()} if ok.any() else None
+            ),
+        }
         return out if any(v is not None for v in out.values()) else None
 
     def assume_boundary(self, conditions: Mapping[str, Any]) -> list[str]:

@@ -74,13 +74,29 @@ class ProfileInterval:
         return f"[{lo}, {hi}]" + ("" if self.identified else " not identified")
 
     def as_dict(self) -> dict[str, Any]:
-        return {"value": self.value, "lower": self.lower, "upper": self.upper, "lower_open": self.lower_open,
-                "upper_open": self.upper_open, "identified": self.identified, "level": self.level,
-                "bounds": list(self.bounds), "natural": list(self.natural), "evaluations": self.evaluations}
+        return {
+            "value": self.value,
+            "lower": self.lower,
+            "upper": self.upper,
+            "lower_open": self.lower_open,
+            "upper_open": self.upper_open,
+            "identified": self.identified,
+            "level": self.level,
+            "bounds": list(self.bounds),
+            "natural": list(self.natural),
+            "evaluations": self.evaluations,
+        }
 
 
-def _refit_fixed(fun: Callable[[np.ndarray], np.ndarray], z: np.ndarray, lo: np.ndarray, hi: np.ndarray, j: int,
-                 theta: float, max_nfev: int) -> tuple[float, np.ndarray]:
+def _refit_fixed(
+    fun: Callable[[np.ndarray], np.ndarray],
+    z: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    j: int,
+    theta: float,
+    max_nfev: int,
+) -> tuple[float, np.ndarray]:
     """Sum of squares of ``fun`` minimised over every parameter but ``j`` (held at ``theta``), from ``z``."""
     free = np.arange(z.size) != j
     base = z.copy()
@@ -97,16 +113,27 @@ def _refit_fixed(fun: Callable[[np.ndarray], np.ndarray], z: np.ndarray, lo: np.
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        res = least_squares(f, z0, bounds=(lo[free], hi[free]), x_scale=span, diff_step=1e-6, xtol=1e-8, ftol=1e-8,
-                            max_nfev=max_nfev)
+        res = least_squares(
+            f, z0, bounds=(lo[free], hi[free]), x_scale=span, diff_step=1e-6, xtol=1e-8, ftol=1e-8, max_nfev=max_nfev
+        )
     out = base.copy()
     out[free] = res.x
     return 2.0 * float(res.cost), out
 
 
-def profile_interval(fun: Callable[[np.ndarray], np.ndarray], z: np.ndarray, lo: np.ndarray, hi: np.ndarray, j: int,
-                     threshold: float, *, step: float | None = None, max_steps: int = 12, refine: int = 4,
-                     max_nfev: int = 60) -> tuple[float, float, bool, bool, int]:
+def profile_interval(
+    fun: Callable[[np.ndarray], np.ndarray],
+    z: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    j: int,
+    threshold: float,
+    *,
+    step: float | None = None,
+    max_steps: int = 12,
+    refine: int = 4,
+    max_nfev: int = 60,
+) -> tuple[float, float, bool, bool, int]:
     """The interval of parameter ``j`` of the least-squares problem ``fun`` (optimum ``z``, bounds ``lo``/``hi``)
     inside which the profile's sum of squares stays below ``threshold``: ``(lower, upper, lower_open, upper_open,
     refits)``.
@@ -159,8 +186,9 @@ def profile_interval(fun: Callable[[np.ndarray], np.ndarray], z: np.ndarray, lo:
     return ends[0], ends[1], opens[0], opens[1], n
 
 
-def fit_profiles(problem: Problem, fit: FitResult, *, level: float = LEVEL, max_steps: int = 10,
-                 refine: int = 3) -> dict[str, ProfileInterval]:
+def fit_profiles(
+    problem: Problem, fit: FitResult, *, level: float = LEVEL, max_steps: int = 10, refine: int = 3
+) -> dict[str, ProfileInterval]:
     """Profile intervals of every fitted parameter of ``fit`` (its mechanisms' global parameters and each valve's
     opening at the points where it acts; the nuisance is refitted, not reported), its valve supports held.  Keys:
     ``label.param`` as :meth:`~.fitting.FitResult.values`, ``valve_id[point]`` (1-based point) for an opening."""
@@ -179,9 +207,29 @@ def fit_profiles(problem: Problem, fit: FitResult, *, level: float = LEVEL, max_
         if opening:
             vid, row = name[:-1].split("[")
             key = f"{vid}[{int(row) + 1}]"
-            out[key] = ProfileInterval(key, float(z[j] ** 2), a * a, b * b, ao, bo, (float(lo[j] ** 2),
-                                       float(hi[j] ** 2)), (True, False), level, n)
+            out[key] = ProfileInterval(
+                key,
+                float(z[j] ** 2),
+                a * a,
+                b * b,
+                ao,
+                bo,
+                (float(lo[j] ** 2), float(hi[j] ** 2)),
+                (True, False),
+                level,
+                n,
+            )
         else:
-            out[name] = ProfileInterval(name, float(z[j]), a, b, ao, bo, (float(lo[j]), float(hi[j])),
-                                        tuple(natural.get(name, (False, False))), level, n)
+            out[name] = ProfileInterval(
+                name,
+                float(z[j]),
+                a,
+                b,
+                ao,
+                bo,
+                (float(lo[j]), float(hi[j])),
+                tuple(natural.get(name, (False, False))),
+                level,
+                n,
+            )
     return out

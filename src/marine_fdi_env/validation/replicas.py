@@ -51,13 +51,33 @@ from .problem import Problem
 from .rules import SelectionRules
 from .selection import Selection, select_causes
 
-__all__ = ["Hypothesis", "NOISE_MODELS", "hypotheses", "noise_scale", "replica_readings", "run_replica",
-           "replicate", "summarise", "markdown_table"]
+__all__ = [
+    "Hypothesis",
+    "NOISE_MODELS",
+    "hypotheses",
+    "noise_scale",
+    "replica_readings",
+    "run_replica",
+    "replicate",
+    "summarise",
+    "markdown_table",
+]
 
 NOISE_MODELS = ("residual", "tolerance")
 #: the rules (:class:`~.rules.SelectionRules`) a replica reuses from the selection on the data
-_PASSED = ("max_causes", "alpha", "alpha_unexplained", "min_gain", "penalty", "cv_all", "max_folds", "pairs", "prune",
-           "exchange", "beside_valve")
+_PASSED = (
+    "max_causes",
+    "alpha",
+    "alpha_unexplained",
+    "min_gain",
+    "penalty",
+    "cv_all",
+    "max_folds",
+    "pairs",
+    "prune",
+    "exchange",
+    "beside_valve",
+)
 
 
 @dataclass(frozen=True)
@@ -84,9 +104,14 @@ def _acts(fit) -> dict[str, tuple[bool, ...]]:
 def _hypothesis(problem: Problem, name: str, fit) -> Hypothesis:
     rows = np.arange(problem.n_points)
     M = int(problem.measured_mask[problem.rows_with_data()].sum())
-    return Hypothesis(name=name, causes=tuple(sorted(fit.combination.labels)),
-                      readings=predict_setting(problem, fit, rows), acts=_acts(fit),
-                      in_sample_score=2.0 * fit.data_cost / M, fit_values=fit.values())
+    return Hypothesis(
+        name=name,
+        causes=tuple(sorted(fit.combination.labels)),
+        readings=predict_setting(problem, fit, rows),
+        acts=_acts(fit),
+        in_sample_score=2.0 * fit.data_cost / M,
+        fit_values=fit.values(),
+    )
 
 
 def hypotheses(sel: Selection, alternatives: Sequence[str] | None = None, top: int = 4) -> list[Hypothesis]:
@@ -96,14 +121,17 @@ def hypotheses(sel: Selection, alternatives: Sequence[str] | None = None, top: i
     ids = {m.id for m in PHYSICAL_MECHANISMS}
     if alternatives is None:
         first = [c for c in sel.steps[0]["candidates"] if c.members is None] if sel.steps else []
-        ranked = sorted((c for c in first if _physical(c.combination.mechanisms[-1])),
-                        key=lambda c: c.in_sample_score)
-        alternatives = [c.combination.mechanisms[-1].id for c in ranked
-                        if c.combination.mechanisms[-1].id not in {m.id for m in named}][:top]
+        ranked = sorted((c for c in first if _physical(c.combination.mechanisms[-1])), key=lambda c: c.in_sample_score)
+        alternatives = [
+            c.combination.mechanisms[-1].id
+            for c in ranked
+            if c.combination.mechanisms[-1].id not in {m.id for m in named}
+        ][:top]
     bad = [a for a in alternatives if a not in ids]
     if bad:
-        raise ValueError(f"--alternatives: unknown physical mechanism(s) {', '.join(bad)}; "
-                         f"known: {', '.join(sorted(ids))}")
+        raise ValueError(
+            f"--alternatives: unknown physical mechanism(s) {', '.join(bad)}; known: {', '.join(sorted(ids))}"
+        )
     dup = [a for a in alternatives if a in {m.id for m in named}]
     if dup:
         raise ValueError(f"--alternatives: {', '.join(dup)} is among the named causes already")
@@ -135,8 +163,9 @@ def noise_scale(sel: Selection, model: str = "residual") -> np.ndarray:
     return np.nan_to_num(e) * math.sqrt(M / max(M - sel.fit.k, 1))
 
 
-def replica_readings(problem: Problem, hyp: Hypothesis, scale: np.ndarray, seed: int, h: int, r: int,
-                     noise: str = "residual") -> np.ndarray:
+def replica_readings(
+    problem: Problem, hyp: Hypothesis, scale: np.ndarray, seed: int, h: int, r: int, noise: str = "residual"
+) -> np.ndarray:
     """Replica ``r`` of hypothesis number ``h``: its readings plus the noise of :func:`noise_scale` (a random sign
     times ``scale`` for ``residual``, N(0, scale²) for ``tolerance``) at the measured cells, NaN elsewhere."""
     rng = np.random.default_rng([int(seed), int(h), int(r)])
@@ -149,8 +178,16 @@ def replica_readings(problem: Problem, hyp: Hypothesis, scale: np.ndarray, seed:
     return np.where(problem.measured_mask, hyp.readings + draw * scale, np.nan)
 
 
-def run_replica(ds: MeasuredDataset, params, target: str, tolerances: Mapping[str, float], channels: Sequence[str],
-                Y: np.ndarray, rules: SelectionRules, mechanisms: Sequence[Mechanism] | None = None) -> dict[str, Any]:
+def run_replica(
+    ds: MeasuredDataset,
+    params,
+    target: str,
+    tolerances: Mapping[str, float],
+    channels: Sequence[str],
+    Y: np.ndarray,
+    rules: SelectionRules,
+    mechanisms: Sequence[Mechanism] | None = None,
+) -> dict[str, Any]:
     """Run the pipeline on ``ds`` with readings ``Y`` of ``channels``: what it names, where valves act, what it
     leaves unexplained.  ``mechanisms``: the candidates (default the library, as on the data); ``rules``: the
     selection's, as on the data."""
@@ -158,12 +195,17 @@ def run_replica(ds: MeasuredDataset, params, target: str, tolerances: Mapping[st
     rep = ds.with_readings({c: Y[:, j] for j, c in enumerate(channels)})
     pr = Problem(rep, params=params, target=target, tolerances=tolerances, held_out_valves=rules.held_out_valves)
     s = select_causes(pr, mechanisms, rules=rules)
-    return {"named": sorted(s.selected_labels), "acts": {k: list(v) for k, v in _acts(s.fit).items()},
-            "unexplained": sorted({u["channel"] for u in s.unexplained}), "seconds": time.perf_counter() - t0}
+    return {
+        "named": sorted(s.selected_labels),
+        "acts": {k: list(v) for k, v in _acts(s.fit).items()},
+        "unexplained": sorted({u["channel"] for u in s.unexplained}),
+        "seconds": time.perf_counter() - t0,
+    }
 
 
-def summarise(hyps: Sequence[Hypothesis], runs: Mapping[int, Sequence[dict[str, Any]]],
-              data_causes: Sequence[str]) -> list[dict[str, Any]]:
+def summarise(
+    hyps: Sequence[Hypothesis], runs: Mapping[int, Sequence[dict[str, Any]]], data_causes: Sequence[str]
+) -> list[dict[str, Any]]:
     """Per hypothesis: rates of naming it, of naming the data's causes, the physical sets named, valve support."""
     data_causes = sorted(data_causes)
     out = []
@@ -172,24 +214,44 @@ def summarise(hyps: Sequence[Hypothesis], runs: Mapping[int, Sequence[dict[str, 
         n = len(rs)
         k_self = sum(r["named"] == list(hyp.causes) for r in rs)
         k_data = sum(r["named"] == data_causes for r in rs)
-        phys = Counter(" + ".join(x for x in r["named"] if not x.startswith(SensorCalibration.id)) or "(none)"
-                       for r in rs)
+        phys = Counter(
+            " + ".join(x for x in r["named"] if not x.startswith(SensorCalibration.id)) or "(none)" for r in rs
+        )
         valves = {}
         for v, acts in hyp.acts.items():
             k = sum(r["acts"].get(v) == list(acts) for r in rs)
             valves[v] = {"acts_in_hypothesis": list(acts), "same_points": k, "rate": k / n if n else math.nan}
-        out.append({"hypothesis": hyp.name, "causes": list(hyp.causes), "in_sample_score": hyp.in_sample_score,
-                    "replicas": n, "named_itself": k_self, "named_itself_rate": k_self / n if n else math.nan,
-                    "named_itself_ci95": proportion_ci95(k_self, n), "named_data_causes": k_data,
-                    "named_data_causes_rate": k_data / n if n else math.nan,
-                    "named_data_causes_ci95": proportion_ci95(k_data, n),
-                    "physical_named": dict(phys.most_common()), "valve_support": valves})
+        out.append(
+            {
+                "hypothesis": hyp.name,
+                "causes": list(hyp.causes),
+                "in_sample_score": hyp.in_sample_score,
+                "replicas": n,
+                "named_itself": k_self,
+                "named_itself_rate": k_self / n if n else math.nan,
+                "named_itself_ci95": proportion_ci95(k_self, n),
+                "named_data_causes": k_data,
+                "named_data_causes_rate": k_data / n if n else math.nan,
+                "named_data_causes_ci95": proportion_ci95(k_data, n),
+                "physical_named": dict(phys.most_common()),
+                "valve_support": valves,
+            }
+        )
     return out
 
 
-def replicate(sel: Selection, *, replicas: int = 10, noise: str = "residual", seed: int = 0,
-              alternatives: Sequence[str] | None = None, top: int = 4, workers: int = 1,
-              mechanisms: Sequence[Mechanism] | None = None, progress: bool = True) -> dict[str, Any]:
+def replicate(
+    sel: Selection,
+    *,
+    replicas: int = 10,
+    noise: str = "residual",
+    seed: int = 0,
+    alternatives: Sequence[str] | None = None,
+    top: int = 4,
+    workers: int = 1,
+    mechanisms: Sequence[Mechanism] | None = None,
+    progress: bool = True,
+) -> dict[str, Any]:
     """Fit the hypotheses, run ``replicas`` replicas of each through the pipeline, summarise (module docstring).
     ``mechanisms``: the candidates the selection ``sel`` was run with (default the library)."""
     if int(replicas) != replicas or replicas < 1:
@@ -203,8 +265,19 @@ def replicate(sel: Selection, *, replicas: int = 10, noise: str = "residual", se
     rules = SelectionRules(held_out_valves=problem.held_out_valves, **settings)
     tol = dict(zip(problem.channels, map(float, problem.tolerance)))
     jobs = [(h, r) for h in range(len(hyps)) for r in range(int(replicas))]
-    args = {j: (problem.ds, problem.params, problem.target, tol, problem.channels,
-                replica_readings(problem, hyps[j[0]], scale, seed, *j, noise), rules, mechanisms) for j in jobs}
+    args = {
+        j: (
+            problem.ds,
+            problem.params,
+            problem.target,
+            tol,
+            problem.channels,
+            replica_readings(problem, hyps[j[0]], scale, seed, *j, noise),
+            rules,
+            mechanisms,
+        )
+        for j in jobs
+    }
     results: dict[tuple[int, int], dict[str, Any]] = {}
     bar = None
     if progress:
@@ -235,14 +308,26 @@ def replicate(sel: Selection, *, replicas: int = 10, noise: str = "residual", se
     runs = {h: [results[(h, r)] for r in range(int(replicas))] for h in range(len(hyps))}
     chans = list(problem.channels)
     return {
-        "dataset": problem.ds.name, "data_causes": sorted(sel.selected_labels),
-        "settings": {"replicas": int(replicas), "noise": noise, "seed": int(seed),
-                     "selection": {**settings, "held_out_valves": problem.held_out_valves},
-                     "noise_scale": {c: [float(abs(x)) for x in scale[:, j]] for j, c in enumerate(chans)}},
-        "hypotheses": [{"name": h.name, "causes": list(h.causes), "in_sample_score": h.in_sample_score,
-                        "fit": dict(h.fit_values), "acts": {k: list(v) for k, v in h.acts.items()},
-                        "cells_without_steady_state": int(np.sum(problem.measured_mask & ~np.isfinite(h.readings)))}
-                       for h in hyps],
+        "dataset": problem.ds.name,
+        "data_causes": sorted(sel.selected_labels),
+        "settings": {
+            "replicas": int(replicas),
+            "noise": noise,
+            "seed": int(seed),
+            "selection": {**settings, "held_out_valves": problem.held_out_valves},
+            "noise_scale": {c: [float(abs(x)) for x in scale[:, j]] for j, c in enumerate(chans)},
+        },
+        "hypotheses": [
+            {
+                "name": h.name,
+                "causes": list(h.causes),
+                "in_sample_score": h.in_sample_score,
+                "fit": dict(h.fit_values),
+                "acts": {k: list(v) for k, v in h.acts.items()},
+                "cells_without_steady_state": int(np.sum(problem.measured_mask & ~np.isfinite(h.readings))),
+            }
+            for h in hyps
+        ],
         "summary": summarise(hyps, runs, sel.selected_labels),
         "runs": {hyps[h].name: runs[h] for h in runs},
     }
@@ -254,12 +339,17 @@ def _pct(k: int, n: int, ci: Sequence[float]) -> str:
 
 def markdown_table(rep: Mapping[str, Any]) -> str:
     """The summary as a Markdown table (one row per hypothesis)."""
-    lines = ["| truth (fitted on the data) | in-sample score | named itself | named the data's causes | "
-             "physical causes named | valve acts at the same points |", "|---|---|---|---|---|---|"]
+    lines = [
+        "| truth (fitted on the data) | in-sample score | named itself | named the data's causes | "
+        "physical causes named | valve acts at the same points |",
+        "|---|---|---|---|---|---|",
+    ]
     for s in rep["summary"]:
         valves = "; ".join(f"{v}: {d['same_points']}/{s['replicas']}" for v, d in s["valve_support"].items()) or "-"
         phys = ", ".join(f"{k} {v}" for k, v in s["physical_named"].items())
-        lines.append(f"| {s['hypothesis']} ({' + '.join(s['causes'])}) | {s['in_sample_score']:.3g} | "
-                     f"{_pct(s['named_itself'], s['replicas'], s['named_itself_ci95'])} | "
-                     f"{_pct(s['named_data_causes'], s['replicas'], s['named_data_causes_ci95'])} | {phys} | {valves} |")
+        lines.append(
+            f"| {s['hypothesis']} ({' + '.join(s['causes'])}) | {s['in_sample_score']:.3g} | "
+            f"{_pct(s['named_itself'], s['replicas'], s['named_itself_ci95'])} | "
+            f"{_pct(s['named_data_causes'], s['replicas'], s['named_data_causes_ci95'])} | {phys} | {valves} |"
+        )
     return "\n".join(lines)

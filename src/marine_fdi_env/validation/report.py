@@ -22,7 +22,8 @@ Report keys: ``dataset`` (with ``columns``: what happens to every column, ``boun
 the base as it is, and with a hold-out ``holdout_rmse_*``), ``discrepancies`` (the base model's, ranked),
 ``candidates``, ``steps``, ``selected_causes`` / ``selected_labels``, ``alternatives``, ``cause_notes``
 (per cause: a bound its fit touches without the data wanting more, parameters the data do not determine),
-``parameters`` (fitted values with standard errors), ``nuisance`` (the calibration within uncertainty), ``activity`` (per valve-type cause:
+``parameters`` (fitted values with standard errors), ``nuisance`` (the calibration within uncertainty), ``activity``
+(per valve-type cause:
 the diverted flow fraction at every measured point, file row order, 0 where it does not act),
 ``openings`` and ``schedules`` of the valves, ``unexplained`` (channel, kind, region), ``calibration_scans``
 (per named sensor calibration, the scan of what its gain and offset leave, reported or not: ``p``, shape, region,
@@ -54,8 +55,19 @@ from .rules import SelectionRules
 from .selection import Selection, select_causes
 from .unexplained import family_significant
 
-__all__ = ["run_validation", "build_report", "write_plots", "load_data_arg", "split_engine", "markdown_summary",
-           "holdout_evaluation", "fitted_engine", "clean_json", "out_path", "summary_lines"]
+__all__ = [
+    "run_validation",
+    "build_report",
+    "write_plots",
+    "load_data_arg",
+    "split_engine",
+    "markdown_summary",
+    "holdout_evaluation",
+    "fitted_engine",
+    "clean_json",
+    "out_path",
+    "summary_lines",
+]
 
 
 # --------------------------------------------------------------------------------------- helpers
@@ -108,24 +120,33 @@ def fitted_engine(sel: Selection, name: str | None = None) -> EngineParams:
 def _engine_file(sel: Selection, eng: EngineParams, command: str | None) -> dict[str, Any]:
     pr = sel.problem
     base = pr.params.name if pr.params.name in list_parameter_sets() else pr.ds.params_name
-    measurement = {"sensor_calibration": {m.channel: v for m, v in sel.fit.combination.unpack(sel.fit.x)
-                                          if isinstance(m, SensorCalibration)}}
+    measurement = {
+        "sensor_calibration": {
+            m.channel: v for m, v in sel.fit.combination.unpack(sel.fit.x) if isinstance(m, SensorCalibration)
+        }
+    }
     amb = [v for m, v in sel.fit.combination.unpack(sel.fit.x) if m.id == "ambient_conditions"]
     if amb:
         measurement["ambient_offsets"] = amb[0]
-    prov = {"dataset": pr.ds.name, "data_source": pr.ds.provenance, "date": date.today().isoformat(),
-            "command": command or "", "selected_causes": sel.selected_labels,
-            "nuisance": sel.fit.nuisance_values(), "cv": {"scheme": sel.cv_scheme, "score_base": sel.base_score,
-                                                          "score_extended": sel.cv_score},
-            "measurement": measurement,
-            "note": "valve openings are schedules over the fuel setting through the fitted points; sensor "
-                    "calibrations and ambient offsets describe the measurements and are not part of the engine"}
+    prov = {
+        "dataset": pr.ds.name,
+        "data_source": pr.ds.provenance,
+        "date": date.today().isoformat(),
+        "command": command or "",
+        "selected_causes": sel.selected_labels,
+        "nuisance": sel.fit.nuisance_values(),
+        "cv": {"scheme": sel.cv_scheme, "score_base": sel.base_score, "score_extended": sel.cv_score},
+        "measurement": measurement,
+        "note": "valve openings are schedules over the fuel setting through the fitted points; sensor "
+        "calibrations and ambient offsets describe the measurements and are not part of the engine",
+    }
     return clean_json(engine_file_dict(eng, base, prov))
 
 
 # --------------------------------------------------------------------------------------- report
-def build_report(sel: Selection, holdout: Mapping[str, Any] | None = None, notes: Sequence[str] = (),
-                 command: str | None = None) -> dict[str, Any]:
+def build_report(
+    sel: Selection, holdout: Mapping[str, Any] | None = None, notes: Sequence[str] = (), command: str | None = None
+) -> dict[str, Any]:
     """Assemble the JSON report of a selection (``holdout``: a :func:`holdout_evaluation` of its fitted model)."""
     pr = sel.problem
     ds = pr.ds
@@ -139,11 +160,16 @@ def build_report(sel: Selection, holdout: Mapping[str, Any] | None = None, notes
         q = ds.column_quantity[c]
         r, b, e = cv[c]["rmse_raw"], cv[c]["cv_rmse_base"], cv[c]["cv_rmse_extended"]
         channels[c] = {
-            "quantity": q, "unit": ds.spec(c).unit, "tolerance": float(pr.tolerance[j]),
+            "quantity": q,
+            "unit": ds.spec(c).unit,
+            "tolerance": float(pr.tolerance[j]),
             "n": int(pr.measured_mask[:, j].sum()),
-            "bias_base": cd.bias if cd else None, "rmse_base": r,
+            "bias_base": cd.bias if cd else None,
+            "rmse_base": r,
             "mean_abs_rel_error_base": cd.mean_abs_rel_error if cd else None,
-            "cv_rmse_base": b, "cv_rmse_extended": e, "rmse_extended_in_sample": rm_ext_in[c],
+            "cv_rmse_base": b,
+            "cv_rmse_extended": e,
+            "rmse_extended_in_sample": rm_ext_in[c],
             "cv_gain": (r - e) / r if r and math.isfinite(r) and r > 0 and math.isfinite(e) else None,
             "cv_gain_vs_calibrated": (b - e) / b if b and math.isfinite(b) and b > 0 and math.isfinite(e) else None,
             "touched_by_selected": _touches(mechs, q, c),
@@ -154,14 +180,32 @@ def build_report(sel: Selection, holdout: Mapping[str, Any] | None = None, notes
         for name, rows in folds:
             fb = channel_rmse(pr, sel.raw_pred, rows)
             fe = channel_rmse(pr, sel.cv_pred, rows)
-            fold_rows.append({"fold": name, "points": [int(i) + 1 for i in rows],
-                              "channels": {c: {"rmse_base": fb[c], "rmse_extended": fe[c]} for c in pr.channels}})
-    base_family = [d for d in sel.base_report.discrepancies if d["kind"] != "outlier"
-                   and family_significant(d, sel.base_report, sel.settings["alpha"])]
+            fold_rows.append(
+                {
+                    "fold": name,
+                    "points": [int(i) + 1 for i in rows],
+                    "channels": {c: {"rmse_base": fb[c], "rmse_extended": fe[c]} for c in pr.channels},
+                }
+            )
+    base_family = [
+        d
+        for d in sel.base_report.discrepancies
+        if d["kind"] != "outlier" and family_significant(d, sel.base_report, sel.settings["alpha"])
+    ]
     left = {(u["channel"], u["kind"]) for u in sel.unexplained}
-    explained = [dict({k: d[k] for k in ("channel", "kind", "region", "magnitude", "score")},
-                      rmse_base=cv[d["channel"]]["rmse_raw"], cv_rmse_extended=cv[d["channel"]]["cv_rmse_extended"])
-                 for d in base_family if (d["channel"], d["kind"]) not in left] if sel.selected.mechanisms else []
+    explained = (
+        [
+            dict(
+                {k: d[k] for k in ("channel", "kind", "region", "magnitude", "score")},
+                rmse_base=cv[d["channel"]]["rmse_raw"],
+                cv_rmse_extended=cv[d["channel"]]["cv_rmse_extended"],
+            )
+            for d in base_family
+            if (d["channel"], d["kind"]) not in left
+        ]
+        if sel.selected.mechanisms
+        else []
+    )
     discrepancies = []
     for d in sel.base_report.discrepancies:
         e = {k: d[k] for k in ("rank", "channel", "kind", "region", "magnitude", "score", "p_value", "unit") if k in d}
@@ -172,14 +216,28 @@ def build_report(sel: Selection, holdout: Mapping[str, Any] | None = None, notes
     eng = fitted_engine(sel)
     inventory = ds.column_inventory()
     report: dict[str, Any] = {
-        "dataset": {"name": ds.name, "path": ds.path, "provenance": ds.provenance, "n_points": ds.n_points,
-                    "engines": ds.engine_ids(), "params": pr.params.name, "warnings": [str(w) for w in ds.warnings],
-                    "notes": list(ds.notes), "columns": inventory,
-                    "boundary_outliers": list(ds.boundary_outliers),
-                    "groups": {g: {"columns": v["columns"], "mean_column": v["mean_column"],
-                                   "spread": v["spread"]} for g, v in ds.groups.items()}},
-        "model": {"params": pr.params.name, "target": pr.target, "target_columns": list(pr.target_columns),
-                  "load_law": pr.law.describe()},
+        "dataset": {
+            "name": ds.name,
+            "path": ds.path,
+            "provenance": ds.provenance,
+            "n_points": ds.n_points,
+            "engines": ds.engine_ids(),
+            "params": pr.params.name,
+            "warnings": [str(w) for w in ds.warnings],
+            "notes": list(ds.notes),
+            "columns": inventory,
+            "boundary_outliers": list(ds.boundary_outliers),
+            "groups": {
+                g: {"columns": v["columns"], "mean_column": v["mean_column"], "spread": v["spread"]}
+                for g, v in ds.groups.items()
+            },
+        },
+        "model": {
+            "params": pr.params.name,
+            "target": pr.target,
+            "target_columns": list(pr.target_columns),
+            "load_law": pr.law.describe(),
+        },
         "settings": sel.settings,
         "channels": channels,
         "not_compared": [r for r in inventory if r["role"] in ("boundary", "not_modelled", "member")],
@@ -199,8 +257,13 @@ def build_report(sel: Selection, holdout: Mapping[str, Any] | None = None, notes
         "calibration_scans": sel.calibration_scans,
         "outliers": sel.outliers,
         "explained": explained,
-        "cv": {"scheme": scheme, "n_folds": len(folds), "score_base": sel.base_score, "score_extended": sel.cv_score,
-               "folds": fold_rows},
+        "cv": {
+            "scheme": scheme,
+            "n_folds": len(folds),
+            "score_base": sel.base_score,
+            "score_extended": sel.cv_score,
+            "folds": fold_rows,
+        },
         "fitted_engine": _engine_file(sel, eng, command),
         "mechanism_library": [m.describe() for m in PHYSICAL_MECHANISMS],
         "notes": list(notes),
@@ -225,8 +288,9 @@ def _step_dict(pr: Problem, step: Mapping[str, Any]) -> dict[str, Any]:
     return d
 
 
-def holdout_evaluation(sel: Selection, holdout: MeasuredDataset, conditions: str = "parameter_set",
-                       fit: FitResult | None = None) -> dict[str, Any]:
+def holdout_evaluation(
+    sel: Selection, holdout: MeasuredDataset, conditions: str = "parameter_set", fit: FitResult | None = None
+) -> dict[str, Any]:
     """RMSE per channel of the base model (as it is) and of the fitted engine on data the fit did not see (``fit``:
     another fit of the same data than the selection's, e.g. an explanation of :mod:`.explanations`).
 
@@ -246,8 +310,11 @@ def holdout_evaluation(sel: Selection, holdout: MeasuredDataset, conditions: str
         if tb is not None:
             cond["filled"] = ho.assume_boundary(tb)
             cond["test_bed"] = tb
-        cond["assumption"] = ("the hold-out was run on the test bed of the fitted data: what it did not record ("
-                              + (", ".join(cond["filled"]) or "nothing") + ") is taken from the fitted data")
+        cond["assumption"] = (
+            "the hold-out was run on the test bed of the fitted data: what it did not record ("
+            + (", ".join(cond["filled"]) or "nothing")
+            + ") is taken from the fitted data"
+        )
     pb, _, _ = ho.predict()
     fit = sel.fit if fit is None else fit
     s = fit.schedule_setting(pr)
@@ -263,25 +330,43 @@ def holdout_evaluation(sel: Selection, holdout: MeasuredDataset, conditions: str
     keep = np.isfinite(pb_c) | ~ho.measured_mask
     rb_c = {c: _rmse_masked(ho, pb_c, keep, j) for j, c in enumerate(ho.channels)}
     re_c = {c: _rmse_masked(ho, pe_c, keep, j) for j, c in enumerate(ho.channels)}
-    out = {"dataset": holdout.name, "engines": holdout.engine_ids(), "n_points": holdout.n_points,
-           "conditions": cond, "not_converged": [int(i) + 1 for i in np.flatnonzero(~conv)],
-           "suspect_readings": list(holdout.suspect),
-           "channels": {c: {"holdout_rmse_base": rb[c], "holdout_rmse_extended": re_[c],
-                            "holdout_rmse_base_without_suspect": rb_c[c],
-                            "holdout_rmse_extended_without_suspect": re_c[c],
-                            "tolerance": float(ho.tolerance[j]), "n": int(ho.measured_mask[:, j].sum()),
-                            "touched_by_selected": _touches(fit.combination.mechanisms, holdout.column_quantity[c], c)}
-                        for j, c in enumerate(ho.channels)},
-           "_problem": ho, "_pred_base": pb, "_pred_extended": pe}
+    out = {
+        "dataset": holdout.name,
+        "engines": holdout.engine_ids(),
+        "n_points": holdout.n_points,
+        "conditions": cond,
+        "not_converged": [int(i) + 1 for i in np.flatnonzero(~conv)],
+        "suspect_readings": list(holdout.suspect),
+        "channels": {
+            c: {
+                "holdout_rmse_base": rb[c],
+                "holdout_rmse_extended": re_[c],
+                "holdout_rmse_base_without_suspect": rb_c[c],
+                "holdout_rmse_extended_without_suspect": re_c[c],
+                "tolerance": float(ho.tolerance[j]),
+                "n": int(ho.measured_mask[:, j].sum()),
+                "touched_by_selected": _touches(fit.combination.mechanisms, holdout.column_quantity[c], c),
+            }
+            for j, c in enumerate(ho.channels)
+        },
+        "_problem": ho,
+        "_pred_base": pb,
+        "_pred_extended": pe,
+    }
     if holdout.engine_ids():
         e = np.array(holdout.engines)
         out["per_engine"] = {
-            x: {c: {"holdout_rmse_base": channel_rmse(ho, pb, np.flatnonzero(e == x))[c],
+            x: {
+                c: {
+                    "holdout_rmse_base": channel_rmse(ho, pb, np.flatnonzero(e == x))[c],
                     "holdout_rmse_extended": channel_rmse(ho, pe, np.flatnonzero(e == x))[c],
                     "holdout_rmse_base_without_suspect": _rmse_masked(ho, pb_c, keep, j, np.flatnonzero(e == x)),
-                    "holdout_rmse_extended_without_suspect": _rmse_masked(ho, pe_c, keep, j, np.flatnonzero(e == x))}
-                for j, c in enumerate(ho.channels)}
-            for x in holdout.engine_ids()}
+                    "holdout_rmse_extended_without_suspect": _rmse_masked(ho, pe_c, keep, j, np.flatnonzero(e == x)),
+                }
+                for j, c in enumerate(ho.channels)
+            }
+            for x in holdout.engine_ids()
+        }
     return out
 
 
@@ -292,11 +377,19 @@ def _rmse_masked(pr: Problem, pred: np.ndarray, keep: np.ndarray, j: int, rows=N
     return float(np.sqrt(np.mean(e[m] ** 2))) if m.any() else None
 
 
-def run_validation(ds: MeasuredDataset, *, holdout: MeasuredDataset | None = None, target: str = "auto",
-                   params: str | EngineParams | None = None, rules: SelectionRules | None = None,
-                   progress=None, notes: Sequence[str] = (), command: str | None = None,
-                   tolerances: Mapping[str, float] | None = None, explanations: bool = True
-                   ) -> tuple[dict[str, Any], Selection, dict | None]:
+def run_validation(
+    ds: MeasuredDataset,
+    *,
+    holdout: MeasuredDataset | None = None,
+    target: str = "auto",
+    params: str | EngineParams | None = None,
+    rules: SelectionRules | None = None,
+    progress=None,
+    notes: Sequence[str] = (),
+    command: str | None = None,
+    tolerances: Mapping[str, float] | None = None,
+    explanations: bool = True,
+) -> tuple[dict[str, Any], Selection, dict | None]:
     """Run the pipeline; returns (JSON report, selection, hold-out evaluation with predictions or None).
     ``rules``: how causes are named (:class:`~.rules.SelectionRules`, default its defaults).
     ``explanations``: also every structure the data do not decide against, the measurement that would decide and
@@ -309,6 +402,7 @@ def run_validation(ds: MeasuredDataset, *, holdout: MeasuredDataset | None = Non
     ho = holdout_evaluation(sel, holdout) if holdout is not None else None
     rep = build_report(sel, ho, notes, command)
     if explanations:
+
         def each(fit, cond):  # a member's hold-out evaluation, JSON-ready
             r = holdout_evaluation(sel, holdout, conditions=cond, fit=fit)
             return clean_json({k: v for k, v in r.items() if not k.startswith("_")})
@@ -323,13 +417,22 @@ def run_validation(ds: MeasuredDataset, *, holdout: MeasuredDataset | None = Non
 
 
 def summary_lines(rep: Mapping[str, Any]) -> list[str]:
-    lines = [f"{rep['dataset']['name']} ({rep['model']['params']}, matched on {rep['model']['target']}, "
-             f"{rep['cv']['scheme']}): selected causes: {', '.join(rep['selected_labels']) or 'none'}"]
+    lines = [
+        f"{rep['dataset']['name']} ({rep['model']['params']}, matched on {rep['model']['target']}, "
+        f"{rep['cv']['scheme']}): selected causes: {', '.join(rep['selected_labels']) or 'none'}"
+    ]
     prof = next((e.get("profiles") or {} for e in rep.get("explanations") or () if e["named"]), {})
     for lab, ps in rep["parameters"].items():
-        lines.append("  " + lab + ": " + ", ".join(
-            f"{k} = {_f(v['value'])} " + (_profile(prof[f"{lab}.{k}"]) if f"{lab}.{k}" in prof else
-                                          f"± {_f(v['stderr'])}") for k, v in ps.items()))
+        lines.append(
+            "  "
+            + lab
+            + ": "
+            + ", ".join(
+                f"{k} = {_f(v['value'])} "
+                + (_profile(prof[f"{lab}.{k}"]) if f"{lab}.{k}" in prof else f"± {_f(v['stderr'])}")
+                for k, v in ps.items()
+            )
+        )
     for lab, alts in (rep.get("alternatives") or {}).items():
         if alts:
             lines.append(f"  {lab}: hardly told from " + ", ".join(a["mechanism"] for a in alts))
@@ -337,8 +440,10 @@ def summary_lines(rep: Mapping[str, Any]) -> list[str]:
         lines += [f"  {n}" for n in notes]
     for mid, a in (rep.get("activity") or {}).items():
         lines.append(f"  {mid} acts at points " + ", ".join(f"{i + 1} ({x:.3f})" for i, x in enumerate(a) if x))
-    lines.append(f"  {'channel':40s} {'rmse_base':>11s} {'cv_rmse_ext':>11s}"
-                 + (f" {'holdout_base':>12s} {'holdout_ext':>12s}" if "holdout" in rep else ""))
+    lines.append(
+        f"  {'channel':40s} {'rmse_base':>11s} {'cv_rmse_ext':>11s}"
+        + (f" {'holdout_base':>12s} {'holdout_ext':>12s}" if "holdout" in rep else "")
+    )
     for c, v in rep["channels"].items():
         row = f"  {c:40s} {_f(v['rmse_base']):>11s} {_f(v['cv_rmse_extended']):>11s}"
         if "holdout" in rep:
@@ -350,9 +455,11 @@ def summary_lines(rep: Mapping[str, Any]) -> list[str]:
     for o in rep["outliers"]:
         lines.append("  " + o["text"])
     for h in (rep.get("replicas") or {}).get("summary", []):
-        lines.append(f"  replicas drawn from {h['hypothesis']} ({' + '.join(h['causes']) or 'nothing'}): named "
-                     f"itself {h['named_itself']}/{h['replicas']}, the data's causes {h['named_data_causes']}/"
-                     f"{h['replicas']}")
+        lines.append(
+            f"  replicas drawn from {h['hypothesis']} ({' + '.join(h['causes']) or 'nothing'}): named "
+            f"itself {h['named_itself']}/{h['replicas']}, the data's causes {h['named_data_causes']}/"
+            f"{h['replicas']}"
+        )
     return lines
 
 
@@ -370,7 +477,7 @@ def _profile(p: Mapping[str, Any]) -> str:
 def out_path(text: str, option: str) -> Path:
     p = Path(text)
     if p.parent != Path("") and not p.parent.parent.exists():
-        raise ValueError(f"{option}: directory {str(p.parent.parent)!r} does not exist (the parent of --out is "
-                         "created, never more)")
+        raise ValueError(
+            f"{option}: directory {str(p.parent.parent)!r} does not exist (the parent of --out is created, never more)"
+        )
     return p
-

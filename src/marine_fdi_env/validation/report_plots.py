@@ -28,8 +28,9 @@ def _load_axis(pr: Problem) -> tuple[np.ndarray, str]:
     return np.arange(pr.n_points, dtype=float), "point"
 
 
-def write_plots(sel: Selection, directory: str | Path, holdout: Mapping[str, Any] | None = None,
-                prefix: str | None = None) -> list[Path]:
+def write_plots(
+    sel: Selection, directory: str | Path, holdout: Mapping[str, Any] | None = None, prefix: str | None = None
+) -> list[Path]:
     """Model against measurement per channel (base as it is, calibrated base, fitted extension, cross-validated
     predictions), the valve activity, the cross-validated RMSE per channel, the hold-out if any, and where the
     explanations differ when the selection has them (:mod:`.explanation_plots`)."""
@@ -51,13 +52,22 @@ def write_plots(sel: Selection, directory: str | Path, holdout: Mapping[str, Any
             ax.set_visible(False)
         return fig, axes.flat
 
-    def draw(ax, x, meas, base, extd, cvp, eng, col, unit, calibrated=None, ext_label="extended (fit on all)",
-             spread=None):
+    def draw(
+        ax, x, meas, base, extd, cvp, eng, col, unit, calibrated=None, ext_label="extended (fit on all)", spread=None
+    ):
         order = np.argsort(x, kind="stable")
         if eng is None:
             if spread is not None:
-                ax.errorbar(x, meas, yerr=spread, fmt="ko", ms=4, capsize=2, elinewidth=0.8,
-                            label="measured (± cylinder spread)")
+                ax.errorbar(
+                    x,
+                    meas,
+                    yerr=spread,
+                    fmt="ko",
+                    ms=4,
+                    capsize=2,
+                    elinewidth=0.8,
+                    label="measured (± cylinder spread)",
+                )
             else:
                 ax.plot(x, meas, "ko", ms=4, label="measured")
         else:
@@ -83,16 +93,32 @@ def write_plots(sel: Selection, directory: str | Path, holdout: Mapping[str, Any
     axes = list(axes)
     for j, (ax, c) in enumerate(zip(axes, pr.channels)):
         has = bool(sel.selected.mechanisms)
-        draw(ax, x, pr.Y[:, j], sel.raw_pred[:, j], ext[:, j] if has else None, sel.cv_pred[:, j] if has else None,
-             pr.ds.engines, c, pr.ds.spec(c).unit, calib[:, j], spread=spreads.get(c))
+        draw(
+            ax,
+            x,
+            pr.Y[:, j],
+            sel.raw_pred[:, j],
+            ext[:, j] if has else None,
+            sel.cv_pred[:, j] if has else None,
+            pr.ds.engines,
+            c,
+            pr.ds.spec(c).unit,
+            calib[:, j],
+            spread=spreads.get(c),
+        )
         ax.set_xlabel(xlabel, fontsize=8)
     if sel.selected.valves:
         ax = axes[len(pr.channels)]
         act = sel.activity()
         w = 0.8 / max(len(act), 1)
         for k, (mid, a) in enumerate(act.items()):
-            ax.bar(np.asarray(x) + (k - (len(act) - 1) / 2) * w * np.ptp(x) / max(len(x), 1), a,
-                   width=w * np.ptp(x) / max(len(x), 1), label=f"{mid}: diverted flow fraction", color=f"C{4 + k}")
+            ax.bar(
+                np.asarray(x) + (k - (len(act) - 1) / 2) * w * np.ptp(x) / max(len(x), 1),
+                a,
+                width=w * np.ptp(x) / max(len(x), 1),
+                label=f"{mid}: diverted flow fraction",
+                color=f"C{4 + k}",
+            )
         ax.set_title("valve activity per measured point", fontsize=9)
         ax.set_xlabel(xlabel, fontsize=8)
         ax.set_ylabel("fraction of the flow", fontsize=8)
@@ -142,20 +168,46 @@ def write_plots(sel: Selection, directory: str | Path, holdout: Mapping[str, Any
         fig, axes = panel_grid(len(ho.channels))
         axes = list(axes)
         for j, (ax, c) in enumerate(zip(axes, ho.channels)):
-            draw(ax, xh, ho.Y[:, j], holdout["_pred_base"][:, j], holdout["_pred_extended"][:, j], None,
-                 ho.ds.engines, c, ho.ds.spec(c).unit, ext_label="fitted engine (fitted without these data)")
+            draw(
+                ax,
+                xh,
+                ho.Y[:, j],
+                holdout["_pred_base"][:, j],
+                holdout["_pred_extended"][:, j],
+                None,
+                ho.ds.engines,
+                c,
+                ho.ds.spec(c).unit,
+                ext_label="fitted engine (fitted without these data)",
+            )
             hf = holdout.get("_at_fit_conditions")
             if hf is not None:  # the same at the fitted data's test-bed conditions (what the hold-out did not record)
                 o = np.argsort(xh, kind="stable")
-                ax.plot(xh[o], hf["_pred_base"][o, j], "-.", color="C0", lw=1.0, alpha=0.7,
-                        label="base model, at the fitted test bed's conditions")
-                ax.plot(xh[o], hf["_pred_extended"][o, j], "-.", color="C3", lw=1.2, alpha=0.8,
-                        label="fitted engine, at the fitted test bed's conditions")
+                ax.plot(
+                    xh[o],
+                    hf["_pred_base"][o, j],
+                    "-.",
+                    color="C0",
+                    lw=1.0,
+                    alpha=0.7,
+                    label="base model, at the fitted test bed's conditions",
+                )
+                ax.plot(
+                    xh[o],
+                    hf["_pred_extended"][o, j],
+                    "-.",
+                    color="C3",
+                    lw=1.2,
+                    alpha=0.8,
+                    label="fitted engine, at the fitted test bed's conditions",
+                )
             ax.set_xlabel(xlh, fontsize=8)
         handles, labels = axes[0].get_legend_handles_labels()
         fig.legend(handles, labels, loc="lower center", ncol=min(4, len(labels)), fontsize=8, frameon=False)
-        fig.suptitle(f"hold-out {ho.ds.name} {', '.join(ho.ds.engine_ids())}: engine fitted on {pr.ds.name} "
-                     f"({cause})", fontsize=10)
+        fig.suptitle(
+            f"hold-out {ho.ds.name} {', '.join(ho.ds.engine_ids())}: engine fitted on {pr.ds.name} ({cause})",
+            fontsize=10,
+        )
         fig.tight_layout(rect=(0, 0.13, 1, 0.95))
         f = d / f"{name}_holdout.png"
         fig.savefig(f, dpi=100)
@@ -166,4 +218,3 @@ def write_plots(sel: Selection, directory: str | Path, holdout: Mapping[str, Any
 
         files += plot_explanations(sel, d, name)
     return files
-

@@ -20,9 +20,20 @@ from .problem import Problem
 __all__ = ["exchange_step", "removal_step"]
 
 
-def removal_step(problem: Problem, current: Combination, current_fit: FitResult, current_S: float, M: int,
-                 penalty: float, min_gain: float, thresholds: Mapping[str, float], max_folds: int | None, step_no: int,
-                 say, beside_valve: str = BESIDE_VALVE_DEFAULT) -> tuple[dict[str, Any], CandidateScore] | None:
+def removal_step(
+    problem: Problem,
+    current: Combination,
+    current_fit: FitResult,
+    current_S: float,
+    M: int,
+    penalty: float,
+    min_gain: float,
+    thresholds: Mapping[str, float],
+    max_folds: int | None,
+    step_no: int,
+    say,
+    beside_valve: str = BESIDE_VALVE_DEFAULT,
+) -> tuple[dict[str, Any], CandidateScore] | None:
     """The weakest named cause that no longer earns its place among the others, as a removal step (and the model
     without it), or None when each does.
 
@@ -41,8 +52,7 @@ def removal_step(problem: Problem, current: Combination, current_fit: FitResult,
         support = {k: v for k, v in current_fit.support.items() if k in {x.id for x in comb.valves}}
         fit = fit_combination(problem, comb, start=current_fit, known=current_fit.values(), support=support)
         c = CandidateScore(comb, m.label, fit, 2.0 * fit.data_cost / M)
-        c.score(problem, *cross_validate(problem, comb, fit, max_folds=max_folds), M, penalty, current_S,
-                current_fit.k)
+        c.score(problem, *cross_validate(problem, comb, fit, max_folds=max_folds), M, penalty, current_S, current_fit.k)
         tried.append(c)
         say(f"step {step_no}: without {m.label:42s} CV {c.cv_score:9.4g}")
     worst = None
@@ -50,24 +60,50 @@ def removal_step(problem: Problem, current: Combination, current_fit: FitResult,
     for c, m in zip(tried, current.mechanisms):
         thr = thresholds.get(c.added, 1.0)
         in_sample = judged_in_sample(c.combination, [m], beside_valve)
-        gain, p, why = earns((c.cv_score, c.in_sample_score, c.fit.k), (current_S, s_in, current_fit.k), M,
-                             min_gain, thr, in_sample, cv_guard=beside_valve not in IN_SAMPLE_ALONE)
+        gain, p, why = earns(
+            (c.cv_score, c.in_sample_score, c.fit.k),
+            (current_S, s_in, current_fit.k),
+            M,
+            min_gain,
+            thr,
+            in_sample,
+            cv_guard=beside_valve not in IN_SAMPLE_ALONE,
+        )
         if why and (worst is None or gain < worst[1]):
             worst = (c, gain, p, thr, why)
     if worst is None:
         return None
     c, gain, p, thr, why = worst
-    step = {"step": step_no, "best": c.added, "accepted": True, "removed": c.added,
-            "decision": f"removed: {c.added} adds only {gain:.1%} to the other named causes ({why})",
-            "threshold_p": thr, "current_score": current_S, "candidates": tried}
+    step = {
+        "step": step_no,
+        "best": c.added,
+        "accepted": True,
+        "removed": c.added,
+        "decision": f"removed: {c.added} adds only {gain:.1%} to the other named causes ({why})",
+        "threshold_p": thr,
+        "current_score": current_S,
+        "candidates": tried,
+    }
     say(f"step {step_no}: {step['decision']}")
     return step, c
 
 
-def exchange_step(problem: Problem, current: Combination, current_fit: FitResult, current_S: float, current_pen: float,
-                  M: int, penalty: float, min_gain: float, alpha: float, mechanisms: Sequence[Mechanism],
-                  max_folds: int | None, step_no: int, say, beside_valve: str = BESIDE_VALVE_DEFAULT
-                  ) -> tuple[dict[str, Any], CandidateScore, Mechanism] | None:
+def exchange_step(
+    problem: Problem,
+    current: Combination,
+    current_fit: FitResult,
+    current_S: float,
+    current_pen: float,
+    M: int,
+    penalty: float,
+    min_gain: float,
+    alpha: float,
+    mechanisms: Sequence[Mechanism],
+    max_folds: int | None,
+    step_no: int,
+    say,
+    beside_valve: str = BESIDE_VALVE_DEFAULT,
+) -> tuple[dict[str, Any], CandidateScore, Mechanism] | None:
     """The exchange step: a named physical cause that a sensor calibration, named in its place, explains better
     (the step, the model after the exchange, the cause taken out), or None.
 
@@ -104,21 +140,30 @@ def exchange_step(problem: Problem, current: Combination, current_fit: FitResult
         in_sample = beside_valve in EXCHANGE_IN_SAMPLE and bool(comb0.valves)
         # the channel whose calibration gains most on these readings is the candidate (as at a forward step,
         # calibrations_to_refit); it is then refitted as a whole model, nuisance included
-        for cheap in sorted((sensor_fit(problem, fit0, in_pred, cal) for cal in cals),
-                            key=lambda f: f.data_cost)[:CALIBRATION_REFITS]:
+        for cheap in sorted((sensor_fit(problem, fit0, in_pred, cal) for cal in cals), key=lambda f: f.data_cost)[
+            :CALIBRATION_REFITS
+        ]:
             cal = cheap.combination.mechanisms[-1]
             fit = fit_combination(problem, cheap.combination, start=cheap, known=cheap.values(), support=support)
             c = CandidateScore(cheap.combination, f"{m.label} -> {cal.label}", fit, 2.0 * fit.data_cost / M)
             if c.in_sample_score >= s_in_cur:
                 say(f"step {step_no}: exchange {c.added:40s} in-sample {c.in_sample_score:9.4g}: no better")
                 continue
-            c.score(problem, *cross_validate(problem, c.combination, fit, max_folds=max_folds), M, penalty,
-                    current_S, current_fit.k)
+            c.score(
+                problem,
+                *cross_validate(problem, c.combination, fit, max_folds=max_folds),
+                M,
+                penalty,
+                current_S,
+                current_fit.k,
+            )
             tried.append(c)
             gain = (s_in_cur - c.in_sample_score) / s_in_cur if in_sample else c.gain
             if gain < min_gain or c.penalised >= current_pen:
-                c.screened = (f"{'in-sample ' if in_sample else ''}gain {gain:.1%}, penalised {c.penalised:.4g} "
-                              f"against {current_pen:.4g}")
+                c.screened = (
+                    f"{'in-sample ' if in_sample else ''}gain {gain:.1%}, penalised {c.penalised:.4g} "
+                    f"against {current_pen:.4g}"
+                )
             else:
                 pins = why_pinned(problem, c, fit.values(), support)
                 if not pins and loco0 is None:
@@ -126,17 +171,26 @@ def exchange_step(problem: Problem, current: Combination, current_fit: FitResult
                 left = "" if pins else structure_left(problem, loco0, cal, alpha)
                 if pins or left:
                     c.screened = "not eligible: " + ("; ".join(pins) if pins else left)
-            say(f"step {step_no}: exchange {c.added:40s} CV {c.cv_score:9.4g}  gain {c.gain:+.1%}  "
-                + (c.screened or "eligible"))
+            say(
+                f"step {step_no}: exchange {c.added:40s} CV {c.cv_score:9.4g}  gain {c.gain:+.1%}  "
+                + (c.screened or "eligible")
+            )
             if not c.screened and (best is None or c.penalised < best[0].penalised):
                 best = (c, m, gain if in_sample else None)
     if best is None:
         return None
     c, m, in_gain = best
-    step = {"step": step_no, "best": c.combination.mechanisms[-1].label, "accepted": True, "exchanged": m.label,
-            "decision": f"exchanged: {m.label} replaced by {c.combination.mechanisms[-1].label} (cross-validated "
-                        f"score {current_S:.4g} -> {c.cv_score:.4g}, gain {c.gain:.1%}"
-                        + (f"; beside a valve, in-sample gain {in_gain:.1%})" if in_gain is not None else ")"),
-            "threshold_p": math.nan, "current_score": current_S, "candidates": tried}
+    step = {
+        "step": step_no,
+        "best": c.combination.mechanisms[-1].label,
+        "accepted": True,
+        "exchanged": m.label,
+        "decision": f"exchanged: {m.label} replaced by {c.combination.mechanisms[-1].label} (cross-validated "
+        f"score {current_S:.4g} -> {c.cv_score:.4g}, gain {c.gain:.1%}"
+        + (f"; beside a valve, in-sample gain {in_gain:.1%})" if in_gain is not None else ")"),
+        "threshold_p": math.nan,
+        "current_score": current_S,
+        "candidates": tried,
+    }
     say(f"step {step_no}: {step['decision']}")
     return step, c, m

@@ -47,8 +47,9 @@ class SelectionRules:
         if self.beside_valve not in BESIDE_VALVE:
             raise ValueError(f"beside_valve must be one of {', '.join(BESIDE_VALVE)}, got {self.beside_valve!r}")
         if self.held_out_valves not in HELD_OUT_VALVES:
-            raise ValueError(f"held_out_valves must be one of {', '.join(HELD_OUT_VALVES)}, "
-                             f"got {self.held_out_valves!r}")
+            raise ValueError(
+                f"held_out_valves must be one of {', '.join(HELD_OUT_VALVES)}, got {self.held_out_valves!r}"
+            )
         if self.max_causes < 0:
             raise ValueError(f"max_causes must be >= 0, got {self.max_causes}")
         for name in ("alpha", "alpha_unexplained"):

@@ -110,15 +110,26 @@ def match_result(problem: Problem, setting: Setting | None = None, pred_fn=None)
         ch = pred_fn()
         for j, c in enumerate(problem.channels):
             pred[:, problem.predicted_columns.index(c)] = ch[:, j]
-    status = tuple("ok" if ok else ("missing target" if not math.isfinite(problem.target_si[i])
-                                    else "no steady state of the model") for i, ok in enumerate(conv))
+    status = tuple(
+        "ok"
+        if ok
+        else ("missing target" if not math.isfinite(problem.target_si[i]) else "no steady state of the model")
+        for i, ok in enumerate(conv)
+    )
     return MatchResult(
-        dataset=ds, params=problem.params, law=problem.law, target=problem.target,
-        target_columns=problem.target_columns, u=np.where(conv, vals["fuel_setting"], np.nan), status=status,
+        dataset=ds,
+        params=problem.params,
+        law=problem.law,
+        target=problem.target,
+        target_columns=problem.target_columns,
+        u=np.where(conv, vals["fuel_setting"], np.nan),
+        status=status,
         predicted={c: pred[:, j] for j, c in enumerate(problem.predicted_columns)},
         measured={c: ds.raw[c].copy() for c in ds.columns},
         model_si={k: np.where(conv, v, np.nan) for k, v in vals.items()},
-        channels=problem.channels, notes=tuple(ds.notes))
+        channels=problem.channels,
+        notes=tuple(ds.notes),
+    )
 
 
 @dataclass
@@ -228,8 +239,10 @@ def select_causes(
     if not given and "held_out_valves" not in changes:
         rules = rules.replace(held_out_valves=problem.held_out_valves)
     if rules.held_out_valves != problem.held_out_valves:
-        raise ValueError(f"the rules' held_out_valves ({rules.held_out_valves!r}) differ from the problem's "
-                         f"({problem.held_out_valves!r}): build the Problem with the rules' held_out_valves")
+        raise ValueError(
+            f"the rules' held_out_valves ({rules.held_out_valves!r}) differ from the problem's "
+            f"({problem.held_out_valves!r}): build the Problem with the rules' held_out_valves"
+        )
     max_causes, alpha, alpha_unexplained = rules.max_causes, rules.alpha, rules.alpha_unexplained
     min_gain, penalty = rules.min_gain, rules.penalty
     cv_all, max_folds, pairs = rules.cv_all, rules.max_folds, rules.pairs
@@ -237,8 +250,10 @@ def select_causes(
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
     if mechanisms is None:
-        refs = {c: sensor_reference(c, problem.Y[:, j], QUANTITIES[problem.ds.column_quantity[c]].kind)
-                for j, c in enumerate(problem.channels)}
+        refs = {
+            c: sensor_reference(c, problem.Y[:, j], QUANTITIES[problem.ds.column_quantity[c]].kind)
+            for j, c in enumerate(problem.channels)
+        }
         mechanisms = library(problem.channels, refs)
     scheme, folds = problem.folds(max_folds)
     tol = dict(zip(problem.channels, problem.tolerance))
@@ -252,9 +267,18 @@ def select_causes(
     L_base, M = cell_losses(problem, base_pred)
     S_base = float(L_base.sum() / M)
     cur = CurrentModel(Combination(), base_fit, base_pred, L_base, S_base, S_base, current_folds)
-    step_rules = StepRules(n_cells=M, rows=problem.rows_with_data(), alpha=alpha, min_gain=min_gain, penalty=penalty,
-                      cv_all=cv_all, max_folds=max_folds, max_causes=max_causes, pairs=pairs,
-                      beside_valve=beside_valve)
+    step_rules = StepRules(
+        n_cells=M,
+        rows=problem.rows_with_data(),
+        alpha=alpha,
+        min_gain=min_gain,
+        penalty=penalty,
+        cv_all=cv_all,
+        max_folds=max_folds,
+        max_causes=max_causes,
+        pairs=pairs,
+        beside_valve=beside_valve,
+    )
     steps: list[dict[str, Any]] = []
     alternatives: dict[str, list[dict[str, Any]]] = {}
     cause_notes: dict[str, list[str]] = {}
@@ -278,28 +302,69 @@ def select_causes(
     final_match = match_result(problem, final_setting, pred_fn=lambda: final_loco)
     final_report = analyse_discrepancies(final_match, alpha=alpha, tolerances=tol)
     cal_scans: dict[str, dict[str, Any]] = {}
-    unexplained = unexplained_findings(final_match, final_report, tol, alpha_unexplained,
-                                   [m.channel for m in current.mechanisms if isinstance(m, SensorCalibration)],
-                                   scans=cal_scans)
+    unexplained = unexplained_findings(
+        final_match,
+        final_report,
+        tol,
+        alpha_unexplained,
+        [m.channel for m in current.mechanisms if isinstance(m, SensorCalibration)],
+        scans=cal_scans,
+    )
     return Selection(
-        problem=problem, cv_scheme=scheme, raw_pred=raw_pred, base_fit=base_fit, base_pred=base_pred,
-        base_score=S_base, base_report=base_report, steps=steps, selected=current, fit=current_fit,
-        cv_pred=cur.pred, cv_score=cur.score, final_report=final_report, unexplained=unexplained,
-        outliers=point_outliers(final_match, tol, alpha), base_outliers=base_outliers,
-        seconds=time.perf_counter() - t0, alternatives=alternatives, cause_notes=cause_notes,
+        problem=problem,
+        cv_scheme=scheme,
+        raw_pred=raw_pred,
+        base_fit=base_fit,
+        base_pred=base_pred,
+        base_score=S_base,
+        base_report=base_report,
+        steps=steps,
+        selected=current,
+        fit=current_fit,
+        cv_pred=cur.pred,
+        cv_score=cur.score,
+        final_report=final_report,
+        unexplained=unexplained,
+        outliers=point_outliers(final_match, tol, alpha),
+        base_outliers=base_outliers,
+        seconds=time.perf_counter() - t0,
+        alternatives=alternatives,
+        cause_notes=cause_notes,
         calibration_scans=cal_scans,
-        settings={"held_out_valves": problem.held_out_valves, "beside_valve": beside_valve,
-                  "max_causes": max_causes, "alpha": alpha, "alpha_unexplained": alpha_unexplained,
-                  "min_gain": min_gain, "penalty": penalty, "robust_scale": ROBUST_SCALE, "cv": scheme,
-                  "n_folds": len(folds), "n_cells": M, "cv_all": cv_all,
-                  "nuisance_sigma": 0.03, "pairs": pairs, "prune": prune, "exchange": exchange,
-                  "max_folds": max_folds},
+        settings={
+            "held_out_valves": problem.held_out_valves,
+            "beside_valve": beside_valve,
+            "max_causes": max_causes,
+            "alpha": alpha,
+            "alpha_unexplained": alpha_unexplained,
+            "min_gain": min_gain,
+            "penalty": penalty,
+            "robust_scale": ROBUST_SCALE,
+            "cv": scheme,
+            "n_folds": len(folds),
+            "n_cells": M,
+            "cv_all": cv_all,
+            "nuisance_sigma": 0.03,
+            "pairs": pairs,
+            "prune": prune,
+            "exchange": exchange,
+            "max_folds": max_folds,
+        },
     )
 
 
-def _revise(problem: Problem, cur: CurrentModel, steps: list[dict[str, Any]],
-            alternatives: dict[str, list[dict[str, Any]]], cause_notes: dict[str, list[str]],
-            mechanisms: Sequence[Mechanism], rules: StepRules, prune: bool, exchange: bool, say) -> CurrentModel:
+def _revise(
+    problem: Problem,
+    cur: CurrentModel,
+    steps: list[dict[str, Any]],
+    alternatives: dict[str, list[dict[str, Any]]],
+    cause_notes: dict[str, list[str]],
+    mechanisms: Sequence[Mechanism],
+    rules: StepRules,
+    prune: bool,
+    exchange: bool,
+    say,
+) -> CurrentModel:
     """After the forward steps: remove the named causes that no longer earn their place among the others
     (:func:`~.revision.removal_step`), then try each named physical cause replaced by a sensor calibration
     (:func:`~.revision.exchange_step`), and remove again after an exchange.  ``steps``, ``alternatives`` and
@@ -311,17 +376,53 @@ def _revise(problem: Problem, cur: CurrentModel, steps: list[dict[str, Any]],
             for lab in st["best"].split(" + "):
                 thresholds[lab] = st["threshold_p"]
     for _ in range(rules.max_causes + 1):  # each exchange lowers the score by min_gain: no cycle
-        while prune and (pruned := removal_step(problem, cur.combination, cur.fit, cur.score, M, penalty, min_gain,
-                                                thresholds, max_folds, len(steps) + 1, say,
-                                                rules.beside_valve)) is not None:
+        while (
+            prune
+            and (
+                pruned := removal_step(
+                    problem,
+                    cur.combination,
+                    cur.fit,
+                    cur.score,
+                    M,
+                    penalty,
+                    min_gain,
+                    thresholds,
+                    max_folds,
+                    len(steps) + 1,
+                    say,
+                    rules.beside_valve,
+                )
+            )
+            is not None
+        ):
             st, c = pruned
             steps.append(st)
             alternatives.pop(c.added, None)
             cause_notes.pop(c.added, None)
             cur = CurrentModel.of(c, None)
-        if not exchange or (ex := exchange_step(problem, cur.combination, cur.fit, cur.score, cur.penalised, M,
-                                                penalty, min_gain, rules.alpha, mechanisms, max_folds, len(steps) + 1,
-                                                say, rules.beside_valve)) is None:
+        if (
+            not exchange
+            or (
+                ex := exchange_step(
+                    problem,
+                    cur.combination,
+                    cur.fit,
+                    cur.score,
+                    cur.penalised,
+                    M,
+                    penalty,
+                    min_gain,
+                    rules.alpha,
+                    mechanisms,
+                    max_folds,
+                    len(steps) + 1,
+                    say,
+                    rules.beside_valve,
+                )
+            )
+            is None
+        ):
             break
         st, c, gone = ex
         steps.append(st)

@@ -39,31 +39,64 @@ from ..engine.operating_point import MODE_P, solve_points, speed_of_power
 from ..engine.params import EngineParams, list_parameter_sets, load_params
 from .columns import QUANTITIES, ModelContext, column_problem, lookup_column
 from .dataset import write_dataset
-from .mechanisms import (SensorCalibration, ValveMechanism, get_mechanism,
-                         parse_mechanism_spec, sensor_reference)
+from .mechanisms import SensorCalibration, ValveMechanism, get_mechanism, parse_mechanism_spec, sensor_reference
 from .problem import BASE_SETTING, Setting, _quantity
 
-__all__ = ["DEFAULT_COLUMNS", "SET_POINT_COLUMNS", "EFFECT_KINDS", "PERTURBED_FIELDS", "FAMILIES", "Synthesis",
-           "synthesize", "write_synthesis", "draw_effect", "effect_region"]
+__all__ = [
+    "DEFAULT_COLUMNS",
+    "SET_POINT_COLUMNS",
+    "EFFECT_KINDS",
+    "PERTURBED_FIELDS",
+    "FAMILIES",
+    "Synthesis",
+    "synthesize",
+    "write_synthesis",
+    "draw_effect",
+    "effect_region",
+]
 
 DEFAULT_COLUMNS = (
-    "load_fraction", "power_kW", "speed_rpm", "fuel_flow_kg_per_h", "turbocharger_speed_rpm",
-    "charge_air_pressure_bar_gauge", "compressor_outlet_temperature_C", "charge_air_cooler_outlet_temperature_C",
-    "turbine_inlet_pressure_bar_gauge", "turbine_inlet_temperature_C", "turbine_outlet_temperature_C",
-    "cylinder_exhaust_temperature_mean_C", "max_cylinder_pressure_bar_gauge",
+    "load_fraction",
+    "power_kW",
+    "speed_rpm",
+    "fuel_flow_kg_per_h",
+    "turbocharger_speed_rpm",
+    "charge_air_pressure_bar_gauge",
+    "compressor_outlet_temperature_C",
+    "charge_air_cooler_outlet_temperature_C",
+    "turbine_inlet_pressure_bar_gauge",
+    "turbine_inlet_temperature_C",
+    "turbine_outlet_temperature_C",
+    "cylinder_exhaust_temperature_mean_C",
+    "max_cylinder_pressure_bar_gauge",
 )
 SET_POINT_COLUMNS = ("load_fraction", "power_kW", "power_W", "power_MW", "load_percent")
 LOAD_RANGE = (0.25, 1.1)
 # the true engine's model error (condition b): efficiencies, areas and heat fractions, and the scavenging
 # slip, which the pipeline's nuisance does not cover
-PERTURBED_FIELDS = (("A_eff_m2",), ("a_eta_per_Pa2", "b_eta_per_Pa", "c_eta", "a_turbo", "b_turbo_per_Pa",
-                                   "c_turbo_per_Pa2"), ("eta_com",), ("eta_comb",), ("X_cv_nom",), ("X_ct_nom",),
-                    ("s_sl_nom",))
+PERTURBED_FIELDS = (
+    ("A_eff_m2",),
+    ("a_eta_per_Pa2", "b_eta_per_Pa", "c_eta", "a_turbo", "b_turbo_per_Pa", "c_turbo_per_Pa2"),
+    ("eta_com",),
+    ("eta_comb",),
+    ("X_cv_nom",),
+    ("X_ct_nom",),
+    ("s_sl_nom",),
+)
 EFFECT_KINDS = ("bump", "step", "bend")
 FAMILIES = {
-    "pressure": ("charge_air_pressure_bar_gauge", "turbine_inlet_pressure_bar_gauge", "max_cylinder_pressure_bar_gauge"),
-    "temperature": ("compressor_outlet_temperature_C", "turbine_inlet_temperature_C", "turbine_outlet_temperature_C",
-                    "cylinder_exhaust_temperature_mean_C", "charge_air_cooler_outlet_temperature_C"),
+    "pressure": (
+        "charge_air_pressure_bar_gauge",
+        "turbine_inlet_pressure_bar_gauge",
+        "max_cylinder_pressure_bar_gauge",
+    ),
+    "temperature": (
+        "compressor_outlet_temperature_C",
+        "turbine_inlet_temperature_C",
+        "turbine_outlet_temperature_C",
+        "cylinder_exhaust_temperature_mean_C",
+        "charge_air_cooler_outlet_temperature_C",
+    ),
     "flow": ("fuel_flow_kg_per_h",),
     "speed": ("turbocharger_speed_rpm",),
 }
@@ -171,8 +204,15 @@ def draw_effect(rng: np.random.Generator, columns: Sequence[str], family: str | 
         amp = sign * float(rng.uniform(20.0, 35.0))
     else:
         amp = sign * float(rng.uniform(0.04, 0.07))  # times the channel's mean reading
-    return {"kind": kind, "family": fam, "channel": col, "center": center, "width": width, "amplitude": amp,
-            "relative": q.kind != "temperature"}
+    return {
+        "kind": kind,
+        "family": fam,
+        "channel": col,
+        "center": center,
+        "width": width,
+        "amplitude": amp,
+        "relative": q.kind != "temperature",
+    }
 
 
 def _column_description(column: str) -> str:
@@ -275,8 +315,10 @@ def synthesize(
     op = solve_points(eng, MODE_P, P, speed_of_power(eng, P), valves=valves)
     if not np.all(op.converged):
         bad = ", ".join(f"{x:.3f}" for x in loads[~op.converged])
-        raise ValueError(f"the model with these mechanisms has no steady state at load fraction(s) {bad}; "
-                         "choose other parameters or another load range")
+        raise ValueError(
+            f"the model with these mechanisms has no steady state at load fraction(s) {bad}; "
+            "choose other parameters or another load range"
+        )
     ctx = ModelContext(rated_power_W=p0.P_nom_W)
     clean: dict[str, np.ndarray] = {}
     p_amb = p0.p_amb_Pa + setting.dp_amb_Pa  # a gauge reads against the actual ambient
@@ -296,8 +338,10 @@ def synthesize(
         if channel is None:
             channel = str(rng.choice(channel_cols))
         if channel not in channel_cols:
-            raise ValueError(f"--mechanism sensor_calibration: channel {channel!r} is not a written measurement "
-                             f"column; choose one of {', '.join(channel_cols)}")
+            raise ValueError(
+                f"--mechanism sensor_calibration: channel {channel!r} is not a written measurement "
+                f"column; choose one of {', '.join(channel_cols)}"
+            )
         ref = sensor_reference(channel, clean[channel])
         m = SensorCalibration(channel=channel, reference=ref)
         vals = m.values(given)
@@ -327,27 +371,49 @@ def synthesize(
     meta = {
         "engine_params": pname,
         "kind": "synthetic: generated by marine_fdi_env (synthesize-measurements) from the engine model, possibly "
-                "with hidden effects that are not named here",
+        "with hidden effects that are not named here",
         "source": f"marine_fdi_env synthesize-measurements --params {pname} --points {int(points)} --noise {noise:g} "
-                  f"--seed {seed}" + (f" --engines {engines}" if engines else "") + " (hidden effects not stated)",
+        f"--seed {seed}" + (f" --engines {engines}" if engines else "") + " (hidden effects not stated)",
         "load_law": "not stated",
         "ambient_pressure_bar": p0.p_amb_Pa / 1e5,
         "ambient_temperature_C": p0.T_amb_K - 273.15,
-        "noise": (f"Gaussian noise of standard deviation {noise:g} x the column's mean absolute value" if
-                  noise_model == "typical" else f"Gaussian noise of standard deviation {noise:g} x the reading") +
-                 " (column units) on every column except the set points",
+        "noise": (
+            f"Gaussian noise of standard deviation {noise:g} x the column's mean absolute value"
+            if noise_model == "typical"
+            else f"Gaussian noise of standard deviation {noise:g} x the reading"
+        )
+        + " (column units) on every column except the set points",
         "columns": {c: _column_description(c) for c in columns},
     }
-    return Synthesis(columns=out, clean={c: np.tile(v, k) for c, v in clean.items()}, meta=meta, truth=truth,
-                     engines=eng_ids, effects=list(effects), activity=activity,
-                     settings={"params": pname, "points": int(points), "noise": noise, "seed": seed,
-                               "load_range": [lo, hi], "engines": int(engines), "noise_model": noise_model,
-                               "full_range": full_range, "perturb": perturb, "model_error": scales,
-                               "loads": loads.tolist(), "columns": list(columns), "effects_added": added})
+    return Synthesis(
+        columns=out,
+        clean={c: np.tile(v, k) for c, v in clean.items()},
+        meta=meta,
+        truth=truth,
+        engines=eng_ids,
+        effects=list(effects),
+        activity=activity,
+        settings={
+            "params": pname,
+            "points": int(points),
+            "noise": noise,
+            "seed": seed,
+            "load_range": [lo, hi],
+            "engines": int(engines),
+            "noise_model": noise_model,
+            "full_range": full_range,
+            "perturb": perturb,
+            "model_error": scales,
+            "loads": loads.tolist(),
+            "columns": list(columns),
+            "effects_added": added,
+        },
+    )
 
 
-def _valve_openings(m: ValveMechanism, loads: np.ndarray, given: dict[str, float], rng
-                    ) -> tuple[np.ndarray, dict[str, float]]:
+def _valve_openings(
+    m: ValveMechanism, loads: np.ndarray, given: dict[str, float], rng
+) -> tuple[np.ndarray, dict[str, float]]:
     """Openings per point and the rule: a waste gate opens above a load, a bypass below one, growing away from it."""
     a_max = float(given.get("opening", rng.uniform(*m.draw_range)))
     if m.id == "waste_gate":
@@ -379,7 +445,12 @@ def write_synthesis(syn: Synthesis, path: str | Path, truth_path: str | Path | N
     path = Path(path)
     write_dataset(path, syn.columns, syn.meta, engines=syn.engines, digits=7)
     if truth_path is not None:
-        Path(truth_path).write_text(json.dumps({"mechanisms": syn.truth, "effects": syn.effects,
-                                                "activity": syn.activity, "settings": syn.settings},
-                                               indent=2, default=float) + "\n")
+        Path(truth_path).write_text(
+            json.dumps(
+                {"mechanisms": syn.truth, "effects": syn.effects, "activity": syn.activity, "settings": syn.settings},
+                indent=2,
+                default=float,
+            )
+            + "\n"
+        )
     return path

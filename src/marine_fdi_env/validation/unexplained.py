@@ -16,13 +16,18 @@ from scipy import stats
 
 from .calibration_scan import structure_scan
 from .data_scale import channel_scales
-from .discrepancy import (_VAR_QUANTITY, DiscrepancyReport, _replicate_groups, operating_variables,
-                          theil_sen_detrend)
+from .discrepancy import _VAR_QUANTITY, DiscrepancyReport, _replicate_groups, operating_variables, theil_sen_detrend
 from .matching import MatchResult
 from .window_scan import noise_ratio, window_excess
 
-__all__ = ["ALPHA_UNEXPLAINED", "point_outliers", "family_significant", "local_excess", "calibration_left",
-           "unexplained_findings"]
+__all__ = [
+    "ALPHA_UNEXPLAINED",
+    "point_outliers",
+    "family_significant",
+    "local_excess",
+    "calibration_left",
+    "unexplained_findings",
+]
 
 #: family-wise level (Bonferroni over the channels) at which a discrepancy left by the final model is reported as
 #: unexplained.  Naming a cause asserts a physical explanation and is held to ``alpha`` (1 %); an unexplained finding
@@ -90,17 +95,29 @@ def point_outliers(match: MatchResult, tolerances: Mapping[str, float], alpha: f
             if p * C * m < alpha and abs(d[k]) >= tol:
                 i = int(idx[pos[k]])
                 label = ds.point_label(i)
-                out.append({"channel": col, "kind": "outlier", "region": label, "point": i + 1,
-                            "magnitude": float(d[k]), "residual": float(r_all[i]), "studentized": float(t),
-                            "p_value": p, "score": abs(float(d[k])) / tol, "unit": ds.spec(col).unit,
-                            "text": f"outlier: {col}, {label} (deviation {d[k]:+.4g} {ds.spec(col).unit} from the "
-                                    f"local structure, studentized {t:.3g})"})
+                out.append(
+                    {
+                        "channel": col,
+                        "kind": "outlier",
+                        "region": label,
+                        "point": i + 1,
+                        "magnitude": float(d[k]),
+                        "residual": float(r_all[i]),
+                        "studentized": float(t),
+                        "p_value": p,
+                        "score": abs(float(d[k])) / tol,
+                        "unit": ds.spec(col).unit,
+                        "text": f"outlier: {col}, {label} (deviation {d[k]:+.4g} {ds.spec(col).unit} from the "
+                        f"local structure, studentized {t:.3g})",
+                    }
+                )
     out.sort(key=lambda d: -d["score"])
     return out
 
 
-def family_significant(d: Mapping[str, Any], report: DiscrepancyReport, alpha: float,
-                       outliers: Sequence[Mapping[str, Any]] | None = None) -> bool:
+def family_significant(
+    d: Mapping[str, Any], report: DiscrepancyReport, alpha: float, outliers: Sequence[Mapping[str, Any]] | None = None
+) -> bool:
     """Whether a (per-test significant) finding survives a Bonferroni correction over the channels.
 
     Outlier findings are judged by :func:`point_outliers` instead when its list ``outliers`` is given
@@ -124,15 +141,23 @@ def _region_findings(report: DiscrepancyReport, alpha: float) -> list[dict[str, 
         e = {k: d[k] for k in ("channel", "kind", "region", "magnitude", "score", "p_value", "unit") if k in d}
         if "variable" in d:
             e["variable"] = d["variable"]
-        e["text"] = f"unexplained: {d['channel']}, {d['region']} ({d['kind']}, magnitude {d['magnitude']:+.4g} " \
-                    f"{d.get('unit', '')})".replace(" )", ")")
+        e["text"] = (
+            f"unexplained: {d['channel']}, {d['region']} ({d['kind']}, magnitude {d['magnitude']:+.4g} "
+            f"{d.get('unit', '')})".replace(" )", ")")
+        )
         out.append(e)
     return out
 
 
-def local_excess(match: MatchResult, tolerances: Mapping[str, float], alpha: float, max_width: int | None = None,
-                 channels: Sequence[str] | None = None, noise: float | None = None,
-                 scales: Mapping[str, float | None] | None = None) -> list[dict[str, Any]]:
+def local_excess(
+    match: MatchResult,
+    tolerances: Mapping[str, float],
+    alpha: float,
+    max_width: int | None = None,
+    channels: Sequence[str] | None = None,
+    noise: float | None = None,
+    scales: Mapping[str, float | None] | None = None,
+) -> list[dict[str, Any]]:
     """Per channel, the most significant window of :func:`window_excess` when ``p < alpha`` and ``|d|`` exceeds the
     tolerance: ``{channel, kind: "local", region: "load a-b", load_range, points, magnitude, scale, ...}``.  The
     scan's null is simulated at the data's noise level, the median over all channels (``noise_ratio``, in
@@ -143,11 +168,14 @@ def local_excess(match: MatchResult, tolerances: Mapping[str, float], alpha: flo
     load = operating_variables(match)["load"]
     noise = _data_noise(match, tolerances, load) if noise is None else noise
     out = []
-    for col in (channels or match.channels):
+    for col in channels or match.channels:
         tol = float(tolerances[col])
         own = (scales or {}).get(col)
-        best = (window_excess(match.residual(col), load, tol, max_width, noise=noise) if own is None else
-                window_excess(match.residual(col), load, float(own), max_width, noise=1.0))
+        best = (
+            window_excess(match.residual(col), load, tol, max_width, noise=noise)
+            if own is None
+            else window_excess(match.residual(col), load, float(own), max_width, noise=1.0)
+        )
         if best is None or not (best["p"] < alpha and abs(best["d"]) >= tol):
             continue
         lo, hi = best["load_range"]
@@ -159,20 +187,42 @@ def local_excess(match: MatchResult, tolerances: Mapping[str, float], alpha: flo
         else:
             region = f"load {lo:.3g}-{hi:.3g}"
         unit = ds.spec(col).unit
-        out.append({"channel": col, "kind": "local", "region": region, "load_range": [lo, hi],
-                    "points": sorted(int(i) + 1 for i in best["positions"]), "magnitude": best["d"],
-                    "score": abs(best["d"]) / tol, "p_value": best["p"], "p_at_floor": best["p_at_floor"],
-                    "noise": best["sigma"], "noise_ratio": best["noise"], "unit": unit,
-                    "significant": True, "scale": "tolerance" if own is None else "data",
-                    "text": f"unexplained: {col}, {region} (local, magnitude {best['d']:+.4g} {unit}"
-                            + ("" if own is None else f"; judged at the data's scatter {own:.3g} {unit}, below the "
-                                                      f"tolerance {tol:.3g}") + ")"})
+        out.append(
+            {
+                "channel": col,
+                "kind": "local",
+                "region": region,
+                "load_range": [lo, hi],
+                "points": sorted(int(i) + 1 for i in best["positions"]),
+                "magnitude": best["d"],
+                "score": abs(best["d"]) / tol,
+                "p_value": best["p"],
+                "p_at_floor": best["p_at_floor"],
+                "noise": best["sigma"],
+                "noise_ratio": best["noise"],
+                "unit": unit,
+                "significant": True,
+                "scale": "tolerance" if own is None else "data",
+                "text": f"unexplained: {col}, {region} (local, magnitude {best['d']:+.4g} {unit}"
+                + (
+                    ""
+                    if own is None
+                    else f"; judged at the data's scatter {own:.3g} {unit}, below the tolerance {tol:.3g}"
+                )
+                + ")",
+            }
+        )
     return out
 
 
-def unexplained_findings(match: MatchResult, report: DiscrepancyReport, tol: Mapping[str, float], alpha: float,
-                     calibrated: Sequence[str] = (), scans: dict[str, dict[str, Any]] | None = None
-                     ) -> list[dict[str, Any]]:
+def unexplained_findings(
+    match: MatchResult,
+    report: DiscrepancyReport,
+    tol: Mapping[str, float],
+    alpha: float,
+    calibrated: Sequence[str] = (),
+    scans: dict[str, dict[str, Any]] | None = None,
+) -> list[dict[str, Any]]:
     """Family-significant region findings and local excesses (Bonferroni over the channels; each channel's window
     scan at the data's own scale where that is below its tolerance, :mod:`.data_scale`); on the channels of
     ``calibrated`` (a named sensor calibration) also what the gain and offset leave (:func:`calibration_left`),
@@ -207,9 +257,14 @@ def _data_noise(match: MatchResult, tolerances: Mapping[str, float], load: np.nd
     return noise_ratio(np.column_stack([match.residual(c) / float(tolerances[c]) for c in match.channels]), load)
 
 
-def calibration_left(match: MatchResult, tolerances: Mapping[str, float], alpha: float, channels: Sequence[str],
-                     noise: float | None = None, scans: dict[str, dict[str, Any]] | None = None
-                     ) -> list[dict[str, Any]]:
+def calibration_left(
+    match: MatchResult,
+    tolerances: Mapping[str, float],
+    alpha: float,
+    channels: Sequence[str],
+    noise: float | None = None,
+    scans: dict[str, dict[str, Any]] | None = None,
+) -> list[dict[str, Any]]:
     """Per channel of ``channels`` (each carrying a named sensor calibration, held in ``match``'s readings): the
     step, kink or window that the gain and offset leave, when :func:`~.calibration_scan.structure_scan` finds it
     at ``p < alpha`` and it departs by at least the tolerance; reported as kind ``local``.  ``scans``, when given,
@@ -226,17 +281,33 @@ def calibration_left(match: MatchResult, tolerances: Mapping[str, float], alpha:
         t = float(tolerances[col])
         best = structure_scan(match.residual(col), load, match.predicted[col], t, noise)
         if scans is not None and best is not None:
-            scans[col] = ({k: best[k] for k in ("p", "p_at_floor", "z", "kind", "load_range", "d")}
-                          | {"tolerance": t, "unit": ds.spec(col).unit, "level": alpha})
+            scans[col] = {k: best[k] for k in ("p", "p_at_floor", "z", "kind", "load_range", "d")} | {
+                "tolerance": t,
+                "unit": ds.spec(col).unit,
+                "level": alpha,
+            }
         if best is None or not (best["p"] < alpha and abs(best["d"]) >= t):
             continue
         lo, hi = best["load_range"]
         region = f"load {lo:.3g}-{hi:.3g}"
         unit = ds.spec(col).unit
-        out.append({"channel": col, "kind": "local", "region": region, "load_range": [lo, hi],
-                    "points": [i + 1 for i in best["positions"]], "magnitude": best["d"],
-                    "score": abs(best["d"]) / t, "p_value": best["p"], "p_at_floor": best["p_at_floor"],
-                    "shape": best["kind"], "left_by": "sensor_calibration", "unit": unit, "significant": True,
-                    "text": f"unexplained: {col}, {region} (a {best['kind']} the named calibration leaves, "
-                            f"magnitude {best['d']:+.4g} {unit})"})
+        out.append(
+            {
+                "channel": col,
+                "kind": "local",
+                "region": region,
+                "load_range": [lo, hi],
+                "points": [i + 1 for i in best["positions"]],
+                "magnitude": best["d"],
+                "score": abs(best["d"]) / t,
+                "p_value": best["p"],
+                "p_at_floor": best["p_at_floor"],
+                "shape": best["kind"],
+                "left_by": "sensor_calibration",
+                "unit": unit,
+                "significant": True,
+                "text": f"unexplained: {col}, {region} (a {best['kind']} the named calibration leaves, "
+                f"magnitude {best['d']:+.4g} {unit})",
+            }
+        )
     return out

@@ -87,7 +87,7 @@ def scan_null(n: int, wmax: int, noise: float = 1.0) -> np.ndarray:
         chunk = max(1, 4_000_000 // max(n * len(_windows(n, wmax)), 1))
         for s in range(0, NULL_SAMPLES, chunk):
             k = min(chunk, NULL_SAMPLES - s)
-            out[s:s + k] = _scan(rng.normal(0.0, step * NOISE_GRID, (k, n)), 1.0, wmax)[0]
+            out[s : s + k] = _scan(rng.normal(0.0, step * NOISE_GRID, (k, n)), 1.0, wmax)[0]
         _NULL_CACHE[key] = np.sort(out)
     return _NULL_CACHE[key]
 
@@ -109,8 +109,9 @@ def noise_ratio(R: np.ndarray, load: np.ndarray, floor: float = 1.0) -> float:
     return max(floor, float(np.median(per))) if per else max(floor, 1.0)
 
 
-def window_excess(r: np.ndarray, load: np.ndarray, tol: float, max_width: int | None = None,
-                  noise: float = 1.0) -> dict[str, Any] | None:
+def window_excess(
+    r: np.ndarray, load: np.ndarray, tol: float, max_width: int | None = None, noise: float = 1.0
+) -> dict[str, Any] | None:
     """The most significant window of 2 .. n/2 consecutive points (in load order) whose mean residual departs from
     the rest (see the module docstring).  ``noise``: the data's noise in tolerances (:func:`noise_ratio`).
 
@@ -132,7 +133,14 @@ def window_excess(r: np.ndarray, load: np.ndarray, tol: float, max_width: int | 
     z, a, w = float(z[0]), int(a[0]), int(w[0])
     null = scan_null(n, wmax, noise)
     p = (1 + null.size - int(np.searchsorted(null, z, side="left"))) / (null.size + 1)
-    return {"p": float(p), "p_at_floor": bool(z > null[-1]), "p_raw": float(2 * stats.norm.sf(z)), "z": z,
-            "d": float(d[0]) * tol, "sigma": float(sigma[0]) * tol, "noise": float(noise),
-            "load_range": [float(x[a]), float(x[a + w - 1])],
-            "positions": order[a:a + w]}
+    return {
+        "p": float(p),
+        "p_at_floor": bool(z > null[-1]),
+        "p_raw": float(2 * stats.norm.sf(z)),
+        "z": z,
+        "d": float(d[0]) * tol,
+        "sigma": float(sigma[0]) * tol,
+        "noise": float(noise),
+        "load_range": [float(x[a]), float(x[a + w - 1])],
+        "positions": order[a : a + w],
+    }
