@@ -13,7 +13,7 @@ import statistics
 from typing import Any, Mapping, Sequence
 
 from marine_fdi_env.validation.binomial import proportion_ci95
-from marine_fdi_env.validation.explanations import explanation_set
+from marine_fdi_env.validation.explanations import explanation_set_of
 
 __all__ = ["set_outcome", "set_summary"]
 
@@ -21,19 +21,7 @@ __all__ = ["set_outcome", "set_summary"]
 def set_outcome(sel, truth_labels: Sequence[str], alternative: Sequence[str] | None = None) -> dict[str, Any]:
     """What a trial records of its explanation set (no profiles, no deciding measurement: the study scores the set
     only); ``alternative``: the structure a condition-(f) trial was constructed to be confused with."""
-    st = sel.settings
-    es = explanation_set(
-        sel.problem,
-        sel.fit,
-        sel.steps,
-        alpha=st["alpha"],
-        min_gain=st["min_gain"],
-        penalty=st["penalty"],
-        max_folds=st.get("max_folds"),
-        beside_valve=st["beside_valve"],
-        base_cv=sel.base_pred,
-        profiles=False,
-    )
+    es = explanation_set_of(sel, profiles=False)
     members = [sorted(e.labels) for e in es.members]
     truth = sorted(truth_labels)
     out = {

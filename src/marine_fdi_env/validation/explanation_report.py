@@ -14,7 +14,7 @@ import math
 from typing import Any, Callable, Mapping, Sequence
 
 from .deciding import deciding_measurements
-from .explanations import BAND, EXCLUDE_ALPHA, Explanation, ExplanationSet, explanation_set, nested_in
+from .explanations import BAND, EXCLUDE_ALPHA, Explanation, ExplanationSet, explanation_set_of, nested_in
 from .problem import Problem
 
 __all__ = [
@@ -67,20 +67,7 @@ def explain(
     measurements between its best explanations, and with ``holdout`` (``holdout(fit, conditions)``: a hold-out
     evaluation of a fit at ``"parameter_set"`` or ``"fit"`` conditions, as :func:`~.report.holdout_evaluation`)
     each member's.  Returns the report's keys (:func:`explanations_json`)."""
-    st = sel.settings
-    es = explanation_set(
-        sel.problem,
-        sel.fit,
-        sel.steps,
-        alpha=st["alpha"],
-        min_gain=st["min_gain"],
-        penalty=st["penalty"],
-        max_folds=st.get("max_folds"),
-        beside_valve=st["beside_valve"],
-        base_cv=sel.base_pred,
-        profiles=profiles,
-        say=say,
-    )
+    es = explanation_set_of(sel, profiles=profiles, say=say)
     sel.explanations = es
     pr = sel.problem
     names = {id(e): explanation_name(pr, e) for e in es.tried}

@@ -53,6 +53,7 @@ from .profiles import ProfileInterval, fit_profiles
 
 __all__ = [
     "BAND",
+    "explanation_set_of",
     "EXCLUDE_ALPHA",
     "Explanation",
     "ExplanationSet",
@@ -375,3 +376,22 @@ def explanation_set(
                 e.profiles = fit_profiles(problem, e.fit)
     say(f"explanations: {len(members)} in the set of {len(tried)} structures tried ({time.perf_counter() - t0:.1f} s)")
     return ExplanationSet(members, tried, M, time.perf_counter() - t0, RULE)
+
+
+def explanation_set_of(sel: Any, *, profiles: bool = True, say: Callable[[str], None] | None = None) -> ExplanationSet:
+    """:func:`explanation_set` of a :class:`~.selection.Selection`, under the rules it was selected with (its
+    ``settings``)."""
+    st = sel.settings
+    return explanation_set(
+        sel.problem,
+        sel.fit,
+        sel.steps,
+        alpha=st["alpha"],
+        min_gain=st["min_gain"],
+        penalty=st["penalty"],
+        max_folds=st.get("max_folds"),
+        beside_valve=st["beside_valve"],
+        base_cv=sel.base_pred,
+        profiles=profiles,
+        say=say,
+    )
