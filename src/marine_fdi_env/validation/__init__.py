@@ -1,4 +1,4 @@
-"""Validation of the engine model against measured data (issue #4).
+"""Validation of the engine model against measured data (docs/validation.md).
 
 * :mod:`.dataset` - the measured-data format (CSV with units in the column names + ``.meta.json``
   sidecar), its checked loader and the datasets shipped with the package;

@@ -8,7 +8,7 @@ load law of the installation:
 * ``constant_speed`` (generator) and ``independent`` (controllable-pitch propeller, combinator): speed and
   power are set separately.  The base model ties speed to power by the propeller law (eq. 3.11), so
   it cannot honour both: it is matched on power (or fuel) and its speed residual measures the load-law
-  mismatch (the ``cpp_load`` extension of issue #4 removes it).
+  mismatch (the ``cpp_load`` mechanism, a combinator speed line in :mod:`.mechanisms`, removes it).
 
 For each point the fuel setting ``u`` is the root of ``model(u)[target] = measured target`` on
 ``[0.05, 1.2]`` (:func:`scipy.optimize.brentq` on the steady state).  When the sidecar says nothing
