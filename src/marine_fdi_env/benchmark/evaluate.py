@@ -261,6 +261,8 @@ def evaluate(agent_spec: str, suite_name: str, out: Path, *, workers: int = 1, s
     header = {"agent": agent.name, "agent_spec": str(agent_spec), "suite": suite.name,
               "suite_version": suite["version"], "seed_offset": int(seed_offset), "env_id": env_id_for(reward_cfg),
               "env": env_kwargs}
+    if getattr(agent, "training_seed", None) is not None:  # a learned agent: which of its trainings this is
+        header["training_seed"] = int(agent.training_seed)
     out = Path(out)
     partial = out.with_name(out.name + ".partial.jsonl")
     done: dict[str, dict] = {}
