@@ -37,6 +37,9 @@ def train_main(argv=None) -> int:
     ap.add_argument("--algo", choices=("ppo", "ppo_lstm", "classifier"), required=True)
     ap.add_argument("--seed", type=int, default=0, help="random seed; negative: draw one (logged)")
     ap.add_argument("--env", default=ENV_ID)
+    ap.add_argument("--hyperparams", default=None, metavar="ENTRY",
+                    help="the entry of training/hyperparams/ALGO.yml to train (default: the --env id; "
+                         "'robust': the noise-invariant agents)")
     ap.add_argument("--out", type=Path, default=None, help="run directory (default training/logs/ALGO_sSEED)")
     ap.add_argument("--n-timesteps", type=int, default=None, help="override the PPO budget")
     ap.add_argument("--params", nargs="*", default=[], help="hyperparameter overrides key=value")
@@ -67,7 +70,7 @@ def train_main(argv=None) -> int:
         cmd = [a if a != str(args.seed) else str(seed) for a in cmd]
     try:
         cfg = train_agent(args.algo, seed, out, env_id=args.env, overrides=over, use_cache=not args.no_cache,
-                          command=shlex.join(cmd), seed_drawn=args.seed < 0)
+                          command=shlex.join(cmd), seed_drawn=args.seed < 0, hyperparams=args.hyperparams)
     except ValueError as e:
         print(f"marine-fdi train: error: {e}", file=sys.stderr)
         return 2
