@@ -243,31 +243,33 @@ def test_sweep_resumes_after_ctrl_c_without_losing_or_redoing_work(tiny, tmp_pat
 def test_agents_by_name_and_the_agents_command(capsys):
     assert cli_main(["agents"]) == 0
     text = capsys.readouterr().out
-    for name in ("null", "random", "reference", "oracle", "classifier", "ppo"):
+    for name in ("null", "random", "reference", "oracle", "classifier", "classifier-v1", "ppo-v1"):
         assert any(line.split()[0] == name for line in text.splitlines()[:-1]), name
     assert cli_main(["agents", "--json"]) == 0
     entries = json.loads(capsys.readouterr().out)
     models = {e["name"]: e for e in entries if e["kind"] == "model"}
     assert Path(models["classifier"]["spec"]) == agent_registry.models_dir() / "classifier"
-    agent = load_agent("classifier")
-    assert agent.name == "classifier" and type(agent).__name__ == "ClassifierAgent"
+    assert "3 training seeds (seed0, seed1, seed2)" in models["classifier"]["description"]
+    agent = load_agent("classifier")  # the default of its training seeds
+    assert agent.name == "classifier" and type(agent).__name__ == "ClassifierAgent" and agent.training_seed == 0
+    assert load_agent("ppo-v1").name == "ppo-v1"
 
 
 def test_registry_discovers_model_folders_and_their_config_names(tmp_path, monkeypatch):
     import shutil
 
-    src = agent_registry.models_dir() / "classifier"
+    src = agent_registry.models_dir() / "classifier-v1"
     dst = tmp_path / "models" / "gru2"
     shutil.copytree(src, dst)
     cfg = json.loads((dst / "config.json").read_text())
     (dst / "config.json").write_text(json.dumps(dict(cfg, name="classifier+reference")))
-    shutil.copytree(agent_registry.models_dir() / "ppo", tmp_path / "models" / "ppo")
+    shutil.copytree(agent_registry.models_dir() / "ppo-v1", tmp_path / "models" / "ppo")
     (tmp_path / "models" / "notes").mkdir()  # a folder without agent.json is not an agent
     monkeypatch.setattr(agent_registry, "models_dir", lambda: tmp_path / "models")
     agent_registry._entries.cache_clear()
     try:
         names = [e.name for e in agent_registry.list_agents()]
-        assert names[-2:] == ["classifier+reference", "ppo"] and "notes" not in names
+        assert names[-2:] == ["classifier+reference", "ppo-v1"] and "notes" not in names
         assert agent_registry.find_agent("gru2").name == "classifier+reference"  # the folder name is an alias
         assert load_agent("classifier+reference").name == "classifier+reference"
     finally:

@@ -188,11 +188,10 @@ def test_model_loading_errors(tmp_path):
         load_agent(str(bad))
 
 
-@pytest.mark.parametrize("name", ["classifier", "ppo"])
+@pytest.mark.parametrize("name", ["classifier-v1", "ppo-v1"] + [f"classifier/seed{s}" for s in (0, 1, 2)])
 def test_shipped_models_load(name):
     d = ROOT / "training" / "models" / name
-    if not (d / "agent.json").is_file():
-        pytest.skip(f"{d} not shipped yet")
+    assert (d / "agent.json").is_file(), f"{d} is not shipped"
     agent = load_agent(str(d))
     agent.reset([0, 1])
     b = agent.act(np.zeros((2, NF), dtype=np.float32), {"reference": {"detected": np.zeros(2, bool),
