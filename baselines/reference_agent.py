@@ -13,15 +13,28 @@ declaration:
   {B, C} it declares C, not A, B and C); ``unknown`` = 1 when no fault is declared (detected,
   not isolated);
 * detected with no consistent diagnosis: ``unknown``.
+
+``cells`` chooses the reference's measured sure cells (``thesis``, ``grid`` or ``sized``, the
+default; :mod:`marine_fdi_env.diagnosis.cell_sets`) through the environment option
+``diagnosis_cells``; the agents ``reference-thesis`` and ``reference-grid`` are this agent with the
+other two.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from marine_fdi_env.diagnosis.cell_sets import DEFAULT_CELLS, check_cells
 from marine_fdi_env.envs.hypotheses import HYPOTHESES, N_HYPOTHESES, UNKNOWN
 
-__all__ = ["ReferenceAgent", "belief_from_diagnoses"]
+__all__ = [
+    "ReferenceAgent",
+    "ReferenceThesisAgent",
+    "ReferenceGridAgent",
+    "belief_from_diagnoses",
+    "cells_name",
+    "with_cells",
+]
 
 _INDEX = {h: i for i, h in enumerate(HYPOTHESES)}
 
@@ -47,8 +60,19 @@ def belief_from_diagnoses(detected: bool, diagnoses) -> np.ndarray:
     return b
 
 
+def cells_name(base: str, cells: str) -> str:
+    """The agent name of a diagnoser agent with a cell set: ``base`` for the default, else
+    ``base-cells``."""
+    return base if check_cells(cells) == DEFAULT_CELLS else f"{base}-{cells}"
+
+
 class ReferenceAgent:
-    name = "reference"
+    """The reference diagnoser's conclusion as a declaration (module docstring)."""
+
+    def __init__(self, cells: str = DEFAULT_CELLS) -> None:
+        self.cells = check_cells(cells)
+        self.name = cells_name("reference", cells)
+        self.env_kwargs = {"diagnosis_cells": self.cells}
 
     def reset(self, seeds: list[int]) -> None:
         self.n = len(seeds)
@@ -56,3 +80,23 @@ class ReferenceAgent:
     def act(self, obs: np.ndarray, infos: dict) -> np.ndarray:
         ref = infos["reference"]
         return np.stack([belief_from_diagnoses(bool(d), g) for d, g in zip(ref["detected"], ref["diagnoses"])])
+
+
+def with_cells(base: type, cells: str) -> type:
+    """``base`` (an agent class taking ``cells``) with another cell set, as a class constructible
+    without arguments (how the agent registry builds its agents)."""
+    check_cells(cells)
+
+    def __init__(self) -> None:
+        base.__init__(self, cells)
+
+    name = f"{base.__name__.removesuffix('Agent')}{cells.capitalize()}Agent"
+    return type(
+        name,
+        (base,),
+        {"__init__": __init__, "__module__": base.__module__, "__doc__": f"{base.__name__} with the {cells} cells."},
+    )
+
+
+ReferenceThesisAgent = with_cells(ReferenceAgent, "thesis")
+ReferenceGridAgent = with_cells(ReferenceAgent, "grid")

@@ -5,20 +5,27 @@ The environment runs the tests when asked (``observe_sequential=True``, which th
 ``env_kwargs`` request from ``marine-fdi evaluate``) and reports their conclusion in
 ``info["sequential"]``; the agent declares from its minimal diagnoses exactly as the ``reference``
 agent does from the reference's (:func:`marine_fdi_env.baselines.reference_agent.belief_from_diagnoses`).
+``cells`` as for the reference agent: ``sequential-thesis`` and ``sequential-grid`` are this agent
+with the table-size and the grid cells.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from marine_fdi_env.baselines.reference_agent import belief_from_diagnoses
+from marine_fdi_env.baselines.reference_agent import belief_from_diagnoses, cells_name, with_cells
+from marine_fdi_env.diagnosis.cell_sets import DEFAULT_CELLS, check_cells
 
-__all__ = ["SequentialAgent"]
+__all__ = ["SequentialAgent", "SequentialThesisAgent", "SequentialGridAgent"]
 
 
 class SequentialAgent:
-    name = "sequential"
-    env_kwargs = {"observe_sequential": True}
+    """The sequential diagnoser's conclusion as a declaration (module docstring)."""
+
+    def __init__(self, cells: str = DEFAULT_CELLS) -> None:
+        self.cells = check_cells(cells)
+        self.name = cells_name("sequential", cells)
+        self.env_kwargs = {"observe_sequential": True, "diagnosis_cells": self.cells}
 
     def reset(self, seeds: list[int]) -> None:
         self.n = len(seeds)
@@ -28,3 +35,7 @@ class SequentialAgent:
             raise ValueError("the sequential agent needs the environment made with observe_sequential=True")
         seq = infos["sequential"]
         return np.stack([belief_from_diagnoses(bool(d), g) for d, g in zip(seq["detected"], seq["diagnoses"])])
+
+
+SequentialThesisAgent = with_cells(SequentialAgent, "thesis")
+SequentialGridAgent = with_cells(SequentialAgent, "grid")

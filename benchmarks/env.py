@@ -64,11 +64,11 @@ from collections import defaultdict
 from dataclasses import replace
 
 import numpy as np
+from _report import emit  # noqa: E402  (benchmarks/ is the script directory)
 
 import marine_fdi_env  # noqa: F401  (registers the environment)
 from marine_fdi_env.envs.fdi_env import MarineFDIEnv
 from marine_fdi_env.envs.vector import MarineFDIVectorEnv
-from _report import emit  # noqa: E402  (benchmarks/ is the script directory)
 
 PRESET = "default"
 
@@ -113,8 +113,15 @@ def _staggered_scenarios(env: MarineFDIVectorEnv, seed: int, first_end: int, ste
     return scenarios
 
 
-def vector_throughput(n: int, steps: int, repeats: int, seed: int = 0, profile: bool = False,
-                      autoresets_per_step: int = 0, observe_sequential: bool = False) -> dict:
+def vector_throughput(
+    n: int,
+    steps: int,
+    repeats: int,
+    seed: int = 0,
+    profile: bool = False,
+    autoresets_per_step: int = 0,
+    observe_sequential: bool = False,
+) -> dict:
     env = MarineFDIVectorEnv(num_envs=n, scenario_config=PRESET, observe_sequential=observe_sequential)
     env.action_space.seed(seed)
     warm = 2  # steps before timing: the first scoring and infos
@@ -209,27 +216,37 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--episodes", type=int, default=3, help="full single-env episodes timed")
     ap.add_argument("--profile", action="store_true", help="cProfile one vector step (to stderr)")
-    ap.add_argument("--observe-sequential", action="store_true",
-                    help="also time the vector env with observe_sequential=True (the sequential diagnoser's features)")
-    ap.add_argument("--autoresets-per-step", type=int, default=4,
-                    help="slots autoreset in each step of the steady-state run (N / 300 s episodes: 3.4 at N=1024)")
+    ap.add_argument(
+        "--observe-sequential",
+        action="store_true",
+        help="also time the vector env with observe_sequential=True (the sequential diagnoser's features)",
+    )
+    ap.add_argument(
+        "--autoresets-per-step",
+        type=int,
+        default=4,
+        help="slots autoreset in each step of the steady-state run (N / 300 s episodes: 3.4 at N=1024)",
+    )
     args = ap.parse_args(argv)
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
     out = {}
     out.update(vector_throughput(args.num_envs, args.vector_steps, args.repeats, profile=args.profile))
-    out.update(vector_throughput(args.num_envs, args.vector_steps, args.repeats,
-                                 autoresets_per_step=args.autoresets_per_step))
+    out.update(
+        vector_throughput(args.num_envs, args.vector_steps, args.repeats, autoresets_per_step=args.autoresets_per_step)
+    )
     if args.observe_sequential:
         out.update(vector_throughput(args.num_envs, args.vector_steps, args.repeats, observe_sequential=True))
     out.update(single_env_throughput(args.episodes))
-    out.update({
-        "preset": PRESET,
-        "targets": {f"vector_engine_samples_per_s_n{args.num_envs}": 5e5, "single_env_decision_steps_per_s": 200},
-        "numpy": np.__version__,
-        "python": sys.version.split()[0],
-        "cpu_count": os.cpu_count(),
-        "load_average_1min": load,
-    })
+    out.update(
+        {
+            "preset": PRESET,
+            "targets": {f"vector_engine_samples_per_s_n{args.num_envs}": 5e5, "single_env_decision_steps_per_s": 200},
+            "numpy": np.__version__,
+            "python": sys.version.split()[0],
+            "cpu_count": os.cpu_count(),
+            "load_average_1min": load,
+        }
+    )
     emit(out, args.json)
     return 0
 

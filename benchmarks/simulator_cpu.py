@@ -25,11 +25,12 @@ import sys
 import time
 
 import numpy as np
+from _report import emit  # noqa: E402  (benchmarks/ is the script directory)
 
-from marine_fdi_env.engine import integrators, simulator as _simulator
+from marine_fdi_env.engine import integrators
+from marine_fdi_env.engine import simulator as _simulator
 from marine_fdi_env.engine.faults import random_fault_schedule
 from marine_fdi_env.engine.simulator import Simulator
-from _report import emit  # noqa: E402  (benchmarks/ is the script directory)
 
 
 def main(argv=None) -> int:
@@ -47,10 +48,12 @@ def main(argv=None) -> int:
     n, block = args.engines, args.block
     seconds = args.blocks * block * 0.01
     rng = np.random.default_rng(12345)
-    faults = ([random_fault_schedule(rng, seconds, 2, onset_range=(0.0, 0.5 * seconds)) for _ in range(n)]
-              if args.faults == "random" else None)
-    profiles = ([f"random:seed={i},u_min=0.5,u_max=1.05" for i in range(n)] if args.profile == "random"
-                else args.profile)
+    faults = (
+        [random_fault_schedule(rng, seconds, 2, onset_range=(0.0, 0.5 * seconds)) for _ in range(n)]
+        if args.faults == "random"
+        else None
+    )
+    profiles = [f"random:seed={i},u_min=0.5,u_max=1.05" for i in range(n)] if args.profile == "random" else args.profile
     kernel = [0.0]
     inner = integrators.advance_batch
 
@@ -60,8 +63,13 @@ def main(argv=None) -> int:
         kernel[0] += time.process_time() - c0
 
     _simulator.advance_batch = timed
-    Simulator(args.params, 4, seeds=0, faults=None if faults is None else faults[:4],
-              profiles=profiles if isinstance(profiles, str) else profiles[:4]).advance(2)  # compile
+    Simulator(
+        args.params,
+        4,
+        seeds=0,
+        faults=None if faults is None else faults[:4],
+        profiles=profiles if isinstance(profiles, str) else profiles[:4],
+    ).advance(2)  # compile
     best, best_kernel = np.inf, np.inf
     for _ in range(args.repeats):
         sim = Simulator(args.params, n, seeds=0, faults=faults, profiles=profiles)
@@ -72,11 +80,20 @@ def main(argv=None) -> int:
         best = min(best, time.process_time() - c0)
         best_kernel = min(best_kernel, kernel[0])
     samples = n * block * args.blocks
-    emit({"cpu_us_per_engine_sample_one_thread": round(1e6 * best / samples, 3),
-          "kernel_cpu_us_per_engine_sample": round(1e6 * best_kernel / samples, 3),
-          "params": args.params, "profile": args.profile, "faults": args.faults, "engines": n, "block": block,
-          "blocks": args.blocks,
-          "load_average_1min": os.getloadavg()[0] if hasattr(os, "getloadavg") else None}, args.json)
+    emit(
+        {
+            "cpu_us_per_engine_sample_one_thread": round(1e6 * best / samples, 3),
+            "kernel_cpu_us_per_engine_sample": round(1e6 * best_kernel / samples, 3),
+            "params": args.params,
+            "profile": args.profile,
+            "faults": args.faults,
+            "engines": n,
+            "block": block,
+            "blocks": args.blocks,
+            "load_average_1min": os.getloadavg()[0] if hasattr(os, "getloadavg") else None,
+        },
+        args.json,
+    )
     return 0
 
 

@@ -1,4 +1,4 @@
-"""Validation pipeline: CPU time of the fit's inner call, a model evaluation, and of whole fits (issue 11).
+"""Validation pipeline: CPU time of the fit's inner call, a model evaluation, and of whole fits.
 
     python benchmarks/validation.py --json
     python benchmarks/validation.py --json --trial c381      # also one open-world study trial (about 15 s)
@@ -31,13 +31,13 @@ import time
 import warnings
 
 import numpy as np
+from _report import emit  # noqa: E402  (benchmarks/ is the script directory)
 
 from marine_fdi_env.engine import operating_point
 from marine_fdi_env.validation import load_shipped
 from marine_fdi_env.validation.fitting import Combination, _Objective, fit_combination
 from marine_fdi_env.validation.mechanisms import WasteGateM
 from marine_fdi_env.validation.problem import Problem
-from _report import emit  # noqa: E402  (benchmarks/ is the script directory)
 
 
 def _best(fn, zs, repeats: int) -> float:

@@ -6,5 +6,5 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 PACKAGE_DATA = REPO / "src" / "marine_fdi_env" / "data"  # shipped data the package loads (cells, calibrations)
-DOCS_DATA = REPO / "docs" / "data"                      # the data behind the docs' tables
-MODELS = REPO / "training" / "models"                   # the shipped learned agents
+DOCS_DATA = REPO / "docs" / "data"  # the data behind the docs' tables
+MODELS = REPO / "training" / "models"  # the shipped learned agents

@@ -13,10 +13,16 @@ import math
 import numpy as np
 
 from marine_fdi_env._jit import jit
+from marine_fdi_env.diagnosis.modules import MODULE_IDS
 from marine_fdi_env.engine.integrators import THREADED_MIN_ENGINES, _etd_scalar, _executor
-from marine_fdi_env.engine.sensors import NOISE_BOUNDS, SENSOR_IDS
-from marine_fdi_env.engine.subsystems.air_intake import compressor_outlet_temperature, delta_f, eta_tc, inlet_air_temperature
 from marine_fdi_env.engine.seiliger import seiliger_cycle
+from marine_fdi_env.engine.sensors import NOISE_BOUNDS, SENSOR_IDS
+from marine_fdi_env.engine.subsystems.air_intake import (
+    compressor_outlet_temperature,
+    delta_f,
+    eta_tc,
+    inlet_air_temperature,
+)
 from marine_fdi_env.engine.subsystems.engine_block import _sweep, constant_volume_portion, engine_block, friction_torque
 from marine_fdi_env.engine.subsystems.exhaust_receiver import (
     receiver_and_turbine,
@@ -27,10 +33,18 @@ from marine_fdi_env.engine.subsystems.exhaust_receiver import (
     turbine_outlet_from_expansion,
     turbine_outlet_temperature,
 )
-from marine_fdi_env.diagnosis.modules import MODULE_IDS
 
-__all__ = ["OBSERVER_GAINS", "compute_residuals", "compute_residuals_batch", "ResidualTrace", "SAFETY",
-           "MODEL_MARGIN", "new_state", "N_STATE", "residuals_for_run"]
+__all__ = [
+    "OBSERVER_GAINS",
+    "compute_residuals",
+    "compute_residuals_batch",
+    "ResidualTrace",
+    "SAFETY",
+    "MODEL_MARGIN",
+    "new_state",
+    "N_STATE",
+    "residuals_for_run",
+]
 
 # Observer gains L [1/s] of table 6.1 for M(1,q), M(3,q), M(4,q).
 OBSERVER_GAINS = (33.3833, 1.25, 0.3764)
@@ -44,10 +58,13 @@ SLOPE_STEP = 1e-5  # relative step of the centre's speed slope
 # sensor columns
 S = {sid: i for i, sid in enumerate(SENSOR_IDS)}
 # per side (0: odd sensors, 1: even sensors): x1, p6, T6, torque, x3, T_in, x4, T1, T_co
-_SIDE_COLS = np.array([
-    [S["S1.1"], S["S2.1"], S["S2.3"], S["S2.5"], S["S3.1"], S["S3.3"], S["S4.1"], S["S4.3"], S["S4.5"]],
-    [S["S1.2"], S["S2.2"], S["S2.4"], S["S2.6"], S["S3.2"], S["S3.4"], S["S4.2"], S["S4.4"], S["S4.6"]],
-], dtype=np.int64)
+_SIDE_COLS = np.array(
+    [
+        [S["S1.1"], S["S2.1"], S["S2.3"], S["S2.5"], S["S3.1"], S["S3.3"], S["S4.1"], S["S4.3"], S["S4.5"]],
+        [S["S1.2"], S["S2.2"], S["S2.4"], S["S2.6"], S["S3.2"], S["S3.4"], S["S4.2"], S["S4.4"], S["S4.6"]],
+    ],
+    dtype=np.int64,
+)
 _T_OUT_COL = S["S3.5"]
 # module column of each module id (for output arrays)
 _M = {m: i for i, m in enumerate(MODULE_IDS)}
@@ -262,10 +279,28 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST):
             st = ST[side]
             first = st[14] == 0.0
             cols = side_cols[side]
-            cx1, cp6, cT6, ctq, cx3, cTin, cx4, cT1, cTco = (cols[0], cols[1], cols[2], cols[3], cols[4], cols[5],
-                                                               cols[6], cols[7], cols[8])
-            x1, p6m, T6m, tqm, x3, T_in, x4, T1, T_co = (y[cx1], y[cp6], y[cT6], y[ctq], y[cx3], y[cTin], y[cx4],
-                                                         y[cT1], y[cTco])
+            cx1, cp6, cT6, ctq, cx3, cTin, cx4, cT1, cTco = (
+                cols[0],
+                cols[1],
+                cols[2],
+                cols[3],
+                cols[4],
+                cols[5],
+                cols[6],
+                cols[7],
+                cols[8],
+            )
+            x1, p6m, T6m, tqm, x3, T_in, x4, T1, T_co = (
+                y[cx1],
+                y[cp6],
+                y[cT6],
+                y[ctq],
+                y[cx3],
+                y[cTin],
+                y[cx4],
+                y[cT1],
+                y[cTco],
+            )
             d1, d3, d4, dT1, dTin = dbar[cx1], dbar[cx3], dbar[cx4], dbar[cT1], dbar[cTin]
             base_ok = math.isfinite(x1) and math.isfinite(x4) and math.isfinite(T1)
             if base_ok:
@@ -300,8 +335,11 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST):
                 col = cp6 if j == 0 else cT6
                 if base_ok and math.isfinite(y[col]):
                     g0 = t[0, 1 + j]
-                    b = _dev(g0, t[1, 1 + j], t[2, 1 + j]) + _dev(g0, t[3, 1 + j], t[4, 1 + j]) + \
-                        _dev(g0, t[5, 1 + j], t[6, 1 + j])
+                    b = (
+                        _dev(g0, t[1, 1 + j], t[2, 1 + j])
+                        + _dev(g0, t[3, 1 + j], t[4, 1 + j])
+                        + _dev(g0, t[5, 1 + j], t[6, 1 + j])
+                    )
                     R[kk, m] = y[col] - g0
                     THR[kk, m] = dbar[col] + SAFETY * b + MODEL_MARGIN * abs(g0)
                 else:
@@ -384,8 +422,13 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST):
             F, H = 0.0, 0.0
             if ok:
                 F = G[0, 0]
-                H = SAFETY * (_dev(F, G[1, 0], G[2, 0]) + _dev(F, G[3, 0], G[4, 0]) + _dev(F, G[5, 0], G[6, 0])
-                              + _dev(F, G[7, 0], G[8, 0]) + _dev(F, G[9, 0], G[10, 0]))
+                H = SAFETY * (
+                    _dev(F, G[1, 0], G[2, 0])
+                    + _dev(F, G[3, 0], G[4, 0])
+                    + _dev(F, G[5, 0], G[6, 0])
+                    + _dev(F, G[7, 0], G[8, 0])
+                    + _dev(F, G[9, 0], G[10, 0])
+                )
             R[kk, m], THR[kk, m] = _observer_update(st, 2, first, ok, x3, F, H, E3, q3, r3, Ld3, d3)
             # ---------------------------------------------------------------- M3.(3,4): T_in
             m = 10 + side
@@ -405,8 +448,13 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST):
             F, H = 0.0, 0.0
             if ok:
                 F = G[0, 1]
-                H = SAFETY * (_dev(F, G[1, 1], G[2, 1]) + _dev(F, G[3, 1], G[4, 1]) + _dev(F, G[5, 1], G[6, 1])
-                              + _dev(F, G[7, 1], G[8, 1]) + _dev(F, G[9, 1], G[10, 1]))
+                H = SAFETY * (
+                    _dev(F, G[1, 1], G[2, 1])
+                    + _dev(F, G[3, 1], G[4, 1])
+                    + _dev(F, G[5, 1], G[6, 1])
+                    + _dev(F, G[7, 1], G[8, 1])
+                    + _dev(F, G[9, 1], G[10, 1])
+                )
             R[kk, m], THR[kk, m] = _observer_update(st, 7, first, ok, x4, F, H, E4, q4, r4, Ld4, d4)
             # ---------------------------------------------------------------- M4.(3,4): T1
             m = 15 + side
@@ -466,8 +514,9 @@ class ResidualTrace:
             return np.abs(self.residuals) / self.thresholds
 
 
-def residuals_for_run(constants, measurements: np.ndarray, u: np.ndarray, dt: float,
-                      noise_bounds: np.ndarray | None = None) -> ResidualTrace:
+def residuals_for_run(
+    constants, measurements: np.ndarray, u: np.ndarray, dt: float, noise_bounds: np.ndarray | None = None
+) -> ResidualTrace:
     """Run all 19 modules over one engine's measurements (T, 19) with the applied fuel setting (T,)."""
     Y = np.ascontiguousarray(measurements, dtype=np.float64)
     U = np.ascontiguousarray(u, dtype=np.float64)

@@ -1,4 +1,4 @@
-"""Trained models as benchmark agents (``marine-fdi evaluate --agent training/models/NAME``).
+"""Trained models as benchmark agents (``marine-fdi evaluate --agent NAME`` or ``--agent MODEL_FOLDER``).
 
 A model directory holds ``agent.json`` (``{"class": "marine_fdi_env.training.agents:SB3Agent"}`` or
 ``"marine_fdi_env.training.agents:ClassifierAgent"``), ``config.json`` (algorithm, hyperparameters, seed,

@@ -8,8 +8,9 @@ import json
 from pathlib import Path
 
 from marine_fdi_env.envs.observation import feature_names
+from marine_fdi_env.outputs import prepare_out
 
-__all__ = []
+__all__ = ["save_sb3_agent"]
 
 
 def _observation_meta(observe_sensors: bool = False) -> dict:
@@ -31,3 +32,31 @@ def save_meta(out: Path, cfg: dict, agent_class: str) -> None:
 
 
 # ----------------------------------------------------------------------------- reinforcement learning
+
+
+def save_sb3_agent(model, folder: "str | Path", venv=None, *, name: str | None = None) -> Path:
+    """Save a Stable-Baselines3 PPO trained on :class:`~marine_fdi_env.training.vec_adapter.SB3VecEnv`
+    as a benchmark agent: ``folder`` gets ``model.zip``, ``config.json`` and ``agent.json``, so
+    ``marine-fdi evaluate --agent FOLDER`` scores it.
+
+    ``venv`` is the training env (its action mode and whether it appends the reference features;
+    default: the model's own env); ``name`` the agent's name in results (default: the folder's name).
+    Only the parent of ``folder`` is created if missing, never more levels."""
+    venv = venv if venv is not None else model.get_env()
+    while venv is not None and not hasattr(venv, "action_mode") and hasattr(venv, "venv"):
+        venv = venv.venv  # VecMonitor, VecNormalize, ... around the adapter
+    if venv is None or not hasattr(venv, "action_mode"):
+        raise ValueError("save_sb3_agent needs the SB3VecEnv the model was trained on (venv=...)")
+    out = prepare_out(folder, "folder")
+    model.save(out / "model.zip")
+    cfg = {
+        "name": name or out.resolve().name,
+        "algo": "ppo",
+        "action_mode": venv.action_mode,
+        "frame_stack": 1,
+        "observation": dict(_observation_meta(), reference_features=bool(venv.with_reference)),
+        "n_parameters": int(sum(p.numel() for p in model.policy.parameters())),
+        "model_bytes": (out / "model.zip").stat().st_size,
+    }
+    save_meta(out, cfg, "marine_fdi_env.training.agents:SB3Agent")
+    return out

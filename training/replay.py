@@ -84,9 +84,17 @@ class ReplayVecEnv(VecEnv):
     preprocessing (None: the raw observation).
     """
 
-    def __init__(self, episodes: dict, num_envs: int, action_mode: str = "pair", seed: int = 0,
-                 reward: RewardConfigV1 | None = None, features: AgentFeatures | None = None,
-                 decision_period_s: float = 1.0, order: str = "random") -> None:
+    def __init__(
+        self,
+        episodes: dict,
+        num_envs: int,
+        action_mode: str = "pair",
+        seed: int = 0,
+        reward: RewardConfigV1 | None = None,
+        features: AgentFeatures | None = None,
+        decision_period_s: float = 1.0,
+        order: str = "random",
+    ) -> None:
         self.ep = episodes
         self.E, self.T = episodes["obs"].shape[:2]
         self.lengths = episodes["valid"].sum(axis=1).astype(np.int64)
@@ -170,9 +178,15 @@ class ReplayVecEnv(VecEnv):
             term_obs = self._last  # the episode's last observation (the live env returns it again)
             for i in ended:
                 truncated = bool(self.lengths[e[i]] == self.T)  # time limit, else an engine failure
-                infos[i] = {"terminal_observation": term_obs[i].copy(), "TimeLimit.truncated": truncated,
-                            "episode": {"r": float(self.episode_returns[i]), "l": int(self.lengths[e[i]]),
-                                        "terms": {t: float(self.episode_terms[t][i]) for t in REWARD_TERMS_V1}}}
+                infos[i] = {
+                    "terminal_observation": term_obs[i].copy(),
+                    "TimeLimit.truncated": truncated,
+                    "episode": {
+                        "r": float(self.episode_returns[i]),
+                        "l": int(self.lengths[e[i]]),
+                        "terms": {t: float(self.episode_terms[t][i]) for t in REWARD_TERMS_V1},
+                    },
+                }
             self._draw(ended)
         obs = self._obs()
         return obs, rew.astype(np.float32), last.copy(), infos

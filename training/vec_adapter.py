@@ -13,16 +13,8 @@ returns the new first observation, ignores the action and pays 0).  The adapter 
   autoreset returns their new first observation with reward 0.  That one transition per engine
   failure (rare) is the only difference from SB3's API.
 
-Actions: ``action_mode="box"``: ``Box(-1, 1, (28,))`` rescaled to beliefs ``(a + 1) / 2``
-(SB3's Gaussian policies prefer a symmetric box); ``action_mode="discrete"``: ``Discrete(28)``,
-action k declares hypothesis k alone (belief 1 on it, 0 elsewhere; k = 26 is ``no_fault``, the
-quiet action); ``action_mode="pair"``: ``MultiDiscrete([28, 27])``, a hypothesis (as
-``discrete``) plus an optional second fault (0 = none, 1 + k = fault id k), so that a pair of
-faults can be declared; quiet is ``(26, 0)``; ``action_mode="gated"``: ``MultiDiscrete([2, 27, 27])``,
-an alarm switch (0: quiet, whatever follows), a fault (0 = none, 1 + k = fault id k) and a second
-fault (same coding); with the alarm on and no fault named the declaration is ``unknown``.  Every
-declaration is expressible in ``pair`` and ``gated``; ``gated`` separates the decision that costs a
-false alarm (the switch) from the choice of faults, which is free while the switch is off.
+Actions: ``action_mode`` is one of :data:`~marine_fdi_env.envs.actions.ACTION_MODES` (``box``,
+``discrete``, ``pair``, ``gated``; :mod:`marine_fdi_env.envs.actions`).
 
 ``reference_features=True`` appends 27 inputs computed from ``info["reference"]`` (the reference
 diagnoser's conclusion, which every agent may read): whether it has detected, and for each of the
@@ -42,13 +34,13 @@ import numpy as np
 from gymnasium import spaces
 from stable_baselines3.common.vec_env import VecEnv
 
-from marine_fdi_env.envs.hypotheses import N_HYPOTHESES
 from marine_fdi_env.engine.faults import FAULT_IDS
+from marine_fdi_env.envs.actions import ACTION_MODES, action_space, to_belief
+from marine_fdi_env.envs.hypotheses import N_HYPOTHESES
 from marine_fdi_env.envs.vector import MarineFDIVectorEnv
 
 __all__ = ["SB3VecEnv", "ACTION_MODES", "to_belief", "action_space", "reference_features", "N_REFERENCE_FEATURES"]
 
-ACTION_MODES = ("box", "discrete", "pair", "gated")
 N_REFERENCE_FEATURES = 1 + len(FAULT_IDS)
 _COL = {f: k for k, f in enumerate(FAULT_IDS)}
 
@@ -69,50 +61,6 @@ def reference_features(reference: dict, n: int) -> np.ndarray:
     return out
 
 
-def action_space(action_mode: str) -> spaces.Space:
-    """The SB3 action space of an action mode (module docstring)."""
-    if action_mode == "box":
-        return spaces.Box(-1.0, 1.0, (N_HYPOTHESES,), dtype=np.float32)
-    if action_mode == "discrete":
-        return spaces.Discrete(N_HYPOTHESES)
-    if action_mode == "pair":
-        return spaces.MultiDiscrete([N_HYPOTHESES, len(FAULT_IDS) + 1])
-    if action_mode == "gated":
-        return spaces.MultiDiscrete([2, len(FAULT_IDS) + 1, len(FAULT_IDS) + 1])
-    raise ValueError(f"action_mode must be one of {ACTION_MODES}, got {action_mode!r}")
-
-
-def to_belief(actions: np.ndarray, action_mode: str) -> np.ndarray:
-    """SB3 actions (N, 28) in [-1, 1], (N,) ints, (N, 2) pairs or (N, 3) gated triples -> beliefs (N, 28)."""
-    if action_mode == "box":
-        a = np.asarray(actions, dtype=np.float32).reshape(-1, N_HYPOTHESES)
-        return np.clip((a + 1.0) * 0.5, 0.0, 1.0).astype(np.float32)
-    if action_mode == "discrete":
-        k = np.asarray(actions, dtype=np.int64).reshape(-1)
-        out = np.zeros((len(k), N_HYPOTHESES), dtype=np.float32)
-        out[np.arange(len(k)), k] = 1.0
-        return out
-    if action_mode == "pair":
-        a = np.asarray(actions, dtype=np.int64).reshape(-1, 2)
-        out = np.zeros((len(a), N_HYPOTHESES), dtype=np.float32)
-        out[np.arange(len(a)), a[:, 0]] = 1.0
-        second = np.flatnonzero(a[:, 1] > 0)
-        out[second, a[second, 1] - 1] = 1.0
-        return out
-    if action_mode == "gated":
-        a = np.asarray(actions, dtype=np.int64).reshape(-1, 3)
-        out = np.zeros((len(a), N_HYPOTHESES), dtype=np.float32)
-        on = a[:, 0] == 1
-        out[~on, len(FAULT_IDS)] = 1.0  # no_fault
-        for col in (1, 2):
-            named = np.flatnonzero(on & (a[:, col] > 0))
-            out[named, a[named, col] - 1] = 1.0
-        blank = np.flatnonzero(on & (a[:, 1] == 0) & (a[:, 2] == 0))
-        out[blank, N_HYPOTHESES - 1] = 1.0  # unknown
-        return out
-    raise ValueError(f"action_mode must be one of {ACTION_MODES}, got {action_mode!r}")
-
-
 class SB3VecEnv(VecEnv):
     """``num_envs`` engines of ``MarineFDIVectorEnv`` behind SB3's ``VecEnv`` (see module docstring).
 
@@ -120,8 +68,15 @@ class SB3VecEnv(VecEnv):
     later resets continue the slots' own random streams.
     """
 
-    def __init__(self, num_envs: int = 16, scenario_config: Any = "default", action_mode: str = "box",
-                 seed: int | None = None, reference_features: bool = False, **env_kwargs) -> None:
+    def __init__(
+        self,
+        num_envs: int = 16,
+        scenario_config: Any = "default",
+        action_mode: str = "box",
+        seed: int | None = None,
+        reference_features: bool = False,
+        **env_kwargs,
+    ) -> None:
         if action_mode not in ACTION_MODES:
             raise ValueError(f"action_mode must be one of {ACTION_MODES}, got {action_mode!r}")
         self.venv = MarineFDIVectorEnv(num_envs=num_envs, scenario_config=scenario_config, **env_kwargs)
@@ -130,9 +85,11 @@ class SB3VecEnv(VecEnv):
         obs_space = self.venv.single_observation_space
         self.with_reference = bool(reference_features)
         if self.with_reference:
-            obs_space = spaces.Box(np.concatenate([obs_space.low, np.zeros(N_REFERENCE_FEATURES, np.float32)]),
-                                   np.concatenate([obs_space.high, np.ones(N_REFERENCE_FEATURES, np.float32)]),
-                                   dtype=np.float32)
+            obs_space = spaces.Box(
+                np.concatenate([obs_space.low, np.zeros(N_REFERENCE_FEATURES, np.float32)]),
+                np.concatenate([obs_space.high, np.ones(N_REFERENCE_FEATURES, np.float32)]),
+                dtype=np.float32,
+            )
         act_space = action_space(action_mode)
         super().__init__(num_envs, obs_space, act_space)
         self._first_seed = seed

@@ -26,11 +26,20 @@ import time
 from collections import deque
 from pathlib import Path
 
-PAIRS = [("S1.1", "S1.2"), ("S2.1", "S2.2"), ("S2.3", "S2.4"), ("S2.5", "S2.6"), ("S3.1", "S3.2"),
-         ("S3.3", "S3.4"), ("S4.1", "S4.2"), ("S4.3", "S4.4"), ("S4.5", "S4.6")]
-W = 100          # samples in the moving mean (1 s at 100 Hz)
-Z = 6.0          # standard deviations of that mean: about 2e-9 per independent window fault-free
-TAU = 3000       # samples of the slow baseline (30 s)
+PAIRS = [
+    ("S1.1", "S1.2"),
+    ("S2.1", "S2.2"),
+    ("S2.3", "S2.4"),
+    ("S2.5", "S2.6"),
+    ("S3.1", "S3.2"),
+    ("S3.3", "S3.4"),
+    ("S4.1", "S4.2"),
+    ("S4.3", "S4.4"),
+    ("S4.5", "S4.6"),
+]
+W = 100  # samples in the moving mean (1 s at 100 Hz)
+Z = 6.0  # standard deviations of that mean: about 2e-9 per independent window fault-free
+TAU = 3000  # samples of the slow baseline (30 s)
 
 
 class PairDiagnoser:
@@ -41,8 +50,8 @@ class PairDiagnoser:
     def Initialize(self) -> None:
         self.window = {p: deque(maxlen=W) for p in PAIRS}
         self.sum = {p: 0.0 for p in PAIRS}
-        self.alarmed: dict[tuple, str] = {}                 # pair -> the twin judged faulty
-        self.slow: dict[str, float] = {}                    # per sensor: slow baseline
+        self.alarmed: dict[tuple, str] = {}  # pair -> the twin judged faulty
+        self.slow: dict[str, float] = {}  # per sensor: slow baseline
         self.recent = {s: deque(maxlen=W) for p in PAIRS for s in p}
 
     def Input(self, sample: dict[str, float]) -> tuple[int, list[float]]:
@@ -64,7 +73,7 @@ class PairDiagnoser:
             if len(win) == W and abs(self.sum[p] / W) > Z * sigma:
                 moved = [abs(sum(self.recent[s]) / len(self.recent[s]) - self.slow[s]) / self.bound[s] for s in p]
                 self.alarmed[p] = p[0] if moved[0] >= moved[1] else p[1]
-        rank = [0.0] * (len(self.fault_ids) + 1)            # the 26 faults, then unknown
+        rank = [0.0] * (len(self.fault_ids) + 1)  # the 26 faults, then unknown
         if not self.alarmed:
             return 0, rank
         for p, faulty in self.alarmed.items():
@@ -93,8 +102,9 @@ def main(raw_dir: str, pred_dir: str) -> int:
                 t0 = time.perf_counter()
                 detection, isolation = diagnoser.Input(sample)
                 elapsed = time.perf_counter() - t0
-                fout.write("%f,%f,%d," % (sample["time"], elapsed, detection)
-                           + ",".join("%f" % r for r in isolation) + "\n")
+                fout.write(
+                    "%f,%f,%d," % (sample["time"], elapsed, detection) + ",".join("%f" % r for r in isolation) + "\n"
+                )
     print(f"wrote {len(manifest['scenarios'])} output files to {pred}")
     return 0
 

@@ -23,8 +23,13 @@ from typing import Protocol, Sequence
 __all__ = ["MarineFDIError", "UsageError", "DataFileError", "DatasetError", "MissingExtra", "EXTRAS"]
 
 # optional module -> the extra of pyproject.toml that installs it
-EXTRAS: dict[str, str] = {"matplotlib": "plots", "pyarrow": "parquet", "ray": "ray", "torch": "train",
-                          "stable_baselines3": "train"}
+EXTRAS: dict[str, str] = {
+    "matplotlib": "plots",
+    "pyarrow": "parquet",
+    "ray": "ray",
+    "torch": "train",
+    "stable_baselines3": "train",
+}
 
 
 class MarineFDIError(ValueError):

@@ -33,15 +33,36 @@ from pathlib import Path
 
 from ._version import __version__
 
-__all__ = ["LAYERS", "ALLOWED", "ImportEdge", "layer_of", "package_roots", "package_modules", "import_edges",
-           "studies_imports", "check_imports", "print_imports"]
+__all__ = [
+    "LAYERS",
+    "ALLOWED",
+    "ImportEdge",
+    "layer_of",
+    "package_roots",
+    "package_modules",
+    "import_edges",
+    "studies_imports",
+    "check_imports",
+    "print_imports",
+]
 
 PACKAGE = "marine_fdi_env"
 
 # layer name -> module name prefixes (relative to the package), most specific first when matched
 LAYERS: dict[str, tuple[str, ...]] = {
-    "util": ("_version", "_jit", "_coldstart", "suggest", "plotting", "jsonfile", "errors", "outputs", "progress",
-             "layers"),
+    "util": (
+        "_version",
+        "_jit",
+        "_coldstart",
+        "suggest",
+        "plotting",
+        "jsonfile",
+        "errors",
+        "outputs",
+        "progress",
+        "costs",
+        "layers",
+    ),
     "params": ("engine.params", "engine.submodels"),
     "engine": ("engine",),
     "io": ("runio", "scenarios"),
@@ -83,7 +104,7 @@ class ImportEdge:
 
 def layer_of(module: str) -> str:
     """The layer of a module of the package (full dotted name)."""
-    rel = module[len(PACKAGE) + 1:] if module != PACKAGE else ""
+    rel = module[len(PACKAGE) + 1 :] if module != PACKAGE else ""
     best, best_len = None, -1
     for layer, prefixes in LAYERS.items():
         for pre in prefixes:
@@ -120,8 +141,11 @@ def package_modules() -> dict[str, Path]:
             if parts[-1] == "__init__":
                 parts = parts[:-1]
             name = ".".join([pkg] + parts)
-            if name.startswith(f"{PACKAGE}.baselines") and pkg == PACKAGE or (
-                    name.startswith(f"{PACKAGE}.training") and pkg == PACKAGE):
+            if (
+                name.startswith(f"{PACKAGE}.baselines")
+                and pkg == PACKAGE
+                or (name.startswith(f"{PACKAGE}.training") and pkg == PACKAGE)
+            ):
                 continue  # a stray copy inside the source folder: the installed one wins
             mods[name] = f
     return mods
@@ -129,7 +153,8 @@ def package_modules() -> dict[str, Path]:
 
 def _is_type_checking(test: ast.expr) -> bool:
     return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
-        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING"
+    )
 
 
 def _imports(tree: ast.AST):
@@ -163,7 +188,7 @@ def _resolved_imports(mods: dict[str, Path]):
                     base_parts = here.split(".")
                     if node.level - 1 > len(base_parts) - 1:
                         raise ValueError(f"{path}:{node.lineno}: relative import beyond the package")
-                    base = ".".join(base_parts[:len(base_parts) - (node.level - 1)])
+                    base = ".".join(base_parts[: len(base_parts) - (node.level - 1)])
                     base = f"{base}.{node.module}" if node.module else base
                 else:
                     base = node.module or ""
@@ -192,8 +217,11 @@ def import_edges(mods: dict[str, Path] | None = None) -> list[ImportEdge]:
 def studies_imports(mods: dict[str, Path] | None = None) -> list[ImportEdge]:
     """Every import of the repository's ``studies`` by a module of the package (there must be none)."""
     mods = package_modules() if mods is None else mods
-    return [ImportEdge(name, w, path, line, in_fn) for name, _, w, path, line, in_fn in _resolved_imports(mods)
-            if w == STUDIES or w.startswith(STUDIES + ".")]
+    return [
+        ImportEdge(name, w, path, line, in_fn)
+        for name, _, w, path, line, in_fn in _resolved_imports(mods)
+        if w == STUDIES or w.startswith(STUDIES + ".")
+    ]
 
 
 def _cycles(nodes, edges: list[ImportEdge]) -> list[list[str]]:
@@ -206,15 +234,19 @@ def _cycles(nodes, edges: list[ImportEdge]) -> list[list[str]]:
         if root in index:
             continue
         work = [(root, iter(sorted(succ[root])))]
-        index[root] = low[root] = counter[0]; counter[0] += 1
-        stack.append(root); on.add(root)
+        index[root] = low[root] = counter[0]
+        counter[0] += 1
+        stack.append(root)
+        on.add(root)
         while work:
             v, it = work[-1]
             nxt = next(it, None)
             if nxt is not None:
                 if nxt not in index:
-                    index[nxt] = low[nxt] = counter[0]; counter[0] += 1
-                    stack.append(nxt); on.add(nxt)
+                    index[nxt] = low[nxt] = counter[0]
+                    counter[0] += 1
+                    stack.append(nxt)
+                    on.add(nxt)
                     work.append((nxt, iter(sorted(succ[nxt]))))
                 elif nxt in on:
                     low[v] = min(low[v], index[nxt])
@@ -225,7 +257,9 @@ def _cycles(nodes, edges: list[ImportEdge]) -> list[list[str]]:
             if low[v] == index[v]:
                 comp = []
                 while True:
-                    w = stack.pop(); on.discard(w); comp.append(w)
+                    w = stack.pop()
+                    on.discard(w)
+                    comp.append(w)
                     if w == v:
                         break
                 if len(comp) > 1:
@@ -246,8 +280,14 @@ def check_imports(mods: dict[str, Path] | None = None) -> dict:
             layers[a][b] = layers[a].get(b, 0) + 1
         if b not in ALLOWED[a]:
             backward.append(e)
-    return {"modules": mods, "edges": edges, "layers": layers, "cycles": _cycles(mods, edges),
-            "backward": backward, "studies": studies_imports(mods)}
+    return {
+        "modules": mods,
+        "edges": edges,
+        "layers": layers,
+        "cycles": _cycles(mods, edges),
+        "backward": backward,
+        "studies": studies_imports(mods),
+    }
 
 
 def _where(e: ImportEdge) -> str:
@@ -283,8 +323,10 @@ def print_imports(result: dict, verbose: bool = False, file=None) -> int:
         status = 1
         print(f"BACKWARD IMPORTS ({len(result['backward'])}):", file=file)
         for e in result["backward"]:
-            print(f"  {e.importer} [{layer_of(e.importer)}] -> {e.imported} [{layer_of(e.imported)}]  ({_where(e)})",
-                  file=file)
+            print(
+                f"  {e.importer} [{layer_of(e.importer)}] -> {e.imported} [{layer_of(e.imported)}]  ({_where(e)})",
+                file=file,
+            )
     if result.get("studies"):
         status = 1
         print(f"IMPORTS OF THE REPOSITORY'S STUDIES ({len(result['studies'])}):", file=file)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from .errors import UsageError
 
-__all__ = ["prepare_out", "differing_fields"]
+__all__ = ["prepare_out", "check_suffix", "differing_fields"]
 
 
 def prepare_out(path: "str | Path", option: str = "--out", *, is_dir: bool = True, create: bool = True) -> Path:
@@ -24,8 +24,9 @@ def prepare_out(path: "str | Path", option: str = "--out", *, is_dir: bool = Tru
     parent = p.parent
     if not parent.exists():
         if not parent.parent.is_dir():
-            raise UsageError(f"{option}: folder {str(parent.parent)!r} does not exist (only the parent of "
-                             f"{option} is created)")
+            raise UsageError(
+                f"{option}: folder {str(parent.parent)!r} does not exist (only the parent of {option} is created)"
+            )
         if create:
             parent.mkdir()
     elif not parent.is_dir():
@@ -37,6 +38,18 @@ def prepare_out(path: "str | Path", option: str = "--out", *, is_dir: bool = Tru
             p.mkdir(exist_ok=True)
     elif p.is_dir():
         raise UsageError(f"{option} must be a file path, got the folder {str(p)!r}")
+    return p
+
+
+def check_suffix(path: "str | Path", option: str, allowed: tuple[str, ...], what: str) -> Path:
+    """``path`` if its extension is one of ``allowed`` (the formats it can be written in), else a
+    :class:`UsageError` naming the option, the extensions and what the file holds."""
+    p = Path(path)
+    if p.suffix.lower() not in allowed:
+        raise UsageError(
+            f"{option} {str(p)!r}: {what} ends in {' or '.join(allowed)} (the format it is written in), "
+            f"got {p.suffix or 'no extension'!r}"
+        )
     return p
 
 
@@ -53,11 +66,14 @@ def differing_fields(old, new, prefix: str = "") -> str:
         elif k not in new:
             parts.append(f"{name}: {_short(old[k])} there, missing here")
         elif old[k] != new[k]:
-            parts.append(differing_fields(old[k], new[k], name) if isinstance(old[k], dict) and isinstance(new[k], dict)
-                         else f"{name}: {_short(old[k])} there, {_short(new[k])} here")
+            parts.append(
+                differing_fields(old[k], new[k], name)
+                if isinstance(old[k], dict) and isinstance(new[k], dict)
+                else f"{name}: {_short(old[k])} there, {_short(new[k])} here"
+            )
     return "; ".join(parts) or "no field differs"
 
 
 def _short(v, width: int = 60) -> str:
     text = repr(v)
-    return text if len(text) <= width else text[:width - 3] + "..."
+    return text if len(text) <= width else text[: width - 3] + "..."

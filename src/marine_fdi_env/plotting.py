@@ -11,8 +11,9 @@ def pyplot(hint: str = ""):
     try:
         import matplotlib
     except ImportError:
-        raise RuntimeError("plots need matplotlib: pip install 'marine-fdi-env[plots]'"
-                           + (f" ({hint})" if hint else "")) from None
+        raise RuntimeError(
+            "plots need matplotlib: pip install 'marine-fdi-env[plots]'" + (f" ({hint})" if hint else "")
+        ) from None
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 

@@ -49,7 +49,14 @@ __all__ = ["save_run", "load_run", "RunData", "fault_unit", "FORMAT_NAME", "FORM
 FORMAT_NAME = "marine-fdi-run"
 FORMAT_VERSION = 1
 REQUIRED_ARRAYS: tuple[str, ...] = (
-    "t", "measurements", "sensor_ids", "truth", "truth_variables", "fault_ids", "fault_active", "fault_value",
+    "t",
+    "measurements",
+    "sensor_ids",
+    "truth",
+    "truth_variables",
+    "fault_ids",
+    "fault_active",
+    "fault_value",
     "metadata",
 )
 _SENSOR_UNIT = {s.id: s.unit for s in SENSORS}
@@ -282,21 +289,23 @@ class RunData:
                 act = self.active(spec.fault_id, e) if spec.fault_id in self.fault_ids else np.zeros(0, bool)
                 idx = np.flatnonzero(act)
                 first = float(self.t[idx[0]]) if idx.size else None
-                out.append({
-                    "engine": e,
-                    "id": spec.fault_id,
-                    "class": d["class"],
-                    "kind": d["kind"],
-                    "onset_s": d["onset_s"],
-                    "magnitude": None if math.isnan(d["magnitude"]) else d["magnitude"],
-                    "unit": fault_unit(spec),
-                    "kappa": d["kappa"],
-                    "end_s": d["end_s"],
-                    "period_s": d["period_s"],
-                    "duty": d["duty"],
-                    "first_active_s": first,
-                    "active_in_run": first is not None,
-                })
+                out.append(
+                    {
+                        "engine": e,
+                        "id": spec.fault_id,
+                        "class": d["class"],
+                        "kind": d["kind"],
+                        "onset_s": d["onset_s"],
+                        "magnitude": None if math.isnan(d["magnitude"]) else d["magnitude"],
+                        "unit": fault_unit(spec),
+                        "kappa": d["kappa"],
+                        "end_s": d["end_s"],
+                        "period_s": d["period_s"],
+                        "duty": d["duty"],
+                        "first_active_s": first,
+                        "active_in_run": first is not None,
+                    }
+                )
         return out
 
     def _engine(self, engine: int) -> int:
@@ -379,24 +388,31 @@ def load_run(path: "str | os.PathLike[str]", *, allow_nonfinite: bool = False) -
     if f_act.dtype != bool:
         raise ValueError(f"{where}: array 'fault_active' must be boolean, got dtype {f_act.dtype}")
     if sensor_ids != SENSOR_IDS:
-        raise ValueError(f"{where}: array 'sensor_ids' must be the {len(SENSOR_IDS)} sensors "
-                         f"{', '.join(SENSOR_IDS)} in this order, got {', '.join(sensor_ids)}")
+        raise ValueError(
+            f"{where}: array 'sensor_ids' must be the {len(SENSOR_IDS)} sensors "
+            f"{', '.join(SENSOR_IDS)} in this order, got {', '.join(sensor_ids)}"
+        )
     if t.ndim != 1 or t.shape[0] < 1:
         raise ValueError(f"{where}: array 't' must have shape (T,) with T >= 1, got {t.shape}")
     T = t.shape[0]
     if meas.ndim != 3 or meas.shape[0] != T or meas.shape[2] != len(SENSOR_IDS) or meas.shape[1] < 1:
-        raise ValueError(f"{where}: array 'measurements' must have shape (T, N, {len(SENSOR_IDS)}) = "
-                         f"(samples, engines, sensors) with T = {T} from 't', got {meas.shape}")
+        raise ValueError(
+            f"{where}: array 'measurements' must have shape (T, N, {len(SENSOR_IDS)}) = "
+            f"(samples, engines, sensors) with T = {T} from 't', got {meas.shape}"
+        )
     N = meas.shape[1]
     k = len(truth_vars)
     if truth.shape != (T, N, k):
-        raise ValueError(f"{where}: array 'truth' must have shape (T, N, k) = {(T, N, k)} "
-                         f"(k = len(truth_variables)), got {truth.shape}")
+        raise ValueError(
+            f"{where}: array 'truth' must have shape (T, N, k) = {(T, N, k)} "
+            f"(k = len(truth_variables)), got {truth.shape}"
+        )
     nF = len(fault_ids)
     for name, a in (("fault_active", f_act), ("fault_value", f_val)):
         if a.shape != (T, N, nF):
-            raise ValueError(f"{where}: array {name!r} must have shape (T, N, F) = {(T, N, nF)} "
-                             f"(F = len(fault_ids)), got {a.shape}")
+            raise ValueError(
+                f"{where}: array {name!r} must have shape (T, N, F) = {(T, N, nF)} (F = len(fault_ids)), got {a.shape}"
+            )
     scheds = meta.get("schedules")
     if scheds is not None and (not isinstance(scheds, list) or len(scheds) != N):
         raise ValueError(f"{where}: metadata 'schedules' must hold one fault list per engine ({N})")
@@ -407,25 +423,32 @@ def load_run(path: "str | os.PathLike[str]", *, allow_nonfinite: bool = False) -
         raise ValueError(f"{where}: array 't' has a non-finite value at sample {bad[0]}")
     if T > 1 and not np.all(np.diff(t) > 0):
         k0 = int(np.flatnonzero(~(np.diff(t) > 0))[0])
-        raise ValueError(f"{where}: array 't' must increase strictly; sample {k0 + 1} (t={t[k0 + 1]:g} s) "
-                         f"does not follow sample {k0} (t={t[k0]:g} s)")
+        raise ValueError(
+            f"{where}: array 't' must increase strictly; sample {k0 + 1} (t={t[k0 + 1]:g} s) "
+            f"does not follow sample {k0} (t={t[k0]:g} s)"
+        )
     if not allow_nonfinite:
         bad = _first_nonfinite(meas)
         if bad is not None:
             i, e, j = bad
-            raise ValueError(f"{where}: sensor {sensor_ids[j]} of engine {e} has a non-finite value "
-                             f"({meas[i, e, j]}) at sample {i} (t={t[i]:.6g} s); "
-                             f"pass allow_nonfinite=True to accept dropouts")
+            raise ValueError(
+                f"{where}: sensor {sensor_ids[j]} of engine {e} has a non-finite value "
+                f"({meas[i, e, j]}) at sample {i} (t={t[i]:.6g} s); "
+                f"pass allow_nonfinite=True to accept dropouts"
+            )
     bad = _first_nonfinite(truth)
     if bad is not None:
         i, e, j = bad
-        raise ValueError(f"{where}: truth variable {truth_vars[j]} of engine {e} has a non-finite value "
-                         f"at sample {i} (t={t[i]:.6g} s)")
+        raise ValueError(
+            f"{where}: truth variable {truth_vars[j]} of engine {e} has a non-finite value "
+            f"at sample {i} (t={t[i]:.6g} s)"
+        )
     bad = _first_nonfinite(f_val)
     if bad is not None:
         i, e, j = bad
-        raise ValueError(f"{where}: fault_value of {fault_ids[j]} (engine {e}) has a non-finite value "
-                         f"at sample {i} (t={t[i]:.6g} s)")
+        raise ValueError(
+            f"{where}: fault_value of {fault_ids[j]} (engine {e}) has a non-finite value at sample {i} (t={t[i]:.6g} s)"
+        )
 
     run = RunData(
         t=t.astype(float, copy=False),

@@ -86,5 +86,6 @@ def get_scenario(name: str) -> Scenario:
     except (KeyError, TypeError):
         from .suggest import did_you_mean
 
-        raise ValueError(f"unknown scenario {name!r}{did_you_mean(name, SCENARIOS)}; allowed: {', '.join(SCENARIOS)}") \
-            from None
+        raise ValueError(
+            f"unknown scenario {name!r}{did_you_mean(name, SCENARIOS)}; allowed: {', '.join(SCENARIOS)}"
+        ) from None

@@ -1,4 +1,4 @@
-""""Did you mean ...?" for a misspelled name (a fault id, suite, preset, scenario, agent)."""
+""" "Did you mean ...?" for a misspelled name (a fault id, suite, preset, scenario, agent)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """Development check of a learned agent on held-out episodes of its own training distribution.
 
     python -m studies.agents.development --agent training/models/classifier/seed0
-    python -m studies.agents.development --agent training/models/ppo/seed0 --episodes 256 --seed 31
+    python -m studies.agents.development --agent training/models/ppo-v1 --episodes 256 --seed 31
 
 The noise-invariant agents were developed on these numbers, never on a frozen suite: episodes drawn
 like the robust training data (every sampler profile family, fuel settings 0.3-1.0, 0-2 faults at
@@ -19,12 +19,15 @@ from studies.paths import REPO
 
 __all__ = ["DEV_SPEC", "development_metrics", "main"]
 
-DEV_SPEC = {"preset": "default",
-            "config": {"name": "robust-development",
-                       "profiles": [["constant", 1.0], ["step", 1.0], ["ramp", 1.0], ["random", 1.0],
-                                    ["manoeuvring", 1.0]],
-                       "load_range": [0.3, 1.0]},
-            "noise_scales": [0.5, 0.75, 1.0, 1.25, 1.5]}
+DEV_SPEC = {
+    "preset": "default",
+    "config": {
+        "name": "robust-development",
+        "profiles": [["constant", 1.0], ["step", 1.0], ["ramp", 1.0], ["random", 1.0], ["manoeuvring", 1.0]],
+        "load_range": [0.3, 1.0],
+    },
+    "noise_scales": [0.5, 0.75, 1.0, 1.25, 1.5],
+}
 
 
 def development_metrics(agent_spec: str, episodes: int = 256, seed: int = 31) -> dict:
@@ -51,16 +54,20 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     spec = str(REPO / args.agent) if (REPO / args.agent).exists() else args.agent
     res = development_metrics(spec, args.episodes, args.seed)
-    print("| episodes | detection | isolation acc. | false alarms | FA episodes (fault-free) | censored median det. [s] |")
+    print(
+        "| episodes | detection | isolation acc. | false alarms | FA episodes (fault-free) | censored median det. [s] |"
+    )
     print("|---|---:|---:|---:|---:|---:|")
     for k, m in res.items():
         ff = m.get("by_class", {}).get("none") or {}
         fa_ff, n_ff = ff.get("false_alarm_episode_rate"), ff.get("n_episodes")
         cm = m["median_detection_delay_censored_s"]
         ff_text = "–" if fa_ff is None else f"{100 * fa_ff:.1f} % of {n_ff}"
-        print(f"| {k} ({m['n_episodes']}) | {100 * (m['detection_rate'] or 0):.1f} % | "
-              f"{100 * (m['isolation_accuracy'] or 0):.1f} % | {m['n_false_alarms']} ({m['false_alarm_rate']:.2f}/h) | "
-              f"{ff_text} | {'–' if cm is None else f'{cm:.1f}'} |")
+        print(
+            f"| {k} ({m['n_episodes']}) | {100 * (m['detection_rate'] or 0):.1f} % | "
+            f"{100 * (m['isolation_accuracy'] or 0):.1f} % | {m['n_false_alarms']} ({m['false_alarm_rate']:.2f}/h) | "
+            f"{ff_text} | {'–' if cm is None else f'{cm:.1f}'} |"
+        )
     return 0
 
 

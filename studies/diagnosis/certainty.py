@@ -30,13 +30,12 @@ fired at or after the onset; a run where nothing fired cannot be misdiagnosed), 
 when m fired in every one of them, at every magnitude, sign and profile.  ``lag_s`` = the largest
 delay of a sure module after the fault's first fired module (any module of its support; the
 grace periods); ``spread_s`` = the largest of these lags per fault (the settle time of the
-time-order check: at small sizes a module that is not sure often fires before the sure ones).  (The first version required firing in all runs at the
-table size and, for sensor faults, within 30 s of the first sure module.)
+time-order check: at small sizes a module that is not sure often fires before the sure ones).
 
 **Validation** (``validate``, ``report``): held-out magnitudes (the geometric midpoints of the
 grid), seeds (2e6 + ..., 3 per cell) and profiles (``step`` and ``ramp`` at fuel settings 0.6-1.0,
 ``random``); the
-decision logic is replayed on the measured module firing times with the old and the new sure
+decision logic is replayed on the measured module firing times with each cell set's sure
 cells (the module decisions do not depend on the decision logic), and the runs where the true
 fault is ruled out (in no minimal diagnosis) while the diagnoser declares another are counted per
 fault.
@@ -53,24 +52,48 @@ from pathlib import Path
 
 import numpy as np
 
-from marine_fdi_env.engine.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, FaultSpec
-from marine_fdi_env.engine.simulator import Simulator
 from marine_fdi_env.diagnosis.batch import BATCH, DIAGNOSERS, PARAMS
-from marine_fdi_env.diagnosis.sequential import SequentialDiagnoser
+from marine_fdi_env.diagnosis.cell_sets import size_blind_cells
 from marine_fdi_env.diagnosis.decision import DiagnosisState, declared_faults
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
+from marine_fdi_env.diagnosis.peak_ratio import PeakRecorder, peak_at
+from marine_fdi_env.diagnosis.sequential import SequentialDiagnoser
+from marine_fdi_env.diagnosis.sized_cells import SIZED_FILES, SizedCells, load_sized_cells
+from marine_fdi_env.diagnosis.sized_decision import SizedDiagnosisState
 from marine_fdi_env.diagnosis.structure import fault_signature_matrix
-from marine_fdi_env.diagnosis.sure_cells import (SURE_CELLS_FILE, SureCells, grace_times, load_sure_cells, settle_times,  # noqa: F401
-                         sure_cells)
+from marine_fdi_env.diagnosis.sure_cells import (
+    SURE_CELLS_FILE,
+    SureCells,
+    grace_times,
+    load_sure_cells,
+    settle_times,  # noqa: F401
+    sure_cells,
+)
+from marine_fdi_env.engine.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, FaultSpec
+from marine_fdi_env.engine.simulator import Simulator
 from studies.paths import PACKAGE_DATA
 
-__all__ = ["grid_magnitudes", "measure", "derive_sure_cells", "replay_declarations", "validate",
-           "sure_cells", "settle_times", "grace_times", "SENSOR_ONSET_S", "N_GRID", "SURE_FILES"]
+from .sized_derivation import derive_sized_cells
+
+__all__ = [
+    "grid_magnitudes",
+    "measure",
+    "derive_sure_cells",
+    "replay_declarations",
+    "validate",
+    "sure_cells",
+    "settle_times",
+    "grace_times",
+    "SENSOR_ONSET_S",
+    "N_GRID",
+    "SURE_FILES",
+]
 
 SENSOR_ONSET_S = 30.0
 DURATION_S = 300.0
 N_GRID = 5
 LOWEST_SCALE = 0.5  # x detectability limit
+THIN_GAP = 4.0  # a gap between adjacent grid sizes wider than this gets two more sizes (sized_magnitudes)
 GRID_PROFILES = ("constant", "manoeuvring")
 HELD_OUT_PROFILES = ("step", "ramp", "random")
 SURE_FILES = {"reference": SURE_CELLS_FILE, "sequential": "sequential_sure_cells.json"}
@@ -101,6 +124,19 @@ def grid_magnitudes(fault_id: str, held_out: bool = False) -> list[float]:
     return [float(v) for v in x]
 
 
+def sized_magnitudes(fault_id: str) -> list[float]:
+    """The magnitudes of the size-aware cells: the grid's (:func:`grid_magnitudes`) and, in every
+    gap between adjacent grid sizes wider than a factor ``THIN_GAP``, two more at its log-thirds
+    (not at the geometric midpoints, which are the held-out sizes); ascending."""
+    g = grid_magnitudes(fault_id)
+    out = [g[0]]
+    for a, b in zip(g[:-1], g[1:]):
+        if b / a > THIN_GAP:
+            out += [a * (b / a) ** (1.0 / 3.0), a * (b / a) ** (2.0 / 3.0)]
+        out.append(b)
+    return out
+
+
 def _profile(name: str, rng: np.random.Generator) -> str:
     u0, u1 = (round(float(v), 4) for v in rng.uniform(0.6, 1.0, size=2))
     if name == "constant":
@@ -115,34 +151,68 @@ def _profile(name: str, rng: np.random.Generator) -> str:
     return name
 
 
-def _runs(held_out: bool, n_seeds: int) -> list[dict]:
+def _runs(held_out: bool, n_seeds: int, seed0: int | None = None) -> list[dict]:
+    """The runs of the grid (or the held-out grid).  The grid's own runs come first, in the order
+    and with the seeds and profiles they always had (so the grid cells derive from them unchanged);
+    the runs at the sizes that :func:`sized_magnitudes` adds follow (``grid_index`` None)."""
     profiles = HELD_OUT_PROFILES if held_out else GRID_PROFILES
-    seed0 = HELD_OUT_SEED0 if held_out else GRID_SEED0
+    if seed0 is None:
+        seed0 = HELD_OUT_SEED0 if held_out else GRID_SEED0
     rng = np.random.default_rng(seed0)
     runs = []
-    for f in FAULT_IDS:
+
+    def add(f, mags, grid_index, size_index):
         signs = (1.0,) if f in PROCESS_FAULT_DEFAULTS else (1.0, -1.0)
-        for j, mag in enumerate(grid_magnitudes(f, held_out)):
+        for j, mag in zip(grid_index, mags):
             for sign in signs:
                 for prof in profiles:
                     for s in range(n_seeds):
-                        runs.append({"fault": f, "magnitude": sign * mag, "grid_index": j, "profile": _profile(prof, rng),
-                                     "family": prof, "seed": seed0 + len(runs)})
+                        runs.append(
+                            {
+                                "fault": f,
+                                "magnitude": sign * mag,
+                                "grid_index": j,
+                                "size_index": size_index(mag),
+                                "profile": _profile(prof, rng),
+                                "family": prof,
+                                "seed": seed0 + len(runs),
+                            }
+                        )
+
+    for f in FAULT_IDS:
+        g = grid_magnitudes(f, held_out)
+        sized = sized_magnitudes(f)
+        add(f, g, range(len(g)), (lambda m: None) if held_out else sized.index)
+    if not held_out:
+        for f in FAULT_IDS:
+            sized = sized_magnitudes(f)
+            extra = [m for m in sized if m not in grid_magnitudes(f)]
+            add(f, extra, [None] * len(extra), sized.index)
     return runs
 
 
-def measure(n_seeds: int = 8, held_out: bool = False, progress: bool = True) -> dict:
+def measure(n_seeds: int = 8, held_out: bool = False, progress: bool = True, seed0: int | None = None) -> dict:
     """Module firing times of every run of the grid (or the held-out grid) for both diagnosers at
     once (the sequential diagnoser runs the reference's residual generators and worst-case tests):
     {"reference": (runs, 19), "sequential": (runs, 19)} seconds after the fault's onset (NaN:
     never), with each run's fault, magnitude, profile and seed."""
-    runs = _runs(held_out, n_seeds)
-    schedules = [[FaultSpec(r["fault"], _onset(r["fault"]), magnitude=r["magnitude"],
-                            kind=None if r["fault"] in PROCESS_FAULT_DEFAULTS else "offset")] for r in runs]
+    runs = _runs(held_out, n_seeds, seed0)
+    schedules = [
+        [
+            FaultSpec(
+                r["fault"],
+                _onset(r["fault"]),
+                magnitude=r["magnitude"],
+                kind=None if r["fault"] in PROCESS_FAULT_DEFAULTS else "offset",
+            )
+        ]
+        for r in runs
+    ]
     seeds = [r["seed"] for r in runs]
     profiles = [r["profile"] for r in runs]
     ref_t = np.full((len(runs), len(MODULE_IDS)), np.nan)
     seq_t = np.full((len(runs), len(MODULE_IDS)), np.nan)
+    peaks: list = []
     bar = None
     if progress:
         from tqdm import tqdm
@@ -152,26 +222,39 @@ def measure(n_seeds: int = 8, held_out: bool = False, progress: bool = True) -> 
         b = min(len(runs), a + BATCH)
         sim = Simulator(PARAMS, b - a, seeds=seeds[a:b], faults=schedules[a:b], profiles=profiles[a:b])
         agent = SequentialDiagnoser(PARAMS, n_engines=b - a, dt=sim.dt, exoneration="none")
-        agent.observe(sim.y[:, None, :], sim.u[:, None])
-        for _ in range(int(round(DURATION_S / sim.dt / 1000))):
+        rec = PeakRecorder(b - a)
+        on = np.array([_onset(r["fault"]) for r in runs[a:b]])
+        out = agent.observe(sim.y[:, None, :], sim.u[:, None])
+        rec.update(out.residuals, out.thresholds, -on, sim.dt)
+        for k in range(int(round(DURATION_S / sim.dt / 1000))):
             blk = sim.advance(1000)
-            agent.observe(blk.measurements, blk.u)
+            out = agent.observe(blk.measurements, blk.u)
+            rec.update(out.residuals, out.thresholds, (1 + 1000 * k) * sim.dt - on, sim.dt)
         ref_t[a:b] = agent.ref.first_violation
         seq_t[a:b] = agent.stage.first
+        peaks += rec.events
         if bar is not None:
             bar.update(b - a)
     if bar is not None:
         bar.close()
     on = np.array([_onset(r["fault"]) for r in runs])[:, None]
-    return {"held_out": held_out, "n_seeds": n_seeds, "runs": runs, "duration_s": DURATION_S,
-            "sensor_onset_s": SENSOR_ONSET_S,
-            "times_after_onset_s": {"reference": (ref_t - on).tolist(), "sequential": (seq_t - on).tolist()}}
+    return {
+        "held_out": held_out,
+        "n_seeds": n_seeds,
+        "runs": runs,
+        "duration_s": DURATION_S,
+        "sensor_onset_s": SENSOR_ONSET_S,
+        "times_after_onset_s": {"reference": (ref_t - on).tolist(), "sequential": (seq_t - on).tolist()},
+        "peak_events": peaks,
+    }
 
 
 def derive_sure_cells(grid: dict, diagnoser: str) -> dict:
-    """The sure-cell file content of a diagnoser from a measured grid (rule in the module docstring)."""
-    runs = grid["runs"]
-    times = np.asarray(grid["times_after_onset_s"][diagnoser], dtype=float)
+    """The sure-cell file content of a diagnoser from a measured grid (rule in the module docstring);
+    the runs at the sizes only the sized cells use (``grid_index`` None) are left out."""
+    own = [k for k, r in enumerate(grid["runs"]) if r.get("grid_index", 0) is not None]
+    runs = [grid["runs"][k] for k in own]
+    times = np.asarray(grid["times_after_onset_s"][diagnoser], dtype=float)[own]
     fired = ~np.isnan(times) & (times >= 0.0)
     sure = np.zeros((len(MODULE_IDS), len(FAULT_IDS)), dtype=bool)
     lag = np.zeros(sure.shape)
@@ -200,33 +283,69 @@ def derive_sure_cells(grid: dict, diagnoser: str) -> dict:
             # fault's first fired module, not only their spread among themselves (the first format)
             spread[j] = float(lag[idx, j].max())
     return {
-        "format": 2, "module_ids": list(MODULE_IDS), "fault_ids": list(FAULT_IDS),
-        "sure": sure.astype(int).tolist(), "lag_s": lag.round(3).tolist(), "spread_s": spread.round(3).tolist(),
-        "detected_runs": detected_runs.tolist(), "runs": total_runs.tolist(),
-        "settings": {"diagnoser": diagnoser, "grid": f"{N_GRID} magnitudes log-spaced from {LOWEST_SCALE}x the "
-                     "detectability limit (data/env/detectability.json) to the table 6.3/6.4 size; sensor offsets "
-                     "of both signs", "profiles": list(GRID_PROFILES), "seeds_per_cell": grid["n_seeds"],
-                     "first_seed": GRID_SEED0, "duration_s": grid["duration_s"],
-                     "sensor_onset_s": grid["sensor_onset_s"],
-                     "rule": "sure = fired in every run where the fault was detected (any module of its support "
-                             "fired at or after the onset), at every magnitude, sign and profile of the grid"},
+        "format": 2,
+        "module_ids": list(MODULE_IDS),
+        "fault_ids": list(FAULT_IDS),
+        "sure": sure.astype(int).tolist(),
+        "lag_s": lag.round(3).tolist(),
+        "spread_s": spread.round(3).tolist(),
+        "detected_runs": detected_runs.tolist(),
+        "runs": total_runs.tolist(),
+        "settings": {
+            "diagnoser": diagnoser,
+            "grid": f"{N_GRID} magnitudes log-spaced from {LOWEST_SCALE}x the "
+            "detectability limit (data/env/detectability.json) to the table 6.3/6.4 size; sensor offsets "
+            "of both signs",
+            "profiles": list(GRID_PROFILES),
+            "seeds_per_cell": grid["n_seeds"],
+            "first_seed": GRID_SEED0,
+            "duration_s": grid["duration_s"],
+            "sensor_onset_s": grid["sensor_onset_s"],
+            "rule": "sure = fired in every run where the fault was detected (any module of its support "
+            "fired at or after the onset), at every magnitude, sign and profile of the grid",
+        },
         "command": f"python -m studies.diagnosis.certainty derive --diagnoser {diagnoser}",
     }
 
 
-def replay_declarations(times, fault: str, sc: SureCells, duration_s: float = DURATION_S,
-                        onset_s: float = 0.0) -> dict:
+def replay_declarations(
+    times,
+    fault: str,
+    sc: "SureCells | SizedCells",
+    duration_s: float = DURATION_S,
+    onset_s: float = 0.0,
+    peak_events=None,
+) -> dict:
     """Replay the decision logic on one run's module firing times (19,) [s from the run's start,
     NaN: never]: the events where the fired set changes and the grace expiries, as the streaming
-    diagnoser meets them.  Returns whether the true ``fault`` was ever ruled out while another was
-    declared (``wrong``), at which time, the final declaration, and since when the diagnoser has
-    declared exactly {fault} if it does at the end (``isolated_from_s``)."""
-    st = DiagnosisState(exoneration=sc.sure, max_cardinality=2, temporal=True, settle_s=sc.settle_times(),
-                        grace_s=sc.grace_times())
+    diagnoser meets them; with sized cells (:class:`SizedCells`) also the run's recorded running
+    peaks (``peak_events``: 19 lists of [time from the run's start, peak]) and the band changes.
+    Returns whether the true ``fault`` was ever ruled out while another was declared
+    (``wrong``), at which time, the final declaration, and since when the diagnoser has declared
+    exactly {fault} if it does at the end (``isolated_from_s``)."""
     t = np.asarray(times, dtype=float)
     order = sorted(set(float(x) for x in t[~np.isnan(t)]))
-    out = {"wrong": False, "wrong_at_s": None, "declared_end": [], "ruled_out_end": False, "detected": bool(order),
-           "isolated_from_s": None}
+    if isinstance(sc, SizedCells):
+        st = SizedDiagnosisState(sc, max_cardinality=2)
+        peak_t = sorted({float(e[0]) for ev in peak_events for e in ev})
+        order_all = sorted(set(order) | {x for x in peak_t if order and x >= order[0]})
+    else:
+        st = DiagnosisState(
+            exoneration=sc.sure, max_cardinality=2, temporal=True, settle_s=sc.settle_times(), grace_s=sc.grace_times()
+        )
+        order_all = order
+
+    def peaks_at(now):
+        return None if peak_events is None else np.array([peak_at(ev, now) for ev in peak_events])
+
+    out = {
+        "wrong": False,
+        "wrong_at_s": None,
+        "declared_end": [],
+        "ruled_out_end": False,
+        "detected": bool(order),
+        "isolated_from_s": None,
+    }
     history = []
 
     def look(now):
@@ -236,13 +355,16 @@ def replay_declarations(times, fault: str, sc: SureCells, duration_s: float = DU
             out["wrong"], out["wrong_at_s"] = True, now
         history.append((now, decl))
 
-    for ev in order:
+    for ev in order_all:
         # grace periods that end before this event
         while st.temporal and st.fired.any() and st._next_expiry < ev:
             te = st._next_expiry + 1e-9
             st.advance(te)
             look(te)
-        st.update(~np.isnan(t) & (t <= ev), ev)
+        if isinstance(st, SizedDiagnosisState):
+            st.update(~np.isnan(t) & (t <= ev), ev, peaks_at(ev))
+        else:
+            st.update(~np.isnan(t) & (t <= ev), ev)
         look(ev)
     while st.fired.any() and st._next_expiry < duration_s:
         te = st._next_expiry + 1e-9
@@ -263,34 +385,42 @@ def replay_declarations(times, fault: str, sc: SureCells, duration_s: float = DU
     return out
 
 
-def _old_sure_cells() -> SureCells:
-    """The sure cells shipped before the grid measurement (table magnitudes only), kept for the
-    before/after comparison: ``data/diagnosis/sure_cells_table_magnitudes.json``."""
-    return load_sure_cells("sure_cells_table_magnitudes.json")
-
-
-def validate(held: dict, diagnoser: str, new: SureCells, old: SureCells | None = None) -> dict:
+def validate(held: dict, diagnoser: str, cell_sets: dict) -> dict:
     """Wrong isolations (true fault ruled out, another declared) per fault on a measured run set,
-    with the new and (if given) the old sure cells."""
+    for each of ``cell_sets`` ({name: :class:`SureCells` or :class:`SizedCells`})."""
     runs = held["runs"]
     times = np.asarray(held["times_after_onset_s"][diagnoser], dtype=float)
+    peaks = held.get("peak_events")
     res = {}
-    for name, sc in (("new", new), ("old", old)):
-        if sc is None:
-            continue
-        per = {f: {"runs": 0, "detected": 0, "wrong": 0, "wrong_examples": []} for f in FAULT_IDS}
-        for r, tt in zip(runs, times):
+    for name, sc in cell_sets.items():
+        if isinstance(sc, SizedCells) and peaks is None:
+            raise ValueError("the held-out runs have no peak records: measure them again with this version")
+        per = {
+            f: {"runs": 0, "detected": 0, "wrong": 0, "wrong_end": 0, "isolated_end": 0, "wrong_examples": []}
+            for f in FAULT_IDS
+        }
+        for k, (r, tt) in enumerate(zip(runs, times)):
             f = r["fault"]
             on = _onset(f)
-            rep = replay_declarations(tt + on, f, sc, held["duration_s"], on)
+            ev = None if peaks is None else [[[e[0] + on, e[1]] for e in m] for m in peaks[k]]
+            rep = replay_declarations(tt + on, f, sc, held["duration_s"], on, ev)
             p = per[f]
             p["runs"] += 1
             p["detected"] += int(rep["detected"])
+            p["wrong_end"] += int(rep["ruled_out_end"] and bool(rep["declared_end"]))
+            p["isolated_end"] += int(rep["declared_end"] == [f])
             if rep["wrong"]:
                 p["wrong"] += 1
                 if len(p["wrong_examples"]) < 3:
-                    p["wrong_examples"].append({"magnitude": r["magnitude"], "profile": r["profile"], "seed": r["seed"],
-                                                "at_s": rep["wrong_at_s"], "declared_end": rep["declared_end"]})
+                    p["wrong_examples"].append(
+                        {
+                            "magnitude": r["magnitude"],
+                            "profile": r["profile"],
+                            "seed": r["seed"],
+                            "at_s": rep["wrong_at_s"],
+                            "declared_end": rep["declared_end"],
+                        }
+                    )
         res[name] = per
     return res
 
@@ -301,15 +431,23 @@ def main(argv=None) -> int:
     ap.add_argument("--diagnoser", choices=DIAGNOSERS, default="reference", help="derive / report: which one")
     ap.add_argument("--seeds", type=int, default=None, help="seeds per grid cell (measure 6, validate 3)")
     ap.add_argument("--work-dir", type=Path, default=Path("results/certainty"))
+    ap.add_argument(
+        "--first-seed",
+        type=int,
+        default=HELD_OUT_SEED0,
+        help=f"validate / report: first seed of the held-out runs (default {HELD_OUT_SEED0}, the "
+        "reported ones; another value makes a development set beside them)",
+    )
     args = ap.parse_args(argv)
     grid_file = args.work_dir / "grid.json"
-    held_file = args.work_dir / "held_out.json"
+    dev = args.first_seed != HELD_OUT_SEED0
+    held_file = args.work_dir / ("held_out.json" if not dev else f"held_out_{args.first_seed}.json")
     data_dir = PACKAGE_DATA / "diagnosis"
     if args.what in ("measure", "validate"):
         n = args.seeds or (6 if args.what == "measure" else 3)
         if n < 1:
             ap.error("--seeds must be >= 1")
-        data = measure(n, held_out=args.what == "validate")
+        data = measure(n, held_out=args.what == "validate", seed0=args.first_seed if args.what == "validate" else None)
         args.work_dir.mkdir(parents=True, exist_ok=True)
         out = grid_file if args.what == "measure" else held_file
         out.write_text(json.dumps(data) + "\n")
@@ -318,30 +456,59 @@ def main(argv=None) -> int:
     if args.what == "derive":
         if not grid_file.exists():
             ap.error(f"{grid_file} not found: run 'measure' first")
+        grid = json.loads(grid_file.read_text())
         out = data_dir / SURE_FILES[args.diagnoser]
-        data = derive_sure_cells(json.loads(grid_file.read_text()), args.diagnoser)
+        data = derive_sure_cells(grid, args.diagnoser)
         out.write_text(json.dumps(data) + "\n")
         load_sure_cells.cache_clear()
         print(f"wrote {out}: {int(np.sum(data['sure']))} sure cells")
+        out = data_dir / SIZED_FILES[args.diagnoser]
+        data = derive_sized_cells(grid, args.diagnoser)
+        out.write_text(json.dumps(data) + "\n")
+        load_sized_cells.cache_clear()
+        print(f"wrote {out}: sure cells per band " + ", ".join(str(int(np.sum(b))) for b in data["sure"]))
         return 0
     if not held_file.exists():
         ap.error(f"{held_file} not found: run 'validate' first")
     held = json.loads(held_file.read_text())
-    new = load_sure_cells(SURE_FILES[args.diagnoser])
-    old = _old_sure_cells() if args.diagnoser == "reference" else None
-    res = {"diagnoser": args.diagnoser, "runs": len(held["runs"]),
-           "held_out": {"magnitudes": "geometric midpoints of the grid", "profiles": list(HELD_OUT_PROFILES),
-                        "first_seed": HELD_OUT_SEED0, "seeds_per_cell": held["n_seeds"]},
-           "command": f"python -m studies.diagnosis.certainty validate --seeds {held['n_seeds']} && "
-                      f"python -m studies.diagnosis.certainty report --diagnoser {args.diagnoser}",
-           "result": validate(held, args.diagnoser, new, old)}
-    report = Path("docs/data") / f"certainty_{args.diagnoser}.json"
+    sets = {
+        "thesis": size_blind_cells(args.diagnoser, "thesis"),
+        "grid": size_blind_cells(args.diagnoser, "grid"),
+        "sized": load_sized_cells(SIZED_FILES[args.diagnoser]),
+    }
+    seed_opt = f" --first-seed {args.first_seed}" if dev else ""
+    res = {
+        "diagnoser": args.diagnoser,
+        "runs": len(held["runs"]),
+        "held_out": {
+            "magnitudes": "geometric midpoints of the grid",
+            "profiles": list(HELD_OUT_PROFILES),
+            "first_seed": args.first_seed,
+            "seeds_per_cell": held["n_seeds"],
+        },
+        "command": f"python -m studies.diagnosis.certainty validate --seeds {held['n_seeds']}{seed_opt} && "
+        f"python -m studies.diagnosis.certainty report --diagnoser {args.diagnoser}{seed_opt}",
+        "result": validate(held, args.diagnoser, sets),
+    }
+    report = (
+        Path("docs/data") if not dev else args.work_dir
+    ) / f"certainty_{args.diagnoser}{'' if not dev else '_' + str(args.first_seed)}.json"
     report.parent.mkdir(parents=True, exist_ok=True)
     report.write_text(json.dumps(res, indent=1) + "\n")
     for name, per in res["result"].items():
-        print(name, "wrong isolations:", sum(p["wrong"] for p in per.values()), "of",
-              sum(p["detected"] for p in per.values()), "detected runs;",
-              {f: p["wrong"] for f, p in per.items() if p["wrong"]})
+        print(
+            name,
+            "wrong isolations:",
+            sum(p["wrong"] for p in per.values()),
+            "of",
+            sum(p["detected"] for p in per.values()),
+            "detected runs;",
+            {f: p["wrong"] for f, p in per.items() if p["wrong"]},
+            "at the end:",
+            sum(p["wrong_end"] for p in per.values()),
+            "isolated at the end:",
+            sum(p["isolated_end"] for p in per.values()),
+        )
     print(f"wrote {report}")
     return 0
 

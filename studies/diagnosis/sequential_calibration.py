@@ -42,15 +42,35 @@ from pathlib import Path
 
 import numpy as np
 
-from marine_fdi_env.engine.simulator import Simulator
 from marine_fdi_env.diagnosis.agent import ReferenceDiagnoser
-from marine_fdi_env.diagnosis.incipient_glr import GATE_DELTA, GATE_TAU_S, ORDER, WINDOW_BLOCKS, glr_polynomial, transient_gate
+from marine_fdi_env.diagnosis.incipient_glr import (
+    GATE_DELTA,
+    GATE_TAU_S,
+    ORDER,
+    WINDOW_BLOCKS,
+    glr_polynomial,
+    transient_gate,
+)
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
 from marine_fdi_env.diagnosis.sequential import CALIBRATION_FILE, Z_CAP, pressure_ratio
+from marine_fdi_env.engine.simulator import Simulator
 from studies.paths import PACKAGE_DATA
 
-__all__ = ["profile_for", "record", "fit", "cusum_offline", "check", "normalise_blocks", "tail_threshold", "warm_blocks",
-           "pooled_pair", "receiver_peaks", "glr_threshold", "SETS", "RECEIVER_MODULES"]
+__all__ = [
+    "profile_for",
+    "record",
+    "fit",
+    "cusum_offline",
+    "check",
+    "normalise_blocks",
+    "tail_threshold",
+    "warm_blocks",
+    "pooled_pair",
+    "receiver_peaks",
+    "glr_threshold",
+    "SETS",
+    "RECEIVER_MODULES",
+]
 
 N_MODULES = len(MODULE_IDS)
 PARAMS = "thesis-12v28"
@@ -99,8 +119,15 @@ def profile_for(entropy: int, duration_s: float = DURATION_S) -> tuple[str, int]
     return spec, int(r.integers(0, 2**62))
 
 
-def record(n_runs: int, entropy0: int, duration_s: float = DURATION_S, faults=None, profiles=None, seeds=None,
-           progress: bool = True) -> dict:
+def record(
+    n_runs: int,
+    entropy0: int,
+    duration_s: float = DURATION_S,
+    faults=None,
+    profiles=None,
+    seeds=None,
+    progress: bool = True,
+) -> dict:
     """Block means of the residuals of ``n_runs`` runs (see module docstring).  ``faults``: None
     (fault-free) or one schedule per run; ``profiles``/``seeds``: override the drawn ones."""
     drawn = [profile_for(entropy0 + i, duration_s) for i in range(n_runs)]
@@ -136,8 +163,16 @@ def record(n_runs: int, entropy0: int, duration_s: float = DURATION_S, faults=No
             bar.update(b - a)
     if bar is not None:
         bar.close()
-    return {"block_means": BM, "u": UB, "ratio": RB, "first_violation": first, "profiles": np.array(profiles),
-            "seeds": np.array(seeds, dtype=np.int64), "entropy0": entropy0, "duration_s": duration_s}
+    return {
+        "block_means": BM,
+        "u": UB,
+        "ratio": RB,
+        "first_violation": first,
+        "profiles": np.array(profiles),
+        "seeds": np.array(seeds, dtype=np.int64),
+        "entropy0": entropy0,
+        "duration_s": duration_s,
+    }
 
 
 def warm_blocks(warmup_s) -> np.ndarray:
@@ -157,13 +192,23 @@ def pooled_pair(z, RB, warm, r_max, modules=RECEIVER_MODULES):
     0 where their tests pause (warm-up ``warm`` (19,) blocks, pressure ratio RB above r_max (19,))."""
     idx = [MODULE_IDS.index(m) for m in modules]
     paused = np.asarray(RB, dtype=np.float64) > max(float(r_max[i]) for i in idx)
-    paused[:, :max(int(warm[i]) for i in idx)] = True
+    paused[:, : max(int(warm[i]) for i in idx)] = True
     p = np.where(paused, 0.0, z[:, :, idx].sum(axis=2) / math.sqrt(len(idx)))
     return p, paused
 
 
-def receiver_peaks(z, UB, RB, warm, r_max, order=ORDER, window=WINDOW_BLOCKS, gate_tau_s=GATE_TAU_S,
-                   gate_delta=GATE_DELTA, modules=RECEIVER_MODULES) -> np.ndarray:
+def receiver_peaks(
+    z,
+    UB,
+    RB,
+    warm,
+    r_max,
+    order=ORDER,
+    window=WINDOW_BLOCKS,
+    gate_tau_s=GATE_TAU_S,
+    gate_delta=GATE_DELTA,
+    modules=RECEIVER_MODULES,
+) -> np.ndarray:
     """(runs,) largest receiver-test statistic of each recorded run (pause region and transient gate
     as online; without the common-shift condition); ``modules``: the chains pooled (one: that chain alone)."""
     p, paused = pooled_pair(z, RB, warm, r_max, modules)
@@ -246,27 +291,58 @@ def fit(cal: dict, k: float = K_DEFAULT, r_max: float = R_MAX_DEFAULT) -> dict:
     for m, mid in enumerate(MODULE_IDS):
         h[m], theta, a = tail_threshold(peaks[:, m], p_run)
         h[m] = max(h[m], 1.2 * peaks[:, m].max())  # never below the largest calibration peak
-        tails[mid] = {"theta": theta, "a": a, "max_peak": float(peaks[:, m].max()),
-                      "p99_peak": float(np.percentile(peaks[:, m], 99))}
+        tails[mid] = {
+            "theta": theta,
+            "a": a,
+            "max_peak": float(peaks[:, m].max()),
+            "p99_peak": float(np.percentile(peaks[:, m], 99)),
+        }
     gpeaks = receiver_peaks(z, UB, RB, warm, rmax)
     gate = transient_gate(UB, BLOCK_S)
     family = np.array([str(p).split(":")[0] for p in cal["profiles"]])
     g_h, g_tail, gtheta = glr_threshold(gpeaks, p_run)
-    receiver = {"modules": list(RECEIVER_MODULES), "h": g_h, "order": ORDER,
-                "window_blocks": WINDOW_BLOCKS, "gate_tau_s": GATE_TAU_S, "gate_delta": GATE_DELTA,
-                "fit": {"tail_h": g_tail, "tail_theta_half_square": gtheta, "max_peak": float(gpeaks.max()),
-                        "p99_peak": float(np.percentile(gpeaks, 99)),
-                        "share_gated": float(gate.mean()),
-                        "share_gated_by_family": {fam: float(gate[family == fam].mean()) for fam in FAMILIES
-                                                  if (family == fam).any()}}}
+    receiver = {
+        "modules": list(RECEIVER_MODULES),
+        "h": g_h,
+        "order": ORDER,
+        "window_blocks": WINDOW_BLOCKS,
+        "gate_tau_s": GATE_TAU_S,
+        "gate_delta": GATE_DELTA,
+        "fit": {
+            "tail_h": g_tail,
+            "tail_theta_half_square": gtheta,
+            "max_peak": float(gpeaks.max()),
+            "p99_peak": float(np.percentile(gpeaks, 99)),
+            "share_gated": float(gate.mean()),
+            "share_gated_by_family": {
+                fam: float(gate[family == fam].mean()) for fam in FAMILIES if (family == fam).any()
+            },
+        },
+    }
     return {
-        "module_ids": list(MODULE_IDS), "block_s": BLOCK_S, "u_nodes": nodes.tolist(),
-        "mean": mean.tolist(), "scale": scale.tolist(), "k": kk.tolist(), "h": h.tolist(),
-        "warmup_s": [WARMUP_S[m] for m in MODULE_IDS], "r_max": [float(x) if np.isfinite(x) else 1e9 for x in rmax],
-        "fit": {"runs": int(n_runs), "hours": hours, "entropy0": int(cal["entropy0"]), "node_blocks": counts.tolist(),
-                "per_run_target_probability": p_run, "fa_target_per_h": FA_TARGET_PER_H, "margin": FA_MARGIN,
-                "tail_fraction": TAIL_FRACTION, "tails": tails,
-                "load_range": list(LOAD_RANGE), "families": list(FAMILIES), "duration_s": float(cal["duration_s"])},
+        "module_ids": list(MODULE_IDS),
+        "block_s": BLOCK_S,
+        "u_nodes": nodes.tolist(),
+        "mean": mean.tolist(),
+        "scale": scale.tolist(),
+        "k": kk.tolist(),
+        "h": h.tolist(),
+        "warmup_s": [WARMUP_S[m] for m in MODULE_IDS],
+        "r_max": [float(x) if np.isfinite(x) else 1e9 for x in rmax],
+        "fit": {
+            "runs": int(n_runs),
+            "hours": hours,
+            "entropy0": int(cal["entropy0"]),
+            "node_blocks": counts.tolist(),
+            "per_run_target_probability": p_run,
+            "fa_target_per_h": FA_TARGET_PER_H,
+            "margin": FA_MARGIN,
+            "tail_fraction": TAIL_FRACTION,
+            "tails": tails,
+            "load_range": list(LOAD_RANGE),
+            "families": list(FAMILIES),
+            "duration_s": float(cal["duration_s"]),
+        },
         "receiver": receiver,
         "command": "python -m studies.diagnosis.sequential_calibration fit",
     }
@@ -280,31 +356,58 @@ def check(val: dict, calibration: dict) -> dict:
     nodes = np.asarray(calibration["u_nodes"])
     z = normalise_blocks(BM, UB, nodes, np.asarray(calibration["mean"]), np.asarray(calibration["scale"]))
     warm = warm_blocks(calibration["warmup_s"])
-    first, peaks = cusum_offline(z, np.asarray(calibration["k"]), np.asarray(calibration["h"]), warm,
-                                 val["ratio"].astype(np.float64), np.asarray(calibration["r_max"]))
+    first, peaks = cusum_offline(
+        z,
+        np.asarray(calibration["k"]),
+        np.asarray(calibration["h"]),
+        warm,
+        val["ratio"].astype(np.float64),
+        np.asarray(calibration["r_max"]),
+    )
     cus = first >= 0
     worst = ~np.isnan(val["first_violation"])
     rec = calibration.get("receiver")
     if rec is not None:
-        gpeaks = receiver_peaks(z, UB, val["ratio"].astype(np.float64), warm, np.asarray(calibration["r_max"]),
-                                rec["order"], rec["window_blocks"], rec["gate_tau_s"], rec["gate_delta"])
+        gpeaks = receiver_peaks(
+            z,
+            UB,
+            val["ratio"].astype(np.float64),
+            warm,
+            np.asarray(calibration["r_max"]),
+            rec["order"],
+            rec["window_blocks"],
+            rec["gate_tau_s"],
+            rec["gate_delta"],
+        )
         glr = gpeaks > rec["h"]
     else:
         gpeaks, glr = np.zeros(n_runs), np.zeros(n_runs, dtype=bool)
     any_alarm = (cus | worst).any(axis=1) | glr
     hours = n_runs * nb * BLOCK_S / 3600.0
-    runs = [{"run": int(i), "profile": str(val["profiles"][i]), "seed": int(val["seeds"][i]),
-             "cusum_modules": [MODULE_IDS[m] for m in np.flatnonzero(cus[i])],
-             "worst_case_modules": [MODULE_IDS[m] for m in np.flatnonzero(worst[i])], "receiver_test": bool(glr[i])}
-            for i in np.flatnonzero(any_alarm)]
-    return {"runs": int(n_runs), "hours": hours, "entropy0": int(val["entropy0"]),
-            "runs_with_alarm": int(any_alarm.sum()), "runs_with_cusum_alarm": int(cus.any(axis=1).sum()),
-            "runs_with_worst_case_alarm": int(worst.any(axis=1).sum()),
-            "runs_with_receiver_alarm": int(glr.sum()),
-            "receiver_peak_over_h_max": float(gpeaks.max() / rec["h"]) if rec is not None else None,
-            "alarms_per_module": {mid: int(cus[:, m].sum()) for m, mid in enumerate(MODULE_IDS)},
-            "peak_over_h_max": {mid: float(peaks[:, m].max() / calibration["h"][m]) for m, mid in enumerate(MODULE_IDS)},
-            "alarm_runs": runs}
+    runs = [
+        {
+            "run": int(i),
+            "profile": str(val["profiles"][i]),
+            "seed": int(val["seeds"][i]),
+            "cusum_modules": [MODULE_IDS[m] for m in np.flatnonzero(cus[i])],
+            "worst_case_modules": [MODULE_IDS[m] for m in np.flatnonzero(worst[i])],
+            "receiver_test": bool(glr[i]),
+        }
+        for i in np.flatnonzero(any_alarm)
+    ]
+    return {
+        "runs": int(n_runs),
+        "hours": hours,
+        "entropy0": int(val["entropy0"]),
+        "runs_with_alarm": int(any_alarm.sum()),
+        "runs_with_cusum_alarm": int(cus.any(axis=1).sum()),
+        "runs_with_worst_case_alarm": int(worst.any(axis=1).sum()),
+        "runs_with_receiver_alarm": int(glr.sum()),
+        "receiver_peak_over_h_max": float(gpeaks.max() / rec["h"]) if rec is not None else None,
+        "alarms_per_module": {mid: int(cus[:, m].sum()) for m, mid in enumerate(MODULE_IDS)},
+        "peak_over_h_max": {mid: float(peaks[:, m].max() / calibration["h"][m]) for m, mid in enumerate(MODULE_IDS)},
+        "alarm_runs": runs,
+    }
 
 
 def _save(path: Path, rec: dict) -> None:
@@ -326,11 +429,21 @@ def main(argv=None) -> int:
     ap.add_argument("--hours", type=float, default=100.0, help="record: engine-hours (300 s runs)")
     ap.add_argument("--out-dir", type=Path, default=Path("results/sequential_calibration"))
     ap.add_argument("--k", type=float, default=K_DEFAULT, help="fit: CUSUM reference value [spreads]")
-    ap.add_argument("--r-max", type=float, default=R_MAX_DEFAULT,
-                    help="fit: pressure ratio above which the tests of M3.1-M3.4 pause")
-    ap.add_argument("--out", type=Path, default=PACKAGE_DATA / "diagnosis" / CALIBRATION_FILE, help="fit: calibration file")
-    ap.add_argument("--report", type=Path, default=Path("docs/data/sequential_calibration_check.json"),
-                    help="check: where to write the false-alarm report")
+    ap.add_argument(
+        "--r-max",
+        type=float,
+        default=R_MAX_DEFAULT,
+        help="fit: pressure ratio above which the tests of M3.1-M3.4 pause",
+    )
+    ap.add_argument(
+        "--out", type=Path, default=PACKAGE_DATA / "diagnosis" / CALIBRATION_FILE, help="fit: calibration file"
+    )
+    ap.add_argument(
+        "--report",
+        type=Path,
+        default=Path("docs/data/sequential_calibration_check.json"),
+        help="check: where to write the false-alarm report",
+    )
     args = ap.parse_args(argv)
     if args.what == "record":
         if args.set is None:
@@ -353,17 +466,22 @@ def main(argv=None) -> int:
             t = cal["fit"]["tails"][mid]
             print(f"| {mid} | {cal['k'][m]:g} | {cal['h'][m]:.2f} | {t['max_peak']:.2f} | {t['theta']:.3f} |")
         r = cal["receiver"]
-        print(f"receiver test ({' + '.join(r['modules'])}): h = {r['h']:.2f} (tail {r['fit']['tail_h']:.2f}, "
-              f"largest calibration peak {r['fit']['max_peak']:.2f}, {100 * r['fit']['share_gated']:.0f} % of blocks gated)")
+        print(
+            f"receiver test ({' + '.join(r['modules'])}): h = {r['h']:.2f} (tail {r['fit']['tail_h']:.2f}, "
+            f"largest calibration peak {r['fit']['max_peak']:.2f}, "
+            f"{100 * r['fit']['share_gated']:.0f} % of blocks gated)"
+        )
         return 0
     calibration = json.loads(args.out.read_text())
     rep = check(_load(args.out_dir / "validation.npz"), calibration)
     rep["command"] = "python -m studies.diagnosis.sequential_calibration check"
     args.report.parent.mkdir(parents=True, exist_ok=True)
     args.report.write_text(json.dumps(rep, indent=1) + "\n")
-    print(f"{rep['runs']} runs, {rep['hours']:.1f} engine-hours: {rep['runs_with_alarm']} with an alarm "
-          f"({rep['runs_with_cusum_alarm']} CUSUM, {rep['runs_with_worst_case_alarm']} worst-case, "
-          f"{rep['runs_with_receiver_alarm']} receiver test); wrote {args.report}")
+    print(
+        f"{rep['runs']} runs, {rep['hours']:.1f} engine-hours: {rep['runs_with_alarm']} with an alarm "
+        f"({rep['runs_with_cusum_alarm']} CUSUM, {rep['runs_with_worst_case_alarm']} worst-case, "
+        f"{rep['runs_with_receiver_alarm']} receiver test); wrote {args.report}"
+    )
     return 0
 
 

@@ -15,10 +15,10 @@ import pytest
 
 from marine_fdi_env import cli
 from marine_fdi_env.engine.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS
-from marine_fdi_env.runio import REQUIRED_ARRAYS, load_run
-from marine_fdi_env.scenarios import SCENARIOS, get_scenario
 from marine_fdi_env.engine.sensors import DEFAULT_FAULT_MAGNITUDES, SENSOR_IDS, sensor_index
 from marine_fdi_env.engine.simulator import TRUTH_VARIABLES
+from marine_fdi_env.runio import REQUIRED_ARRAYS, load_run
+from marine_fdi_env.scenarios import SCENARIOS, get_scenario
 
 
 def run_cli(capsys, *argv):
@@ -29,9 +29,20 @@ def run_cli(capsys, *argv):
 
 # ----------------------------------------------------------------------------- operating-point
 OP_KEYS = [
-    "engine_speed_rev_s", "power_W", "torque_Nm", "fuel_per_cycle_kg", "sfc_kg_per_J", "charge_air_pressure_Pa",
-    "exhaust_receiver_pressure_Pa", "p_max_Pa", "turbine_inlet_temperature_K", "turbine_outlet_temperature_K",
-    "compressor_outlet_temperature_K", "inlet_air_temperature_K", "air_mass_flow_kg_s", "air_excess_ratio",
+    "engine_speed_rev_s",
+    "power_W",
+    "torque_Nm",
+    "fuel_per_cycle_kg",
+    "sfc_kg_per_J",
+    "charge_air_pressure_Pa",
+    "exhaust_receiver_pressure_Pa",
+    "p_max_Pa",
+    "turbine_inlet_temperature_K",
+    "turbine_outlet_temperature_K",
+    "compressor_outlet_temperature_K",
+    "inlet_air_temperature_K",
+    "air_mass_flow_kg_s",
+    "air_excess_ratio",
 ]
 
 
@@ -66,8 +77,26 @@ def test_operating_point_table_and_idle_json_is_strict(capsys):
 def faulty_run(tmp_path_factory):
     """A 2 s run of two engines with a sensor offset and a process fault, written by the CLI."""
     path = tmp_path_factory.mktemp("runs") / "faulty.npz"
-    code = cli.main(["simulate", "--params", "thesis-12v28", "--duration", "2", "--seed", "7", "--engines", "2",
-                     "--fault", "S4.2@0.5:5e4", "--fault", "bore_damage@1", "--out", str(path), "--no-progress"])
+    code = cli.main(
+        [
+            "simulate",
+            "--params",
+            "thesis-12v28",
+            "--duration",
+            "2",
+            "--seed",
+            "7",
+            "--engines",
+            "2",
+            "--fault",
+            "S4.2@0.5:5e4",
+            "--fault",
+            "bore_damage@1",
+            "--out",
+            str(path),
+            "--no-progress",
+        ]
+    )
     assert code == 0
     return path
 
@@ -94,7 +123,11 @@ def test_simulate_fault_ground_truth(faulty_run):
     run = load_run(faulty_run)
     faults = run.true_faults()
     assert [(f["engine"], f["id"], f["class"]) for f in faults] == [
-        (0, "S4.2", "sensor"), (0, "bore_damage", "process"), (1, "S4.2", "sensor"), (1, "bore_damage", "process")]
+        (0, "S4.2", "sensor"),
+        (0, "bore_damage", "process"),
+        (1, "S4.2", "sensor"),
+        (1, "bore_damage", "process"),
+    ]
     s42 = faults[0]
     assert s42["onset_s"] == 0.5 and s42["magnitude"] == 5e4 and s42["kind"] == "offset" and s42["unit"] == "Pa"
     assert s42["first_active_s"] == pytest.approx(0.5) and s42["active_in_run"]
@@ -114,8 +147,25 @@ def test_simulate_fault_ground_truth(faulty_run):
 
 def test_simulate_is_reproducible(tmp_path, faulty_run):
     out = tmp_path / "again.npz"
-    assert cli.main(["simulate", "--duration", "2", "--seed", "7", "--engines", "2", "--fault", "S4.2@0.5:5e4",
-                     "bore_damage@1", "--out", str(out)]) == 0
+    assert (
+        cli.main(
+            [
+                "simulate",
+                "--duration",
+                "2",
+                "--seed",
+                "7",
+                "--engines",
+                "2",
+                "--fault",
+                "S4.2@0.5:5e4",
+                "bore_damage@1",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     a, b = load_run(faulty_run), load_run(out)
     assert np.array_equal(a.measurements, b.measurements) and np.array_equal(a.fault_value, b.fault_value)
 
@@ -186,8 +236,7 @@ BAD_INPUTS = [
     (["simulate", "--duration", "1", "--fault", "S4.2@-3", "--out", "{tmp}/x.npz"], ["--fault", "onset_s"]),
     (["simulate", "--duration", "1", "--fault", "S4.2@3,bogus=1", "--out", "{tmp}/x.npz"], ["--fault", "bogus"]),
     (["simulate", "--duration", "1", "--fault", "S4.2@3", "S4.2@5", "--out", "{tmp}/x.npz"], ["--fault", "twice"]),
-    (["simulate", "--scenario", "thesis-6.4.1", "--fault", "S4.2@5", "--out", "{tmp}/x.npz"],
-     ["--fault", "scenario"]),
+    (["simulate", "--scenario", "thesis-6.4.1", "--fault", "S4.2@5", "--out", "{tmp}/x.npz"], ["--fault", "scenario"]),
     (["simulate", "--scenario", "nope", "--out", "{tmp}/x.npz"], ["--scenario", "thesis-6.4.1"]),
     (["simulate", "--duration", "1", "--profile", "zigzag", "--out", "{tmp}/x.npz"], ["--profile", "manoeuvring"]),
     (["simulate", "--duration", "1", "--profile", "2.0", "--out", "{tmp}/x.npz"], ["--profile", "1.2"]),
@@ -269,11 +318,16 @@ def test_load_run_wrong_shapes_and_garbage(faulty_run, tmp_path):
 
 
 def test_save_run_roundtrip_in_process(tmp_path):
-    from marine_fdi_env.runio import save_run
     from marine_fdi_env.engine.simulator import Simulator
+    from marine_fdi_env.runio import save_run
 
-    sim = Simulator("thesis-12v28", n_engines=1, seeds=3, faults=["S2.3@0.2,kind=stuck", "S1.1@0.1:1e-4,kind=drift"],
-                    noise_scale=0.5)
+    sim = Simulator(
+        "thesis-12v28",
+        n_engines=1,
+        seeds=3,
+        faults=["S2.3@0.2,kind=stuck", "S1.1@0.1:1e-4,kind=drift"],
+        noise_scale=0.5,
+    )
     res = sim.run(0.5)
     path = save_run(res, tmp_path / "run.data", command_line=["x", "y z"])
     assert path == tmp_path / "run.data" and path.exists()  # no .npz suffix appended
@@ -298,8 +352,13 @@ def test_console_script_help():
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=60, env=env)
         assert proc.returncode == 0, proc.stderr
         assert "operating-point" in proc.stdout and "simulate" in proc.stdout
-    proc = subprocess.run([sys.executable, "-m", "marine_fdi_env.cli", "operating-point", "--fuel-setting", "9"],
-                          capture_output=True, text=True, timeout=60, env=env)
+    proc = subprocess.run(
+        [sys.executable, "-m", "marine_fdi_env.cli", "operating-point", "--fuel-setting", "9"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env=env,
+    )
     assert proc.returncode == 2 and "--fuel-setting" in proc.stderr and "Traceback" not in proc.stderr
 
 
@@ -308,8 +367,26 @@ def test_validate_and_synthesize_are_wired(tmp_path, capsys):
     from marine_fdi_env.cli import main
 
     data = tmp_path / "synth.csv"
-    assert main(["synthesize-measurements", "--params", "man-12v32-40", "--mechanism", "none", "--points", "6",
-                 "--noise", "0.005", "--seed", "3", "--out", str(data)]) == 0
+    assert (
+        main(
+            [
+                "synthesize-measurements",
+                "--params",
+                "man-12v32-40",
+                "--mechanism",
+                "none",
+                "--points",
+                "6",
+                "--noise",
+                "0.005",
+                "--seed",
+                "3",
+                "--out",
+                str(data),
+            ]
+        )
+        == 0
+    )
     out = tmp_path / "report.json"
     assert main(["validate", "--data", str(data), "--out", str(out), "--max-folds", "3"]) == 0
     rep = json.loads(out.read_text())

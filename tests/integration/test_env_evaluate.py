@@ -7,28 +7,42 @@ import json
 import numpy as np
 import pytest
 
-from marine_fdi_env.cli import main as cli_main
 from marine_fdi_env.benchmark.agent_api import BUILTIN_AGENTS, load_agent
 from marine_fdi_env.benchmark.evaluate import WALL_CLOCK_FIELDS, evaluate, run_episodes
-from marine_fdi_env.envs.scenario_sampler import ScenarioSpec
 from marine_fdi_env.benchmark.suites import SUITE_NAMES, build_suite, load_suite
+from marine_fdi_env.cli import main as cli_main
+from marine_fdi_env.envs.scenario_sampler import ScenarioSpec
 
 SCENARIOS = [
     ScenarioSpec(faults=("S4.2@6:6e4",), profile="constant", noise_seed=1, duration_s=20.0, scenario_id="s42"),
     ScenarioSpec(faults=(), profile="step:u0=0.8,u1=0.9,t=5", noise_seed=2, duration_s=20.0, scenario_id="free"),
-    ScenarioSpec(faults=("S2.1@4:8e5", "S3.5@9:80"), profile="constant", noise_seed=3, duration_s=20.0,
-                 scenario_id="pair"),
-    ScenarioSpec(faults=("valve_seizing@3:0.97,kappa=inf",), profile="constant", noise_seed=4, duration_s=20.0,
-                 scenario_id="stall"),
+    ScenarioSpec(
+        faults=("S2.1@4:8e5", "S3.5@9:80"), profile="constant", noise_seed=3, duration_s=20.0, scenario_id="pair"
+    ),
+    ScenarioSpec(
+        faults=("valve_seizing@3:0.97,kappa=inf",),
+        profile="constant",
+        noise_seed=4,
+        duration_s=20.0,
+        scenario_id="stall",
+    ),
 ]
 
 
 @pytest.fixture
 def suite_file(tmp_path):
     p = tmp_path / "tiny-v1.json"
-    p.write_text(json.dumps({"name": "tiny-v1", "version": 1, "description": "test",
-                             "env": {"decision_period_s": 1.0, "params": "thesis-12v28", "observe_sensors": False},
-                             "scenarios": [s.to_dict() for s in SCENARIOS]}))
+    p.write_text(
+        json.dumps(
+            {
+                "name": "tiny-v1",
+                "version": 1,
+                "description": "test",
+                "env": {"decision_period_s": 1.0, "params": "thesis-12v28", "observe_sensors": False},
+                "scenarios": [s.to_dict() for s in SCENARIOS],
+            }
+        )
+    )
     return p
 
 
@@ -45,8 +59,14 @@ def test_oracle_is_the_ceiling_and_null_the_floor(suite_file, tmp_path):
     assert m["engine_failures"] == 1
     null = evaluate("null", str(suite_file), tmp_path / "n.json", progress=False)["metrics"]
     assert null["detection_rate"] == 0.0 and null["false_alarm_rate"] == 0.0 and null["isolation_accuracy"] == 0.0
-    for key in ("detection_rate", "false_alarm_rate", "isolation_accuracy", "median_detection_delay_s",
-                "median_isolation_delay_s", "compute_s_per_sample"):
+    for key in (
+        "detection_rate",
+        "false_alarm_rate",
+        "isolation_accuracy",
+        "median_detection_delay_s",
+        "median_isolation_delay_s",
+        "compute_s_per_sample",
+    ):
         assert key in m
 
 
@@ -74,7 +94,7 @@ def test_interrupted_evaluation_resumes_without_rerunning(suite_file, tmp_path):
     header = {k: first[k] for k in ("agent", "agent_spec", "suite", "suite_version", "seed_offset", "env_id", "env")}
     kept = dict(first["episodes"][0], reward_terms={"marker": 1.0})
     partial = tmp_path / "res.json.partial.jsonl"
-    partial.write_text("\n".join(json.dumps(x) for x in (header, kept, first["episodes"][1])) + "\n{\"cut")
+    partial.write_text("\n".join(json.dumps(x) for x in (header, kept, first["episodes"][1])) + '\n{"cut')
     res = evaluate("reference", str(suite_file), out, progress=False)
     assert res["episodes"][0]["reward_terms"] == {"marker": 1.0}  # not recomputed
     assert _strip(res["episodes"][1:]) == _strip(first["episodes"][1:])
@@ -86,8 +106,21 @@ def test_interrupted_evaluation_resumes_without_rerunning(suite_file, tmp_path):
 
 
 def test_cli_evaluate_prints_table_and_rejects_bad_agents(suite_file, tmp_path, capsys):
-    assert cli_main(["evaluate", "--agent", "oracle", "--suite", str(suite_file), "--out", str(tmp_path / "x.json"),
-                     "--no-progress"]) == 0
+    assert (
+        cli_main(
+            [
+                "evaluate",
+                "--agent",
+                "oracle",
+                "--suite",
+                str(suite_file),
+                "--out",
+                str(tmp_path / "x.json"),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     assert "| tiny-v1 | oracle |" in capsys.readouterr().out
     assert cli_main(["evaluate", "--agent", "nonsense", "--suite", str(suite_file)]) == 2
     assert "unknown agent" in capsys.readouterr().err
@@ -113,8 +146,23 @@ def test_dataset_export_labels_match_ground_truth(suite_file, tmp_path):
 
 def test_dataset_from_preset_is_reproducible(tmp_path):
     for k in (1, 2):
-        assert cli_main(["dataset", "--preset", "nominal", "--episodes", "2", "--seed", "3", "--out",
-                         str(tmp_path / f"p{k}"), "--no-progress"]) == 0
+        assert (
+            cli_main(
+                [
+                    "dataset",
+                    "--preset",
+                    "nominal",
+                    "--episodes",
+                    "2",
+                    "--seed",
+                    "3",
+                    "--out",
+                    str(tmp_path / f"p{k}"),
+                    "--no-progress",
+                ]
+            )
+            == 0
+        )
     a, b = np.load(tmp_path / "p1" / "dataset.npz"), np.load(tmp_path / "p2" / "dataset.npz")
     assert np.array_equal(a["obs"], b["obs"])
 

@@ -15,12 +15,13 @@ import sys
 from pathlib import Path
 
 import pytest
+
 from tests.paths import ROOT
 
 FIXTURE = ROOT / "tests" / "data" / "layout_records.json"
 # scenario indices of the shipped suites: faults of every kind, nominal runs, several magnitudes
 SUBSETS = {"thesis-v1": (0, 5, 10, 15), "single-v1": (0, 40, 80, 140)}
-AGENTS = ("reference", "random", "classifier+reference")
+AGENTS = ("reference", "random", "classifier-v1+reference")
 
 
 def _records(agent: str, suite: str, idx, tmp: Path) -> list[dict]:
@@ -29,9 +30,17 @@ def _records(agent: str, suite: str, idx, tmp: Path) -> list[dict]:
 
     sc = load_suite(suite).scenarios
     f = tmp / f"{suite}-subset.json"  # same suite name: records compare as the suite's
-    f.write_text(json.dumps({"name": suite, "version": 1, "description": "layout fixture",
-                             "env": {"decision_period_s": 1.0, "params": "thesis-12v28", "observe_sensors": False},
-                             "scenarios": [sc[i].to_dict() for i in idx]}))
+    f.write_text(
+        json.dumps(
+            {
+                "name": suite,
+                "version": 1,
+                "description": "layout fixture",
+                "env": {"decision_period_s": 1.0, "params": "thesis-12v28", "observe_sensors": False},
+                "scenarios": [sc[i].to_dict() for i in idx],
+            }
+        )
+    )
     res = evaluate(agent, str(f), tmp / f"{agent}_{suite}.json", backend="serial", batch_size=4, progress=False)
     recs = [{k: v for k, v in r.items() if k not in WALL_CLOCK_FIELDS} for r in res["episodes"]]
     return json.loads(json.dumps(recs))  # exactly what a JSON round trip keeps
@@ -49,20 +58,32 @@ def test_suite_records_unchanged_by_the_move(tmp_path):
         assert len(now[key]) == len(recs) == len(SUBSETS[key.split("/")[1]]), key
         for old, new in zip(recs, now[key]):
             assert new == old, f"{key} {old['scenario_id']}: " + ", ".join(
-                k for k in sorted(set(old) | set(new)) if old.get(k) != new.get(k))
+                k for k in sorted(set(old) | set(new)) if old.get(k) != new.get(k)
+            )
 
 
 if __name__ == "__main__":  # regenerate the fixture with the code in this checkout
     import tempfile
 
-    commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True,
-                            check=True).stdout.strip()
+    commit = subprocess.run(
+        ["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True, check=True
+    ).stdout.strip()
     with tempfile.TemporaryDirectory() as d:
         runs = make_all(Path(d))
     FIXTURE.parent.mkdir(parents=True, exist_ok=True)
-    FIXTURE.write_text(json.dumps({"made_by_commit": commit, "subsets": SUBSETS, "agents": AGENTS,
-                                   "wall_clock_fields_left_out": ["compute_s", "feature_compute_s", "agent_compute_s"],
-                                   "runs": runs}, separators=(",", ":")) + "\n")
+    FIXTURE.write_text(
+        json.dumps(
+            {
+                "made_by_commit": commit,
+                "subsets": SUBSETS,
+                "agents": AGENTS,
+                "wall_clock_fields_left_out": ["compute_s", "feature_compute_s", "agent_compute_s"],
+                "runs": runs,
+            },
+            separators=(",", ":"),
+        )
+        + "\n"
+    )
     print(f"wrote {FIXTURE} ({FIXTURE.stat().st_size} bytes) from {commit}", file=sys.stderr)
 
 
@@ -70,15 +91,20 @@ if __name__ == "__main__":  # regenerate the fixture with the code in this check
 def test_info_imports_finds_no_circle_and_no_backward_import():
     """``python -m marine_fdi_env.info --imports`` on the installed package: exit 0, and every
     module of the package (engine, agents, training included) is in the graph."""
-    out = subprocess.run([sys.executable, "-m", "marine_fdi_env.info", "--imports"], capture_output=True,
-                         text=True, cwd=ROOT.parent)
+    out = subprocess.run(
+        [sys.executable, "-m", "marine_fdi_env.info", "--imports"], capture_output=True, text=True, cwd=ROOT.parent
+    )
     assert out.returncode == 0, out.stdout + out.stderr
     assert "no import circle, no backward import between layers" in out.stdout
     from marine_fdi_env.layers import layer_of, package_modules
 
     mods = package_modules()
-    for name in ("marine_fdi_env.engine.simulator", "marine_fdi_env.engine.subsystems.gas_path",
-                 "marine_fdi_env.baselines.reference_agent", "marine_fdi_env.training.train"):
+    for name in (
+        "marine_fdi_env.engine.simulator",
+        "marine_fdi_env.engine.subsystems.gas_path",
+        "marine_fdi_env.baselines.reference_agent",
+        "marine_fdi_env.training.train",
+    ):
         assert name in mods
     assert layer_of("marine_fdi_env.engine.params") == "params" and layer_of("marine_fdi_env.engine.model") == "engine"
     assert layer_of("marine_fdi_env.training.rl") == "agents" and layer_of("marine_fdi_env") == "top"
@@ -95,7 +121,7 @@ def test_info_imports_reports_circles_and_backward_imports(tmp_path):
         "marine_fdi_env.engine.b": "def f():\n    from .a import x\n",
         "marine_fdi_env.diagnosis.d": "from ..envs.e import y\n",
         "marine_fdi_env.envs.e": "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from ..diagnosis import d\n"
-                                 "def g():\n    from marine_fdi_env import cli\n",
+        "def g():\n    from marine_fdi_env import cli\n",
         "marine_fdi_env.cli": "",
         "marine_fdi_env.benchmark.s": "def h():\n    from studies.validation.study import trial\n",
     }
@@ -107,10 +133,13 @@ def test_info_imports_reports_circles_and_backward_imports(tmp_path):
     res = check_imports(mods)
     assert res["cycles"] == [["marine_fdi_env.engine.a", "marine_fdi_env.engine.b"]]
     back = {(e.importer, e.imported) for e in res["backward"]}
-    assert back == {("marine_fdi_env.diagnosis.d", "marine_fdi_env.envs.e"),
-                    ("marine_fdi_env.envs.e", "marine_fdi_env.cli")}  # not the TYPE_CHECKING import
-    assert [(e.importer, e.imported) for e in res["studies"]] == [("marine_fdi_env.benchmark.s",
-                                                                   "studies.validation.study")]
+    assert back == {
+        ("marine_fdi_env.diagnosis.d", "marine_fdi_env.envs.e"),
+        ("marine_fdi_env.envs.e", "marine_fdi_env.cli"),
+    }  # not the TYPE_CHECKING import
+    assert [(e.importer, e.imported) for e in res["studies"]] == [
+        ("marine_fdi_env.benchmark.s", "studies.validation.study")
+    ]
     assert print_imports(res, file=open(tmp_path / "out.txt", "w")) == 1
 
 
@@ -129,7 +158,15 @@ def test_agents_and_models_are_named_under_the_namespace(tmp_path):
     (d / "agent.json").write_text(json.dumps({"class": "no_such_pkg_xyz.agents:SB3Agent", "kwargs": {}}))
     with pytest.raises(ValueError, match="cannot import 'no_such_pkg_xyz.agents'"):
         load_agent(str(d))
-    out = subprocess.run([sys.executable, "-c", "from marine_fdi_env.benchmark.agent_api import _import\n"
-                          "_import('training.agents:SB3Agent', 'old/agent.json')"],
-                         capture_output=True, text=True, cwd=tmp_path)  # outside the repository
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "from marine_fdi_env.benchmark.agent_api import _import\n"
+            "_import('training.agents:SB3Agent', 'old/agent.json')",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )  # outside the repository
     assert "write 'marine_fdi_env.training.agents:SB3Agent' in the agent.json" in out.stderr

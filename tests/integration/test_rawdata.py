@@ -10,18 +10,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_env_evaluate import SCENARIOS
+from test_scale_out import _subset, _suite_file
 
-from marine_fdi_env.cli import main as cli_main
 from marine_fdi_env.benchmark.evaluate import evaluate
 from marine_fdi_env.benchmark.rawdata import OUTPUT_COLUMNS, belief_to_dx
 from marine_fdi_env.benchmark.rawscore import score_raw
 from marine_fdi_env.benchmark.suites import load_suite
+from marine_fdi_env.cli import main as cli_main
 from marine_fdi_env.engine.simulator import Simulator
-
-from test_env_evaluate import SCENARIOS
-from test_scale_out import _subset, _suite_file
 from tests.paths import ROOT
-
 
 
 @pytest.fixture(scope="module")
@@ -30,8 +28,21 @@ def tiny_raw(tmp_path_factory):
     d = tmp_path_factory.mktemp("raw")
     suite = _suite_file(d / "tiny-v1.json", "tiny-v1", SCENARIOS)
     assert cli_main(["export-raw", "--suite", str(suite), "--out", str(d / "new" / "raw"), "--no-progress"]) == 0
-    assert cli_main(["predict-raw", "--agent", "reference", "--data", str(d / "new" / "raw"), "--out",
-                     str(d / "pred"), "--no-progress"]) == 0
+    assert (
+        cli_main(
+            [
+                "predict-raw",
+                "--agent",
+                "reference",
+                "--data",
+                str(d / "new" / "raw"),
+                "--out",
+                str(d / "pred"),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     return suite, d / "new" / "raw", d / "pred"
 
 
@@ -58,9 +69,9 @@ def test_exported_samples_are_the_simulators(tiny_raw):
 
 def test_belief_to_dx_follows_the_kits_conventions():
     b = np.zeros((3, 28), dtype=np.float32)
-    b[1, [0, 5]] = 1.0            # a double-fault declaration
-    b[2, 27] = 1.0                # detected, not isolated
-    b[2, 3] = 0.49                # a tie kept below the declaration threshold
+    b[1, [0, 5]] = 1.0  # a double-fault declaration
+    b[2, 27] = 1.0  # detected, not isolated
+    b[2, 3] = 0.49  # a tie kept below the declaration threshold
     det, ranks = belief_to_dx(b)
     assert det.tolist() == [0, 1, 1]
     assert ranks[0].sum() == 0.0 and ranks[1].sum() == pytest.approx(1.0) and ranks[2].sum() == pytest.approx(1.0)
@@ -76,10 +87,24 @@ def _evaluate_vs_score(tmp_path, suite_file: Path):
     return ev, sc
 
 
-EXACT = ("n_episodes", "n_faulty", "n_false_alarms", "false_alarm_rate", "false_alarm_episode_rate", "detection_rate",
-         "isolation_rate", "isolation_accuracy", "fault_free_hours")
-DELAYS = ("median_detection_delay_s", "p90_detection_delay_s", "median_detection_delay_censored_s",
-          "median_isolation_delay_s", "p90_isolation_delay_s")
+EXACT = (
+    "n_episodes",
+    "n_faulty",
+    "n_false_alarms",
+    "false_alarm_rate",
+    "false_alarm_episode_rate",
+    "detection_rate",
+    "isolation_rate",
+    "isolation_accuracy",
+    "fault_free_hours",
+)
+DELAYS = (
+    "median_detection_delay_s",
+    "p90_detection_delay_s",
+    "median_detection_delay_censored_s",
+    "median_isolation_delay_s",
+    "p90_isolation_delay_s",
+)
 
 
 @pytest.mark.parametrize("suite,idx", [("thesis-v1", (0, 10)), ("single-v1", (30, 100, 128))])
@@ -99,8 +124,11 @@ def test_round_trip_reference_outputs_score_like_evaluate(suite, idx, tmp_path):
         assert (s[k] is None) == (m[k] is None), k
         if m[k] is not None:
             assert s[k] == pytest.approx(m[k], abs=1e-6), k
-    bounds = [len(e["faults"]) * 1.0 / (e["duration_s"] - min(x["onset_s"] for x in e["faults"]))
-              for e in ev["episodes"] if e["faults"]]
+    bounds = [
+        len(e["faults"]) * 1.0 / (e["duration_s"] - min(x["onset_s"] for x in e["faults"]))
+        for e in ev["episodes"]
+        if e["faults"]
+    ]
     assert abs(s["belief_on_truth"] - m["belief_on_truth"]) <= np.mean(bounds) + 1e-12
     dx = sc["dx_metrics"]
     assert 0 < dx["true_detection_rate"] <= 1 and dx["false_alarm_rate"] == 0.0
@@ -114,8 +142,10 @@ def _bad(pred: Path, tmp_path: Path, name: str) -> Path:
 
 
 def _score_err(suite, raw, pred, capsys) -> str:
-    assert cli_main(["score-raw", "--suite", str(suite), "--predictions", str(pred), "--data", str(raw),
-                     "--no-progress"]) == 2
+    assert (
+        cli_main(["score-raw", "--suite", str(suite), "--predictions", str(pred), "--data", str(raw), "--no-progress"])
+        == 2
+    )
     return capsys.readouterr().err
 
 
@@ -126,8 +156,10 @@ def _rewrite(path: Path, fn) -> None:
 
 def test_bad_predictions_name_the_file_row_and_column(tiny_raw, tmp_path, capsys):
     suite, raw, pred = tiny_raw
-    assert cli_main(["score-raw", "--suite", str(suite), "--predictions", str(pred), "--data", str(raw),
-                     "--no-progress"]) == 0
+    assert (
+        cli_main(["score-raw", "--suite", str(suite), "--predictions", str(pred), "--data", str(raw), "--no-progress"])
+        == 0
+    )
     assert capsys.readouterr().out.strip().splitlines()[-1].startswith("scored 4 scenarios of tiny-v1")
 
     d = _bad(pred, tmp_path, "missing")
@@ -184,10 +216,30 @@ def test_worked_example_runs_end_to_end(tiny_raw, tmp_path, capsys):
     """docs/examples/dx_pair_diagnoser.py: an external diagnoser reading raw samples one at a time."""
     suite, raw, _ = tiny_raw
     out = tmp_path / "pairs"
-    subprocess.run([sys.executable, str(ROOT / "docs" / "examples" / "dx_pair_diagnoser.py"), str(raw), str(out)],
-                   check=True, capture_output=True)
-    assert cli_main(["score-raw", "--suite", str(suite), "--predictions", str(out), "--data", str(raw),
-                     "--name", "pairs", "--out", str(tmp_path / "pairs.json"), "--no-progress"]) == 0
+    subprocess.run(
+        [sys.executable, str(ROOT / "docs" / "examples" / "dx_pair_diagnoser.py"), str(raw), str(out)],
+        check=True,
+        capture_output=True,
+    )
+    assert (
+        cli_main(
+            [
+                "score-raw",
+                "--suite",
+                str(suite),
+                "--predictions",
+                str(out),
+                "--data",
+                str(raw),
+                "--name",
+                "pairs",
+                "--out",
+                str(tmp_path / "pairs.json"),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     res = json.loads((tmp_path / "pairs.json").read_text())
     ep = {e["scenario_id"]: e for e in res["episodes"]}
     assert ep["s42"]["declared_changes"][-1][1] == ["S4.2"]  # the offset twin found, not its healthy twin

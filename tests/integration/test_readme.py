@@ -1,19 +1,18 @@
-"""Every command of README.md runs from a fresh clone in a fresh folder.
+"""Every command of README.md runs verbatim from an empty folder outside the clone.
 
-The commands are read from README.md itself (its ```bash and ```python blocks; nothing here is a
-copy of them), and run in order in a temporary folder that looks like a fresh clone: symlinks to
-the repository's tracked top-level entries (``training/``, ``docs/``, ...) and nothing else, so
-the output folders the commands name (``runs/``, ``results/``, ``report/``, ``data/``) do not
-exist yet.  ``marine-fdi`` commands run in-process (``marine_fdi_env.cli.main``, which the console
-script's entry point ``console_main`` calls, checked below), with the current directory set to that folder; the
-Python blocks run with ``exec``.
+The commands are read from README.md itself (its ```bash and ```python blocks, in the order they
+appear; nothing here is a copy of them), and run in a real empty temporary folder: no link to the
+repository, so a command that needs the clone's folders (``training/``, ``docs/``) fails here.
+``marine-fdi`` commands run in-process (``marine_fdi_env.cli.main``, which the console script's
+entry point ``console_main`` calls, checked below), with the current directory set to that folder;
+the Python blocks run with ``exec`` there.
 
 What is not run, and why:
 
-* ``python -m pip install ...`` (the install CI has just done) and ``python -m pytest ...`` (this
-  test suite);
+* ``python -m venv``, ``python -m pip install ...`` (the install CI has just done) and ``python -m
+  pytest ...`` (this test suite);
 * commands in running text (backticks outside code blocks): synopses with placeholders such as
-  ``--data FILE.csv`` and the 20-minute ``python -m studies.agents.compare``.
+  ``--agent path/to/file.py:Class`` and the 20-minute ``python -m studies.agents.compare``.
 
 To keep the test within about a minute in CI, the arguments below are substituted (nothing
 else is changed):
@@ -26,7 +25,10 @@ else is changed):
 * ``--episodes N`` becomes ``--episodes MINI_EPISODES``;
 * ``--backend ray`` becomes ``--backend process`` (the Ray backend starts a Ray instance for
   each command; it is tested, with the same numbers as the process backend, in
-  ``test_scale_out.py``).
+  ``test_scale_out.py``);
+* in the Python blocks, ``total_timesteps=N`` becomes ``MINI_TIMESTEPS`` and ``num_envs=N``
+  becomes ``MINI_ENVS`` (the README's PPO trains for minutes: ``benchmarks/sb3_readme.py`` runs
+  it verbatim and scores the policy).
 """
 
 from __future__ import annotations
@@ -35,23 +37,32 @@ import glob
 import json
 import re
 import shlex
-import subprocess
 from importlib import metadata
 from pathlib import Path
 
-from marine_fdi_env.cli import main as cli_main
 from marine_fdi_env.benchmark.suites import SUITE_NAMES, load_suite
+from marine_fdi_env.cli import main as cli_main
 from tests.paths import ROOT
 
 README = ROOT / "README.md"
 MINI_DURATION_S = 20.0
 MINI_EPISODES = 3
-SKIP = ("python -m pip install", "python -m pytest")
+MINI_TIMESTEPS = 512
+MINI_ENVS = 4
+SKIP = ("python -m venv", "python -m pip install", "python -m pytest")
 OUTPUT_OPTIONS = ("--out",)
 
 
-def code_blocks(text: str, lang: str) -> list[str]:
-    return re.findall(rf"^```{lang}\n(.*?)^```", text, flags=re.S | re.M)
+def code_blocks(text: str, lang: str | None = None) -> list[tuple[str, str]]:
+    """``(language, body)`` of the fenced blocks of ``text`` in document order (only ``lang`` if given)."""
+    blocks = re.findall(r"^```(\w*)\n(.*?)^```", text, flags=re.S | re.M)
+    return [(la, body) for la, body in blocks if lang is None or la == lang]
+
+
+def python_substituted(block: str) -> str:
+    """A Python block with the documented substitutions (module docstring)."""
+    block = re.sub(r"total_timesteps=[\d_]+", f"total_timesteps={MINI_TIMESTEPS}", block)
+    return re.sub(r"num_envs=\d+", f"num_envs={MINI_ENVS}", block)
 
 
 def bash_commands(block: str) -> list[list[str]]:
@@ -122,57 +133,68 @@ def substitute(argv: list[str], minis: Path) -> list[str]:
     return out
 
 
-def fresh_clone(folder: Path) -> None:
-    """``folder`` as a fresh clone: links to the tracked top-level entries only."""
-    try:
-        tracked = subprocess.run(["git", "ls-files"], cwd=ROOT, capture_output=True, text=True, check=True,
-                                 timeout=30).stdout.split()
-        names = sorted({t.split("/")[0] for t in tracked})
-    except (OSError, subprocess.SubprocessError):  # no git: everything but outputs of earlier runs
-        names = [p.name for p in ROOT.iterdir()
-                 if not p.name.startswith(".") and p.name not in ("runs", "results", "report", "data")]
-    for n in names:
-        (folder / n).symlink_to(ROOT / n)
-
-
 def test_the_console_script_is_the_cli_entry_point():
     eps = metadata.entry_points(group="console_scripts")
     assert [e.value for e in eps if e.name == "marine-fdi"] == ["marine_fdi_env.cli:console_main"]
 
 
-def test_readme_commands_run_from_a_fresh_clone(tmp_path, monkeypatch, capsys):
-    text = README.read_text(encoding="utf-8")
-    commands = [c for b in code_blocks(text, "bash") for c in bash_commands(b)]
-    assert sum(c[0] == "marine-fdi" for c in commands) >= 15, "README's bash blocks were not found"
-    clone = tmp_path / "clone"
-    clone.mkdir()
-    fresh_clone(clone)
-    minis = tmp_path / "mini-suites"
-    monkeypatch.chdir(clone)
-    ran = []
-    for argv in commands:
-        line = shlex.join(argv)
-        if line.startswith(SKIP):
-            continue
-        assert argv[0] in ("marine-fdi", "python"), f"README command not covered by this test: {line}"
-        assert argv[0] == "marine-fdi", f"README command not covered by this test: {line}"
-        args = substitute(argv, minis)
-        rc = cli_main(args[1:])
-        out, err = capsys.readouterr()
-        assert rc == 0, f"README command failed (exit {rc}): {line}\nran: {shlex.join(args)}\n{err[-3000:]}"
-        assert "Traceback" not in err, f"{line}\n{err[-3000:]}"
-        for opt in OUTPUT_OPTIONS:
-            if opt in args:
-                target = Path(args[args.index(opt) + 1])
-                assert target.exists(), f"{line}: {opt} {target} was not written"
-        ran.append(line)
-    assert len(ran) >= 15
-    # the outputs the README promises
-    assert (clone / "runs" / "run.npz").is_file()
-    assert (clone / "report" / "report.md").is_file()
-    assert (clone / "runs" / "sweep" / "episodes.parquet").is_file()
+def run_command(argv: list[str], minis: Path, capsys) -> tuple[list[str], str]:
+    """One README command, substituted, in-process; (the argv run, its stdout)."""
+    line = shlex.join(argv)
+    assert argv[0] == "marine-fdi", f"README command not covered by this test: {line}"
+    args = substitute(argv, minis)
+    rc = cli_main(args[1:])
+    out, err = capsys.readouterr()
+    assert rc == 0, f"README command failed (exit {rc}): {line}\nran: {shlex.join(args)}\n{err[-3000:]}"
+    assert "Traceback" not in err, f"{line}\n{err[-3000:]}"
+    for opt in OUTPUT_OPTIONS:
+        if opt in args:
+            target = Path(args[args.index(opt) + 1])
+            assert target.exists(), f"{line}: {opt} {target} was not written"
+    return args, out
 
-    # the Python blocks, verbatim, in the same folder
-    for block in code_blocks(text, "python"):
-        namespace: dict = {"__name__": "__readme__"}
-        exec(compile(block, "README.md", "exec"), namespace)  # noqa: S102 - the README's own code
+
+def test_readme_commands_run_verbatim_in_an_empty_folder(tmp_path, monkeypatch, capsys):
+    text = README.read_text(encoding="utf-8")
+    blocks = code_blocks(text)
+    commands = [c for la, b in blocks if la == "bash" for c in bash_commands(b)]
+    assert sum(c[0] == "marine-fdi" for c in commands) >= 10, "README's bash blocks were not found"
+    assert any("SB3VecEnv" in b for la, b in blocks if la == "python"), "README's SB3 block was not found"
+    here = tmp_path / "elsewhere"
+    here.mkdir()
+    minis = tmp_path / "mini-suites"
+    monkeypatch.chdir(here)
+    ran = []
+    for lang, body in blocks:
+        if lang == "python":
+            namespace: dict = {"__name__": "__readme__"}
+            exec(compile(python_substituted(body), "README.md", "exec"), namespace)  # noqa: S102 - the README's own code
+            continue
+        if lang != "bash":
+            continue
+        for argv in bash_commands(body):
+            if shlex.join(argv).startswith(SKIP):
+                continue
+            run_command(argv, minis, capsys)
+            ran.append(shlex.join(argv))
+    assert len(ran) >= 10
+    # the outputs the README promises
+    assert (here / "results" / "reference_thesis-v1.json").is_file()
+    assert (here / "runs" / "run.npz").is_file()
+    assert (here / "report" / "report.md").is_file()
+    assert (here / "runs" / "sweep" / "episodes.parquet").is_file()
+    assert (here / "my_ppo" / "agent.json").is_file()  # the SB3 block's agent folder
+    # the main job again: it shows the results it wrote instead of failing
+    _, out = run_command(["marine-fdi", "evaluate"], minis, capsys)
+    assert "computed before" in out
+
+
+def test_the_readme_is_short_and_its_links_resolve():
+    text = README.read_text(encoding="utf-8")
+    assert len(text.encode("utf-8")) <= 12 * 1024, "README.md over 12 KB: move detail to docs/"
+    links = re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", text)
+    assert len(links) >= 10
+    missing = [t for t in links if not t.startswith("http") and not (ROOT / t).exists()]
+    assert not missing, f"README links to files that do not exist: {missing}"
+    for _, body in code_blocks(text, "bash"):  # no command that works only from the clone's root
+        assert "training/models" not in body and "docs/examples" not in body

@@ -3,7 +3,6 @@ own input preprocessing, a tiny seeded training run, and the shipped model's key
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 
@@ -23,10 +22,16 @@ from marine_fdi_env.training.vec_adapter import to_belief  # noqa: E402
 SCENARIOS = [
     ScenarioSpec(faults=("S4.2@6:6e4",), profile="constant", noise_seed=1, duration_s=20.0, scenario_id="s42"),
     ScenarioSpec(faults=(), profile="step:u0=0.8,u1=0.9,t=5", noise_seed=2, duration_s=20.0, scenario_id="free"),
-    ScenarioSpec(faults=("S2.1@4:8e5", "S3.5@9:80"), profile="constant", noise_seed=3, duration_s=20.0,
-                 scenario_id="pair"),
-    ScenarioSpec(faults=("valve_seizing@3:0.97,kappa=inf",), profile="constant", noise_seed=4, duration_s=20.0,
-                 scenario_id="stall"),
+    ScenarioSpec(
+        faults=("S2.1@4:8e5", "S3.5@9:80"), profile="constant", noise_seed=3, duration_s=20.0, scenario_id="pair"
+    ),
+    ScenarioSpec(
+        faults=("valve_seizing@3:0.97,kappa=inf",),
+        profile="constant",
+        noise_seed=4,
+        duration_s=20.0,
+        scenario_id="stall",
+    ),
 ]
 
 
@@ -90,13 +95,25 @@ def test_agent_features_are_causal_and_restart_per_episode(recorded):
 def test_tiny_replay_ppo_is_seeded_and_runs_as_an_agent(tmp_path, monkeypatch):
     import marine_fdi_env.training.datasets as ds
     from marine_fdi_env.training.rl import train_ppo_replay
-    from marine_fdi_env.training.train import save_meta, load_hyperparams
+    from marine_fdi_env.training.train import load_hyperparams, save_meta
 
     monkeypatch.setattr(ds, "CACHE", tmp_path / "cache")
     short = {"name": "short", "duration_s": 12.0, "onset_range_s": [2.0, 5.0], "second_onset_gap_s": [0.0, 2.0]}
-    hp = load_hyperparams("ppo", "MarineFDI-v1", dict(
-        datasets=[{"config": short, "episodes": 6, "seed": 1}], n_envs=4, n_timesteps=64, n_steps=8,
-        batch_size=16, n_epochs=1, eval_every=1, validation_fraction=0.34, policy_kwargs="dict(net_arch=[16])"))
+    hp = load_hyperparams(
+        "ppo",
+        "MarineFDI-v1",
+        dict(
+            datasets=[{"config": short, "episodes": 6, "seed": 1}],
+            n_envs=4,
+            n_timesteps=64,
+            n_steps=8,
+            batch_size=16,
+            n_epochs=1,
+            eval_every=1,
+            validation_fraction=0.34,
+            policy_kwargs="dict(net_arch=[16])",
+        ),
+    )
     m1, cfg = train_ppo_replay(3, hp, tmp_path / "a", log=None)
     m2, _ = train_ppo_replay(3, hp, None, log=None)
     for a, b in zip(m1.policy.parameters(), m2.policy.parameters()):

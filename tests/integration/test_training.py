@@ -19,16 +19,24 @@ from marine_fdi_env.envs.observation import observation_size  # noqa: E402
 from marine_fdi_env.envs.scenario_sampler import ScenarioConfig  # noqa: E402
 from marine_fdi_env.training.agents import ClassifierAgent, SB3Agent  # noqa: E402
 from marine_fdi_env.training.classifier import calibrate_threshold, train_classifier  # noqa: E402
-from marine_fdi_env.training.train import _observation_meta, save_meta, load_hyperparams, train_sb3  # noqa: E402
+from marine_fdi_env.training.train import _observation_meta, load_hyperparams, save_meta, train_sb3  # noqa: E402
 from marine_fdi_env.training.vec_adapter import SB3VecEnv, to_belief  # noqa: E402
-from tests.paths import ROOT
+from tests.paths import ROOT  # noqa: E402
 
 # fault-free 12 s episodes: no dependence on the detectability table, and episode ends happen
-SHORT = ScenarioConfig(name="short", duration_s=12.0, fault_count_weights=(1.0, 0.0, 0.0),
-                       onset_range_s=(2.0, 5.0)).to_dict()
+SHORT = ScenarioConfig(
+    name="short", duration_s=12.0, fault_count_weights=(1.0, 0.0, 0.0), onset_range_s=(2.0, 5.0)
+).to_dict()
 NF = observation_size(False)  # features per decision (module features + clock)
-TINY = dict(n_envs=2, n_timesteps=48, n_steps=12, batch_size=24, n_epochs=1, scenario_config=SHORT,
-            policy_kwargs="dict(net_arch=[16])")
+TINY = dict(
+    n_envs=2,
+    n_timesteps=48,
+    n_steps=12,
+    batch_size=24,
+    n_epochs=1,
+    scenario_config=SHORT,
+    policy_kwargs="dict(net_arch=[16])",
+)
 
 
 def _params(model) -> list[np.ndarray]:
@@ -97,8 +105,10 @@ def test_frame_stacked_ppo_agent(tmp_path):
 def test_reference_features_from_infos_and_ppo_agent_reading_them(tmp_path):
     from marine_fdi_env.training.vec_adapter import N_REFERENCE_FEATURES, reference_features
 
-    ref = {"detected": np.array([False, True, True]),
-           "diagnoses": np.array([[], [["S3.4"], ["S3.2"]], [["S1.1", "bore_damage"]]], dtype=object)}
+    ref = {
+        "detected": np.array([False, True, True]),
+        "diagnoses": np.array([[], [["S3.4"], ["S3.2"]], [["S1.1", "bore_damage"]]], dtype=object),
+    }
     f = reference_features(ref, 3)
     assert f.shape == (3, 27) and not f[0].any()
     assert f[1, 0] == 1 and f[1, 1 + 11] == 0.5 and f[1, 1 + 9] == 0.5 and f[1].sum() == 2.0  # S3.4, S3.2
@@ -126,9 +136,13 @@ def _tiny_classifier(tmp_path) -> Path:
     out = tmp_path / "clf"
     out.mkdir()
     torch.save(r1.model.state_dict(), out / "model.pt")
-    cfg = {"name": "classifier", "algo": "classifier", "observation": _observation_meta(),
-           "architecture": {"kind": "gru", "n_features": NF, "hidden": 8, "embed": 8},
-           "declaration": {"alarm_threshold": 0.99, "isolation_threshold": 0.5}}
+    cfg = {
+        "name": "classifier",
+        "algo": "classifier",
+        "observation": _observation_meta(),
+        "architecture": {"kind": "gru", "n_features": NF, "hidden": 8, "embed": 8},
+        "declaration": {"alarm_threshold": 0.99, "isolation_threshold": 0.5},
+    }
     save_meta(out, cfg, "marine_fdi_env.training.agents:ClassifierAgent")
     return out
 
@@ -175,8 +189,11 @@ def test_model_loading_errors(tmp_path):
     # missing / corrupt SB3 archive
     bad = tmp_path / "sb3"
     bad.mkdir()
-    save_meta(bad, {"algo": "ppo", "action_mode": "discrete", "observation": _observation_meta()},
-               "marine_fdi_env.training.agents:SB3Agent")
+    save_meta(
+        bad,
+        {"algo": "ppo", "action_mode": "discrete", "observation": _observation_meta()},
+        "marine_fdi_env.training.agents:SB3Agent",
+    )
     with pytest.raises(ValueError, match=r"model\.zip: missing"):
         load_agent(str(bad))
     (bad / "model.zip").write_bytes(b"PK\x03\x04 not really a zip")
@@ -194,19 +211,23 @@ def test_shipped_models_load(name):
     assert (d / "agent.json").is_file(), f"{d} is not shipped"
     agent = load_agent(str(d))
     agent.reset([0, 1])
-    b = agent.act(np.zeros((2, NF), dtype=np.float32), {"reference": {"detected": np.zeros(2, bool),
-                                                                       "diagnoses": [[], []]}})
+    b = agent.act(
+        np.zeros((2, NF), dtype=np.float32), {"reference": {"detected": np.zeros(2, bool), "diagnoses": [[], []]}}
+    )
     assert b.shape == (2, N_HYPOTHESES)
     cfg = json.loads((d / "config.json").read_text())
     # the command recorded when the shipped model was made (older spellings of `marine-fdi train`)
-    assert cfg["command"].split(" --")[0] in ("python -m training.train", "python -m marine_fdi_env.training.train",
-                                              "marine-fdi train")
+    assert cfg["command"].split(" --")[0] in (
+        "python -m training.train",
+        "python -m marine_fdi_env.training.train",
+        "marine-fdi train",
+    )
 
 
 def test_classifier_ewma_inputs_streaming_equals_episode():
     """The EWMA inputs of the signed means are causal: one decision at a time gives the whole-episode logits."""
-    from marine_fdi_env.training.classifier import GRUDiagnoser
     from marine_fdi_env.envs.observation import feature_names
+    from marine_fdi_env.training.classifier import GRUDiagnoser
 
     names = feature_names(False)
     idx = [i for i, n in enumerate(names) if n.endswith(".signed_mean_ratio")]
@@ -226,6 +247,70 @@ def test_classifier_ewma_inputs_streaming_equals_episode():
         whole, _ = m(x)
         h, steps = None, []
         for t in range(7):
-            y, h = m(x[:, t:t + 1], h)
+            y, h = m(x[:, t : t + 1], h)
             steps.append(y)
     torch.testing.assert_close(torch.cat(steps, 1), whole, rtol=1e-5, atol=1e-5)
+
+
+def test_make_vec_env_works_unchanged_and_the_gated_wrapper_declares():
+    """SB3's make_vec_env asks for render_mode="rgb_array": the env warns and renders nothing."""
+    import warnings
+
+    from stable_baselines3.common.env_util import make_vec_env
+
+    from marine_fdi_env.envs.wrappers import GatedAction
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        venv = make_vec_env("marine_fdi_env:MarineFDI-v1", n_envs=2, seed=0, env_kwargs={"scenario_config": SHORT})
+    assert any("rendering is off" in str(w.message) for w in caught)
+    assert venv.reset().shape == (2, NF) and venv.render_mode is None
+    gated = make_vec_env(
+        "marine_fdi_env:MarineFDI-v1",
+        n_envs=2,
+        seed=0,
+        wrapper_class=GatedAction,
+        env_kwargs={"scenario_config": SHORT},
+    )
+    gated.reset()
+    _, rew, _, infos = gated.step(np.array([[0, 5, 9], [1, 0, 0]]))  # quiet; alarm with no fault named
+    assert infos[0]["declared"] == [] and not infos[0]["alarm"]
+    assert infos[1]["declared"] == [] and infos[1]["alarm"]  # unknown: the alarm, no fault
+    assert rew[1] < 0 == rew[0]  # a false alarm on a fault-free episode costs, quiet costs nothing here
+    _, _, _, infos = gated.step(np.array([[1, 3, 0], [1, 3, 21]]))  # one fault; a pair
+    assert infos[0]["declared"] == ["S2.1"] and infos[1]["declared"] == ["S2.1", "bore_damage"]  # 1 + k = fault k
+    with pytest.raises(ValueError, match="3 integers"):
+        GatedAction(gymnasium_env()).action(np.array([2, 0, 0]))
+
+
+def gymnasium_env():
+    import gymnasium
+
+    return gymnasium.make("marine_fdi_env:MarineFDI-v1", scenario_config=SHORT)
+
+
+def test_save_sb3_agent_makes_an_agent_that_evaluates(tmp_path):
+    from stable_baselines3 import PPO
+
+    from marine_fdi_env.training import SB3VecEnv as Exported
+    from marine_fdi_env.training import save_sb3_agent
+
+    assert Exported is SB3VecEnv
+    venv = SB3VecEnv(2, scenario_config=SHORT, action_mode="gated", reference_features=True, seed=0)
+    model = PPO(
+        "MlpPolicy", venv, n_steps=12, batch_size=24, n_epochs=1, seed=0, device="cpu", policy_kwargs={"net_arch": [8]}
+    )
+    model.learn(24)
+    folder = save_sb3_agent(model, tmp_path / "mine")
+    cfg = json.loads((folder / "config.json").read_text())
+    assert cfg["name"] == "mine" and cfg["action_mode"] == "gated" and cfg["observation"]["reference_features"]
+    agent = load_agent(str(folder))
+    recs = run_episodes(agent, [ScenarioConfig.from_dict(SHORT).sample(1, scenario_id="x")], {"scenario_config": SHORT})
+    assert recs[0]["agent"] == "mine" and recs[0]["n_decisions"] == 12
+    # the saved agent acts as the policy does on the adapter's inputs (observation + reference features)
+    from marine_fdi_env.training.vec_adapter import reference_features
+
+    raw, infos = venv.venv.reset(seed=5)
+    x = np.concatenate([raw, reference_features(infos["reference"], len(raw))], axis=1)
+    agent.reset([0, 1])
+    assert np.array_equal(agent.act(raw, infos), to_belief(model.predict(x, deterministic=True)[0], "gated"))

@@ -14,28 +14,33 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_env_evaluate import SCENARIOS
 
-from marine_fdi_env.cli import main as cli_main
-from marine_fdi_env.outputs import differing_fields, prepare_out
-from marine_fdi_env.progress import progress_bar
 from marine_fdi_env.benchmark.dataset import load_dataset
 from marine_fdi_env.benchmark.evaluate import evaluate
 from marine_fdi_env.benchmark.metrics import compute_metrics
-from marine_fdi_env.benchmark.report import (NOTHING_LABEL, UNKNOWN_LABEL, confusion_matrix, load_results,
-                                        write_report)
+from marine_fdi_env.benchmark.report import NOTHING_LABEL, UNKNOWN_LABEL, confusion_matrix, load_results, write_report
+from marine_fdi_env.cli import main as cli_main
+from marine_fdi_env.outputs import differing_fields, prepare_out
+from marine_fdi_env.progress import progress_bar
 from marine_fdi_env.suggest import did_you_mean
-
-from test_env_evaluate import SCENARIOS
 from tests.paths import ROOT
-
 
 
 @pytest.fixture
 def tiny(tmp_path):
     p = tmp_path / "tiny-v1.json"
-    p.write_text(json.dumps({"name": "tiny-v1", "version": 1, "description": "test",
-                             "env": {"decision_period_s": 1.0, "params": "thesis-12v28", "observe_sensors": False},
-                             "scenarios": [s.to_dict() for s in SCENARIOS[:2]]}))
+    p.write_text(
+        json.dumps(
+            {
+                "name": "tiny-v1",
+                "version": 1,
+                "description": "test",
+                "env": {"decision_period_s": 1.0, "params": "thesis-12v28", "observe_sensors": False},
+                "scenarios": [s.to_dict() for s in SCENARIOS[:2]],
+            }
+        )
+    )
     return p
 
 
@@ -92,16 +97,20 @@ def test_existing_results_and_datasets_are_not_overwritten_silently(tmp_path, ca
     stamp = out.stat().st_mtime_ns
     assert cli_main(["evaluate", "--agent", "null", "--suite", str(tiny), "--out", str(out), "--no-progress"]) == 2
     assert "--force" in capsys.readouterr().err and out.stat().st_mtime_ns == stamp
-    assert cli_main(["evaluate", "--agent", "null", "--suite", str(tiny), "--out", str(out), "--no-progress",
-                     "--force"]) == 0
+    assert (
+        cli_main(["evaluate", "--agent", "null", "--suite", str(tiny), "--out", str(out), "--no-progress", "--force"])
+        == 0
+    )
     ds = tmp_path / "ds"
     assert cli_main(["dataset", "--suite", str(tiny), "--out", str(ds), "--no-progress"]) == 0
     first = load_dataset(ds)
     assert cli_main(["dataset", "--suite", str(tiny), "--out", str(ds), "--no-progress", "--observe-sensors"]) == 2
     assert "already holds a dataset (dataset.npz); pass --force" in capsys.readouterr().err
     assert np.array_equal(load_dataset(ds)["obs"], first["obs"])  # untouched
-    assert cli_main(["dataset", "--suite", str(tiny), "--out", str(ds), "--no-progress", "--observe-sensors",
-                     "--force"]) == 0
+    assert (
+        cli_main(["dataset", "--suite", str(tiny), "--out", str(ds), "--no-progress", "--observe-sensors", "--force"])
+        == 0
+    )
     assert load_dataset(ds)["obs"].shape[2] > first["obs"].shape[2]
     # --episodes/--seed belong to --preset
     assert cli_main(["dataset", "--suite", str(tiny), "--episodes", "3", "--out", str(tmp_path / "d2")]) == 2
@@ -109,16 +118,26 @@ def test_existing_results_and_datasets_are_not_overwritten_silently(tmp_path, ca
 
 
 # ----------------------------------------------------------------------------- optional extras
-@pytest.mark.parametrize("module,argv,extra", [
-    ("matplotlib", ["diagnose", "--run", "{run}", "--out", "{tmp}/d.json", "--plots", "{tmp}/plots"], "plots"),
-    ("matplotlib", ["report", "{result}", "--out", "{tmp}/rep"], "plots"),
-    ("matplotlib", ["validate", "--data", "man_12v32_40_fpp_iso", "--out", "{tmp}/v.json", "--plots", "{tmp}/vp"],
-     "plots"),
-    ("pyarrow", ["evaluate", "--agent", "null", "--suite", "{tiny}", "--out", "{tmp}/x.parquet"], "parquet"),
-    ("pyarrow", ["dataset", "--suite", "{tiny}", "--out", "{tmp}/ds", "--format", "parquet"], "parquet"),
-    ("pyarrow", ["sweep", "--agents", "null", "--suites", "{tiny}", "--out", "{tmp}/sw"], "parquet"),
-    ("ray", ["evaluate", "--agent", "null", "--suite", "{tiny}", "--out", "{tmp}/y.json", "--backend", "ray"], "ray"),
-])
+@pytest.mark.parametrize(
+    "module,argv,extra",
+    [
+        ("matplotlib", ["diagnose", "--run", "{run}", "--out", "{tmp}/d.json", "--plots", "{tmp}/plots"], "plots"),
+        ("matplotlib", ["report", "{result}", "--out", "{tmp}/rep"], "plots"),
+        (
+            "matplotlib",
+            ["validate", "--data", "man_12v32_40_fpp_iso", "--out", "{tmp}/v.json", "--plots", "{tmp}/vp"],
+            "plots",
+        ),
+        ("pyarrow", ["evaluate", "--agent", "null", "--suite", "{tiny}", "--out", "{tmp}/x.parquet"], "parquet"),
+        ("pyarrow", ["dataset", "--suite", "{tiny}", "--out", "{tmp}/ds", "--format", "parquet"], "parquet"),
+        ("pyarrow", ["sweep", "--agents", "null", "--suites", "{tiny}", "--out", "{tmp}/sw"], "parquet"),
+        (
+            "ray",
+            ["evaluate", "--agent", "null", "--suite", "{tiny}", "--out", "{tmp}/y.json", "--backend", "ray"],
+            "ray",
+        ),
+    ],
+)
 def test_a_missing_extra_is_one_line_before_any_work(module, argv, extra, tmp_path, monkeypatch, capsys, tiny):
     run = tmp_path / "r.npz"
     assert cli_main(["simulate", "--duration", "2", "--out", str(run), "--no-progress"]) == 0
@@ -129,11 +148,11 @@ def test_a_missing_extra_is_one_line_before_any_work(module, argv, extra, tmp_pa
     def no_work(*a, **k):
         raise AssertionError("the command started working before checking its extras")
 
-    import marine_fdi_env.cli.diagnose as cd
     import marine_fdi_env.benchmark.backends as backends
     import marine_fdi_env.benchmark.evaluate as ev
     import marine_fdi_env.benchmark.report as report
     import marine_fdi_env.benchmark.sweep as sw
+    import marine_fdi_env.cli.diagnose as cd
 
     monkeypatch.setattr(cd, "diagnose_run", no_work)
     for mod in (backends, ev, sw):
@@ -167,8 +186,10 @@ def test_cold_cache_prints_one_line_and_a_warm_cache_none(tmp_path):
     """numba's compile event fires only on a cache miss: in a fresh cache folder the first run
     says "compiling the model" once, the second run (same folder) says nothing."""
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba-cache"))
-    outs = [subprocess.run([sys.executable, "-c", _PROBE], cwd=ROOT, env=env, capture_output=True, text=True,
-                           timeout=300) for _ in range(2)]
+    outs = [
+        subprocess.run([sys.executable, "-c", _PROBE], cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
+        for _ in range(2)
+    ]
     for o in outs:
         assert o.returncode == 0, o.stderr
     assert outs[0].stdout.strip() == "announced" and outs[0].stderr.count("compiling the model") == 1
@@ -218,10 +239,26 @@ def ctrl_c_enabled() -> None:
 
 def test_ctrl_c_in_dataset_keeps_chunks_and_the_rerun_resumes(tmp_path):
     out = tmp_path / "ds"
-    cmd = [sys.executable, "-m", "marine_fdi_env.cli", "dataset", "--preset", "default", "--episodes", "4",
-           "--seed", "1", "--batch-size", "1", "--out", str(out), "--no-progress"]
-    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=ctrl_c_enabled)
+    cmd = [
+        sys.executable,
+        "-m",
+        "marine_fdi_env.cli",
+        "dataset",
+        "--preset",
+        "default",
+        "--episodes",
+        "4",
+        "--seed",
+        "1",
+        "--batch-size",
+        "1",
+        "--out",
+        str(out),
+        "--no-progress",
+    ]
+    proc = subprocess.Popen(
+        cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=ctrl_c_enabled
+    )
     part = out / "dataset.partial"
     deadline = time.monotonic() + 240
     while time.monotonic() < deadline and proc.poll() is None:
@@ -280,10 +317,12 @@ def test_did_you_mean():
 
 
 def test_misspelled_names_get_a_suggestion(capsys):
-    for argv, hint in [(["simulate", "--duration", "1", "--fault", "bore_damge@1", "--out", "x.npz"], "'bore_damage'"),
-                       (["evaluate", "--suite", "single-v2"], "'single-v1'"),
-                       (["evaluate", "--agent", "clasifier"], "'classifier'"),
-                       (["dataset", "--preset", "defualt", "--out", "d"], "'default'")]:
+    for argv, hint in [
+        (["simulate", "--duration", "1", "--fault", "bore_damge@1", "--out", "x.npz"], "'bore_damage'"),
+        (["evaluate", "--suite", "single-v2"], "'single-v1'"),
+        (["evaluate", "--agent", "clasifier"], "'classifier'"),
+        (["dataset", "--preset", "defualt", "--out", "d"], "'default'"),
+    ]:
         assert cli_main(argv) == 2
         assert f"did you mean {hint}" in capsys.readouterr().err, argv
 
@@ -292,8 +331,11 @@ def test_resume_mismatch_names_only_the_differing_field(tiny, tmp_path, capsys):
     out = tmp_path / "x.json"
     partial = out.with_name(out.name + ".partial.jsonl")
     evaluate("null", str(tiny), tmp_path / "ref.json", progress=False)
-    header = {k: v for k, v in json.loads((tmp_path / "ref.json").read_text()).items()
-              if k in ("agent", "agent_spec", "suite", "suite_version", "seed_offset", "env_id", "env")}
+    header = {
+        k: v
+        for k, v in json.loads((tmp_path / "ref.json").read_text()).items()
+        if k in ("agent", "agent_spec", "suite", "suite_version", "seed_offset", "env_id", "env")
+    }
     partial.write_text(json.dumps(dict(header, seed_offset=3)) + "\n")
     assert cli_main(["evaluate", "--agent", "null", "--suite", str(tiny), "--out", str(out), "--no-progress"]) == 2
     err = capsys.readouterr().err
@@ -309,8 +351,12 @@ def test_resume_mismatch_names_only_the_differing_field(tiny, tmp_path, capsys):
     (ds / "dataset.partial").mkdir(parents=True)
     from marine_fdi_env.benchmark import dataset as dsmod
 
-    head = {"key": "other", "env": dsmod._env_json({"scenario_config": cfg}), "n_episodes": 2,
-            "scenario_ids": ["n/7", "n/8"]}
+    head = {
+        "key": "other",
+        "env": dsmod._env_json({"scenario_config": cfg}),
+        "n_episodes": 2,
+        "scenario_ids": ["n/7", "n/8"],
+    }
     (ds / "dataset.partial" / "header.json").write_text(json.dumps(head))
     with pytest.raises(ValueError, match=r"scenario 0: 'n/7' there, 'n/0' here.*--force"):
         export_dataset(mk(0), ds, {"scenario_config": cfg}, progress=False)
@@ -318,12 +364,26 @@ def test_resume_mismatch_names_only_the_differing_field(tiny, tmp_path, capsys):
 
 # ----------------------------------------------------------------------------- report
 def _ep(sid: str, faults, changes) -> dict:
-    return {"scenario_id": sid, "suite": "s", "seed": 0, "agent": "a", "profile": "constant", "duration_s": 20.0,
-            "decision_period_s": 1.0, "n_samples": 2000,
-            "faults": [{"id": f, "class": "process" if "_" in f else "sensor", "onset_s": 5.0, "magnitude": 1.0,
-                        "end_s": None} for f in faults],
-            "declared_changes": changes, "terminated": False, "failure_reason": None, "compute_s": 0.01,
-            "return": 0.0, "reward_terms": {}}
+    return {
+        "scenario_id": sid,
+        "suite": "s",
+        "seed": 0,
+        "agent": "a",
+        "profile": "constant",
+        "duration_s": 20.0,
+        "decision_period_s": 1.0,
+        "n_samples": 2000,
+        "faults": [
+            {"id": f, "class": "process" if "_" in f else "sensor", "onset_s": 5.0, "magnitude": 1.0, "end_s": None}
+            for f in faults
+        ],
+        "declared_changes": changes,
+        "terminated": False,
+        "failure_reason": None,
+        "compute_s": 0.01,
+        "return": 0.0,
+        "reward_terms": {},
+    }
 
 
 def test_confusion_matrix_and_per_fault_tables(tmp_path):
@@ -341,9 +401,16 @@ def test_confusion_matrix_and_per_fault_tables(tmp_path):
     assert cm["declared"] == ["S1.1", "S2.1", "bore_damage", UNKNOWN_LABEL, NOTHING_LABEL]
     cell = {(t, d): c for i, t in enumerate(cm["true"]) for d, c in zip(cm["declared"], cm["counts"][i]) if c}
     # the pair adds to four cells; every other episode to one
-    assert cell == {("S1.1", "S1.1"): 2, ("S1.1", "S2.1"): 1, ("S1.1", "bore_damage"): 1,
-                    ("bore_damage", UNKNOWN_LABEL): 1, ("bore_damage", NOTHING_LABEL): 1,
-                    ("bore_damage", "S1.1"): 1, ("bore_damage", "bore_damage"): 1, ("no fault", NOTHING_LABEL): 1}
+    assert cell == {
+        ("S1.1", "S1.1"): 2,
+        ("S1.1", "S2.1"): 1,
+        ("S1.1", "bore_damage"): 1,
+        ("bore_damage", UNKNOWN_LABEL): 1,
+        ("bore_damage", NOTHING_LABEL): 1,
+        ("bore_damage", "S1.1"): 1,
+        ("bore_damage", "bore_damage"): 1,
+        ("no fault", NOTHING_LABEL): 1,
+    }
     assert cm["episodes"] == [3, 3, 1]  # the pair is one episode in each of its two rows
     # on single-fault episodes the diagonal is the isolation accuracy
     single = [e for e in eps if len(e["faults"]) == 1]
@@ -359,8 +426,11 @@ def test_confusion_matrix_and_per_fault_tables(tmp_path):
         p.write_text(json.dumps({"agent": agent, "suite": "s", "episodes": [dict(x, agent=agent) for x in e]}))
         files.append(p)
     p = tmp_path / "nom.json"
-    p.write_text(json.dumps({"agent": "a", "suite": "nominal-test", "episodes": [dict(x, suite="nominal-test")
-                                                                                  for x in nominal]}))
+    p.write_text(
+        json.dumps(
+            {"agent": "a", "suite": "nominal-test", "episodes": [dict(x, suite="nominal-test") for x in nominal]}
+        )
+    )
     files.append(p)
     pytest.importorskip("matplotlib")
     out = tmp_path / "rep"
@@ -387,3 +457,214 @@ def test_dataset_help_is_plain_text_and_documents_every_option(capsys):
 
     for action in build_parser()._actions:
         assert action.help, f"{action.option_strings} has no help"
+
+
+# ----------------------------------------------------------------------------- the first hour (issue 42)
+def _one_line_error(capsys, argv) -> str:
+    """Run ``argv``; assert exit code 2 and one line on stderr without a traceback; return that line."""
+    code = cli_main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert code == 2, (argv, code, err)
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+@pytest.mark.parametrize("engines", ["100000000000", "1000000"])
+def test_simulate_too_many_engines_names_the_memory_limit(capsys, tmp_path, engines):
+    line = _one_line_error(
+        capsys, ["simulate", "--engines", engines, "--duration", "300", "--out", tmp_path / "big.npz"]
+    )
+    assert "--engines" in line and "memory" in line and "available" in line
+    assert not (tmp_path / "big.npz").exists()
+
+
+def test_dataset_too_many_episodes_names_the_memory_limit(capsys, tmp_path):
+    line = _one_line_error(
+        capsys, ["dataset", "--preset", "default", "--episodes", "100000000000", "--out", tmp_path / "d"]
+    )
+    assert "--episodes" in line and "memory" in line and "available" in line
+    assert not (tmp_path / "d").exists()
+
+
+def test_the_memory_check_compares_with_what_the_machine_has(monkeypatch):
+    from marine_fdi_env import costs
+
+    monkeypatch.setattr(costs, "available_memory_bytes", lambda: 1_000_000)
+    costs.check_memory(999_999, "x", "--n")
+    with pytest.raises(ValueError, match=r"--n: x needs about 1\.5 MB of memory, more than the 1 MB available"):
+        costs.check_memory(1_500_000, "x", "--n")
+
+
+def test_simulate_refuses_to_overwrite_without_force(capsys, tmp_path):
+    out = tmp_path / "run.npz"
+    assert cli_main(["simulate", "--duration", "1", "--out", str(out), "--no-progress"]) == 0
+    stamp = out.stat().st_mtime_ns
+    line = _one_line_error(capsys, ["simulate", "--duration", "1", "--seed", "3", "--out", out])
+    assert "--out" in line and "--force" in line and out.stat().st_mtime_ns == stamp
+    assert cli_main(["simulate", "--duration", "1", "--seed", "3", "--out", str(out), "--no-progress", "--force"]) == 0
+    assert out.stat().st_mtime_ns != stamp
+
+
+@pytest.mark.parametrize(
+    "argv, allowed",
+    [
+        (["evaluate", "--agent", "null", "--suite", "{tiny}", "--out", "{tmp}/r.txt"], ".json or .parquet"),
+        (["simulate", "--duration", "1", "--out", "{tmp}/run.csv"], ".npz"),
+        (["score-raw", "--suite", "{tiny}", "--predictions", "{tmp}", "--out", "{tmp}/s.csv"], ".json or .parquet"),
+    ],
+)
+def test_out_extension_is_checked_against_the_format(capsys, tmp_path, tiny, argv, allowed):
+    line = _one_line_error(capsys, [a.replace("{tmp}", str(tmp_path)).replace("{tiny}", str(tiny)) for a in argv])
+    assert "--out" in line and allowed in line
+    assert len(os.listdir(tmp_path)) == 1  # the suite file only: nothing written
+
+
+@pytest.mark.parametrize(
+    "content, field",
+    [
+        ({"agent": "a", "suite": "s", "episodes": []}, "'episodes' is empty"),
+        ({"agent": "a", "suite": "s"}, "'episodes' is missing"),
+        ({"agent": "a", "episodes": []}, "'suite' missing"),
+        ({"agent": "a", "suite": "s", "episodes": [{"scenario_id": "x"}]}, "field 'suite' is missing"),
+    ],
+)
+def test_report_names_what_a_results_file_lacks(capsys, tmp_path, content, field):
+    f = tmp_path / "r.json"
+    f.write_text(json.dumps(content))
+    line = _one_line_error(capsys, ["report", f, "--out", tmp_path / "rep"])
+    assert str(f) in line and field in line
+
+
+def test_a_sidecar_field_is_validated_by_name(capsys, tmp_path):
+    src = ROOT / "docs" / "examples" / "measured"
+    (tmp_path / "e.csv").write_text((src / "example_engine.csv").read_text())
+    meta = json.loads((src / "example_engine.meta.json").read_text())
+    meta["ambient_temperature_C"] = "warm"
+    (tmp_path / "e.meta.json").write_text(json.dumps(meta))
+    for argv in (
+        ["validate", "--data", tmp_path / "e.csv", "--check"],
+        ["replicas", "--data", tmp_path / "e.csv", "--replicas", "1"],
+    ):
+        line = _one_line_error(capsys, argv)
+        assert "e.meta.json" in line and "'ambient_temperature_C'" in line and "'warm'" in line
+
+
+def test_an_operating_point_outside_the_envelope_warns(capsys):
+    assert cli_main(["operating-point", "--params", "wartsila-6l46", "--fuel-setting", "0.05", "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["converged"]
+    assert "below 25% of the rated 500 rpm" in err and "3,227 g/kWh" in err
+    assert cli_main(["operating-point", "--params", "wartsila-6l46", "--fuel-setting", "1.0", "--json"]) == 0
+    assert "warning" not in capsys.readouterr().err
+
+
+def test_the_envelope_bounds():
+    from marine_fdi_env.engine.envelope import envelope_warnings
+
+    rated = 10.0
+    assert envelope_warnings(rated, 200 / 3.6e9, rated) == []
+    assert "below" in envelope_warnings(0.2 * rated, 200 / 3.6e9, rated)[0]
+    assert "overspeed" in envelope_warnings(1.2 * rated, 200 / 3.6e9, rated)[0]
+    assert "g/kWh" in envelope_warnings(rated, 400 / 3.6e9, rated)[0]
+    assert "g/kWh" in envelope_warnings(rated, 120 / 3.6e9, rated)[0]
+
+
+def test_evaluate_twice_shows_the_results_then_writes_beside_them(tmp_path, monkeypatch, capsys, tiny):
+    monkeypatch.chdir(tmp_path)
+    argv = ["evaluate", "--agent", "null", "--suite", str(tiny), "--no-progress"]
+    assert cli_main(argv) == 0
+    first = tmp_path / "results" / "null_tiny-v1.json"
+    stamp = first.stat().st_mtime_ns
+    capsys.readouterr()
+    assert cli_main(argv) == 0  # the same run again: its results, shown
+    out = capsys.readouterr().out
+    assert "computed before" in out and "| tiny-v1 | null |" in out and first.stat().st_mtime_ns == stamp
+    assert cli_main(argv + ["--seed-offset", "1"]) == 0  # another run: a new file beside the first
+    assert "results/null_tiny-v1-2.json" in capsys.readouterr().out
+    assert json.loads((tmp_path / "results" / "null_tiny-v1-2.json").read_text())["seed_offset"] == 1
+    assert json.loads(first.read_text())["seed_offset"] == 0
+    assert cli_main(argv + ["--seed-offset", "1"]) == 0  # that other run again: found beside, shown
+    assert "results/null_tiny-v1-2.json (computed before" in capsys.readouterr().out
+    assert not (tmp_path / "results" / "null_tiny-v1-3.json").exists()
+
+
+def test_third_party_warnings_print_above_the_bar_not_inside_it(capsys):
+    import logging
+    import warnings
+
+    lib = logging.getLogger("some_library")
+    handler = logging.StreamHandler(sys.stderr)
+    lib.addHandler(handler)
+    try:
+        bar = progress_bar(2, 0, "demo")
+        bar.advance(0.5)
+        # what warnings.showwarning does outside pytest (which records warnings instead of printing them)
+        sys.stderr.write(warnings.formatwarning("a library's warning", UserWarning, "lib.py", 1))
+        lib.warning("a library's log record")
+        bar.advance(1.5)
+        bar.close()
+        lib.warning("after the bar")
+    finally:
+        lib.removeHandler(handler)
+    err = capsys.readouterr().err
+    for text in ("a library's warning", "a library's log record", "after the bar"):
+        line = next(ln for ln in err.split("\n") if text in ln)
+        visible = line.split("\r")[-1]  # what a terminal shows of the line: the bar was cleared first
+        assert text in visible and "demo" not in visible, repr(line)
+    assert sys.stderr is not None and not type(sys.stderr).__name__ == "_AboveBar"
+
+
+def test_long_commands_say_their_cost_first(capsys, tmp_path):
+    from marine_fdi_env.costs import CostEstimate, say_cost
+
+    say_cost("marine-fdi x", "a grid", CostEstimate(600.0, 3e8, workers=2))
+    assert capsys.readouterr().err.startswith("marine-fdi x: a grid: expect about ")
+    say_cost("marine-fdi x", "a little", CostEstimate(5.0))
+    assert capsys.readouterr().err == ""
+    from marine_fdi_env.cli.raw import say_export_cost
+
+    say_export_cost("thesis-v1")
+    err = capsys.readouterr().err
+    assert "marine-fdi export-raw: 20 scenarios of thesis-v1: expect about" in err and "MB" in err
+    from marine_fdi_env.cli.sweep import say_sweep_cost
+
+    say_sweep_cost(["all"], ["all"], 1, workers=2)
+    from marine_fdi_env.benchmark.agent_registry import list_agents
+
+    n_agents = len(list_agents())
+    assert capsys.readouterr().err.startswith(f"marine-fdi sweep: {n_agents} agents x 459 episodes: expect about ")
+    from marine_fdi_env.benchmark.agent_registry import models_dir
+    from marine_fdi_env.cli.train import say_training_cost
+
+    shipped = json.loads((models_dir() / "ppo-v1" / "config.json").read_text())["cpu_minutes"]
+    say_training_cost("ppo", None)
+    assert f"expect about {shipped:.0f} min" in capsys.readouterr().err
+    data = json.loads((models_dir() / "ppo-v1" / "config.json").read_text())["cpu_s_data"] / 60.0
+    say_training_cost("ppo", 7_000_000 // 100)  # a hundredth of the budget: mostly simulating the episodes
+    assert f"expect about {data + (shipped - data) / 100:.0f} min" in capsys.readouterr().err
+    robust = json.loads((models_dir() / "classifier" / "seed0" / "config.json").read_text())["cpu_minutes"]
+    say_training_cost("classifier", None, "robust")  # --hyperparams robust: the noise-invariant classifier's cost
+    assert f"expect about {robust:.0f} min" in capsys.readouterr().err
+
+
+def test_a_fault_free_suite_confusion_plot_has_room_for_its_labels(tmp_path):
+    """A one-row confusion matrix (a fault-free suite) gets a panel tall enough for tight_layout: no
+    matplotlib warning among the report's output."""
+    import warnings
+
+    pytest.importorskip("matplotlib")
+    from marine_fdi_env.benchmark.report import plot_confusion
+
+    rs = load_results(sorted((ROOT / "docs" / "data" / "results").glob("*_nominal-v1.json")))
+    assert len(rs) >= 2
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        plot_confusion(rs, tmp_path / "c.png")
+    assert (tmp_path / "c.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_a_clone_relative_model_path_elsewhere_names_the_agent(tmp_path, monkeypatch, capsys, tiny):
+    monkeypatch.chdir(tmp_path)
+    line = _one_line_error(capsys, ["evaluate", "--agent", "training/models/ppo-v1", "--suite", tiny])
+    assert "--agent ppo-v1" in line and "any folder" in line

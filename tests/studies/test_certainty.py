@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from studies.diagnosis.certainty import derive_sure_cells, grid_magnitudes, replay_declarations
 from marine_fdi_env.diagnosis.decision import declared_faults
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
 from marine_fdi_env.diagnosis.sure_cells import SureCells, load_sure_cells
 from marine_fdi_env.engine.faults import FAULT_IDS
+from studies.diagnosis.certainty import derive_sure_cells, grid_magnitudes, replay_declarations
 
 M = {m: i for i, m in enumerate(MODULE_IDS)}
 
@@ -19,18 +19,30 @@ def _grid(rows):
     times = np.full((len(rows), len(MODULE_IDS)), np.nan)
     runs = []
     for k, (f, fired) in enumerate(rows):
-        runs.append({"fault": f, "magnitude": 1.0, "grid_index": 0, "profile": "constant", "family": "constant",
-                     "seed": k})
+        runs.append(
+            {"fault": f, "magnitude": 1.0, "grid_index": 0, "profile": "constant", "family": "constant", "seed": k}
+        )
         for m, t in fired.items():
             times[k, M[m]] = t
-    return {"runs": runs, "n_seeds": 1, "duration_s": 300.0, "sensor_onset_s": 30.0,
-            "times_after_onset_s": {"reference": times.tolist()}}
+    return {
+        "runs": runs,
+        "n_seeds": 1,
+        "duration_s": 300.0,
+        "sensor_onset_s": 30.0,
+        "times_after_onset_s": {"reference": times.tolist()},
+    }
 
 
 def test_a_cell_is_sure_only_if_it_fires_at_every_size():
     # S3.4: its own module always fires; M3.5 only at the larger size; undetected runs do not count
-    grid = _grid([("S3.4", {"M3.4": 0.0, "M3.5": 0.0, "M4.6": 1.0}), ("S3.4", {"M3.4": 2.0}), ("S3.4", {}),
-                  ("S3.4", {"M2.2": -5.0})])  # a firing before the onset is not a detection
+    grid = _grid(
+        [
+            ("S3.4", {"M3.4": 0.0, "M3.5": 0.0, "M4.6": 1.0}),
+            ("S3.4", {"M3.4": 2.0}),
+            ("S3.4", {}),
+            ("S3.4", {"M2.2": -5.0}),
+        ]
+    )  # a firing before the onset is not a detection
     d = derive_sure_cells(grid, "reference")
     sure = np.asarray(d["sure"], dtype=bool)
     j = FAULT_IDS.index("S3.4")
@@ -57,8 +69,9 @@ def test_replay_rules_out_a_fault_whose_sure_module_stays_silent():
 def test_declaration_rule():
     assert declared_faults([frozenset({"S1.1"})]) == ["S1.1"]
     assert declared_faults([frozenset({"S1.1"}), frozenset({"S3.1"})]) == []  # a tie declares nothing
-    assert declared_faults([frozenset({"S1.1", "S2.2"}), frozenset({"S1.1", "S3.1"}),
-                            frozenset({"S4.1"})]) == ["S4.1"]  # smallest cardinality first
+    assert declared_faults([frozenset({"S1.1", "S2.2"}), frozenset({"S1.1", "S3.1"}), frozenset({"S4.1"})]) == [
+        "S4.1"
+    ]  # smallest cardinality first
     assert declared_faults([]) == []
 
 

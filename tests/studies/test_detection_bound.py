@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from studies.diagnosis.detection_bound import matched_filter, white_noise_threshold
 from marine_fdi_env.diagnosis.incipient_glr import glr_polynomial
+from studies.diagnosis.detection_bound import matched_filter, white_noise_threshold
 
 
 def _brute_glr(p, order, window, paused=None):

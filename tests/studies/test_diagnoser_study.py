@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 
@@ -14,21 +13,22 @@ from marine_fdi_env.engine.simulator import Simulator
 def test_decision_bookkeeping_equals_feeding_every_violating_row():
     # observe() only feeds the decision logic the rows that fire a new module or pass a grace
     # expiry; the outcome must equal feeding every violating row (the reference loop)
-    from studies.diagnosis.certainty import grace_times, settle_times, sure_cells
     from marine_fdi_env.diagnosis.decision import DiagnosisState
+    from studies.diagnosis.certainty import grace_times, settle_times, sure_cells
 
     res = Simulator("thesis-12v28", 3, seeds=31, faults=[["S4.2@2"], ["S2.2@1", "S3.3@4"], []]).run(40.0)
     Y = res.measurements.transpose(1, 0, 2)
     U = res.truth_of("u").T
-    agent = ReferenceDiagnoser(n_engines=3)
+    agent = ReferenceDiagnoser(n_engines=3, cells="grid")
     viol = []
     for a in range(0, Y.shape[1], 250):
-        viol.append(agent.observe(Y[:, a:a + 250], U[:, a:a + 250]).violations)
+        viol.append(agent.observe(Y[:, a : a + 250], U[:, a : a + 250]).violations)
     viol = np.concatenate(viol, axis=1)
     t = np.arange(Y.shape[1]) * agent.dt
     for i in range(3):
-        ref = DiagnosisState(exoneration=sure_cells(), max_cardinality=2, temporal=True, settle_s=settle_times(),
-                             grace_s=grace_times())
+        ref = DiagnosisState(
+            exoneration=sure_cells(), max_cardinality=2, temporal=True, settle_s=settle_times(), grace_s=grace_times()
+        )
         for k in range(Y.shape[1]):
             if viol[i, k].any():
                 ref.update(viol[i, k], float(t[k]))

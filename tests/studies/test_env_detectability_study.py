@@ -6,8 +6,8 @@ import math
 
 import pytest
 
-from marine_fdi_env.envs.detectability import detectability_limit
 from marine_fdi_env.engine.faults import FaultSpec
+from marine_fdi_env.envs.detectability import detectability_limit
 
 
 @pytest.mark.parametrize("fid", ["S2.3", "S4.1"])
@@ -33,8 +33,14 @@ def test_bisection_brackets_and_converges(monkeypatch):
 
     def fake(schedules, seeds, profile="constant", duration_s=300.0):
         calls.append(len(schedules))
-        return [{"detected": s[0].magnitude >= thresholds[s[0].fault_id],
-                 "first_detection_time_s": s[0].onset_s + 1.0, "failures": []} for s in schedules]
+        return [
+            {
+                "detected": s[0].magnitude >= thresholds[s[0].fault_id],
+                "first_detection_time_s": s[0].onset_s + 1.0,
+                "failures": [],
+            }
+            for s in schedules
+        ]
 
     monkeypatch.setattr(kpis, "diagnose_batch", fake)
     out = kpis.detectability_limits(2, fault_ids=tuple(thresholds), rtol=1.05, max_up=3)
@@ -46,4 +52,7 @@ def test_bisection_brackets_and_converges(monkeypatch):
     assert calls[0] == 3 * 2  # every fault and seed of one iteration in one batch
     table = kpis.env_table(out, "cmd", 2)
     assert table["faults"]["turbine_seal_leak"]["limit"] == 3.5e-4
-    assert table["faults"]["S4.1"]["unit"] == "Pa" and table["faults"]["S4.1"]["source"] == "bisection, 2 seeds, command cmd"
+    assert (
+        table["faults"]["S4.1"]["unit"] == "Pa"
+        and table["faults"]["S4.1"]["source"] == "bisection, 2 seeds, command cmd"
+    )

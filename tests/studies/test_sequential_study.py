@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from marine_fdi_env.diagnosis.batch import diagnose_batch
-from marine_fdi_env.diagnosis.sequential import (cusum_blocks, load_calibration)
+from marine_fdi_env.diagnosis.sequential import cusum_blocks, load_calibration
 from studies.diagnosis.sequential_calibration import cusum_offline, profile_for
 
 
@@ -25,11 +25,34 @@ def test_cusum_kernel_equals_the_textbook_recursion():
     gstate = np.zeros((N, 4))
     gstate[:, 1] = np.nan
     for a, b in ((0, 130), (130, 131), (131, 700)):
-        cusum_blocks(R[:, a:b], U[:, a:b], ratio[:, a:b], np.zeros((N, 0, 19), dtype=bool), 0.01,
-                     np.full(N, a * 0.01), block, cal.u_nodes, cal.mean, cal.scale, cal.k, cal.h * 0.2,
-                     np.zeros(19), cal.r_max, acc, st, first, feats, np.array([8, 9]), off, np.ones(5),
-                     np.zeros((N, 5, 2)), np.zeros(N, dtype=np.int64), np.zeros(N, dtype=np.int64),
-                     np.full(N, np.nan), gstate)
+        cusum_blocks(
+            R[:, a:b],
+            U[:, a:b],
+            ratio[:, a:b],
+            np.zeros((N, 0, 19), dtype=bool),
+            0.01,
+            np.full(N, a * 0.01),
+            block,
+            cal.u_nodes,
+            cal.mean,
+            cal.scale,
+            cal.k,
+            cal.h * 0.2,
+            np.zeros(19),
+            cal.r_max,
+            acc,
+            st,
+            first,
+            feats,
+            np.array([8, 9]),
+            off,
+            np.ones(5),
+            np.zeros((N, 5, 2)),
+            np.zeros(N, dtype=np.int64),
+            np.zeros(N, dtype=np.int64),
+            np.full(N, np.nan),
+            gstate,
+        )
     bm = R.reshape(N, B // block, block, 19).mean(axis=2)
     z = np.clip((bm - cal.mean[:, -1]) / cal.scale[:, -1], -10, 10)
     blocks, _ = cusum_offline(z, cal.k, cal.h * 0.2, np.zeros(19, dtype=int))
@@ -40,7 +63,7 @@ def test_cusum_kernel_equals_the_textbook_recursion():
 
 def test_no_alarm_on_fault_free_runs_of_every_family():
     runs = [profile_for(9_500_000_000 + i) for i in range(10)]
-    reps = diagnose_batch([[] for _ in runs], [s for _, s in runs], [p for p, _ in runs], 300.0,
-                          diagnoser="sequential")
-    assert not any(r["detected"] for r in reps), [(p, r["module_detection_times_s"]) for (p, _), r in zip(runs, reps)
-                                                  if r["detected"]]
+    reps = diagnose_batch([[] for _ in runs], [s for _, s in runs], [p for p, _ in runs], 300.0, diagnoser="sequential")
+    assert not any(r["detected"] for r in reps), [
+        (p, r["module_detection_times_s"]) for (p, _), r in zip(runs, reps) if r["detected"]
+    ]

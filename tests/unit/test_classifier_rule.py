@@ -8,9 +8,9 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
+from marine_fdi_env.engine.faults import FAULT_IDS  # noqa: E402
 from marine_fdi_env.envs.hypotheses import HYPOTHESES, UNKNOWN  # noqa: E402
 from marine_fdi_env.envs.observation import observation_size  # noqa: E402
-from marine_fdi_env.engine.faults import FAULT_IDS  # noqa: E402
 from marine_fdi_env.training.agents import ClassifierAgent  # noqa: E402
 
 NF = observation_size(False)
@@ -33,8 +33,11 @@ class ScriptedNet:
 
 
 def _agent(script, mode):
-    cfg = {"name": "classifier", "observation": {"size": NF},
-           "declaration": {"alarm_threshold": 0.9, "isolation_threshold": 0.5, "use_reference": mode}}
+    cfg = {
+        "name": "classifier",
+        "observation": {"size": NF},
+        "declaration": {"alarm_threshold": 0.9, "isolation_threshold": 0.5, "use_reference": mode},
+    }
     a = ClassifierAgent(ScriptedNet(script), cfg, where=None)
     a.reset([0])
     return a
@@ -54,11 +57,13 @@ def _run(agent, refs):
     return out
 
 
-SCRIPT = [(0.5, {"S4.2": 0.9}),  # fault probabilities but no alarm: nothing declared
-          (0.95, {}),             # alarm, no fault above 0.5: unknown
-          (0.2, {"S4.2": 0.8}),   # alarm latched although P(some fault) fell
-          (0.2, {"S4.2": 0.8}),
-          (0.1, {})]
+SCRIPT = [
+    (0.5, {"S4.2": 0.9}),  # fault probabilities but no alarm: nothing declared
+    (0.95, {}),  # alarm, no fault above 0.5: unknown
+    (0.2, {"S4.2": 0.8}),  # alarm latched although P(some fault) fell
+    (0.2, {"S4.2": 0.8}),
+    (0.1, {}),
+]
 NO_REF = [None] * 5
 
 
@@ -83,5 +88,8 @@ def test_fallback_mode_takes_the_reference_only_when_the_classifier_names_nothin
 
 def test_unknown_mode_is_refused():
     with pytest.raises(ValueError, match="use_reference"):
-        ClassifierAgent(ScriptedNet([]), {"observation": {"size": NF}, "declaration": {
-            "alarm_threshold": 0.9, "use_reference": "always"}}, where=__import__("pathlib").Path("m"))
+        ClassifierAgent(
+            ScriptedNet([]),
+            {"observation": {"size": NF}, "declaration": {"alarm_threshold": 0.9, "use_reference": "always"}},
+            where=__import__("pathlib").Path("m"),
+        )

@@ -194,8 +194,9 @@ def test_thesis_examples_minimal_diagnoses(key):
         fired, times = dc.fired_vector(ex.final_fired), ex.detection_times()
     else:
         fired, times = _predicted(ex)
-    kw = dict(exoneration=EXONERATION[exo], detection_times=times if temporal else None,
-              settle_s=dc.default_settle_times())
+    kw = dict(
+        exoneration=EXONERATION[exo], detection_times=times if temporal else None, settle_s=dc.default_settle_times()
+    )
     ds = dc.minimal_diagnoses(fired, **kw)
     assert ds == dc.minimal_diagnoses(fired, method="brute", **kw)  # Berge == enumeration
     if not temporal:
@@ -212,8 +213,9 @@ def test_example_642_contains_the_two_process_faults():
     assert frozenset({"valve_seizing", "bore_damage"}) in ds
     # ... but so is {S1.1, S1.2}: both pairs have the same structural signature
     assert frozenset({"S1.1", "S1.2"}) in ds
-    assert (st.multiple_fault_signature(["S1.1", "S1.2"])
-            == st.multiple_fault_signature(["valve_seizing", "bore_damage"])).all()
+    assert (
+        st.multiple_fault_signature(["S1.1", "S1.2"]) == st.multiple_fault_signature(["valve_seizing", "bore_damage"])
+    ).all()
 
 
 def test_example_641_injected_set_is_not_minimal_statically():
@@ -223,8 +225,9 @@ def test_example_641_injected_set_is_not_minimal_statically():
     assert set(st.fault_modules("S3.4")) < set(st.fault_modules("S4.2"))
     fired = dc.fired_vector(ex.final_fired)
     assert frozenset({"S4.2"}) in dc.minimal_diagnoses(fired)
-    ds = dc.minimal_diagnoses(fired, exoneration=TH == 1, detection_times=ex.detection_times(),
-                              settle_s=dc.default_settle_times())
+    ds = dc.minimal_diagnoses(
+        fired, exoneration=TH == 1, detection_times=ex.detection_times(), settle_s=dc.default_settle_times()
+    )
     assert ds == [frozenset({"S3.4", "S4.2"}), frozenset({"S2.2", "S2.4", "S3.4"})]
     assert len(dc.candidates(ds)) <= len(ex.thesis_candidates)
 
@@ -239,12 +242,15 @@ def test_thesis_knowledge_isolates_642_643_644_uniquely():
 
 
 # ----------------------------------------------------------------------------- thesis logic eq. 5.20-5.22
-@pytest.mark.parametrize("name, d_chi, minimal", [
-    ("thesis-6.4.1", [0, 1, 1, 1], [{"S4.2"}, {"S2.2", "S2.4", "S3.4"}]),
-    ("thesis-6.4.2", [1, 1, 0, 0], [{"valve_seizing", "bore_damage"}]),
-    ("thesis-6.4.3", [0, 1, 0, 1], [{"S2.2", "compressor_seal_leak"}]),
-    ("thesis-6.4.4", [0, 0, 1, 1], [{"S3.2", "turbine_lubrication_loss"}]),
-])
+@pytest.mark.parametrize(
+    "name, d_chi, minimal",
+    [
+        ("thesis-6.4.1", [0, 1, 1, 1], [{"S4.2"}, {"S2.2", "S2.4", "S3.4"}]),
+        ("thesis-6.4.2", [1, 1, 0, 0], [{"valve_seizing", "bore_damage"}]),
+        ("thesis-6.4.3", [0, 1, 0, 1], [{"S2.2", "compressor_seal_leak"}]),
+        ("thesis-6.4.4", [0, 0, 1, 1], [{"S3.2", "turbine_lubrication_loss"}]),
+    ],
+)
 def test_thesis_global_diagnosis_on_the_examples(name, d_chi, minimal):
     ex = dc.THESIS_EXAMPLES[name]
     r = dc.thesis_global_diagnosis(ex.final_fired)
@@ -340,6 +346,7 @@ def test_default_settle_times():
 def test_bounded_cardinality_cost_is_small():
     """All 2^19 fired sets are out of reach, but the worst cases are cheap: all modules fired."""
     import time
+
     t0 = time.perf_counter()
     for k in (3, 4):
         dc.minimal_diagnoses(np.ones(19, bool), max_cardinality=k)

@@ -3,7 +3,6 @@ the comparison with the thesis's tables 6.5-6.8 (thesis lines 1331-1370)."""
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 
@@ -37,24 +36,44 @@ def test_fsm_follows_the_rules_of_modules_py():
         assert {f for j, f in enumerate(FAULT_IDS) if fsm[i, j]} == expected, m.id
 
 
-@pytest.mark.parametrize("fault, modules", [
-    ("S4.3", ("M2.1", "M2.3", "M2.5", "M3.1", "M3.3", "M4.1", "M4.3", "M4.5")),
-    ("S4.4", ("M2.2", "M2.4", "M2.6", "M3.2", "M3.4", "M4.2", "M4.4", "M4.6")),
-    ("S4.2", ("M2.2", "M2.4", "M2.6", "M3.2", "M3.4", "M3.5", "M4.2", "M4.6")),
-    ("S1.1", ("M1.1", "M2.1", "M2.3", "M2.5", "M3.1", "M3.3", "M4.1", "M4.5")),
-    ("S2.5", ("M2.5",)),
-    ("S2.1", ("M2.1", "M3.3")),
-    ("S3.5", ("M3.5", "M4.5", "M4.6")),
-    ("S4.5", ("M4.5",)),
-    ("valve_seizing", ("M1.1", "M1.2")),
-    ("bore_damage", ("M2.1", "M2.2", "M2.3", "M2.4", "M2.5", "M2.6", "M3.1", "M3.2", "M3.3", "M3.4",
-                     "M4.1", "M4.2", "M4.5", "M4.6")),
-    ("turbine_seal_leak", ("M3.1", "M3.2")),
-    ("turbine_lubrication_loss", ("M3.3", "M3.4")),
-    ("compressor_seal_leak", ("M4.1", "M4.2")),
-    ("compressor_lubrication_loss", ("M4.3", "M4.4")),
-    ("intercooler_blockage", ("M4.5", "M4.6")),
-])
+@pytest.mark.parametrize(
+    "fault, modules",
+    [
+        ("S4.3", ("M2.1", "M2.3", "M2.5", "M3.1", "M3.3", "M4.1", "M4.3", "M4.5")),
+        ("S4.4", ("M2.2", "M2.4", "M2.6", "M3.2", "M3.4", "M4.2", "M4.4", "M4.6")),
+        ("S4.2", ("M2.2", "M2.4", "M2.6", "M3.2", "M3.4", "M3.5", "M4.2", "M4.6")),
+        ("S1.1", ("M1.1", "M2.1", "M2.3", "M2.5", "M3.1", "M3.3", "M4.1", "M4.5")),
+        ("S2.5", ("M2.5",)),
+        ("S2.1", ("M2.1", "M3.3")),
+        ("S3.5", ("M3.5", "M4.5", "M4.6")),
+        ("S4.5", ("M4.5",)),
+        ("valve_seizing", ("M1.1", "M1.2")),
+        (
+            "bore_damage",
+            (
+                "M2.1",
+                "M2.2",
+                "M2.3",
+                "M2.4",
+                "M2.5",
+                "M2.6",
+                "M3.1",
+                "M3.2",
+                "M3.3",
+                "M3.4",
+                "M4.1",
+                "M4.2",
+                "M4.5",
+                "M4.6",
+            ),
+        ),
+        ("turbine_seal_leak", ("M3.1", "M3.2")),
+        ("turbine_lubrication_loss", ("M3.3", "M3.4")),
+        ("compressor_seal_leak", ("M4.1", "M4.2")),
+        ("compressor_lubrication_loss", ("M4.3", "M4.4")),
+        ("intercooler_blockage", ("M4.5", "M4.6")),
+    ],
+)
 def test_hand_checked_columns(fault, modules):
     assert col(fault) == modules
 
@@ -93,8 +112,18 @@ def test_agent_matrices_layout():
     assert a2.propagated_sensor_faults == ("S1.1", "S1.2", "S4.1", "S4.2", "S4.3", "S4.4")
     assert a2.propagated_process_faults == () and a2.local_process_faults == ("bore_damage",)
     a3 = am[3]
-    assert a3.propagated_sensor_faults == ("S1.1", "S1.2", "S2.1", "S2.2", "S2.3", "S2.4", "S4.1", "S4.2", "S4.3",
-                                           "S4.4")
+    assert a3.propagated_sensor_faults == (
+        "S1.1",
+        "S1.2",
+        "S2.1",
+        "S2.2",
+        "S2.3",
+        "S2.4",
+        "S4.1",
+        "S4.2",
+        "S4.3",
+        "S4.4",
+    )
     assert a3.propagated_process_faults == ("bore_damage",)
     assert a3.local_process_faults == ("turbine_seal_leak", "turbine_lubrication_loss")
     a4 = am[4]
@@ -159,8 +188,17 @@ def test_isolability_classes():
     assert nif["intercooler_blockage"] == ["S3.5", "bore_damage"]
     assert nif["S2.5"] == ["S1.1", "S2.3", "S4.1", "S4.3", "bore_damage"]
     assert nif["S4.1"] == ["S1.1", "S4.3", "bore_damage"]
-    assert rep["isolable_from_all"] == ["S1.1", "S1.2", "S3.5", "S4.2", "S4.3", "S4.4", "valve_seizing",
-                                        "bore_damage", "compressor_lubrication_loss"]
+    assert rep["isolable_from_all"] == [
+        "S1.1",
+        "S1.2",
+        "S3.5",
+        "S4.2",
+        "S4.3",
+        "S4.4",
+        "valve_seizing",
+        "bore_damage",
+        "compressor_lubrication_loss",
+    ]
     assert ("S3.1", "S3.3") in st.non_isolable_pairs() and ("S3.3", "S3.1") in st.non_isolable_pairs()
 
 

@@ -17,11 +17,15 @@ from marine_fdi_env.envs.vector import MarineFDIVectorEnv
 from marine_fdi_env.envs.wrappers import DiscreteHypothesis
 
 # short episodes keep the suite fast; every fault kind, 0-2 faults, all profile families
-SHORT = ScenarioConfig(name="short", duration_s=20.0, onset_range_s=(2.0, 12.0), second_onset_gap_s=(0.0, 4.0),
-                       profiles=(("constant", 1.0), ("step", 1.0), ("ramp", 1.0), ("random", 1.0),
-                                 ("manoeuvring", 1.0)),
-                       sensor_kinds=tuple((k, 1.0) for k in ("offset", "drift", "stuck", "gain", "precision")),
-                       magnitude_range=(2.0, 8.0))
+SHORT = ScenarioConfig(
+    name="short",
+    duration_s=20.0,
+    onset_range_s=(2.0, 12.0),
+    second_onset_gap_s=(0.0, 4.0),
+    profiles=(("constant", 1.0), ("step", 1.0), ("ramp", 1.0), ("random", 1.0), ("manoeuvring", 1.0)),
+    sensor_kinds=tuple((k, 1.0) for k in ("offset", "drift", "stuck", "gain", "precision")),
+    magnitude_range=(2.0, 8.0),
+)
 STALL = ScenarioSpec(faults=("valve_seizing@3:0.97,kappa=inf",), profile="constant", noise_seed=5, duration_s=20.0)
 
 
@@ -77,8 +81,9 @@ def test_stable_baselines3_env_checker_passes_without_warnings():
 def test_make_and_make_vec_work():
     env = gym.make("marine_fdi_env:MarineFDI-v0", scenario_config="nominal")
     assert env.observation_space.shape == (115,) and env.action_space.shape == (28,)
-    envs = gym.make_vec("marine_fdi_env:MarineFDI-v0", num_envs=3, vectorization_mode="vector_entry_point",
-                        scenario_config=SHORT)
+    envs = gym.make_vec(
+        "marine_fdi_env:MarineFDI-v0", num_envs=3, vectorization_mode="vector_entry_point", scenario_config=SHORT
+    )
     assert isinstance(envs.unwrapped, MarineFDIVectorEnv)
     obs, infos = envs.reset(seed=1)
     assert obs.shape == (3, 115) and obs.dtype == np.float32
@@ -90,8 +95,11 @@ def assert_same_info(infos: dict, i: int, info: dict, where: str) -> None:
     """Sub-env i's entries of vector infos equal a single env's info (None: engine -1 / NaN)."""
     assert {k for k in infos if not k.startswith("_") and infos["_" + k][i]} == set(info), where
     for key, v in info.items():
-        got = infos[key][i] if not isinstance(infos[key], dict) else {k: infos[key][k][i] for k in infos[key]
-                                                                      if not k.startswith("_")}
+        got = (
+            infos[key][i]
+            if not isinstance(infos[key], dict)
+            else {k: infos[key][k][i] for k in infos[key] if not k.startswith("_")}
+        )
         if key == "engine_failure" and v is None:
             assert got["engine"] == -1 and np.isnan(got["time_s"]) and got["reason"] == "", where
         elif key == "engine_failure":  # "engine" is the sub-env index (0 in a single env)
@@ -128,8 +136,9 @@ def test_vector_env_equals_single_envs_seeded_seed_plus_i():
     pending = [False] * n
     ended = 0
     for k in range(steps):
-        actions = np.stack([reference_policy(None, {"reference": venv.batch.reference_declaration(i)})
-                            for i in range(n)])
+        actions = np.stack(
+            [reference_policy(None, {"reference": venv.batch.reference_declaration(i)}) for i in range(n)]
+        )
         obs, r, term, trunc, infos = venv.step(actions)
         for i, env in enumerate(singles):
             if pending[i]:
@@ -181,8 +190,7 @@ def test_episode_length_and_info_ground_truth():
     env = MarineFDIEnv(scenario_config=SHORT)
     obs, info = env.reset(seed=0, options={"scenario": sc})
     assert info["t_s"] == pytest.approx(1.0) and info["active_faults"] == []
-    assert info["true_faults"] == [{"id": "S4.2", "class": "sensor", "onset_s": 5.0, "magnitude": 3e4,
-                                    "end_s": None}]
+    assert info["true_faults"] == [{"id": "S4.2", "class": "sensor", "onset_s": 5.0, "magnitude": 3e4, "end_s": None}]
     steps = 0
     while True:
         obs, r, term, trunc, info = env.step(one_hot(["S4.2"]))
@@ -210,13 +218,16 @@ def test_reward_for_correct_isolation_decays_with_delay():
     assert iso[-1] == pytest.approx(np.exp(-(12.0 - 2.0) / 30.0))
 
 
-@pytest.mark.parametrize("action, match", [
-    (np.zeros(27, np.float32), "shape"),
-    (np.zeros((1, 28), np.float32), "shape"),
-    (np.array(["a"] * 28), "dtype"),
-    (np.full(28, 2.0, np.float32), r"\[0, 1\]"),
-    (np.full(28, np.nan, np.float32), "finite"),
-])
+@pytest.mark.parametrize(
+    "action, match",
+    [
+        (np.zeros(27, np.float32), "shape"),
+        (np.zeros((1, 28), np.float32), "shape"),
+        (np.array(["a"] * 28), "dtype"),
+        (np.full(28, 2.0, np.float32), r"\[0, 1\]"),
+        (np.full(28, np.nan, np.float32), "finite"),
+    ],
+)
 def test_bad_actions_raise_value_error(action, match):
     env = MarineFDIEnv(scenario_config=SHORT)
     env.reset(seed=0)
@@ -224,25 +235,35 @@ def test_bad_actions_raise_value_error(action, match):
         env.step(action)
 
 
-@pytest.mark.parametrize("scenario, match", [
-    ({"faults": ["S9.9@3"]}, "unknown fault id"),
-    ({"faults": [{"fault_id": "bore_damage", "onset_s": 3.0, "magnitude": -1.0}]}, "magnitude"),
-    ({"faults": ["S4.2@30"], "duration_s": 20.0}, "onset"),
-    ({"faults": ["S4.2@3", "S4.2@5"]}, "faults"),
-    ({"noise_seed": -1}, "noise_seed"),
-    ({"profile": "warp"}, "profile"),
-    ({"colour": "red"}, "colour"),
-])
+@pytest.mark.parametrize(
+    "scenario, match",
+    [
+        ({"faults": ["S9.9@3"]}, "unknown fault id"),
+        ({"faults": [{"fault_id": "bore_damage", "onset_s": 3.0, "magnitude": -1.0}]}, "magnitude"),
+        ({"faults": ["S4.2@30"], "duration_s": 20.0}, "onset"),
+        ({"faults": ["S4.2@3", "S4.2@5"]}, "faults"),
+        ({"noise_seed": -1}, "noise_seed"),
+        ({"profile": "warp"}, "profile"),
+        ({"colour": "red"}, "colour"),
+    ],
+)
 def test_bad_scenarios_raise_value_error_naming_the_field(scenario, match):
     env = MarineFDIEnv(scenario_config=SHORT)
     with pytest.raises(ValueError, match=match):
         env.reset(seed=0, options={"scenario": scenario})
 
 
-@pytest.mark.parametrize("field, value", [
-    ("magnitude_range", (-1.0, 2.0)), ("onset_range_s", (10.0, 400.0)), ("fault_ids", ("S1.1", "nope")),
-    ("fault_count_weights", (0.0, 0.0, 0.0)), ("profiles", (("warp", 1.0),)), ("duration_s", -5.0),
-])
+@pytest.mark.parametrize(
+    "field, value",
+    [
+        ("magnitude_range", (-1.0, 2.0)),
+        ("onset_range_s", (10.0, 400.0)),
+        ("fault_ids", ("S1.1", "nope")),
+        ("fault_count_weights", (0.0, 0.0, 0.0)),
+        ("profiles", (("warp", 1.0),)),
+        ("duration_s", -5.0),
+    ],
+)
 def test_bad_scenario_config_raises_value_error_naming_the_field(field, value):
     with pytest.raises(ValueError, match=field):
         ScenarioConfig(**{field: value})

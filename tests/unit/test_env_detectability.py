@@ -6,9 +6,9 @@ import math
 
 import pytest
 
-from marine_fdi_env.envs.detectability import detectability_limit, detectability_table
 from marine_fdi_env.engine.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, FaultSpec, fault_class
 from marine_fdi_env.engine.sensors import SENSORS, sensor_index
+from marine_fdi_env.envs.detectability import detectability_limit, detectability_table
 
 
 def test_table_covers_exactly_the_fault_ids():

@@ -16,10 +16,21 @@ def fault(fid: str, onset: float, end: float | None = None) -> dict:
 
 def rec(changes, faults=(), *, duration=20.0, dp=1.0, sid="sc", **kw) -> dict:
     r = {
-        "scenario_id": sid, "suite": "s", "seed": 0, "agent": "a", "duration_s": duration,
-        "decision_period_s": dp, "n_samples": 100, "faults": list(faults), "profile": "constant",
-        "declared_changes": [list(c) for c in changes], "terminated": False,
-        "failure_reason": None, "compute_s": 0.01, "return": -1.0, "reward_terms": {"fa": -1.0},
+        "scenario_id": sid,
+        "suite": "s",
+        "seed": 0,
+        "agent": "a",
+        "duration_s": duration,
+        "decision_period_s": dp,
+        "n_samples": 100,
+        "faults": list(faults),
+        "profile": "constant",
+        "declared_changes": [list(c) for c in changes],
+        "terminated": False,
+        "failure_reason": None,
+        "compute_s": 0.01,
+        "return": -1.0,
+        "reward_terms": {"fa": -1.0},
     }
     r.update(kw)
     return r
@@ -127,8 +138,7 @@ def test_undetected_when_episode_ends_or_trace_empty():
 
 def test_fractional_decision_period_float_times():
     ts = [round(0.1 * k, 10) for k in range(1, 4)]
-    r = rec([[ts[0], [], False], [0.1 + 0.1 + 0.1, ["S1.2"], True]], [fault("S1.2", 0.25)],
-            dp=0.1, duration=1.0)
+    r = rec([[ts[0], [], False], [0.1 + 0.1 + 0.1, ["S1.2"], True]], [fault("S1.2", 0.25)], dp=0.1, duration=1.0)
     o = episode_outcome(r)
     assert o["detection_time_s"] == pytest.approx(0.3)
     assert o["detection_delay_s"] == pytest.approx(0.05)
@@ -166,8 +176,7 @@ def test_censored_median_counts_missed_faults_as_never_detected():
 def test_belief_compute_return_and_json():
     f = [fault("S1.1", 5)]
     a = rec([[1, [], False]], f, belief_on_truth=[[5, 0.2], [6, 0.4]], compute_s=2.0, n_samples=100)
-    b = rec([[1, [], False]], f, belief_on_truth=[[5, 1.0]], compute_s=1.0, n_samples=200,
-            **{"return": 3.0})
+    b = rec([[1, [], False]], f, belief_on_truth=[[5, 1.0]], compute_s=1.0, n_samples=200, **{"return": 3.0})
     m = compute_metrics([a, b])
     assert m["belief_on_truth"] == pytest.approx((0.3 + 1.0) / 2)
     assert m["compute_s_per_sample"] == pytest.approx(3.0 / 300)
@@ -202,24 +211,27 @@ def test_per_class_and_per_fault_split():
     json.dumps(m, allow_nan=False)
 
 
-@pytest.mark.parametrize("mutate, field", [
-    (lambda r: r.pop("duration_s"), "duration_s"),
-    (lambda r: r.pop("declared_changes"), "declared_changes"),
-    (lambda r: r.update(seed="1"), "seed"),
-    (lambda r: r.update(n_samples=True), "n_samples"),
-    (lambda r: r.update(decision_period_s=0.0), "decision_period_s"),
-    (lambda r: r.update(compute_s=float("nan")), "compute_s"),
-    (lambda r: r.update(terminated=1), "terminated"),
-    (lambda r: r.update(failure_reason=3), "failure_reason"),
-    (lambda r: r["faults"].append(fault("S9.9", 1)), "faults[1].id"),
-    (lambda r: r["faults"][0].update({"class": "process"}), "faults[0].class"),
-    (lambda r: r["faults"][0].pop("onset_s"), "faults[0].onset_s"),
-    (lambda r: r["faults"][0].update(end_s=2.0), "faults[0].end_s"),
-    (lambda r: r["declared_changes"].append([0.5, [], False]), "declared_changes[1]"),
-    (lambda r: r["declared_changes"].append([3, [], "yes"]), "declared_changes[1]"),
-    (lambda r: r["declared_changes"].append([3, ["no_fault"], True]), "declared_changes[1]"),
-    (lambda r: r.update(belief_on_truth=[[1, 1.5]]), "belief_on_truth[0]"),
-])
+@pytest.mark.parametrize(
+    "mutate, field",
+    [
+        (lambda r: r.pop("duration_s"), "duration_s"),
+        (lambda r: r.pop("declared_changes"), "declared_changes"),
+        (lambda r: r.update(seed="1"), "seed"),
+        (lambda r: r.update(n_samples=True), "n_samples"),
+        (lambda r: r.update(decision_period_s=0.0), "decision_period_s"),
+        (lambda r: r.update(compute_s=float("nan")), "compute_s"),
+        (lambda r: r.update(terminated=1), "terminated"),
+        (lambda r: r.update(failure_reason=3), "failure_reason"),
+        (lambda r: r["faults"].append(fault("S9.9", 1)), "faults[1].id"),
+        (lambda r: r["faults"][0].update({"class": "process"}), "faults[0].class"),
+        (lambda r: r["faults"][0].pop("onset_s"), "faults[0].onset_s"),
+        (lambda r: r["faults"][0].update(end_s=2.0), "faults[0].end_s"),
+        (lambda r: r["declared_changes"].append([0.5, [], False]), "declared_changes[1]"),
+        (lambda r: r["declared_changes"].append([3, [], "yes"]), "declared_changes[1]"),
+        (lambda r: r["declared_changes"].append([3, ["no_fault"], True]), "declared_changes[1]"),
+        (lambda r: r.update(belief_on_truth=[[1, 1.5]]), "belief_on_truth[0]"),
+    ],
+)
 def test_validation_errors_name_field_and_scenario(mutate, field):
     r = rec([[1, [], False]], [fault("S1.1", 5)], sid="bad-scenario")
     mutate(r)

@@ -24,16 +24,25 @@ INF = math.inf
 # ----------------------------------------------------------------------------- thesis tables
 # Table 6.3 (thesis line ~1185), transcribed by hand: sensor -> (noise bound, fault magnitude).
 TABLE_6_3 = {
-    "S1.1": (4.5e-5, 1.8e-4), "S1.2": (4.5e-5, 1.8e-4),
-    "S2.1": (2e4, 9e4), "S2.2": (2e4, 9e4),
-    "S2.3": (17.0, 55.0), "S2.4": (17.0, 55.0),
-    "S2.5": (0.75e3, 7.125e3), "S2.6": (0.75e3, 7.125e3),
-    "S3.1": (0.99e3, 5e3), "S3.2": (0.99e3, 5e3),
-    "S3.3": (8.0, 48.0), "S3.4": (8.0, 48.0),
+    "S1.1": (4.5e-5, 1.8e-4),
+    "S1.2": (4.5e-5, 1.8e-4),
+    "S2.1": (2e4, 9e4),
+    "S2.2": (2e4, 9e4),
+    "S2.3": (17.0, 55.0),
+    "S2.4": (17.0, 55.0),
+    "S2.5": (0.75e3, 7.125e3),
+    "S2.6": (0.75e3, 7.125e3),
+    "S3.1": (0.99e3, 5e3),
+    "S3.2": (0.99e3, 5e3),
+    "S3.3": (8.0, 48.0),
+    "S3.4": (8.0, 48.0),
     "S3.5": (6.0, 25.0),
-    "S4.1": (5.5e3, 5e4), "S4.2": (5.5e3, 5e4),
-    "S4.3": (5.0, 22.0), "S4.4": (5.0, 22.0),
-    "S4.5": (5.0, 25.0), "S4.6": (5.0, 25.0),
+    "S4.1": (5.5e3, 5e4),
+    "S4.2": (5.5e3, 5e4),
+    "S4.3": (5.0, 22.0),
+    "S4.4": (5.0, 22.0),
+    "S4.5": (5.0, 25.0),
+    "S4.6": (5.0, 25.0),
 }
 
 # Table 6.4 (thesis line ~1312): id -> (initialisation time t1 [s], kappa [1/s], magnitude).
@@ -209,8 +218,9 @@ def test_intermittent_with_end_stops():
 
 def test_process_fault_intermittent_value():
     # a process fault in an intermittent window: value restarts at 0 in each window
-    sched = CompiledSchedule.compile([[FaultSpec("intercooler_blockage", 10.0, 2.0, kappa=INF, period_s=10.0,
-                                                 duty=0.5)]])
+    sched = CompiledSchedule.compile(
+        [[FaultSpec("intercooler_blockage", 10.0, 2.0, kappa=INF, period_s=10.0, duty=0.5)]]
+    )
     assert sched.process_values(12.0).dT_c_K[0] == pytest.approx(4.0, rel=1e-12)  # R s with s = 2
     assert sched.process_values(16.0).dT_c_K[0] == 0.0  # off phase
     assert sched.process_values(21.0).dT_c_K[0] == pytest.approx(2.0, rel=1e-12)  # s = 1 in window 2

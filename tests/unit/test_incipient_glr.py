@@ -9,8 +9,14 @@ import math
 import numpy as np
 import pytest
 
-from marine_fdi_env.diagnosis.incipient_glr import (GATE_DELTA, GATE_TAU_S, glr_norms, glr_pair_update,
-                                                    glr_polynomial, transient_gate)
+from marine_fdi_env.diagnosis.incipient_glr import (
+    GATE_DELTA,
+    GATE_TAU_S,
+    glr_norms,
+    glr_pair_update,
+    glr_polynomial,
+    transient_gate,
+)
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
 from marine_fdi_env.diagnosis.sequential import SequentialCalibration, SequentialStage, load_calibration
 
@@ -26,8 +32,21 @@ def _stream(z1, z2, u, active, window, order=2):
     c = np.zeros((R, N, 2))
     for t in range(N):
         for i in range(R):
-            g[i, t], c[i, t, 0], c[i, t, 1] = glr_pair_update(i, z1[i, t], z2[i, t], u[i, t], active[i, t], num, count,
-                                                              pos, avg, norms, order, 1.0 / GATE_TAU_S, GATE_DELTA)
+            g[i, t], c[i, t, 0], c[i, t, 1] = glr_pair_update(
+                i,
+                z1[i, t],
+                z2[i, t],
+                u[i, t],
+                active[i, t],
+                num,
+                count,
+                pos,
+                avg,
+                norms,
+                order,
+                1.0 / GATE_TAU_S,
+                GATE_DELTA,
+            )
     return g, c
 
 
@@ -171,8 +190,13 @@ def test_sequential_diagnoser_sees_the_seal_leak_at_table_size_through_the_recei
     from marine_fdi_env.engine.faults import FAULT_IDS, FaultSpec
 
     seeds = [10_000 + 1000 * list(FAULT_IDS).index("turbine_seal_leak") + s for s in range(6)]
-    reps = diagnose_batch([[FaultSpec("turbine_seal_leak", 15.0)] for _ in seeds], seeds, duration_s=315.0,
-                          diagnoser="sequential", exoneration="none")
+    reps = diagnose_batch(
+        [[FaultSpec("turbine_seal_leak", 15.0)] for _ in seeds],
+        seeds,
+        duration_s=315.0,
+        diagnoser="sequential",
+        exoneration="none",
+    )
     hits = [r for r in reps if r["detected"]]
     assert len(hits) >= 4
     for r in hits:
@@ -190,8 +214,23 @@ def test_diagnose_cli_says_which_test_fired(tmp_path, capsys):
     from marine_fdi_env.cli import main as cli_main
 
     run = tmp_path / "seal.npz"
-    assert cli_main(["simulate", "--duration", "330", "--seed", "31000", "--fault", "turbine_seal_leak@15",
-                     "--out", str(run), "--no-progress"]) == 0
+    assert (
+        cli_main(
+            [
+                "simulate",
+                "--duration",
+                "330",
+                "--seed",
+                "31000",
+                "--fault",
+                "turbine_seal_leak@15",
+                "--out",
+                str(run),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     out = tmp_path / "seq.json"
     capsys.readouterr()
     assert cli_main(["diagnose", "--run", str(run), "--diagnoser", "sequential", "--out", str(out)]) == 0

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_submodels import ALL_ON
 
 from marine_fdi_env.engine.constants import KernelConstants, ModelConstants, kernel_constants, model_constants
 from marine_fdi_env.engine.model import HEALTHY_PF, N_ALG, _solve_algebraic, solve_algebraic
 from marine_fdi_env.engine.params import load_params
-from test_submodels import ALL_ON
 
 
 def _constants(sub):

@@ -5,17 +5,17 @@ from __future__ import annotations
 
 import dataclasses
 import json
-from types import SimpleNamespace
 import math
 from importlib import resources
+from types import SimpleNamespace
 
 import pytest
 
 from marine_fdi_env import EngineParams, list_parameter_sets, load_params
 from marine_fdi_env.engine.calibration import INPUT_SETS, derive_parameters
+from marine_fdi_env.engine.constants import model_constants
 from marine_fdi_env.engine.geometry import cylinder_geometry
 from marine_fdi_env.engine.params import params_provenance
-from marine_fdi_env.engine.constants import model_constants
 from marine_fdi_env.engine.seiliger import seiliger_cycle
 from marine_fdi_env.engine.subsystems import air_intake as s4
 
@@ -143,9 +143,29 @@ def test_replace_non_finite_raises_naming_field(field, bad):
 
 @pytest.mark.parametrize(
     "field",
-    ["P_nom_W", "n_nom_rev_s", "bore_m", "stroke_m", "V1_m3", "SFC_nom_kg_per_J", "tau_X_s", "tau_pd_s",
-     "tau_TC_s", "A_eff_m2", "m1_nom_kg", "p_amb_Pa", "T_amb_K", "p1_nom_Pa", "eta_com", "c_load_W_s3",
-     "kappa_a", "kappa_g", "n_exp", "X_cv_nom", "X_ct_nom"],
+    [
+        "P_nom_W",
+        "n_nom_rev_s",
+        "bore_m",
+        "stroke_m",
+        "V1_m3",
+        "SFC_nom_kg_per_J",
+        "tau_X_s",
+        "tau_pd_s",
+        "tau_TC_s",
+        "A_eff_m2",
+        "m1_nom_kg",
+        "p_amb_Pa",
+        "T_amb_K",
+        "p1_nom_Pa",
+        "eta_com",
+        "c_load_W_s3",
+        "kappa_a",
+        "kappa_g",
+        "n_exp",
+        "X_cv_nom",
+        "X_ct_nom",
+    ],
 )
 def test_replace_negative_raises_naming_field(field):
     p = load_params("thesis-12v28")

@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from marine_fdi_env.engine.constants import model_constants
 from marine_fdi_env.diagnosis import residuals as R
 from marine_fdi_env.diagnosis.agent import ReferenceDiagnoser
 from marine_fdi_env.diagnosis.inclusion_table import _node, interpolate_rows, sigma2_table
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
+from marine_fdi_env.engine.constants import model_constants
 from marine_fdi_env.engine.faults import FaultSpec
 from marine_fdi_env.engine.params import load_params
 from marine_fdi_env.engine.sensors import NOISE_BOUNDS
@@ -24,10 +24,26 @@ DB = NOISE_BOUNDS.astype(float)
 def batch():
     """8 engines, 20 s: faults that move the operating point off the fault-free manifold, all
     profile families, and sensor dropouts that disable one chain or the other."""
-    faults = [[], [FaultSpec("S4.1", 5.0)], [FaultSpec("bore_damage", 5.0)], [FaultSpec("S1.2", 3.0)], [],
-              [FaultSpec("compressor_lubrication_loss", 2.0)], [FaultSpec("S3.3", 4.0)], [FaultSpec("S4.4", 6.0)]]
-    profiles = ["constant", "manoeuvring", "random:seed=3", "step", "ramp", "manoeuvring", "constant:u0=0.3",
-                "random:seed=9"]
+    faults = [
+        [],
+        [FaultSpec("S4.1", 5.0)],
+        [FaultSpec("bore_damage", 5.0)],
+        [FaultSpec("S1.2", 3.0)],
+        [],
+        [FaultSpec("compressor_lubrication_loss", 2.0)],
+        [FaultSpec("S3.3", 4.0)],
+        [FaultSpec("S4.4", 6.0)],
+    ]
+    profiles = [
+        "constant",
+        "manoeuvring",
+        "random:seed=3",
+        "step",
+        "ramp",
+        "manoeuvring",
+        "constant:u0=0.3",
+        "random:seed=9",
+    ]
     res = Simulator("thesis-12v28", 8, seeds=list(range(8)), profiles=profiles, faults=faults).run(20.0)
     Y = np.ascontiguousarray(res.measurements.transpose(1, 0, 2))
     U = np.ascontiguousarray(res.truth_of("u").T)
@@ -91,7 +107,7 @@ def test_table_margin_bounds_the_interpolation_error_at_random_points():
             continue
         assert np.isfinite(_node(C, x1, x4, T1, DB[0], DB[13], DB[15], C.n_nom_rev_s, tab))
         exact = tab[1:] - tab[0]
-        margin = flat_margin[cell * 18:(cell + 1) * 18].reshape(6, 3)
+        margin = flat_margin[cell * 18 : (cell + 1) * 18].reshape(6, 3)
         assert np.all(np.abs(out - exact) <= margin), (x1, x4, T1)
         checked += 1
     assert checked > 0.9 * n  # almost all of the table is valid

@@ -13,11 +13,17 @@ import pytest
 
 import marine_fdi_env  # noqa: F401  (registers the environments)
 from marine_fdi_env.benchmark.evaluate import run_episodes
+from marine_fdi_env.benchmark.metrics import episode_outcome
 from marine_fdi_env.envs.fdi_env import MarineFDIEnv
 from marine_fdi_env.envs.hypotheses import one_hot
-from marine_fdi_env.benchmark.metrics import episode_outcome
-from marine_fdi_env.envs.reward import (REWARD_TERMS_V1, RewardConfig, RewardConfigV1, make_reward_config,
-                                        score_record_v1, score_records_v1)
+from marine_fdi_env.envs.reward import (
+    REWARD_TERMS_V1,
+    RewardConfig,
+    RewardConfigV1,
+    make_reward_config,
+    score_record_v1,
+    score_records_v1,
+)
 from marine_fdi_env.envs.scenario_sampler import ScenarioConfig, ScenarioSpec
 from marine_fdi_env.envs.vector import MarineFDIVectorEnv
 from tests.paths import ROOT
@@ -40,6 +46,7 @@ def _mixed_policy(seed: int):
         if rng.random() < 0.3:
             return rng.random(28).astype(np.float32)
         return one_hot(info["active_faults"]) if info["active_faults"] else one_hot(["no_fault"])
+
     return act
 
 
@@ -75,8 +82,9 @@ def test_v1_changes_only_the_reward():
         assert np.array_equal(o0, o1) and (t0, tr0) == (t1, tr1)
         assert set(i1["reward_terms"]) == set(REWARD_TERMS_V1)
         assert r1 == pytest.approx(sum(i1["reward_terms"].values()), abs=1e-12)
-        assert {k: v for k, v in i0.items() if k != "reward_terms"} == {k: v for k, v in i1.items()
-                                                                         if k != "reward_terms"}
+        assert {k: v for k, v in i0.items() if k != "reward_terms"} == {
+            k: v for k, v in i1.items() if k != "reward_terms"
+        }
         if t1 or tr1:
             break
 
@@ -84,10 +92,16 @@ def test_v1_changes_only_the_reward():
 SCENARIOS = [
     ScenarioSpec(faults=("S4.2@6:6e4",), profile="constant", noise_seed=1, duration_s=20.0, scenario_id="s42"),
     ScenarioSpec(faults=(), profile="step:u0=0.8,u1=0.9,t=5", noise_seed=2, duration_s=20.0, scenario_id="free"),
-    ScenarioSpec(faults=("S2.1@4:8e5", "S3.5@9:80"), profile="constant", noise_seed=3, duration_s=20.0,
-                 scenario_id="pair"),
-    ScenarioSpec(faults=("valve_seizing@3:0.97,kappa=inf",), profile="constant", noise_seed=4, duration_s=20.0,
-                 scenario_id="stall"),
+    ScenarioSpec(
+        faults=("S2.1@4:8e5", "S3.5@9:80"), profile="constant", noise_seed=3, duration_s=20.0, scenario_id="pair"
+    ),
+    ScenarioSpec(
+        faults=("valve_seizing@3:0.97,kappa=inf",),
+        profile="constant",
+        noise_seed=4,
+        duration_s=20.0,
+        scenario_id="stall",
+    ),
 ]
 
 
@@ -165,12 +179,33 @@ def test_recorded_traces_rank_oracle_reference_alarm_only_null(suite):
 
 # ------------------------------------------------------------------------------------ constructed cases
 def _record(faults, trace, duration=60.0):
-    return {"scenario_id": "c", "suite": "c", "seed": 0, "agent": "c", "profile": "constant",
-            "duration_s": duration, "decision_period_s": 1.0, "n_samples": int(duration * 100),
-            "faults": [{"id": f, "class": "sensor" if f.startswith("S") else "process", "onset_s": on,
-                        "magnitude": 1.0, "end_s": None} for f, on in faults],
-            "declared_changes": trace, "belief_on_truth": [], "terminated": False, "failure_reason": None,
-            "compute_s": 0.0, "return": 0.0, "reward_terms": {}}
+    return {
+        "scenario_id": "c",
+        "suite": "c",
+        "seed": 0,
+        "agent": "c",
+        "profile": "constant",
+        "duration_s": duration,
+        "decision_period_s": 1.0,
+        "n_samples": int(duration * 100),
+        "faults": [
+            {
+                "id": f,
+                "class": "sensor" if f.startswith("S") else "process",
+                "onset_s": on,
+                "magnitude": 1.0,
+                "end_s": None,
+            }
+            for f, on in faults
+        ],
+        "declared_changes": trace,
+        "belief_on_truth": [],
+        "terminated": False,
+        "failure_reason": None,
+        "compute_s": 0.0,
+        "return": 0.0,
+        "reward_terms": {},
+    }
 
 
 def _held_trace(rng, faults, duration=60.0):
@@ -200,8 +235,13 @@ def _held_trace(rng, faults, duration=60.0):
 def _metric_vector(rec):
     o = episode_outcome(rec)
     inf = math.inf
-    return (o["false_alarms"], 0 if o["detected"] else 1, o["detection_delay_s"] if o["detected"] else inf,
-            0 if o["isolation_correct"] else 1, inf if o["isolation_delay_s"] is None else o["isolation_delay_s"])
+    return (
+        o["false_alarms"],
+        0 if o["detected"] else 1,
+        o["detection_delay_s"] if o["detected"] else inf,
+        0 if o["isolation_correct"] else 1,
+        inf if o["isolation_delay_s"] is None else o["isolation_delay_s"],
+    )
 
 
 @pytest.mark.parametrize("faults", [[("S4.2", 20.5)], [("bore_damage", 12.3), ("S3.5", 30.0)]])
@@ -244,10 +284,15 @@ def test_correct_beats_unknown_at_any_time_and_late_beats_never():
     assert wrong == unknown  # the metrics do not tell a wrong set from no set; neither does v1
 
 
-@pytest.mark.parametrize("spec, match", [
-    ({"version": "v2"}, "version"), ({"version": "v1", "tau_s": 3.0}, "unknown reward fields"),
-    ({"version": "v1", "false_alarm": -1.0}, "false_alarm"), ("v9", "reward must be"),
-])
+@pytest.mark.parametrize(
+    "spec, match",
+    [
+        ({"version": "v2"}, "version"),
+        ({"version": "v1", "tau_s": 3.0}, "unknown reward fields"),
+        ({"version": "v1", "false_alarm": -1.0}, "false_alarm"),
+        ("v9", "reward must be"),
+    ],
+)
 def test_bad_reward_specs_name_the_field(spec, match):
     with pytest.raises(ValueError, match=match):
         make_reward_config(spec)

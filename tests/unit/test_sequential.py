@@ -9,8 +9,12 @@ import pytest
 from marine_fdi_env.diagnosis.agent import ReferenceDiagnoser
 from marine_fdi_env.diagnosis.batch import diagnose_batch
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
-from marine_fdi_env.diagnosis.sequential import (SEQUENTIAL_FEATURES, SequentialCalibration, SequentialDiagnoser,
-                                                 load_calibration)
+from marine_fdi_env.diagnosis.sequential import (
+    SEQUENTIAL_FEATURES,
+    SequentialCalibration,
+    SequentialDiagnoser,
+    load_calibration,
+)
 from marine_fdi_env.engine.faults import FaultSpec
 from marine_fdi_env.engine.simulator import Simulator
 
@@ -25,14 +29,19 @@ def test_calibration_file_is_consistent():
 
 
 def test_streaming_in_blocks_equals_one_pass():
-    res = Simulator("thesis-12v28", 2, seeds=[5, 6], faults=[[FaultSpec("intercooler_blockage", 30.0, magnitude=0.03)],
-                                                             []], profiles="constant").run(120.0)
+    res = Simulator(
+        "thesis-12v28",
+        2,
+        seeds=[5, 6],
+        faults=[[FaultSpec("intercooler_blockage", 30.0, magnitude=0.03)], []],
+        profiles="constant",
+    ).run(120.0)
     Y, U = res.measurements.transpose(1, 0, 2), res.truth_of("u").T
     outs = []
     for block in (Y.shape[1], 250, 77):
         d = SequentialDiagnoser(n_engines=2, dt=res.dt)
         for a in range(0, Y.shape[1], block):
-            d.observe(Y[:, a:a + block], U[:, a:a + block])
+            d.observe(Y[:, a : a + block], U[:, a : a + block])
         outs.append((d.stage.first.copy(), d.stage.st.copy(), [d.report(i) for i in range(2)]))
     for o in outs[1:]:
         assert np.array_equal(o[0], outs[0][0], equal_nan=True)
@@ -77,7 +86,7 @@ def test_evaluate_runs_the_sequential_agent_with_its_environment_option():
     from marine_fdi_env.benchmark.suites import load_suite
 
     agent = load_agent("sequential")
-    assert agent.env_kwargs == {"observe_sequential": True}
+    assert agent.env_kwargs == {"observe_sequential": True, "diagnosis_cells": "sized"}
     suite = load_suite("thesis-v1")
     recs = run_episodes(agent, suite.scenarios[:2], dict(suite["env"]), suite="thesis-v1")
     assert len(recs) == 2 and all(r["agent"] == "sequential" for r in recs)

@@ -9,7 +9,13 @@ import re
 import numpy as np
 import pytest
 
-from marine_fdi_env.engine.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, PROCESS_FAULT_IDS, FaultSpec, parse_fault_spec
+from marine_fdi_env.engine.faults import (
+    FAULT_IDS,
+    PROCESS_FAULT_DEFAULTS,
+    PROCESS_FAULT_IDS,
+    FaultSpec,
+    parse_fault_spec,
+)
 from marine_fdi_env.engine.integrators import reference_solve
 from marine_fdi_env.engine.params import load_params
 from marine_fdi_env.engine.sensors import MEASURED_VARIABLES, N_SENSORS, NOISE_BOUNDS, SENSOR_IDS, VARIABLE_OF_SENSOR
@@ -29,14 +35,19 @@ def _sid(sensor_id: str) -> int:
 
 
 def _all_finite(result) -> bool:
-    return bool(np.isfinite(result.measurements).all() and np.isfinite(result.truth).all()
-                and np.isfinite(result.fault_value).all())
+    return bool(
+        np.isfinite(result.measurements).all()
+        and np.isfinite(result.truth).all()
+        and np.isfinite(result.fault_value).all()
+    )
 
 
 # ----------------------------------------------------------------------------- reproducibility
 def _det_sim(seeds):
     return Simulator(
-        "thesis-12v28", n_engines=2, seeds=seeds,
+        "thesis-12v28",
+        n_engines=2,
+        seeds=seeds,
         faults=["S2.1@1.0", "compressor_seal_leak@0.5:0.2", "S4.5@2.0,kind=precision"],
         profiles="step:u0=0.8,u1=0.9,t=2",
     )
@@ -89,8 +100,9 @@ def test_batch_equals_single_engine_runs():
     batch = Simulator(n_engines=4, seeds=BATCH_SEEDS, faults=BATCH_FAULTS, profiles=BATCH_PROFILES).run(4.0)
     assert batch.failures == []
     for i in range(4):
-        single = Simulator(n_engines=1, seeds=[BATCH_SEEDS[i]], faults=[BATCH_FAULTS[i]],
-                           profiles=BATCH_PROFILES[i]).run(4.0)
+        single = Simulator(
+            n_engines=1, seeds=[BATCH_SEEDS[i]], faults=[BATCH_FAULTS[i]], profiles=BATCH_PROFILES[i]
+        ).run(4.0)
         assert np.array_equal(batch.measurements[:, i], single.measurements[:, 0]), f"engine {i} measurements"
         assert np.array_equal(batch.truth[:, i], single.truth[:, 0]), f"engine {i} truth"
         assert np.array_equal(batch.fault_value[:, i], single.fault_value[:, 0]), f"engine {i} fault_value"
@@ -245,14 +257,17 @@ def test_ground_truth_columns_mark_sensor_faults_from_onset(sensor_fault_run):
         _, dev, _ = _dev(r, e, sensor)
         assert np.array_equal(r.fault_value[on, e, col], dev[on]), sensor
     # offset value is the magnitude itself
-    np.testing.assert_allclose(r.fault_value[r.t >= ONSET, 1, FAULT_IDS.index("S2.1")], 9e4,
-                               atol=_roundoff(r, "S2.1"))
+    np.testing.assert_allclose(r.fault_value[r.t >= ONSET, 1, FAULT_IDS.index("S2.1")], 9e4, atol=_roundoff(r, "S2.1"))
 
 
 def test_transient_and_intermittent_sensor_faults_in_simulation():
     # transient offset [0.5, 1.0) and intermittent offset on for 0.2 s every 0.5 s from 0.25 s
-    r = Simulator(n_engines=2, seeds=[9, 9], noise_scale=0.0,
-                  faults=[["S3.5@0.5:25,end=1.0"], ["S3.5@0.255:25,period=0.5,duty=0.4"]]).run(2.0)
+    r = Simulator(
+        n_engines=2,
+        seeds=[9, 9],
+        noise_scale=0.0,
+        faults=[["S3.5@0.5:25,end=1.0"], ["S3.5@0.255:25,period=0.5,duty=0.4"]],
+    ).run(2.0)
     col, j = FAULT_IDS.index("S3.5"), _sid("S3.5")
     t = np.round(r.t, 9)
     expect0 = (t >= 0.5) & (t < 1.0)
@@ -300,14 +315,20 @@ PROCESS_CASES = {
 }
 # after the full 300 s of the thesis runs the effects are much larger (slow test)
 PROCESS_MIN_REL_300S = {
-    "valve_seizing": 0.1, "bore_damage": 1e-2, "turbine_seal_leak": 3e-4, "turbine_lubrication_loss": 5e-3,
-    "compressor_seal_leak": 0.05, "compressor_lubrication_loss": 0.03, "intercooler_blockage": 0.1,
+    "valve_seizing": 0.1,
+    "bore_damage": 1e-2,
+    "turbine_seal_leak": 3e-4,
+    "turbine_lubrication_loss": 5e-3,
+    "compressor_seal_leak": 0.05,
+    "compressor_lubrication_loss": 0.03,
+    "intercooler_blockage": 0.1,
 }
 
 
 def _fault_vs_healthy(fid: str, duration: float):
-    sim = Simulator("thesis-12v28", n_engines=2, seeds=[0, 0], noise_scale=0.0, profiles=1.0,
-                    faults=[[FaultSpec(fid, P_ONSET)], []])
+    sim = Simulator(
+        "thesis-12v28", n_engines=2, seeds=[0, 0], noise_scale=0.0, profiles=1.0, faults=[[FaultSpec(fid, P_ONSET)], []]
+    )
     r = sim.run(P_ONSET + duration)
     assert r.failures == [], r.failures
     assert _all_finite(r)
@@ -386,7 +407,9 @@ def test_process_fault_direction_300s(fid):
 def _compare_with_reference(duration):
     profile = "step:u0=0.8,u1=1.0,t=10"
     faults = [parse_fault_spec("compressor_seal_leak@5")]
-    r = Simulator("thesis-12v28", n_engines=1, seeds=0, noise_scale=0.0, faults=[faults], profiles=profile).run(duration)
+    r = Simulator("thesis-12v28", n_engines=1, seeds=0, noise_scale=0.0, faults=[faults], profiles=profile).run(
+        duration
+    )
     t_ref, _, true_ref = reference_solve("thesis-12v28", profile, faults, duration_s=duration, dt=r.dt)
     assert np.allclose(t_ref, r.t, rtol=0, atol=1e-9)
     ref = true_ref[:, VARIABLE_OF_SENSOR]
@@ -433,7 +456,7 @@ def test_engine_failure_is_reported_and_state_freezes(spec, reason):
     assert _all_finite(r)
     # the failed engine freezes at its last valid sample; the healthy twin carries on untouched
     k = int(np.flatnonzero(np.isclose(r.t, f.time_s))[0])
-    frozen = r.truth[k - 1:, 0]
+    frozen = r.truth[k - 1 :, 0]
     assert np.array_equal(frozen, np.broadcast_to(frozen[0], frozen.shape))
     assert r.truth_of("n")[-1, 1] == pytest.approx(load_params("thesis-12v28").n_nom_rev_s, rel=1e-6)
 
@@ -518,8 +541,13 @@ def test_threaded_batch_equals_single_runs(monkeypatch):
 
 # ----------------------------------------------------------------------------- block advance
 BLOCK_FAULTS = [
-    ["S4.2@1.5:5e4", "S2.1@0.5:300,kind=drift", "S3.3@2:0,kind=stuck,end=4", "S1.1@1:0.05,kind=gain",
-     "S3.5@0.3:20,kind=precision,period=1,duty=0.5"],
+    [
+        "S4.2@1.5:5e4",
+        "S2.1@0.5:300,kind=drift",
+        "S3.3@2:0,kind=stuck,end=4",
+        "S1.1@1:0.05,kind=gain",
+        "S3.5@0.3:20,kind=precision,period=1,duty=0.5",
+    ],
     ["bore_damage@0.2", "S2.5@1:0,kind=stuck,period=0.7,duty=0.4", "S4.4@0.5:30,kind=precision"],
     ["turbine_seal_leak@0.5", "valve_seizing@1:0.1,kappa=0.05", "S3.1@2:3e4"],
     ["valve_seizing@3.2:0.97,kappa=inf"],  # stalls inside a block
@@ -580,8 +608,12 @@ def test_restarted_engine_equals_fresh_simulator():
     # engine must reproduce a fresh single-engine simulator bit for bit, its clock restarting at 0
     # (process faults, profile, stuck-at and precision noise on that clock), while the other
     # engines carry on exactly as if nothing had happened.
-    new_faults = ["compressor_seal_leak@0.8:0.3", "S2.5@1:0,kind=stuck,period=0.7,duty=0.4",
-                  "S4.4@0.5:30,kind=precision", "S1.2@0.3:0.05,kind=gain"]
+    new_faults = [
+        "compressor_seal_leak@0.8:0.3",
+        "S2.5@1:0,kind=stuck,period=0.7,duty=0.4",
+        "S4.4@0.5:30,kind=precision",
+        "S1.2@0.3:0.05,kind=gain",
+    ]
     new_profile = "step:u0=0.8,u1=1.0,t=2"
     sim = _block_sim()
     untouched = _block_sim()
@@ -613,12 +645,15 @@ def test_restarts_recompute_only_the_restarted_engines_columns():
     # engines' sensor faults (a stuck-at hold, a drift) carry over to the recompiled schedule
     others = [["S3.3@0.3,kind=stuck,period=0.9,duty=0.5"], [], ["S4.1@0.2:2e4,kind=drift"]]
     sim = Simulator(n_engines=3, seeds=[1, 2, 3], faults=others, profiles=["constant", "ramp:t0=0,t1=3", "manoeuvring"])
-    untouched = Simulator(n_engines=3, seeds=[1, 2, 3], faults=others,
-                          profiles=["constant", "ramp:t0=0,t1=3", "manoeuvring"])
+    untouched = Simulator(
+        n_engines=3, seeds=[1, 2, 3], faults=others, profiles=["constant", "ramp:t0=0,t1=3", "manoeuvring"]
+    )
     sim.advance(60)
     untouched.advance(60)
-    plans = [(61, [1], [["turbine_lubrication_loss@0.4:3", "S2.2@0.1"]]),  # no process fault -> some
-             (250, [1, 0], [[], ["S1.1@0.2:1e-4,kind=drift"]])]  # some -> none; engine 0's stuck fault gone
+    plans = [
+        (61, [1], [["turbine_lubrication_loss@0.4:3", "S2.2@0.1"]]),  # no process fault -> some
+        (250, [1, 0], [[], ["S1.1@0.2:1e-4,kind=drift"]]),
+    ]  # some -> none; engine 0's stuck fault gone
     fresh = {}
     for k, (steps, engines, faults) in enumerate(plans):
         seeds = [40 + 10 * k + e for e in engines]
@@ -650,10 +685,20 @@ def test_profile_table_equals_profile_evaluation_bit_for_bit():
     # last breakpoint, every named profile family)
     from marine_fdi_env.engine.profiles import ProfileTable, make_profile
 
-    profiles = [make_profile(s).snapped(0.01) for s in
-                ("constant", "step:t=0.05", "ramp:t0=0.1,t1=0.5", "manoeuvring", "random:seed=3,dwell=0.2",
-                 "random:seed=4,dwell=5")]
-    profiles.append(type(profiles[0])("steps", (0.0, 0.1, 0.1, 0.2, 0.2, 0.2, 0.3), (0.5, 0.5, 0.9, 0.9, 0.4, 1.1, 1.1)))
+    profiles = [
+        make_profile(s).snapped(0.01)
+        for s in (
+            "constant",
+            "step:t=0.05",
+            "ramp:t0=0.1,t1=0.5",
+            "manoeuvring",
+            "random:seed=3,dwell=0.2",
+            "random:seed=4,dwell=5",
+        )
+    ]
+    profiles.append(
+        type(profiles[0])("steps", (0.0, 0.1, 0.1, 0.2, 0.2, 0.2, 0.3), (0.5, 0.5, 0.9, 0.9, 0.4, 1.1, 1.1))
+    )
     table = ProfileTable(profiles)
     rng = np.random.default_rng(1)
     grid = np.concatenate([np.arange(-2, 60) * 0.01, rng.uniform(-1, 400, 300), [0.1, 0.2, 0.3, 50.0, 1e6]])

@@ -145,8 +145,11 @@ def test_steady_state_is_equilibrium(sweeps, name):
     p, ss, _ = sweeps[name]
     model = EngineModel(p)
     (d1, d3, d4), _ = model.derivatives(ss.x1, ss.x3, ss.x4, U_SWEEP, n_guess=ss.alg.n)
-    for label, dx, x, tau in (("x1", d1, ss.x1, p.tau_X_s), ("x3", d3, ss.x3, p.tau_pd_s),
-                              ("x4", d4, ss.x4, p.tau_TC_s)):
+    for label, dx, x, tau in (
+        ("x1", d1, ss.x1, p.tau_X_s),
+        ("x3", d3, ss.x3, p.tau_pd_s),
+        ("x4", d4, ss.x4, p.tau_TC_s),
+    ):
         assert np.all(np.abs(dx) * tau <= 1e-9 * np.abs(x)), (label, np.abs(dx) * tau / np.abs(x))
 
 

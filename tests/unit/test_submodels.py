@@ -14,24 +14,44 @@ from marine_fdi_env.engine.operating_point import MODE_F, MODE_P, MODE_U, solve_
 from marine_fdi_env.engine.params import engine_file_dict, load_params
 from marine_fdi_env.engine.simulator import Simulator
 from marine_fdi_env.engine.steady_state import steady_state
-from marine_fdi_env.engine.submodels import (NO_SUBMODELS, BypassValve, CombinatorSpeed, CylinderHeatLoss, EngineSubmodels,
-                                      ExhaustHeatLoss, ExtraFriction, Intercooler, Schedule, TurbineEfficiencyBSR,
-                                      TurbineFlowLaw, WasteGate)
+from marine_fdi_env.engine.submodels import (
+    NO_SUBMODELS,
+    BypassValve,
+    CombinatorSpeed,
+    CylinderHeatLoss,
+    EngineSubmodels,
+    ExhaustHeatLoss,
+    ExtraFriction,
+    Intercooler,
+    Schedule,
+    TurbineEfficiencyBSR,
+    TurbineFlowLaw,
+    WasteGate,
+)
 from marine_fdi_env.engine.turbocharger_speed import turbocharger_speed_rpm
 
 SETS = ("thesis-12v28", "man-12v32-40", "wartsila-6l46")
 U = np.array([0.3, 0.55, 0.8, 1.0, 1.1])
 # every submodel on, but inert: the extended gas path must give the base model's numbers (to rounding)
 INERT = EngineSubmodels(
-    waste_gate=WasteGate(Schedule.constant(0.0)), bypass_valve=BypassValve(Schedule.constant(0.0)),
-    turbine_flow_law=TurbineFlowLaw(1.0, 2.0), turbine_efficiency_bsr=TurbineEfficiencyBSR(1.0, 0.0),
-    exhaust_heat_loss=ExhaustHeatLoss(0.0, 0.2), friction=ExtraFriction(0.0, 0.0), intercooler=Intercooler(1.0, 0.0),
+    waste_gate=WasteGate(Schedule.constant(0.0)),
+    bypass_valve=BypassValve(Schedule.constant(0.0)),
+    turbine_flow_law=TurbineFlowLaw(1.0, 2.0),
+    turbine_efficiency_bsr=TurbineEfficiencyBSR(1.0, 0.0),
+    exhaust_heat_loss=ExhaustHeatLoss(0.0, 0.2),
+    friction=ExtraFriction(0.0, 0.0),
+    intercooler=Intercooler(1.0, 0.0),
 )
 ALL_ON = EngineSubmodels(
-    waste_gate=WasteGate(Schedule((0.6, 1.0), (0.0, 0.2))), bypass_valve=BypassValve(Schedule((0.3, 0.6), (0.1, 0.0))),
-    turbine_flow_law=TurbineFlowLaw(0.85, 2.6), turbine_efficiency_bsr=TurbineEfficiencyBSR(0.9, 0.4),
-    exhaust_heat_loss=ExhaustHeatLoss(0.06, 0.3), friction=ExtraFriction(4e4, 1e4), intercooler=Intercooler(0.8, -6.0),
-    cylinder_heat_loss=CylinderHeatLoss(1.37, 0.02), speed_law=CombinatorSpeed(0.75, 1.0),
+    waste_gate=WasteGate(Schedule((0.6, 1.0), (0.0, 0.2))),
+    bypass_valve=BypassValve(Schedule((0.3, 0.6), (0.1, 0.0))),
+    turbine_flow_law=TurbineFlowLaw(0.85, 2.6),
+    turbine_efficiency_bsr=TurbineEfficiencyBSR(0.9, 0.4),
+    exhaust_heat_loss=ExhaustHeatLoss(0.06, 0.3),
+    friction=ExtraFriction(4e4, 1e4),
+    intercooler=Intercooler(0.8, -6.0),
+    cylinder_heat_loss=CylinderHeatLoss(1.37, 0.02),
+    speed_law=CombinatorSpeed(0.75, 1.0),
 )
 
 
@@ -125,15 +145,18 @@ def test_turbine_flow_law_area_and_exponent():
     assert np.all(small["charge_air_pressure_Pa"] > base["charge_air_pressure_Pa"])
     # a larger exponent passes more at low pressure ratio: the receiver pressure falls most at part load
     nozzle = _at_power(p.replace(submodels=EngineSubmodels(turbine_flow_law=TurbineFlowLaw(1.0, 3.5))))
-    drop = 1.0 - (nozzle["exhaust_receiver_pressure_Pa"] - p.p_ex_Pa) / (base["exhaust_receiver_pressure_Pa"] - p.p_ex_Pa)
+    drop = 1.0 - (nozzle["exhaust_receiver_pressure_Pa"] - p.p_ex_Pa) / (
+        base["exhaust_receiver_pressure_Pa"] - p.p_ex_Pa
+    )
     assert np.all(drop > 0) and drop[0] > drop[-1]
 
 
 def test_exhaust_heat_loss_grows_as_the_flow_falls():
     p = load_params("wartsila-6l46")
     v = _at_power(p.replace(submodels=EngineSubmodels(exhaust_heat_loss=ExhaustHeatLoss(0.05, 0.3))))
-    loss = (v["cylinder_outlet_temperature_K"] - v["turbine_inlet_temperature_K"]) / \
-        (v["cylinder_outlet_temperature_K"] - p.T_amb_K)
+    loss = (v["cylinder_outlet_temperature_K"] - v["turbine_inlet_temperature_K"]) / (
+        v["cylinder_outlet_temperature_K"] - p.T_amb_K
+    )
     assert np.all(np.diff(loss) < 0)  # loads increase: the relative loss falls
     i_nom = 2  # near nominal flow the relative loss is close to loss_fraction_nom
     assert 0.03 < loss[i_nom] < 0.07
@@ -144,9 +167,13 @@ def test_bsr_factor_is_one_at_the_nominal_point_with_its_optimum_there():
     point does not move; with r_opt != 1 it does."""
     p = load_params("thesis-12v28")
     base = _ss(p, np.array([1.0]))
-    at = _ss(p.replace(submodels=EngineSubmodels(turbine_efficiency_bsr=TurbineEfficiencyBSR(1.0, 0.6))), np.array([1.0]))
+    at = _ss(
+        p.replace(submodels=EngineSubmodels(turbine_efficiency_bsr=TurbineEfficiencyBSR(1.0, 0.6))), np.array([1.0])
+    )
     assert at.x4[0] == pytest.approx(base.x4[0], rel=2e-3)
-    off = _ss(p.replace(submodels=EngineSubmodels(turbine_efficiency_bsr=TurbineEfficiencyBSR(0.8, 0.6))), np.array([0.5]))
+    off = _ss(
+        p.replace(submodels=EngineSubmodels(turbine_efficiency_bsr=TurbineEfficiencyBSR(0.8, 0.6))), np.array([0.5])
+    )
     assert abs(off.x4[0] / _ss(p, np.array([0.5])).x4[0] - 1) > 1e-3
 
 
@@ -154,8 +181,9 @@ def test_combinator_speed_line_and_friction():
     p = load_params("man-12v32-40")
     sub = p.replace(submodels=EngineSubmodels(speed_law=CombinatorSpeed(0.75, 1.0)))
     v = _at_power(sub)
-    np.testing.assert_allclose(v["engine_speed_rev_s"],
-                               p.n_nom_rev_s * (0.75 + 0.25 * v["power_W"] / p.P_nom_W), rtol=1e-9)
+    np.testing.assert_allclose(
+        v["engine_speed_rev_s"], p.n_nom_rev_s * (0.75 + 0.25 * v["power_W"] / p.P_nom_W), rtol=1e-9
+    )
     np.testing.assert_allclose(speed_of_power(sub, v["power_W"]), v["engine_speed_rev_s"], rtol=1e-12)
     fr = _at_power(p.replace(submodels=EngineSubmodels(friction=ExtraFriction(5e4, 0.0))))
     base = _at_power(p)
@@ -171,15 +199,18 @@ def test_intercooler_follows_the_compressor_outlet():
     assert np.all(base["charge_air_cooler_outlet_temperature_K"] == p.T_c_K)
 
 
-@pytest.mark.parametrize("bad, match", [
-    (lambda: Schedule((1.0, 0.5), (0.1, 0.2)), "strictly increasing"),
-    (lambda: Schedule((0.5,), (-0.1,)), ">= 0"),
-    (lambda: Schedule((0.5, 1.0), (0.1,)), "as many openings as knots"),
-    (lambda: TurbineFlowLaw(0.1, 2.0), r"area_scale must lie in"),
-    (lambda: BypassValve(Schedule.constant(0.1), "elsewhere"), "junction must be one of"),
-    (lambda: EngineSubmodels.from_dict({"waste_gates": {}}), "unknown submodel 'waste_gates'"),
-    (lambda: EngineSubmodels.from_dict({"waste_gate": {"openness": 1}}), "unknown field"),
-])
+@pytest.mark.parametrize(
+    "bad, match",
+    [
+        (lambda: Schedule((1.0, 0.5), (0.1, 0.2)), "strictly increasing"),
+        (lambda: Schedule((0.5,), (-0.1,)), ">= 0"),
+        (lambda: Schedule((0.5, 1.0), (0.1,)), "as many openings as knots"),
+        (lambda: TurbineFlowLaw(0.1, 2.0), r"area_scale must lie in"),
+        (lambda: BypassValve(Schedule.constant(0.1), "elsewhere"), "junction must be one of"),
+        (lambda: EngineSubmodels.from_dict({"waste_gates": {}}), "unknown submodel 'waste_gates'"),
+        (lambda: EngineSubmodels.from_dict({"waste_gate": {"openness": 1}}), "unknown field"),
+    ],
+)
 def test_submodel_errors_name_the_field(bad, match):
     with pytest.raises(ValueError, match=match):
         bad()
@@ -197,13 +228,19 @@ def test_engine_file_round_trip(tmp_path):
     assert d["base"] == "wartsila-6l46" and set(d["overrides"]) == {"A_eff_m2"}
 
 
-@pytest.mark.parametrize("content, match", [
-    ("{", "not valid JSON"),
-    ('{"format": "other"}', "not an engine file"),
-    ('{"format": "marine_fdi_env.engine/1", "base": "nope"}', "field 'base'"),
-    ('{"format": "marine_fdi_env.engine/1", "base": "wartsila-6l46", "overrides": {"A_eff": 1}}', "unknown parameter"),
-    ('{"format": "marine_fdi_env.engine/1", "base": "wartsila-6l46", "overrides": {"A_eff_m2": -1}}', "A_eff_m2"),
-])
+@pytest.mark.parametrize(
+    "content, match",
+    [
+        ("{", "not valid JSON"),
+        ('{"format": "other"}', "not an engine file"),
+        ('{"format": "marine_fdi_env.engine/1", "base": "nope"}', "field 'base'"),
+        (
+            '{"format": "marine_fdi_env.engine/1", "base": "wartsila-6l46", "overrides": {"A_eff": 1}}',
+            "unknown parameter",
+        ),
+        ('{"format": "marine_fdi_env.engine/1", "base": "wartsila-6l46", "overrides": {"A_eff_m2": -1}}', "A_eff_m2"),
+    ],
+)
 def test_bad_engine_files(tmp_path, content, match):
     f = tmp_path / "e.json"
     f.write_text(content)
@@ -218,14 +255,21 @@ def test_fitted_engine_settles_where_the_steady_state_solver_says():
     settles on the equilibrium of the steady-state solver the fits use: every state and output within 0.1 %
     (after 12 charge-air time constants the transient is below 1e-5 of the step)."""
     p = load_params("wartsila-6l46")
-    eng = p.replace(name="fitted", A_eff_m2=0.8 * p.A_eff_m2, submodels=EngineSubmodels(
-        waste_gate=WasteGate(Schedule((0.6, 0.8, 1.0), (0.0, 0.1, 0.2))),
-        bypass_valve=BypassValve(Schedule((0.35, 0.5), (0.08, 0.0))),
-        turbine_flow_law=TurbineFlowLaw(1.0, 2.5), exhaust_heat_loss=ExhaustHeatLoss(0.04, 0.3),
-        intercooler=Intercooler(0.85, -5.0)))
+    eng = p.replace(
+        name="fitted",
+        A_eff_m2=0.8 * p.A_eff_m2,
+        submodels=EngineSubmodels(
+            waste_gate=WasteGate(Schedule((0.6, 0.8, 1.0), (0.0, 0.1, 0.2))),
+            bypass_valve=BypassValve(Schedule((0.35, 0.5), (0.08, 0.0))),
+            turbine_flow_law=TurbineFlowLaw(1.0, 2.5),
+            exhaust_heat_loss=ExhaustHeatLoss(0.04, 0.3),
+            intercooler=Intercooler(0.85, -5.0),
+        ),
+    )
     u_end = np.array([0.9, 0.4])
-    sim = Simulator(eng, n_engines=2, seeds=[0, 1], profiles=[f"step:u0=0.6,u1={u:g},t=5" for u in u_end],
-                    noise_scale=0.0)
+    sim = Simulator(
+        eng, n_engines=2, seeds=[0, 1], profiles=[f"step:u0=0.6,u1={u:g},t=5" for u in u_end], noise_scale=0.0
+    )
     res = sim.run(12 * eng.tau_TC_s, record=True)
     assert not res.failures
     op = solve_points(eng, MODE_U, u_end)
@@ -233,10 +277,17 @@ def test_fitted_engine_settles_where_the_steady_state_solver_says():
     from marine_fdi_env.engine.simulator import TRUTH_VARIABLES
 
     idx = {v: k for k, v in enumerate(TRUTH_VARIABLES)}
-    pairs = {"x3": "exhaust_receiver_pressure_Pa", "x4": "charge_air_pressure_Pa", "n": "engine_speed_rev_s",
-             "power": "power_W", "p_max": "p_max_Pa", "T_in": "turbine_inlet_temperature_K",
-             "T_out": "turbine_outlet_temperature_K", "T_co": "compressor_outlet_temperature_K",
-             "T1": "inlet_air_temperature_K"}
+    pairs = {
+        "x3": "exhaust_receiver_pressure_Pa",
+        "x4": "charge_air_pressure_Pa",
+        "n": "engine_speed_rev_s",
+        "power": "power_W",
+        "p_max": "p_max_Pa",
+        "T_in": "turbine_inlet_temperature_K",
+        "T_out": "turbine_outlet_temperature_K",
+        "T_co": "compressor_outlet_temperature_K",
+        "T1": "inlet_air_temperature_K",
+    }
     for var, key in pairs.items():
         np.testing.assert_allclose(truth[:, idx[var]], op.values[key], rtol=1e-3, err_msg=var)
     assert op.values["waste_gate_fraction"][0] > 0.05 and op.values["bypass_air_flow_kg_s"][1] > 0
@@ -271,8 +322,7 @@ def test_reference_diagnoser_plant_runs_with_the_submodels():
 
     p = load_params("thesis-12v28")
     eng = p.replace(name="with-submodels", submodels=ALL_ON)
-    sim = Simulator(eng, n_engines=2, seeds=[0, 1], profiles=["constant:u0=0.95", "constant:u0=0.45"],
-                    noise_scale=0.0)
+    sim = Simulator(eng, n_engines=2, seeds=[0, 1], profiles=["constant:u0=0.95", "constant:u0=0.45"], noise_scale=0.0)
     res = sim.run(60.0)
     assert not res.failures
     settled = slice(int(10.0 / sim.dt), None)  # after the observers' start-up

@@ -32,8 +32,9 @@ from pathlib import Path
 from typing import Protocol
 
 import numpy as np
-from .agent_registry import BUILTIN_AGENTS, LEGACY_PACKAGES  # the names live in the registry
+
 from ..jsonfile import read_json
+from .agent_registry import BUILTIN_AGENTS, LEGACY_PACKAGES  # the names live in the registry
 
 __all__ = ["Agent", "BUILTIN_AGENTS", "load_agent", "resolve_agent_spec", "agent_file_stem"]
 
@@ -46,8 +47,6 @@ class Agent(Protocol):
     def act(self, obs: np.ndarray, infos: dict) -> np.ndarray: ...
 
 
-
-
 def _import(target: str, where: str):
     mod_name, _, attr = target.partition(":")
     if not mod_name or not attr:
@@ -58,8 +57,10 @@ def _import(target: str, where: str):
         hint = ""
         if mod_name.split(".")[0] in LEGACY_PACKAGES:  # a top-level baselines/training name: say the namespaced one
             top = mod_name.split(".")[0]
-            hint = (f"; this project's {top!r} package is installed as 'marine_fdi_env.{top}': "
-                    f"write 'marine_fdi_env.{target}' in the agent.json")
+            hint = (
+                f"; this project's {top!r} package is installed as 'marine_fdi_env.{top}': "
+                f"write 'marine_fdi_env.{target}' in the agent.json"
+            )
         raise ValueError(f"{where}: cannot import {mod_name!r} ({e}){hint}") from None
     try:
         return getattr(mod, attr)
@@ -99,8 +100,10 @@ def _load_file_agent(path: Path, cls_name: str, spec: str) -> Agent:
     try:
         agent = cls()
     except Exception as e:  # noqa: BLE001
-        raise ValueError(f"agent {spec!r}: {cls_name}() failed ({type(e).__name__}: {e}); a custom agent class "
-                         "must be constructible without arguments") from None
+        raise ValueError(
+            f"agent {spec!r}: {cls_name}() failed ({type(e).__name__}: {e}); a custom agent class "
+            "must be constructible without arguments"
+        ) from None
     for attr in ("reset", "act"):
         if not callable(getattr(agent, attr, None)):
             raise ValueError(f"agent {spec!r}: {cls_name} has no {attr}() method (see docs/agent_api.md)")
@@ -154,9 +157,17 @@ def load_agent(spec: str) -> Agent:
 
             known = [e.name for e in list_agents()]
             names = ", ".join(known)
-            raise ValueError(f"unknown agent {spec!r}{did_you_mean(spec, known)}: not a name ({names}; see 'marine-fdi "
-                             "agents'), "
-                             "no such path, and not path/to/file.py:ClassName")
+            tail = find_agent(path.name) if path.name != spec else None
+            if tail is not None:  # a shipped model's folder named by a path relative to the clone
+                raise ValueError(
+                    f"no such path {spec!r} here; the shipped agent {tail.name!r} is found by name from "
+                    f"any folder: --agent {tail.name}"
+                )
+            raise ValueError(
+                f"unknown agent {spec!r}{did_you_mean(spec, known)}: not a name ({names}; see 'marine-fdi "
+                "agents'), "
+                "no such path, and not path/to/file.py:ClassName"
+            )
     meta_file = path / "agent.json" if path.is_dir() else path
     if not meta_file.is_file():
         raise ValueError(f"agent directory {path} has no agent.json")

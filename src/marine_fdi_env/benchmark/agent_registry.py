@@ -28,8 +28,7 @@ from pathlib import Path
 
 from ..jsonfile import read_json
 
-__all__ = ["AgentEntry", "list_agents", "find_agent", "MODELS_PACKAGE", "MODELS_FOLDER", "models_dir",
-           "BUILTIN_AGENTS"]
+__all__ = ["AgentEntry", "list_agents", "find_agent", "MODELS_PACKAGE", "MODELS_FOLDER", "models_dir", "BUILTIN_AGENTS"]
 
 MODELS_PACKAGE = "marine_fdi_env.training"  # the repository folder training/, installed under the namespace
 MODELS_FOLDER = "models"
@@ -39,6 +38,10 @@ BUILTIN_AGENTS = {
     "random": "marine_fdi_env.baselines.random_agent:RandomAgent",
     "reference": "marine_fdi_env.baselines.reference_agent:ReferenceAgent",
     "sequential": "marine_fdi_env.baselines.sequential_agent:SequentialAgent",
+    "reference-thesis": "marine_fdi_env.baselines.reference_agent:ReferenceThesisAgent",
+    "reference-grid": "marine_fdi_env.baselines.reference_agent:ReferenceGridAgent",
+    "sequential-thesis": "marine_fdi_env.baselines.sequential_agent:SequentialThesisAgent",
+    "sequential-grid": "marine_fdi_env.baselines.sequential_agent:SequentialGridAgent",
     "oracle": "marine_fdi_env.baselines.oracle_agent:OracleAgent",
 }
 # top-level package names of the agents and the training code before they moved under the namespace
@@ -63,8 +66,15 @@ class AgentEntry:
         return all(importlib.util.find_spec(m) is not None for m in self.needs)
 
     def to_dict(self) -> dict:
-        return {"name": self.name, "kind": self.kind, "spec": self.spec, "description": self.description,
-                "aliases": list(self.aliases), "needs": list(self.needs), "available": self.available}
+        return {
+            "name": self.name,
+            "kind": self.kind,
+            "spec": self.spec,
+            "description": self.description,
+            "aliases": list(self.aliases),
+            "needs": list(self.needs),
+            "available": self.available,
+        }
 
 
 def models_dir() -> Path | None:
@@ -96,16 +106,20 @@ def _model_entry(folder: Path) -> AgentEntry | None:
     kw = spec.get("kwargs") or {}
     where = f"{MODELS_PACKAGE.rpartition('.')[2]}/{MODELS_FOLDER}"
     if not desc and not cfg and kw.get("model") and kw.get("use_reference"):  # a hybrid over another folder's model
-        desc = (f"the model of {where}/{Path(str(kw['model'])).name} with the reference diagnoser's "
-                f"conclusion ({kw.get('use_reference', '?')}): a hybrid")
+        desc = (
+            f"the model of {where}/{Path(str(kw['model'])).name} with the reference diagnoser's "
+            f"conclusion ({kw.get('use_reference', '?')}): a hybrid"
+        )
     if not desc and not cfg and kw.get("model"):  # one model of several (training seeds) in sub-folders
         sub = folder / str(kw["model"])
         seeds = sorted(p.name for p in folder.iterdir() if (p / "config.json").is_file())
         sub_cfg = read_json(sub / "config.json", "model config") if (sub / "config.json").is_file() else {}
         minutes = sub_cfg.get("cpu_minutes")
-        desc = (f"trained {sub_cfg.get('algo', '?')} model in {where}/{folder.name}: {sub.name} by default, "
-                f"{len(seeds)} training seeds ({', '.join(seeds)})"
-                + (f", {float(minutes):.1f} CPU min of training ({sub.name})" if minutes is not None else ""))
+        desc = (
+            f"trained {sub_cfg.get('algo', '?')} model in {where}/{folder.name}: {sub.name} by default, "
+            f"{len(seeds)} training seeds ({', '.join(seeds)})"
+            + (f", {float(minutes):.1f} CPU min of training ({sub.name})" if minutes is not None else "")
+        )
     if not desc:
         algo = cfg.get("algo", "?")
         minutes = cfg.get("cpu_minutes")

@@ -15,7 +15,8 @@ neighbours), so serial, process and Ray runs agree bit for bit (tested).
 Ray is optional (``pip install 'marine-fdi-env[ray]'``) and imported only when asked for.  With
 ``ray_address`` (or the ``RAY_ADDRESS`` environment variable; ``auto`` = the cluster ``ray start``
 made on this machine) :func:`run_tasks` connects to an existing cluster; otherwise it starts a new
-local instance with ``num_cpus = workers`` and no dashboard, and stops it at the end.  If Ray is already initialised in this process (a test, a
+local instance with ``num_cpus = workers`` and no dashboard, and stops it at the end.  If Ray is already
+initialised in this process (a test, a
 notebook) that instance is used and left running.
 """
 
@@ -62,15 +63,24 @@ class Backend:
 
 
 def chunk_size(n_items: int, batch_size: int, workers: int) -> int:
-    """Episodes per task: at most ``batch_size``, small enough that every worker gets one."""
+    """Episodes per task: at most ``batch_size``, in a number of chunks that is a multiple of the
+    workers (156 episodes on 2 workers: 6 chunks of 26, not 32 x 4 + 28, which leaves one worker
+    idle for the last round), each as large as that allows."""
     if n_items <= 0:
         return max(1, batch_size)
-    return max(1, min(batch_size, math.ceil(n_items / max(1, workers))))
+    w = max(1, workers)
+    n_chunks = math.ceil(math.ceil(n_items / max(1, batch_size)) / w) * w
+    return max(1, math.ceil(n_items / n_chunks))
 
 
-def run_tasks(backend: Backend, fn: Callable, tasks: Sequence[tuple], *,
-              on_result: Callable[[int, Any], None],
-              on_progress: Callable[[int, float], None] | None = None) -> None:
+def run_tasks(
+    backend: Backend,
+    fn: Callable,
+    tasks: Sequence[tuple],
+    *,
+    on_result: Callable[[int, Any], None],
+    on_progress: Callable[[int, float], None] | None = None,
+) -> None:
     """Run ``fn(*tasks[i], progress=cb)`` for every i on ``backend``.
 
     ``on_result(i, result)`` and ``on_progress(i, x)`` are called in this process and thread.
@@ -204,8 +214,13 @@ def ray_connect(backend: Backend):
         # ray.init() would join that one); join it with --ray-address auto
         try:
             with _sigint_blocked_for_children():
-                ray.init(address="local", num_cpus=backend.workers, include_dashboard=False,
-                         logging_level=logging.WARNING, log_to_driver=False)
+                ray.init(
+                    address="local",
+                    num_cpus=backend.workers,
+                    include_dashboard=False,
+                    logging_level=logging.WARNING,
+                    log_to_driver=False,
+                )
         except KeyboardInterrupt:  # Ctrl-C while Ray was starting: delivered once it had started
             if ray.is_initialized():
                 ray.shutdown()
@@ -235,7 +250,9 @@ class _sigint_blocked_for_children:
 
 
 def _ray_task(fn, i, args, queue):
-    cb = _Throttled(i, lambda item: queue.put_nowait(item))
+    # fire and forget: Queue.put_nowait waits for the actor (ray.get), and a task blocked in ray.get
+    # lends its CPU to the scheduler, which then starts more tasks than the node has CPUs
+    cb = _Throttled(i, lambda item: queue.actor.put_nowait.remote(item))
     out = fn(*args, progress=cb)
     cb.flush()
     return out

@@ -46,10 +46,19 @@ from ..engine.faults import FAULT_IDS
 from ..envs.scenario_sampler import ScenarioSpec, with_noise_scale
 from ..envs.vector import MarineFDIVectorEnv
 
-__all__ = ["export_dataset", "load_dataset", "dataset_chunk", "FORMATS"]
+__all__ = ["export_dataset", "load_dataset", "dataset_chunk", "dataset_bytes", "FORMATS"]
 
 FORMATS = ("npz", "parquet")
 _COL = {f: j for j, f in enumerate(FAULT_IDS)}
+
+
+SCENARIO_BYTES = 4000  # one drawn scenario in memory and in scenarios.json (its faults, profile, truth)
+
+
+def dataset_bytes(n_episodes: int, n_decisions: int, n_features: int) -> int:
+    """Bytes of a dense dataset held in memory while it is written: obs (float32), the 26 fault
+    flags and ``valid`` (bool), ``t_s`` (float64) per decision, and each episode's scenario."""
+    return n_episodes * (n_decisions * (4 * n_features + len(FAULT_IDS) + 1 + 8) + SCENARIO_BYTES)
 
 
 def _n_decisions(scenarios, env_kwargs) -> int:
@@ -86,24 +95,36 @@ def dataset_chunk(scenario_dicts: list[dict], env_kwargs: dict, T: int, progress
         k += 1
         if progress is not None:  # episodes' worth of work: a decision of each live one, the rest of ended ones
             progress(before / T + float(np.sum((~live[rows])) * (T - k)) / T)
-    return {"obs": obs_all, "active": active, "valid": valid, "t_s": t_all,
-            "feature_names": np.array(venv.feature_names)}
+    return {
+        "obs": obs_all,
+        "active": active,
+        "valid": valid,
+        "t_s": t_all,
+        "feature_names": np.array(venv.feature_names),
+    }
 
 
 def _env_json(env_kwargs: dict) -> dict:
     return {k: (v.to_dict() if hasattr(v, "to_dict") else v) for k, v in env_kwargs.items()}
 
 
-def export_dataset(scenarios: list[ScenarioSpec], out_dir: Path, env_kwargs: dict | None = None,
-                   batch_size: int = 64, progress: bool = True, backend=None, fmt: str = "npz",
-                   force: bool = False) -> Path:
+def export_dataset(
+    scenarios: list[ScenarioSpec],
+    out_dir: Path,
+    env_kwargs: dict | None = None,
+    batch_size: int = 64,
+    progress: bool = True,
+    backend=None,
+    fmt: str = "npz",
+    force: bool = False,
+) -> Path:
     """Write the dataset of ``scenarios`` to ``out_dir`` (resumably); returns the dataset file.
 
     ``force``: discard the kept chunks of another export in ``out_dir`` instead of refusing
     (a finished dataset in ``out_dir`` is the caller's to check: :func:`dataset_main` asks for
     ``--force``)."""
-    from .backends import Backend, chunk_size, run_tasks
     from ..progress import progress_bar
+    from .backends import Backend, chunk_size, run_tasks
 
     env_kwargs = dict(env_kwargs or {})
     if fmt not in FORMATS:
@@ -119,8 +140,16 @@ def export_dataset(scenarios: list[ScenarioSpec], out_dir: Path, env_kwargs: dic
     scen_json = [dict(s.to_dict(), truth=s.truth()) for s in scenarios]
     key = hashlib.sha256(json.dumps({"env": env_json, "scenarios": scen_json}, sort_keys=True).encode()).hexdigest()
     part_dir = out_dir / "dataset.partial"
-    head = json.loads(json.dumps({"key": key, "env": env_json, "n_episodes": E,  # as stored (lists, not tuples)
-                                  "scenario_ids": [s.scenario_id for s in scenarios]}))
+    head = json.loads(
+        json.dumps(
+            {
+                "key": key,
+                "env": env_json,
+                "n_episodes": E,  # as stored (lists, not tuples)
+                "scenario_ids": [s.scenario_id for s in scenarios],
+            }
+        )
+    )
     if force:
         _discard_other(part_dir, key)
     stored = _stored_chunks(part_dir, head)
@@ -132,7 +161,7 @@ def export_dataset(scenarios: list[ScenarioSpec], out_dir: Path, env_kwargs: dic
     groups: dict[float, list[int]] = {}  # one batched engine set per sensor-noise scale
     for j in todo:
         groups.setdefault(float(scenarios[j].noise_scale), []).append(int(j))
-    plan = [np.asarray(idx[i:i + per], dtype=np.int64) for idx in groups.values() for i in range(0, len(idx), per)]
+    plan = [np.asarray(idx[i : i + per], dtype=np.int64) for idx in groups.values() for i in range(0, len(idx), per)]
     tasks = [([scenarios[j].to_dict() for j in idx], env_kwargs, T) for idx in plan]
     if len(todo):
         from .evaluate import warm_up
@@ -209,8 +238,10 @@ def _stored_chunks(part_dir: Path, head_now: dict) -> list[tuple[np.ndarray, Pat
     if part_dir.is_dir() and head.is_file():
         old = _read_head(part_dir)
         if (old or {}).get("key") != head_now["key"]:
-            raise ValueError(f"{part_dir} holds the unfinished export of other episodes ({_mismatch(old, head_now)}); "
-                             "rerun that command to finish it, pass --force to discard it, or choose another --out")
+            raise ValueError(
+                f"{part_dir} holds the unfinished export of other episodes ({_mismatch(old, head_now)}); "
+                "rerun that command to finish it, pass --force to discard it, or choose another --out"
+            )
         out = []
         for f in sorted(part_dir.glob("chunk_*.npz")):
             if f.name.endswith(".tmp.npz"):
@@ -232,9 +263,13 @@ def _assemble(stored, E: int, T: int) -> dict:
         with np.load(f) as z:
             if arrays is None:
                 D = z["obs"].shape[2]
-                arrays = {"obs": np.zeros((E, T, D), dtype=np.float32), "active": np.zeros((E, T, len(FAULT_IDS)), bool),
-                          "valid": np.zeros((E, T), dtype=bool), "t_s": np.zeros((E, T)),
-                          "feature_names": z["feature_names"]}
+                arrays = {
+                    "obs": np.zeros((E, T, D), dtype=np.float32),
+                    "active": np.zeros((E, T, len(FAULT_IDS)), bool),
+                    "valid": np.zeros((E, T), dtype=bool),
+                    "t_s": np.zeros((E, T)),
+                    "feature_names": z["feature_names"],
+                }
             for k in ("obs", "active", "valid", "t_s"):
                 arrays[k][idx] = z[k]
     return arrays
@@ -247,10 +282,12 @@ def _write_parquet(path: Path, arrays: dict, scenarios, meta: dict) -> None:
     pa, pq = pyarrow()
     e_idx, k_idx = np.nonzero(arrays["valid"])
     names = [str(x) for x in arrays["feature_names"]]
-    cols = {"episode": pa.array(e_idx.astype(np.int32)),
-            "scenario_id": pa.array([scenarios[e].scenario_id for e in e_idx], pa.string()).dictionary_encode(),
-            "step": pa.array(k_idx.astype(np.int32)),
-            "t_s": pa.array(arrays["t_s"][e_idx, k_idx])}
+    cols = {
+        "episode": pa.array(e_idx.astype(np.int32)),
+        "scenario_id": pa.array([scenarios[e].scenario_id for e in e_idx], pa.string()).dictionary_encode(),
+        "step": pa.array(k_idx.astype(np.int32)),
+        "t_s": pa.array(arrays["t_s"][e_idx, k_idx]),
+    }
     obs = arrays["obs"][e_idx, k_idx]
     for j, n in enumerate(names):
         cols[n] = pa.array(obs[:, j])
@@ -259,8 +296,13 @@ def _write_parquet(path: Path, arrays: dict, scenarios, meta: dict) -> None:
         cols[f"active.{f}"] = pa.array(act[:, j])
     cols["no_fault"] = pa.array(~act.any(axis=1))
     table = pa.table(cols)
-    meta = dict(meta, feature_names=names, fault_ids=list(FAULT_IDS), n_episodes=len(scenarios),
-                n_decisions=int(arrays["valid"].shape[1]))
+    meta = dict(
+        meta,
+        feature_names=names,
+        fault_ids=list(FAULT_IDS),
+        n_episodes=len(scenarios),
+        n_decisions=int(arrays["valid"].shape[1]),
+    )
     table = table.replace_schema_metadata({META_KEY: json.dumps(meta).encode()})
     pq.write_table(table, str(path), compression="zstd")
 
@@ -305,5 +347,11 @@ def load_dataset(path: "str | Path") -> dict:
     valid[e, k] = True
     t_s = np.zeros((E, T))
     t_s[e, k] = table.column("t_s").to_numpy()
-    return {"obs": obs, "active": active, "valid": valid, "t_s": t_s, "feature_names": np.array(names),
-            "fault_ids": np.array(fids)}
+    return {
+        "obs": obs,
+        "active": active,
+        "valid": valid,
+        "t_s": t_s,
+        "feature_names": np.array(names),
+        "fault_ids": np.array(fids),
+    }

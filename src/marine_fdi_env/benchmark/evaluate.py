@@ -1,30 +1,42 @@
-"""``marine-fdi evaluate``: run an agent on a frozen suite and score it.
+"""``marine-fdi evaluate``: run agents on a frozen suite and score them.
 
-Episodes run in batches on the vector environment (all episodes of a suite have the same
-length, so a batch starts and ends together; an episode ended early by an engine failure is
-simply left).  Every finished episode is appended at once to ``OUT.partial.jsonl``, so an
-interrupted run resumes where it stopped and loses nothing; when all are done the results file
-``OUT`` (the suite's episodes in suite order and the metrics of :mod:`.metrics`) is written and
-the partial log removed.
+**Simulate once, score every agent.**  An agent's declarations change only its reward and its
+declaration trace, never the engines, the sensors, the observation features or the diagnosers'
+conclusions.  So the episodes of a batch are simulated once
+(:func:`~marine_fdi_env.envs.trajectory.simulate`) and every agent asked for is stepped on that
+batch in lockstep (:mod:`.lockstep`), seeing exactly what the vector environment shows it alone
+(tested bit for bit, for every shipped agent on every shipped suite).  Agents that ask for
+observation options (``env_kwargs``: ``observe_sequential`` for ``sequential``, ``observe_sensors``)
+share one pass that computes the union of the options, and each gets its own columns; an agent
+asking for other environment arguments gets a pass of its own (:func:`plan_passes`).  A suite's
+trajectories can be kept as a feature cache and scored again without simulating
+(:mod:`.feature_cache`, ``--cache``).
+
+Episodes run in batches (all episodes of a suite have the same length, so a batch starts and ends
+together; an episode ended early by an engine failure is simply left).  Every finished chunk's
+episode records are appended at once to ``OUT.partial.jsonl`` (one per agent), so an interrupted
+run resumes where it stopped and loses nothing; when all are done the results file ``OUT`` (the
+suite's episodes in suite order and the metrics of :mod:`.metrics`) is written and the partial
+log removed.
 
 Reproducibility: the numbers of an episode depend only on its scenario, the seed offset and the
-agent (never on the batch size or the number of workers, since engines are independent); the
-agent's own randomness is seeded per episode from the scenario id and the seed offset.  Only the
-wall-clock fields (``compute_s``) vary from run to run.
+agent (never on the batch size, the number of workers, the other agents scored with it or whether
+it came from a cache, since engines are independent); the agent's own randomness is seeded per
+episode from the scenario id and the seed offset.  Only the wall-clock fields (``compute_s``) vary
+from run to run.
 
-``compute_s`` of an episode = the time spent making its observations (the residual generators
-run for every agent) + its share of the agent's ``act`` time.  Every process warms up first
-(:func:`warm_up`: one throw-away episode of one engine), so numba's compilation of a cold cache
-(about a minute) or its cache loading never counts.
+``compute_s`` of an episode = the time spent making its observations (``feature_compute_s``: the
+residual generators, shared by every agent of the pass; from a cache, the time they took when it
+was made) + its share of the agent's ``act`` time (``agent_compute_s``; ``n_decisions``).  Every
+process warms up first (:func:`warm_up`: one throw-away episode of one engine), so numba's
+compilation of a cold cache (about a minute) or its cache loading never counts.  Both depend on
+the batch size (``--batch-size``, default 32).
 
 Backends (``--backend serial|process|ray``, :mod:`.backends`): the suite is cut into chunks of at
-most ``batch_size`` episodes, one task each; results, every metric and every episode record
-except ``compute_s``, are the same bit for bit whichever backend and number of workers run them
-(tested).  ``--out`` ending in ``.parquet`` writes the episode records as a Parquet table
-(:mod:`.records`) with the header and metrics in its metadata instead of JSON.
-
-The two parts of ``compute_s`` are also recorded apart (``feature_compute_s``, ``agent_compute_s``; ``n_decisions``), since the features dominate
-and are the same for every agent.  Both depend on the batch size (``--batch-size``, default 32).
+most ``batch_size`` episodes, one task each with every agent; results, every metric and every
+episode record except the wall-clock fields, are the same bit for bit whichever backend and number
+of workers run them (tested).  ``--out`` ending in ``.parquet`` writes the episode records as a
+Parquet table (:mod:`.records`) with the header and metrics in its metadata instead of JSON.
 
 Reward: the results record the environment id and reward they score (``env_id``, ``env.reward``):
 the suite's ``env.reward`` if it fixes one, else ``--reward`` (default ``v1``).  The reward
@@ -34,40 +46,50 @@ noise scale than 1 (``transfer-v2``) runs them in batches of equal noise scale.
 
 from __future__ import annotations
 
-import hashlib
+import inspect
 import json
 import os
-import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from .._version import __version__
+from ..envs.fdi_env import env_id_for
+from ..envs.reward import make_reward_config
+from ..envs.scenario_sampler import ScenarioSpec
+from ..envs.trajectory import Trajectory, assemble, simulate
+from ..envs.vector import MarineFDIVectorEnv
 from .agent_api import load_agent, resolve_agent_spec
 from .backends import Backend, chunk_size, run_tasks
-from ..envs.fdi_env import env_id_for
+from .lockstep import agent_view, episode_seed, score_agents
 from .metrics import compute_metrics
-from ..envs.reward import make_reward_config
-from ..envs.scenario_sampler import ScenarioSpec, with_noise_scale
 from .suites import load_suite
-from ..envs.vector import MarineFDIVectorEnv
 
-__all__ = ["run_episodes", "evaluate", "episode_seed", "evaluate_chunk", "suite_env_kwargs",
-           "WALL_CLOCK_FIELDS", "WALL_CLOCK_METRICS"]
+__all__ = [
+    "run_episodes",
+    "run_agents",
+    "evaluate",
+    "evaluate_agents",
+    "episode_seed",
+    "evaluate_chunk",
+    "suite_env_kwargs",
+    "plan_passes",
+    "Pass",
+    "suite_caches",
+    "WALL_CLOCK_FIELDS",
+    "WALL_CLOCK_METRICS",
+]
 
 # the fields of an episode record that are wall-clock measurements (everything else reproduces)
 WALL_CLOCK_FIELDS = ("compute_s", "feature_compute_s", "agent_compute_s")
 # the metrics computed from them
 WALL_CLOCK_METRICS = ("compute_s_per_sample", "feature_compute_s_per_sample", "agent_compute_s_per_decision")
+# environment options that only add observation columns or infos: one pass computes their union
+OBSERVATION_OPTIONS = ("observe_sensors", "observe_sequential")
+_SIMULATION_SHARE = 0.8  # of a chunk's progress when it simulates (the rest is scoring)
 
 _MAX_SEED = 2**63 - 1
-
-
-def episode_seed(scenario_id: str, seed_offset: int) -> int:
-    """The agent's seed for one episode (stable across Python versions and platforms)."""
-    h = hashlib.sha256(f"{scenario_id}|{seed_offset}".encode()).digest()
-    return int.from_bytes(h[:8], "little") & _MAX_SEED
 
 
 def _offset(sc: ScenarioSpec, seed_offset: int) -> ScenarioSpec:
@@ -94,104 +116,161 @@ def warm_up(env_kwargs: dict | None = None) -> None:
     _WARM["done"] = True
 
 
-def run_episodes(agent, scenarios: list[ScenarioSpec], env_kwargs: dict | None = None, *, suite: str = "",
-                 seed_offset: int = 0, batch_size: int = 32, on_episode=None, progress=None,
-                 on_decision=None) -> list[dict]:
-    """Run ``agent`` on every scenario; returns the episode records (scenario order).
+# ----------------------------------------------------------------------------- passes
+@dataclass(frozen=True)
+class Pass:
+    """One simulation for a group of agents: the environment it runs (``env_kwargs``, with the union
+    of their observation options, or every option for a feature cache), the agents (indices) and
+    the environment each would be made with alone."""
 
-    ``on_episode(record)`` is called as soon as an episode's record is complete; ``progress(x)``
-    after every decision with the episodes' worth of work done since the last call (fractions);
-    ``on_decision(scenario_id, t_s, belief, compute_s)`` for every decision of every episode (the
-    belief vector the agent declared at decision time ``t_s`` and the time spent on this decision:
-    its observation and its share of the agent's ``act``).
-    """
-    env_kwargs = dict(env_kwargs or {})
-    env_kwargs.update(getattr(agent, "env_kwargs", {}))  # options the agent needs (e.g. observe_sequential)
-    warm_up(env_kwargs)  # compile time stays out of compute_s
-    records: dict[int, dict] = {}
-    groups: dict[float, list[int]] = {}  # one batched engine set per sensor-noise scale
-    for i, s in enumerate(scenarios):
-        groups.setdefault(float(s.noise_scale), []).append(i)
-    for noise_scale, idx in groups.items():
-        kw = with_noise_scale(env_kwargs, noise_scale)
-        for start in range(0, len(idx), batch_size):
-            part = idx[start:start + batch_size]
-            chunk = [_offset(scenarios[i], seed_offset) for i in part]
-            for i, rec in zip(part, _run_batch(agent, chunk, kw, suite, seed_offset, progress, on_decision)):
-                records[i] = rec
-                if on_episode is not None:
-                    on_episode(rec)
-    return [records[i] for i in range(len(scenarios))]
+    key: str
+    env_kwargs: dict
+    agents: tuple[int, ...]
+    agent_env: tuple[dict, ...]
 
 
-def _run_batch(agent, scenarios, env_kwargs, suite, seed_offset, progress=None, on_decision=None):
-    n = len(scenarios)
-    venv = MarineFDIVectorEnv(num_envs=n, **env_kwargs)
-    obs, infos = venv.reset(options={"scenarios": scenarios})
-    agent.reset([episode_seed(s.scenario_id, seed_offset) for s in scenarios])
-    period = venv.batch.decision_period_s
-    live = np.ones(n, dtype=bool)
-    trace = [[] for _ in range(n)]
-    share = [[] for _ in range(n)]
-    ret = np.zeros(n)
-    terms = [dict() for _ in range(n)]
-    agent_s = np.zeros(n)
-    feature_s = np.zeros(n)
-    steps = np.zeros(n, dtype=np.int64)
-    out: list[dict | None] = [None] * n
-    n_decisions = np.maximum(1.0, np.round([s.duration_s / period for s in scenarios]))
-    obs_cost = venv.batch.compute_s.copy()  # time spent on the observation each slot decides on
-    reported = 0.0
-    while live.any():
-        t0 = time.perf_counter()
-        actions = np.asarray(agent.act(obs, infos), dtype=np.float32)
-        act_s = (time.perf_counter() - t0) / live.sum()
-        agent_s[live] += act_s
-        feats_before = venv.batch.compute_s.copy() if on_decision is not None else None
-        obs, rew, term, trunc, infos = venv.step(actions)
-        if on_decision is not None:
-            for i in np.flatnonzero(live):
-                on_decision(scenarios[i].scenario_id, float(infos["decision_time_s"][i]), actions[i],
-                            float(obs_cost[i]) + act_s)
-            obs_cost = venv.batch.compute_s - feats_before  # the next observation's cost
-        for i in np.flatnonzero(live):
-            t = float(infos["decision_time_s"][i])
-            declared = list(infos["declared"][i])
-            alarm = bool(infos["alarm"][i])
-            if not trace[i] or trace[i][-1][1] != declared or trace[i][-1][2] != alarm:
-                trace[i].append([t, declared, alarm])
-            b = float(infos["belief_on_truth"][i])
-            if b == b:  # not NaN: a fault is active
-                share[i].append([t, b])
-            ret[i] += rew[i]
-            for k, v in infos["reward_terms"].items():
-                if k.startswith("_"):
-                    continue
-                terms[i][k] = terms[i].get(k, 0.0) + float(v[i])
-            steps[i] += 1
-            if term[i] or trunc[i]:
-                live[i] = False
-                feature_s[i] = venv.batch.compute_s[i]
-                sc = scenarios[i]
-                fail = infos["engine_failure"]
-                reason = str(fail["reason"][i]) if term[i] else None
-                out[i] = {
-                    "scenario_id": sc.scenario_id, "suite": suite, "seed": int(sc.noise_seed), "agent": agent.name,
-                    "profile": sc.profile, "duration_s": t if term[i] else float(sc.duration_s),
-                    "decision_period_s": period, "n_samples": int(steps[i] * venv.batch.period_samples),
-                    "faults": sc.truth(), "declared_changes": trace[i], "belief_on_truth": share[i],
-                    "terminated": bool(term[i]), "failure_reason": reason or None,
-                    "compute_s": float(feature_s[i] + agent_s[i]), "return": float(ret[i]),
-                    "reward_terms": terms[i], "feature_compute_s": float(feature_s[i]),
-                    "agent_compute_s": float(agent_s[i]), "n_decisions": int(steps[i]),
-                }
-        if progress is not None:
-            done = float(np.where(live, steps / n_decisions, 1.0).clip(0.0, 1.0).sum())
-            progress(done - reported)
-            reported = done
+# the vector environment's own defaults: an option given at its default value makes the same simulation as one
+# left out (the reference agent asks for the default cell set, the null agent for nothing: one pass serves both)
+_ENV_DEFAULTS = {
+    k: p.default
+    for k, p in inspect.signature(MarineFDIVectorEnv.__init__).parameters.items()
+    if p.default is not inspect.Parameter.empty
+}
+
+
+def _is_default(option: str, value) -> bool:
+    return option in _ENV_DEFAULTS and _ENV_DEFAULTS[option] == value
+
+
+def _key(env_kwargs: dict) -> str:
+    from .feature_cache import _jsonable
+
+    return json.dumps(
+        {k: _jsonable(v) for k, v in env_kwargs.items() if k not in OBSERVATION_OPTIONS and not _is_default(k, v)},
+        sort_keys=True,
+        default=repr,
+    )
+
+
+def plan_passes(agents: list, env_kwargs: dict, all_options: bool = False) -> list[Pass]:
+    """The passes that serve ``agents`` on an environment made with ``env_kwargs`` (each agent's
+    ``env_kwargs`` attribute added); ``all_options``: every pass computes every observation option."""
+    groups: dict[str, list[tuple[int, dict]]] = {}
+    for j, a in enumerate(agents):
+        kw = dict(env_kwargs)
+        kw.update(getattr(a, "env_kwargs", {}))  # options the agent needs (e.g. observe_sequential)
+        groups.setdefault(_key(kw), []).append((j, kw))
+    out = []
+    for key, members in groups.items():
+        kw = {k: v for k, v in members[0][1].items() if k not in OBSERVATION_OPTIONS and not _is_default(k, v)}
+        for opt in OBSERVATION_OPTIONS:
+            if all_options or any(m.get(opt, False) for _, m in members):
+                kw[opt] = True
+            elif any(opt in m for _, m in members):
+                kw[opt] = False
+        out.append(Pass(key, kw, tuple(j for j, _ in members), tuple(m for _, m in members)))
     return out
 
 
+def run_agents(
+    agents: list,
+    scenarios: list[ScenarioSpec],
+    env_kwargs: dict | None = None,
+    *,
+    suite: str = "",
+    seed_offset: int = 0,
+    batch_size: int = 32,
+    trajectories: dict | None = None,
+    keep: bool = False,
+    all_options: bool = False,
+    progress=None,
+    on_decision=None,
+) -> tuple[list[list[dict]], dict]:
+    """Run every agent on every scenario, simulating each batch once per pass.
+
+    Returns the episode records (one list per agent, scenario order) and, with ``keep``, the
+    trajectories of the scenarios ``{pass key: Trajectory}``.  ``trajectories`` (``{pass key:
+    Trajectory}`` of exactly these scenarios, seed offset applied, e.g. from a feature cache)
+    replaces the simulation of those passes.  ``progress(x)`` reports episodes' worth of work
+    (fractions); ``on_decision(agent, scenario_id, t_s, belief, compute_s)`` every decision.
+    """
+    env_kwargs = dict(env_kwargs or {})
+    passes = plan_passes(agents, env_kwargs, all_options)
+    records: list[list] = [[None] * len(scenarios) for _ in agents]
+    made: dict[str, Trajectory] = {}
+    groups: dict[float, list[int]] = {}  # one batched engine set per sensor-noise scale
+    for i, s in enumerate(scenarios):
+        groups.setdefault(float(s.noise_scale), []).append(i)
+    batches = [
+        np.asarray(idx[a : a + batch_size], dtype=np.int64)
+        for idx in groups.values()
+        for a in range(0, len(idx), batch_size)
+    ]
+    for p in passes:
+        given = (trajectories or {}).get(p.key)
+        share = 0.0 if given is not None else _SIMULATION_SHARE
+        sim_cb = None if progress is None else (lambda x, w=share / len(passes): progress(x * w))
+        score_cb = None if progress is None else (lambda x, w=(1.0 - share) / len(passes): progress(x * w))
+        mine = [agents[j] for j in p.agents]
+        reward = make_reward_config(p.env_kwargs.get("reward"))
+        if given is None:
+            warm_up(p.env_kwargs)  # compile time stays out of compute_s
+        parts = []
+        for idx in batches:
+            if given is not None:
+                traj = given.take(idx)
+            else:
+                traj = simulate([_offset(scenarios[i], seed_offset) for i in idx], p.env_kwargs, progress=sim_cb)
+            views = [agent_view(kw, traj) for kw in p.agent_env]
+            cb = None if on_decision is None else (lambda j, *a, p=p: on_decision(p.agents[j], *a))
+            for j, recs in zip(
+                p.agents,
+                score_agents(
+                    mine, views, traj, reward, suite=suite, seed_offset=seed_offset, progress=score_cb, on_decision=cb
+                ),
+            ):
+                for i, rec in zip(idx, recs):
+                    records[j][i] = rec
+            if keep:
+                parts.append((idx, traj))
+        if keep:
+            made[p.key] = assemble(parts)
+    return records, made
+
+
+def run_episodes(
+    agent,
+    scenarios: list[ScenarioSpec],
+    env_kwargs: dict | None = None,
+    *,
+    suite: str = "",
+    seed_offset: int = 0,
+    batch_size: int = 32,
+    progress=None,
+    on_decision=None,
+) -> list[dict]:
+    """Run ``agent`` on every scenario; returns the episode records (scenario order).
+
+    ``progress(x)`` after every decision with the episodes' worth of work done since the last call
+    (fractions); ``on_decision(scenario_id, t_s, belief, compute_s)`` for every decision of every
+    episode (the belief vector the agent declared at decision time ``t_s`` and the time spent on
+    this decision: its observation and its share of the agent's ``act``).
+    """
+    cb = None if on_decision is None else (lambda j, *a: on_decision(*a))
+    records, _ = run_agents(
+        [agent],
+        scenarios,
+        env_kwargs,
+        suite=suite,
+        seed_offset=seed_offset,
+        batch_size=batch_size,
+        progress=progress,
+        on_decision=cb,
+    )
+    return records[0]
+
+
+# ----------------------------------------------------------------------------- tasks
 _AGENTS: dict[tuple, object] = {}  # agents loaded in this process (workers reuse theirs across tasks)
 
 
@@ -218,12 +297,38 @@ def cached_agent(spec: str):
     return _AGENTS[key]
 
 
-def evaluate_chunk(agent_spec, scenarios_dicts, env_kwargs, suite, seed_offset, batch_size, progress=None):
-    """One task of a backend: the episode records of a chunk of scenarios (given as dicts)."""
-    agent = cached_agent(agent_spec)
+def evaluate_chunk(
+    agent_specs: list[str],
+    scenarios_dicts: list[dict],
+    env_kwargs: dict,
+    suite: str,
+    seed_offset: int,
+    batch_size: int,
+    trajectories: dict | None = None,
+    keep: bool = False,
+    all_options: bool = False,
+    progress=None,
+) -> dict:
+    """One task of a backend: every agent on a chunk of scenarios (given as dicts).
+
+    Returns ``{"records": [records of each agent], "trajectories": {pass key: Trajectory}}`` (the
+    trajectories with ``keep`` only).  ``progress`` counts episodes of all agents together."""
+    agents = [cached_agent(s) for s in agent_specs]
     scs = [ScenarioSpec.from_dict(d) for d in scenarios_dicts]
-    return run_episodes(agent, scs, env_kwargs, suite=suite, seed_offset=seed_offset, batch_size=batch_size,
-                        progress=progress)
+    cb = None if progress is None else (lambda x, k=len(agents): progress(x * k))
+    records, made = run_agents(
+        agents,
+        scs,
+        env_kwargs,
+        suite=suite,
+        seed_offset=seed_offset,
+        batch_size=batch_size,
+        trajectories=trajectories,
+        keep=keep,
+        all_options=all_options,
+        progress=cb,
+    )
+    return {"records": records, "trajectories": made}
 
 
 def suite_env_kwargs(suite, reward: "str | dict | None" = None) -> tuple[dict, object]:
@@ -238,94 +343,222 @@ def suite_env_kwargs(suite, reward: "str | dict | None" = None) -> tuple[dict, o
     return env_kwargs, reward_cfg
 
 
-def evaluate(agent_spec: str, suite_name: str, out: Path, *, workers: int = 1, seed_offset: int = 0,
-             batch_size: int = 32, progress: bool = True, backend: "Backend | str | None" = None,
-             ray_address: str | None = None, reward: "str | dict | None" = None) -> dict:
-    """Evaluate an agent on a suite, resumably; returns the results object written to ``out``.
+def suite_caches(mode: str, cache_dir, suite, seed_offset: int, agents: list, env_kwargs: dict) -> dict:
+    """The feature caches (:class:`~.feature_cache.SuiteCache`, by pass key) of ``agents`` on a suite
+    and seed offset; none with ``mode`` ``off``.  A cache holds every observation option, so its
+    parameters are those of a pass with all of them."""
+    if mode == "off":
+        return {}
+    from .feature_cache import SuiteCache, cache_header
 
-    ``backend``: a :class:`~.backends.Backend` or its name (default: ``process`` if
-    ``workers > 1``, else ``serial``).  ``reward``: the reward to score (``v0``, ``v1`` or a config
-    dict); default: the suite's ``env.reward``, else ``v1``.  A suite that fixes its reward refuses
-    another one.
-    """
+    scs = [_offset(s, seed_offset) for s in suite.scenarios]
+    return {
+        p.key: SuiteCache(mode, cache_dir, cache_header(suite.name, suite["version"], seed_offset, p.env_kwargs, scs))
+        for p in plan_passes(agents, env_kwargs, all_options=True)
+    }
+
+
+def chunk_tasks(caches: dict, todo_idx: np.ndarray, per: int) -> list[tuple[np.ndarray, dict]]:
+    """The chunks of ``todo_idx`` (suite indices) and the cached trajectories each replays."""
+    out = []
+    for a in range(0, len(todo_idx), per):
+        idx = todo_idx[a : a + per]
+        out.append((idx, {k: c.trajectory.take(idx) for k, c in caches.items() if c.trajectory is not None}))
+    return out
+
+
+# ----------------------------------------------------------------------------- evaluate
+def _open_partial(partial: Path, header: dict) -> dict[str, dict]:
+    """The records kept in a partial log of this evaluation (a new log is started)."""
+    done: dict[str, dict] = {}
+    if not partial.exists():
+        partial.parent.mkdir(parents=True, exist_ok=True)  # the CLI checked that at most this one level is new
+        partial.write_text(json.dumps(header) + "\n")
+        return done
+    lines = partial.read_text().splitlines()
+    try:
+        old = json.loads(lines[0]) if lines else None
+    except json.JSONDecodeError:
+        old = None
+    if old != header:
+        from ..outputs import differing_fields
+
+        raise ValueError(
+            f"{partial} belongs to another evaluation ({differing_fields(old, header)}); rerun "
+            "that command to finish it, remove the file, or choose another --out"
+        )
+    for ln in lines[1:]:
+        try:
+            rec = json.loads(ln)
+        except json.JSONDecodeError:  # a line cut by an interruption: that episode reruns
+            continue
+        done[rec["scenario_id"]] = rec
+    return done
+
+
+def evaluate_agents(
+    agent_specs: list[str],
+    suite_name: str,
+    outs: list[Path],
+    *,
+    workers: int = 1,
+    seed_offset: int = 0,
+    batch_size: int = 32,
+    progress: bool = True,
+    backend: "Backend | str | None" = None,
+    ray_address: str | None = None,
+    reward: "str | dict | None" = None,
+    cache: str = "off",
+    cache_dir=None,
+) -> list[dict]:
+    """Evaluate several agents on a suite in one pass over its episodes, resumably; returns the
+    results object written to each ``outs[j]`` (as :func:`evaluate` writes it for one agent).
+
+    ``cache``: ``use`` (replay the suite's feature cache in ``cache_dir`` when there is one),
+    ``write`` (simulate and write it) or ``off`` (:mod:`.feature_cache`)."""
     if not isinstance(backend, Backend):
         backend = Backend.make(backend, workers, ray_address)
-    workers = backend.workers
     if not isinstance(batch_size, int) or batch_size < 1:
         raise ValueError(f"--batch-size must be a positive integer, got {batch_size!r}")
+    if len(agent_specs) != len(outs) or not agent_specs:
+        raise ValueError("evaluate_agents needs one output file per agent, and at least one agent")
     suite = load_suite(suite_name)
-    spec = resolve_agent_spec(agent_spec)  # names stay names, paths become absolute (workers may run elsewhere)
-    agent = cached_agent(spec)  # fail early on a bad agent
+    specs = [resolve_agent_spec(a) for a in agent_specs]  # names stay names, paths become absolute
+    if len(set(specs)) != len(specs) or len({Path(o).resolve() for o in outs}) != len(outs):
+        raise ValueError("evaluate_agents: each agent and each output file once")
+    agents = [cached_agent(s) for s in specs]  # fail early on a bad agent
     env_kwargs, reward_cfg = suite_env_kwargs(suite, reward)
-    env_kwargs.update(getattr(agent, "env_kwargs", {}))  # options the agent needs (e.g. observe_sequential)
-    header = {"agent": agent.name, "agent_spec": str(agent_spec), "suite": suite.name,
-              "suite_version": suite["version"], "seed_offset": int(seed_offset), "env_id": env_id_for(reward_cfg),
-              "env": env_kwargs}
-    if getattr(agent, "training_seed", None) is not None:  # a learned agent: which of its trainings this is
-        header["training_seed"] = int(agent.training_seed)
-    out = Path(out)
-    partial = out.with_name(out.name + ".partial.jsonl")
-    done: dict[str, dict] = {}
-    if partial.exists():
-        lines = partial.read_text().splitlines()
-        try:
-            old = json.loads(lines[0]) if lines else None
-        except json.JSONDecodeError:
-            old = None
-        if old != header:
-            from ..outputs import differing_fields
-
-            raise ValueError(f"{partial} belongs to another evaluation ({differing_fields(old, header)}); rerun "
-                             "that command to finish it, remove the file, or choose another --out")
-        for ln in lines[1:]:
-            try:
-                rec = json.loads(ln)
-            except json.JSONDecodeError:  # a line cut by an interruption: that episode reruns
-                continue
-            done[rec["scenario_id"]] = rec
-    else:
-        out.parent.mkdir(parents=True, exist_ok=True)  # the CLI checked that at most this one level is new
-        partial.write_text(json.dumps(header) + "\n")
-    todo = [s for s in suite.scenarios if s.scenario_id not in done]
+    caches = suite_caches(cache, cache_dir, suite, seed_offset, agents, env_kwargs)
+    outs = [Path(o) for o in outs]
+    headers, partials, done = [], [], []
+    for a, spec, out in zip(agents, agent_specs, outs):
+        kw = dict(env_kwargs)
+        kw.update(getattr(a, "env_kwargs", {}))  # options the agent needs (e.g. observe_sequential)
+        header = {
+            "agent": a.name,
+            "agent_spec": str(spec),
+            "suite": suite.name,
+            "suite_version": suite["version"],
+            "seed_offset": int(seed_offset),
+            "env_id": env_id_for(reward_cfg),
+            "env": kw,
+        }
+        if getattr(a, "training_seed", None) is not None:  # a learned agent: which of its trainings this is
+            header["training_seed"] = int(a.training_seed)
+        partial = out.with_name(out.name + ".partial.jsonl")
+        done.append(_open_partial(partial, header))
+        headers.append(header)
+        partials.append(partial)
+    ids = [s.scenario_id for s in suite.scenarios]
+    need = np.array([any(i not in d for d in done) for i in ids], dtype=bool)
+    for c in caches.values():
+        need[c.missing()] = True  # episodes a feature cache being written has no trajectory of
+    todo = np.flatnonzero(need)
     from ..progress import progress_bar
 
-    if todo:
+    if len(todo) and not (caches and all(c.trajectory is not None for c in caches.values())):
         warm_up(env_kwargs)  # before the bar (and before forking workers, which inherit the compiled code)
-
-    bar = progress_bar(len(suite.scenarios), len(done), f"{agent.name} on {suite.name}", progress)
-    per = chunk_size(len(todo), batch_size, workers)
-    chunks = [todo[i:i + per] for i in range(0, len(todo), per)]
-    tasks = [(spec, [s.to_dict() for s in c], env_kwargs, suite.name, seed_offset, batch_size) for c in chunks]
-
-    def record(i, recs):
-        with partial.open("a") as fh:
-            for rec in recs:
-                fh.write(json.dumps(rec) + "\n")
-                done[rec["scenario_id"]] = rec
-        in_flight.pop(i, None)  # this chunk now counts as done; the others as far as they got
-        bar.set_done(len(done) + sum(in_flight.values()))
-
+    n_done = len(ids) - len(todo)
+    name = agents[0].name if len(agents) == 1 else f"{len(agents)} agents"
+    bar = progress_bar(len(ids), n_done, f"{name} on {suite.name}", progress)
+    chunks = chunk_tasks(caches, todo, chunk_size(len(todo), batch_size, backend.workers))
+    keep = any(c.keep for c in caches.values())
+    tasks = [
+        (
+            specs,
+            [suite.scenarios[i].to_dict() for i in idx],
+            env_kwargs,
+            suite.name,
+            seed_offset,
+            batch_size,
+            given or None,
+            keep,
+            cache == "write",
+        )
+        for idx, given in chunks
+    ]
     in_flight: dict[int, float] = {}
+    finished = [0]
+
+    def record(i, res):
+        idx = chunks[i][0]
+        for key, traj in res["trajectories"].items():
+            caches[key].store(idx, traj)  # before the records: kept records always have their trajectory
+        for j, recs in enumerate(res["records"]):
+            with partials[j].open("a") as fh:
+                for rec in recs:
+                    fh.write(json.dumps(rec) + "\n")
+                    done[j][rec["scenario_id"]] = rec
+        in_flight.pop(i, None)  # this chunk now counts as done; the others as far as they got
+        finished[0] += len(idx)
+        bar.set_done(n_done + finished[0] + sum(in_flight.values()) / len(agents))
 
     def advance(i, x):
         in_flight[i] = in_flight.get(i, 0.0) + x
-        bar.advance(x)
+        bar.advance(x / len(agents))
 
     try:
         run_tasks(backend, evaluate_chunk, tasks, on_result=record, on_progress=advance)
     finally:
         bar.close()
-    episodes = [done[s.scenario_id] for s in suite.scenarios]
-    result = dict(header)
-    result.update(package_version=__version__, n_scenarios=len(episodes), metrics=compute_metrics(episodes),
-                  episodes=episodes)
-    tmp = out.with_name(out.name + ".tmp")
-    if out.suffix == ".parquet":
-        from .records import write_results_parquet
+    used = {k: str(c.path) for k, c in caches.items() if c.trajectory is not None}
+    for c in caches.values():
+        c.finish()
+    results = []
+    for header, partial, out, d in zip(headers, partials, outs, done):
+        episodes = [d[i] for i in ids]
+        result = dict(header)
+        result.update(
+            package_version=__version__, n_scenarios=len(episodes), metrics=compute_metrics(episodes), episodes=episodes
+        )
+        if used:
+            result["feature_cache"] = sorted(used.values())
+        tmp = out.with_name(out.name + ".tmp")
+        if out.suffix == ".parquet":
+            from .records import write_results_parquet
 
-        write_results_parquet(tmp, result)
-    else:
-        tmp.write_text(json.dumps(result, separators=(",", ":")) + "\n")  # compact: episodes hold traces
-    os.replace(tmp, out)
-    partial.unlink()
-    return result
+            write_results_parquet(tmp, result)
+        else:
+            tmp.write_text(json.dumps(result, separators=(",", ":")) + "\n")  # compact: episodes hold traces
+        os.replace(tmp, out)
+        partial.unlink()
+        results.append(result)
+    return results
+
+
+def evaluate(
+    agent_spec: str,
+    suite_name: str,
+    out: Path,
+    *,
+    workers: int = 1,
+    seed_offset: int = 0,
+    batch_size: int = 32,
+    progress: bool = True,
+    backend: "Backend | str | None" = None,
+    ray_address: str | None = None,
+    reward: "str | dict | None" = None,
+    cache: str = "off",
+    cache_dir=None,
+) -> dict:
+    """Evaluate an agent on a suite, resumably; returns the results object written to ``out``.
+
+    ``backend``: a :class:`~.backends.Backend` or its name (default: ``process`` if
+    ``workers > 1``, else ``serial``).  ``reward``: the reward to score (``v0``, ``v1`` or a config
+    dict); default: the suite's ``env.reward``, else ``v1``.  A suite that fixes its reward refuses
+    another one.  ``cache``, ``cache_dir``: the feature cache (:func:`evaluate_agents`).
+    """
+    return evaluate_agents(
+        [agent_spec],
+        suite_name,
+        [out],
+        workers=workers,
+        seed_offset=seed_offset,
+        batch_size=batch_size,
+        progress=progress,
+        backend=backend,
+        ray_address=ray_address,
+        reward=reward,
+        cache=cache,
+        cache_dir=cache_dir,
+    )[0]

@@ -82,8 +82,7 @@ import numpy as np
 
 from ..engine.faults import FAULT_IDS, fault_class
 
-__all__ = ["EpisodeOutcome", "validate_record", "episode_outcome", "compute_metrics", "aggregate",
-           "FAULT_CLASSES"]
+__all__ = ["EpisodeOutcome", "validate_record", "episode_outcome", "compute_metrics", "aggregate", "FAULT_CLASSES"]
 
 FAULT_CLASSES: tuple[str, ...] = ("sensor", "process", "mixed", "none")
 _EPS = 1e-9
@@ -91,6 +90,7 @@ _FAULT_ID_SET = frozenset(FAULT_IDS)
 
 
 # ----------------------------------------------------------------------------- validation
+
 
 def _fail(sid: Any, field: str, msg: str) -> ValueError:
     return ValueError(f"episode record {sid!r}: field {field!r} {msg}")
@@ -100,8 +100,16 @@ def _is_num(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
-def _num(rec: Mapping, key: str, sid: Any, *, field: str | None = None, positive: bool = False,
-         nonneg: bool = False, optional: bool = False) -> None:
+def _num(
+    rec: Mapping,
+    key: str,
+    sid: Any,
+    *,
+    field: str | None = None,
+    positive: bool = False,
+    nonneg: bool = False,
+    optional: bool = False,
+) -> None:
     name = field or key
     if key not in rec:
         raise _fail(sid, name, "is missing")
@@ -116,8 +124,7 @@ def _num(rec: Mapping, key: str, sid: Any, *, field: str | None = None, positive
         raise _fail(sid, name, f"must be >= 0, got {v!r}")
 
 
-def _typed(rec: Mapping, key: str, types: type | tuple[type, ...], sid: Any,
-           *, optional: bool = False) -> None:
+def _typed(rec: Mapping, key: str, types: type | tuple[type, ...], sid: Any, *, optional: bool = False) -> None:
     if key not in rec:
         raise _fail(sid, key, "is missing")
     v = rec[key]
@@ -162,8 +169,7 @@ def validate_record(rec: Any) -> None:
         if "class" not in f:
             raise _fail(sid, f"{fld}.class", "is missing")
         if f["class"] != fault_class(f["id"]):
-            raise _fail(sid, f"{fld}.class",
-                        f"must be {fault_class(f['id'])!r} for {f['id']}, got {f['class']!r}")
+            raise _fail(sid, f"{fld}.class", f"must be {fault_class(f['id'])!r} for {f['id']}, got {f['class']!r}")
         _num(f, "onset_s", sid, field=f"{fld}.onset_s", nonneg=True)
         _num(f, "magnitude", sid, field=f"{fld}.magnitude")
         _num(f, "end_s", sid, field=f"{fld}.end_s", optional=True)
@@ -188,12 +194,18 @@ def validate_record(rec: Any) -> None:
         if not isinstance(bot, list):
             raise _fail(sid, "belief_on_truth", f"must be a list of [t_s, share], got {bot!r}")
         for i, entry in enumerate(bot):
-            if not (isinstance(entry, (list, tuple)) and len(entry) == 2 and _is_num(entry[0])
-                    and _is_num(entry[1]) and -_EPS <= entry[1] <= 1 + _EPS):
+            if not (
+                isinstance(entry, (list, tuple))
+                and len(entry) == 2
+                and _is_num(entry[0])
+                and _is_num(entry[1])
+                and -_EPS <= entry[1] <= 1 + _EPS
+            ):
                 raise _fail(sid, f"belief_on_truth[{i}]", f"must be [t_s, share in 0..1], got {entry!r}")
 
 
 # ----------------------------------------------------------------------------- one episode
+
 
 @dataclass(frozen=True)
 class EpisodeOutcome:
@@ -202,8 +214,8 @@ class EpisodeOutcome:
     scenario_id: str
     suite: str
     agent: str
-    fault_class: str                 # sensor | process | mixed | none
-    fault_ids: tuple[str, ...]       # distinct ids, sorted
+    fault_class: str  # sensor | process | mixed | none
+    fault_ids: tuple[str, ...]  # distinct ids, sorted
     first_onset_s: float | None
     last_onset_s: float | None
     fault_free_s: float
@@ -214,7 +226,7 @@ class EpisodeOutcome:
     isolation_delay_s: float | None
     final_declared: tuple[str, ...]
     final_true: tuple[str, ...]
-    isolation_correct: bool | None   # None for fault-free episodes
+    isolation_correct: bool | None  # None for fault-free episodes
     belief_on_truth: float | None
     n_samples: int
     compute_s: float
@@ -249,7 +261,7 @@ class _Trace:
     sets: tuple[frozenset[str], ...]
     alarms: tuple[bool, ...]
     period: float
-    last_decision: float   # last decision time of the episode (-inf if none)
+    last_decision: float  # last decision time of the episode (-inf if none)
 
     @classmethod
     def from_record(cls, rec: Mapping) -> "_Trace":
@@ -262,8 +274,7 @@ class _Trace:
             last = max(last, times[-1])
         else:
             last = -math.inf
-        return cls(times, tuple(frozenset(c[1]) for c in ch), tuple(bool(c[2]) for c in ch),
-                   period, last)
+        return cls(times, tuple(frozenset(c[1]) for c in ch), tuple(bool(c[2]) for c in ch), period, last)
 
     def grid_ceil(self, t: float) -> float:
         """First decision time >= t."""
@@ -278,8 +289,9 @@ class _Trace:
         i = bisect.bisect_right(self.times, t + _EPS) - 1
         return (self.sets[i], self.alarms[i]) if i >= 0 else (frozenset(), False)
 
-    def first_time(self, start: float, breaks: Iterable[float],
-                   pred: Callable[[float, frozenset[str], bool], bool]) -> float | None:
+    def first_time(
+        self, start: float, breaks: Iterable[float], pred: Callable[[float, frozenset[str], bool], bool]
+    ) -> float | None:
         """First decision time t >= start with ``pred(t, declared, alarm)``.
 
         The predicate must be constant between consecutive points of ``breaks`` ∪ change times.
@@ -293,7 +305,7 @@ class _Trace:
             if t > self.last_decision + _EPS:
                 return None
             if i + 1 < len(pts) and t >= pts[i + 1] - _EPS:
-                continue   # no decision inside this segment; the next one starts at/after t
+                continue  # no decision inside this segment; the next one starts at/after t
             declared, alarm = self.state(t)
             if pred(t, declared, alarm):
                 return t
@@ -301,8 +313,9 @@ class _Trace:
 
 
 def _true_set(faults: Sequence[Mapping], t: float) -> frozenset[str]:
-    return frozenset(f["id"] for f in faults
-                     if f["onset_s"] <= t + _EPS and (f["end_s"] is None or f["end_s"] > t + _EPS))
+    return frozenset(
+        f["id"] for f in faults if f["onset_s"] <= t + _EPS and (f["end_s"] is None or f["end_s"] > t + _EPS)
+    )
 
 
 def _class_of(faults: Sequence[Mapping]) -> str:
@@ -332,8 +345,7 @@ def _outcome(rec: Mapping) -> EpisodeOutcome:
     final_true: frozenset[str] = frozenset()
     if faults:
         det = tr.first_time(first, (), lambda t, d, a: a)
-        breaks = [float(f["onset_s"]) for f in faults] + [float(f["end_s"]) for f in faults
-                                                          if f["end_s"] is not None]
+        breaks = [float(f["onset_s"]) for f in faults] + [float(f["end_s"]) for f in faults if f["end_s"] is not None]
         iso = tr.first_time(last, breaks, lambda t, d, a: bool(d) and d == _true_set(faults, t))
         final_true = _true_set(faults, tr.last_decision if tr.times else duration)
 
@@ -343,17 +355,30 @@ def _outcome(rec: Mapping) -> EpisodeOutcome:
         bot = sum(shares) / len(shares)
 
     return EpisodeOutcome(
-        scenario_id=rec["scenario_id"], suite=rec["suite"], agent=rec["agent"],
-        fault_class=_class_of(faults), fault_ids=tuple(sorted({f["id"] for f in faults})),
-        first_onset_s=first, last_onset_s=last, fault_free_s=max(fault_free_end, 0.0),
+        scenario_id=rec["scenario_id"],
+        suite=rec["suite"],
+        agent=rec["agent"],
+        fault_class=_class_of(faults),
+        fault_ids=tuple(sorted({f["id"] for f in faults})),
+        first_onset_s=first,
+        last_onset_s=last,
+        fault_free_s=max(fault_free_end, 0.0),
         false_alarms=false_alarms,
-        detection_time_s=det, detection_delay_s=None if det is None else max(det - first, 0.0),
-        isolation_time_s=iso, isolation_delay_s=None if iso is None else max(iso - last, 0.0),
-        final_declared=tuple(sorted(final_declared)), final_true=tuple(sorted(final_true)),
+        detection_time_s=det,
+        detection_delay_s=None if det is None else max(det - first, 0.0),
+        isolation_time_s=iso,
+        isolation_delay_s=None if iso is None else max(iso - last, 0.0),
+        final_declared=tuple(sorted(final_declared)),
+        final_true=tuple(sorted(final_true)),
         isolation_correct=(final_declared == final_true) if faults else None,
-        belief_on_truth=bot, n_samples=int(rec["n_samples"]), compute_s=float(rec["compute_s"]),
-        episode_return=float(rec["return"]), terminated=bool(rec["terminated"]),
-        failure_reason=rec["failure_reason"], **_compute_split(rec))
+        belief_on_truth=bot,
+        n_samples=int(rec["n_samples"]),
+        compute_s=float(rec["compute_s"]),
+        episode_return=float(rec["return"]),
+        terminated=bool(rec["terminated"]),
+        failure_reason=rec["failure_reason"],
+        **_compute_split(rec),
+    )
 
 
 def _compute_split(rec: Mapping) -> dict:
@@ -365,8 +390,11 @@ def _compute_split(rec: Mapping) -> dict:
     for k in keys[:2]:
         _num(rec, k, sid, nonneg=True)
     _typed(rec, "n_decisions", int, sid)
-    return {"feature_compute_s": float(rec["feature_compute_s"]), "agent_compute_s": float(rec["agent_compute_s"]),
-            "n_decisions": int(rec["n_decisions"])}
+    return {
+        "feature_compute_s": float(rec["feature_compute_s"]),
+        "agent_compute_s": float(rec["agent_compute_s"]),
+        "n_decisions": int(rec["n_decisions"]),
+    }
 
 
 def episode_outcome(record: Mapping) -> dict:
@@ -375,6 +403,7 @@ def episode_outcome(record: Mapping) -> dict:
 
 
 # ----------------------------------------------------------------------------- aggregation
+
 
 def _ratio(num: float, den: float) -> float | None:
     return float(num) / float(den) if den else None
@@ -423,12 +452,13 @@ def aggregate(outcomes: Sequence[EpisodeOutcome]) -> dict:
         "median_isolation_delay_s": _pct(iso, 50),
         "p90_isolation_delay_s": _pct(iso, 90),
         "belief_on_truth": sum(bots) / len(bots) if bots else None,
-        "compute_s_per_sample": _ratio(sum(o.compute_s for o in outcomes),
-                                       sum(o.n_samples for o in outcomes)),
-        "feature_compute_s_per_sample": _ratio(sum(o.feature_compute_s for o in split),
-                                               sum(o.n_samples for o in split)) if split else None,
-        "agent_compute_s_per_decision": _ratio(sum(o.agent_compute_s for o in split),
-                                               sum(o.n_decisions for o in split)) if split else None,
+        "compute_s_per_sample": _ratio(sum(o.compute_s for o in outcomes), sum(o.n_samples for o in outcomes)),
+        "feature_compute_s_per_sample": _ratio(sum(o.feature_compute_s for o in split), sum(o.n_samples for o in split))
+        if split
+        else None,
+        "agent_compute_s_per_decision": _ratio(sum(o.agent_compute_s for o in split), sum(o.n_decisions for o in split))
+        if split
+        else None,
         "mean_return": (sum(o.episode_return for o in outcomes) / len(outcomes)) if outcomes else None,
         "engine_failures": sum(o.terminated for o in outcomes),
     }
@@ -438,8 +468,7 @@ def compute_metrics(records: Sequence[Mapping]) -> dict:
     """Overall metrics plus ``by_class`` (sensor/process/mixed/none) and ``by_fault``."""
     outcomes = [_outcome(r) for r in records]
     out = aggregate(outcomes)
-    out["by_class"] = {c: aggregate([o for o in outcomes if o.fault_class == c])
-                       for c in FAULT_CLASSES}
+    out["by_class"] = {c: aggregate([o for o in outcomes if o.fault_class == c]) for c in FAULT_CLASSES}
     single: dict[str, list[EpisodeOutcome]] = {}
     for o in outcomes:
         if len(o.fault_ids) == 1:

@@ -48,16 +48,26 @@ from ..envs.hypotheses import DECLARE_THRESHOLD, N_FAULTS, UNKNOWN
 from ..envs.scenario_sampler import ScenarioSpec
 from .suites import load_suite
 
-__all__ = ["DATA_COLUMNS", "RANK_COLUMNS", "OUTPUT_COLUMNS", "scenario_stem", "export_raw", "predict_raw",
-           "belief_to_dx", "read_manifest"]
+__all__ = [
+    "DATA_COLUMNS",
+    "RANK_COLUMNS",
+    "OUTPUT_COLUMNS",
+    "scenario_stem",
+    "export_raw",
+    "predict_raw",
+    "belief_to_dx",
+    "read_manifest",
+]
 
 DATA_COLUMNS: tuple[str, ...] = ("time", "fuel_setting") + tuple(s.id for s in SENSORS)
 RANK_COLUMNS: tuple[str, ...] = tuple(f"{f}_rank" for f in FAULT_IDS) + ("unknown_rank",)
 OUTPUT_COLUMNS: tuple[str, ...] = ("sample_time", "computation_time", "detection") + RANK_COLUMNS
-_UNITS = {"time": ("s", "time since the start of the scenario"),
-          "fuel_setting": ("-", "applied fuel setting (after the charge-air limiter), a known input; 1 = nominal")}
-_BATCH = 16          # engines simulated together by export-raw
-_BLOCK = 1000        # samples per simulator call (progress granularity)
+_UNITS = {
+    "time": ("s", "time since the start of the scenario"),
+    "fuel_setting": ("-", "applied fuel setting (after the charge-air limiter), a known input; 1 = nominal"),
+}
+_BATCH = 16  # engines simulated together by export-raw
+_BLOCK = 1000  # samples per simulator call (progress granularity)
 
 
 def scenario_stem(scenario_id: str) -> str:
@@ -67,8 +77,7 @@ def scenario_stem(scenario_id: str) -> str:
 
 def _columns_doc() -> list[dict]:
     out = [{"name": c, "unit": _UNITS[c][0], "description": _UNITS[c][1]} for c in ("time", "fuel_setting")]
-    out += [{"name": s.id, "unit": s.unit, "description": s.description,
-             "noise_bound": s.noise_bound} for s in SENSORS]
+    out += [{"name": s.id, "unit": s.unit, "description": s.description, "noise_bound": s.noise_bound} for s in SENSORS]
     return out
 
 
@@ -80,20 +89,27 @@ def _offset(sc: ScenarioSpec, seed_offset: int) -> ScenarioSpec:
 
 def _manifest(suite, seed_offset: int, dt: float, entries: list[dict], source: str) -> dict:
     return {
-        "format": "marine-fdi raw suite (LiU-ICE / DX'25 kit layout)", "package_version": __version__,
-        "suite": suite.name, "suite_version": suite["version"], "seed_offset": int(seed_offset),
+        "format": "marine-fdi raw suite (LiU-ICE / DX'25 kit layout)",
+        "package_version": __version__,
+        "suite": suite.name,
+        "suite_version": suite["version"],
+        "seed_offset": int(seed_offset),
         "suite_source": source,
-        "env": suite["env"], "sample_time_s": dt, "data_columns": _columns_doc(),
-        "output_columns": list(OUTPUT_COLUMNS), "fault_ids": list(FAULT_IDS),
+        "env": suite["env"],
+        "sample_time_s": dt,
+        "data_columns": _columns_doc(),
+        "output_columns": list(OUTPUT_COLUMNS),
+        "fault_ids": list(FAULT_IDS),
         "conventions": {
             "output_file": "output_<data file name>, one row per data row, same sample_time",
             "detection": "0 or 1 per sample: a fault is detected",
             "ranks": "non-negative ranking over the 26 fault ids and unknown (a fault none of the known ones); "
-                     "sum 1 when detection = 1, sum 0 when detection = 0",
+            "sum 1 when detection = 1, sum 0 when detection = 0",
             "causality": "the row of sample k may use the samples 0..k only",
             "computation_time": "seconds spent on this sample",
         },
-        "built_with": f"marine-fdi export-raw --suite {suite.name}" + (f" --seed-offset {seed_offset}" if seed_offset else ""),
+        "built_with": f"marine-fdi export-raw --suite {suite.name}"
+        + (f" --seed-offset {seed_offset}" if seed_offset else ""),
         "scenarios": entries,
     }
 
@@ -141,21 +157,32 @@ def export_raw(suite_name: str, out_dir: "str | Path", *, seed_offset: int = 0, 
     if stamp.is_file():
         old = json.loads(stamp.read_text())
         if old.get("key") != key:
-            raise ValueError(f"{out} holds an export of another suite or seed offset ({old.get('suite')}); remove it "
-                             "or choose another --out")
+            raise ValueError(
+                f"{out} holds an export of another suite or seed offset ({old.get('suite')}); remove it "
+                "or choose another --out"
+            )
     else:
         stamp.write_text(json.dumps({"suite": suite.name, "seed_offset": seed_offset, "key": key}) + "\n")
     truth_file = out / "ground_truth.partial.json"
     truth: dict[str, dict] = json.loads(truth_file.read_text()) if truth_file.is_file() else {}
-    todo = [s for s in scenarios
-            if not (out / "data" / f"{scenario_stem(s.scenario_id)}.csv").is_file() or s.scenario_id not in truth]
+    todo = [
+        s
+        for s in scenarios
+        if not (out / "data" / f"{scenario_stem(s.scenario_id)}.csv").is_file() or s.scenario_id not in truth
+    ]
     bar = progress_bar(len(scenarios), len(scenarios) - len(todo), f"export-raw {suite.name}", progress, "scenario")
     try:
         for start in range(0, len(todo), _BATCH):
-            chunk = todo[start:start + _BATCH]
-            sim = Simulator(env.get("params", "thesis-12v28"), n_engines=len(chunk),
-                            seeds=[s.noise_seed for s in chunk], faults=[list(s.faults) for s in chunk],
-                            profiles=[s.profile for s in chunk], dt=dt, noise_scale=chunk[0].noise_scale)
+            chunk = todo[start : start + _BATCH]
+            sim = Simulator(
+                env.get("params", "thesis-12v28"),
+                n_engines=len(chunk),
+                seeds=[s.noise_seed for s in chunk],
+                faults=[list(s.faults) for s in chunk],
+                profiles=[s.profile for s in chunk],
+                dt=dt,
+                noise_scale=chunk[0].noise_scale,
+            )
             K = max(int(round(s.duration_s / dt)) for s in chunk)
             Y = np.empty((len(chunk), K + 1, len(SENSORS)))
             U = np.empty((len(chunk), K + 1))
@@ -164,8 +191,8 @@ def export_raw(suite_name: str, out_dir: "str | Path", *, seed_offset: int = 0, 
             while done < K:
                 m = min(_BLOCK, K - done)
                 blk = sim.advance(m)
-                Y[:, done + 1:done + 1 + m] = blk.measurements
-                U[:, done + 1:done + 1 + m] = blk.u
+                Y[:, done + 1 : done + 1 + m] = blk.measurements
+                U[:, done + 1 : done + 1 + m] = blk.u
                 done += m
                 bar.advance(len(chunk) * m / K * 0.8)
             fails = {f.engine: f for f in sim.failures}
@@ -179,24 +206,36 @@ def export_raw(suite_name: str, out_dir: "str | Path", *, seed_offset: int = 0, 
                 stem = scenario_stem(sc.scenario_id)
                 _write_csv(out / "data" / f"{stem}.csv", DATA_COLUMNS, arr, "%.17g")
                 truth[sc.scenario_id] = {
-                    "scenario_id": sc.scenario_id, "data_file": f"data/{stem}.csv",
-                    "output_file": f"output_{stem}.csv", "n_samples": n, "duration_s": float(t[-1]),
-                    "profile": sc.profile, "noise_seed": int(sc.noise_seed), "faults": sc.truth(),
+                    "scenario_id": sc.scenario_id,
+                    "data_file": f"data/{stem}.csv",
+                    "output_file": f"output_{stem}.csv",
+                    "n_samples": n,
+                    "duration_s": float(t[-1]),
+                    "profile": sc.profile,
+                    "noise_seed": int(sc.noise_seed),
+                    "faults": sc.truth(),
                     "scenario": sc.to_dict(),
-                    "engine_failure": None if fail is None else {"time_s": fail.time_s, "reason": fail.reason}}
+                    "engine_failure": None if fail is None else {"time_s": fail.time_s, "reason": fail.reason},
+                }
                 truth_file.write_text(json.dumps(truth))
                 bar.advance(0.2)
     finally:
         bar.close()
-    entries = [{k: truth[s.scenario_id][k] for k in ("scenario_id", "data_file", "output_file", "n_samples")}
-               for s in scenarios]
+    entries = [
+        {k: truth[s.scenario_id][k] for k in ("scenario_id", "data_file", "output_file", "n_samples")}
+        for s in scenarios
+    ]
     from .suites import SUITE_NAMES
 
     source = suite_name if suite_name in SUITE_NAMES else str(Path(suite_name).resolve())
     manifest = _manifest(suite, seed_offset, dt, entries, source)
-    (out / "ground_truth.json").write_text(json.dumps(
-        {"suite": suite.name, "seed_offset": seed_offset, "scenarios": [truth[s.scenario_id] for s in scenarios]},
-        indent=1) + "\n")
+    (out / "ground_truth.json").write_text(
+        json.dumps(
+            {"suite": suite.name, "seed_offset": seed_offset, "scenarios": [truth[s.scenario_id] for s in scenarios]},
+            indent=1,
+        )
+        + "\n"
+    )
     (out / "manifest.json").write_text(json.dumps(manifest, indent=1) + "\n")
     truth_file.unlink(missing_ok=True)
     return manifest
@@ -208,7 +247,7 @@ def belief_to_dx(beliefs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     the beliefs on the faults and ``unknown`` divided by their sum (0 without alarm)."""
     b = np.asarray(beliefs, dtype=np.float64)
     alarm = (b[:, :N_FAULTS] >= DECLARE_THRESHOLD).any(axis=1) | (b[:, UNKNOWN] >= DECLARE_THRESHOLD)
-    r = np.concatenate([b[:, :N_FAULTS], b[:, UNKNOWN:UNKNOWN + 1]], axis=1).clip(0.0, None)
+    r = np.concatenate([b[:, :N_FAULTS], b[:, UNKNOWN : UNKNOWN + 1]], axis=1).clip(0.0, None)
     s = r.sum(axis=1, keepdims=True)
     with np.errstate(invalid="ignore", divide="ignore"):
         ranks = np.where(alarm[:, None] & (s > 0), r / s, 0.0)
@@ -234,11 +273,12 @@ def _prediction_rows(n: int, dt: float, decisions: list) -> np.ndarray:
     return rows
 
 
-def predict_raw(agent_spec: str, data_dir: "str | Path", out_dir: "str | Path", *, batch_size: int = 32,
-                progress: bool = True) -> Path:
+def predict_raw(
+    agent_spec: str, data_dir: "str | Path", out_dir: "str | Path", *, batch_size: int = 32, progress: bool = True
+) -> Path:
     """Write ``agent_spec``'s diagnoses of the raw suite in ``data_dir`` in the output layout; resumable."""
-    from .agent_api import load_agent
     from ..progress import progress_bar
+    from .agent_api import load_agent
     from .evaluate import run_episodes
 
     man = read_manifest(data_dir)
@@ -260,23 +300,44 @@ def predict_raw(agent_spec: str, data_dir: "str | Path", out_dir: "str | Path", 
     bar = progress_bar(len(entries), len(entries) - len(todo), f"predict-raw {agent.name}", progress, "scenario")
     try:
         for start in range(0, len(todo), batch_size):
-            chunk = todo[start:start + batch_size]
+            chunk = todo[start : start + batch_size]
             decisions: dict[str, list] = {e["scenario_id"]: [] for e in chunk}
 
             def on_decision(sid, t, belief, compute_s):
                 if sid in decisions:
                     decisions[sid].append((t, np.array(belief, dtype=np.float64), compute_s))
 
-            run_episodes(agent, [by_id[e["scenario_id"]] for e in chunk], dict(suite["env"]), suite=suite.name,
-                         seed_offset=int(man.get("seed_offset", 0)), batch_size=len(chunk), on_decision=on_decision,
-                         progress=bar.advance)
+            run_episodes(
+                agent,
+                [by_id[e["scenario_id"]] for e in chunk],
+                dict(suite["env"]),
+                suite=suite.name,
+                seed_offset=int(man.get("seed_offset", 0)),
+                batch_size=len(chunk),
+                on_decision=on_decision,
+                progress=bar.advance,
+            )
             for e in chunk:
                 rows = _prediction_rows(int(e["n_samples"]), dt, decisions[e["scenario_id"]])
-                _write_csv(out / e["output_file"], OUTPUT_COLUMNS, rows,
-                           ",".join(["%.17g", "%.9g", "%d"] + ["%.17g"] * len(RANK_COLUMNS)))
+                _write_csv(
+                    out / e["output_file"],
+                    OUTPUT_COLUMNS,
+                    rows,
+                    ",".join(["%.17g", "%.9g", "%d"] + ["%.17g"] * len(RANK_COLUMNS)),
+                )
     finally:
         bar.close()
-    (out / "predictions.json").write_text(json.dumps(
-        {"agent": agent.name, "agent_spec": str(agent_spec), "suite": suite.name,
-         "seed_offset": int(man.get("seed_offset", 0)), "written_by": "marine-fdi predict-raw"}, indent=1) + "\n")
+    (out / "predictions.json").write_text(
+        json.dumps(
+            {
+                "agent": agent.name,
+                "agent_spec": str(agent_spec),
+                "suite": suite.name,
+                "seed_offset": int(man.get("seed_offset", 0)),
+                "written_by": "marine-fdi predict-raw",
+            },
+            indent=1,
+        )
+        + "\n"
+    )
     return out

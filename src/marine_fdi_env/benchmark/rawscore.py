@@ -53,8 +53,8 @@ from pathlib import Path
 import numpy as np
 
 from .._version import __version__
-from ..errors import DataFileError
 from ..engine.faults import FAULT_IDS, _window_time, fault_class
+from ..errors import DataFileError
 from .metrics import compute_metrics
 from .rawdata import OUTPUT_COLUMNS, RANK_COLUMNS, read_manifest, scenario_stem
 from .suites import load_suite
@@ -87,11 +87,19 @@ def read_predictions(path: Path, n_expected: int, dt: float) -> tuple[np.ndarray
     extra = [h for h in header if h not in OUTPUT_COLUMNS]
     dup = sorted({h for h in header if header.count(h) > 1})
     if missing or extra or dup:
-        what = "; ".join(x for x in (f"missing column(s) {', '.join(repr(c) for c in missing[:5])}" if missing else "",
-                                      f"unexpected column(s) {', '.join(repr(c) for c in extra[:5])}" if extra else "",
-                                      f"repeated column(s) {', '.join(repr(c) for c in dup)}" if dup else "") if x)
-        raise DataFileError(f"{path}: line 1 (header): {what}; the columns are {', '.join(OUTPUT_COLUMNS[:4])}, ..., "
-                              f"{OUTPUT_COLUMNS[-1]} (see docs/raw_data.md)")
+        what = "; ".join(
+            x
+            for x in (
+                f"missing column(s) {', '.join(repr(c) for c in missing[:5])}" if missing else "",
+                f"unexpected column(s) {', '.join(repr(c) for c in extra[:5])}" if extra else "",
+                f"repeated column(s) {', '.join(repr(c) for c in dup)}" if dup else "",
+            )
+            if x
+        )
+        raise DataFileError(
+            f"{path}: line 1 (header): {what}; the columns are {', '.join(OUTPUT_COLUMNS[:4])}, ..., "
+            f"{OUTPUT_COLUMNS[-1]} (see docs/raw_data.md)"
+        )
     body = [ln for ln in lines[1:]]
     while body and not body[-1].strip():
         body.pop()
@@ -105,8 +113,10 @@ def read_predictions(path: Path, n_expected: int, dt: float) -> tuple[np.ndarray
     arr = arr[:, order]
     n = len(arr)
     if n != n_expected:
-        raise DataFileError(f"{path}: line {min(n, n_expected) + 2}: has {n} sample rows, the data have {n_expected} "
-                              "(one output row per data sample)")
+        raise DataFileError(
+            f"{path}: line {min(n, n_expected) + 2}: has {n} sample rows, the data have {n_expected} "
+            "(one output row per data sample)"
+        )
     _check_values(path, arr, dt)
     return arr[:, 1], arr[:, 2].astype(np.int64), arr[:, 3:]
 
@@ -137,8 +147,11 @@ def _check_values(path: Path, arr: np.ndarray, dt: float) -> None:
         bad_rows.append((r, OUTPUT_COLUMNS[j], f"not a finite number ({arr[r, j]!r})"))
     a = np.where(fin, arr, 0.0)
     checks = [
-        (np.abs(a[:, 0] - t_exp) > TIME_TOL_S, "sample_time", lambda r: f"{a[r, 0]!r}, the data sample is at "
-                                                                         f"{t_exp[r]:.6f} s"),
+        (
+            np.abs(a[:, 0] - t_exp) > TIME_TOL_S,
+            "sample_time",
+            lambda r: f"{a[r, 0]!r}, the data sample is at {t_exp[r]:.6f} s",
+        ),
         (a[:, 1] < 0, "computation_time", lambda r: f"must be >= 0, got {a[r, 1]!r}"),
         (~np.isin(a[:, 2], (0.0, 1.0)), "detection", lambda r: f"must be 0 or 1, got {a[r, 2]!r}"),
     ]
@@ -157,9 +170,14 @@ def _check_values(path: Path, arr: np.ndarray, dt: float) -> None:
     m = (np.abs(s - want) > RANK_SUM_TOL) & fin.all(axis=1) & np.isin(a[:, 2], (0.0, 1.0))
     if m.any():
         r = int(np.argmax(m))
-        bad_rows.append((r, f"{RANK_COLUMNS[0]} ... {RANK_COLUMNS[-1]}",
-                         f"the ranks sum to {s[r]:.6g}, must be {want[r]:g} when detection = {int(a[r, 2])} "
-                         f"(tolerance {RANK_SUM_TOL:g})"))
+        bad_rows.append(
+            (
+                r,
+                f"{RANK_COLUMNS[0]} ... {RANK_COLUMNS[-1]}",
+                f"the ranks sum to {s[r]:.6g}, must be {want[r]:g} when detection = {int(a[r, 2])} "
+                f"(tolerance {RANK_SUM_TOL:g})",
+            )
+        )
     if bad_rows:
         r, col, what = min(bad_rows, key=lambda x: x[0])
         raise DataFileError(f"{_where(path, int(r), float(t_exp[r]))}, column {col!r}: {what}")
@@ -171,8 +189,13 @@ def _active(faults, t: np.ndarray) -> np.ndarray:
     col = {f: j for j, f in enumerate(FAULT_IDS)}
     inf = np.inf
     for f in faults:
-        w = _window_time(t, f.onset_s, inf if f.end_s is None else f.end_s, inf if f.period_s is None else f.period_s,
-                         1.0 if f.duty is None else f.duty)
+        w = _window_time(
+            t,
+            f.onset_s,
+            inf if f.end_s is None else f.end_s,
+            inf if f.period_s is None else f.period_s,
+            1.0 if f.duty is None else f.duty,
+        )
         act[:, col[f.fault_id]] |= ~np.isnan(w)
     return act
 
@@ -195,33 +218,59 @@ def _record(sc, entry: dict, suite: str, agent: str, dt: float, comp, det, ranks
         share = (ranks[:, :_N_FAULTS] * act).sum(axis=1)[on]
         bot = [[float(t[np.argmax(on)]), float(share.mean())]]
     fail = entry.get("engine_failure")
-    return {"scenario_id": sc.scenario_id, "suite": suite, "seed": int(sc.noise_seed), "agent": agent,
-            "profile": sc.profile, "duration_s": float(t[-1]) if n else 0.0, "decision_period_s": dt, "n_samples": n,
-            "faults": sc.truth(), "declared_changes": trace, "belief_on_truth": bot,
-            "terminated": fail is not None, "failure_reason": None if fail is None else str(fail["reason"]),
-            "compute_s": float(comp.sum()), "return": 0.0, "reward_terms": {}}
+    return {
+        "scenario_id": sc.scenario_id,
+        "suite": suite,
+        "seed": int(sc.noise_seed),
+        "agent": agent,
+        "profile": sc.profile,
+        "duration_s": float(t[-1]) if n else 0.0,
+        "decision_period_s": dt,
+        "n_samples": n,
+        "faults": sc.truth(),
+        "declared_changes": trace,
+        "belief_on_truth": bot,
+        "terminated": fail is not None,
+        "failure_reason": None if fail is None else str(fail["reason"]),
+        "compute_s": float(comp.sum()),
+        "return": 0.0,
+        "reward_terms": {},
+    }
 
 
 def dx_metrics(parts: list[dict]) -> dict:
     """TDR, FAR, FIA pooled over samples (module docstring), from per-scenario sample counts."""
     tot = {k: sum(p[k] for p in parts) for k in ("fault", "fault_detected", "free", "free_alarm", "rank_true")}
     r = lambda a, b: (a / b) if b else None  # noqa: E731
-    return {"true_detection_rate": r(tot["fault_detected"], tot["fault"]),
-            "false_alarm_rate": r(tot["free_alarm"], tot["free"]),
-            "fault_isolation_accuracy": r(tot["rank_true"], tot["fault_detected"]),
-            "n_fault_samples": tot["fault"], "n_fault_free_samples": tot["free"]}
+    return {
+        "true_detection_rate": r(tot["fault_detected"], tot["fault"]),
+        "false_alarm_rate": r(tot["free_alarm"], tot["free"]),
+        "fault_isolation_accuracy": r(tot["rank_true"], tot["fault_detected"]),
+        "n_fault_samples": tot["fault"],
+        "n_fault_free_samples": tot["free"],
+    }
 
 
 def _dx_counts(det, ranks, act) -> dict:
     on = act.any(axis=1)
     alarm = det == 1
-    return {"fault": int(on.sum()), "fault_detected": int((on & alarm).sum()), "free": int((~on).sum()),
-            "free_alarm": int((~on & alarm).sum()),
-            "rank_true": float((ranks[:, :_N_FAULTS] * act).sum(axis=1)[on & alarm].sum())}
+    return {
+        "fault": int(on.sum()),
+        "fault_detected": int((on & alarm).sum()),
+        "free": int((~on).sum()),
+        "free_alarm": int((~on & alarm).sum()),
+        "rank_true": float((ranks[:, :_N_FAULTS] * act).sum(axis=1)[on & alarm].sum()),
+    }
 
 
-def score_raw(suite_name: str, pred_dir: "str | Path", *, data_dir: "str | Path | None" = None,
-              agent: str | None = None, progress: bool = True) -> dict:
+def score_raw(
+    suite_name: str,
+    pred_dir: "str | Path",
+    *,
+    data_dir: "str | Path | None" = None,
+    agent: str | None = None,
+    progress: bool = True,
+) -> dict:
     """Validate and score a predictions folder; returns a results object (as evaluate's, plus
     ``dx_metrics``)."""
     from ..progress import progress_bar
@@ -253,8 +302,10 @@ def score_raw(suite_name: str, pred_dir: "str | Path", *, data_dir: "str | Path 
     missing = [f.name for f in files.values() if not f.is_file()]
     if missing:
         more = f" and {len(missing) - _MAX_ERRORS} more" if len(missing) > _MAX_ERRORS else ""
-        raise ValueError(f"{pred}: {len(missing)} of {len(files)} scenarios have no predictions file: "
-                         f"{', '.join(missing[:_MAX_ERRORS])}{more}")
+        raise ValueError(
+            f"{pred}: {len(missing)} of {len(files)} scenarios have no predictions file: "
+            f"{', '.join(missing[:_MAX_ERRORS])}{more}"
+        )
     errors: list[str] = []
     records, parts = [], []
     bar = progress_bar(len(scenarios), 0, "score-raw", progress, "scenario")
@@ -285,19 +336,33 @@ def score_raw(suite_name: str, pred_dir: "str | Path", *, data_dir: "str | Path 
         by_class.setdefault(p["class"], []).append(p)
     dx = dx_metrics(parts)
     dx["by_class"] = {k: dx_metrics(v) for k, v in by_class.items()}
-    return {"agent": agent, "agent_spec": f"predictions:{pred}", "suite": suite.name, "suite_version": suite["version"],
-            "seed_offset": seed_offset, "env": suite["env"], "package_version": __version__,
-            "scored_by": "marine-fdi score-raw", "n_scenarios": len(records), "metrics": compute_metrics(records),
-            "dx_metrics": dx, "episodes": records}
+    return {
+        "agent": agent,
+        "agent_spec": f"predictions:{pred}",
+        "suite": suite.name,
+        "suite_version": suite["version"],
+        "seed_offset": seed_offset,
+        "env": suite["env"],
+        "package_version": __version__,
+        "scored_by": "marine-fdi score-raw",
+        "n_scenarios": len(records),
+        "metrics": compute_metrics(records),
+        "dx_metrics": dx,
+        "episodes": records,
+    }
 
 
 def dx_table(results: list[dict]) -> str:
     """Markdown table of the DX metrics."""
     pct = lambda v: "–" if v is None else f"{100 * v:.1f} %"  # noqa: E731
-    lines = ["| Suite | Agent | TDR | FAR | FIA | fault samples | fault-free samples |",
-             "| --- | --- | ---: | ---: | ---: | ---: | ---: |"]
+    lines = [
+        "| Suite | Agent | TDR | FAR | FIA | fault samples | fault-free samples |",
+        "| --- | --- | ---: | ---: | ---: | ---: | ---: |",
+    ]
     for r in results:
         m = r["dx_metrics"]
-        lines.append(f"| {r['suite']} | {r['agent']} | {pct(m['true_detection_rate'])} | {pct(m['false_alarm_rate'])} | "
-                     f"{pct(m['fault_isolation_accuracy'])} | {m['n_fault_samples']} | {m['n_fault_free_samples']} |")
+        lines.append(
+            f"| {r['suite']} | {r['agent']} | {pct(m['true_detection_rate'])} | {pct(m['false_alarm_rate'])} | "
+            f"{pct(m['fault_isolation_accuracy'])} | {m['n_fault_samples']} | {m['n_fault_free_samples']} |"
+        )
     return "\n".join(lines) + "\n"

@@ -23,8 +23,17 @@ import json
 from pathlib import Path
 from typing import Iterable, Mapping
 
-__all__ = ["pyarrow", "records_to_table", "table_to_records", "write_records", "read_records",
-           "write_results_parquet", "read_results_parquet", "PARQUET_MISSING", "sweep_results"]
+__all__ = [
+    "pyarrow",
+    "records_to_table",
+    "table_to_records",
+    "write_records",
+    "read_records",
+    "write_results_parquet",
+    "read_results_parquet",
+    "PARQUET_MISSING",
+    "sweep_results",
+]
 
 PARQUET_MISSING = "Parquet files need pyarrow: pip install 'marine-fdi-env[parquet]'"
 META_KEY = b"marine_fdi"
@@ -46,18 +55,37 @@ _OPTIONAL = {"feature_compute_s": "float64", "agent_compute_s": "float64", "n_de
 
 
 def _schema(pa, extra: Iterable[str] = ()):
-    fault = pa.struct([("id", pa.string()), ("class", pa.string()), ("onset_s", pa.float64()),
-                       ("magnitude", pa.float64()), ("end_s", pa.float64())])
+    fault = pa.struct(
+        [
+            ("id", pa.string()),
+            ("class", pa.string()),
+            ("onset_s", pa.float64()),
+            ("magnitude", pa.float64()),
+            ("end_s", pa.float64()),
+        ]
+    )
     change = pa.struct([("t_s", pa.float64()), ("declared", pa.list_(pa.string())), ("alarm", pa.bool_())])
     share = pa.struct([("t_s", pa.float64()), ("share", pa.float64())])
-    fields = [("scenario_id", pa.string()), ("suite", pa.string()), ("agent", pa.string()),
-              *((k, getattr(pa, _EXTRA[k])()) for k in extra),
-              ("seed", pa.int64()), ("profile", pa.string()), ("duration_s", pa.float64()),
-              ("decision_period_s", pa.float64()), ("n_samples", pa.int64()), ("faults", pa.list_(fault)),
-              ("declared_changes", pa.list_(change)), ("belief_on_truth", pa.list_(share)),
-              ("terminated", pa.bool_()), ("failure_reason", pa.string()), ("compute_s", pa.float64()),
-              ("return", pa.float64()), ("reward_terms", pa.map_(pa.string(), pa.float64())),
-              *((k, getattr(pa, t)()) for k, t in _OPTIONAL.items())]
+    fields = [
+        ("scenario_id", pa.string()),
+        ("suite", pa.string()),
+        ("agent", pa.string()),
+        *((k, getattr(pa, _EXTRA[k])()) for k in extra),
+        ("seed", pa.int64()),
+        ("profile", pa.string()),
+        ("duration_s", pa.float64()),
+        ("decision_period_s", pa.float64()),
+        ("n_samples", pa.int64()),
+        ("faults", pa.list_(fault)),
+        ("declared_changes", pa.list_(change)),
+        ("belief_on_truth", pa.list_(share)),
+        ("terminated", pa.bool_()),
+        ("failure_reason", pa.string()),
+        ("compute_s", pa.float64()),
+        ("return", pa.float64()),
+        ("reward_terms", pa.map_(pa.string(), pa.float64())),
+        *((k, getattr(pa, t)()) for k, t in _OPTIONAL.items()),
+    ]
     return pa.schema(fields)
 
 
@@ -72,8 +100,7 @@ def records_to_table(records: list[Mapping], metadata: dict | None = None, extra
     rows = []
     for r in records:
         row = {f.name: r.get(f.name) for f in schema}
-        row["declared_changes"] = [{"t_s": c[0], "declared": list(c[1]), "alarm": c[2]}
-                                   for c in r["declared_changes"]]
+        row["declared_changes"] = [{"t_s": c[0], "declared": list(c[1]), "alarm": c[2]} for c in r["declared_changes"]]
         bot = r.get("belief_on_truth")
         row["belief_on_truth"] = None if bot is None else [{"t_s": t, "share": v} for t, v in bot]
         row["reward_terms"] = list(r["reward_terms"].items())
@@ -112,8 +139,9 @@ def table_metadata(table) -> dict:
     return json.loads(meta[META_KEY]) if META_KEY in meta else {}
 
 
-def write_records(path: "str | Path", records: list[Mapping], metadata: dict | None = None,
-                  extra: Iterable[str] = ()) -> Path:
+def write_records(
+    path: "str | Path", records: list[Mapping], metadata: dict | None = None, extra: Iterable[str] = ()
+) -> Path:
     _, pq = pyarrow()
     pq.write_table(records_to_table(records, metadata, extra), str(path), compression="zstd")
     return Path(path)
@@ -126,7 +154,9 @@ def read_records(path: "str | Path", keep_extra: bool = False) -> tuple[list[dic
         table = pq.read_table(str(path))
     except (OSError, pa.ArrowException) as e:
         raise ValueError(f"{path}: not a readable Parquet file ({e})") from None
-    missing = [n for n in ("scenario_id", "agent", "suite", "declared_changes", "faults") if n not in table.column_names]
+    missing = [
+        n for n in ("scenario_id", "agent", "suite", "declared_changes", "faults") if n not in table.column_names
+    ]
     if missing:
         raise ValueError(f"{path}: not a table of episode records (no column {missing[0]!r})")
     return table_to_records(table, keep_extra), table_metadata(table)
@@ -158,7 +188,16 @@ def sweep_results(records: list[dict], source: str = "") -> list[dict]:
     for (spec, suite), recs in groups.items():
         offsets = sorted({int(r.get("seed_offset", 0)) for r in recs})
         clean = [{k: v for k, v in r.items() if k not in ("agent_spec", "seed_offset")} for r in recs]
-        out.append({"agent": recs[0]["agent"], "agent_spec": spec, "suite": suite, "seed_offsets": offsets,
-                    "n_episodes": len(recs), "metrics": compute_metrics(clean), "episodes": clean,
-                    "path": f"{source}[{spec} on {suite}]" if source else f"{spec} on {suite}"})
+        out.append(
+            {
+                "agent": recs[0]["agent"],
+                "agent_spec": spec,
+                "suite": suite,
+                "seed_offsets": offsets,
+                "n_episodes": len(recs),
+                "metrics": compute_metrics(clean),
+                "episodes": clean,
+                "path": f"{source}[{spec} on {suite}]" if source else f"{spec} on {suite}",
+            }
+        )
     return out

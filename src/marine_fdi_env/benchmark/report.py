@@ -38,6 +38,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
 from ..engine.faults import FAULT_IDS
+from ..errors import DataFileError
 from ..plotting import pyplot
 from ..jsonfile import read_json
 from .metrics import FAULT_CLASSES, compute_metrics, episode_outcome
@@ -58,6 +59,8 @@ def _parquet_results(p: Path) -> list[dict]:
     from .records import read_records, sweep_results
 
     records, meta = read_records(p, keep_extra=True)
+    if not records:
+        raise DataFileError(f"{p}: no episode records: nothing to report")
     if meta.get("kind") == "marine-fdi sweep" or (records and "agent_spec" in records[0]):
         return sweep_results(records, str(p))
     for r in records:
@@ -92,9 +95,14 @@ def load_results(paths: Iterable[str | Path]) -> list[dict]:
         for key in ("agent", "suite"):
             if not isinstance(data.get(key), str):
                 raise ValueError(f"{p}: field {key!r} missing or not a string")
-        episodes = data.setdefault("episodes", [])
+        if "episodes" not in data:
+            raise DataFileError(f"{p}: field 'episodes' is missing (a results file of 'marine-fdi evaluate' lists "
+                                "its episode records)")
+        episodes = data["episodes"]
         if not isinstance(episodes, list):
-            raise ValueError(f"{p}: field 'episodes' must be a list")
+            raise DataFileError(f"{p}: field 'episodes' must be a list of episode records")
+        if not episodes:
+            raise DataFileError(f"{p}: field 'episodes' is empty: no episode to report (rerun 'marine-fdi evaluate')")
         metrics = data.get("metrics")
         try:
             if metrics is None:
@@ -471,7 +479,7 @@ def plot_confusion(rs: Sequence[Mapping], path: Path) -> Path:
     nrow = -(-n // ncol)
     cell = 0.24
     w = cell * len(cols) + 0.4
-    h = cell * len(rows) + 0.5
+    h = max(cell * len(rows) + 0.5, 1.4)  # a one-row matrix (a fault-free suite) still needs room for title and labels
     lab_w = 0.07 * max(len(x) for x in rows) + 0.6    # room for the y tick labels of the first column
     lab_h = 0.065 * max(len(x) for x in cols) + 0.5   # room for the x tick labels of the bottom row
     fig, axes = plt.subplots(nrow, ncol, figsize=(w * ncol + lab_w, h * nrow + lab_h + 0.3), squeeze=False)

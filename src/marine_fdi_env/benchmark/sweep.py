@@ -3,11 +3,15 @@
     marine-fdi sweep --agents reference classifier --suites thesis-v1 single-v1 [--seed-offsets 0 1]
                      --backend ray --out DIR
 
-The grid's episodes run as chunks (one agent, one suite, one seed offset, up to ``--batch-size``
-episodes each) on the backend, all cells at once, so a cluster is kept busy.  Every finished
-chunk's episode records are appended to ``DIR/sweep.partial.jsonl`` at once: an interrupted
-sweep (Ctrl-C, a lost node, a killed job) loses only the chunks in flight and the same command
-resumes it.  When the grid is complete the command writes
+The grid's episodes run as chunks (one suite, one seed offset, up to ``--batch-size`` episodes,
+every agent) on the backend, all at once, so a cluster is kept busy: a chunk's episodes are
+simulated once and every agent is scored on them in lockstep (:mod:`.evaluate`, :mod:`.lockstep`).
+With ``--cache write`` the suites' trajectories are kept as feature caches, and later sweeps and
+evaluations (``--cache use``, the default) score agents on them without simulating
+(:mod:`.feature_cache`).  Every finished chunk's episode records are appended to
+``DIR/sweep.partial.jsonl`` at once: an interrupted sweep (Ctrl-C, a lost node, a killed job)
+loses only the chunks in flight and the same command resumes it.  When the grid is complete the
+command writes
 
 * ``DIR/episodes.parquet``: one row per episode (:mod:`.records`; with the columns
   ``agent_spec`` and ``seed_offset``), every cell of this sweep and of earlier complete sweeps
@@ -15,7 +19,7 @@ resumes it.  When the grid is complete the command writes
 * ``DIR/metrics.json``: the metrics (:mod:`.metrics`) per agent x suite, pooled over the seed
   offsets, and ``DIR/metrics.md``, the same as a Markdown table;
 * ``DIR/sweep.json``: how this run went (backend, workers, wall time, load average before and
-  after, episodes run by this invocation).
+  after, episodes run by this invocation, the feature caches read and written).
 
 ``marine-fdi report DIR`` reads the table.  ``--agents all`` is every named agent
 (``marine-fdi agents``), ``--suites all`` every shipped suite.  Results are those of ``marine-fdi
@@ -29,9 +33,11 @@ import os
 import time
 from pathlib import Path
 
+import numpy as np
+
 from .._version import __version__
 from .backends import Backend, chunk_size, run_tasks
-from .evaluate import cached_agent, evaluate_chunk, suite_env_kwargs
+from .evaluate import cached_agent, chunk_tasks, evaluate_chunk, suite_caches, suite_env_kwargs
 from .records import sweep_results  # noqa: F401 - part of this module's API
 from .suites import SUITE_NAMES, load_suite
 
@@ -46,7 +52,7 @@ def _expand_agents(agents: list[str]) -> list[str]:
 
     out: list[str] = []
     for a in agents:
-        for x in ([e.name for e in list_agents()] if a == "all" else [a]):
+        for x in [e.name for e in list_agents()] if a == "all" else [a]:
             if x not in out:
                 out.append(x)
     return out
@@ -55,7 +61,7 @@ def _expand_agents(agents: list[str]) -> list[str]:
 def _expand_suites(suites: list[str]) -> list[str]:
     out: list[str] = []
     for s in suites:
-        for x in (SUITE_NAMES if s == "all" else [s]):
+        for x in SUITE_NAMES if s == "all" else [s]:
             if x not in out:
                 out.append(x)
     return out
@@ -75,8 +81,9 @@ def _load_partial(path: Path, header: dict) -> dict[tuple, dict]:
         from ..outputs import differing_fields
 
         what = differing_fields((old or {}).get("grid"), header["grid"], "grid" if old is None else "")
-        raise ValueError(f"{path} belongs to another sweep ({what}); rerun that command to finish it, or remove the "
-                         "file")
+        raise ValueError(
+            f"{path} belongs to another sweep ({what}); rerun that command to finish it, or remove the file"
+        )
     done = {}
     for ln in lines[1:]:
         try:
@@ -87,9 +94,22 @@ def _load_partial(path: Path, header: dict) -> dict[tuple, dict]:
     return done
 
 
-def run_sweep(agents: list[str], suites: list[str], seed_offsets: list[int], out_dir: "str | Path", *,
-              backend: Backend | None = None, batch_size: int = 32, progress: bool = True) -> dict:
-    """Run (or resume, or extend) a sweep into ``out_dir``; returns the contents of metrics.json."""
+def run_sweep(
+    agents: list[str],
+    suites: list[str],
+    seed_offsets: list[int],
+    out_dir: "str | Path",
+    *,
+    backend: Backend | None = None,
+    batch_size: int = 32,
+    progress: bool = True,
+    cache: str = "off",
+    cache_dir=None,
+) -> dict:
+    """Run (or resume, or extend) a sweep into ``out_dir``; returns the contents of metrics.json.
+
+    ``cache``: ``use`` (score on the suites' feature caches in ``cache_dir`` where there are),
+    ``write`` (simulate and write them) or ``off`` (:mod:`.feature_cache`)."""
     from ..progress import progress_bar
     from .records import read_records, write_records
 
@@ -102,7 +122,8 @@ def run_sweep(agents: list[str], suites: list[str], seed_offsets: list[int], out
         raise ValueError("a sweep needs at least one agent, one suite and one seed offset")
     from .agent_api import resolve_agent_spec
 
-    loaded = {a: cached_agent(resolve_agent_spec(a)) for a in agents}  # fail early on a bad agent
+    specs = {a: resolve_agent_spec(a) for a in agents}
+    loaded = {a: cached_agent(specs[a]) for a in agents}  # fail early on a bad agent
     suite_objs = {s: load_suite(s) for s in suites}
     out_dir = Path(out_dir)
     header = {"kind": "marine-fdi sweep", "grid": {"agents": agents, "suites": suites, "seed_offsets": offsets}}
@@ -125,17 +146,39 @@ def run_sweep(agents: list[str], suites: list[str], seed_offsets: list[int], out
             for key in keys:
                 done.setdefault(key, earlier[key])
     total = sum(len(suite_objs[s].scenarios) for _, s, _ in cells)
-    tasks, plan = [], []
-    for a, s, k in cells:
+    # one task per chunk of a suite and seed offset, with every agent that misses one of its episodes
+    tasks, plan, all_caches = [], [], []
+    for s in suites:
         suite = suite_objs[s]
-        todo = [sc for sc in suite.scenarios if (a, suite.name, k, sc.scenario_id) not in done]
-        per = chunk_size(len(todo), batch_size, backend.workers)
-        for i in range(0, len(todo), per):
-            tasks.append((resolve_agent_spec(a), [sc.to_dict() for sc in todo[i:i + per]], suite_env_kwargs(suite)[0],
-                          suite.name, k, batch_size))
-            plan.append((a, k))
+        env_kwargs = suite_env_kwargs(suite)[0]
+        for k in offsets:
+            caches = suite_caches(cache, cache_dir, suite, k, [loaded[a] for a in agents], env_kwargs)
+            all_caches += caches.values()
+            lacks = np.array(
+                [[(a, suite.name, k, sc.scenario_id) not in done for a in agents] for sc in suite.scenarios], dtype=bool
+            ).reshape(len(suite.scenarios), len(agents))
+            need = lacks.any(axis=1)
+            for c in caches.values():
+                need[c.missing()] = True  # episodes a feature cache being written has no trajectory of
+            todo = np.flatnonzero(need)
+            for idx, given in chunk_tasks(caches, todo, chunk_size(len(todo), batch_size, backend.workers)):
+                run = [a for a, m in zip(agents, lacks[idx].any(axis=0)) if m] or agents
+                tasks.append(
+                    (
+                        [specs[a] for a in run],
+                        [suite.scenarios[i].to_dict() for i in idx],
+                        env_kwargs,
+                        suite.name,
+                        k,
+                        batch_size,
+                        given or None,
+                        any(c.keep for c in caches.values()),
+                        cache == "write",
+                    )
+                )
+                plan.append((run, k, idx, caches))
     n_before = len(done)
-    if tasks:
+    if tasks and not (all_caches and all(c.trajectory is not None for c in all_caches)):
         from .evaluate import warm_up
 
         warm_up(tasks[0][2])  # compile a cold cache once, here, before the bar and the workers
@@ -146,13 +189,16 @@ def run_sweep(agents: list[str], suites: list[str], seed_offsets: list[int], out
         in_flight[i] = in_flight.get(i, 0.0) + x
         bar.advance(x)
 
-    def keep(i, recs):
-        a, k = plan[i]
+    def keep(i, res):
+        run, k, idx, caches = plan[i]
+        for key, traj in res["trajectories"].items():
+            caches[key].store(idx, traj)  # before the records: kept records always have their trajectory
         with partial.open("a") as fh:
-            for rec in recs:
-                rec = dict(rec, agent_spec=a, seed_offset=k)
-                fh.write(json.dumps(rec) + "\n")
-                done[_key(rec)] = rec
+            for a, recs in zip(run, res["records"]):
+                for rec in recs:
+                    rec = dict(rec, agent_spec=a, seed_offset=k)
+                    fh.write(json.dumps(rec) + "\n")
+                    done[_key(rec)] = rec
         in_flight.pop(i, None)  # this chunk now counts as done; the others as far as they got
         bar.set_done(len(done) + sum(in_flight.values()))
 
@@ -163,14 +209,20 @@ def run_sweep(agents: list[str], suites: list[str], seed_offsets: list[int], out
         bar.close()
     wall = time.perf_counter() - t0
     load1 = os.getloadavg()
+    read = sorted({str(c.path) for c in all_caches if c.trajectory is not None})
+    written = [str(p) for p in (c.finish() for c in all_caches) if p is not None]
 
     # the table: this grid in grid order, then the other cells of earlier sweeps in this folder
     grid_keys = [(a, suite_objs[s].name, k, sc.scenario_id) for a, s, k in cells for sc in suite_objs[s].scenarios]
     records = [done[key] for key in grid_keys]
     in_grid = set(grid_keys)
     records += [r for key, r in earlier.items() if key not in in_grid]
-    info = {"kind": "marine-fdi sweep", "package_version": __version__, "grid": header["grid"],
-            "suites": {o.name: {"version": o["version"], "env": o["env"]} for o in suite_objs.values()}}
+    info = {
+        "kind": "marine-fdi sweep",
+        "package_version": __version__,
+        "grid": header["grid"],
+        "suites": {o.name: {"version": o["version"], "env": o["env"]} for o in suite_objs.values()},
+    }
     tmp = table.with_name(TABLE + ".tmp")
     write_records(tmp, records, info, extra=("agent_spec", "seed_offset"))
     os.replace(tmp, table)
@@ -180,10 +232,22 @@ def run_sweep(agents: list[str], suites: list[str], seed_offsets: list[int], out
     from .report import markdown_table
 
     (out_dir / "metrics.md").write_text(markdown_table(results))
-    run = {"backend": backend.name, "workers": backend.workers, "ray_address": backend.ray_address,
-           "batch_size": batch_size, "wall_s": wall, "episodes_run": len(done) - n_before,
-           "episodes_resumed": n_before, "load_average_before": list(load0), "load_average_after": list(load1),
-           "cpu_count": os.cpu_count(), "agents": {a: loaded[a].name for a in agents}}
+    run = {
+        "backend": backend.name,
+        "workers": backend.workers,
+        "ray_address": backend.ray_address,
+        "batch_size": batch_size,
+        "wall_s": wall,
+        "episodes_run": len(done) - n_before,
+        "episodes_resumed": n_before,
+        "load_average_before": list(load0),
+        "load_average_after": list(load1),
+        "cpu_count": os.cpu_count(),
+        "agents": {a: loaded[a].name for a in agents},
+        "cache": cache,
+        "caches_read": read,
+        "caches_written": written,
+    }
     (out_dir / "sweep.json").write_text(json.dumps(run, indent=1) + "\n")
     partial.unlink()
     metrics["run"] = run

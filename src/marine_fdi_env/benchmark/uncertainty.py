@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import inspect
 import math
+import warnings
 from dataclasses import dataclass
 from typing import Callable, Mapping, Sequence
 
@@ -38,8 +39,19 @@ import numpy as np
 
 from .metrics import FAULT_CLASSES, episode_outcome
 
-__all__ = ["Estimate", "Outcomes", "RATE_METRICS", "CONFIDENCE", "N_RESAMPLES", "outcomes", "interval",
-           "difference", "normalised_score", "iqm_score", "seed_spread"]
+__all__ = [
+    "Estimate",
+    "Outcomes",
+    "RATE_METRICS",
+    "CONFIDENCE",
+    "N_RESAMPLES",
+    "outcomes",
+    "interval",
+    "difference",
+    "normalised_score",
+    "iqm_score",
+    "seed_spread",
+]
 
 CONFIDENCE = 0.95
 N_RESAMPLES = 2000
@@ -48,8 +60,14 @@ _NEVER = math.inf
 
 _FAULTY_ONLY = ("detection_rate", "isolation_accuracy", "median_detection_delay_censored_s")
 # the metrics with intervals (pooled over seeds and episodes; see _statistic)
-RATE_METRICS = ("detection_rate", "isolation_accuracy", "false_alarm_rate", "false_alarm_episode_rate",
-                "mean_return", "median_detection_delay_censored_s")
+RATE_METRICS = (
+    "detection_rate",
+    "isolation_accuracy",
+    "false_alarm_rate",
+    "false_alarm_episode_rate",
+    "mean_return",
+    "median_detection_delay_censored_s",
+)
 
 
 @dataclass(frozen=True)
@@ -109,14 +127,18 @@ def outcomes(episode_lists: Sequence[Sequence[Mapping]]) -> Outcomes:
         return np.array([[f(o) for o in r] for r in rows], dtype=float)
 
     return Outcomes(
-        scenario_ids=ids, faulty=faulty, stratum=stratum,
+        scenario_ids=ids,
+        faulty=faulty,
+        stratum=stratum,
         detected=grid(lambda o: float(o["faulty"] and o["detected"])),
         isolated=grid(lambda o: float(bool(o["isolation_correct"]))),
-        delay=grid(lambda o: (_NEVER if o["detection_delay_s"] is None else o["detection_delay_s"])
-                   if o["faulty"] else _NEVER),
+        delay=grid(
+            lambda o: (_NEVER if o["detection_delay_s"] is None else o["detection_delay_s"]) if o["faulty"] else _NEVER
+        ),
         false_alarms=grid(lambda o: float(o["false_alarms"])),
         fault_free_h=grid(lambda o: o["fault_free_s"] / 3600.0),
-        ret=grid(lambda o: o["episode_return"]))
+        ret=grid(lambda o: o["episode_return"]),
+    )
 
 
 # ----------------------------------------------------------------------------- statistics
@@ -130,6 +152,7 @@ def _ratio_stat(num: np.ndarray, den: np.ndarray):
         n, d = _pick(num, seeds, eps).sum(axis=(1, 2)), _pick(den, seeds, eps).sum(axis=(1, 2))
         with np.errstate(invalid="ignore", divide="ignore"):
             return np.where(d > 0, n / np.where(d > 0, d, 1.0), np.nan)
+
     return stat
 
 
@@ -138,8 +161,11 @@ def _censored_median_stat(delay: np.ndarray, faulty: np.ndarray):
         d = _pick(delay, seeds, eps)
         f = np.broadcast_to(faulty[eps][:, None, :], d.shape)
         d = np.where(f, d, np.nan).reshape(len(d), -1)
-        m = np.nanmedian(np.where(np.isinf(d), 1e12, d), axis=1)
+        with warnings.catch_warnings():  # a resample without faulty episodes has no median: NaN
+            warnings.simplefilter("ignore", RuntimeWarning)
+            m = np.nanmedian(np.where(np.isinf(d), 1e12, d), axis=1)
         return np.where(m >= 1e11, np.inf, m)
+
     return stat
 
 
@@ -196,8 +222,17 @@ def _bootstrap(stat, seed_counts: Sequence[int], strata: Sequence[np.ndarray]) -
     kw = {"rng": gen} if "rng" in inspect.signature(bootstrap).parameters else {"random_state": gen}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a degenerate distribution is handled by the callers
-        res = bootstrap(data, joint, n_resamples=N_RESAMPLES, vectorized=True, paired=False, method="percentile",
-                        confidence_level=CONFIDENCE, batch=200, **kw)
+        res = bootstrap(
+            data,
+            joint,
+            n_resamples=N_RESAMPLES,
+            vectorized=True,
+            paired=False,
+            method="percentile",
+            confidence_level=CONFIDENCE,
+            batch=200,
+            **kw,
+        )
     return float(res.confidence_interval.low), float(res.confidence_interval.high)
 
 
@@ -265,12 +300,14 @@ def difference(a: Outcomes, b: Outcomes, metric: str) -> Estimate:
 # ----------------------------------------------------------------------------- normalised scores
 def _norm_stat(o: Outcomes, null: Outcomes, oracle: Outcomes):
     """Vectorised per-seed normalised score (B, S) on resampled indices."""
+
     def stat(seeds, eps):
         r = _pick(o.ret, seeds, eps).mean(axis=2)
         r0 = null.ret[0][eps].mean(axis=1)[:, None]
         r1 = oracle.ret[0][eps].mean(axis=1)[:, None]
         with np.errstate(invalid="ignore", divide="ignore"):
             return 100.0 * (r - r0) / (r1 - r0)
+
     return stat
 
 
@@ -313,14 +350,18 @@ def iqm_score(per_suite: Sequence[tuple[Outcomes, Outcomes, Outcomes]]) -> Estim
     bounds = np.cumsum([0] + sizes)
 
     def stat(seeds, eps):  # eps: every suite's resampled episodes, concatenated
-        scores = np.stack([s(seeds, eps[:, bounds[k]:bounds[k + 1]] - bounds[k]) for k, s in enumerate(stats)],
-                          axis=2)  # (B, S, K)
+        scores = np.stack(
+            [s(seeds, eps[:, bounds[k] : bounds[k + 1]] - bounds[k]) for k, s in enumerate(stats)], axis=2
+        )  # (B, S, K)
         return trim_mean(scores.reshape(len(scores), -1), 0.25, axis=1)
 
     allseeds = np.arange(n_seeds)[None, :]
     value = float(stat(allseeds, np.arange(bounds[-1])[None, :])[0])
-    lo, hi = _bootstrap(lambda seeds, eps: stat(seeds[0], eps), [n_seeds],
-                        [np.arange(bounds[k], bounds[k + 1]) for k in range(len(usable))])
+    lo, hi = _bootstrap(
+        lambda seeds, eps: stat(seeds[0], eps),
+        [n_seeds],
+        [np.arange(bounds[k], bounds[k + 1]) for k in range(len(usable))],
+    )
     return Estimate(value, lo, hi, "bootstrap")
 
 

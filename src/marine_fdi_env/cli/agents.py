@@ -16,8 +16,9 @@ def agents_main(argv=None) -> int:
     ap = argparse.ArgumentParser(
         prog="marine-fdi agents",
         description="List the agents that 'marine-fdi evaluate --agent NAME' and 'marine-fdi sweep --agents' know by "
-                    "name: the baselines and every shipped model (a folder of training/models/). Any other agent: "
-                    "a model folder by path, or path/to/file.py:ClassName (docs/agent_api.md).")
+        "name: the baselines and every shipped model (a folder of training/models/). Any other agent: "
+        "a model folder by path, or path/to/file.py:ClassName (docs/agent_api.md).",
+    )
     ap.add_argument("--json", action="store_true", help="print JSON")
     args, code = parse_cli(ap, argv)
     if args is None:

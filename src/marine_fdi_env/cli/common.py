@@ -22,19 +22,33 @@ import argparse
 import json
 import math
 import sys
+from pathlib import Path
 
 import numpy as np
 
 from ..errors import UsageError, require_extra
 
-__all__ = ["PROG", "INTERRUPTED", "USAGE_ERROR", "parse_cli", "interrupted", "add_backend_args", "backend_from_args",
-           "option_value", "positive_seconds", "strict_json", "dumps"]
+__all__ = [
+    "PROG",
+    "INTERRUPTED",
+    "USAGE_ERROR",
+    "parse_cli",
+    "interrupted",
+    "add_backend_args",
+    "backend_from_args",
+    "add_cache_args",
+    "cache_from_args",
+    "option_value",
+    "positive_seconds",
+    "strict_json",
+    "dumps",
+]
 
 PROG = "marine-fdi"
 
 
 INTERRUPTED = 130  # exit code after Ctrl-C (128 + SIGINT)
-USAGE_ERROR = 2    # exit code of an invalid input (argparse's convention)
+USAGE_ERROR = 2  # exit code of an invalid input (argparse's convention)
 
 
 def parse_cli(ap: argparse.ArgumentParser, argv) -> tuple[argparse.Namespace | None, int | None]:
@@ -48,8 +62,9 @@ def parse_cli(ap: argparse.ArgumentParser, argv) -> tuple[argparse.Namespace | N
 
 def interrupted(prog: str, kept: str = "") -> int:
     """After Ctrl-C: one line saying what is kept and that the same command resumes; the exit code."""
-    print(f"{prog}: interrupted; " + (f"{kept}, " if kept else "") + "rerun the same command to resume",
-          file=sys.stderr)
+    print(
+        f"{prog}: interrupted; " + (f"{kept}, " if kept else "") + "rerun the same command to resume", file=sys.stderr
+    )
     return INTERRUPTED
 
 
@@ -57,18 +72,30 @@ def add_backend_args(ap: argparse.ArgumentParser, default_batch: int = 32) -> No
     """``--backend``, ``--workers``, ``--ray-address``, ``--batch-size``."""
     from ..benchmark.backends import BACKENDS
 
-    ap.add_argument("--backend", choices=BACKENDS, default=None,
-                    help="where chunks of episodes run: serial (this process), process (a local pool of --workers), "
-                         "ray (a local Ray instance with --workers CPUs, or the cluster at --ray-address / "
-                         "RAY_ADDRESS). Default: ray with --ray-address, process if --workers > 1, else serial. Results do "
-                         "not depend on it.")
-    ap.add_argument("--workers", type=int, default=1, metavar="N",
-                    help="worker processes / local Ray CPUs (default 1)")
-    ap.add_argument("--ray-address", default=None, metavar="ADDR",
-                    help="connect to this Ray cluster (e.g. ray://head:10001 or auto); default: $RAY_ADDRESS, "
-                         "else a local instance")
-    ap.add_argument("--batch-size", type=int, default=default_batch, metavar="N",
-                    help=f"episodes advanced together in one task (default {default_batch})")
+    ap.add_argument(
+        "--backend",
+        choices=BACKENDS,
+        default=None,
+        help="where chunks of episodes run: serial (this process), process (a local pool of --workers), "
+        "ray (a local Ray instance with --workers CPUs, or the cluster at --ray-address / "
+        "RAY_ADDRESS). Default: ray with --ray-address, process if --workers > 1, else serial. Results do "
+        "not depend on it.",
+    )
+    ap.add_argument("--workers", type=int, default=1, metavar="N", help="worker processes / local Ray CPUs (default 1)")
+    ap.add_argument(
+        "--ray-address",
+        default=None,
+        metavar="ADDR",
+        help="connect to this Ray cluster (e.g. ray://head:10001 or auto); default: $RAY_ADDRESS, "
+        "else a local instance",
+    )
+    ap.add_argument(
+        "--batch-size",
+        type=int,
+        default=default_batch,
+        metavar="N",
+        help=f"episodes advanced together in one task (default {default_batch})",
+    )
 
 
 def backend_from_args(args):
@@ -80,6 +107,35 @@ def backend_from_args(args):
     if backend.name == "ray":
         require_extra("ray", "--backend ray")
     return backend
+
+
+def add_cache_args(ap: argparse.ArgumentParser) -> None:
+    """``--cache`` and ``--cache-dir`` (the feature caches of :mod:`marine_fdi_env.benchmark.feature_cache`)."""
+    from ..benchmark.feature_cache import CACHE_MODES, DEFAULT_CACHE_DIR
+
+    ap.add_argument(
+        "--cache",
+        choices=CACHE_MODES,
+        default="use",
+        help="feature caches (a suite's observations and infos, so agents are scored without simulating): "
+        "use = score on the cache of the suite when --cache-dir has one (default), write = simulate "
+        "and write it, off = neither. A cache made by other code or with other parameters is "
+        "refused with a message",
+    )
+    ap.add_argument(
+        "--cache-dir",
+        type=Path,
+        default=DEFAULT_CACHE_DIR,
+        metavar="DIR",
+        help=f"where feature caches are (default {DEFAULT_CACHE_DIR})",
+    )
+
+
+def cache_from_args(args) -> tuple[str, Path]:
+    """(mode, folder) of ``--cache`` and ``--cache-dir``; writing needs pyarrow (checked before any work)."""
+    if args.cache == "write":
+        require_extra("pyarrow", "--cache write")
+    return args.cache, args.cache_dir
 
 
 def option_value(option: str, fn, *args, **kwargs):

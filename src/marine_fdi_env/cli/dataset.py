@@ -3,13 +3,18 @@
 from __future__ import annotations
 
 import argparse
-import numpy as np
 import sys
 from pathlib import Path
 
-from ..benchmark.dataset import FORMATS, export_dataset
+import numpy as np
+
+from ..benchmark.dataset import FORMATS, dataset_bytes, export_dataset
 from ..benchmark.suites import load_suite
+from ..costs import CostEstimate, check_memory, episode_cpu_s, say_cost
+from ..envs.observation import feature_names
 from ..envs.scenario_sampler import get_preset
+
+EPISODE_DECISION_PERIOD_S = 1.0  # the environment's decision period, which the exported episodes keep
 
 
 _HELP = """\
@@ -37,39 +42,71 @@ finished dataset is not overwritten without --force.
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from .common import add_backend_args
-    from ..envs.scenario_sampler import PRESETS
     from ..benchmark.suites import SUITE_NAMES
+    from ..envs.scenario_sampler import PRESETS
+    from .common import add_backend_args
 
-    ap = argparse.ArgumentParser(prog="marine-fdi dataset", formatter_class=argparse.RawDescriptionHelpFormatter,
-                                 description="Export observations, fault labels and ground truth of episodes for "
-                                             "offline learning.", epilog=_HELP)
+    ap = argparse.ArgumentParser(
+        prog="marine-fdi dataset",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Export observations, fault labels and ground truth of episodes for offline learning.",
+        epilog=_HELP,
+    )
     src = ap.add_mutually_exclusive_group(required=True)
-    src.add_argument("--suite", metavar="NAME|FILE.json",
-                     help=f"a frozen evaluation suite: {', '.join(SUITE_NAMES)}, or a suite JSON file")
-    src.add_argument("--preset", metavar="NAME",
-                     help=f"a scenario preset (training data): {', '.join(PRESETS)}; with --episodes and --seed")
-    ap.add_argument("--episodes", type=int, default=None, metavar="N",
-                    help="episodes drawn from --preset (default 256; not with --suite)")
-    ap.add_argument("--seed", type=int, default=None, metavar="S",
-                    help="seed of the episodes drawn from --preset (default 0; not with --suite)")
-    ap.add_argument("--out", type=Path, required=True, metavar="DIR",
-                    help="output folder (created, and its parent if missing; never more levels)")
-    ap.add_argument("--format", choices=FORMATS, default="npz",
-                    help="npz (dense arrays, default) or parquet (long format, one row per decision; needs pyarrow)")
-    ap.add_argument("--observe-sensors", action="store_true",
-                    help="append the normalised sensor readings to the features")
-    ap.add_argument("--force", action="store_true",
-                    help="overwrite a finished dataset in --out, or discard another export's kept chunks there")
+    src.add_argument(
+        "--suite",
+        metavar="NAME|FILE.json",
+        help=f"a frozen evaluation suite: {', '.join(SUITE_NAMES)}, or a suite JSON file",
+    )
+    src.add_argument(
+        "--preset",
+        metavar="NAME",
+        help=f"a scenario preset (training data): {', '.join(PRESETS)}; with --episodes and --seed",
+    )
+    ap.add_argument(
+        "--episodes",
+        type=int,
+        default=None,
+        metavar="N",
+        help="episodes drawn from --preset (default 256; not with --suite)",
+    )
+    ap.add_argument(
+        "--seed",
+        type=int,
+        default=None,
+        metavar="S",
+        help="seed of the episodes drawn from --preset (default 0; not with --suite)",
+    )
+    ap.add_argument(
+        "--out",
+        type=Path,
+        required=True,
+        metavar="DIR",
+        help="output folder (created, and its parent if missing; never more levels)",
+    )
+    ap.add_argument(
+        "--format",
+        choices=FORMATS,
+        default="npz",
+        help="npz (dense arrays, default) or parquet (long format, one row per decision; needs pyarrow)",
+    )
+    ap.add_argument(
+        "--observe-sensors", action="store_true", help="append the normalised sensor readings to the features"
+    )
+    ap.add_argument(
+        "--force",
+        action="store_true",
+        help="overwrite a finished dataset in --out, or discard another export's kept chunks there",
+    )
     add_backend_args(ap, default_batch=64)
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     return ap
 
 
 def dataset_main(argv=None) -> int:
-    from .common import backend_from_args, interrupted, parse_cli
-    from ..outputs import prepare_out
     from ..errors import require_extra
+    from ..outputs import prepare_out
+    from .common import backend_from_args, interrupted, parse_cli
 
     ap = build_parser()
     args, code = parse_cli(ap, argv)
@@ -92,6 +129,12 @@ def dataset_main(argv=None) -> int:
             if seed < 0:
                 raise ValueError(f"--seed must be >= 0, got {seed}")
             cfg = get_preset(args.preset)
+            T = int(round(cfg.duration_s / EPISODE_DECISION_PERIOD_S))
+            check_memory(
+                dataset_bytes(episodes, T, len(feature_names(args.observe_sensors))),
+                f"a dataset of {episodes} episodes of {T} decisions",
+                "--episodes",
+            )
             ss = np.random.SeedSequence(seed)
             ent = np.random.default_rng(ss).integers(0, 2**63 - 1, size=episodes)
             scenarios = [cfg.sample(int(e), scenario_id=f"{cfg.name}/{seed}/{i}") for i, e in enumerate(ent)]
@@ -101,13 +144,33 @@ def dataset_main(argv=None) -> int:
         out = prepare_out(args.out, "--out", is_dir=True)
         finished = [f.name for f in (out / "dataset.npz", out / "dataset.parquet") if f.is_file()]
         if finished and not (out / "dataset.partial").is_dir() and not args.force:
-            raise ValueError(f"--out {out} already holds a dataset ({', '.join(finished)}); pass --force to overwrite "
-                             "it, or choose another --out")
+            raise ValueError(
+                f"--out {out} already holds a dataset ({', '.join(finished)}); pass --force to overwrite "
+                "it, or choose another --out"
+            )
         if args.force:
             for name in finished:
                 (out / name).unlink()
-        path = export_dataset(scenarios, out, env_kwargs, batch_size=args.batch_size,
-                              progress=not args.no_progress, backend=backend, fmt=args.format, force=args.force)
+        T = max(int(round(sc.duration_s / EPISODE_DECISION_PERIOD_S)) for sc in scenarios)
+        say_cost(
+            "marine-fdi dataset",
+            f"{len(scenarios)} episodes",
+            CostEstimate(
+                episode_cpu_s("null") * len(scenarios) * T / 300,
+                dataset_bytes(len(scenarios), T, len(feature_names(args.observe_sensors))),
+                backend.workers,
+            ),
+        )
+        path = export_dataset(
+            scenarios,
+            out,
+            env_kwargs,
+            batch_size=args.batch_size,
+            progress=not args.no_progress,
+            backend=backend,
+            fmt=args.format,
+            force=args.force,
+        )
     except ValueError as e:
         print(f"marine-fdi dataset: error: {e}", file=sys.stderr)
         return 2

@@ -27,8 +27,9 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
 
 def _diagnose(args: argparse.Namespace) -> int:
     run = load_run(args.run, allow_nonfinite=True)
-    report, block = diagnose_run(run, engine=args.engine, exoneration=args.exoneration,
-                                 diagnoser=getattr(args, "diagnoser", "reference"))
+    report, block = diagnose_run(
+        run, engine=args.engine, exoneration=args.exoneration, diagnoser=args.diagnoser, cells=args.cells
+    )
     if args.plots:
         report["plots"] = [str(p) for p in plot_residuals(run, block, Path(args.plots), report)]
 
@@ -48,10 +49,18 @@ def _diagnose(args: argparse.Namespace) -> int:
     print(f"detected: {report['detected']}" + (f" at {first:.2f} s" if first is not None else ""))
     fired = sorted(((t, m) for m, t in report["module_detection_times_s"].items() if t is not None))
     if fired:
-        print("modules fired: " + ", ".join(f"{m} at {t:.2f} s" for t, m in fired)
-              + (f" (M3.1 and M3.2 by the receiver test at {report['receiver_test_time_s']:.2f} s)"
-                 if report.get("receiver_test_time_s") is not None else ""))
-    print("minimal diagnoses: " + (", ".join("{" + ", ".join(d) + "}" for d in report["final_minimal_diagnoses"])
-                                   or "none"))
+        print(
+            "modules fired: "
+            + ", ".join(f"{m} at {t:.2f} s" for t, m in fired)
+            + (
+                f" (M3.1 and M3.2 by the receiver test at {report['receiver_test_time_s']:.2f} s)"
+                if report.get("receiver_test_time_s") is not None
+                else ""
+            )
+        )
+    print(
+        "minimal diagnoses: "
+        + (", ".join("{" + ", ".join(d) + "}" for d in report["final_minimal_diagnoses"]) or "none")
+    )
     print(f"wrote {args.out}")
     return 0

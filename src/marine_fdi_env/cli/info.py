@@ -25,9 +25,15 @@ def _summary() -> None:
 
 
 def info_main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m marine_fdi_env.info", description="Facts about the installed package, and the check of its layers.")
-    ap.add_argument("--imports", action="store_true",
-                    help="check the import layers and circles of the package (exit 1 on a violation)")
+    ap = argparse.ArgumentParser(
+        prog="python -m marine_fdi_env.info",
+        description="Facts about the installed package, and the check of its layers.",
+    )
+    ap.add_argument(
+        "--imports",
+        action="store_true",
+        help="check the import layers and circles of the package (exit 1 on a violation)",
+    )
     ap.add_argument("-v", "--verbose", action="store_true", help="with --imports: list every import")
     args, code = parse_cli(ap, argv)
     if args is None:
@@ -36,4 +42,3 @@ def info_main(argv=None) -> int:
         return print_imports(check_imports(), verbose=args.verbose)
     _summary()
     return 0
-

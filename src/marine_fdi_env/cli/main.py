@@ -1,7 +1,8 @@
 """The ``marine-fdi`` command: one parser with a subcommand per job, each in its own module of this package.
 
 The engine's commands (:mod:`.simulation`) and ``diagnose`` (:mod:`.diagnose`) are subparsers here; the
-others (:data:`OWN_PARSER_COMMANDS`) parse their own arguments.  Invalid input ends with a one-line message on stderr naming the option and what it allows, and
+others (:data:`OWN_PARSER_COMMANDS`) parse their own arguments.  Invalid input ends with a one-line message on
+stderr naming the option and what it allows, and
 exit code 2 (never a traceback).  ``main(argv)`` returns the exit code, so it can be called
 in-process.
 """
@@ -16,14 +17,24 @@ from pathlib import Path
 from typing import Sequence
 
 from .._version import __version__
+from ..engine.steady_state import FUEL_SETTING_RANGE
 from ..errors import require_extra
 from ..outputs import prepare_out
 from ..scenarios import SCENARIOS
 from .common import PROG, USAGE_ERROR
 from .diagnose import cmd_diagnose
-from ..engine.steady_state import FUEL_SETTING_RANGE
-from .simulation import (DEFAULT_PARAMS, FAULT_SPEC_HELP, LONG_RUN_STEPS, PROFILE_HELP, cmd_info, cmd_operating_point,
-                         cmd_params, cmd_scenarios, cmd_simulate, scenario_help)
+from .simulation import (
+    DEFAULT_PARAMS,
+    FAULT_SPEC_HELP,
+    LONG_RUN_STEPS,
+    PROFILE_HELP,
+    cmd_info,
+    cmd_operating_point,
+    cmd_params,
+    cmd_scenarios,
+    cmd_simulate,
+    scenario_help,
+)
 
 __all__ = ["main", "console_main", "build_parser", "OWN_PARSER_COMMANDS"]
 
@@ -35,110 +46,217 @@ def build_parser() -> argparse.ArgumentParser:
         prog=PROG,
         description=textwrap.fill(
             "Marine diesel engine fault detection and isolation benchmark: steady states, "
-            "simulated sensor data with injected faults, parameter sets.", width=90),
+            "simulated sensor data with injected faults, parameter sets.",
+            width=90,
+        ),
         epilog="Run 'marine-fdi COMMAND --help' for the options of a command.",
         formatter_class=fmt,
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
-    p = sub.add_parser("operating-point", help="steady state of an engine at a fuel setting",
-                       description="Steady state (equilibrium) of the engine model at a constant fuel setting; "
-                                   "all quantities in SI units (JSON keys end in their unit).")
-    p.add_argument("--params", default=DEFAULT_PARAMS, metavar="NAME|FILE.json",
-                   help=f"parameter set (default {DEFAULT_PARAMS}; see 'marine-fdi params') or a fitted-engine file "
-                        "written by 'marine-fdi validate --save-params'")
-    p.add_argument("--fuel-setting", type=float, required=True, metavar="U",
-                   help=f"fuel setting in [{FUEL_SETTING_RANGE[0]:g}, {FUEL_SETTING_RANGE[1]:g}], 1.0 = nominal")
+    p = sub.add_parser(
+        "operating-point",
+        help="steady state of an engine at a fuel setting",
+        description="Steady state (equilibrium) of the engine model at a constant fuel setting; "
+        "all quantities in SI units (JSON keys end in their unit).",
+    )
+    p.add_argument(
+        "--params",
+        default=DEFAULT_PARAMS,
+        metavar="NAME|FILE.json",
+        help=f"parameter set (default {DEFAULT_PARAMS}; see 'marine-fdi params') or a fitted-engine file "
+        "written by 'marine-fdi validate --save-params'",
+    )
+    p.add_argument(
+        "--fuel-setting",
+        type=float,
+        required=True,
+        metavar="U",
+        help=f"fuel setting in [{FUEL_SETTING_RANGE[0]:g}, {FUEL_SETTING_RANGE[1]:g}], 1.0 = nominal",
+    )
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     p.set_defaults(func=cmd_operating_point)
 
     p = sub.add_parser(
-        "simulate", help="simulate engines with faults and write a .npz run file",
+        "simulate",
+        help="simulate engines with faults and write a .npz run file",
         description=textwrap.fill(
             "Simulate N engines sampled at --dt with sensor noise and injected faults, and write "
             "measurements, ground truth and metadata to a .npz run file (read it with "
-            "marine_fdi_env.runio.load_run or 'marine-fdi info').", width=90),
+            "marine_fdi_env.runio.load_run or 'marine-fdi info').",
+            width=90,
+        ),
         epilog=FAULT_SPEC_HELP + "\n" + PROFILE_HELP + "\n" + scenario_help(),
         formatter_class=fmt,
     )
-    p.add_argument("--params", default=None, metavar="NAME|FILE.json",
-                   help=f"parameter set (default: the scenario's, else {DEFAULT_PARAMS}) or a fitted-engine file "
-                        "('marine-fdi validate --save-params')")
-    p.add_argument("--duration", type=float, default=None, metavar="S",
-                   help="simulated time [s] (required unless --scenario is given)")
-    p.add_argument("--seed", type=int, default=0, metavar="N",
-                   help="noise seed; engine i uses N + i (default 0)")
-    p.add_argument("--fault", action="extend", nargs="+", metavar="SPEC",
-                   help="fault(s) on every engine, e.g. S4.2@235:5e4 (syntax below); repeatable")
-    p.add_argument("--profile", default=None, metavar="NAME|SPEC",
-                   help="fuel profile (default: the scenario's, else constant 1.0; syntax below)")
-    p.add_argument("--noise-scale", type=float, default=1.0, metavar="X",
-                   help="multiplier of the table 6.3 noise bounds (default 1, 0 = noise-free)")
+    p.add_argument(
+        "--params",
+        default=None,
+        metavar="NAME|FILE.json",
+        help=f"parameter set (default: the scenario's, else {DEFAULT_PARAMS}) or a fitted-engine file "
+        "('marine-fdi validate --save-params')",
+    )
+    p.add_argument(
+        "--duration",
+        type=float,
+        default=None,
+        metavar="S",
+        help="simulated time [s] (required unless --scenario is given)",
+    )
+    p.add_argument("--seed", type=int, default=0, metavar="N", help="noise seed; engine i uses N + i (default 0)")
+    p.add_argument(
+        "--fault",
+        action="extend",
+        nargs="+",
+        metavar="SPEC",
+        help="fault(s) on every engine, e.g. S4.2@235:5e4 (syntax below); repeatable",
+    )
+    p.add_argument(
+        "--profile",
+        default=None,
+        metavar="NAME|SPEC",
+        help="fuel profile (default: the scenario's, else constant 1.0; syntax below)",
+    )
+    p.add_argument(
+        "--noise-scale",
+        type=float,
+        default=1.0,
+        metavar="X",
+        help="multiplier of the table 6.3 noise bounds (default 1, 0 = noise-free)",
+    )
     p.add_argument("--dt", type=float, default=0.01, metavar="DT", help="sample time [s] (default 0.01)")
     p.add_argument("--engines", type=int, default=1, metavar="N", help="number of engines (default 1)")
-    p.add_argument("--scenario", default=None, metavar="NAME",
-                   help=f"thesis scenario: {', '.join(SCENARIOS)} (its faults are added to --fault)")
-    p.add_argument("--out", required=True, metavar="FILE.npz", help="output run file (its folder is created if missing, never more levels)")
-    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
-                   help=f"progress bar on stderr (default: when stderr is a terminal or the run has "
-                        f">= {LONG_RUN_STEPS} samples)")
+    p.add_argument(
+        "--scenario",
+        default=None,
+        metavar="NAME",
+        help=f"thesis scenario: {', '.join(SCENARIOS)} (its faults are added to --fault)",
+    )
+    p.add_argument(
+        "--out",
+        required=True,
+        metavar="FILE.npz",
+        help="output run file (its folder is created if missing, never more levels)",
+    )
+    p.add_argument("--force", action="store_true", help="overwrite --out if it exists (without it: an error)")
+    p.add_argument(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help=f"progress bar on stderr (default: when stderr is a terminal or the run has >= {LONG_RUN_STEPS} samples)",
+    )
     p.set_defaults(func=cmd_simulate)
 
-    p = sub.add_parser("params", help="list parameter sets or show one",
-                       description="List the shipped parameter sets, or print one set's parameters with "
-                                   "value, unit and source.")
+    p = sub.add_parser(
+        "params",
+        help="list parameter sets or show one",
+        description="List the shipped parameter sets, or print one set's parameters with value, unit and source.",
+    )
     p.add_argument("--name", default=None, metavar="NAME|FILE.json", help="parameter set or fitted-engine file to show")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_params)
 
-    p = sub.add_parser("scenarios", help="list the thesis fault scenarios",
-                       description="The named scenarios usable with 'simulate --scenario'.")
+    p = sub.add_parser(
+        "scenarios",
+        help="list the thesis fault scenarios",
+        description="The named scenarios usable with 'simulate --scenario'.",
+    )
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=cmd_scenarios)
 
     p = sub.add_parser(
-        "diagnose", help="run the reference diagnoser on a run file",
+        "diagnose",
+        help="run the reference diagnoser on a run file",
         description="Run the thesis's reference diagnoser (19 monitoring modules, adaptive thresholds, "
-                    "minimal diagnoses) on one engine of a run written by 'marine-fdi simulate'.")
+        "minimal diagnoses) on one engine of a run written by 'marine-fdi simulate'.",
+    )
     p.add_argument("--run", required=True, metavar="FILE", help="run file (.npz)")
-    p.add_argument("--out", required=True, metavar="FILE.json",
-                   help="JSON report (its folder is created if missing, never more levels)")
-    p.add_argument("--plots", default=None, metavar="DIR",
-                   help="write one figure per subsystem Σ1-Σ4: each monitoring module's residual against its adaptive "
-                        "threshold, detections and fault onsets (needs matplotlib)")
+    p.add_argument(
+        "--out",
+        required=True,
+        metavar="FILE.json",
+        help="JSON report (its folder is created if missing, never more levels)",
+    )
+    p.add_argument(
+        "--plots",
+        default=None,
+        metavar="DIR",
+        help="write one figure per subsystem Σ1-Σ4: each monitoring module's residual against its adaptive "
+        "threshold, detections and fault onsets (needs matplotlib)",
+    )
     p.add_argument("--engine", type=int, default=0, metavar="I", help="engine of the run (default 0)")
-    p.add_argument("--exoneration", choices=("sure", "none", "all"), default="sure",
-                   help="sure (default): a silent module clears the faults it surely sees; none: plain "
-                        "consistency-based diagnosis; all: every structural sensitivity counts as sure")
-    p.add_argument("--diagnoser", choices=("reference", "sequential"), default="reference",
-                   help="reference (the thesis's scheme, default) or sequential (CUSUM tests on its residuals)")
+    p.add_argument(
+        "--exoneration",
+        choices=("sure", "none", "all"),
+        default="sure",
+        help="sure (default): a silent module clears the faults it surely sees; none: plain "
+        "consistency-based diagnosis; all: every structural sensitivity counts as sure",
+    )
+    p.add_argument(
+        "--diagnoser",
+        choices=("reference", "sequential"),
+        default="reference",
+        help="reference (the thesis's scheme, default) or sequential (CUSUM tests on its residuals)",
+    )
+    p.add_argument(
+        "--cells",
+        choices=("thesis", "grid", "sized"),
+        default="sized",
+        help="which measured sure cells exonerate (with --exoneration sure): sized (default: those of the "
+        "size the evidence bounds each candidate fault to), grid (sure at every size from 0.5x the "
+        "detectability limit to the table size) or thesis (the table sizes only)",
+    )
     p.set_defaults(func=cmd_diagnose)
 
     # implemented in marine_fdi_env.validation (own argument parsers; see main())
-    sub.add_parser("validate", add_help=False,
-                   help="compare the model with measured data, name the causes of misfit (see --help)")
+    sub.add_parser(
+        "validate", add_help=False, help="compare the model with measured data, name the causes of misfit (see --help)"
+    )
     sub.add_parser("evaluate", add_help=False, help="run an agent on a frozen evaluation suite (see evaluate --help)")
     sub.add_parser("report", add_help=False, help="Markdown table and plots from results files (see report --help)")
-    sub.add_parser("dataset", add_help=False, help="export features and labels for offline learning (see dataset --help)")
-    sub.add_parser("synthesize-measurements", add_help=False,
-                   help="write 'measured' data from the model with hidden mechanisms (see --help)")
+    sub.add_parser(
+        "dataset", add_help=False, help="export features and labels for offline learning (see dataset --help)"
+    )
+    sub.add_parser(
+        "synthesize-measurements",
+        add_help=False,
+        help="write 'measured' data from the model with hidden mechanisms (see --help)",
+    )
     sub.add_parser("agents", add_help=False, help="list the agents known by name (see agents --help)")
-    sub.add_parser("sweep", add_help=False,
-                   help="agents x suites x seed offsets on a backend, resumably, into one Parquet table (see --help)")
-    sub.add_parser("export-raw", add_help=False,
-                   help="write a suite's 100 Hz sensor samples and ground truth in the DX competition layout")
-    sub.add_parser("predict-raw", add_help=False,
-                   help="write an agent's per-sample diagnoses of a suite in the DX layout (see --help)")
-    sub.add_parser("score-raw", add_help=False,
-                   help="score per-sample diagnoses in the DX layout with the benchmark's and DX metrics")
-    sub.add_parser("replicas", add_help=False,
-                   help="would validate name the same causes again on data like these? (a bootstrap; see --help)")
+    sub.add_parser(
+        "sweep",
+        add_help=False,
+        help="agents x suites x seed offsets on a backend, resumably, into one Parquet table (see --help)",
+    )
+    sub.add_parser(
+        "export-raw",
+        add_help=False,
+        help="write a suite's 100 Hz sensor samples and ground truth in the DX competition layout",
+    )
+    sub.add_parser(
+        "predict-raw",
+        add_help=False,
+        help="write an agent's per-sample diagnoses of a suite in the DX layout (see --help)",
+    )
+    sub.add_parser(
+        "score-raw",
+        add_help=False,
+        help="score per-sample diagnoses in the DX layout with the benchmark's and DX metrics",
+    )
+    sub.add_parser(
+        "replicas",
+        add_help=False,
+        help="would validate name the same causes again on data like these? (a bootstrap; see --help)",
+    )
     sub.add_parser("suites", add_help=False, help="list the frozen evaluation suites (see suites --help)")
     sub.add_parser("train", add_help=False, help="train a learned agent: PPO or the GRU classifier (needs [train])")
 
-    p = sub.add_parser("info", help="validate and summarise a run file",
-                       description="Load a .npz run file (validating it) and print its metadata and ground truth.")
+    p = sub.add_parser(
+        "info",
+        help="validate and summarise a run file",
+        description="Load a .npz run file (validating it) and print its metadata and ground truth.",
+    )
     p.add_argument("file", metavar="FILE", help="run file written by 'marine-fdi simulate'")
     p.add_argument("--allow-nonfinite", action="store_true", help="accept NaN/inf measurements (dropouts)")
     p.add_argument("--json", action="store_true", help="print JSON")
@@ -244,8 +362,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             return getattr(importlib.import_module(mod), fn)(argv[1:])
         return _main(argv)
     except KeyboardInterrupt:  # a command without its own handler, or Ctrl-C while importing
-        print(f"{PROG}{' ' + argv[0] if argv and not argv[0].startswith('-') else ''}: interrupted",
-              file=sys.stderr)
+        print(f"{PROG}{' ' + argv[0] if argv and not argv[0].startswith('-') else ''}: interrupted", file=sys.stderr)
         return 130
 
 

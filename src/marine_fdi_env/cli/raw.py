@@ -8,21 +8,40 @@ import sys
 import time
 from pathlib import Path
 
-from ..benchmark import rawdata
-from ..benchmark import rawscore
+from ..benchmark import rawdata, rawscore
 from ..benchmark.rawdata import export_raw, predict_raw, read_manifest
 from ..benchmark.rawscore import dx_table, score_raw
 
 
 # ----------------------------------------------------------------------------- commands
-def export_raw_main(argv=None) -> int:
-    from .common import interrupted, parse_cli
-    from ..outputs import prepare_out
+def say_export_cost(suite_name: str) -> None:
+    """The export's expected time and disk use, said before it starts (:mod:`marine_fdi_env.costs`)."""
+    from ..benchmark.suites import load_suite
+    from ..costs import RAW_BYTES_PER_SAMPLE, RAW_CPU_S_PER_SAMPLE, CostEstimate, say_cost
 
-    ap = argparse.ArgumentParser(prog="marine-fdi export-raw", formatter_class=argparse.RawDescriptionHelpFormatter,
-                                 description="Write a suite's 100 Hz sensor samples (named columns, SI units) and "
-                                             "ground truth in the LiU-ICE / DX'25 kit layout.",
-                                 epilog=rawdata.__doc__)
+    try:
+        suite = load_suite(suite_name)
+    except ValueError:
+        return  # export_raw names the bad suite
+    samples = sum(s.duration_s / float(suite["env"].get("dt", 0.01)) for s in suite.scenarios)
+    say_cost(
+        "marine-fdi export-raw",
+        f"{len(suite.scenarios)} scenarios of {suite.name}",
+        CostEstimate(samples * RAW_CPU_S_PER_SAMPLE, samples * RAW_BYTES_PER_SAMPLE),
+    )
+
+
+def export_raw_main(argv=None) -> int:
+    from ..outputs import prepare_out
+    from .common import interrupted, parse_cli
+
+    ap = argparse.ArgumentParser(
+        prog="marine-fdi export-raw",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Write a suite's 100 Hz sensor samples (named columns, SI units) and "
+        "ground truth in the LiU-ICE / DX'25 kit layout.",
+        epilog=rawdata.__doc__,
+    )
     ap.add_argument("--suite", required=True, help="suite name or JSON path")
     ap.add_argument("--out", type=Path, required=True, help="output folder (its parent is created if missing)")
     ap.add_argument("--seed-offset", type=int, default=0, help="shift every noise seed (new noise, same scenarios)")
@@ -33,6 +52,7 @@ def export_raw_main(argv=None) -> int:
     t0 = time.perf_counter()
     try:
         out = prepare_out(args.out, create=False)  # export_raw creates it after checking the suite
+        say_export_cost(args.suite)
         man = export_raw(args.suite, out, seed_offset=args.seed_offset, progress=not args.no_progress)
     except ValueError as e:
         print(f"marine-fdi export-raw: error: {e}", file=sys.stderr)
@@ -40,22 +60,26 @@ def export_raw_main(argv=None) -> int:
     except KeyboardInterrupt:
         return interrupted("marine-fdi export-raw", "written scenarios are kept")
     n = sum(e["n_samples"] for e in man["scenarios"])
-    print(f"wrote {len(man['scenarios'])} scenarios of {man['suite']} ({n} samples at {1 / man['sample_time_s']:g} Hz) "
-          f"to {out}/data, ground truth and manifest.json in {time.perf_counter() - t0:.1f} s")
+    print(
+        f"wrote {len(man['scenarios'])} scenarios of {man['suite']} ({n} samples at {1 / man['sample_time_s']:g} Hz) "
+        f"to {out}/data, ground truth and manifest.json in {time.perf_counter() - t0:.1f} s"
+    )
     return 0
 
 
 def predict_raw_main(argv=None) -> int:
-    from .common import interrupted, parse_cli
     from ..outputs import prepare_out
+    from .common import interrupted, parse_cli
 
     ap = argparse.ArgumentParser(
         prog="marine-fdi predict-raw",
         description="Write a benchmark agent's per-sample diagnoses of a raw suite (written by export-raw) in the "
-                    "LiU-ICE / DX'25 output layout: one output_<data file> per scenario. The reference's outputs "
-                    "written this way are the baseline a DX participant compares with.")
-    ap.add_argument("--agent", default="reference", help="an agent name, model folder or file.py:Class (default: "
-                                                         "reference)")
+        "LiU-ICE / DX'25 output layout: one output_<data file> per scenario. The reference's outputs "
+        "written this way are the baseline a DX participant compares with.",
+    )
+    ap.add_argument(
+        "--agent", default="reference", help="an agent name, model folder or file.py:Class (default: reference)"
+    )
     ap.add_argument("--data", type=Path, required=True, help="raw suite folder (marine-fdi export-raw --out)")
     ap.add_argument("--out", type=Path, required=True, help="predictions folder (its parent is created if missing)")
     ap.add_argument("--batch-size", type=int, default=32, help="episodes advanced together (default 32)")
@@ -79,33 +103,48 @@ def predict_raw_main(argv=None) -> int:
 
 
 def score_raw_main(argv=None) -> int:
-    from .common import INTERRUPTED, parse_cli
-    from ..outputs import prepare_out
-    from ..errors import require_extra
     from ..benchmark.report import markdown_table
+    from ..errors import require_extra
+    from ..outputs import prepare_out
+    from .common import INTERRUPTED, parse_cli
 
-    ap = argparse.ArgumentParser(prog="marine-fdi score-raw", formatter_class=argparse.RawDescriptionHelpFormatter,
-                                 description="Score per-sample diagnoses in the LiU-ICE / DX'25 layout with the "
-                                             "benchmark's metrics and the DX per-sample ones.", epilog=rawscore.__doc__)
+    ap = argparse.ArgumentParser(
+        prog="marine-fdi score-raw",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Score per-sample diagnoses in the LiU-ICE / DX'25 layout with the "
+        "benchmark's metrics and the DX per-sample ones.",
+        epilog=rawscore.__doc__,
+    )
     ap.add_argument("--suite", required=True, help="suite name or JSON path the predictions are for")
     ap.add_argument("--predictions", type=Path, required=True, help="folder of output_<scenario>.csv files")
-    ap.add_argument("--data", type=Path, default=None,
-                    help="the raw suite folder (export-raw --out): sample counts, engine failures, seed offset")
-    ap.add_argument("--name", default=None, help="agent name in the results (default: predictions.json's, else the "
-                                                  "folder name)")
-    ap.add_argument("--out", type=Path, default=None, help="write the results (.json or .parquet; readable by "
-                                                           "'marine-fdi report')")
+    ap.add_argument(
+        "--data",
+        type=Path,
+        default=None,
+        help="the raw suite folder (export-raw --out): sample counts, engine failures, seed offset",
+    )
+    ap.add_argument(
+        "--name", default=None, help="agent name in the results (default: predictions.json's, else the folder name)"
+    )
+    ap.add_argument(
+        "--out", type=Path, default=None, help="write the results (.json or .parquet; readable by 'marine-fdi report')"
+    )
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     args, code = parse_cli(ap, argv)
     if args is None:
         return code
     try:
         if args.out is not None:
+            from ..outputs import check_suffix
+            from .evaluate import RESULT_SUFFIXES
+
+            check_suffix(args.out, "--out", RESULT_SUFFIXES, "a results file")
             if args.out.suffix == ".parquet":
                 require_extra("pyarrow", "--out *.parquet")
             prepare_out(args.out, is_dir=False, create=False)
-        res = score_raw(args.suite, args.predictions, data_dir=args.data, agent=args.name,
-                        progress=not args.no_progress)
+        res = score_raw(
+            args.suite, args.predictions, data_dir=args.data, agent=args.name, progress=not args.no_progress
+        )
         if args.out is not None:
             prepare_out(args.out, is_dir=False)
             if args.out.suffix == ".parquet":
@@ -124,7 +163,9 @@ def score_raw_main(argv=None) -> int:
     print(dx_table([res]))
     m = res["dx_metrics"]
     f = lambda v: "–" if v is None else f"{100 * v:.1f} %"  # noqa: E731
-    print(f"scored {res['n_scenarios']} scenarios of {res['suite']} from {args.predictions}: TDR "
-          f"{f(m['true_detection_rate'])}, FAR {f(m['false_alarm_rate'])}, FIA {f(m['fault_isolation_accuracy'])}"
-          + (f"; results: {args.out}" if args.out else ""))
+    print(
+        f"scored {res['n_scenarios']} scenarios of {res['suite']} from {args.predictions}: TDR "
+        f"{f(m['true_detection_rate'])}, FAR {f(m['false_alarm_rate'])}, FIA {f(m['fault_isolation_accuracy'])}"
+        + (f"; results: {args.out}" if args.out else "")
+    )
     return 0

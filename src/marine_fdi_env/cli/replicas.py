@@ -15,6 +15,7 @@ from ..validation.problem import Problem
 from ..validation.replicas import NOISE_MODELS, markdown_table, replicate
 from ..validation.selection import select_causes
 from .common import parse_cli
+from .sidecar import check_sidecar_numbers
 
 
 def replicas_main(argv: Sequence[str] | None = None) -> int:
@@ -52,6 +53,7 @@ def replicas_main(argv: Sequence[str] | None = None) -> int:
         if alts is not None and not set(alts) <= known:  # before the selection's minutes, not after
             raise ValueError(f"--alternatives: unknown physical mechanism(s) {', '.join(sorted(set(alts) - known))}; "
                              f"known: {', '.join(sorted(known))}")
+        check_sidecar_numbers(args.data)
         ds = load_data_arg(args.data, args.params)
         pr = Problem(ds, params=args.params, target=args.target, held_out_valves=args.held_out_valves)
         if args.tolerance:

@@ -11,11 +11,17 @@ from ..benchmark.report import _pyplot, write_report
 
 def build_report_parser(prog: str = "marine-fdi report") -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog=prog, description="Markdown report and plots from results files.")
-    p.add_argument("results", nargs="+",
-                   help="results files written by 'marine-fdi evaluate' (.json or .parquet), or sweep folders "
-                        "('marine-fdi sweep --out DIR') or their episodes.parquet")
-    p.add_argument("--out", default="report", help="output folder (default: ./report; created, and its parent if "
-                                                     "missing, never more levels)")
+    p.add_argument(
+        "results",
+        nargs="+",
+        help="results files written by 'marine-fdi evaluate' (.json or .parquet), or sweep folders "
+        "('marine-fdi sweep --out DIR') or their episodes.parquet",
+    )
+    p.add_argument(
+        "--out",
+        default="report",
+        help="output folder (default: ./report; created, and its parent if missing, never more levels)",
+    )
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots (no matplotlib needed)")
     return p
 

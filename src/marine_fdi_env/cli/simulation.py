@@ -1,11 +1,12 @@
-"""``marine-fdi operating-point``, ``simulate``, ``params``, ``scenarios`` and ``info``: the engine model and its run files.
+"""``marine-fdi operating-point``, ``simulate``, ``params``, ``scenarios`` and ``info``: the engine model and its
+run files.
 
-    marine-fdi operating-point --params thesis-12v28 --fuel-setting 1.0 [--json]
-    marine-fdi simulate --duration 300 --seed 0 --fault S4.2@235:5e4 --out run.npz
-    marine-fdi simulate --scenario thesis-6.4.1 --out run.npz
-    marine-fdi params [--name thesis-12v28] [--json]
-    marine-fdi scenarios [--json]
-    marine-fdi info run.npz [--json] [--allow-nonfinite]
+marine-fdi operating-point --params thesis-12v28 --fuel-setting 1.0 [--json]
+marine-fdi simulate --duration 300 --seed 0 --fault S4.2@235:5e4 --out run.npz
+marine-fdi simulate --scenario thesis-6.4.1 --out run.npz
+marine-fdi params [--name thesis-12v28] [--json]
+marine-fdi scenarios [--json]
+marine-fdi info run.npz [--json] [--allow-nonfinite]
 """
 
 from __future__ import annotations
@@ -29,12 +30,15 @@ from ..errors import UsageError
 from ..scenarios import SCENARIOS, get_scenario
 from .common import PROG, dumps, option_value, positive_seconds
 
-
 DEFAULT_PARAMS = "thesis-12v28"
 
 
 # Runs with at least this many samples per engine show a progress bar even when stderr is not a terminal.
 LONG_RUN_STEPS = 10_000
+# what a run costs (benchmarks/costs.py): simulated engine-samples per CPU second of a whole `simulate` (the
+# batched simulator, recording and saving) and bytes of the compressed run file per engine-sample
+SIMULATED_SAMPLES_PER_CPU_S = 1.25e5
+RUN_FILE_BYTES_PER_ENGINE_SAMPLE = 143
 
 
 FAULT_SPEC_HELP = """\
@@ -50,8 +54,9 @@ fault SPEC syntax:  ID@ONSET[:MAGNITUDE][,kind=K,end=T,period=P,duty=D,kappa=R]
              table 6.4 for process faults)
 examples:  S4.2@235:5e4   S3.4@175   bore_damage@5   S2.1@20:3e4,kind=drift
            S1.1@50,kind=offset,end=80   S3.3@10,period=20,duty=0.25   valve_seizing@20:0.1,kappa=0.05
-""".format(process=textwrap.fill(", ".join(PROCESS_FAULT_IDS), width=90, initial_indent=" " * 13,
-                                 subsequent_indent=" " * 13))
+""".format(
+    process=textwrap.fill(", ".join(PROCESS_FAULT_IDS), width=90, initial_indent=" " * 13, subsequent_indent=" " * 13)
+)
 
 
 PROFILE_HELP = """\
@@ -63,8 +68,10 @@ profile: a constant fuel setting (e.g. 0.8) or NAME[:key=value,...] with NAME on
 
 
 def scenario_help() -> str:
-    lines = ["scenarios (--scenario NAME; --duration, --profile, --params override the scenario's values,",
-             "--fault adds faults):"]
+    lines = [
+        "scenarios (--scenario NAME; --duration, --profile, --params override the scenario's values,",
+        "--fault adds faults):",
+    ]
     for s in SCENARIOS.values():
         lines.append(f"  {s.name:<14} {' + '.join(s.faults)}, {s.duration_s:g} s, {s.profile}, {s.params}")
     return "\n".join(lines) + "\n"
@@ -72,15 +79,25 @@ def scenario_help() -> str:
 
 # ----------------------------------------------------------------------------- operating-point
 _UNIT_SUFFIXES = (
-    ("_kg_per_J", "kg/J"), ("_rev_s", "rev/s"), ("_kg_s", "kg/s"), ("_Nm", "N m"),
-    ("_Pa", "Pa"), ("_kg", "kg"), ("_W", "W"), ("_K", "K"),
+    ("_kg_per_J", "kg/J"),
+    ("_rev_s", "rev/s"),
+    ("_kg_s", "kg/s"),
+    ("_Nm", "N m"),
+    ("_Pa", "Pa"),
+    ("_kg", "kg"),
+    ("_W", "W"),
+    ("_K", "K"),
 )
 
 
 # a second, conventional unit for the human table: (factor, offset, unit)
 _PRACTICAL = {
-    "rev/s": (60.0, 0.0, "rpm"), "W": (1e-3, 0.0, "kW"), "Pa": (1e-5, 0.0, "bar"),
-    "K": (1.0, -273.15, "degC"), "kg/J": (3.6e9, 0.0, "g/kWh"), "N m": (1e-3, 0.0, "kN m"),
+    "rev/s": (60.0, 0.0, "rpm"),
+    "W": (1e-3, 0.0, "kW"),
+    "Pa": (1e-5, 0.0, "bar"),
+    "K": (1.0, -273.15, "degC"),
+    "kg/J": (3.6e9, 0.0, "g/kWh"),
+    "N m": (1e-3, 0.0, "kN m"),
     "kg": (1e3, 0.0, "g"),
 }
 
@@ -107,11 +124,18 @@ def cmd_operating_point(args: argparse.Namespace) -> int:
         print(f"{PROG}: warning: the steady-state solver did not converge at fuel setting {u:g}", file=sys.stderr)
     if not out["engine_speed_rev_s"] > 0:
         print(f"{PROG}: warning: the engine does not run at fuel setting {u:g} (speed 0)", file=sys.stderr)
+    else:
+        from ..engine.envelope import envelope_warnings
+
+        for text in envelope_warnings(out["engine_speed_rev_s"], out["sfc_kg_per_J"], params.n_nom_rev_s):
+            print(
+                f"{PROG}: warning: fuel setting {u:g} is outside {params.name}'s operating envelope: {text}",
+                file=sys.stderr,
+            )
     if args.json:
         print(dumps(out))
         return 0
-    print(f"Steady state of {params.name} at fuel setting {u:g}"
-          f"{'' if out['converged'] else ' (NOT converged)'}")
+    print(f"Steady state of {params.name} at fuel setting {u:g}{'' if out['converged'] else ' (NOT converged)'}")
     rows = []
     for key, value in out.items():
         if key in ("params", "fuel_setting", "converged"):
@@ -167,8 +191,8 @@ def _want_progress(flag: bool | None, steps: int) -> bool:
 
 
 def cmd_simulate(args: argparse.Namespace, argv: Sequence[str]) -> int:
-    from ..runio import save_run
     from ..engine.simulator import Simulator
+    from ..runio import save_run
 
     scen = option_value("--scenario", get_scenario, args.scenario) if args.scenario is not None else None
     params = option_value("--params", load_params, args.params or (scen.params if scen else DEFAULT_PARAMS))
@@ -180,38 +204,74 @@ def cmd_simulate(args: argparse.Namespace, argv: Sequence[str]) -> int:
         raise UsageError(f"--duration ({duration:g} s) must be at least one sample time --dt ({dt:g} s)")
     if args.engines < 1:
         raise UsageError(f"--engines must be a positive integer, got {args.engines}")
+    from ..costs import check_memory
+    from ..engine.simulator import RESULT_BYTES_PER_ENGINE_SAMPLE
+
+    samples = (int(round(duration / dt)) + 1) * args.engines
+    check_memory(
+        samples * RESULT_BYTES_PER_ENGINE_SAMPLE * 1.1,
+        f"{args.engines} engines x {duration:g} s at --dt {dt:g} s",
+        "--engines",
+    )
     if args.seed < 0:
         raise UsageError(f"--seed must be a non-negative integer, got {args.seed}")
     if not (math.isfinite(args.noise_scale) and args.noise_scale >= 0):
-        raise UsageError(f"--noise-scale must be a finite number >= 0 (1 = table 6.3 noise, 0 = noise-free), "
-                       f"got {args.noise_scale!r}")
+        raise UsageError(
+            f"--noise-scale must be a finite number >= 0 (1 = table 6.3 noise, 0 = noise-free), "
+            f"got {args.noise_scale!r}"
+        )
 
     specs: list[FaultSpec] = scen.fault_specs() if scen else []
     for text in args.fault or []:
         spec = option_value(f"--fault {text}", parse_fault_spec, text)
         clash = [s for s in specs if s.fault_id == spec.fault_id]
         if clash:
-            origin = f"the scenario {scen.name} already schedules it" if scen and clash[0] in scen.fault_specs() \
+            origin = (
+                f"the scenario {scen.name} already schedules it"
+                if scen and clash[0] in scen.fault_specs()
                 else "it is given twice"
+            )
             raise UsageError(f"--fault: fault {spec.fault_id} may be scheduled once per engine; {origin}")
         specs.append(spec)
     for s in specs:
         if s.onset_s >= duration:
-            print(f"{PROG}: warning: fault {s.fault_id} starts at {s.onset_s:g} s, at or after the end of the "
-                  f"run ({duration:g} s); it will not be active", file=sys.stderr)
+            print(
+                f"{PROG}: warning: fault {s.fault_id} starts at {s.onset_s:g} s, at or after the end of the "
+                f"run ({duration:g} s); it will not be active",
+                file=sys.stderr,
+            )
 
-    profile = _make_profile(args.profile if args.profile is not None else (scen.profile if scen else "constant"),
-                            duration)
+    profile = _make_profile(
+        args.profile if args.profile is not None else (scen.profile if scen else "constant"), duration
+    )
 
-    from ..outputs import prepare_out
+    from ..outputs import check_suffix, prepare_out
 
-    out = prepare_out(args.out, "--out", is_dir=False)
+    out = check_suffix(args.out, "--out", (".npz",), "a run file")
+    out = prepare_out(out, "--out", is_dir=False, create=False)
+    if out.exists() and not args.force:
+        raise UsageError(f"--out {out} already exists; pass --force to overwrite it, or choose another --out")
 
-    sim = Simulator(params, n_engines=args.engines, seeds=args.seed, faults=specs, profiles=profile,
-                    dt=dt, noise_scale=args.noise_scale)
+    from ..costs import CostEstimate, say_cost
+
+    say_cost(
+        PROG + " simulate",
+        f"{samples:,} engine-samples",
+        CostEstimate(samples / SIMULATED_SAMPLES_PER_CPU_S, samples * RUN_FILE_BYTES_PER_ENGINE_SAMPLE),
+    )
+    sim = Simulator(
+        params,
+        n_engines=args.engines,
+        seeds=args.seed,
+        faults=specs,
+        profiles=profile,
+        dt=dt,
+        noise_scale=args.noise_scale,
+    )
     steps = int(round(duration / dt))
     with np.errstate(all="ignore"):
         result = sim.run(duration, progress=_want_progress(args.progress, steps))
+    prepare_out(out, "--out", is_dir=False)
     save_run(result, out, command_line=[PROG, *argv], extra={"scenario": scen.name if scen else None})
 
     T, N = result.measurements.shape[:2]
@@ -272,8 +332,15 @@ def cmd_params(args: argparse.Namespace) -> int:
         print(dumps({"name": args.name, "description": _description(args.name), "parameters": prov}))
         return 0
     print(f"{args.name}: {_description(args.name)}")
-    rows = [(k, f"{v['value']:.6g}" if isinstance(v["value"], float) else str(v["value"]), v.get("unit", ""),
-             v.get("source", "")) for k, v in prov.items()]
+    rows = [
+        (
+            k,
+            f"{v['value']:.6g}" if isinstance(v["value"], float) else str(v["value"]),
+            v.get("unit", ""),
+            v.get("source", ""),
+        )
+        for k, v in prov.items()
+    ]
     w0, w1, w2 = (max(len(r[i]) for r in rows) for i in range(3))
     print(f"  {'parameter':<{w0}}  {'value':>{w1}}  {'unit':<{w2}}  source")
     for k, v, u, s in rows:
@@ -316,16 +383,27 @@ def cmd_info(args: argparse.Namespace) -> int:
     if args.json:
         print(dumps(info))
         return 0
-    for key in ("file", "params", "scenario", "n_samples", "n_engines", "dt_s", "t_end_s", "seeds", "noise_scale",
-                "nonfinite_measurements", "package_version", "command_line"):
+    for key in (
+        "file",
+        "params",
+        "scenario",
+        "n_samples",
+        "n_engines",
+        "dt_s",
+        "t_end_s",
+        "seeds",
+        "noise_scale",
+        "nonfinite_measurements",
+        "package_version",
+        "command_line",
+    ):
         print(f"{key:<23} {info[key]}")
     print("true faults:" if info["true_faults"] else "true faults:            none")
     for f in info["true_faults"]:
         first = "not active in run" if f["first_active_s"] is None else f"first active at {f['first_active_s']:g} s"
         mag = "-" if f["magnitude"] is None else f"{f['magnitude']:g}{'' if f['unit'] == '-' else ' ' + f['unit']}"
         what = f"sensor {f['kind']}" if f["class"] == "sensor" else "process"
-        print(f"  engine {f['engine']}: {f['id']} ({what}) onset {f['onset_s']:g} s, "
-              f"magnitude {mag}, {first}")
+        print(f"  engine {f['engine']}: {f['id']} ({what}) onset {f['onset_s']:g} s, magnitude {mag}, {first}")
     print("failures:" if info["failures"] else "failures:               none")
     for f in info["failures"]:
         print(f"  engine {f['engine']} at {f['time_s']:g} s: {f['reason']}")

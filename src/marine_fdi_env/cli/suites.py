@@ -12,8 +12,11 @@ __all__ = ["suites_main"]
 
 
 def suites_main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="marine-fdi suites", description="List the frozen evaluation suites "
-                                 "('marine-fdi evaluate --suite NAME'): name, episodes, description.")
+    ap = argparse.ArgumentParser(
+        prog="marine-fdi suites",
+        description="List the frozen evaluation suites "
+        "('marine-fdi evaluate --suite NAME'): name, episodes, description.",
+    )
     ap.add_argument("--json", action="store_true", help="print JSON")
     args, code = parse_cli(ap, argv)
     if args is None:

@@ -12,33 +12,84 @@ from ..benchmark.suites import SUITE_NAMES
 from ..benchmark.sweep import TABLE, run_sweep
 
 
-def sweep_main(argv=None) -> int:
-    from .common import add_backend_args, backend_from_args, interrupted, parse_cli
-    from ..outputs import prepare_out
-    from ..errors import require_extra
-    from ..benchmark.report import markdown_table
+def say_sweep_cost(agents: list[str], suites: list[str], n_offsets: int, workers: int) -> None:
+    """The grid's expected time, said before it starts (:mod:`marine_fdi_env.costs`)."""
+    from ..benchmark.agent_api import BUILTIN_AGENTS, load_agent
+    from ..benchmark.agent_registry import list_agents
+    from ..benchmark.evaluate import plan_passes
+    from ..benchmark.suites import load_suite
+    from ..costs import CostEstimate, lockstep_episode_cpu_s, say_cost
 
-    ap = argparse.ArgumentParser(prog="marine-fdi sweep", description=sweep.__doc__.splitlines()[0],
-                                 formatter_class=argparse.RawDescriptionHelpFormatter,
-                                 epilog="\n".join(sweep.__doc__.splitlines()[2:]))
-    ap.add_argument("--agents", nargs="+", required=True, metavar="AGENT",
-                    help="agent names (see 'marine-fdi agents'), model folders or file.py:Class; 'all' = every name")
-    ap.add_argument("--suites", nargs="+", required=True, metavar="SUITE",
-                    help=f"suite names or JSON paths; 'all' = {' '.join(SUITE_NAMES)}")
-    ap.add_argument("--seed-offsets", nargs="+", type=int, default=[0], metavar="K",
-                    help="noise seed offsets (default 0): each reruns the suite's scenarios with new noise")
+    names = [e.name for e in list_agents() if e.available] if "all" in agents else agents
+    try:
+        loaded = [load_suite(s) for s in (SUITE_NAMES if "all" in suites else suites)]
+    except ValueError:
+        return  # run_sweep names the bad suite
+    # the simulation passes: the baselines say which diagnoser they need (cheap to make); a model, the default
+    passes = len(plan_passes([load_agent(a) for a in names if a in BUILTIN_AGENTS], {})) or 1
+    episodes = sum(len(s.scenarios) for s in loaded) * n_offsets
+    cpu = n_offsets * sum(lockstep_episode_cpu_s(names, passes, sc.duration_s) for s in loaded for sc in s.scenarios)
+    say_cost("marine-fdi sweep", f"{len(names)} agents x {episodes} episodes", CostEstimate(cpu, workers=workers))
+
+
+def sweep_main(argv=None) -> int:
+    from ..benchmark.report import markdown_table
+    from ..errors import require_extra
+    from ..outputs import prepare_out
+    from .common import add_backend_args, add_cache_args, backend_from_args, cache_from_args, interrupted, parse_cli
+
+    ap = argparse.ArgumentParser(
+        prog="marine-fdi sweep",
+        description=sweep.__doc__.splitlines()[0],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="\n".join(sweep.__doc__.splitlines()[2:]),
+    )
+    ap.add_argument(
+        "--agents",
+        nargs="+",
+        required=True,
+        metavar="AGENT",
+        help="agent names (see 'marine-fdi agents'), model folders or file.py:Class; 'all' = every name",
+    )
+    ap.add_argument(
+        "--suites",
+        nargs="+",
+        required=True,
+        metavar="SUITE",
+        help=f"suite names or JSON paths; 'all' = {' '.join(SUITE_NAMES)}",
+    )
+    ap.add_argument(
+        "--seed-offsets",
+        nargs="+",
+        type=int,
+        default=[0],
+        metavar="K",
+        help="noise seed offsets (default 0): each reruns the suite's scenarios with new noise",
+    )
     ap.add_argument("--out", type=Path, required=True, help="sweep folder (its parent is created if missing)")
     add_backend_args(ap)
+    add_cache_args(ap)
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     args, code = parse_cli(ap, argv)
     if args is None:
         return code
     try:
         backend = backend_from_args(args)
+        cache, cache_dir = cache_from_args(args)
         require_extra("pyarrow", "sweep (its table episodes.parquet)")
         out = prepare_out(args.out, create=False)  # run_sweep creates it after checking agents and suites
-        res = run_sweep(args.agents, args.suites, args.seed_offsets, out, backend=backend,
-                        batch_size=args.batch_size, progress=not args.no_progress)
+        say_sweep_cost(args.agents, args.suites, len(args.seed_offsets), backend.workers)
+        res = run_sweep(
+            args.agents,
+            args.suites,
+            args.seed_offsets,
+            out,
+            backend=backend,
+            batch_size=args.batch_size,
+            progress=not args.no_progress,
+            cache=cache,
+            cache_dir=cache_dir,
+        )
     except ValueError as e:
         print(f"marine-fdi sweep: error: {e}", file=sys.stderr)
         return 2
@@ -52,7 +103,9 @@ def sweep_main(argv=None) -> int:
         where += f" (cluster at {run['ray_address'] or os.environ.get('RAY_ADDRESS')})"
     elif run["backend"] != "serial":
         where += f" ({run['workers']} workers)"
-    print(f"wrote {out / TABLE} ({n} episodes, {len(res['results'])} agent x suite cells) and {out / 'metrics.json'}; "
-          f"{run['episodes_run']} episodes run in {run['wall_s']:.1f} s on {where}, load average "
-          f"{run['load_average_before'][0]:.2f} before, {run['load_average_after'][0]:.2f} after")
+    print(
+        f"wrote {out / TABLE} ({n} episodes, {len(res['results'])} agent x suite cells) and {out / 'metrics.json'}; "
+        f"{run['episodes_run']} episodes run in {run['wall_s']:.1f} s on {where}, load average "
+        f"{run['load_average_before'][0]:.2f} before, {run['load_average_after'][0]:.2f} after"
+    )
     return 0

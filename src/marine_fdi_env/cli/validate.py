@@ -19,6 +19,7 @@ from ..validation.report import clean_json, out_path, run_validation, split_engi
 from ..validation.report_markdown import markdown_summary
 from ..validation.report_plots import write_plots
 from ..validation.unexplained import ALPHA_UNEXPLAINED
+from .sidecar import check_sidecar_numbers
 
 
 def build_parser(prog: str = "marine-fdi validate") -> argparse.ArgumentParser:
@@ -112,6 +113,7 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
         if args.plots:
             pyplot()
         try:
+            check_sidecar_numbers(args.data)
             ds = load_data_arg(args.data, args.params if args.params in list_parameter_sets() else None)
         except DatasetError as e:
             raise ValueError(f"--data: {e}") from None

@@ -21,15 +21,23 @@ from dataclasses import dataclass
 import numpy as np
 
 from marine_fdi_env._jit import jit
-from marine_fdi_env.engine.constants import model_constants
-from marine_fdi_env.engine.integrators import THREADED_MIN_ENGINES, _executor
+from marine_fdi_env.diagnosis.cell_sets import DEFAULT_CELLS, check_cells, decision_state
 from marine_fdi_env.diagnosis.decision import DiagnosisState, candidate_classes, sorted_diagnoses
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
-from marine_fdi_env.diagnosis.sure_cells import SURE_CELLS_FILE, load_sure_cells
+from marine_fdi_env.diagnosis.peak_ratio import ratios, running_peaks
 from marine_fdi_env.diagnosis.residuals import (
-    _SIDE_COLS, _T_OUT_COL, INCLUSIONS, compute_residuals_batch, inclusion_arrays, new_state)
+    _SIDE_COLS,
+    _T_OUT_COL,
+    INCLUSIONS,
+    compute_residuals_batch,
+    inclusion_arrays,
+    new_state,
+)
+from marine_fdi_env.diagnosis.sized_decision import SizedDiagnosisState, drive_block
+from marine_fdi_env.engine.constants import model_constants
+from marine_fdi_env.engine.integrators import THREADED_MIN_ENGINES, _executor
 from marine_fdi_env.engine.params import EngineParams, load_params
-from marine_fdi_env.engine.sensors import NOISE_BOUNDS, N_SENSORS
+from marine_fdi_env.engine.sensors import N_SENSORS, NOISE_BOUNDS
 
 __all__ = ["ReferenceDiagnoser", "BlockOutput", "N_FEATURES_PER_MODULE"]
 
@@ -50,6 +58,7 @@ class BlockOutput:
     detected: np.ndarray  # (N,) bool, at the end of the block
     features: np.ndarray  # (N, 19 * N_FEATURES_PER_MODULE) float32
     stats: np.ndarray | None = None  # (N, 19, 4) the environment observation's period statistics
+    peaks: np.ndarray | None = None  # (N, 19) max |r|/threshold over the block (capped at PEAK_CAP)
 
 
 RATIO_CAP = PEAK_CAP  # the observation's ratio cap (envs.observation.RATIO_CAP)
@@ -107,8 +116,11 @@ def _post_process(R, THR, viol, peak, stats) -> None:
         _violations_and_peaks(R, THR, viol, peak, stats, 0, n)
         return
     edges = np.linspace(0, n, 9).astype(np.int64)
-    list(_executor().map(lambda r: _violations_and_peaks(R, THR, viol, peak, stats, r[0], r[1]),
-                         list(zip(edges[:-1], edges[1:]))))
+    list(
+        _executor().map(
+            lambda r: _violations_and_peaks(R, THR, viol, peak, stats, r[0], r[1]), list(zip(edges[:-1], edges[1:]))
+        )
+    )
 
 
 class ReferenceDiagnoser:
@@ -122,11 +134,13 @@ class ReferenceDiagnoser:
     noise_bounds : (19,) sensor noise bounds (default: table 6.3).
     max_cardinality : largest diagnosis considered by the hitting-set search.
     exoneration : ``"sure"`` (default): a module that has not fired clears the faults it surely
-        detects (measured cells, :mod:`studies.diagnosis.certainty`, read from
-        ``sure_cells_file`` in data/diagnosis; the thesis's '1' cells), with the temporal check
-        that a fault explains a module only if its sure modules fired no later than shortly after
-        it; ``"none"``: plain consistency-based diagnosis;
+        detects (measured cells, :mod:`studies.diagnosis.certainty`; the thesis's '1'
+        cells), with the temporal check that a fault explains a module only if its sure modules
+        fired no later than shortly after it; ``"none"``: plain consistency-based diagnosis;
         ``"all"``: every structural sensitivity counts as sure.
+    cells : which measured sure cells (:mod:`marine_fdi_env.diagnosis.cell_sets`): ``"sized"``
+        (default; the cells of the size the evidence bounds each candidate to), ``"grid"``
+        (sure at every size of the grid) or ``"thesis"`` (the table sizes only).
     inclusion : ``"tabulated"`` (default): the Σ2 inclusion terms of the adaptive thresholds
         interpolated from a table with a certified margin (never below ``"exact"``'s, at most 1 %
         above; :mod:`marine_fdi_env.diagnosis.inclusion_table`); ``"exact"``: computed at every
@@ -135,9 +149,17 @@ class ReferenceDiagnoser:
 
     name = "reference"
 
-    def __init__(self, params: "str | EngineParams" = "thesis-12v28", n_engines: int = 1, dt: float = 0.01,
-                 noise_bounds=None, max_cardinality: int = 2, exoneration: str = "sure",
-                 inclusion: str = "tabulated", sure_cells_file: str = SURE_CELLS_FILE) -> None:
+    def __init__(
+        self,
+        params: "str | EngineParams" = "thesis-12v28",
+        n_engines: int = 1,
+        dt: float = 0.01,
+        noise_bounds=None,
+        max_cardinality: int = 2,
+        exoneration: str = "sure",
+        inclusion: str = "tabulated",
+        cells: str = DEFAULT_CELLS,
+    ) -> None:
         self.params = load_params(params) if isinstance(params, str) else params
         if not isinstance(n_engines, (int, np.integer)) or n_engines < 1:
             raise ValueError(f"n_engines must be a positive integer, got {n_engines!r}")
@@ -154,7 +176,8 @@ class ReferenceDiagnoser:
         if exoneration not in ("sure", "none", "all", None):
             raise ValueError(f"exoneration must be 'sure', 'none' or 'all', got {exoneration!r}")
         self.exoneration = "none" if exoneration is None else exoneration
-        self.sure_cells_file = sure_cells_file
+        self.cells = check_cells(cells)
+        self.sized = self.exoneration == "sure" and self.cells == "sized"
         if inclusion not in INCLUSIONS:
             raise ValueError(f"inclusion must be one of {', '.join(INCLUSIONS)}, got {inclusion!r}")
         self.inclusion = inclusion
@@ -171,6 +194,10 @@ class ReferenceDiagnoser:
         self._next_expiry = np.full(self.n, np.inf)
         # per engine, the stream sample whose time is 0 (engines restarted mid-stream differ)
         self._offset = np.zeros(self.n, dtype=np.int64)
+        # sized cells: per engine and module the running peak of |r|/threshold, and the peak above
+        # which a size band of the decision logic moves up (inf: none)
+        self.peak_run = np.zeros((self.n, N_MODULES))
+        self._next_peak = np.full((self.n, N_MODULES), np.inf)
 
     def reset_engines(self, engines, first_sample_index: int = 0) -> None:
         """Forget everything about some engines (new runs on them); the others carry on.
@@ -187,16 +214,15 @@ class ReferenceDiagnoser:
             self.first_violation[i] = np.nan
             self._next_expiry[i] = np.inf
             self._offset[i] = self.samples - int(first_sample_index)
+            self.peak_run[i] = 0.0
+            self._next_peak[i] = np.inf
 
     def _new_decision(self) -> DiagnosisState:
-        settle, grace = None, 0.0
         if self.exoneration == "sure":
-            sc = load_sure_cells(self.sure_cells_file)
-            ex, temporal, settle, grace = sc.sure, True, sc.settle_times(), sc.grace_times()
-        else:
-            ex, temporal = (True if self.exoneration == "all" else None), False
-        return DiagnosisState(exoneration=ex, max_cardinality=self.max_cardinality, temporal=temporal,
-                              settle_s=settle, grace_s=grace)
+            return decision_state("reference", self.cells, self.max_cardinality)
+        return DiagnosisState(
+            exoneration=True if self.exoneration == "all" else None, max_cardinality=self.max_cardinality
+        )
 
     # ------------------------------------------------------------------------------ streaming
     def observe(self, measurements, u) -> BlockOutput:
@@ -218,8 +244,9 @@ class ReferenceDiagnoser:
         U = np.ascontiguousarray(U)
         R = np.empty((N, B, N_MODULES))
         THR = np.empty((N, B, N_MODULES))
-        compute_residuals_batch(self.c, Y, U, self.dt, self.noise_bounds, _SIDE_COLS, _T_OUT_COL, R, THR, self.state,
-                                self._table)
+        compute_residuals_batch(
+            self.c, Y, U, self.dt, self.noise_bounds, _SIDE_COLS, _T_OUT_COL, R, THR, self.state, self._table
+        )
         viol = np.empty((N, B, N_MODULES), dtype=np.bool_)
         peak = np.empty((N, N_MODULES))
         stats = np.empty((N, N_MODULES, 4))
@@ -231,7 +258,11 @@ class ReferenceDiagnoser:
         # DiagnosisState.update/advance would change nothing.
         new_mod = viol.any(axis=1) & np.isnan(self.first_violation)  # (N, 19)
         busy = new_mod.any(axis=1) | (t_end_all > self._next_expiry)
-        if busy.any():
+        if self.sized:
+            busy |= (peak > self._next_peak).any(axis=1)
+            self._observe_sized(np.flatnonzero(busy), R, THR, viol, tt, new_mod)
+            np.maximum(self.peak_run, peak, out=self.peak_run)
+        elif busy.any():
             any_row = viol.any(axis=2)  # (N, B)
             for i in np.flatnonzero(busy):
                 t = tt[i]
@@ -256,8 +287,33 @@ class ReferenceDiagnoser:
                 self._next_expiry[i] = st._next_expiry
         self.samples += B
         feats = self._features(peak)
-        return BlockOutput(residuals=R, thresholds=THR, violations=viol, detected=self.detected.copy(), features=feats,
-                           stats=stats)
+        return BlockOutput(
+            residuals=R,
+            thresholds=THR,
+            violations=viol,
+            detected=self.detected.copy(),
+            features=feats,
+            stats=stats,
+            peaks=peak,
+        )
+
+    def _observe_sized(self, engines, R, THR, viol, tt, new_mod) -> None:
+        """The decision update of the sized cells for the engines that need one: every sample where
+        a module fires first, a grace period ends or a size band moves up, in time order."""
+        for i in engines:
+            st: SizedDiagnosisState = self.decisions[i]
+            v = viol[i]
+            q = running_peaks(ratios(R[i : i + 1], THR[i : i + 1]), self.peak_run[i : i + 1])[0]
+            fired = np.logical_or.accumulate(v, axis=0) | st.fired
+            changed = np.empty(len(v), dtype=bool)
+            changed[0] = (fired[0] != st.fired).any()
+            changed[1:] = (fired[1:] != fired[:-1]).any(axis=1)
+            drive_block(st, tt[i], q, [(r, v[r]) for r in np.flatnonzero(changed)], float(tt[i, -1]))
+            if new_mod[i].any():
+                first = np.argmax(v, axis=0)
+                self.first_violation[i, new_mod[i]] = tt[i][first[new_mod[i]]]
+            self._next_expiry[i] = st._next_expiry
+            self._next_peak[i] = st.next_peak
 
     def _features(self, peak: np.ndarray) -> np.ndarray:
         """peak: (N, 19) max |r|/threshold over the block, capped at 1e3 (see _violations_and_peaks)."""

@@ -32,9 +32,18 @@ def make_diagnoser(name: str, params: str, n_engines: int, dt: float, **options)
     raise ValueError(f"unknown diagnoser {name!r}; allowed: {', '.join(DIAGNOSERS)}")
 
 
-def diagnose_batch(schedules, seeds, profile="constant", duration_s=DURATION_S, exoneration="sure",
-                   block_samples: int = 1000, params: str = PARAMS, diagnoser: str = "reference",
-                   on_block=None, **options):
+def diagnose_batch(
+    schedules,
+    seeds,
+    profile="constant",
+    duration_s=DURATION_S,
+    exoneration="sure",
+    block_samples: int = 1000,
+    params: str = PARAMS,
+    diagnoser: str = "reference",
+    on_block=None,
+    **options,
+):
     """Simulate and diagnose engines in batches; returns one report dict per engine (the keys of
     :meth:`ReferenceDiagnoser.report` plus ``failures``).
 
@@ -51,9 +60,9 @@ def diagnose_batch(schedules, seeds, profile="constant", duration_s=DURATION_S, 
         raise ValueError(f"{len(profiles)} profiles but {len(seeds)} seeds")
     reports = []
     for a in range(0, len(schedules), BATCH):
-        sch = schedules[a:a + BATCH]
-        sd = seeds[a:a + BATCH]
-        sim = Simulator(params, len(sch), seeds=sd, faults=sch, profiles=profiles[a:a + BATCH])
+        sch = schedules[a : a + BATCH]
+        sd = seeds[a : a + BATCH]
+        sim = Simulator(params, len(sch), seeds=sd, faults=sch, profiles=profiles[a : a + BATCH])
         agent = make_diagnoser(diagnoser, params, len(sch), sim.dt, exoneration=exoneration, **options)
         agent.observe(sim.y[:, None, :], sim.u[:, None])
         steps, done = int(round(duration_s / sim.dt)), 0

@@ -187,8 +187,9 @@ def minimal_hitting_sets(conflicts: Iterable[Iterable], max_cardinality: int | N
     return [_from_mask(m, items) for m in masks]
 
 
-def brute_force_minimal_hitting_sets(conflicts: Iterable[Iterable], max_cardinality: int | None = 3,
-                                     universe: Iterable | None = None) -> list[frozenset]:
+def brute_force_minimal_hitting_sets(
+    conflicts: Iterable[Iterable], max_cardinality: int | None = 3, universe: Iterable | None = None
+) -> list[frozenset]:
     """The same by enumerating every combination of elements up to ``max_cardinality`` (the
     thesis's 2^n approach): keep those that hit every conflict and from which no element can be
     removed (hitting is monotone, so that is subset-minimality)."""
@@ -207,8 +208,7 @@ def brute_force_minimal_hitting_sets(conflicts: Iterable[Iterable], max_cardinal
 # ----------------------------------------------------------------------------- diagnoses
 def fired_vector(fired) -> np.ndarray:
     """Bool (19,) from a bool/0-1 vector in ``MODULE_IDS`` order or an iterable of module ids."""
-    if isinstance(fired, np.ndarray) or (isinstance(fired, (list, tuple)) and fired
-                                         and not isinstance(fired[0], str)):
+    if isinstance(fired, np.ndarray) or (isinstance(fired, (list, tuple)) and fired and not isinstance(fired[0], str)):
         v = np.asarray(fired)
         if v.shape != (N_MODULES,):
             raise ValueError(f"a decision vector must have shape ({N_MODULES},), got {v.shape}")
@@ -250,8 +250,9 @@ def exonerated_faults(fired, exoneration) -> np.ndarray:
     return ex[~f].any(axis=0)
 
 
-def diagnosis_conflicts(fired, *, support=None, exoneration=None, detection_times=None,
-                        settle_s=0.0, now: float | None = None, grace_s=0.0) -> list[int]:
+def diagnosis_conflicts(
+    fired, *, support=None, exoneration=None, detection_times=None, settle_s=0.0, now: float | None = None, grace_s=0.0
+) -> list[int]:
     """Bitmask (over ``FAULT_IDS``) of the admissible faults that can explain each fired module.
 
     Static (``now`` None): support row minus the faults exonerated now.  With ``detection_times``
@@ -267,8 +268,11 @@ def diagnosis_conflicts(fired, *, support=None, exoneration=None, detection_time
     f = fired_vector(fired)
     sup = _support(support)
     ex = _exoneration(exoneration, sup)
-    settle = np.broadcast_to(np.asarray(settle_s, dtype=float), (N_FAULTS,)) if np.ndim(settle_s) == 0 \
+    settle = (
+        np.broadcast_to(np.asarray(settle_s, dtype=float), (N_FAULTS,))
+        if np.ndim(settle_s) == 0
         else np.asarray(settle_s, dtype=float)
+    )
     if settle.shape != (N_FAULTS,):
         raise ValueError(f"settle_s must be a number or have shape ({N_FAULTS},), got {settle.shape}")
     td = None
@@ -327,9 +331,18 @@ def sorted_diagnoses(diagnoses: Iterable[Iterable[str]]) -> list[list[str]]:
     return [sorted(d, key=_FAULT_INDEX.__getitem__) for d in ds]
 
 
-def minimal_diagnoses(fired, *, support=None, exoneration=None, detection_times=None, settle_s=0.0,
-                      max_cardinality: int | None = 3, method: str = "berge",
-                      now: float | None = None, grace_s=0.0) -> list[frozenset[str]]:
+def minimal_diagnoses(
+    fired,
+    *,
+    support=None,
+    exoneration=None,
+    detection_times=None,
+    settle_s=0.0,
+    max_cardinality: int | None = 3,
+    method: str = "berge",
+    now: float | None = None,
+    grace_s=0.0,
+) -> list[frozenset[str]]:
     """Minimal diagnoses (sets of fault ids, smallest first) consistent with the fired modules.
 
     fired : bool (19,) decisions in ``MODULE_IDS`` order, or an iterable of module ids.
@@ -344,9 +357,15 @@ def minimal_diagnoses(fired, *, support=None, exoneration=None, detection_times=
     No fired module gives ``[frozenset()]`` (the fault-free diagnosis); fired modules that no
     admissible fault explains give ``[]``.
     """
-    conflicts = diagnosis_conflicts(fired, support=support, exoneration=exoneration,
-                                    detection_times=detection_times, settle_s=settle_s, now=now,
-                                    grace_s=grace_s)
+    conflicts = diagnosis_conflicts(
+        fired,
+        support=support,
+        exoneration=exoneration,
+        detection_times=detection_times,
+        settle_s=settle_s,
+        now=now,
+        grace_s=grace_s,
+    )
     k = N_FAULTS if max_cardinality is None else int(max_cardinality)
     if method == "berge":
         masks = _mhs_masks(conflicts, k)
@@ -462,8 +481,9 @@ def _consistent(ones: list[int], anys: list[int], d_mask: int, cols: Sequence[in
     return (a & d_mask) == d_mask and not (o & ~d_mask)
 
 
-def thesis_global_diagnosis(decisions, *, matrix=None, max_cardinality: int = 3,
-                            dchi_rule: str = "any") -> ThesisGlobalDiagnosis:
+def thesis_global_diagnosis(
+    decisions, *, matrix=None, max_cardinality: int = 3, dchi_rule: str = "any"
+) -> ThesisGlobalDiagnosis:
     """The thesis's local and global decision logic (eq. 5.20-5.22) on a decision vector.
 
     decisions : bool (19,) in ``MODULE_IDS`` order (or module ids), D = [D^(1), ..., D^(4)].
@@ -547,9 +567,15 @@ def thesis_global_diagnosis(decisions, *, matrix=None, max_cardinality: int = 3,
                 if _consistent(ones, anys, d_mask, combo) and _consistent(c_ones, c_anys, chi_mask, combo):
                     diagnoses.append(frozenset(FAULT_IDS[j] for j in combo))
     minimal = [s for s in diagnoses if not any(o < s for o in diagnoses)]
-    return ThesisGlobalDiagnosis(local=local, d_chi=d_chi, chi=sorted(chi, key=_sort_key), intersection=inter,
-                                 global_candidates=gcand, diagnoses=sorted(diagnoses, key=_sort_key),
-                                 minimal=sorted(minimal, key=_sort_key))
+    return ThesisGlobalDiagnosis(
+        local=local,
+        d_chi=d_chi,
+        chi=sorted(chi, key=_sort_key),
+        intersection=inter,
+        global_candidates=gcand,
+        diagnoses=sorted(diagnoses, key=_sort_key),
+        minimal=sorted(minimal, key=_sort_key),
+    )
 
 
 # ----------------------------------------------------------------------------- streaming state
@@ -562,8 +588,16 @@ class DiagnosisState:
     an exoneration matrix to have an effect; ``settle_s`` None = :func:`default_settle_times`).
     """
 
-    def __init__(self, *, support=None, exoneration=None, max_cardinality: int | None = 3,
-                 temporal: bool = False, settle_s=None, grace_s=0.0):
+    def __init__(
+        self,
+        *,
+        support=None,
+        exoneration=None,
+        max_cardinality: int | None = 3,
+        temporal: bool = False,
+        settle_s=None,
+        grace_s=0.0,
+    ):
         self.support = _support(support)
         self.exoneration = _exoneration(exoneration, self.support)
         self.max_cardinality = max_cardinality
@@ -622,9 +656,15 @@ class DiagnosisState:
     def _recompute(self, now: float) -> None:
         temporal = self.temporal
         self.diagnoses = minimal_diagnoses(
-            self.fired, support=self.support, exoneration=self.exoneration,
-            detection_times=self.detection_times if temporal else None, settle_s=self.settle_s,
-            max_cardinality=self.max_cardinality, now=now if temporal else None, grace_s=self.grace_s)
+            self.fired,
+            support=self.support,
+            exoneration=self.exoneration,
+            detection_times=self.detection_times if temporal else None,
+            settle_s=self.settle_s,
+            max_cardinality=self.max_cardinality,
+            now=now if temporal else None,
+            grace_s=self.grace_s,
+        )
         self.n_recomputations += 1
         if temporal:
             td = np.where(self.fired, self.detection_times, np.inf)
@@ -700,25 +740,40 @@ THESIS_EXAMPLES: dict[str, ThesisExample] = {
     # 6.4.1: D^(3) = [0 0 0 1 1] from 175 s; from 235 s D^(2) = [0 1 0 1 0 0], D^(4) = [0 1 0 0 0 0].
     # D_s^G = {f_2^(4), f_2^(3), f_4^(3), f_5^(3)} "and any other combination".
     "thesis-6.4.1": ThesisExample(
-        "thesis-6.4.1", (("S3.4", 175.0), ("S4.2", 235.0)),
+        "thesis-6.4.1",
+        (("S3.4", 175.0), ("S4.2", 235.0)),
         ((175.0, ("M3.4", "M3.5")), (235.0, ("M2.2", "M2.4", "M3.4", "M3.5", "M4.2"))),
-        ("S3.2", "S3.4", "S3.5", "S4.2"), False),
+        ("S3.2", "S3.4", "S3.5", "S4.2"),
+        False,
+    ),
     # 6.4.2: D^(2) = [0 0 1 1 0 0] at 146.1 s, [1 1 1 1 0 0] at 201.6 s, D^(1) = [1 1] at 207.1 s.
     "thesis-6.4.2": ThesisExample(
-        "thesis-6.4.2", (("bore_damage", 5.0), ("valve_seizing", 200.0)),
-        ((146.1, ("M2.3", "M2.4")), (201.6, ("M2.1", "M2.2", "M2.3", "M2.4")),
-         (207.1, ("M1.1", "M1.2", "M2.1", "M2.2", "M2.3", "M2.4"))),
-        ("valve_seizing", "bore_damage"), True),
+        "thesis-6.4.2",
+        (("bore_damage", 5.0), ("valve_seizing", 200.0)),
+        (
+            (146.1, ("M2.3", "M2.4")),
+            (201.6, ("M2.1", "M2.2", "M2.3", "M2.4")),
+            (207.1, ("M1.1", "M1.2", "M2.1", "M2.2", "M2.3", "M2.4")),
+        ),
+        ("valve_seizing", "bore_damage"),
+        True,
+    ),
     # 6.4.3: D^(2) = [0 1 0 0 0 0] from 20 s; D^(4) = [1 1 0 0 0 0] from 156.8 s.
     "thesis-6.4.3": ThesisExample(
-        "thesis-6.4.3", (("S2.2", 20.0), ("compressor_seal_leak", 30.0)),
+        "thesis-6.4.3",
+        (("S2.2", 20.0), ("compressor_seal_leak", 30.0)),
         ((20.0, ("M2.2",)), (156.8, ("M2.2", "M4.1", "M4.2"))),
-        ("S2.2", "compressor_seal_leak"), True),
+        ("S2.2", "compressor_seal_leak"),
+        True,
+    ),
     # 6.4.4: D^(3) = [0 1 0 0 0], D^(4) = [0 1 0 0 0 0] from 15 s; D^(3) = [0 1 1 1 0] from 104.6 s.
     # D_s^G = {f_2^(3), f_4^(3), f_2^(4), {f_2^(3), f_4^(3)}, {f_4^(3), f_2^(4)}, {f_2^(3), f_2^(4)},
     #          {f_Tsl, f_2^(4)}, {f_Tsl, f_2^(3)}, {f_Tsl, f_4^(3)}}.
     "thesis-6.4.4": ThesisExample(
-        "thesis-6.4.4", (("S3.2", 15.0), ("turbine_lubrication_loss", 30.0)),
+        "thesis-6.4.4",
+        (("S3.2", 15.0), ("turbine_lubrication_loss", 30.0)),
         ((15.0, ("M3.2", "M4.2")), (104.6, ("M3.2", "M3.3", "M3.4", "M4.2"))),
-        ("S3.2", "S3.4", "S4.2", "turbine_lubrication_loss"), False),
+        ("S3.2", "S3.4", "S4.2", "turbine_lubrication_loss"),
+        False,
+    ),
 }

@@ -1,5 +1,5 @@
 """A GLR test for an incipient shift of known polynomial shape on two pooled residuals, paused while
-the load changes: the ``sequential`` diagnoser's receiver test (issue 13, turbine_seal_leak).
+the load changes: the ``sequential`` diagnoser's receiver test (turbine_seal_leak).
 
 The turbine seal leak grows as s² after its onset and moves only the receiver residuals M3.1 and
 M3.2, by less than half a block spread within 300 s; the two chains' fault-free block z are white
@@ -46,8 +46,17 @@ import numpy as np
 
 from .._jit import jit
 
-__all__ = ["glr_polynomial", "glr_norms", "glr_pair_update", "common_shift", "transient_gate", "ORDER",
-           "WINDOW_BLOCKS", "GATE_TAU_S", "GATE_DELTA"]
+__all__ = [
+    "glr_polynomial",
+    "glr_norms",
+    "glr_pair_update",
+    "common_shift",
+    "transient_gate",
+    "ORDER",
+    "WINDOW_BLOCKS",
+    "GATE_TAU_S",
+    "GATE_DELTA",
+]
 
 ORDER = 2  # shape (t - τ)^2: the seal leak's β R s with β ≈ κ s
 WINDOW_BLOCKS = 300  # onsets kept [blocks]
@@ -67,7 +76,7 @@ def glr_polynomial(p: np.ndarray, order: int, window: int, paused: np.ndarray | 
     p = np.asarray(p, dtype=np.float64)
     R, N = p.shape
     t = np.arange(1, N + 1, dtype=np.float64)
-    prefix = [np.concatenate([np.zeros((R, 1)), np.cumsum(p * t ** j, axis=1)], axis=1) for j in range(order + 1)]
+    prefix = [np.concatenate([np.zeros((R, 1)), np.cumsum(p * t**j, axis=1)], axis=1) for j in range(order + 1)]
     if paused is None:
         restart = np.zeros((R, N), dtype=np.int64)
     else:  # prefix index after the last paused block up to t
@@ -79,8 +88,11 @@ def glr_polynomial(p: np.ndarray, order: int, window: int, paused: np.ndarray | 
         taus = np.arange(max(0, T - window), T)  # signal in blocks tau+1 .. T
         num = np.zeros((R, len(taus)))
         for j in range(order + 1):  # (t - tau)^q = sum_j C(q, j) t^j (-tau)^(q - j)
-            num += comb(order, j) * ((-taus.astype(np.float64)) ** (order - j))[None, :] \
+            num += (
+                comb(order, j)
+                * ((-taus.astype(np.float64)) ** (order - j))[None, :]
                 * (prefix[j][:, T][:, None] - prefix[j][:, taus])
+            )
         stat = np.abs(num) / norm_g[T - taus - 1][None, :]
         stat = np.where(taus[None, :] >= restart[:, T - 1][:, None], stat, 0.0)
         out[:, T - 1] = stat.max(axis=1)

@@ -161,9 +161,16 @@ def interpolate_rows(delta, dims, grid, valid, ti, x1, x4, T1, out):
     o111 = o110 + sk
     for rr in range(nq):
         r = np.uint64(rr)
-        out[rr // N_COLS, rr % N_COLS] = (w000 * delta[o000 + r] + w001 * delta[o001 + r] + w010 * delta[o010 + r]
-                                          + w011 * delta[o011 + r] + w100 * delta[o100 + r] + w101 * delta[o101 + r]
-                                          + w110 * delta[o110 + r] + w111 * delta[o111 + r])
+        out[rr // N_COLS, rr % N_COLS] = (
+            w000 * delta[o000 + r]
+            + w001 * delta[o001 + r]
+            + w010 * delta[o010 + r]
+            + w011 * delta[o011 + r]
+            + w100 * delta[o100 + r]
+            + w101 * delta[o101 + r]
+            + w110 * delta[o110 + r]
+            + w111 * delta[o111 + r]
+        )
     return cell
 
 
@@ -187,9 +194,11 @@ def _second_differences(delta, ok, d2):
                     for p in range(N_ROWS):
                         for q in range(N_COLS):
                             if good:
-                                d2[d, i, j, k, p, q] = abs(delta[ic + e0, jc + e1, kc + e2, p, q]
-                                                           - 2.0 * delta[ic, jc, kc, p, q]
-                                                           + delta[ic - e0, jc - e1, kc - e2, p, q])
+                                d2[d, i, j, k, p, q] = abs(
+                                    delta[ic + e0, jc + e1, kc + e2, p, q]
+                                    - 2.0 * delta[ic, jc, kc, p, q]
+                                    + delta[ic - e0, jc - e1, kc - e2, p, q]
+                                )
                             else:
                                 d2[d, i, j, k, p, q] = math.nan
 

@@ -82,19 +82,35 @@ MODULES: tuple[ModuleSpec, ...] = (
     ModuleSpec("M2.6", 2, "algebraic", "S2.6", ("S2.4", "S2.6"), ("S1.2", "S4.2", "S4.4"), ("cycle", "torque")),
     ModuleSpec("M3.1", 3, "state", "S3.1", ("S3.1", "S3.3"), ("S1.1", "S4.1", "S4.3"), ("receiver", "speed")),
     ModuleSpec("M3.2", 3, "state", "S3.2", ("S3.2", "S3.4"), ("S1.2", "S4.2", "S4.4"), ("receiver", "speed")),
-    ModuleSpec("M3.3", 3, "algebraic", "S3.3", ("S3.1", "S3.3"), ("S1.1", "S2.1", "S2.3", "S4.1", "S4.3"),
-               ("mixing", "speed")),
-    ModuleSpec("M3.4", 3, "algebraic", "S3.4", ("S3.2", "S3.4"), ("S1.2", "S2.2", "S2.4", "S4.2", "S4.4"),
-               ("mixing", "speed")),
+    ModuleSpec(
+        "M3.3", 3, "algebraic", "S3.3", ("S3.1", "S3.3"), ("S1.1", "S2.1", "S2.3", "S4.1", "S4.3"), ("mixing", "speed")
+    ),
+    ModuleSpec(
+        "M3.4", 3, "algebraic", "S3.4", ("S3.2", "S3.4"), ("S1.2", "S2.2", "S2.4", "S4.2", "S4.4"), ("mixing", "speed")
+    ),
     ModuleSpec("M3.5", 3, "algebraic", "S3.5", ("S3.2", "S3.4", "S3.5"), ("S4.2",), ("turbine",)),
     ModuleSpec("M4.1", 4, "state", "S4.1", ("S4.1", "S4.3"), ("S1.1", "S3.1", "S3.3"), ("charge", "speed")),
     ModuleSpec("M4.2", 4, "state", "S4.2", ("S4.2", "S4.4"), ("S1.2", "S3.2", "S3.4"), ("charge", "speed")),
     ModuleSpec("M4.3", 4, "algebraic", "S4.3", ("S4.3",), (), ("inlet",)),
     ModuleSpec("M4.4", 4, "algebraic", "S4.4", ("S4.4",), (), ("inlet",)),
-    ModuleSpec("M4.5", 4, "algebraic", "S4.5", ("S4.1", "S4.3", "S4.5"), ("S1.1", "S3.1", "S3.3", "S3.5"),
-               ("comp_out", "speed")),
-    ModuleSpec("M4.6", 4, "algebraic", "S4.6", ("S4.2", "S4.4", "S4.6"), ("S1.2", "S3.2", "S3.4", "S3.5"),
-               ("comp_out", "speed")),
+    ModuleSpec(
+        "M4.5",
+        4,
+        "algebraic",
+        "S4.5",
+        ("S4.1", "S4.3", "S4.5"),
+        ("S1.1", "S3.1", "S3.3", "S3.5"),
+        ("comp_out", "speed"),
+    ),
+    ModuleSpec(
+        "M4.6",
+        4,
+        "algebraic",
+        "S4.6",
+        ("S4.2", "S4.4", "S4.6"),
+        ("S1.2", "S3.2", "S3.4", "S3.5"),
+        ("comp_out", "speed"),
+    ),
 )
 
 MODULE_IDS: tuple[str, ...] = tuple(m.id for m in MODULES)

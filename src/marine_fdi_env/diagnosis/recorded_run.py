@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..runio import RunData
 from ..engine.sensors import SENSOR_IDS
+from ..runio import RunData
 from .modules import AGENTS, MODULE_IDS
 
 __all__ = ["diagnose_run", "check_dropouts", "plot_residuals"]
@@ -33,41 +33,58 @@ def check_dropouts(run: RunData, engine: int) -> dict[str, float]:
             k = first if np.isinf(Y[first, j]) else first + int(np.argmax(~bad[first:])) - 1
             raise ValueError(
                 f"sensor {sid} of engine {engine} has a non-finite value ({Y[k, j]}) at sample {k} "
-                f"(t={run.t[k]:.2f} s) that is not a dropout to the end of the run")
+                f"(t={run.t[k]:.2f} s) that is not a dropout to the end of the run"
+            )
         out[sid] = float(run.t[first])
     return out
 
 
-def diagnose_run(run: RunData, engine: int = 0, exoneration: str = "sure",
-                 diagnoser: str = "reference") -> tuple[dict, object]:
+def diagnose_run(
+    run: RunData, engine: int = 0, exoneration: str = "sure", diagnoser: str = "reference", cells: str = "sized"
+) -> tuple[dict, object]:
     """Diagnose one engine of a run; returns (JSON-ready report, the residual block output).
     ``diagnoser``: ``reference`` (the thesis's scheme) or ``sequential`` (CUSUM tests on the same
-    residuals, :mod:`marine_fdi_env.diagnosis.sequential`)."""
+    residuals, :mod:`marine_fdi_env.diagnosis.sequential`); ``cells``: the sure cells
+    (:mod:`marine_fdi_env.diagnosis.cell_sets`)."""
     from .batch import make_diagnoser
 
     if not 0 <= engine < run.n_engines:
         raise ValueError(f"--engine must lie in [0, {run.n_engines - 1}], got {engine}")
     dropouts = check_dropouts(run, engine)
-    agent = make_diagnoser(diagnoser, run.params_name or "thesis-12v28", 1, run.dt, exoneration=exoneration)
+    agent = make_diagnoser(
+        diagnoser, run.params_name or "thesis-12v28", 1, run.dt, exoneration=exoneration, cells=cells
+    )
     u = run.truth_of("u", engine)
     block = agent.observe(run.measurements[:, engine, :], u)
     rep = agent.report(0)
-    rep.update({
-        "params": run.params_name,
-        "engine": engine,
-        "diagnoser": {"name": agent.name, "exoneration": exoneration,
-                      "max_cardinality": getattr(agent, "max_cardinality", None) or agent.stage.max_cardinality},
-        "sensor_dropouts_s": dropouts,
-        "true_faults": [{k: f[k] for k in ("id", "class", "kind", "onset_s", "magnitude", "unit", "first_active_s")}
-                        for f in run.true_faults(engine)],
-    })
+    rep.update(
+        {
+            "params": run.params_name,
+            "engine": engine,
+            "diagnoser": {
+                "name": agent.name,
+                "exoneration": exoneration,
+                "cells": cells,
+                "max_cardinality": getattr(agent, "max_cardinality", None) or agent.stage.max_cardinality,
+            },
+            "sensor_dropouts_s": dropouts,
+            "true_faults": [
+                {k: f[k] for k in ("id", "class", "kind", "onset_s", "magnitude", "unit", "first_active_s")}
+                for f in run.true_faults(engine)
+            ],
+        }
+    )
     truth = frozenset(f["id"] for f in rep["true_faults"] if f["first_active_s"] is not None)
     rep["true_set_in_minimal_diagnoses"] = (sorted(truth) in rep["final_minimal_diagnoses"]) if truth else None
     return rep, block
 
 
-SUBSYSTEMS = {1: "Σ1 fuel pump", 2: "Σ2 engine block (cylinder)", 3: "Σ3 exhaust receiver and turbine",
-              4: "Σ4 air intake (compressor, intercooler)"}
+SUBSYSTEMS = {
+    1: "Σ1 fuel pump",
+    2: "Σ2 engine block (cylinder)",
+    3: "Σ3 exhaust receiver and turbine",
+    4: "Σ4 air intake (compressor, intercooler)",
+}
 # residuals are in the checked sensor's SI unit; plotted in a unit of their size: (factor, unit)
 _PLOT_UNITS = {"Pa": (1e-3, "kPa"), "kg": (1e6, "mg"), "N m": (1e-3, "kN m"), "K": (1.0, "K")}
 
@@ -94,8 +111,7 @@ def plot_residuals(run: RunData, block, out_dir: Path, report: dict) -> list[Pat
     onsets = [(f["id"], f["onset_s"]) for f in report["true_faults"] if f["onset_s"] <= t[-1]]
     paths = []
     for sub, modules in AGENTS.items():
-        fig, axes = plt.subplots(len(modules), 1, figsize=(10, 1.95 * len(modules) + 0.7), sharex=True,
-                                 squeeze=False)
+        fig, axes = plt.subplots(len(modules), 1, figsize=(10, 1.95 * len(modules) + 0.7), sharex=True, squeeze=False)
         for ax, m in zip(axes[:, 0], modules):
             j = MODULE_IDS.index(m)
             sen = sensor[spec[m].checked_sensor]
@@ -112,11 +128,23 @@ def plot_residuals(run: RunData, block, out_dir: Path, report: dict) -> list[Pat
             tr = blended_transform_factory(ax.transData, ax.transAxes)
             for fid, on in onsets:
                 ax.axvline(on, color="C2", ls=":", lw=1.2, label="fault onset")
-                ax.text(on, 0.96, f" {fid} onset {on:g} s", transform=tr, color="C2", fontsize=7, va="top",
-                        ha="left", bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.85, "pad": 1})
+                ax.text(
+                    on,
+                    0.96,
+                    f" {fid} onset {on:g} s",
+                    transform=tr,
+                    color="C2",
+                    fontsize=7,
+                    va="top",
+                    ha="left",
+                    bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.85, "pad": 1},
+                )
             det = f"detected at {td:.2f} s" if td is not None else "no detection"
-            ax.set_title(f"module {m} ({SUBSYSTEMS[sub].split(' (')[0]}): {sen.id} {sen.description} - {det}",
-                         fontsize=8.5, loc="left")
+            ax.set_title(
+                f"module {m} ({SUBSYSTEMS[sub].split(' (')[0]}): {sen.id} {sen.description} - {det}",
+                fontsize=8.5,
+                loc="left",
+            )
             ax.set_ylabel(f"residual [{unit}]", fontsize=8)
             ax.tick_params(labelsize=7)
         axes[-1, 0].set_xlabel("time [s]")
@@ -126,10 +154,19 @@ def plot_residuals(run: RunData, block, out_dir: Path, report: dict) -> list[Pat
                 if lab not in labels:
                     handles.append(h)
                     labels.append(lab)
-        fig.suptitle(f"{SUBSYSTEMS[sub]}: residuals of its monitoring modules (sensor - model) and their adaptive "
-                     "thresholds", fontsize=10)
-        fig.legend(handles, labels, loc="upper center", ncol=len(labels), fontsize=8, frameon=False,
-                   bbox_to_anchor=(0.5, 1 - 0.32 / fig.get_figheight()))
+        fig.suptitle(
+            f"{SUBSYSTEMS[sub]}: residuals of its monitoring modules (sensor - model) and their adaptive thresholds",
+            fontsize=10,
+        )
+        fig.legend(
+            handles,
+            labels,
+            loc="upper center",
+            ncol=len(labels),
+            fontsize=8,
+            frameon=False,
+            bbox_to_anchor=(0.5, 1 - 0.32 / fig.get_figheight()),
+        )
         fig.tight_layout(rect=(0, 0, 1, 1 - 0.45 / fig.get_figheight()))
         path = out_dir / f"subsystem_{sub}.png"
         fig.savefig(path, dpi=110)

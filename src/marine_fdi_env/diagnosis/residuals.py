@@ -56,6 +56,7 @@ import numpy as np
 from .._jit import jit, jit_inline
 from ..engine.constants import kernel_constants
 from ..engine.integrators import THREADED_MIN_ENGINES, _etd_scalar, _executor
+from ..engine.seiliger import seiliger_cycle
 from ..engine.sensors import NOISE_BOUNDS, SENSOR_IDS
 from ..engine.subsystems.air_intake import (
     compressor_forcing,
@@ -65,7 +66,6 @@ from ..engine.subsystems.air_intake import (
     inlet_air_temperature,
     inlet_air_temperature_at,
 )
-from ..engine.seiliger import seiliger_cycle
 from ..engine.subsystems.engine_block import constant_volume_portion, friction_torque, speed_of_torque
 from ..engine.subsystems.exhaust_receiver import (
     scavenge_flow_function,
@@ -74,12 +74,24 @@ from ..engine.subsystems.exhaust_receiver import (
     turbine_outlet_temperature,
 )
 from ..engine.subsystems.gas_path import extended_gas_path, flow_law_pressure, valve_flows
-from .modules import MODULE_IDS
 from .inclusion_table import interpolate_rows, sigma2_table
+from .modules import MODULE_IDS
 from .sigma2 import ONE_SIDED, SLOPE_STEP, _centre_speed, _centre_speed2, _perturbed_rows, _perturbed_rows2
 
-__all__ = ["OBSERVER_GAINS", "compute_residuals", "compute_residuals_batch", "ResidualTrace", "SAFETY",
-           "MODEL_MARGIN", "new_state", "N_STATE", "residuals_for_run", "INCLUSIONS", "inclusion_arrays", "table_arrays"]
+__all__ = [
+    "OBSERVER_GAINS",
+    "compute_residuals",
+    "compute_residuals_batch",
+    "ResidualTrace",
+    "SAFETY",
+    "MODEL_MARGIN",
+    "new_state",
+    "N_STATE",
+    "residuals_for_run",
+    "INCLUSIONS",
+    "inclusion_arrays",
+    "table_arrays",
+]
 
 # Observer gains L [1/s] of table 6.1 for M(1,q), M(3,q), M(4,q).
 OBSERVER_GAINS = (33.3833, 1.25, 0.3764)
@@ -90,10 +102,13 @@ MODEL_MARGIN = 1e-6  # η̄ per step, relative to the state, and relative margin
 # sensor columns
 S = {sid: i for i, sid in enumerate(SENSOR_IDS)}
 # per side (0: odd sensors, 1: even sensors): x1, p6, T6, torque, x3, T_in, x4, T1, T_co
-_SIDE_COLS = np.array([
-    [S["S1.1"], S["S2.1"], S["S2.3"], S["S2.5"], S["S3.1"], S["S3.3"], S["S4.1"], S["S4.3"], S["S4.5"]],
-    [S["S1.2"], S["S2.2"], S["S2.4"], S["S2.6"], S["S3.2"], S["S3.4"], S["S4.2"], S["S4.4"], S["S4.6"]],
-], dtype=np.int64)
+_SIDE_COLS = np.array(
+    [
+        [S["S1.1"], S["S2.1"], S["S2.3"], S["S2.5"], S["S3.1"], S["S3.3"], S["S4.1"], S["S4.3"], S["S4.5"]],
+        [S["S1.2"], S["S2.2"], S["S2.4"], S["S2.6"], S["S3.2"], S["S3.4"], S["S4.2"], S["S4.4"], S["S4.6"]],
+    ],
+    dtype=np.int64,
+)
 _T_OUT_COL = S["S3.5"]
 # module column of each module id (for output arrays)
 _M = {m: i for i, m in enumerate(MODULE_IDS)}
@@ -260,8 +275,7 @@ def _sm_perturbed(c, x1, x3, x4, m1, n, s_sl, Pi, T_in, T_out, dTin, dTo, T6m, p
         else:
             pp = p6m + sg * dp6 if j < 13 else p6m
             TT = T6m + sg * dT6 if j >= 13 else T6m
-            G[j, 2] = extended_gas_path(x1, x3, x4, m1, s_sl, n, TT, pp, c.T_sl_K, T_c, 0.0, c, math.nan,
-                                        math.nan)[1]
+            G[j, 2] = extended_gas_path(x1, x3, x4, m1, s_sl, n, TT, pp, c.T_sl_K, T_c, 0.0, c, math.nan, math.nan)[1]
 
 
 @jit
@@ -309,8 +323,23 @@ def _kink_corners(c, csm, x1, x3, x4, T1, d3, d4, n_x4p, n_x4m, T_in, T_out, T6m
         for f in (d4, -d4):
             x3c = x3 + e
             x4c = x4 + f
-            _point(c, csm, x1, x3c, x4c, _charge_mass(x4c, T1, c), n_x4p if f > 0.0 else n_x4m,
-                   scavenge_flow_function(x3c / x4c, c), turbine_expansion(x3c, c), T_in, T_out, T6m, p6m, G, row)
+            _point(
+                c,
+                csm,
+                x1,
+                x3c,
+                x4c,
+                _charge_mass(x4c, T1, c),
+                n_x4p if f > 0.0 else n_x4m,
+                scavenge_flow_function(x3c / x4c, c),
+                turbine_expansion(x3c, c),
+                T_in,
+                T_out,
+                T6m,
+                p6m,
+                G,
+                row,
+            )
             row += 1
     for q in range(4):
         g0 = G[0, q]
@@ -384,7 +413,8 @@ def _tabulate(table, ti, x1, x4, T1, t, dl, mg):
 
 @jit
 def _dev_margin(dl, mg, q):
-    """Tabulated-mode inclusion term of M2.1-M2.4 for column q (1: p6, 2: T6): Σ over x1, x4, T1 of max(|Δ+| + e+, |Δ-| + e-),
+    """Tabulated-mode inclusion term of M2.1-M2.4 for column q (1: p6, 2: T6): Σ over x1, x4, T1 of
+    max(|Δ+| + e+, |Δ-| + e-),
     never below the exact Σ max(|Δ+|, |Δ-|) (each interpolated Δ is within its margin e)."""
     b = 0.0
     for i in range(3):
@@ -408,8 +438,14 @@ def _speed_margins(c, csm, x1, x3, x4, m1, n0, psi, Pi, T_in, T_out, T6m, p6m, G
         spm[q] = max(SPEED_MARGIN_FACTOR * abs(G[17, q] - G[0, q]) / hn, SPEED_ELASTICITY * abs(G[0, q]) / n0) * en
 
 
-_NO_TABLE = (np.zeros(18), np.zeros(18), np.zeros(1, dtype=np.bool_), np.zeros((1, 2, 3)),
-             np.full(3, 2, dtype=np.int64), np.zeros(2, dtype=np.int64))
+_NO_TABLE = (
+    np.zeros(18),
+    np.zeros(18),
+    np.zeros(1, dtype=np.bool_),
+    np.zeros((1, 2, 3)),
+    np.full(3, 2, dtype=np.int64),
+    np.zeros(2, dtype=np.int64),
+)
 
 
 INCLUSIONS = ("tabulated", "exact")
@@ -443,8 +479,14 @@ def table_arrays(c, dbar, side_cols=None) -> tuple:
         arrs = [getattr(t, name).reshape(-1) for t in tables]
         return arrs[0] if len(arrs) == 1 else np.concatenate(arrs)
 
-    return (flat("delta"), flat("margin"), flat("valid"), np.stack([np.stack([t.lo, 1.0 / t.step]) for t in tables]),
-            np.array(tables[0].shape, dtype=np.int64), np.array(index, dtype=np.int64))
+    return (
+        flat("delta"),
+        flat("margin"),
+        flat("valid"),
+        np.stack([np.stack([t.lo, 1.0 / t.step]) for t in tables]),
+        np.array(tables[0].shape, dtype=np.int64),
+        np.array(index, dtype=np.int64),
+    )
 
 
 # Observer state of one engine, one row per side (0: odd sensors, 1: even sensors):
@@ -522,10 +564,28 @@ def _kernel(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use
                 st = ST[side]
                 first = st[14] == 0.0
                 cols = side_cols[side]
-                cx1, cp6, cT6, ctq, cx3, cTin, cx4, cT1, cTco = (cols[0], cols[1], cols[2], cols[3], cols[4], cols[5],
-                                                                   cols[6], cols[7], cols[8])
-                x1, p6m, T6m, tqm, x3, T_in, x4, T1, T_co = (y[cx1], y[cp6], y[cT6], y[ctq], y[cx3], y[cTin], y[cx4],
-                                                             y[cT1], y[cTco])
+                cx1, cp6, cT6, ctq, cx3, cTin, cx4, cT1, cTco = (
+                    cols[0],
+                    cols[1],
+                    cols[2],
+                    cols[3],
+                    cols[4],
+                    cols[5],
+                    cols[6],
+                    cols[7],
+                    cols[8],
+                )
+                x1, p6m, T6m, tqm, x3, T_in, x4, T1, T_co = (
+                    y[cx1],
+                    y[cp6],
+                    y[cT6],
+                    y[ctq],
+                    y[cx3],
+                    y[cTin],
+                    y[cx4],
+                    y[cT1],
+                    y[cTco],
+                )
                 d1, d3, d4, dT1, dTin = dbar[cx1], dbar[cx3], dbar[cx4], dbar[cT1], dbar[cTin]
                 base_ok = math.isfinite(x1) and math.isfinite(x4) and math.isfinite(T1)
                 t = tab[side]
@@ -559,8 +619,11 @@ def _kernel(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use
                         if tabd[side]:
                             b = _dev_margin(dl[side], mg[side], 1 + j)
                         else:
-                            b = _dev(g0, t[1, 1 + j], t[2, 1 + j]) + _dev(g0, t[3, 1 + j], t[4, 1 + j]) + \
-                                _dev(g0, t[5, 1 + j], t[6, 1 + j])
+                            b = (
+                                _dev(g0, t[1, 1 + j], t[2, 1 + j])
+                                + _dev(g0, t[3, 1 + j], t[4, 1 + j])
+                                + _dev(g0, t[5, 1 + j], t[6, 1 + j])
+                            )
                         R[kk, m] = y[col] - g0
                         THR[kk, m] = dbar[col] + SAFETY * b + MODEL_MARGIN * abs(g0)
                     else:
@@ -613,18 +676,80 @@ def _kernel(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use
                     # the x1, x3, x4, T1 points, unrolled (x + 0.0 and x + (-d) equal x and x - d exactly)
                     _point(c, csm, x1 + d1, x3, x4, m1, t[1, 0], psi, Pi, T_in, T_out, T6m, p6m, G, 1)
                     _point(c, csm, x1 - d1, x3, x4, m1, t[2, 0], psi, Pi, T_in, T_out, T6m, p6m, G, 2)
-                    _point(c, csm, x1, x3 + d3, x4, m1, n0, scavenge_flow_function((x3 + d3) / x4, c),
-                           turbine_expansion(x3 + d3, c), T_in, T_out, T6m, p6m, G, 3)
-                    _point(c, csm, x1, x3 - d3, x4, m1, n0, scavenge_flow_function((x3 - d3) / x4, c),
-                           turbine_expansion(x3 - d3, c), T_in, T_out, T6m, p6m, G, 4)
-                    _point(c, csm, x1, x3, x4 + d4, _charge_mass(x4 + d4, T1, c), t[3, 0],
-                           scavenge_flow_function(x3 / (x4 + d4), c), Pi, T_in, T_out, T6m, p6m, G, 5)
-                    _point(c, csm, x1, x3, x4 - d4, _charge_mass(x4 - d4, T1, c), t[4, 0],
-                           scavenge_flow_function(x3 / (x4 - d4), c), Pi, T_in, T_out, T6m, p6m, G, 6)
-                    _point(c, csm, x1, x3, x4, _charge_mass(x4, T1 + dT1, c), t[5, 0], psi, Pi, T_in, T_out, T6m, p6m,
-                           G, 7)
-                    _point(c, csm, x1, x3, x4, _charge_mass(x4, T1 - dT1, c), t[6, 0], psi, Pi, T_in, T_out, T6m, p6m,
-                           G, 8)
+                    _point(
+                        c,
+                        csm,
+                        x1,
+                        x3 + d3,
+                        x4,
+                        m1,
+                        n0,
+                        scavenge_flow_function((x3 + d3) / x4, c),
+                        turbine_expansion(x3 + d3, c),
+                        T_in,
+                        T_out,
+                        T6m,
+                        p6m,
+                        G,
+                        3,
+                    )
+                    _point(
+                        c,
+                        csm,
+                        x1,
+                        x3 - d3,
+                        x4,
+                        m1,
+                        n0,
+                        scavenge_flow_function((x3 - d3) / x4, c),
+                        turbine_expansion(x3 - d3, c),
+                        T_in,
+                        T_out,
+                        T6m,
+                        p6m,
+                        G,
+                        4,
+                    )
+                    _point(
+                        c,
+                        csm,
+                        x1,
+                        x3,
+                        x4 + d4,
+                        _charge_mass(x4 + d4, T1, c),
+                        t[3, 0],
+                        scavenge_flow_function(x3 / (x4 + d4), c),
+                        Pi,
+                        T_in,
+                        T_out,
+                        T6m,
+                        p6m,
+                        G,
+                        5,
+                    )
+                    _point(
+                        c,
+                        csm,
+                        x1,
+                        x3,
+                        x4 - d4,
+                        _charge_mass(x4 - d4, T1, c),
+                        t[4, 0],
+                        scavenge_flow_function(x3 / (x4 - d4), c),
+                        Pi,
+                        T_in,
+                        T_out,
+                        T6m,
+                        p6m,
+                        G,
+                        6,
+                    )
+                    _point(
+                        c, csm, x1, x3, x4, _charge_mass(x4, T1 + dT1, c), t[5, 0], psi, Pi, T_in, T_out, T6m, p6m, G, 7
+                    )
+                    _point(
+                        c, csm, x1, x3, x4, _charge_mass(x4, T1 - dT1, c), t[6, 0], psi, Pi, T_in, T_out, T6m, p6m, G, 8
+                    )
                     # near a kink of Ψ_sc (x3/x4 clipped to [r_crit, 1]) the coordinate-wise terms miss
                     # the range of the slip flow (e.g. measured x3/x4 > 1, no slip at any coordinate-wise
                     # point, but slip at the corner x3 - d, x4 + d): take the larger of the two
@@ -635,8 +760,26 @@ def _kernel(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use
                     for j in range(9, 17, step):
                         if csm is not None:  # compiled only where a gas-path submodel may be on
                             if c.sm_on != 0.0:
-                                _sm_perturbed(csm, x1, x3, x4, m1, n0, s_sl, Pi, T_in, T_out, dTin, dTo, T6m, p6m, dp6,
-                                              dT6, G, step)
+                                _sm_perturbed(
+                                    csm,
+                                    x1,
+                                    x3,
+                                    x4,
+                                    m1,
+                                    n0,
+                                    s_sl,
+                                    Pi,
+                                    T_in,
+                                    T_out,
+                                    dTin,
+                                    dTo,
+                                    T6m,
+                                    p6m,
+                                    dp6,
+                                    dT6,
+                                    G,
+                                    step,
+                                )
                                 break
                         sg = 1.0 if j % 2 == 1 else -1.0
                         Ti = T_in + sg * dTin if j < 11 else T_in
@@ -661,8 +804,13 @@ def _kernel(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use
                 F, H = 0.0, 0.0
                 if ok:
                     F = G[0, 0]
-                    H = SAFETY * (_dev(F, G[1, 0], G[2, 0]) + _dev(F, G[3, 0], G[4, 0]) + _dev(F, G[5, 0], G[6, 0])
-                                  + _dev(F, G[7, 0], G[8, 0]) + _dev(F, G[9, 0], G[10, 0]))
+                    H = SAFETY * (
+                        _dev(F, G[1, 0], G[2, 0])
+                        + _dev(F, G[3, 0], G[4, 0])
+                        + _dev(F, G[5, 0], G[6, 0])
+                        + _dev(F, G[7, 0], G[8, 0])
+                        + _dev(F, G[9, 0], G[10, 0])
+                    )
                     if tabd[side]:
                         H += SAFETY * spm[0]
                     if kinked:
@@ -690,8 +838,13 @@ def _kernel(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use
                 F, H = 0.0, 0.0
                 if ok:
                     F = G[0, 1]
-                    H = SAFETY * (_dev(F, G[1, 1], G[2, 1]) + _dev(F, G[3, 1], G[4, 1]) + _dev(F, G[5, 1], G[6, 1])
-                                  + _dev(F, G[7, 1], G[8, 1]) + _dev(F, G[9, 1], G[10, 1]))
+                    H = SAFETY * (
+                        _dev(F, G[1, 1], G[2, 1])
+                        + _dev(F, G[3, 1], G[4, 1])
+                        + _dev(F, G[5, 1], G[6, 1])
+                        + _dev(F, G[7, 1], G[8, 1])
+                        + _dev(F, G[9, 1], G[10, 1])
+                    )
                     if tabd[side]:
                         H += SAFETY * spm[1]
                     if kinked:
@@ -746,7 +899,6 @@ def _kernel(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use
                 THR[kk, m] = dTo
 
 
-
 @jit
 def _sigma2_chunk(c, Y, dbar, side_cols, ST, table, use_table, k0, k1, tabs, dls, mgs, tabulated):
     """Σ2 of both chains for samples k0..k1-1 into tabs[k - k0] (rows as :func:`_cycle_table`):
@@ -766,7 +918,8 @@ def _sigma2_chunk(c, Y, dbar, side_cols, ST, table, use_table, k0, k1, tabs, dls
         tb = tabs[kk - k0, 1]
         if oka and okb:
             ta[0, 0], ta[0, 1], ta[0, 2], tb[0, 0], tb[0, 1], tb[0, 2] = _centre_speed2(
-                c, x1a, x4a, T1a, ST[0, 12], x1b, x4b, T1b, ST[1, 12])
+                c, x1a, x4a, T1a, ST[0, 12], x1b, x4b, T1b, ST[1, 12]
+            )
         elif oka:
             ta[0, 0], ta[0, 1], ta[0, 2] = _centre_speed(c, x1a, x4a, T1a, ST[0, 12])
         elif okb:
@@ -780,15 +933,32 @@ def _sigma2_chunk(c, Y, dbar, side_cols, ST, table, use_table, k0, k1, tabs, dls
         tabulated[kk - k0, 0] = False
         tabulated[kk - k0, 1] = False
         if use_table:
-            tabulated[kk - k0, 0] = oka and _tabulate(table, tside[0], x1a, x4a, T1a, ta, dls[kk - k0, 0],
-                                                      mgs[kk - k0, 0])
-            tabulated[kk - k0, 1] = okb and _tabulate(table, tside[1], x1b, x4b, T1b, tb, dls[kk - k0, 1],
-                                                      mgs[kk - k0, 1])
+            tabulated[kk - k0, 0] = oka and _tabulate(
+                table, tside[0], x1a, x4a, T1a, ta, dls[kk - k0, 0], mgs[kk - k0, 0]
+            )
+            tabulated[kk - k0, 1] = okb and _tabulate(
+                table, tside[1], x1b, x4b, T1b, tb, dls[kk - k0, 1], mgs[kk - k0, 1]
+            )
             exa = oka and not tabulated[kk - k0, 0]
             exb = okb and not tabulated[kk - k0, 1]
         if exa and exb:
-            _perturbed_rows2(c, x1a, x4a, T1a, dbar[ca[0]], dbar[ca[6]], dbar[ca[7]], ta,
-                             x1b, x4b, T1b, dbar[cb[0]], dbar[cb[6]], dbar[cb[7]], tb)
+            _perturbed_rows2(
+                c,
+                x1a,
+                x4a,
+                T1a,
+                dbar[ca[0]],
+                dbar[ca[6]],
+                dbar[ca[7]],
+                ta,
+                x1b,
+                x4b,
+                T1b,
+                dbar[cb[0]],
+                dbar[cb[6]],
+                dbar[cb[7]],
+                tb,
+            )
         elif exa:
             _perturbed_rows(c, x1a, x4a, T1a, dbar[ca[0]], dbar[ca[6]], dbar[ca[7]], ta)
         elif exb:
@@ -811,8 +981,14 @@ class ResidualTrace:
             return np.abs(self.residuals) / self.thresholds
 
 
-def residuals_for_run(constants, measurements: np.ndarray, u: np.ndarray, dt: float,
-                      noise_bounds: np.ndarray | None = None, inclusion: str = "tabulated") -> ResidualTrace:
+def residuals_for_run(
+    constants,
+    measurements: np.ndarray,
+    u: np.ndarray,
+    dt: float,
+    noise_bounds: np.ndarray | None = None,
+    inclusion: str = "tabulated",
+) -> ResidualTrace:
     """Run all 19 modules over one engine's measurements (T, 19) with the applied fuel setting (T,);
     ``inclusion`` as :class:`~marine_fdi_env.diagnosis.agent.ReferenceDiagnoser`'s."""
     Y = np.ascontiguousarray(measurements, dtype=np.float64)
@@ -850,8 +1026,21 @@ def compute_residuals_batch(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST,
     """
     n = Y.shape[0]
     kc, csm = kernel_constants(c)
-    args = (kc, csm, Y, U, float(dt), dbar, side_cols, t_out_col, R, THR, ST,
-            _NO_TABLE if table is None else table, table is not None)
+    args = (
+        kc,
+        csm,
+        Y,
+        U,
+        float(dt),
+        dbar,
+        side_cols,
+        t_out_col,
+        R,
+        THR,
+        ST,
+        _NO_TABLE if table is None else table,
+        table is not None,
+    )
     if n < THREADED_MIN_ENGINES:
         _batch_loop(*args, 0, n)
         return
@@ -860,4 +1049,3 @@ def compute_residuals_batch(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST,
 
 
 THREAD_CHUNKS = 8
-

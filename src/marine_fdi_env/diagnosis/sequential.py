@@ -54,13 +54,24 @@ import numpy as np
 
 from .._jit import jit
 from .agent import ReferenceDiagnoser
+from .cell_sets import DEFAULT_CELLS, check_cells, decision_state
 from .decision import DiagnosisState, candidate_classes, sorted_diagnoses
 from .incipient_glr import GATE_DELTA, GATE_TAU_S, ORDER, WINDOW_BLOCKS, common_shift, glr_norms, glr_pair_update
 from .modules import MODULE_IDS
-from .sure_cells import load_sure_cells
+from .peak_ratio import ratios, running_peaks
+from .sized_decision import drive_block
 
-__all__ = ["SequentialCalibration", "ReceiverTest", "SequentialStage", "SequentialDiagnoser", "SEQUENTIAL_FEATURES",
-           "CALIBRATION_FILE", "SURE_CELLS_FILE", "cusum_blocks", "pressure_ratio"]
+__all__ = [
+    "SequentialCalibration",
+    "ReceiverTest",
+    "SequentialStage",
+    "SequentialDiagnoser",
+    "SEQUENTIAL_FEATURES",
+    "CALIBRATION_FILE",
+    "SURE_CELLS_FILE",
+    "cusum_blocks",
+    "pressure_ratio",
+]
 
 N_MODULES = len(MODULE_IDS)
 CALIBRATION_FILE = "sequential.json"
@@ -90,8 +101,14 @@ class ReceiverTest:
     def from_dict(cls, d: dict | None) -> "ReceiverTest":
         if d is None:
             return cls()
-        out = cls(tuple(d["modules"]), float(d["h"]), int(d["order"]), int(d["window_blocks"]),
-                  float(d["gate_tau_s"]), float(d["gate_delta"]))
+        out = cls(
+            tuple(d["modules"]),
+            float(d["h"]),
+            int(d["order"]),
+            int(d["window_blocks"]),
+            float(d["gate_tau_s"]),
+            float(d["gate_delta"]),
+        )
         if len(out.modules) != 2 or any(m not in MODULE_IDS for m in out.modules):
             raise ValueError(f"sequential calibration: receiver modules must be two of {MODULE_IDS}, got {out.modules}")
         if not (out.h > 0 and out.order >= 0 and out.window_blocks >= 1 and out.gate_tau_s > 0 and out.gate_delta > 0):
@@ -134,8 +151,18 @@ class SequentialCalibration:
                 raise ValueError(f"sequential calibration: {k!r} must have {N_MODULES} values")
         if not np.all(np.diff(arr["u_nodes"]) > 0) or not np.all(arr["scale"] > 0):
             raise ValueError("sequential calibration: u_nodes must increase and every scale be > 0")
-        return cls(float(d["block_s"]), arr["u_nodes"], arr["mean"], arr["scale"], arr["k"], arr["h"],
-                   arr["warmup_s"], arr["r_max"], d, ReceiverTest.from_dict(d.get("receiver")))
+        return cls(
+            float(d["block_s"]),
+            arr["u_nodes"],
+            arr["mean"],
+            arr["scale"],
+            arr["k"],
+            arr["h"],
+            arr["warmup_s"],
+            arr["r_max"],
+            d,
+            ReceiverTest.from_dict(d.get("receiver")),
+        )
 
 
 @lru_cache(maxsize=None)
@@ -144,8 +171,10 @@ def load_calibration(name: str = CALIBRATION_FILE) -> SequentialCalibration:
     try:
         return SequentialCalibration.from_dict(json.loads(path.read_text()))
     except FileNotFoundError:
-        raise ValueError(f"no sequential calibration {name!r} in marine_fdi_env/data/diagnosis; build it with "
-                         "python -m studies.diagnosis.sequential_calibration") from None
+        raise ValueError(
+            f"no sequential calibration {name!r} in marine_fdi_env/data/diagnosis; build it with "
+            "python -m studies.diagnosis.sequential_calibration"
+        ) from None
 
 
 def pressure_ratio(measurements) -> np.ndarray:
@@ -155,8 +184,10 @@ def pressure_ratio(measurements) -> np.ndarray:
 
     Y = np.asarray(measurements, dtype=np.float64)
     with np.errstate(invalid="ignore", divide="ignore"):
-        r = 0.5 * (Y[..., sensor_index("S3.1")] / Y[..., sensor_index("S4.1")]
-                   + Y[..., sensor_index("S3.2")] / Y[..., sensor_index("S4.2")])
+        r = 0.5 * (
+            Y[..., sensor_index("S3.1")] / Y[..., sensor_index("S4.1")]
+            + Y[..., sensor_index("S3.2")] / Y[..., sensor_index("S4.2")]
+        )
     return r
 
 
@@ -176,8 +207,34 @@ def _interp(u, nodes, values, m):
 
 
 @jit
-def cusum_blocks(R, U, RATIO, VIOL, dt, t0, block, nodes, mean, scale, k, h, warm, r_max, acc, st, first, feats,
-                 pair, gpar, gnorms, gnum, gcount, gpos, gavg, gstate):
+def cusum_blocks(
+    R,
+    U,
+    RATIO,
+    VIOL,
+    dt,
+    t0,
+    block,
+    nodes,
+    mean,
+    scale,
+    k,
+    h,
+    warm,
+    r_max,
+    acc,
+    st,
+    first,
+    feats,
+    pair,
+    gpar,
+    gnorms,
+    gnum,
+    gcount,
+    gpos,
+    gavg,
+    gstate,
+):
     """Advance the tests of N engines over a block of samples (compiled).
 
     R (N, B, 19) residuals, U (N, B) fuel setting, RATIO (N, B) measured pressure ratio x3/x4,
@@ -229,11 +286,29 @@ def cusum_blocks(R, U, RATIO, VIOL, dt, t0, block, nodes, mean, scale, k, h, war
                 a, b = pair[0], pair[1]
                 # only while neither chain has fired on its own evidence: a chain already known to be
                 # faulty would lend its fault to the other through the pooled sum
-                active = (t + 0.5 * dt >= warm[a] and t + 0.5 * dt >= warm[b]
-                          and ratio <= r_max[a] and ratio <= r_max[b]
-                          and first[i, a] != first[i, a] and first[i, b] != first[i, b])
-                g, c1, c2 = glr_pair_update(i, feats[i, a, 2], feats[i, b, 2], u, active, gnum, gcount, gpos, gavg,
-                                            gnorms, gpar[1], gpar[2], gpar[3])
+                active = (
+                    t + 0.5 * dt >= warm[a]
+                    and t + 0.5 * dt >= warm[b]
+                    and ratio <= r_max[a]
+                    and ratio <= r_max[b]
+                    and first[i, a] != first[i, a]
+                    and first[i, b] != first[i, b]
+                )
+                g, c1, c2 = glr_pair_update(
+                    i,
+                    feats[i, a, 2],
+                    feats[i, b, 2],
+                    u,
+                    active,
+                    gnum,
+                    gcount,
+                    gpos,
+                    gavg,
+                    gnorms,
+                    gpar[1],
+                    gpar[2],
+                    gpar[3],
+                )
                 gstate[i, 0] = g
                 gstate[i, 2] = c1
                 gstate[i, 3] = c2
@@ -255,11 +330,20 @@ class SequentialStage:
     """The CUSUM tests and the decision logic of N engines, fed with the reference diagnoser's
     residuals and violations (the environment's feature generator already computes them).
 
-    exoneration : as :class:`ReferenceDiagnoser` (``"sure"``: this stage's own measured sure cells).
+    exoneration, cells : as :class:`ReferenceDiagnoser` (``"sure"``: this stage's own measured sure
+    cells, of the cell set ``cells``; ``"sized"`` bounds a fault's size by the reference's running
+    peak ratios, so :meth:`update` then needs the thresholds).
     """
 
-    def __init__(self, n_engines: int, dt: float = 0.01, calibration: "SequentialCalibration | str | None" = None,
-                 max_cardinality: int = 2, exoneration: str = "sure", sure_cells_file: str = SURE_CELLS_FILE) -> None:
+    def __init__(
+        self,
+        n_engines: int,
+        dt: float = 0.01,
+        calibration: "SequentialCalibration | str | None" = None,
+        max_cardinality: int = 2,
+        exoneration: str = "sure",
+        cells: str = DEFAULT_CELLS,
+    ) -> None:
         self.n = int(n_engines)
         self.dt = float(dt)
         if calibration is None or isinstance(calibration, str):
@@ -272,16 +356,16 @@ class SequentialStage:
             raise ValueError(f"exoneration must be 'sure', 'none' or 'all', got {exoneration!r}")
         self.exoneration = "none" if exoneration is None else exoneration
         self.max_cardinality = max_cardinality
-        self.sure_cells_file = sure_cells_file
+        self.cells = check_cells(cells)
+        self.sized = self.exoneration == "sure" and self.cells == "sized"
         self.reset()
 
     def _new_decision(self) -> DiagnosisState:
         if self.exoneration == "sure":
-            sc = load_sure_cells(self.sure_cells_file)
-            return DiagnosisState(exoneration=sc.sure, max_cardinality=self.max_cardinality, temporal=True,
-                                  settle_s=sc.settle_times(), grace_s=sc.grace_times())
-        return DiagnosisState(exoneration=True if self.exoneration == "all" else None,
-                              max_cardinality=self.max_cardinality)
+            return decision_state("sequential", self.cells, self.max_cardinality)
+        return DiagnosisState(
+            exoneration=True if self.exoneration == "all" else None, max_cardinality=self.max_cardinality
+        )
 
     def _receiver_arrays(self) -> None:
         r = self.cal.receiver
@@ -303,6 +387,8 @@ class SequentialStage:
         self.gstate[:, 1] = np.nan
         self.decisions = [self._new_decision() for _ in range(self.n)]
         self._next_expiry = np.full(self.n, np.inf)
+        self.peak_run = np.zeros((self.n, N_MODULES))
+        self._next_peak = np.full((self.n, N_MODULES), np.inf)
 
     def reset_engines(self, engines) -> None:
         for i in np.asarray(engines, dtype=np.int64).reshape(-1):
@@ -317,11 +403,14 @@ class SequentialStage:
             self.gstate[i] = (0.0, np.nan, 0.0, 0.0)
             self.decisions[i] = self._new_decision()
             self._next_expiry[i] = np.inf
+            self.peak_run[i] = 0.0
+            self._next_peak[i] = np.inf
 
-    def update(self, residuals, u, ratio, violations, t0) -> None:
+    def update(self, residuals, u, ratio, violations, t0, thresholds=None, peaks=None) -> None:
         """One block: residuals (N, B, 19), u (N, B), ratio (N, B) the measured pressure ratio
         (:func:`pressure_ratio`), violations (N, B, 19) bool or None, t0 (N,) each engine's time
-        of the block's first sample."""
+        of the block's first sample.  Sized cells only: the reference's thresholds (N, B, 19) and
+        its block peaks of |r|/threshold (N, 19) (:attr:`BlockOutput.peaks`; computed if None)."""
         R = np.ascontiguousarray(residuals, dtype=np.float64)
         U = np.ascontiguousarray(u, dtype=np.float64)
         Q = np.ascontiguousarray(ratio, dtype=np.float64)
@@ -330,12 +419,46 @@ class SequentialStage:
         t0 = np.ascontiguousarray(t0, dtype=np.float64)
         before = np.isnan(self.first)
         c = self.cal
-        cusum_blocks(R, U, Q, V, self.dt, t0, self.block, c.u_nodes, c.mean, c.scale, c.k, c.h, c.warmup_s,
-                     c.r_max, self.acc, self.st, self.first, self.feats, self._pair, self._gpar, self._gnorms,
-                     self.gnum, self.gcount, self.gpos, self.gavg, self.gstate)
+        cusum_blocks(
+            R,
+            U,
+            Q,
+            V,
+            self.dt,
+            t0,
+            self.block,
+            c.u_nodes,
+            c.mean,
+            c.scale,
+            c.k,
+            c.h,
+            c.warmup_s,
+            c.r_max,
+            self.acc,
+            self.st,
+            self.first,
+            self.feats,
+            self._pair,
+            self._gpar,
+            self._gnorms,
+            self.gnum,
+            self.gcount,
+            self.gpos,
+            self.gavg,
+            self.gstate,
+        )
         t_end = t0 + (B - 1) * self.dt
         new = before & ~np.isnan(self.first)
         busy = new.any(axis=1) | (t_end > self._next_expiry)
+        if self.sized:
+            if thresholds is None:
+                raise ValueError("the sized cells need the reference's thresholds: pass thresholds=")
+            THR = np.asarray(thresholds, dtype=np.float64)
+            pk = ratios(R, THR).max(axis=1) if peaks is None else np.asarray(peaks, dtype=np.float64)
+            busy |= (pk > self._next_peak).any(axis=1)
+            self._update_sized(np.flatnonzero(busy), R, THR, t0, new)
+            np.maximum(self.peak_run, pk, out=self.peak_run)
+            return
         for i in np.flatnonzero(busy):
             st = self.decisions[i]
             if new[i].any():
@@ -344,6 +467,22 @@ class SequentialStage:
                     st.update(~np.isnan(times) & (times <= t), float(t))
             st.advance(float(t_end[i]))
             self._next_expiry[i] = st._next_expiry
+
+    def _update_sized(self, engines, R, THR, t0, new) -> None:
+        """The decision update of the sized cells (as the reference's, :func:`drive_block`)."""
+        B = R.shape[1]
+        for i in engines:
+            st = self.decisions[i]
+            times = self.first[i]
+            tt = t0[i] + np.arange(B) * self.dt
+            q = running_peaks(ratios(R[i : i + 1], THR[i : i + 1]), self.peak_run[i : i + 1])[0]
+            firings = [
+                (min(B - 1, max(0, int(round((t - t0[i]) / self.dt)))), ~np.isnan(times) & (times <= t))
+                for t in np.unique(times[new[i]])
+            ]
+            drive_block(st, tt, q, firings, float(tt[-1]))
+            self._next_expiry[i] = st._next_expiry
+            self._next_peak[i] = st.next_peak
 
     def features(self) -> np.ndarray:
         """(N, 19 * 4) float32: per module S+/h and S-/h (capped at 10), the last block's z, fired."""
@@ -382,12 +521,28 @@ class SequentialDiagnoser:
 
     name = "sequential"
 
-    def __init__(self, params="thesis-12v28", n_engines: int = 1, dt: float = 0.01, noise_bounds=None,
-                 max_cardinality: int = 2, exoneration: str = "sure", inclusion: str = "tabulated",
-                 calibration=None, sure_cells_file: str = SURE_CELLS_FILE) -> None:
-        self.ref = ReferenceDiagnoser(params, n_engines=n_engines, dt=dt, noise_bounds=noise_bounds,
-                                      max_cardinality=max_cardinality, exoneration="none", inclusion=inclusion)
-        self.stage = SequentialStage(n_engines, dt, calibration, max_cardinality, exoneration, sure_cells_file)
+    def __init__(
+        self,
+        params="thesis-12v28",
+        n_engines: int = 1,
+        dt: float = 0.01,
+        noise_bounds=None,
+        max_cardinality: int = 2,
+        exoneration: str = "sure",
+        inclusion: str = "tabulated",
+        calibration=None,
+        cells: str = DEFAULT_CELLS,
+    ) -> None:
+        self.ref = ReferenceDiagnoser(
+            params,
+            n_engines=n_engines,
+            dt=dt,
+            noise_bounds=noise_bounds,
+            max_cardinality=max_cardinality,
+            exoneration="none",
+            inclusion=inclusion,
+        )
+        self.stage = SequentialStage(n_engines, dt, calibration, max_cardinality, exoneration, cells)
         self.n, self.dt = self.ref.n, self.ref.dt
 
     def reset(self) -> None:
@@ -399,8 +554,15 @@ class SequentialDiagnoser:
         out = self.ref.observe(measurements, u)
         U = np.asarray(u, dtype=np.float64)
         Y = np.asarray(measurements, dtype=np.float64)
-        self.stage.update(out.residuals, U[None] if U.ndim == 1 else U, pressure_ratio(Y[None] if Y.ndim == 2 else Y),
-                          out.violations, t0)
+        self.stage.update(
+            out.residuals,
+            U[None] if U.ndim == 1 else U,
+            pressure_ratio(Y[None] if Y.ndim == 2 else Y),
+            out.violations,
+            t0,
+            out.thresholds,
+            out.peaks,
+        )
         return out
 
     @property

@@ -205,5 +205,3 @@ def _perturbed_row(c, x1, x4, T1, n_c, linear, k, s_p6, s_T6, tab, p):
         tab[p, 0] = n
         tab[p, 1] = p6_p
         tab[p, 2] = T6_p
-
-

@@ -189,12 +189,20 @@ class AgentMatrix:
 
     @property
     def columns(self) -> tuple[str, ...]:
-        return (self.local_sensor_faults + self.propagated_sensor_faults + self.propagated_process_faults
-                + self.local_process_faults)
+        return (
+            self.local_sensor_faults
+            + self.propagated_sensor_faults
+            + self.propagated_process_faults
+            + self.local_process_faults
+        )
 
     def column_group(self, fault_id: str) -> str:
-        for name in ("local_sensor_faults", "propagated_sensor_faults", "propagated_process_faults",
-                     "local_process_faults"):
+        for name in (
+            "local_sensor_faults",
+            "propagated_sensor_faults",
+            "propagated_process_faults",
+            "local_process_faults",
+        ):
             if fault_id in getattr(self, name):
                 return name
         raise ValueError(f"fault {fault_id!r} is not a column of agent {self.agent}'s matrix")
@@ -266,8 +274,7 @@ def isolability_matrix(fsm: np.ndarray | None = None) -> np.ndarray:
 def non_isolable_pairs(fsm: np.ndarray | None = None) -> list[tuple[str, str]]:
     """Ordered pairs (i, j), i != j, with fault i not isolable from fault j (column i ⊆ column j)."""
     iso = isolability_matrix(fsm)
-    return [(FAULT_IDS[i], FAULT_IDS[j]) for i in range(N_FAULTS) for j in range(N_FAULTS)
-            if i != j and not iso[i, j]]
+    return [(FAULT_IDS[i], FAULT_IDS[j]) for i in range(N_FAULTS) for j in range(N_FAULTS) if i != j and not iso[i, j]]
 
 
 def identical_signature_groups(fsm: np.ndarray | None = None) -> list[tuple[str, ...]]:
@@ -341,39 +348,83 @@ _S = "*"
 
 def thesis_tables() -> dict[str, ThesisTable]:
     """Tables 6.5-6.8 of the thesis (lines 1331-1370), transcribed cell by cell as printed."""
-    t65 = ThesisTable(
-        "6.5", 1, ("M1.1", "M1.2"), ("S1.1", "S1.2", "valve_seizing"),
-        ((1, 0, 1),
-         (0, 1, 1)))
+    t65 = ThesisTable("6.5", 1, ("M1.1", "M1.2"), ("S1.1", "S1.2", "valve_seizing"), ((1, 0, 1), (0, 1, 1)))
     t66 = ThesisTable(
-        "6.6", 2, AGENTS[2],
-        ("S2.1", "S2.2", "S2.3", "S2.4", "S2.5", "S2.6", "S1.1", "S1.2", "S4.1", "S4.2", "S4.3", "S4.4",
-         "bore_damage"),
-        ((1, 0, 0, 0, 0, 0, 1, 0, 1, 0, 0, 0, 1),
-         (0, 1, 0, 0, 0, 0, 0, 1, 0, 1, 0, 0, 1),
-         (0, 0, 1, 0, 0, 0, 1, 0, 1, 0, 1, 0, 1),
-         (0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 0, 1, 1),
-         (0, 0, _S, 0, 1, 0, _S, 0, _S, 0, _S, 0, _S),
-         (0, 0, 0, _S, 0, 1, 0, _S, 0, _S, 0, _S, _S)))
+        "6.6",
+        2,
+        AGENTS[2],
+        ("S2.1", "S2.2", "S2.3", "S2.4", "S2.5", "S2.6", "S1.1", "S1.2", "S4.1", "S4.2", "S4.3", "S4.4", "bore_damage"),
+        (
+            (1, 0, 0, 0, 0, 0, 1, 0, 1, 0, 0, 0, 1),
+            (0, 1, 0, 0, 0, 0, 0, 1, 0, 1, 0, 0, 1),
+            (0, 0, 1, 0, 0, 0, 1, 0, 1, 0, 1, 0, 1),
+            (0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 0, 1, 1),
+            (0, 0, _S, 0, 1, 0, _S, 0, _S, 0, _S, 0, _S),
+            (0, 0, 0, _S, 0, 1, 0, _S, 0, _S, 0, _S, _S),
+        ),
+    )
     t67 = ThesisTable(
-        "6.7", 3, AGENTS[3],
-        ("S3.1", "S3.2", "S3.3", "S3.4", "S3.5", "S1.1", "S1.2", "S2.1", "S2.2", "S2.3", "S2.4",
-         "S4.1", "S4.2", "S4.3", "S4.4", "turbine_seal_leak", "turbine_lubrication_loss"),
-        ((1, 0, _S, 0, 0, 1, 0, 0, 0, 0, 0, _S, 0, _S, 0, 1, 0),
-         (0, 1, 0, _S, 0, 0, 1, 0, 0, 0, 0, 0, _S, 0, _S, 1, 0),
-         (_S, 0, 1, 0, 0, _S, 0, _S, 0, _S, 0, _S, 0, _S, 0, 0, 1),
-         (0, _S, 0, 1, 0, 0, _S, 0, _S, 0, _S, 0, _S, 0, _S, 0, 1),
-         (_S, 0, 1, 1, 1, 0, 0, 0, 0, 0, 0, _S, _S, 0, 0, 0, 0)))
+        "6.7",
+        3,
+        AGENTS[3],
+        (
+            "S3.1",
+            "S3.2",
+            "S3.3",
+            "S3.4",
+            "S3.5",
+            "S1.1",
+            "S1.2",
+            "S2.1",
+            "S2.2",
+            "S2.3",
+            "S2.4",
+            "S4.1",
+            "S4.2",
+            "S4.3",
+            "S4.4",
+            "turbine_seal_leak",
+            "turbine_lubrication_loss",
+        ),
+        (
+            (1, 0, _S, 0, 0, 1, 0, 0, 0, 0, 0, _S, 0, _S, 0, 1, 0),
+            (0, 1, 0, _S, 0, 0, 1, 0, 0, 0, 0, 0, _S, 0, _S, 1, 0),
+            (_S, 0, 1, 0, 0, _S, 0, _S, 0, _S, 0, _S, 0, _S, 0, 0, 1),
+            (0, _S, 0, 1, 0, 0, _S, 0, _S, 0, _S, 0, _S, 0, _S, 0, 1),
+            (_S, 0, 1, 1, 1, 0, 0, 0, 0, 0, 0, _S, _S, 0, 0, 0, 0),
+        ),
+    )
     t68 = ThesisTable(
-        "6.8", 4, AGENTS[4],
-        ("S4.1", "S4.2", "S4.3", "S4.4", "S4.5", "S4.6", "S1.1", "S1.2", "S3.1", "S3.2", "S3.3", "S3.4", "S3.5",
-         "compressor_seal_leak", "compressor_lubrication_loss", "intercooler_blockage"),
-        ((1, 0, _S, 0, 0, 0, _S, 0, 1, 0, _S, 0, 0, 1, 0, 0),
-         (0, 1, 0, _S, 0, 0, 0, _S, 0, 1, 0, _S, 0, 1, 0, 0),
-         (0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0),
-         (0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0),
-         (_S, 0, _S, 0, 1, 0, _S, 0, _S, 0, _S, 0, _S, 0, 0, 1),
-         (0, _S, 0, _S, 0, 1, _S, _S, 0, _S, 0, _S, 0, 0, 0, 1)))
+        "6.8",
+        4,
+        AGENTS[4],
+        (
+            "S4.1",
+            "S4.2",
+            "S4.3",
+            "S4.4",
+            "S4.5",
+            "S4.6",
+            "S1.1",
+            "S1.2",
+            "S3.1",
+            "S3.2",
+            "S3.3",
+            "S3.4",
+            "S3.5",
+            "compressor_seal_leak",
+            "compressor_lubrication_loss",
+            "intercooler_blockage",
+        ),
+        (
+            (1, 0, _S, 0, 0, 0, _S, 0, 1, 0, _S, 0, 0, 1, 0, 0),
+            (0, 1, 0, _S, 0, 0, 0, _S, 0, 1, 0, _S, 0, 1, 0, 0),
+            (0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0),
+            (0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0),
+            (_S, 0, _S, 0, 1, 0, _S, 0, _S, 0, _S, 0, _S, 0, 0, 1),
+            (0, _S, 0, _S, 0, 1, _S, _S, 0, _S, 0, _S, 0, 0, 0, 1),
+        ),
+    )
     tables = {t.table: t for t in (t65, t66, t67, t68)}
     for t in tables.values():
         assert all(len(r) == len(t.columns) for r in t.values) and len(t.values) == len(t.rows), t.table
@@ -435,24 +486,40 @@ def _sensor_phrase(m: ModuleSpec) -> str:
 # Notes on specific cells, keyed by (module, fault): what else the thesis's tables say about the
 # same fault/sensor, to show the printed cell is a slip rather than a modelling choice.
 _CELL_NOTES: dict[tuple[str, str], str] = {
-    ("M2.1", "S4.3"): ("the Seiliger cycle needs the inlet temperature T1 (S4.3) to compute p6; table 6.6 "
-                       "marks f_3^(4) in row ε(2,3), whose module reads the same interconnection sensors, "
-                       "but leaves it 0 in row ε(2,1)"),
-    ("M2.2", "S4.4"): ("the Seiliger cycle needs T1 (S4.4) to compute p6; table 6.6 marks f_4^(4) in row "
-                       "ε(2,4), same interconnection sensors, but leaves it 0 in row ε(2,2)"),
-    ("M3.5", "S3.2"): ("M3.5 evaluates T_out = T_in (1 - η_t(x4)(1 - Π(x3))) and takes x3 from S3.2; table "
-                       "6.7 row ε(3,5) marks f_1^(3) instead, i.e. it mixes the primary chain into the "
-                       "redundant-chain module"),
-    ("M3.5", "S3.1"): ("M3.5 is a redundant-chain (even-index) module: x3 comes from S3.2, not S3.1; table "
-                       "6.7 row ε(3,5) contradicts table 6.2"),
-    ("M3.5", "S3.3"): ("M3.5 takes T_in from S3.4 only; table 6.7 row ε(3,5) marks both f_3^(3) and f_4^(3) "
-                       "although table 6.2 lists only S3.4"),
-    ("M3.5", "S4.1"): ("M3.5 takes x4 (turbine efficiency η_t(x4)) from S4.2 only; table 6.7 row ε(3,5) "
-                       "marks both f_1^(4) and f_2^(4) although table 6.2 lists only S4.2"),
-    ("M4.6", "S1.1"): ("M4.6 is a redundant-chain module reading x1 from S1.2 only; table 6.8 row ε(4,6) "
-                       "marks both f_1^(1) and f_2^(1) although table 6.2 lists only S1.2"),
-    ("M4.6", "S3.5"): ("T_out (S3.5) enters eq. 3.38 of M4.6 exactly as in M4.5, where table 6.8 marks "
-                       "f_5^(3) with '*'; row ε(4,6) leaves it 0"),
+    ("M2.1", "S4.3"): (
+        "the Seiliger cycle needs the inlet temperature T1 (S4.3) to compute p6; table 6.6 "
+        "marks f_3^(4) in row ε(2,3), whose module reads the same interconnection sensors, "
+        "but leaves it 0 in row ε(2,1)"
+    ),
+    ("M2.2", "S4.4"): (
+        "the Seiliger cycle needs T1 (S4.4) to compute p6; table 6.6 marks f_4^(4) in row "
+        "ε(2,4), same interconnection sensors, but leaves it 0 in row ε(2,2)"
+    ),
+    ("M3.5", "S3.2"): (
+        "M3.5 evaluates T_out = T_in (1 - η_t(x4)(1 - Π(x3))) and takes x3 from S3.2; table "
+        "6.7 row ε(3,5) marks f_1^(3) instead, i.e. it mixes the primary chain into the "
+        "redundant-chain module"
+    ),
+    ("M3.5", "S3.1"): (
+        "M3.5 is a redundant-chain (even-index) module: x3 comes from S3.2, not S3.1; table "
+        "6.7 row ε(3,5) contradicts table 6.2"
+    ),
+    ("M3.5", "S3.3"): (
+        "M3.5 takes T_in from S3.4 only; table 6.7 row ε(3,5) marks both f_3^(3) and f_4^(3) "
+        "although table 6.2 lists only S3.4"
+    ),
+    ("M3.5", "S4.1"): (
+        "M3.5 takes x4 (turbine efficiency η_t(x4)) from S4.2 only; table 6.7 row ε(3,5) "
+        "marks both f_1^(4) and f_2^(4) although table 6.2 lists only S4.2"
+    ),
+    ("M4.6", "S1.1"): (
+        "M4.6 is a redundant-chain module reading x1 from S1.2 only; table 6.8 row ε(4,6) "
+        "marks both f_1^(1) and f_2^(1) although table 6.2 lists only S1.2"
+    ),
+    ("M4.6", "S3.5"): (
+        "T_out (S3.5) enters eq. 3.38 of M4.6 exactly as in M4.5, where table 6.8 marks "
+        "f_5^(3) with '*'; row ε(4,6) leaves it 0"
+    ),
 }
 
 
@@ -473,7 +540,8 @@ def _reason(m: ModuleSpec, fault: str, ours: bool, table: str, in_table: bool) -
                     f"{fault} ({sym}) changes the cylinder process of Σ2 and so the engine speed n, which is "
                     f"not measured; {m.id} computes n from Σ2's speed equation (propeller law with the cycle "
                     f"torque, eq. 3.10-3.13) fed with its interconnection sensors, so the fault enters its ARR "
-                    f"(the thesis states that process faults do not propagate between agents)")
+                    f"(the thesis states that process faults do not propagate between agents)"
+                )
             else:
                 parts.append(f"{fault} enters equation(s) {', '.join(eqs)} evaluated by {m.id}")
         else:
@@ -502,10 +570,18 @@ def compare_with_thesis() -> list[CellDifference]:
                 theirs = tv != 0
                 if ours == theirs:
                     continue
-                out.append(CellDifference(
-                    table=t.table, module=m_id, fault=f, thesis_symbol=THESIS_SYMBOLS[f], ours=ours, thesis=tv,
-                    kind="ours_only" if ours else "thesis_only",
-                    reason=_reason(m, f, ours, t.table, f in t.columns)))
+                out.append(
+                    CellDifference(
+                        table=t.table,
+                        module=m_id,
+                        fault=f,
+                        thesis_symbol=THESIS_SYMBOLS[f],
+                        ours=ours,
+                        thesis=tv,
+                        kind="ours_only" if ours else "thesis_only",
+                        reason=_reason(m, f, ours, t.table, f in t.columns),
+                    )
+                )
     return out
 
 
@@ -535,18 +611,44 @@ _MODEL_EQUATIONS: tuple[tuple[str, str | None, tuple[str, ...]], ...] = (
     ("inlet", "inlet", ("T1",)),
     ("comp_out", "comp_out", ("T_co", "x1", "m1", "s_sl", "T_in", "T_out")),
 )
-_UNKNOWNS = ("x1", "dx1", "x3", "dx3", "x4", "dx4", "n", "m1", "s_sl", "p6", "T6", "torque", "T_in", "T_out",
-             "T1", "T_co")
+_UNKNOWNS = (
+    "x1",
+    "dx1",
+    "x3",
+    "dx3",
+    "x4",
+    "dx4",
+    "n",
+    "m1",
+    "s_sl",
+    "p6",
+    "T6",
+    "torque",
+    "T_in",
+    "T_out",
+    "T1",
+    "T_co",
+)
 # sensors.py variable names -> structural unknowns
-_SENSOR_VARIABLE = {"x1": "x1", "p6": "p6", "T6": "T6", "torque": "torque", "x3": "x3", "T_in": "T_in",
-                    "T_out": "T_out", "x4": "x4", "T1": "T1", "T_co": "T_co"}
+_SENSOR_VARIABLE = {
+    "x1": "x1",
+    "p6": "p6",
+    "T6": "T6",
+    "torque": "torque",
+    "x3": "x3",
+    "T_in": "T_in",
+    "T_out": "T_out",
+    "x4": "x4",
+    "T1": "T1",
+    "T_co": "T_co",
+}
 
 
 def _fault_entries() -> dict[str, list[str]]:
     """Model equations (names) each process fault enters, through ``EQUATION_FAULTS``."""
     out: dict[str, list[str]] = {}
     for name, eq_id, _ in _MODEL_EQUATIONS:
-        for f in (EQUATION_FAULTS[eq_id] if eq_id is not None else ()):
+        for f in EQUATION_FAULTS[eq_id] if eq_id is not None else ():
             out.setdefault(f, []).append(name)
     return out
 
@@ -582,8 +684,14 @@ def structural_model() -> dict:
         rels.append(["y_" + s.id, _SENSOR_VARIABLE[s.variable], s.id])
         names.append("sensor_" + s.id)
     unknowns = list(_UNKNOWNS) + ["theta_" + f for f in sorted(shared, key=FAULT_IDS.index)]
-    return {"type": "VarStruc", "x": unknowns, "f": list(FAULT_IDS),
-            "z": ["u"] + ["y_" + s for s in SENSOR_IDS], "rels": rels, "eq_names": names}
+    return {
+        "type": "VarStruc",
+        "x": unknowns,
+        "f": list(FAULT_IDS),
+        "z": ["u"] + ["y_" + s for s in SENSOR_IDS],
+        "rels": rels,
+        "eq_names": names,
+    }
 
 
 def _eq_tags() -> list[tuple[str, str | None]]:
@@ -610,9 +718,13 @@ def module_equation_sets(mso_sets=None) -> dict[str, list[int]]:
     tags = _eq_tags()
     out: dict[str, list[int]] = {}
     for m in MODULES:
-        allowed = [k for k, (kind, tag) in enumerate(tags)
-                   if (kind == "model" and (tag is None or tag in m.equations))
-                   or kind in ("diff", "fault") or (kind == "sensor" and tag in m.all_sensors)]
+        allowed = [
+            k
+            for k, (kind, tag) in enumerate(tags)
+            if (kind == "model" and (tag is None or tag in m.equations))
+            or kind in ("diff", "fault")
+            or (kind == "sensor" and tag in m.all_sensors)
+        ]
         sub = dict(md, rels=[md["rels"][k] for k in allowed])
         sub.pop("eq_names")
         model = fdt.DiagnosisModel(sub, name=m.id)
@@ -624,8 +736,10 @@ def module_equation_sets(mso_sets=None) -> dict[str, list[int]]:
             if used_sensors == set(m.all_sensors) and used_ids == set(m.equations):
                 found.append(eqs)
         if len(found) != 1:
-            raise ValueError(f"module {m.id}: {len(found)} MSO sets of the structural model match its sensors "
-                             f"{m.all_sensors} and equations {m.equations}; expected exactly one")
+            raise ValueError(
+                f"module {m.id}: {len(found)} MSO sets of the structural model match its sensors "
+                f"{m.all_sensors} and equations {m.equations}; expected exactly one"
+            )
         out[m.id] = found[0]
     return out
 
@@ -649,8 +763,13 @@ def toolbox_crosscheck() -> dict:
     names = md.pop("eq_names")
     model = fdt.DiagnosisModel(md, name="MVFP engine")
     ne = len(md["rels"])
-    accepted = (model.X.shape == (ne, len(md["x"])) and model.F.shape == (ne, len(md["f"]))
-                and model.Z.shape == (ne, len(md["z"])) and int(model.F.sum()) > 0 and int(model.X.sum()) > 0)
+    accepted = (
+        model.X.shape == (ne, len(md["x"]))
+        and model.F.shape == (ne, len(md["f"]))
+        and model.Z.shape == (ne, len(md["z"]))
+        and int(model.F.sum()) > 0
+        and int(model.X.sum()) > 0
+    )
     sets = module_equation_sets()
     arrs = [np.asarray(sets[m], dtype=np.int64) for m in MODULE_IDS]
     fsm_tb = model.FSM(arrs).astype(bool)
@@ -660,10 +779,18 @@ def toolbox_crosscheck() -> dict:
     im_model_not = model.IsolabilityAnalysis()
     iso_model = np.asarray(im_model_not) == 0
     ours = isolability_matrix()
-    gained = [(FAULT_IDS[i], FAULT_IDS[j]) for i in range(N_FAULTS) for j in range(N_FAULTS)
-              if i != j and iso_model[i, j] and not ours[i, j]]
-    lost = [(FAULT_IDS[i], FAULT_IDS[j]) for i in range(N_FAULTS) for j in range(N_FAULTS)
-            if i != j and ours[i, j] and not iso_model[i, j]]
+    gained = [
+        (FAULT_IDS[i], FAULT_IDS[j])
+        for i in range(N_FAULTS)
+        for j in range(N_FAULTS)
+        if i != j and iso_model[i, j] and not ours[i, j]
+    ]
+    lost = [
+        (FAULT_IDS[i], FAULT_IDS[j])
+        for i in range(N_FAULTS)
+        for j in range(N_FAULTS)
+        if i != j and ours[i, j] and not iso_model[i, j]
+    ]
     return {
         "accepted": bool(accepted),
         "module_msos": {m: [names[k] for k in sets[m]] for m in MODULE_IDS},
@@ -691,9 +818,15 @@ def _cell(v) -> str:
 
 
 def _short(f: str) -> str:
-    return {"valve_seizing": "f_u", "bore_damage": "f_V1", "turbine_seal_leak": "f_xtur",
-            "turbine_lubrication_loss": "f_Tsl", "compressor_seal_leak": "f_xint",
-            "compressor_lubrication_loss": "f_Tinl", "intercooler_blockage": "f_Tc"}.get(f, f)
+    return {
+        "valve_seizing": "f_u",
+        "bore_damage": "f_V1",
+        "turbine_seal_leak": "f_xtur",
+        "turbine_lubrication_loss": "f_Tsl",
+        "compressor_seal_leak": "f_xint",
+        "compressor_lubrication_loss": "f_Tinl",
+        "intercooler_blockage": "f_Tc",
+    }.get(f, f)
 
 
 def _md_table(header: list[str], rows: list[list[str]]) -> str:
@@ -707,22 +840,30 @@ def markdown_tables() -> dict[str, str]:
     that the document contains them verbatim, so the document cannot drift from the code)."""
     fsm = _fsm()
     out: dict[str, str] = {}
-    out["fsm"] = _md_table(["module"] + [_short(f) for f in FAULT_IDS],
-                           [[m] + [_cell(bool(v)) for v in fsm[i]] for i, m in enumerate(MODULE_IDS)])
+    out["fsm"] = _md_table(
+        ["module"] + [_short(f) for f in FAULT_IDS],
+        [[m] + [_cell(bool(v)) for v in fsm[i]] for i, m in enumerate(MODULE_IDS)],
+    )
     for a, am in agent_signature_matrices().items():
         header = ["module"] + [_short(f) for f in am.columns]
         rows = [[m] + [_cell(bool(v)) for v in am.matrix[r]] for r, m in enumerate(am.module_ids)]
-        groups = (f"local sensors: {', '.join(am.local_sensor_faults)}; propagated sensors: "
-                  f"{', '.join(am.propagated_sensor_faults) or '-'}; propagated process faults: "
-                  f"{', '.join(am.propagated_process_faults) or '-'}; local process faults: "
-                  f"{', '.join(am.local_process_faults) or '-'}")
+        groups = (
+            f"local sensors: {', '.join(am.local_sensor_faults)}; propagated sensors: "
+            f"{', '.join(am.propagated_sensor_faults) or '-'}; propagated process faults: "
+            f"{', '.join(am.propagated_process_faults) or '-'}; local process faults: "
+            f"{', '.join(am.local_process_faults) or '-'}"
+        )
         out[f"agent{a}"] = groups + "\n\n" + _md_table(header, rows)
     g, agents, _ = global_propagation_matrix()
-    out["global"] = _md_table(["agent"] + [_short(f) for f in FAULT_IDS],
-                              [[f"M({a})"] + [_cell(int(v)) for v in g[r]] for r, a in enumerate(agents)])
+    out["global"] = _md_table(
+        ["agent"] + [_short(f) for f in FAULT_IDS],
+        [[f"M({a})"] + [_cell(int(v)) for v in g[r]] for r, a in enumerate(agents)],
+    )
     tg = thesis_global_propagation_matrix()
-    out["thesis_global"] = _md_table(["agent"] + [_short(f) for f in FAULT_IDS],
-                                     [[f"M({a})"] + [_cell(int(v)) for v in tg[r]] for r, a in enumerate(agents)])
+    out["thesis_global"] = _md_table(
+        ["agent"] + [_short(f) for f in FAULT_IDS],
+        [[f"M({a})"] + [_cell(int(v)) for v in tg[r]] for r, a in enumerate(agents)],
+    )
     rep = isolability_report()
     rows = []
     for f, js in rep["not_isolable_from"].items():
@@ -731,7 +872,9 @@ def markdown_tables() -> dict[str, str]:
     diffs = compare_with_thesis()
     out["comparison"] = _md_table(
         ["table", "row", "fault (thesis symbol)", "ours", "thesis", "reason"],
-        [[d.table, d.module, f"{d.fault} ({d.thesis_symbol})", "1" if d.ours else "0", str(d.thesis), d.reason]
-         for d in diffs])
+        [
+            [d.table, d.module, f"{d.fault} ({d.thesis_symbol})", "1" if d.ours else "0", str(d.thesis), d.reason]
+            for d in diffs
+        ],
+    )
     return out
-

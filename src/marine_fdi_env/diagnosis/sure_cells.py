@@ -28,8 +28,15 @@ from ..engine.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS
 from .modules import MODULE_IDS
 from .structure import fault_signature_matrix
 
-__all__ = ["SureCells", "load_sure_cells", "sure_cells", "settle_times", "grace_times", "SURE_CELLS_FILE",
-           "SENSOR_MAX_LAG_S"]
+__all__ = [
+    "SureCells",
+    "load_sure_cells",
+    "sure_cells",
+    "settle_times",
+    "grace_times",
+    "SURE_CELLS_FILE",
+    "SENSOR_MAX_LAG_S",
+]
 
 SURE_CELLS_FILE = "sure_cells.json"
 # An abrupt sensor fault surely fires a module only if it does so promptly: a module that fired in

@@ -34,7 +34,8 @@ Choices that no data determines are passed in as inputs with their justification
 ``source`` text of the entry): η_com, η_c, Q_loss_grad, σ_f, T_sl, turbochargers per engine.
 
 ``python -m studies.engine.parameter_sets`` (in the repository) rewrites the shipped parameter sets from
-the input tables below (:func:`write_parameter_sets`); ``tests/unit/test_params.py`` checks that the shipped files match.
+the input tables below (:func:`write_parameter_sets`); ``tests/unit/test_params.py`` checks that the shipped
+files match.
 """
 
 from __future__ import annotations
@@ -106,7 +107,8 @@ THESIS_12V28: dict[str, Entry] = {
     "T_amb_K": _e(318.0, "K", T41 + " (tropical design conditions)"),
     "p1_nom_Pa": _e(4.1e5, "Pa", T41),
     "Q_loss_grad": _e(
-        -0.5, "-",
+        -0.5,
+        "-",
         "choice: half of the friction torque is independent of speed and half proportional to it "
         "(friction mean effective pressure linear in mean piston speed); thesis silent",
     ),
@@ -129,8 +131,20 @@ def _scaled(base: dict[str, Entry], name: str, changes: dict[str, Entry]) -> dic
     return out
 
 
-def _sibling(name: str, bore: float, stroke: float, n_cyl: int, P: float, rpm: float,
-             sfc: float, p1: float, T_amb: float, T_c: float, src: str, extra: dict[str, Entry]) -> dict[str, Entry]:
+def _sibling(
+    name: str,
+    bore: float,
+    stroke: float,
+    n_cyl: int,
+    P: float,
+    rpm: float,
+    sfc: float,
+    p1: float,
+    T_amb: float,
+    T_c: float,
+    src: str,
+    extra: dict[str, Entry],
+) -> dict[str, Entry]:
     """Input set of a sibling engine: geometry and rating from public data, the rest scaled."""
     base = THESIS_12V28
     n = rpm / 60.0
@@ -141,8 +155,11 @@ def _sibling(name: str, bore: float, stroke: float, n_cyl: int, P: float, rpm: f
         "n_cylinders": _e(n_cyl, "-", src),
         "bore_m": _e(bore, "m", src),
         "stroke_m": _e(stroke, "m", src),
-        "crank_rod_m": _e(base["crank_rod_m"]["value"] * stroke / base["stroke_m"]["value"], "m",
-                          "scaled from thesis-12v28 at the same stroke/rod ratio"),
+        "crank_rod_m": _e(
+            base["crank_rod_m"]["value"] * stroke / base["stroke_m"]["value"],
+            "m",
+            "scaled from thesis-12v28 at the same stroke/rod ratio",
+        ),
         "V1_m3": _e(base["V1_m3"]["value"] * scale, "m3", "scaled from thesis-12v28 with bore² x stroke"),
         "SFC_nom_kg_per_J": _e(sfc, "kg/J", src),
         "tau_X_s": _e(1.0 / (4.0 * n), "s", "eq. 3.4: 1/(4 n_nom)"),
@@ -156,9 +173,11 @@ def _sibling(name: str, bore: float, stroke: float, n_cyl: int, P: float, rpm: f
 
 MAN_SRC = "MAN 32/40 project guide, table 73/29 (shared/data/man_12v32_40_fpp_iso.meta.json)"
 BIRKA_SRC = "Birka Stockholm shop tests, 100 % load mean of ME1-ME3 (shared/data/birka_6l46_shop_test.csv)"
-PROTOCOL_SRC = ("Birka ME1 test protocol, 100 % row (shared/data/birka_me1_test_protocol.csv): turbocharger speed "
-                "22142 rpm at charge-air pressure 3.08 bar gauge, ambient 1025 hPa, compressor inlet 34 C; the one "
-                "reading the turbocharger-speed law is calibrated on")
+PROTOCOL_SRC = (
+    "Birka ME1 test protocol, 100 % row (shared/data/birka_me1_test_protocol.csv): turbocharger speed "
+    "22142 rpm at charge-air pressure 3.08 bar gauge, ambient 1025 hPa, compressor inlet 34 C; the one "
+    "reading the turbocharger-speed law is calibrated on"
+)
 # The 100 % row of the protocol: the calibration point of the turbocharger-speed law of wartsila-6l46.
 PROTOCOL_TC_POINT = {"N_rpm": 22142.0, "p_ca_gauge_Pa": 3.08e5, "p_amb_Pa": 1025e2, "T_inlet_K": 34.0 + 273.15}
 # Turbochargers per engine (choice: one per row of six cylinders; thesis and project guide silent).
@@ -167,22 +186,44 @@ TURBOCHARGERS = {"thesis-12v28": 2, "man-12v32-40": 2, "wartsila-6l46": 1}
 INPUT_SETS: dict[str, dict[str, Entry]] = {
     "thesis-12v28": THESIS_12V28,
     "man-12v32-40": _sibling(
-        "man-12v32-40", 0.32, 0.40, 12, 5400e3, 750.0,
-        sfc=187e-3 / 3.6e6, p1=4.06e5, T_amb=298.15, T_c=316.15, src=MAN_SRC,
-        extra={"p_amb_Pa": _e(1e5, "Pa", MAN_SRC + ": ISO conditions"),
-               "p_ex_Pa": _e(1e5, "Pa", "equal to the ambient pressure")},
+        "man-12v32-40",
+        0.32,
+        0.40,
+        12,
+        5400e3,
+        750.0,
+        sfc=187e-3 / 3.6e6,
+        p1=4.06e5,
+        T_amb=298.15,
+        T_c=316.15,
+        src=MAN_SRC,
+        extra={
+            "p_amb_Pa": _e(1e5, "Pa", MAN_SRC + ": ISO conditions"),
+            "p_ex_Pa": _e(1e5, "Pa", "equal to the ambient pressure"),
+        },
     ),
     "wartsila-6l46": _sibling(
-        "wartsila-6l46", 0.46, 0.58, 6, 5890e3, 500.0,
-        sfc=(1141.0 + 1165.1 + 1152.0) / 3 / 3600.0 / 5890e3, p1=(3.15 + 3.04 + 3.11) / 3 * 1e5 + 1.013e5,
-        T_amb=298.15, T_c=THESIS_12V28["T_c_K"]["value"], src=BIRKA_SRC,
-        extra={"p_amb_Pa": _e(1.013e5, "Pa", "choice: standard atmosphere (ambient not recorded)"),
-               "p_ex_Pa": _e(1.013e5, "Pa", "equal to the ambient pressure")},
+        "wartsila-6l46",
+        0.46,
+        0.58,
+        6,
+        5890e3,
+        500.0,
+        sfc=(1141.0 + 1165.1 + 1152.0) / 3 / 3600.0 / 5890e3,
+        p1=(3.15 + 3.04 + 3.11) / 3 * 1e5 + 1.013e5,
+        T_amb=298.15,
+        T_c=THESIS_12V28["T_c_K"]["value"],
+        src=BIRKA_SRC,
+        extra={
+            "p_amb_Pa": _e(1.013e5, "Pa", "choice: standard atmosphere (ambient not recorded)"),
+            "p_ex_Pa": _e(1.013e5, "Pa", "equal to the ambient pressure"),
+        },
     ),
 }
 INPUT_SETS["wartsila-6l46"]["T_amb_K"]["source"] = "choice: ISO 25 C (ambient not recorded in the shop tests)"
 INPUT_SETS["wartsila-6l46"]["T_c_K"]["source"] = (
-    "same value as thesis-12v28 (thesis table 4.1): the shop tests record no cooler-outlet temperature")
+    "same value as thesis-12v28 (thesis table 4.1): the shop tests record no cooler-outlet temperature"
+)
 
 
 def derive_parameters(name: str, inputs: dict[str, Entry], choices: dict[str, Entry] | None = None) -> dict[str, Entry]:
@@ -203,14 +244,17 @@ def derive_parameters(name: str, inputs: dict[str, Entry], choices: dict[str, En
     m1 = p1 * v["V1_m3"] / (v["R_a_J_per_kgK"] * T1)
     out["m1_nom_kg"] = _e(m1, "kg", "eq. 3.29 at the nominal point: p1_nom V1 / (R_a T1_nom)")
     out["T_sl_K"] = _e(T1, "K", choices["T_sl_is_T1"]["source"])
-    g = cylinder_geometry(v["bore_m"], v["stroke_m"], v["crank_rod_m"], v["eps_c"], v["alpha_IC_deg"], v["alpha_EO_deg"])
+    g = cylinder_geometry(
+        v["bore_m"], v["stroke_m"], v["crank_rod_m"], v["eps_c"], v["alpha_IC_deg"], v["alpha_EO_deg"]
+    )
     ka, cv = v["kappa_a"], v["c_v_a_J_per_kgK"]
     q = v["eta_comb"] * v["h_L_J_per_kg"] * x1 / m1
     T2 = T1 * g.r_c ** (ka - 1.0)
     T3 = T2 * v["p_max_nom_Pa"] / (p1 * g.r_c**ka)
     X_cv = cv * (T3 - T2) / q
     out["X_cv_nom"] = _e(
-        X_cv, "-",
+        X_cv,
+        "-",
         "calibrated to p_max_nom (for thesis-12v28, table 4.1's 0.06017 yields p_max = 158 bar): closed form "
         "from p_max_nom = p1 r_c^ka T3/T2 with T3 = T2 + X_cv q / c_v",
     )
@@ -225,8 +269,9 @@ def derive_parameters(name: str, inputs: dict[str, Entry], choices: dict[str, En
     prov = {k: e["value"] for k, e in out.items()}
     prov.update(Q_loss_nom_Nm=0.0, A_eff_m2=1.0, Psi_sc_nom=1.0)
     prov.update(N_tc_nom_rpm=1.0, dh_c_nom_J_per_kg=1.0)
-    P0 = EngineParams(name=name, **{f.name: prov[f.name] for f in fields(EngineParams)
-                                    if f.name not in ("name", "submodels")})
+    P0 = EngineParams(
+        name=name, **{f.name: prov[f.name] for f in fields(EngineParams) if f.name not in ("name", "submodels")}
+    )
     c0 = model_constants(P0)
     X_ct = v["X_ct_nom"]
     _, _, _, T6, _, p6, w = seiliger_cycle(p1, T1, q, X_cv, X_ct, c0)
@@ -256,7 +301,9 @@ def derive_parameters(name: str, inputs: dict[str, Entry], choices: dict[str, En
     if pd >= p1:
         raise ValueError(f"{name}: receiver pressure {pd:.0f} Pa above charge pressure: no scavenging")
     Psi = scavenge_flow_function(pd / p1, c0)
-    out["Psi_sc_nom"] = _e(Psi, "-", f"eq. 3.19 at the nominal receiver pressure p_d = {pd:.1f} Pa (root of eq. 3.31 = p1_nom)")
+    out["Psi_sc_nom"] = _e(
+        Psi, "-", f"eq. 3.19 at the nominal receiver pressure p_d = {pd:.1f} Pa (root of eq. 3.31 = p1_nom)"
+    )
     A = mdot * math.sqrt(v["R_g_J_per_kgK"] * T_in(pd) / (pd**2 - v["p_ex_Pa"] ** 2)) / v["alpha_z"]
     out["A_eff_m2"] = _e(A, "m2", "eq. 3.16 solved for the area at the nominal receiver pressure and flow")
     out.update(_turbocharger_speed_reference(name, v, mdot - x1 * n * v["n_cylinders"] / v["revs_per_cycle"]))
@@ -274,9 +321,12 @@ def _turbocharger_speed_reference(name: str, v: dict[str, float], air_kg_s: floa
     if name == "wartsila-6l46":
         pt = PROTOCOL_TC_POINT
         dh = _isentropic_head(pt["T_inlet_K"], (pt["p_amb_Pa"] + pt["p_ca_gauge_Pa"]) / pt["p_amb_Pa"], cp, ka)
-        return {"N_tc_nom_rpm": _e(pt["N_rpm"], "rpm", PROTOCOL_SRC),
-                "dh_c_nom_J_per_kg": _e(dh, "J/kg", "isentropic compressor head c_p T (pi^((k-1)/k) - 1) at that "
-                                                    "reading: " + PROTOCOL_SRC)}
+        return {
+            "N_tc_nom_rpm": _e(pt["N_rpm"], "rpm", PROTOCOL_SRC),
+            "dh_c_nom_J_per_kg": _e(
+                dh, "J/kg", "isentropic compressor head c_p T (pi^((k-1)/k) - 1) at that reading: " + PROTOCOL_SRC
+            ),
+        }
     ref = derive_parameters("wartsila-6l46", INPUT_SETS["wartsila-6l46"])
     rv = {k: e["value"] for k, e in ref.items()}
     dh = _isentropic_head(v["T_amb_K"], v["p1_nom_Pa"] / v["p_amb_Pa"], cp, ka)
@@ -284,10 +334,14 @@ def _turbocharger_speed_reference(name: str, v: dict[str, float], air_kg_s: floa
     vol = air_kg_s / TURBOCHARGERS[name] * v["R_a_J_per_kgK"] * v["T_amb_K"] / v["p_amb_Pa"]
     vol_ref = air_ref / TURBOCHARGERS["wartsila-6l46"] * rv["R_a_J_per_kgK"] * rv["T_amb_K"] / rv["p_amb_Pa"]
     N = rv["N_tc_nom_rpm"] * math.sqrt(dh / rv["dh_c_nom_J_per_kg"]) * math.sqrt(vol_ref / vol)
-    src = (f"similarity with wartsila-6l46 (same isentropic head coefficient, compressor diameter ~ sqrt(volume flow "
-           f"per turbocharger), {TURBOCHARGERS[name]} turbochargers (choice)): an estimate, no speed record")
-    return {"N_tc_nom_rpm": _e(N, "rpm", src),
-            "dh_c_nom_J_per_kg": _e(dh, "J/kg", "isentropic compressor head at the nominal point (p1_nom, p_amb, T_amb)")}
+    src = (
+        f"similarity with wartsila-6l46 (same isentropic head coefficient, compressor diameter ~ sqrt(volume flow "
+        f"per turbocharger), {TURBOCHARGERS[name]} turbochargers (choice)): an estimate, no speed record"
+    )
+    return {
+        "N_tc_nom_rpm": _e(N, "rpm", src),
+        "dh_c_nom_J_per_kg": _e(dh, "J/kg", "isentropic compressor head at the nominal point (p1_nom, p_amb, T_amb)"),
+    }
 
 
 def write_parameter_sets(directory: Path | None = None) -> list[Path]:
@@ -316,4 +370,3 @@ _DESCRIPTIONS = {
     "wartsila-6l46": "Wartsila 6L46, 5.89 MW at 500 rpm: geometry, rating, SFC and charge pressure from the Birka "
     "shop tests; everything else scaled from thesis-12v28 and re-derived at the nominal point.",
 }
-

@@ -39,26 +39,74 @@ import numpy as np
 from .geometry import cylinder_geometry
 from .params import EngineParams
 
-__all__ = ["ModelConstants", "model_constants", "constants_at_ambient", "AMBIENT_FIELDS", "DERIVED_FIELDS",
-           "SUBMODEL_FIELDS", "KernelConstants", "kernel_constants"]
+__all__ = [
+    "ModelConstants",
+    "model_constants",
+    "constants_at_ambient",
+    "AMBIENT_FIELDS",
+    "DERIVED_FIELDS",
+    "SUBMODEL_FIELDS",
+    "KernelConstants",
+    "kernel_constants",
+]
 
 _PARAM_FIELDS = tuple(f.name for f in fields(EngineParams) if f.name not in ("name", "submodels"))
 DERIVED_FIELDS = (
-    "r_c", "r_eo", "rc_pow_kappa", "rc_pow_kappa_m1", "ln_rc_reo", "two_pi_over_c", "torque_per_work",
-    "r_crit", "psi_coeff", "psi_exp_a", "psi_exp_b", "pi_exp", "gamma_coeff", "slip_coeff", "cycles_per_rev",
-    "chi_g", "comp_exp",
+    "r_c",
+    "r_eo",
+    "rc_pow_kappa",
+    "rc_pow_kappa_m1",
+    "ln_rc_reo",
+    "two_pi_over_c",
+    "torque_per_work",
+    "r_crit",
+    "psi_coeff",
+    "psi_exp_a",
+    "psi_exp_b",
+    "pi_exp",
+    "gamma_coeff",
+    "slip_coeff",
+    "cycles_per_rev",
+    "chi_g",
+    "comp_exp",
 )
 SUBMODEL_FIELDS = (
     "sm_on",
-    "sl_comb", "sl_s0", "sl_s1",
-    "fr_on", "fr_a_Pa", "fr_d_Pa", "fr_torque_per_Pa",
-    "tm_on", "tm_eta0", "tm_s", "tm_w",
-    "ic_on", "ic_eps", "ic_dT", "ic_tco_nom", "eta_c",
-    "wg_on", "wg_u", "wg_a",
-    "bp_on", "bp_junction_turbine", "bp_u", "bp_b",
-    "tf_on", "tf_s", "tf_e",
-    "bsr_on", "bsr_ropt", "bsr_w", "bsr_norm", "bsr_ref",
-    "hl_on", "hl_ntu_nom", "hl_e", "hl_mdot_nom",
+    "sl_comb",
+    "sl_s0",
+    "sl_s1",
+    "fr_on",
+    "fr_a_Pa",
+    "fr_d_Pa",
+    "fr_torque_per_Pa",
+    "tm_on",
+    "tm_eta0",
+    "tm_s",
+    "tm_w",
+    "ic_on",
+    "ic_eps",
+    "ic_dT",
+    "ic_tco_nom",
+    "eta_c",
+    "wg_on",
+    "wg_u",
+    "wg_a",
+    "bp_on",
+    "bp_junction_turbine",
+    "bp_u",
+    "bp_b",
+    "tf_on",
+    "tf_s",
+    "tf_e",
+    "bsr_on",
+    "bsr_ropt",
+    "bsr_w",
+    "bsr_norm",
+    "bsr_ref",
+    "hl_on",
+    "hl_ntu_nom",
+    "hl_e",
+    "hl_mdot_nom",
 )
 ModelConstants = namedtuple("ModelConstants", _PARAM_FIELDS + DERIVED_FIELDS + SUBMODEL_FIELDS)
 
@@ -90,15 +138,23 @@ def _submodel_constants(p: EngineParams, g) -> dict:
     if sm.speed_law is not None:
         out.update(sl_comb=1.0, sl_s0=sm.speed_law.speed_zero_load_rel, sl_s1=sm.speed_law.speed_full_load_rel)
     if sm.friction is not None:
-        out.update(fr_on=1.0, fr_a_Pa=sm.friction.fmep_offset_Pa, fr_d_Pa=sm.friction.fmep_speed2_Pa,
-                   fr_torque_per_Pa=g.swept_volume_m3 * p.n_cylinders / (2.0 * math.pi * p.revs_per_cycle))
+        out.update(
+            fr_on=1.0,
+            fr_a_Pa=sm.friction.fmep_offset_Pa,
+            fr_d_Pa=sm.friction.fmep_speed2_Pa,
+            fr_torque_per_Pa=g.swept_volume_m3 * p.n_cylinders / (2.0 * math.pi * p.revs_per_cycle),
+        )
     gas = False
     if sm.turbocharger_map is not None:
         gas = True
         out.update(tm_on=1.0, tm_s=sm.turbocharger_map.eta_scale, tm_w=sm.turbocharger_map.curvature)
     if sm.intercooler is not None:
-        out.update(ic_on=1.0, ic_eps=sm.intercooler.effectiveness, ic_dT=sm.intercooler.dT_outlet_K,
-                   ic_tco_nom=_tco_isentropic(p, eta_c, p.p1_nom_Pa))
+        out.update(
+            ic_on=1.0,
+            ic_eps=sm.intercooler.effectiveness,
+            ic_dT=sm.intercooler.dT_outlet_K,
+            ic_tco_nom=_tco_isentropic(p, eta_c, p.p1_nom_Pa),
+        )
     if sm.waste_gate is not None:
         gas = True
         out["wg_on"] = 1.0
@@ -117,14 +173,20 @@ def _submodel_constants(p: EngineParams, g) -> dict:
         # blade-speed ratio squared relative to the nominal point: (Δh_c,is / Δh_t,is) / (δ_f η_TC)_nom, since the
         # turbocharger power balance gives Δh_c,is = δ_f η_TC Δh_t,is
         d_nom = 1.0 + p.x1_nom_kg / ((1.0 + p.s_sl_nom) * p.m1_nom_kg)
-        out.update(bsr_on=1.0, bsr_ropt=b.bsr_opt_rel, bsr_w=b.curvature,
-                   bsr_norm=1.0 - b.curvature * (1.0 / b.bsr_opt_rel - 1.0) ** 2, bsr_ref=d_nom * eta0)
+        out.update(
+            bsr_on=1.0,
+            bsr_ropt=b.bsr_opt_rel,
+            bsr_w=b.curvature,
+            bsr_norm=1.0 - b.curvature * (1.0 / b.bsr_opt_rel - 1.0) ** 2,
+            bsr_ref=d_nom * eta0,
+        )
     if sm.exhaust_heat_loss is not None:
         gas = True
         h = sm.exhaust_heat_loss
         mdot_nom = ((1.0 + p.s_sl_nom) * p.m1_nom_kg + p.x1_nom_kg) * p.n_nom_rev_s * p.n_cylinders / p.revs_per_cycle
-        out.update(hl_on=1.0, hl_ntu_nom=-math.log(1.0 - h.loss_fraction_nom), hl_e=h.flow_exponent,
-                   hl_mdot_nom=mdot_nom)
+        out.update(
+            hl_on=1.0, hl_ntu_nom=-math.log(1.0 - h.loss_fraction_nom), hl_e=h.flow_exponent, hl_mdot_nom=mdot_nom
+        )
     out["sm_on"] = 1.0 if gas else 0.0
     return out
 

@@ -103,7 +103,9 @@ def fault_class(fault_id: str) -> str:
         return "process"
     from ..suggest import did_you_mean
 
-    raise ValueError(f"unknown fault id {fault_id!r}{did_you_mean(fault_id, FAULT_IDS)}; allowed: {', '.join(FAULT_IDS)}")
+    raise ValueError(
+        f"unknown fault id {fault_id!r}{did_you_mean(fault_id, FAULT_IDS)}; allowed: {', '.join(FAULT_IDS)}"
+    )
 
 
 def _check_number(name: str, value, *, positive: bool = False, nonneg: bool = False, allow_inf: bool = False):
@@ -317,12 +319,19 @@ class CompiledSchedule:
                 if not isinstance(f, FaultSpec):
                     raise ValueError(f"fault schedule of engine {i} must hold FaultSpec items, got {f!r}")
                 if f.fault_id in seen:
-                    raise ValueError(f"fault {f.fault_id!r} is scheduled twice for engine {i}; one window set per fault")
+                    raise ValueError(
+                        f"fault {f.fault_id!r} is scheduled twice for engine {i}; one window set per fault"
+                    )
                 seen.add(f.fault_id)
-                row = (i, f.onset_s, f.resolved_kappa, f.resolved_magnitude,
-                       math.inf if f.end_s is None else f.end_s,
-                       math.inf if f.period_s is None else f.period_s,
-                       1.0 if f.duty is None else f.duty)
+                row = (
+                    i,
+                    f.onset_s,
+                    f.resolved_kappa,
+                    f.resolved_magnitude,
+                    math.inf if f.end_s is None else f.end_s,
+                    math.inf if f.period_s is None else f.period_s,
+                    1.0 if f.duty is None else f.duty,
+                )
                 breaks.append(f.onset_s)
                 if f.end_s is not None:
                     breaks.append(f.end_s)
@@ -334,8 +343,9 @@ class CompiledSchedule:
         for k, rows in proc.items():
             if rows:
                 arr = list(zip(*rows))
-                out.process[k] = {nm: np.asarray(col, dtype=np.int64 if nm == "engine" else float)
-                                  for nm, col in zip(names, arr)}
+                out.process[k] = {
+                    nm: np.asarray(col, dtype=np.int64 if nm == "engine" else float) for nm, col in zip(names, arr)
+                }
         if sens:
             cols = list(zip(*sens))
             out.s_engine = np.asarray(cols[0], dtype=np.int64)

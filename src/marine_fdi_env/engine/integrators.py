@@ -32,8 +32,7 @@ from .._jit import jit, jit_inline
 from .constants import kernel_constants
 from .model import PF_FIELDS, _solve_algebraic, forcings
 
-__all__ = ["advance_batch", "reference_solve", "FAILURE_REASONS",
-           "PREDICTOR_SWEEPS", "OUTPUT_SWEEPS", "TRANSIENT_TOL"]
+__all__ = ["advance_batch", "reference_solve", "FAILURE_REASONS", "PREDICTOR_SWEEPS", "OUTPUT_SWEEPS", "TRANSIENT_TOL"]
 
 # The predictor stage needs the speed only to second order in h: one sweep from the previous
 # sample's speed (contraction 0.06-0.13) leaves an error of about a tenth of the speed change per
@@ -148,8 +147,29 @@ def _pf_row(PF, r, i):
 
 
 @jit_inline
-def _engine_step(c, csm, h, substeps, x1, x3, x4, u0, u1, pf0, pf1, alg, alg_new, algp, pfa, pfb, alg_a, alg_b,
-                 lam_lim, coef, coef_sub):
+def _engine_step(
+    c,
+    csm,
+    h,
+    substeps,
+    x1,
+    x3,
+    x4,
+    u0,
+    u1,
+    pf0,
+    pf1,
+    alg,
+    alg_new,
+    algp,
+    pfa,
+    pfb,
+    alg_a,
+    alg_b,
+    lam_lim,
+    coef,
+    coef_sub,
+):
     """One sample of one engine from the state (x1, x3, x4) and algebraic state ``alg`` under the commanded
     fuel settings u0, u1 and the process-fault vectors pf0, pf1 at the start and end: returns the state and
     the failure code at the end, the algebraic state in ``alg_new`` (algp, pfa, pfb, alg_a, alg_b: the
@@ -180,8 +200,35 @@ def _engine_step(c, csm, h, substeps, x1, x3, x4, u0, u1, pf0, pf1, alg, alg_new
 
 
 @jit
-def _advance_range(c, csm, h, substeps, i0, i1, X, UR, UL, PF, ALG, alive, lam_lim, NOISE, noise_pos, NB, SENSOR_COLS,
-                   Y, UAPP, STATE, record, CODES, FAIL_K, SCR_PF, SCR_ALG, X_NEW, ALG_NEW):
+def _advance_range(
+    c,
+    csm,
+    h,
+    substeps,
+    i0,
+    i1,
+    X,
+    UR,
+    UL,
+    PF,
+    ALG,
+    alive,
+    lam_lim,
+    NOISE,
+    noise_pos,
+    NB,
+    SENSOR_COLS,
+    Y,
+    UAPP,
+    STATE,
+    record,
+    CODES,
+    FAIL_K,
+    SCR_PF,
+    SCR_ALG,
+    X_NEW,
+    ALG_NEW,
+):
     """K samples of engines i0..i1-1: step, charge-air limiter, noisy sensor readings (one call)."""
     K = Y.shape[1]
     n_s = SENSOR_COLS.shape[0]
@@ -197,9 +244,29 @@ def _advance_range(c, csm, h, substeps, i0, i1, X, UR, UL, PF, ALG, alive, lam_l
             r0 = k if multi_pf else 0
             r1 = k + 1 if multi_pf else 0
             if alive[i]:
-                x1, x3, x4, code = _engine_step(c, csm, h, substeps, X[i, 0], X[i, 1], X[i, 2], UR[k, i], UL[k + 1, i],
-                                                _pf_row(PF, r0, i), _pf_row(PF, r1, i), alg, alg_new, algp, pfa, pfb,
-                                                alg_a, alg_b, lam_lim, coef, coef_sub)
+                x1, x3, x4, code = _engine_step(
+                    c,
+                    csm,
+                    h,
+                    substeps,
+                    X[i, 0],
+                    X[i, 1],
+                    X[i, 2],
+                    UR[k, i],
+                    UL[k + 1, i],
+                    _pf_row(PF, r0, i),
+                    _pf_row(PF, r1, i),
+                    alg,
+                    alg_new,
+                    algp,
+                    pfa,
+                    pfb,
+                    alg_a,
+                    alg_b,
+                    lam_lim,
+                    coef,
+                    coef_sub,
+                )
                 if code == 0:
                     X[i, 0] = x1
                     X[i, 1] = x3
@@ -223,8 +290,32 @@ def _advance_range(c, csm, h, substeps, i0, i1, X, UR, UL, PF, ALG, alive, lam_l
                     STATE[i, k, 3 + j] = alg[j]
 
 
-def advance_batch(c, h, substeps, X, UR, UL, PF, ALG, alive, lam_lim, NOISE, noise_pos, NB, SENSOR_COLS,
-                  Y, UAPP, STATE, record, CODES, FAIL_K, SCR_PF, SCR_ALG, X_NEW, ALG_NEW):
+def advance_batch(
+    c,
+    h,
+    substeps,
+    X,
+    UR,
+    UL,
+    PF,
+    ALG,
+    alive,
+    lam_lim,
+    NOISE,
+    noise_pos,
+    NB,
+    SENSOR_COLS,
+    Y,
+    UAPP,
+    STATE,
+    record,
+    CODES,
+    FAIL_K,
+    SCR_PF,
+    SCR_ALG,
+    X_NEW,
+    ALG_NEW,
+):
     """Advance every engine by K = Y.shape[1] samples in one compiled call (state updated in place).
 
     UR, UL: (K+1, N) right and left limits of the commanded fuel setting at the K+1 sample times;
@@ -241,8 +332,29 @@ def advance_batch(c, h, substeps, X, UR, UL, PF, ALG, alive, lam_lim, NOISE, noi
     """
     n = X.shape[0]
     kc, csm = kernel_constants(c)  # floats only: no reference counting of the constants per compiled call
-    args = (X, UR, UL, PF, ALG, alive, float(lam_lim), NOISE, int(noise_pos), NB, SENSOR_COLS, Y, UAPP, STATE,
-            bool(record), CODES, FAIL_K, SCR_PF, SCR_ALG, X_NEW, ALG_NEW)
+    args = (
+        X,
+        UR,
+        UL,
+        PF,
+        ALG,
+        alive,
+        float(lam_lim),
+        NOISE,
+        int(noise_pos),
+        NB,
+        SENSOR_COLS,
+        Y,
+        UAPP,
+        STATE,
+        bool(record),
+        CODES,
+        FAIL_K,
+        SCR_PF,
+        SCR_ALG,
+        X_NEW,
+        ALG_NEW,
+    )
     if n < THREADED_MIN_ENGINES:
         _advance_range(kc, csm, h, substeps, 0, n, *args)
         return
@@ -321,8 +433,11 @@ def reference_solve(
     y0 = np.array([ss.x1[0], ss.x3[0], ss.x4[0]])
     n_state["n"] = ss.alg.n
     end = float(t_grid[-1])
-    cuts = sorted({0.0, end} | {float(b) for b in prof.breakpoints if 0 < b < end}
-                  | {float(b) for b in sched.breakpoints if 0 < b < end})
+    cuts = sorted(
+        {0.0, end}
+        | {float(b) for b in prof.breakpoints if 0 < b < end}
+        | {float(b) for b in sched.breakpoints if 0 < b < end}
+    )
     X = np.empty((len(t_grid), 3))
     X[0] = y0
     atol = np.array([1e-12 * p.x1_nom_kg, 1e-12 * p.p1_nom_Pa, 1e-12 * p.p1_nom_Pa])
@@ -342,6 +457,16 @@ def reference_solve(
     for i, t in enumerate(t_grid):
         alg = model.algebraic(X[i, 0:1], X[i, 1:2], X[i, 2:3], pf_at(t), n_guess)
         n_guess = alg.n
-        true[i] = [X[i, 0], alg.p6[0], alg.T6[0], alg.torque[0], X[i, 1], alg.T_in[0], alg.T_out[0], X[i, 2],
-                   alg.T1[0], alg.T_co[0]]
+        true[i] = [
+            X[i, 0],
+            alg.p6[0],
+            alg.T6[0],
+            alg.torque[0],
+            X[i, 1],
+            alg.T_in[0],
+            alg.T_out[0],
+            X[i, 2],
+            alg.T1[0],
+            alg.T_co[0],
+        ]
     return t_grid, X, true

@@ -42,14 +42,45 @@ from .subsystems.exhaust_receiver import receiver_and_turbine, slip_ratio
 from .subsystems.fuel_pump import fuel_pump_forcing
 from .subsystems.gas_path import _extended_gas_path
 
-__all__ = ["ProcessFaultValues", "Algebraic", "EngineModel", "solve_algebraic", "algebraic_at_speed", "ALG_FIELDS",
-           "PF_FIELDS", "HEALTHY_PF"]
+__all__ = [
+    "ProcessFaultValues",
+    "Algebraic",
+    "EngineModel",
+    "solve_algebraic",
+    "algebraic_at_speed",
+    "ALG_FIELDS",
+    "PF_FIELDS",
+    "HEALTHY_PF",
+]
 
 # Order of the process-fault vector and of the algebraic output vector of compiled code.
 PF_FIELDS = ("f_u", "dV1_m3", "phi_tur", "dT_sl_K", "phi_int", "dT_inl_K", "dT_c_K")
 HEALTHY_PF = np.array([1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
-ALG_FIELDS = ("n", "torque", "p6", "T6", "p_max", "m1", "s_sl", "T_in", "T_out", "T1", "T_co", "lam", "mdot_g",
-              "Pi_turbo", "h3", "h4", "T_cyl", "T_t", "T_c", "mdot_bp", "wg_frac", "mdot_c", "T_exh")
+ALG_FIELDS = (
+    "n",
+    "torque",
+    "p6",
+    "T6",
+    "p_max",
+    "m1",
+    "s_sl",
+    "T_in",
+    "T_out",
+    "T1",
+    "T_co",
+    "lam",
+    "mdot_g",
+    "Pi_turbo",
+    "h3",
+    "h4",
+    "T_cyl",
+    "T_t",
+    "T_c",
+    "mdot_bp",
+    "wg_frac",
+    "mdot_c",
+    "T_exh",
+)
 N_ALG = len(ALG_FIELDS)
 
 
@@ -142,8 +173,7 @@ def _gas_exchange(c, csm, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, 
     if csm is not None:  # compiled only where a gas-path submodel may be on
         if c.sm_on != 0.0:
             T_c = cooler_outlet_temperature(x4, c)
-            g = _extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, c.T_sl_K + pf[3], T_c, pf[6], c, csm, ov_wg,
-                                   ov_bp)
+            g = _extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, c.T_sl_K + pf[3], T_c, pf[6], c, csm, ov_wg, ov_bp)
             out[14] = g[0]
             out[7] = g[1]
             out[8] = g[2]
@@ -241,7 +271,9 @@ class EngineModel:
     def __post_init__(self) -> None:
         self.constants = model_constants(self.params)
 
-    def algebraic(self, x1, x3, x4, pf: ProcessFaultValues = HEALTHY, n_guess=None, sweeps: int | None = None) -> Algebraic:
+    def algebraic(
+        self, x1, x3, x4, pf: ProcessFaultValues = HEALTHY, n_guess=None, sweeps: int | None = None
+    ) -> Algebraic:
         """Solve the algebraic equations of Σ2-Σ4 for given states (eq. 3.7-3.38).
 
         ``sweeps`` overrides ``speed_sweeps`` of the speed loop (see :func:`engine_block`).
@@ -251,15 +283,27 @@ class EngineModel:
             n_guess = self.params.n_nom_rev_s
         out = np.empty((n, N_ALG))
         kc, csm = kernel_constants(self.constants)
-        algebraic_batch(kc, csm, _vec(x1, n), _vec(x3, n), _vec(x4, n), pf.as_array(n), _vec(n_guess, n),
-                        self.speed_sweeps if sweeps is None else int(sweeps), out)
+        algebraic_batch(
+            kc,
+            csm,
+            _vec(x1, n),
+            _vec(x3, n),
+            _vec(x4, n),
+            pf.as_array(n),
+            _vec(n_guess, n),
+            self.speed_sweeps if sweeps is None else int(sweeps),
+            out,
+        )
         return Algebraic.from_array(out)
 
     def linear_coefficients(self, pf: ProcessFaultValues = HEALTHY):
         """Diagonal linear parts a1, a3, a4 [1/s] (eq. 3.4, 3.15, 3.30 with the seal-leak faults)."""
         p = self.params
-        return (-1.0 / p.tau_X_s, -(1.0 + np.asarray(pf.phi_tur)) / p.tau_pd_s,
-                -(1.0 + np.asarray(pf.phi_int)) / p.tau_TC_s)
+        return (
+            -1.0 / p.tau_X_s,
+            -(1.0 + np.asarray(pf.phi_tur)) / p.tau_pd_s,
+            -(1.0 + np.asarray(pf.phi_int)) / p.tau_TC_s,
+        )
 
     def forcing(self, u, alg: Algebraic, pf: ProcessFaultValues = HEALTHY):
         """Forcings F1 [kg/s], F3 = h3 [Pa/s], F4 = h4 [Pa/s]."""
@@ -272,4 +316,3 @@ class EngineModel:
         a1, a3, a4 = self.linear_coefficients(pf)
         F1, F3, F4 = self.forcing(u, alg, pf)
         return (a1 * np.asarray(x1) + F1, a3 * np.asarray(x3) + F3, a4 * np.asarray(x4) + F4), alg
-

@@ -36,8 +36,22 @@ from .model import ALG_FIELDS, HEALTHY_PF, N_ALG, algebraic_at_speed
 from .params import EngineParams
 from .turbocharger_speed import turbocharger_speed_rpm
 
-__all__ = ["MODE_U", "MODE_P", "MODE_F", "LAW_PARAMS", "LAW_PRESCRIBED", "SUMMARY_KEYS", "OperatingPoints",
-           "solve_points", "solve_raw", "speed_of_power", "power_of_speed", "summaries_from_alg", "ALG_INDEX", "Summary"]
+__all__ = [
+    "MODE_U",
+    "MODE_P",
+    "MODE_F",
+    "LAW_PARAMS",
+    "LAW_PRESCRIBED",
+    "SUMMARY_KEYS",
+    "OperatingPoints",
+    "solve_points",
+    "solve_raw",
+    "speed_of_power",
+    "power_of_speed",
+    "summaries_from_alg",
+    "ALG_INDEX",
+    "Summary",
+]
 
 MODE_U, MODE_P, MODE_F = 0, 1, 2
 LAW_PARAMS, LAW_PRESCRIBED = 0, 2
@@ -45,14 +59,34 @@ _A = {f: i for i, f in enumerate(ALG_FIELDS)}
 ALG_INDEX = _A
 
 SUMMARY_KEYS = (
-    "fuel_setting", "engine_speed_rev_s", "power_W", "torque_Nm", "fuel_per_cycle_kg", "fuel_mass_flow_kg_s",
-    "sfc_kg_per_J", "charge_air_pressure_Pa", "exhaust_receiver_pressure_Pa", "p_max_Pa", "cylinder_pressure_eo_Pa",
-    "cylinder_temperature_eo_K", "turbine_inlet_temperature_K", "turbine_outlet_temperature_K",
-    "compressor_outlet_temperature_K", "inlet_air_temperature_K", "air_mass_flow_kg_s", "exhaust_mass_flow_kg_s",
-    "air_excess_ratio", "slip_ratio",
+    "fuel_setting",
+    "engine_speed_rev_s",
+    "power_W",
+    "torque_Nm",
+    "fuel_per_cycle_kg",
+    "fuel_mass_flow_kg_s",
+    "sfc_kg_per_J",
+    "charge_air_pressure_Pa",
+    "exhaust_receiver_pressure_Pa",
+    "p_max_Pa",
+    "cylinder_pressure_eo_Pa",
+    "cylinder_temperature_eo_K",
+    "turbine_inlet_temperature_K",
+    "turbine_outlet_temperature_K",
+    "compressor_outlet_temperature_K",
+    "inlet_air_temperature_K",
+    "air_mass_flow_kg_s",
+    "exhaust_mass_flow_kg_s",
+    "air_excess_ratio",
+    "slip_ratio",
     # beyond the base summary of steady_state.SteadyState
-    "charge_air_cooler_outlet_temperature_K", "cylinder_outlet_temperature_K", "turbine_gas_inlet_temperature_K",
-    "exhaust_after_waste_gate_temperature_K", "bypass_air_flow_kg_s", "bypass_fraction", "waste_gate_fraction",
+    "charge_air_cooler_outlet_temperature_K",
+    "cylinder_outlet_temperature_K",
+    "turbine_gas_inlet_temperature_K",
+    "exhaust_after_waste_gate_temperature_K",
+    "bypass_air_flow_kg_s",
+    "bypass_fraction",
+    "waste_gate_fraction",
     "turbocharger_speed_rpm",
 )
 
@@ -67,8 +101,17 @@ class Summary(Mapping):
     :meth:`marine_fdi_env.engine.steady_state.SteadyState.summary` computes them.
     """
 
-    def __init__(self, params: EngineParams, x1, x3, x4, alg: np.ndarray, conv: np.ndarray | None = None,
-                 p_amb_Pa=None, T_amb_K=None):
+    def __init__(
+        self,
+        params: EngineParams,
+        x1,
+        x3,
+        x4,
+        alg: np.ndarray,
+        conv: np.ndarray | None = None,
+        p_amb_Pa=None,
+        T_amb_K=None,
+    ):
         ok = np.ones(alg.shape[0], bool) if conv is None else np.asarray(conv, bool)
         self._p, self._ok = params, ok
         self._x1 = np.where(ok, x1, np.nan)
@@ -132,18 +175,29 @@ class Summary(Mapping):
 
 
 _DIRECT = {
-    "p_max_Pa": "p_max", "cylinder_pressure_eo_Pa": "p6", "cylinder_temperature_eo_K": "T6",
-    "turbine_inlet_temperature_K": "T_in", "turbine_outlet_temperature_K": "T_out",
-    "compressor_outlet_temperature_K": "T_co", "inlet_air_temperature_K": "T1", "air_mass_flow_kg_s": "mdot_c",
-    "exhaust_mass_flow_kg_s": "mdot_g", "air_excess_ratio": "lam", "slip_ratio": "s_sl",
-    "charge_air_cooler_outlet_temperature_K": "T_c", "cylinder_outlet_temperature_K": "T_cyl",
-    "turbine_gas_inlet_temperature_K": "T_t", "exhaust_after_waste_gate_temperature_K": "T_exh",
-    "bypass_air_flow_kg_s": "mdot_bp", "waste_gate_fraction": "wg_frac",
+    "p_max_Pa": "p_max",
+    "cylinder_pressure_eo_Pa": "p6",
+    "cylinder_temperature_eo_K": "T6",
+    "turbine_inlet_temperature_K": "T_in",
+    "turbine_outlet_temperature_K": "T_out",
+    "compressor_outlet_temperature_K": "T_co",
+    "inlet_air_temperature_K": "T1",
+    "air_mass_flow_kg_s": "mdot_c",
+    "exhaust_mass_flow_kg_s": "mdot_g",
+    "air_excess_ratio": "lam",
+    "slip_ratio": "s_sl",
+    "charge_air_cooler_outlet_temperature_K": "T_c",
+    "cylinder_outlet_temperature_K": "T_cyl",
+    "turbine_gas_inlet_temperature_K": "T_t",
+    "exhaust_after_waste_gate_temperature_K": "T_exh",
+    "bypass_air_flow_kg_s": "mdot_bp",
+    "waste_gate_fraction": "wg_frac",
 }
 
 
-def summaries_from_alg(params: EngineParams, x1, x3, x4, alg: np.ndarray, conv=None, p_amb_Pa=None,
-                       T_amb_K=None) -> dict[str, np.ndarray]:
+def summaries_from_alg(
+    params: EngineParams, x1, x3, x4, alg: np.ndarray, conv=None, p_amb_Pa=None, T_amb_K=None
+) -> dict[str, np.ndarray]:
     """Every key of :class:`Summary` as a plain dict."""
     return dict(Summary(params, x1, x3, x4, alg, conv, p_amb_Pa, T_amb_K))
 
@@ -196,11 +250,11 @@ def _initial_guess(mode, law, a0, a1, c, y):
             u = max(a0, 0.05)
         else:
             u = max(a0 / (c.x1_nom_kg * c.n_nom_rev_s * c.cycles_per_rev), 0.05)
-        x4 = c.p_amb_Pa + dp * u ** 1.5
+        x4 = c.p_amb_Pa + dp * u**1.5
         if law == 2:
             y[2] = a1
         elif c.sl_comb != 0.0:
-            y[2] = c.n_nom_rev_s * (c.sl_s0 + (c.sl_s1 - c.sl_s0) * u ** 1.5)
+            y[2] = c.n_nom_rev_s * (c.sl_s0 + (c.sl_s1 - c.sl_s0) * u**1.5)
         else:
             y[2] = c.n_nom_rev_s * u ** (1.0 / 3.0)
     y[0] = c.p_ex_Pa + 0.7 * (x4 - c.p_amb_Pa) + 1.0
@@ -262,8 +316,11 @@ def _newton(mode, law, a0, a1, c, pf, y, alg, tol, max_iter, ov):
         y[0], y[1], y[2] = yt[0], yt[1], yt[2]
         f[0], f[1], f[2] = ft[0], ft[1], ft[2]
         norm = abs(f[0]) + abs(f[1]) + abs(f[2])
-        small = (abs(lam * s[0]) <= tol * abs(y[0]) and abs(lam * s[1]) <= tol * abs(y[1])
-                 and abs(lam * s[2]) <= tol * abs(y[2]))
+        small = (
+            abs(lam * s[0]) <= tol * abs(y[0])
+            and abs(lam * s[1]) <= tol * abs(y[1])
+            and abs(lam * s[2]) <= tol * abs(y[2])
+        )
         if small or norm == 0.0:
             if norm < 1e-9:
                 _residual(mode, law, y[0], y[1], y[2], a0, a1, c, pf, alg, ov)
@@ -322,8 +379,9 @@ def speed_of_power(params: EngineParams, power_W) -> np.ndarray:
     P = np.atleast_1d(np.asarray(power_W, float))
     sl = params.submodels.speed_law
     if sl is not None:
-        return params.n_nom_rev_s * (sl.speed_zero_load_rel + (sl.speed_full_load_rel - sl.speed_zero_load_rel)
-                                     * P / params.P_nom_W)
+        return params.n_nom_rev_s * (
+            sl.speed_zero_load_rel + (sl.speed_full_load_rel - sl.speed_zero_load_rel) * P / params.P_nom_W
+        )
     return np.cbrt(P / params.c_load_W_s3)
 
 
@@ -339,8 +397,18 @@ def power_of_speed(params: EngineParams, speed_rev_s) -> np.ndarray:
     return params.c_load_W_s3 * n**3
 
 
-def solve_raw(c, mode: int, a0: np.ndarray, a1: np.ndarray, law: int, y: np.ndarray, pf: np.ndarray,
-              ov: np.ndarray, tol: float = 1e-12, max_iter: int = 60) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def solve_raw(
+    c,
+    mode: int,
+    a0: np.ndarray,
+    a1: np.ndarray,
+    law: int,
+    y: np.ndarray,
+    pf: np.ndarray,
+    ov: np.ndarray,
+    tol: float = 1e-12,
+    max_iter: int = 60,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The compiled solve of :func:`solve_points` on model constants ``c``, without summaries (a hot path of
     fits): returns (alg (n, N_ALG), x1 (n,), converged (n,)); ``y`` (n, 3) is the warm start, updated in place
     (NaN or non-positive rows start from the default guess)."""
@@ -359,9 +427,19 @@ def solve_raw(c, mode: int, a0: np.ndarray, a1: np.ndarray, law: int, y: np.ndar
     return alg, x1, status == 1
 
 
-def solve_points(params: EngineParams, mode: int, a0, a1=None, *, prescribed_speed: bool = False,
-                 guess: np.ndarray | None = None, pf: np.ndarray | None = None, valves: np.ndarray | None = None,
-                 tol: float = 1e-12, max_iter: int = 60) -> OperatingPoints:
+def solve_points(
+    params: EngineParams,
+    mode: int,
+    a0,
+    a1=None,
+    *,
+    prescribed_speed: bool = False,
+    guess: np.ndarray | None = None,
+    pf: np.ndarray | None = None,
+    valves: np.ndarray | None = None,
+    tol: float = 1e-12,
+    max_iter: int = 60,
+) -> OperatingPoints:
     """Solve operating points of ``params`` (submodels included).
 
     mode : ``MODE_U`` (a0 = fuel setting), ``MODE_P`` (a0 = brake power [W], a1 = speed [rev/s]; default: the

@@ -19,8 +19,15 @@ from typing import Any
 
 from .submodels import NO_SUBMODELS, EngineSubmodels
 
-__all__ = ["EngineParams", "load_params", "list_parameter_sets", "params_provenance", "ENGINE_FILE_FORMAT",
-           "load_engine_file", "engine_file_dict"]
+__all__ = [
+    "EngineParams",
+    "load_params",
+    "list_parameter_sets",
+    "params_provenance",
+    "ENGINE_FILE_FORMAT",
+    "load_engine_file",
+    "engine_file_dict",
+]
 
 ENGINE_FILE_FORMAT = "marine_fdi_env.engine/1"
 
@@ -153,13 +160,44 @@ class EngineParams:
             if not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise ValueError(f"parameter {f.name!r} must be a finite number, got {v!r}")
         positive = [
-            "P_nom_W", "n_nom_rev_s", "n_cylinders", "revs_per_cycle", "bore_m", "stroke_m",
-            "crank_rod_m", "eps_c", "V1_m3", "SFC_nom_kg_per_J", "x1_nom_kg", "tau_X_s",
-            "eta_comb", "h_L_J_per_kg", "p_max_nom_Pa", "c_load_W_s3", "R_a_J_per_kgK",
-            "R_g_J_per_kgK", "c_v_a_J_per_kgK", "c_p_a_J_per_kgK", "c_p_g_J_per_kgK",
-            "sigma_f", "tau_pd_s", "A_eff_m2", "alpha_z", "m1_nom_kg", "Psi_sc_nom",
-            "p_ex_Pa", "tau_TC_s", "eta_com", "T_c_K", "T_inl_K", "p_amb_Pa", "T_amb_K",
-            "p1_nom_Pa", "T_sl_K", "N_tc_nom_rpm", "dh_c_nom_J_per_kg",
+            "P_nom_W",
+            "n_nom_rev_s",
+            "n_cylinders",
+            "revs_per_cycle",
+            "bore_m",
+            "stroke_m",
+            "crank_rod_m",
+            "eps_c",
+            "V1_m3",
+            "SFC_nom_kg_per_J",
+            "x1_nom_kg",
+            "tau_X_s",
+            "eta_comb",
+            "h_L_J_per_kg",
+            "p_max_nom_Pa",
+            "c_load_W_s3",
+            "R_a_J_per_kgK",
+            "R_g_J_per_kgK",
+            "c_v_a_J_per_kgK",
+            "c_p_a_J_per_kgK",
+            "c_p_g_J_per_kgK",
+            "sigma_f",
+            "tau_pd_s",
+            "A_eff_m2",
+            "alpha_z",
+            "m1_nom_kg",
+            "Psi_sc_nom",
+            "p_ex_Pa",
+            "tau_TC_s",
+            "eta_com",
+            "T_c_K",
+            "T_inl_K",
+            "p_amb_Pa",
+            "T_amb_K",
+            "p1_nom_Pa",
+            "T_sl_K",
+            "N_tc_nom_rpm",
+            "dh_c_nom_J_per_kg",
         ]
         for key in positive:
             if getattr(self, key) <= 0:
@@ -237,8 +275,14 @@ def engine_file_dict(params: EngineParams, base: str, provenance: dict[str, Any]
             continue
         if getattr(params, f.name) != getattr(ref, f.name):
             overrides[f.name] = getattr(params, f.name)
-    return {"format": ENGINE_FILE_FORMAT, "name": params.name, "base": base, "overrides": overrides,
-            "submodels": params.submodels.to_dict(), "provenance": provenance or {}}
+    return {
+        "format": ENGINE_FILE_FORMAT,
+        "name": params.name,
+        "base": base,
+        "overrides": overrides,
+        "submodels": params.submodels.to_dict(),
+        "provenance": provenance or {},
+    }
 
 
 def load_engine_file(path: "str | Path") -> EngineParams:
@@ -248,17 +292,20 @@ def load_engine_file(path: "str | Path") -> EngineParams:
     try:
         d = json.loads(path.read_text())
     except FileNotFoundError:
-        raise ValueError(f"no such engine file {str(path)!r} (give a shipped set: "
-                         f"{', '.join(list_parameter_sets())}, or a file written by 'marine-fdi validate "
-                         "--save-params')") from None
+        raise ValueError(
+            f"no such engine file {str(path)!r} (give a shipped set: "
+            f"{', '.join(list_parameter_sets())}, or a file written by 'marine-fdi validate "
+            "--save-params')"
+        ) from None
     except json.JSONDecodeError as e:
         raise ValueError(f"{path}: not valid JSON: {e}") from None
     if not isinstance(d, dict) or d.get("format") != ENGINE_FILE_FORMAT:
-        raise ValueError(f"{path}: not an engine file (expected \"format\": \"{ENGINE_FILE_FORMAT}\")")
+        raise ValueError(f'{path}: not an engine file (expected "format": "{ENGINE_FILE_FORMAT}")')
     base = d.get("base")
     if base not in list_parameter_sets():
-        raise ValueError(f"{path}: field 'base' must name a shipped parameter set ({', '.join(list_parameter_sets())}), "
-                         f"got {base!r}")
+        raise ValueError(
+            f"{path}: field 'base' must name a shipped parameter set ({', '.join(list_parameter_sets())}), got {base!r}"
+        )
     overrides = d.get("overrides") or {}
     names = {f.name for f in dataclasses.fields(EngineParams)} - {"name", "submodels"}
     bad = sorted(set(overrides) - names)

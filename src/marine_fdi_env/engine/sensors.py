@@ -10,8 +10,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["SensorSpec", "SENSORS", "SENSOR_IDS", "sensor_index", "N_SENSORS", "true_sensor_values",
-           "NOISE_BOUNDS", "DEFAULT_FAULT_MAGNITUDES"]
+__all__ = [
+    "SensorSpec",
+    "SENSORS",
+    "SENSOR_IDS",
+    "sensor_index",
+    "N_SENSORS",
+    "true_sensor_values",
+    "NOISE_BOUNDS",
+    "DEFAULT_FAULT_MAGNITUDES",
+]
 
 
 @dataclass(frozen=True)

@@ -31,15 +31,32 @@ from .integrators import FAILURE_REASONS, _failure_code, advance_batch, limited_
 from .model import ALG_FIELDS, HEALTHY, HEALTHY_PF, N_ALG, PF_FIELDS, Algebraic, EngineModel, ProcessFaultValues
 from .params import EngineParams, load_params
 from .profiles import Profile, ProfileTable, make_profile
-from .sensors import MEASURED_VARIABLES, NOISE_BOUNDS, N_SENSORS, VARIABLE_OF_SENSOR
+from .sensors import MEASURED_VARIABLES, N_SENSORS, NOISE_BOUNDS, VARIABLE_OF_SENSOR
 from .steady_state import steady_state
 
 __all__ = ["Simulator", "SimulationResult", "Block", "EngineFailure", "TRUTH_VARIABLES"]
 
 # True variables recorded with every sample (units: see docs/model.md).
 TRUTH_VARIABLES: tuple[str, ...] = (
-    "u", "x1", "x3", "x4", "n", "torque", "power", "p6", "T6", "p_max", "T_in", "T_out", "T1", "T_co", "lam",
+    "u",
+    "x1",
+    "x3",
+    "x4",
+    "n",
+    "torque",
+    "power",
+    "p6",
+    "T6",
+    "p_max",
+    "T_in",
+    "T_out",
+    "T1",
+    "T_co",
+    "lam",
 )
+# bytes a recorded run holds per engine and sample: measurements, truth and fault values (float64) and the
+# fault flags (bool) of SimulationResult
+RESULT_BYTES_PER_ENGINE_SAMPLE = 8 * (N_SENSORS + len(TRUTH_VARIABLES) + len(FAULT_IDS)) + len(FAULT_IDS)
 _NOISE_BLOCK = 128
 _CHUNK = 512  # samples of fuel setting and fault values precomputed at a time
 DEFAULT_LIMITER_LAMBDA = 1.3
@@ -138,8 +155,11 @@ class Simulator:
         self.dt = float(dt)
         self.noise_scale = float(noise_scale)
         self.substeps = int(substeps)
-        if not (isinstance(fuel_limiter_lambda, (int, float)) and math.isfinite(fuel_limiter_lambda)
-                and fuel_limiter_lambda >= 0):
+        if not (
+            isinstance(fuel_limiter_lambda, (int, float))
+            and math.isfinite(fuel_limiter_lambda)
+            and fuel_limiter_lambda >= 0
+        ):
             raise ValueError(f"fuel_limiter_lambda must be a finite number >= 0, got {fuel_limiter_lambda!r}")
         self.fuel_limiter_lambda = float(fuel_limiter_lambda)
         if isinstance(seeds, (int, np.integer)):
@@ -223,8 +243,10 @@ class Simulator:
         restarted = np.zeros(self.n, dtype=bool)
         restarted[idx] = True
         sch = self.schedule
-        self._stuck = np.array([np.nan if restarted[e] else old.get((int(e), int(j)), np.nan)
-                                for e, j in zip(sch.s_engine, sch.s_sensor)], dtype=float)
+        self._stuck = np.array(
+            [np.nan if restarted[e] else old.get((int(e), int(j)), np.nan) for e, j in zip(sch.s_engine, sch.s_sensor)],
+            dtype=float,
+        )
         self._has_gain = bool(np.any(sch.s_kind == 3)) if len(sch.s_engine) else False
         self._fault_dev = None
         self._k_start[idx] = self.k
@@ -232,8 +254,13 @@ class Simulator:
         # steady state of the restarted engines at their t = 0 (row j of the chunk)
         u0 = self._u_right[j, idx].copy()
         pf = self._pf_values(j)
-        ss = steady_state(self.model, u0, ProcessFaultValues(*(np.asarray(getattr(pf, f))[idx] if np.ndim(
-            getattr(pf, f)) else getattr(pf, f) for f in PF_FIELDS)))
+        ss = steady_state(
+            self.model,
+            u0,
+            ProcessFaultValues(
+                *(np.asarray(getattr(pf, f))[idx] if np.ndim(getattr(pf, f)) else getattr(pf, f) for f in PF_FIELDS)
+            ),
+        )
         self.X[idx] = np.stack([ss.x1, ss.x3, ss.x4], axis=1)
         self.ALG[idx] = np.stack([getattr(ss.alg, f) for f in ALG_FIELDS], axis=1)
         self.u = self.u.copy()
@@ -325,8 +352,11 @@ class Simulator:
         sch = self.schedule
         if sch.process:
             if self._pf is None:  # the columns not filled here are healthy
-                self._pf = (np.empty((_CHUNK + 1, self.n, len(PF_FIELDS))) if whole
-                            else np.tile(HEALTHY_PF, (_CHUNK + 1, self.n, 1)))
+                self._pf = (
+                    np.empty((_CHUNK + 1, self.n, len(PF_FIELDS)))
+                    if whole
+                    else np.tile(HEALTHY_PF, (_CHUNK + 1, self.n, 1))
+                )
             sub = sch if whole else CompiledSchedule.compile([self.schedules[i] for i in idx])
             pf = sub.process_values(t, per_engine=True) if sub.process else HEALTHY
             for m, name in enumerate(PF_FIELDS):
@@ -391,8 +421,9 @@ class Simulator:
         else:
             y = np.concatenate([p[0] for p in pieces], axis=1)
             u = np.concatenate([p[1] for p in pieces], axis=1)
-            truth, act, val = ((np.concatenate([p[i] for p in pieces], axis=1) for i in (2, 3, 4)) if record
-                               else (None, None, None))
+            truth, act, val = (
+                (np.concatenate([p[i] for p in pieces], axis=1) for i in (2, 3, 4)) if record else (None, None, None)
+            )
         return Block(t=t, measurements=y, u=u, truth=truth, fault_active=act, fault_value=val)
 
     def _advance_piece(self, j0: int, m: int, record: bool):
@@ -403,14 +434,36 @@ class Simulator:
         U = np.empty((n, m))
         need_state = record or self._has_gain
         STATE = np.empty((n, m, 3 + N_ALG)) if need_state else self._no_state
-        PF = self._pf[j0:j0 + m + 1] if self._pf is not None else self._pf_healthy
+        PF = self._pf[j0 : j0 + m + 1] if self._pf is not None else self._pf_healthy
         alive = ~self.failed
         codes = np.zeros(n, dtype=np.int64)
         fail_k = np.full(n, -1, dtype=np.int64)
-        advance_batch(self.model.constants, self.dt, self.substeps, self.X, self._u_right[j0:j0 + m + 1],
-                      self._u_left[j0:j0 + m + 1], PF, self.ALG, alive, self.fuel_limiter_lambda,
-                      self._noise_raw, pos, self._noise_bounds, _SENSOR_COLUMNS, Y, U, STATE, need_state, codes,
-                      fail_k, self._scr_pf, self._scr_alg, self._X_new, self._ALG_new)
+        advance_batch(
+            self.model.constants,
+            self.dt,
+            self.substeps,
+            self.X,
+            self._u_right[j0 : j0 + m + 1],
+            self._u_left[j0 : j0 + m + 1],
+            PF,
+            self.ALG,
+            alive,
+            self.fuel_limiter_lambda,
+            self._noise_raw,
+            pos,
+            self._noise_bounds,
+            _SENSOR_COLUMNS,
+            Y,
+            U,
+            STATE,
+            need_state,
+            codes,
+            fail_k,
+            self._scr_pf,
+            self._scr_alg,
+            self._X_new,
+            self._ALG_new,
+        )
         k_start = self.k
         self.k += m
         self.t = self.k * self.dt
@@ -418,8 +471,13 @@ class Simulator:
         if len(failed):
             for i in failed[np.lexsort((failed, fail_k[failed]))]:
                 self.failed[i] = True
-                self.failures.append(EngineFailure(int(i), float((k_start + fail_k[i] + 1 - self._k_start[i]) * self.dt),
-                                                   FAILURE_REASONS[int(codes[i])]))
+                self.failures.append(
+                    EngineFailure(
+                        int(i),
+                        float((k_start + fail_k[i] + 1 - self._k_start[i]) * self.dt),
+                        FAILURE_REASONS[int(codes[i])],
+                    )
+                )
         self.u = U[:, -1].copy()
         rows = slice(j0 + 1, j0 + m + 1)
         sens = self._apply_sensor_faults(rows, Y, STATE) if len(self.schedule.s_engine) else None
@@ -435,8 +493,12 @@ class Simulator:
         all); the compiled kernel applies the same function at every sample."""
         idx = range(self.n) if engines is None else engines
         c = self.model.constants
-        return np.array([limited_fuel_setting(float(u_cmd[i]), self.X[i, 2], self.ALG[i, 9],
-                                              self.fuel_limiter_lambda, c) for i in idx])
+        return np.array(
+            [
+                limited_fuel_setting(float(u_cmd[i]), self.X[i, 2], self.ALG[i, 9], self.fuel_limiter_lambda, c)
+                for i in idx
+            ]
+        )
 
     # ------------------------------------------------------------------------- failures
     def _record_failures(self, codes: np.ndarray, t: float) -> None:
@@ -457,10 +519,10 @@ class Simulator:
             rem = cap - self._noise_pos
             size = max(_NOISE_BLOCK, m)
             buf = np.empty((self.n, size * N_SENSORS))
-            buf[:, :rem * N_SENSORS] = self._noise_raw[:, self._noise_pos * N_SENSORS:]
+            buf[:, : rem * N_SENSORS] = self._noise_raw[:, self._noise_pos * N_SENSORS :]
             for i, rng in enumerate(self._rngs):
-                rng.random(out=buf[i, rem * N_SENSORS:])
-            buf[:, rem * N_SENSORS:] -= 0.5
+                rng.random(out=buf[i, rem * N_SENSORS :])
+            buf[:, rem * N_SENSORS :] -= 0.5
             self._noise_raw = buf
             self._noise_pos = 0
         pos = self._noise_pos
@@ -475,7 +537,7 @@ class Simulator:
         """Readings at t = 0 (the state set by reset)."""
         state = np.concatenate([self.X, self.ALG], axis=1)
         pos = self._reserve_noise(1)
-        noise = self._noise_raw[:, pos * N_SENSORS:(pos + 1) * N_SENSORS] * self._noise_bounds
+        noise = self._noise_raw[:, pos * N_SENSORS : (pos + 1) * N_SENSORS] * self._noise_bounds
         y = (state[:, _SENSOR_COLUMNS] + noise)[:, None, :]
         self._fault_dev = None
         if len(self.schedule.s_engine):
@@ -488,7 +550,8 @@ class Simulator:
             self._prec_rngs = {}
         if engine not in self._prec_rngs:
             self._prec_rngs[engine] = np.random.Generator(
-                np.random.PCG64(np.random.SeedSequence(self.seeds[engine]).spawn(2)[1]))
+                np.random.PCG64(np.random.SeedSequence(self.seeds[engine]).spawn(2)[1])
+            )
         return self._prec_rngs[engine].uniform(-1.0, 1.0, size=count)
 
     def _apply_sensor_faults(self, rows: slice, Y: np.ndarray, STATE: np.ndarray, sel=None, initial=False):
@@ -569,8 +632,26 @@ class Simulator:
 
     def truth_vector(self) -> np.ndarray:
         a = self.alg
-        return np.stack([self.u, self.x1, self.x3, self.x4, a.n, a.torque, a.power(), a.p6, a.T6, a.p_max,
-                         a.T_in, a.T_out, a.T1, a.T_co, a.lam], axis=1)
+        return np.stack(
+            [
+                self.u,
+                self.x1,
+                self.x3,
+                self.x4,
+                a.n,
+                a.torque,
+                a.power(),
+                a.p6,
+                a.T6,
+                a.p_max,
+                a.T_in,
+                a.T_out,
+                a.T1,
+                a.T_co,
+                a.lam,
+            ],
+            axis=1,
+        )
 
     def _fault_truth_rows(self, rows: slice, sens) -> tuple[np.ndarray, np.ndarray]:
         """(active, value), each (N, m, 26), of every fault id on the samples of chunk rows ``rows``."""
@@ -594,8 +675,9 @@ class Simulator:
         return act, val
 
     # ------------------------------------------------------------------------- whole runs
-    def run(self, duration_s: float, progress: bool = False, record: bool = True,
-            block_samples: int = 256) -> SimulationResult:
+    def run(
+        self, duration_s: float, progress: bool = False, record: bool = True, block_samples: int = 256
+    ) -> SimulationResult:
         """Simulate ``duration_s`` seconds from the current state and return the recorded samples."""
         if not (isinstance(duration_s, (int, float)) and math.isfinite(duration_s) and duration_s > 0):
             raise ValueError(f"duration must be a positive finite number of seconds, got {duration_s!r}")
@@ -668,8 +750,26 @@ def _truth_from_state(state: np.ndarray, u: np.ndarray) -> np.ndarray:
     """TRUTH_VARIABLES from recorded [x1, x3, x4, ALG] states (N, K, 19) and applied u (N, K)."""
     a = lambda f: state[..., 3 + ALG_FIELDS.index(f)]  # noqa: E731
     n, torque = a("n"), a("torque")
-    return np.stack([u, state[..., 0], state[..., 1], state[..., 2], n, torque, 2.0 * np.pi * n * torque,
-                     a("p6"), a("T6"), a("p_max"), a("T_in"), a("T_out"), a("T1"), a("T_co"), a("lam")], axis=-1)
+    return np.stack(
+        [
+            u,
+            state[..., 0],
+            state[..., 1],
+            state[..., 2],
+            n,
+            torque,
+            2.0 * np.pi * n * torque,
+            a("p6"),
+            a("T6"),
+            a("p_max"),
+            a("T_in"),
+            a("T_out"),
+            a("T1"),
+            a("T_co"),
+            a("lam"),
+        ],
+        axis=-1,
+    )
 
 
 _PF_FIELD = {
@@ -685,8 +785,9 @@ _PF_FIELD = {
 
 # columns of [X | ALG] holding the measured variables, in MEASURED_VARIABLES / sensor order
 _STATE_COLS = {"x1": 0, "x3": 1, "x4": 2}
-_MEASURED_COLUMNS = np.array([_STATE_COLS[v] if v in _STATE_COLS else 3 + ALG_FIELDS.index(v)
-                              for v in MEASURED_VARIABLES])
+_MEASURED_COLUMNS = np.array(
+    [_STATE_COLS[v] if v in _STATE_COLS else 3 + ALG_FIELDS.index(v) for v in MEASURED_VARIABLES]
+)
 _SENSOR_COLUMNS = _MEASURED_COLUMNS[VARIABLE_OF_SENSOR]
 
 

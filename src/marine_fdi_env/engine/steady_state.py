@@ -108,6 +108,7 @@ def steady_state(
     sweeps_save = model.speed_sweeps
     model.speed_sweeps = 5
     try:
+
         def residual(x3_, x4_, n_):
             alg = model.algebraic(x1, x3_, x4_, pf, n_)
             r3 = (1.0 + phi_t) * x3_ - p.tau_pd_s * alg.h3

@@ -44,9 +44,21 @@ from typing import Any, Mapping
 import numpy as np
 
 __all__ = [
-    "Schedule", "CombinatorSpeed", "ExtraFriction", "TurbochargerMap", "Intercooler", "CylinderHeatLoss",
-    "WasteGate", "BypassValve", "TurbineFlowLaw", "TurbineEfficiencyBSR", "ExhaustHeatLoss", "EngineSubmodels",
-    "NO_SUBMODELS", "SUBMODEL_TYPES", "BYPASS_JUNCTIONS",
+    "Schedule",
+    "CombinatorSpeed",
+    "ExtraFriction",
+    "TurbochargerMap",
+    "Intercooler",
+    "CylinderHeatLoss",
+    "WasteGate",
+    "BypassValve",
+    "TurbineFlowLaw",
+    "TurbineEfficiencyBSR",
+    "ExhaustHeatLoss",
+    "EngineSubmodels",
+    "NO_SUBMODELS",
+    "SUBMODEL_TYPES",
+    "BYPASS_JUNCTIONS",
 ]
 
 BYPASS_JUNCTIONS = ("receiver", "turbine")
@@ -84,8 +96,9 @@ class Schedule:
         u = tuple(_finite("schedule", "u", x) for x in self.u)
         v = tuple(_finite("schedule", "value", x) for x in self.value)
         if len(u) == 0 or len(u) != len(v):
-            raise ValueError(f"schedule needs as many openings as knots (at least one), got {len(u)} knots and "
-                             f"{len(v)} openings")
+            raise ValueError(
+                f"schedule needs as many openings as knots (at least one), got {len(u)} knots and {len(v)} openings"
+            )
         if any(b <= a for a, b in zip(u, u[1:])):
             raise ValueError(f"schedule knots u must be strictly increasing, got {list(u)}")
         if any(x < 0 for x in v):
@@ -113,7 +126,7 @@ class Schedule:
         if isinstance(d, (int, float)):
             return cls.constant(float(d))
         if not isinstance(d, Mapping) or "u" not in d or "value" not in d:
-            raise ValueError(f"{owner} must be a number or an object {{\"u\": [...], \"value\": [...]}}, got {d!r}")
+            raise ValueError(f'{owner} must be a number or an object {{"u": [...], "value": [...]}}, got {d!r}')
         return cls(tuple(d["u"]), tuple(d["value"]))
 
 
@@ -233,7 +246,9 @@ class BypassValve:
         if self.opening.max > 2.0:
             raise ValueError(f"bypass_valve.opening (A_bp/A_eff) must lie in [0, 2], got {list(self.opening.value)}")
         if self.junction not in BYPASS_JUNCTIONS:
-            raise ValueError(f"bypass_valve.junction must be one of {', '.join(BYPASS_JUNCTIONS)}, got {self.junction!r}")
+            raise ValueError(
+                f"bypass_valve.junction must be one of {', '.join(BYPASS_JUNCTIONS)}, got {self.junction!r}"
+            )
 
 
 @dataclass(frozen=True)
@@ -373,8 +388,9 @@ class EngineSubmodels:
             allowed = {f.name: f for f in dataclasses.fields(typ)}
             bad = set(fields) - set(allowed)
             if bad:
-                raise ValueError(f"submodel {name!r}: unknown field(s) {', '.join(sorted(bad))}; "
-                                 f"known: {', '.join(allowed)}")
+                raise ValueError(
+                    f"submodel {name!r}: unknown field(s) {', '.join(sorted(bad))}; known: {', '.join(allowed)}"
+                )
             vals = {}
             for k, v in fields.items():
                 vals[k] = Schedule.from_dict(v, f"{name}.{k}") if k == "opening" else v

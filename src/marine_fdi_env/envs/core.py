@@ -10,54 +10,45 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
 from ..diagnosis.agent import ReferenceDiagnoser
 from ..diagnosis.sequential import SequentialStage, pressure_ratio
-from ..engine.faults import FAULT_IDS, _window_time
+from ..engine.faults import FAULT_IDS
 from ..engine.params import EngineParams, load_params
 from ..engine.simulator import Simulator
-from .hypotheses import DECLARE_THRESHOLD, N_FAULTS, UNKNOWN
+from .fault_windows import FaultWindows
 from .observation import module_features, observation_size, sensor_features
-from .reward import REWARD_TERMS, REWARD_TERMS_V1, RewardConfig, RewardConfigV1, RewardV1, score
+from .reward import RewardConfig, RewardConfigV1
 from .scenario_sampler import ScenarioSpec, nominal_reading
+from .scoring import DecisionScorer, StepOutcome, row_members
 
 __all__ = ["EpisodeBatch", "StepOutcome"]
-
-_FAULT_COL = {f: k for k, f in enumerate(FAULT_IDS)}
-
-
-def _row_members(mask: np.ndarray) -> list[np.ndarray]:
-    """The column indices of the True entries of each row of a 2-d bool mask, ascending."""
-    rows, cols = np.nonzero(mask)
-    return np.split(cols, np.cumsum(np.bincount(rows, minlength=len(mask)))[:-1]) if len(mask) else []
-
-
-@dataclass
-class StepOutcome:
-    """Scores of one decision for every slot."""
-
-    reward: np.ndarray  # (N,)
-    terms: dict[str, np.ndarray]  # term -> (N,)
-    declared: list[tuple[str, ...]]
-    alarm: np.ndarray  # (N,) bool
-    belief_on_truth: np.ndarray  # (N,) (NaN when no fault is active)
 
 
 class EpisodeBatch:
     """Episodes of N engines, advanced one decision period at a time."""
 
-    def __init__(self, n: int, params: "str | EngineParams" = "thesis-12v28", decision_period_s: float = 1.0,
-                 dt: float = 0.01, observe_sensors: bool = False, reward: RewardConfig | RewardConfigV1 | None = None,
-                 noise_scale: float = 1.0, observe_sequential: bool = False) -> None:
+    def __init__(
+        self,
+        n: int,
+        params: "str | EngineParams" = "thesis-12v28",
+        decision_period_s: float = 1.0,
+        dt: float = 0.01,
+        observe_sensors: bool = False,
+        reward: RewardConfig | RewardConfigV1 | None = None,
+        noise_scale: float = 1.0,
+        observe_sequential: bool = False,
+        diagnosis_cells: str = "sized",
+    ) -> None:
         self.n = int(n)
         self.params = load_params(params) if isinstance(params, str) else params
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
-        if not (isinstance(decision_period_s, (int, float)) and math.isfinite(decision_period_s)
-                and decision_period_s > 0):
+        if not (
+            isinstance(decision_period_s, (int, float)) and math.isfinite(decision_period_s) and decision_period_s > 0
+        ):
             raise ValueError(f"decision_period_s must be a positive number of seconds, got {decision_period_s!r}")
         k = decision_period_s / dt
         if abs(k - round(k)) > 1e-9 * max(1.0, k) or round(k) < 1:
@@ -66,17 +57,18 @@ class EpisodeBatch:
         self.period_samples = int(round(k))
         self.decision_period_s = self.period_samples * self.dt
         self.observe_sensors = bool(observe_sensors)
-        self.reward_cfg = reward or RewardConfig()
         # MarineFDI-v1: the reward keeps per-slot state (previous alarm, detected); v0 is stateless
-        self.reward_v1 = RewardV1(self.reward_cfg, self.n) if isinstance(self.reward_cfg, RewardConfigV1) else None
-        self.reward_terms = REWARD_TERMS_V1 if self.reward_v1 is not None else REWARD_TERMS
+        self.scorer = DecisionScorer(reward, self.n, self.decision_period_s)
+        self.reward_cfg = self.scorer.cfg
         self.noise_scale = float(noise_scale)
         self.observe_sequential = bool(observe_sequential)
         self.obs_size = observation_size(self.observe_sensors, self.observe_sequential)
         self.sim: Simulator | None = None
-        self.diag = ReferenceDiagnoser(self.params, n_engines=self.n, dt=self.dt)
+        # diagnosis_cells: the diagnosers' sure cells (thesis | grid | sized, diagnosis.cell_sets); only
+        # info["reference"] / info["sequential"] depend on it, not the observation
+        self.diag = ReferenceDiagnoser(self.params, n_engines=self.n, dt=self.dt, cells=diagnosis_cells)
         # the sequential diagnoser's tests on the same residuals (observe_sequential only)
-        self.seq = SequentialStage(self.n, dt=self.dt) if self.observe_sequential else None
+        self.seq = SequentialStage(self.n, dt=self.dt, cells=diagnosis_cells) if self.observe_sequential else None
         self.scenarios: list[ScenarioSpec | None] = [None] * self.n
         self._truth: list[list[dict]] = [[] for _ in range(self.n)]  # per slot, computed once per episode
         self.durations = np.ones(self.n)  # episode lengths [s]
@@ -84,10 +76,7 @@ class EpisodeBatch:
         self.obs = np.zeros((self.n, self.obs_size), dtype=np.float32)
         self.failure: list[dict | None] = [None] * self.n
         self.failed = np.zeros(self.n, dtype=bool)  # failure[i] is not None
-        # the slots' fault windows as padded arrays (n, width): fault column (-1: none), onset,
-        # end, period, duty; so the active faults of all slots are one vectorised call
-        self._fcol = np.full((self.n, 0), -1, dtype=np.int64)
-        self._fwin = np.zeros((4, self.n, 0))
+        self.windows = FaultWindows(self.n)  # the slots' faults: which are active when
         self.compute_s = np.zeros(self.n)
         self._nominal = None
         if self.observe_sensors:
@@ -105,8 +94,9 @@ class EpisodeBatch:
         slots = [int(s) for s in slots]
         for sc in scenarios:
             if sc.noise_scale != self.noise_scale:
-                raise ValueError(f"scenario field 'noise_scale' ({sc.noise_scale}) must equal the environment's "
-                                 f"({self.noise_scale})")
+                raise ValueError(
+                    f"scenario field 'noise_scale' ({sc.noise_scale}) must equal the environment's ({self.noise_scale})"
+                )
         seeds = [sc.noise_seed for sc in scenarios]
         faults = [list(sc.faults) for sc in scenarios]
         profiles = [sc.profile for sc in scenarios]
@@ -115,9 +105,15 @@ class EpisodeBatch:
             if len(slots) != self.n:
                 raise RuntimeError("the first start must start every slot")
             order = np.argsort(slots)
-            self.sim = Simulator(self.params, n_engines=self.n, seeds=[seeds[i] for i in order],
-                                 faults=[faults[i] for i in order], profiles=[profiles[i] for i in order],
-                                 dt=self.dt, noise_scale=self.noise_scale)
+            self.sim = Simulator(
+                self.params,
+                n_engines=self.n,
+                seeds=[seeds[i] for i in order],
+                faults=[faults[i] for i in order],
+                profiles=[profiles[i] for i in order],
+                dt=self.dt,
+                noise_scale=self.noise_scale,
+            )
         else:
             self.sim.restart_engines(slots, seeds, faults, profiles)
         self.diag.reset_engines(slots, first_sample_index=1)
@@ -132,9 +128,8 @@ class EpisodeBatch:
             self.failure[s] = None
             self.failed[s] = False
             self.compute_s[s] = 0.0
-            self._set_fault_windows(s, sc.faults)
-            if self.reward_v1 is not None:
-                self.reward_v1.start(s, min((f.onset_s for f in sc.faults), default=math.inf))
+            self.windows.set(s, sc.faults)
+            self.scorer.start(s, sc.faults)
         for f in self.sim.failures[n_before:]:  # engines outside their physical range at t = 0
             self._fail(f)
         self._failures_seen = len(self.sim.failures)
@@ -142,20 +137,6 @@ class EpisodeBatch:
     def _fail(self, f) -> None:
         self.failure[f.engine] = f.to_dict()
         self.failed[f.engine] = True
-
-    def _set_fault_windows(self, slot: int, faults) -> None:
-        width = self._fcol.shape[1]
-        if len(faults) > width:  # grow the padding
-            extra = len(faults) - width
-            self._fcol = np.concatenate([self._fcol, np.full((self.n, extra), -1, dtype=np.int64)], axis=1)
-            self._fwin = np.concatenate([self._fwin, np.zeros((4, self.n, extra))], axis=2)
-        inf = math.inf
-        self._fcol[slot] = -1
-        self._fwin[:, slot] = np.array([[inf], [inf], [inf], [1.0]])  # never active
-        for k, f in enumerate(faults):
-            self._fcol[slot, k] = _FAULT_COL[f.fault_id]
-            self._fwin[:, slot, k] = (f.onset_s, inf if f.end_s is None else f.end_s,
-                                      inf if f.period_s is None else f.period_s, 1.0 if f.duty is None else f.duty)
 
     def advance(self, slots=None) -> np.ndarray:
         """Advance all engines one decision period; update the observations of ``slots`` (default all).
@@ -167,19 +148,28 @@ class EpisodeBatch:
         t_first = (self.diag.samples - self.diag._offset) * self.dt  # each engine's time of the period's first sample
         out = self.diag.observe(blk.measurements, blk.u)
         t_now = self.t = self.sim.local_time
-        feats = module_features(out.residuals, out.thresholds, self.diag.first_violation, t_now, self.durations,
-                                out.stats)
+        feats = module_features(
+            out.residuals, out.thresholds, self.diag.first_violation, t_now, self.durations, out.stats
+        )
         if self.observe_sensors:
             feats = np.concatenate([feats, sensor_features(blk.measurements, blk.u, self._nominal)], axis=1)
         if self.seq is not None:
-            self.seq.update(out.residuals, blk.u, pressure_ratio(blk.measurements), out.violations, t_first)
+            self.seq.update(
+                out.residuals,
+                blk.u,
+                pressure_ratio(blk.measurements),
+                out.violations,
+                t_first,
+                out.thresholds,
+                out.peaks,
+            )
             feats = np.concatenate([feats, self.seq.features()], axis=1)
         elapsed = time.perf_counter() - t0
         sel = np.arange(self.n) if slots is None else np.asarray(slots, dtype=np.int64)
         self.obs[sel] = feats[sel]
         self.compute_s += elapsed / self.n
         failed = []
-        for f in self.sim.failures[self._failures_seen:]:
+        for f in self.sim.failures[self._failures_seen :]:
             self._fail(f)
             failed.append(f.engine)
         self._failures_seen = len(self.sim.failures)
@@ -191,60 +181,29 @@ class EpisodeBatch:
 
     def active_matrix(self, slots) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(active (n, 26) bool, first onset (n,), last onset (n,)) of the slots' faults now (onsets 0
-        where none is active): the simulator's activity windows (``faults._window_time``)."""
+        where none is active): the simulator's activity windows (:class:`.fault_windows.FaultWindows`)."""
         slots = np.asarray(slots, dtype=np.int64)
-        col = self._fcol[slots]
-        onset, end, period, duty = self._fwin[:, slots]
-        on = ~np.isnan(_window_time(self.t[slots][:, None], onset, end, period, duty))
-        act = np.zeros((len(slots), N_FAULTS), dtype=bool)
-        rows, ks = np.nonzero(on)
-        act[rows, col[rows, ks]] = True
-        some = on.any(axis=1)
-        first = np.where(some, np.where(on, onset, math.inf).min(axis=1, initial=math.inf), 0.0)
-        last = np.where(some, np.where(on, onset, -math.inf).max(axis=1, initial=-math.inf), 0.0)
-        return act, first, last
+        return self.windows.active(slots, self.t[slots])
 
     def score(self, beliefs: np.ndarray, slots) -> StepOutcome:
         """Score the declarations ``beliefs`` (len(slots), 28) made now."""
         slots = np.asarray(slots, dtype=np.int64)
-        decl = beliefs[:, :N_FAULTS] >= DECLARE_THRESHOLD
-        alarm = decl.any(axis=1) | (beliefs[:, UNKNOWN] >= DECLARE_THRESHOLD)
-        act, first, last = self.active_matrix(slots)
-        if self.reward_v1 is None:
-            terms = score(self.reward_cfg, decl, alarm, act, first, last, self.t[slots])
-        else:
-            terms = self.reward_v1.score(slots, decl, alarm, act, self.t[slots], self.decision_period_s)
-        reward = sum(terms[k] for k in self.reward_terms)
-        total = beliefs.sum(axis=1, dtype=np.float64)
-        on_truth = np.where(act, beliefs[:, :N_FAULTS], 0.0).sum(axis=1, dtype=np.float64)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            share = np.where(total > 0, on_truth / total, 0.0)
-        share = np.where(act.any(axis=1), share, np.nan)
-        declared = [tuple(FAULT_IDS[k] for k in ks) for ks in _row_members(decl)]
-        return StepOutcome(reward, terms, declared, alarm, share)
+        return self.scorer.score(beliefs, slots, *self.active_matrix(slots), self.t[slots])
 
     def end_terms(self, outcome: StepOutcome, slots, ended) -> None:
         """Add the one-off end-of-episode terms (v1: ``missed_detection``, ``final_isolation``) of the
         ``ended`` slots to ``outcome`` (scored over ``slots``); nothing for v0."""
-        if self.reward_v1 is None or not len(ended):
-            return
-        pos = {int(s): j for j, s in enumerate(np.asarray(slots))}
-        rows = np.array([pos[int(s)] for s in ended], dtype=np.int64)
-        for k, extra in self.reward_v1.end(np.asarray(ended, dtype=np.int64)).items():
-            outcome.terms[k][rows] += extra
-            outcome.reward[rows] += extra
+        self.scorer.end_terms(outcome, slots, ended)
 
     def reference_declaration(self, slot: int) -> dict:
         """The reference diagnoser's current conclusion for a slot (the ``reference`` agent's input)."""
         st = self.diag.decisions[slot]
-        return {"detected": bool(st.detected),
-                "diagnoses": [sorted(d) for d in st.diagnoses] if st.detected else []}
+        return {"detected": bool(st.detected), "diagnoses": [sorted(d) for d in st.diagnoses] if st.detected else []}
 
     def sequential_declaration(self, slot: int) -> dict:
         """The sequential diagnoser's current conclusion for a slot (``observe_sequential`` only)."""
         st = self.seq.decisions[slot]
-        return {"detected": bool(st.detected),
-                "diagnoses": [sorted(d) for d in st.diagnoses] if st.detected else []}
+        return {"detected": bool(st.detected), "diagnoses": [sorted(d) for d in st.diagnoses] if st.detected else []}
 
     def info(self, slot: int) -> dict:
         """The info of one slot now (the single environment's ``info``)."""
@@ -252,8 +211,10 @@ class EpisodeBatch:
         fail = self.failure[slot]
         extra = {}
         if self.seq is not None:
-            extra["sequential"] = {"detected": bool(parts["sequential"]["detected"][0]),
-                                   "diagnoses": parts["sequential"]["diagnoses"][0]}
+            extra["sequential"] = {
+                "detected": bool(parts["sequential"]["detected"][0]),
+                "diagnoses": parts["sequential"]["diagnoses"][0],
+            }
         return {
             "t_s": float(parts["t_s"][0]),
             "scenario_id": parts["scenario_id"][0],
@@ -261,8 +222,10 @@ class EpisodeBatch:
             "true_faults": parts["true_faults"][0],
             "active_faults": parts["active_faults"][0],
             "engine_failure": None if fail is None else dict(fail),
-            "reference": {"detected": bool(parts["reference"]["detected"][0]),
-                          "diagnoses": parts["reference"]["diagnoses"][0]},
+            "reference": {
+                "detected": bool(parts["reference"]["detected"][0]),
+                "diagnoses": parts["reference"]["diagnoses"][0],
+            },
             **extra,
         }
 
@@ -273,7 +236,7 @@ class EpisodeBatch:
         slots = np.asarray(slots, dtype=np.int64)
         k = len(slots)
         act, _, _ = self.active_matrix(slots)
-        active = _row_members(act)
+        active = row_members(act)
         sid, prof, truth, act_ids, diagnoses = (np.empty(k, dtype=object) for _ in range(5))
         engine = np.full(k, -1, dtype=np.int64)
         fail_t = np.full(k, math.nan)
@@ -290,9 +253,15 @@ class EpisodeBatch:
                 engine[j], fail_t[j], reason[j] = fail["engine"], fail["time_s"], fail["reason"]
             ref = self.reference_declaration(s)
             detected[j], diagnoses[j] = ref["detected"], ref["diagnoses"]
-        out = {"t_s": self.t[slots].astype(float), "scenario_id": sid, "profile": prof, "true_faults": truth,
-               "active_faults": act_ids, "engine_failure": {"engine": engine, "time_s": fail_t, "reason": reason},
-               "reference": {"detected": detected, "diagnoses": diagnoses}}
+        out = {
+            "t_s": self.t[slots].astype(float),
+            "scenario_id": sid,
+            "profile": prof,
+            "true_faults": truth,
+            "active_faults": act_ids,
+            "engine_failure": {"engine": engine, "time_s": fail_t, "reason": reason},
+            "reference": {"detected": detected, "diagnoses": diagnoses},
+        }
         if self.seq is not None:
             sdet = np.zeros(k, dtype=bool)
             sdiag = np.empty(k, dtype=object)

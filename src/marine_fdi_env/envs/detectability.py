@@ -54,8 +54,10 @@ def _load() -> dict:
     data = json.loads(resources.files(pkg).joinpath(rel).read_text())
     faults = data["faults"]
     if set(faults) != set(FAULT_IDS):
-        raise RuntimeError(f"{rel} must cover exactly the {len(FAULT_IDS)} fault ids; "
-                           f"missing {sorted(set(FAULT_IDS) - set(faults))}, extra {sorted(set(faults) - set(FAULT_IDS))}")
+        raise RuntimeError(
+            f"{rel} must cover exactly the {len(FAULT_IDS)} fault ids; "
+            f"missing {sorted(set(FAULT_IDS) - set(faults))}, extra {sorted(set(faults) - set(FAULT_IDS))}"
+        )
     for f, v in faults.items():
         lim = v.get("limit")
         if not (isinstance(lim, (int, float)) and math.isfinite(lim) and lim > 0):

@@ -12,6 +12,7 @@ from gymnasium import spaces
 from .core import EpisodeBatch
 from .hypotheses import HYPOTHESES, N_HYPOTHESES, check_action
 from .observation import feature_names, observation_bounds
+from .rendering import supported_render_mode
 from .reward import RewardConfig, RewardConfigV1, make_reward_config
 from .scenario_sampler import ScenarioConfig, ScenarioSpec, get_preset
 
@@ -94,11 +95,14 @@ class MarineFDIEnv(gym.Env):
     ## Arguments
     ``gymnasium.make("marine_fdi_env:MarineFDI-v0", scenario_config="default",
     decision_period_s=1.0, observe_sensors=False, reward=RewardConfig(), params="thesis-12v28",
-    dt=0.01, observe_sequential=False)`` (``MarineFDI-v1``: ``reward="v1"``, or a ``RewardConfigV1``); ``scenario_config`` is a preset name (``default``, ``single``, ``multi``,
+    dt=0.01, observe_sequential=False, diagnosis_cells="sized")`` (``MarineFDI-v1``: ``reward="v1"``, or a
+    ``RewardConfigV1``); ``scenario_config`` is a preset name (``default``, ``single``, ``multi``,
     ``nominal``, ``incipient``, ``transfer``, ``sensor-kinds``), a
     :class:`~marine_fdi_env.envs.scenario_sampler.ScenarioConfig` or its dict.
     ``reset(options={"scenario": ScenarioSpec | dict})`` runs a given scenario instead of a drawn
-    one (the frozen suites do this).
+    one (the frozen suites do this).  ``render_mode``: ``"ansi"`` (one line of text per decision) or
+    None; another mode warns and renders nothing, as Gymnasium's own environments do (so that
+    Stable-Baselines3's ``make_vec_env``, which asks for ``"rgb_array"``, works unchanged).
 
     ## info
     ``t_s``, ``scenario_id``, ``profile``, ``true_faults`` (id, class, onset, magnitude, end),
@@ -118,20 +122,42 @@ class MarineFDIEnv(gym.Env):
 
     metadata = {"render_modes": ["ansi"], "render_fps": 1}
 
-    def __init__(self, scenario_config: "str | ScenarioConfig | dict" = "default", decision_period_s: float = 1.0,
-                 observe_sensors: bool = False, reward: "RewardConfig | RewardConfigV1 | dict | str | None" = None,
-                 params: str = "thesis-12v28", dt: float = 0.01, render_mode: str | None = None,
-                 observe_sequential: bool = False) -> None:
+    def __init__(
+        self,
+        scenario_config: "str | ScenarioConfig | dict" = "default",
+        decision_period_s: float = 1.0,
+        observe_sensors: bool = False,
+        reward: "RewardConfig | RewardConfigV1 | dict | str | None" = None,
+        params: str = "thesis-12v28",
+        dt: float = 0.01,
+        render_mode: str | None = None,
+        observe_sequential: bool = False,
+        diagnosis_cells: str = "sized",
+    ) -> None:
         self.scenario_config = get_preset(scenario_config)
         reward = make_reward_config(reward)
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        self.render_mode = render_mode
-        self._init_kwargs = dict(scenario_config=self.scenario_config, decision_period_s=decision_period_s,
-                                 observe_sensors=observe_sensors, reward=reward, params=params, dt=dt,
-                                 observe_sequential=observe_sequential)
-        self.batch = EpisodeBatch(1, params, decision_period_s, dt, observe_sensors, reward,
-                                  noise_scale=self.scenario_config.noise_scale, observe_sequential=observe_sequential)
+        self.render_mode = supported_render_mode(render_mode, self.metadata["render_modes"])
+        self._init_kwargs = dict(
+            scenario_config=self.scenario_config,
+            decision_period_s=decision_period_s,
+            observe_sensors=observe_sensors,
+            reward=reward,
+            params=params,
+            dt=dt,
+            observe_sequential=observe_sequential,
+            diagnosis_cells=diagnosis_cells,
+        )
+        self.batch = EpisodeBatch(
+            1,
+            params,
+            decision_period_s,
+            dt,
+            observe_sensors,
+            reward,
+            noise_scale=self.scenario_config.noise_scale,
+            observe_sequential=observe_sequential,
+            diagnosis_cells=diagnosis_cells,
+        )
         low, high = observation_bounds(observe_sensors, observe_sequential)
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
         self.action_space = spaces.Box(0.0, 1.0, (N_HYPOTHESES,), dtype=np.float32)
@@ -181,9 +207,13 @@ class MarineFDIEnv(gym.Env):
         if terminated or truncated:
             b.end_terms(out, [0], [0])  # v1: a missed detection is charged at the last decision
         info = b.info(0)
-        info.update(declared=list(out.declared[0]), alarm=bool(out.alarm[0]),
-                    belief_on_truth=None if math.isnan(out.belief_on_truth[0]) else float(out.belief_on_truth[0]),
-                    reward_terms={k: float(v[0]) for k, v in out.terms.items()}, decision_time_s=t)
+        info.update(
+            declared=list(out.declared[0]),
+            alarm=bool(out.alarm[0]),
+            belief_on_truth=None if math.isnan(out.belief_on_truth[0]) else float(out.belief_on_truth[0]),
+            reward_terms={k: float(v[0]) for k, v in out.terms.items()},
+            decision_time_s=t,
+        )
         if terminated:
             info["termination_reason"] = f"engine failure: {b.failure[0]['reason']}"
         self._done = terminated or truncated
@@ -194,5 +224,7 @@ class MarineFDIEnv(gym.Env):
         if self.render_mode != "ansi":
             return None
         i = self._last_info
-        return (f"t={i.get('t_s', 0.0):7.2f} s  active={i.get('active_faults')}  declared={i.get('declared')}  "
-                f"alarm={i.get('alarm')}  reference={i.get('reference', {}).get('diagnoses')}")
+        return (
+            f"t={i.get('t_s', 0.0):7.2f} s  active={i.get('active_faults')}  declared={i.get('declared')}  "
+            f"alarm={i.get('alarm')}  reference={i.get('reference', {}).get('diagnoses')}"
+        )

@@ -18,8 +18,7 @@ import numpy as np
 
 from ..engine.faults import FAULT_IDS
 
-__all__ = ["HYPOTHESES", "N_HYPOTHESES", "NO_FAULT", "UNKNOWN", "DECLARE_THRESHOLD", "check_action",
-           "one_hot"]
+__all__ = ["HYPOTHESES", "N_HYPOTHESES", "NO_FAULT", "UNKNOWN", "DECLARE_THRESHOLD", "check_action", "one_hot"]
 
 HYPOTHESES: tuple[str, ...] = FAULT_IDS + ("no_fault", "unknown")
 N_HYPOTHESES = len(HYPOTHESES)
@@ -40,8 +39,10 @@ def check_action(action, n_envs: int | None = None) -> np.ndarray:
     if a.dtype.kind not in "biuf":
         raise ValueError(f"action must be a numeric array of shape {shape}, got dtype {a.dtype}")
     if a.shape != shape:
-        raise ValueError(f"action must have shape {shape} (belief over {', '.join(HYPOTHESES[:2])}, ..., "
-                         f"no_fault, unknown), got {a.shape}")
+        raise ValueError(
+            f"action must have shape {shape} (belief over {', '.join(HYPOTHESES[:2])}, ..., "
+            f"no_fault, unknown), got {a.shape}"
+        )
     with np.errstate(over="ignore"):  # beyond the float32 range: inf, refused below
         a = a.astype(np.float32)
     if not np.all(np.isfinite(a)):

@@ -53,19 +53,36 @@ from ..diagnosis.modules import MODULE_IDS
 from ..diagnosis.sequential import SEQUENTIAL_FEATURES, Z_CAP
 from ..engine.sensors import SENSOR_IDS
 
-__all__ = ["MODULE_FEATURES", "RATIO_CAP", "observation_size", "observation_bounds", "feature_names",
-           "module_features", "SEQUENTIAL_FEATURES"]
+__all__ = [
+    "MODULE_FEATURES",
+    "RATIO_CAP",
+    "observation_size",
+    "observation_bounds",
+    "feature_names",
+    "module_features",
+    "SEQUENTIAL_FEATURES",
+]
 
-MODULE_FEATURES = ("log_max_ratio", "log_mean_ratio", "signed_mean_ratio", "violation_fraction", "fired",
-                   "since_first_violation")
+MODULE_FEATURES = (
+    "log_max_ratio",
+    "log_mean_ratio",
+    "signed_mean_ratio",
+    "violation_fraction",
+    "fired",
+    "since_first_violation",
+)
 RATIO_CAP = 1000.0
 _LOG_CAP = math.log1p(RATIO_CAP)
 N_MODULES = len(MODULE_IDS)
 
 
 def observation_size(observe_sensors: bool, observe_sequential: bool = False) -> int:
-    return (N_MODULES * len(MODULE_FEATURES) + 1 + (len(SENSOR_IDS) + 1 if observe_sensors else 0)
-            + (N_MODULES * len(SEQUENTIAL_FEATURES) if observe_sequential else 0))
+    return (
+        N_MODULES * len(MODULE_FEATURES)
+        + 1
+        + (len(SENSOR_IDS) + 1 if observe_sensors else 0)
+        + (N_MODULES * len(SEQUENTIAL_FEATURES) if observe_sequential else 0)
+    )
 
 
 def feature_names(observe_sensors: bool, observe_sequential: bool = False) -> list[str]:
@@ -78,8 +95,9 @@ def feature_names(observe_sensors: bool, observe_sequential: bool = False) -> li
 
 
 def observation_bounds(observe_sensors: bool, observe_sequential: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    per = np.array([[0.0, 0.0, -_LOG_CAP, 0.0, 0.0, 0.0], [_LOG_CAP, _LOG_CAP, _LOG_CAP, 1.0, 1.0, 1.0]],
-                   dtype=np.float32)
+    per = np.array(
+        [[0.0, 0.0, -_LOG_CAP, 0.0, 0.0, 0.0], [_LOG_CAP, _LOG_CAP, _LOG_CAP, 1.0, 1.0, 1.0]], dtype=np.float32
+    )
     low = np.concatenate([np.tile(per[0], N_MODULES), [0.0]])
     high = np.concatenate([np.tile(per[1], N_MODULES), [1.0]])
     if observe_sensors:
@@ -127,8 +145,14 @@ def _period_stats(R, THR, stats):
             stats[i, m, 3] /= B
 
 
-def module_features(R: np.ndarray, THR: np.ndarray, first_violation: np.ndarray, t_now: np.ndarray,
-                    duration_s: np.ndarray, stats: np.ndarray | None = None) -> np.ndarray:
+def module_features(
+    R: np.ndarray,
+    THR: np.ndarray,
+    first_violation: np.ndarray,
+    t_now: np.ndarray,
+    duration_s: np.ndarray,
+    stats: np.ndarray | None = None,
+) -> np.ndarray:
     """Features (N, 19 * 6 + 1) from residuals and thresholds (N, B, 19) of one period.
 
     first_violation : (N, 19) time of each module's first violation this episode (NaN: never).

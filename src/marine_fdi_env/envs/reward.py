@@ -36,9 +36,18 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-__all__ = ["RewardConfig", "REWARD_TERMS", "score", "RewardConfigV1", "REWARD_TERMS_V1", "RewardV1",
-           "REWARD_VERSIONS", "make_reward_config", "score_record_v1",
-           "score_records_v1"]
+__all__ = [
+    "RewardConfig",
+    "REWARD_TERMS",
+    "score",
+    "RewardConfigV1",
+    "REWARD_TERMS_V1",
+    "RewardV1",
+    "REWARD_VERSIONS",
+    "make_reward_config",
+    "score_record_v1",
+    "score_records_v1",
+]
 
 REWARD_TERMS = ("false_alarm", "missed", "detection", "isolation", "wrong_isolation")
 REWARD_TERMS_V1 = ("false_alarm", "detection_delay", "missed_detection", "isolation", "final_isolation")
@@ -69,8 +78,15 @@ class RewardConfig:
         return dict(asdict(self), version="v0")
 
 
-def score(cfg: RewardConfig, declared: np.ndarray, alarm: np.ndarray, active: np.ndarray, first_onset: np.ndarray,
-          last_onset: np.ndarray, t: np.ndarray) -> dict[str, np.ndarray]:
+def score(
+    cfg: RewardConfig,
+    declared: np.ndarray,
+    alarm: np.ndarray,
+    active: np.ndarray,
+    first_onset: np.ndarray,
+    last_onset: np.ndarray,
+    t: np.ndarray,
+) -> dict[str, np.ndarray]:
     """Reward terms of n decisions (arrays over decisions).
 
     declared, active : (n, 26) bool masks of the declared and the active fault ids;
@@ -174,8 +190,15 @@ class RewardV1:
         self.last_exact[slot] = False
         self.first_onset[slot] = first_onset_s
 
-    def score(self, slots: np.ndarray, declared: np.ndarray, alarm: np.ndarray, active: np.ndarray, t: np.ndarray,
-              dt: "float | np.ndarray") -> dict[str, np.ndarray]:
+    def score(
+        self,
+        slots: np.ndarray,
+        declared: np.ndarray,
+        alarm: np.ndarray,
+        active: np.ndarray,
+        t: np.ndarray,
+        dt: "float | np.ndarray",
+    ) -> dict[str, np.ndarray]:
         """Terms of one decision of ``slots`` (arrays over them; ``declared``, ``active``: (n, 26)
         bool masks, ``alarm``: (n,) bool, ``t``: decision times [s], ``dt``: decision period(s) [s]);
         updates the slots' state."""
@@ -203,8 +226,10 @@ class RewardV1:
         """The one-off terms of episodes whose last decision was just scored."""
         slots = np.asarray(slots, dtype=np.int64)
         faulty = np.isfinite(self.first_onset[slots])
-        return {"missed_detection": np.where(faulty & ~self.detected[slots], -self.cfg.missed_detection, 0.0),
-                "final_isolation": np.where(faulty & self.last_exact[slots], self.cfg.final_isolation, 0.0)}
+        return {
+            "missed_detection": np.where(faulty & ~self.detected[slots], -self.cfg.missed_detection, 0.0),
+            "final_isolation": np.where(faulty & self.last_exact[slots], self.cfg.final_isolation, 0.0),
+        }
 
 
 def score_record_v1(record: dict, cfg: RewardConfigV1 | None = None) -> dict[str, float]:
@@ -259,9 +284,14 @@ def score_records_v1(records: list[dict], cfg: RewardConfigV1 | None = None) -> 
     acc = {name: np.zeros(n) for name in REWARD_TERMS_V1}
     for k in range(int(lengths.max(initial=0))):
         live = np.flatnonzero(lengths > k)
-        terms = r.score(live, np.stack([declared[i][k] for i in live]), np.array([alarms[i][k] for i in live]),
-                        np.stack([active[i][k] for i in live]), np.array([grids[i][k] for i in live]),
-                        periods[live])
+        terms = r.score(
+            live,
+            np.stack([declared[i][k] for i in live]),
+            np.array([alarms[i][k] for i in live]),
+            np.stack([active[i][k] for i in live]),
+            np.array([grids[i][k] for i in live]),
+            periods[live],
+        )
         for name, v in terms.items():
             acc[name][live] += v
     for name, v in r.end(np.arange(n)).items():

@@ -31,8 +31,17 @@ import math
 
 from ..._jit import jit
 
-__all__ = ["inlet_air_temperature", "delta_f", "eta_tc", "compressor_forcing", "compressor_outlet_temperature",
-           "air_excess_ratio", "cooler_outlet_temperature", "inlet_air_temperature_at", "bsr_factor"]
+__all__ = [
+    "inlet_air_temperature",
+    "delta_f",
+    "eta_tc",
+    "compressor_forcing",
+    "compressor_outlet_temperature",
+    "air_excess_ratio",
+    "cooler_outlet_temperature",
+    "inlet_air_temperature_at",
+    "bsr_factor",
+]
 
 
 @jit

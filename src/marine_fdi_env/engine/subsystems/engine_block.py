@@ -32,8 +32,14 @@ import math
 from ..._jit import jit
 from ..seiliger import seiliger_cycle
 
-__all__ = ["constant_volume_portion", "friction_torque", "engine_block", "torque_given_speed", "speed_of_torque",
-           "engine_block_at_speed"]
+__all__ = [
+    "constant_volume_portion",
+    "friction_torque",
+    "engine_block",
+    "torque_given_speed",
+    "speed_of_torque",
+    "engine_block_at_speed",
+]
 
 
 @jit

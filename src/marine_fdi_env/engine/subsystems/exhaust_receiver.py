@@ -32,8 +32,17 @@ import math
 from ..._jit import jit
 from .air_intake import bsr_factor
 
-__all__ = ["scavenge_flow_function", "slip_ratio", "turbine_mass_flow", "receiver_forcing", "turbine_expansion",
-           "turbine_outlet_temperature", "receiver_and_turbine", "turbine_efficiency", "turbine_outlet_from_expansion"]
+__all__ = [
+    "scavenge_flow_function",
+    "slip_ratio",
+    "turbine_mass_flow",
+    "receiver_forcing",
+    "turbine_expansion",
+    "turbine_outlet_temperature",
+    "receiver_and_turbine",
+    "turbine_efficiency",
+    "turbine_outlet_from_expansion",
+]
 
 
 @jit

@@ -160,5 +160,4 @@ def _extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, T_c, dT_c, c, csm,
     h4 = compressor_forcing(x4, d_f, T_t, Pi, c)
     T_co = c.T_amb_K + c.eta_com * c.chi_g * d_f * (T_t - T_out) + dT_c
     T_exh = (T_out + a_wg * T_t) / (1.0 + a_wg)
-    return (P / c.tau_pd_s, T_in, T_out, Pi, mdot_t, h4, T_co, T_cyl, T_t, mdot_bp, a_wg / (1.0 + a_wg), m_c,
-            T_exh)
+    return (P / c.tau_pd_s, T_in, T_out, Pi, mdot_t, h4, T_co, T_cyl, T_t, mdot_bp, a_wg / (1.0 + a_wg), m_c, T_exh)

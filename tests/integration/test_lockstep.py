@@ -1,0 +1,118 @@
+"""Simulate once, score every agent: the shared-trajectory evaluation equals each agent alone on
+the vector environment, bit for bit (records and metrics, except the wall-clock fields)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_env_evaluate import SCENARIOS
+from test_scale_out import _no_clock
+
+from marine_fdi_env.benchmark.agent_api import load_agent
+from marine_fdi_env.benchmark.evaluate import plan_passes, run_agents, suite_env_kwargs
+from marine_fdi_env.benchmark.metrics import compute_metrics
+from marine_fdi_env.benchmark.suites import SUITE_NAMES, load_suite
+from marine_fdi_env.envs.trajectory import simulate
+from tests import env_runner
+from tests.paths import ROOT
+
+pytest.importorskip("torch")  # the shipped models
+
+# every shipped agent: the baselines, the shipped models, and the hybrid that reads info["reference"]
+AGENTS = (
+    "null",
+    "random",
+    "reference",
+    "sequential",
+    "oracle",
+    "ppo-v1",
+    "classifier-v1",
+    "classifier",
+    "classifier-v1+reference",
+)
+
+
+def _assert_lockstep_equals_alone(scenarios, env_kwargs, suite, seed_offset=0, batch_size=32):
+    agents = [load_agent(a) for a in AGENTS]
+    together, _ = run_agents(agents, scenarios, env_kwargs, suite=suite, seed_offset=seed_offset, batch_size=batch_size)
+    for name, mine in zip(AGENTS, together):
+        alone = env_runner.run_episodes(
+            load_agent(name), scenarios, env_kwargs, suite=suite, seed_offset=seed_offset, batch_size=batch_size
+        )
+        assert _no_clock(mine) == _no_clock(alone), name
+        assert _no_clock(compute_metrics(mine)) == _no_clock(compute_metrics(alone)), name
+    return together
+
+
+def test_every_shipped_agent_scored_together_equals_it_alone():
+    """The first episode of every shipped suite (one batch; transfer-v2's and transfer-v3's noise scales in theirs),
+    every shipped agent in one pass (``sequential`` asks for observe_sequential: the others get the
+    columns and infos they have alone)."""
+    suites = [load_suite(name) for name in SUITE_NAMES]
+    env_kwargs = {k: v for k, v in suite_env_kwargs(suites[0])[0].items()}
+    assert all(suite_env_kwargs(s)[0] == env_kwargs for s in suites)  # one environment: one comparison
+    firsts = [s.scenarios[0] for s in suites]
+    recs = _assert_lockstep_equals_alone(firsts, env_kwargs, "first-episodes")
+    oracle = recs[AGENTS.index("oracle")]
+    # a non-trivial comparison: the oracle isolates (its trace changes) on every faulty episode
+    assert all(len(r["declared_changes"]) >= 2 for r, sc in zip(oracle, firsts) if sc.faults)
+    assert sum(1 for sc in firsts if sc.faults) >= 5 and {sc.noise_scale for sc in firsts} == {1.0, 0.7, 1.3}
+
+
+def test_a_batch_with_an_engine_failure_and_a_seed_offset():
+    """Four episodes in one batch (one ends early by an engine failure, the others go on), under
+    v0 and v1, with a seed offset and with batches of one episode."""
+    recs = _assert_lockstep_equals_alone(SCENARIOS, {"reward": "v1"}, "tiny", seed_offset=3)
+    stall = [r["scenario_id"] for r in recs[0]].index("stall")
+    assert recs[0][stall]["terminated"] and recs[0][stall]["n_decisions"] < 20
+    assert all(not r["terminated"] for i, r in enumerate(recs[0]) if i != stall)
+    _assert_lockstep_equals_alone(SCENARIOS, {"reward": "v0"}, "tiny", batch_size=1)
+
+
+def test_observation_options_share_one_pass_and_other_arguments_get_their_own():
+    class Wants:
+        name = "wants"
+
+        def __init__(self, **kw):
+            self.env_kwargs = kw
+
+    passes = plan_passes(
+        [
+            Wants(),
+            Wants(observe_sequential=True),
+            Wants(observe_sensors=True),
+            Wants(decision_period_s=2.0),
+            Wants(diagnosis_cells="sized"),
+            Wants(diagnosis_cells="grid"),
+        ],
+        {"decision_period_s": 1.0, "observe_sensors": False},
+    )
+    # an option at the environment's default value (decision_period_s 1.0, diagnosis_cells "sized") makes the
+    # same simulation as one left out: one pass, which leaves it out
+    assert [p.agents for p in passes] == [(0, 1, 2, 4), (3,), (5,)]
+    assert passes[0].env_kwargs == {"observe_sensors": True, "observe_sequential": True}
+    assert passes[1].env_kwargs == {"decision_period_s": 2.0, "observe_sensors": False}
+    assert passes[2].env_kwargs == {"diagnosis_cells": "grid", "observe_sensors": False}
+    everything = plan_passes([Wants()], {}, all_options=True)[0].env_kwargs
+    assert everything == {"observe_sensors": True, "observe_sequential": True}
+
+
+def test_an_agent_with_sensor_features_sees_its_own_columns():
+    """A trajectory with every option gives an agent without them exactly its observation."""
+    sc = SCENARIOS[:2]
+    full = simulate(sc, {"observe_sensors": True, "observe_sequential": True})
+    plain = simulate(sc, {})
+    assert full.obs.shape[2] == plain.obs.shape[2] + 20 + 19 * 4
+    np.testing.assert_array_equal(full.obs[:, :, : plain.obs.shape[2]], plain.obs)
+    assert np.array_equal(full.reference_detected, plain.reference_detected)
+    assert [[list(map(list, d)) for d in row] for row in full.reference_diagnoses] == [
+        [list(map(list, d)) for d in row] for row in plain.reference_diagnoses
+    ]
+    agent = load_agent(f"{ROOT / 'docs' / 'examples' / 'fired_modules_agent.py'}:FiredModulesAgent")
+    _assert_one(agent, sc)
+
+
+def _assert_one(agent, scenarios):
+    mine, _ = run_agents([agent, load_agent("sequential")], scenarios, {"reward": "v1"}, suite="x")
+    alone = env_runner.run_episodes(agent, scenarios, {"reward": "v1"}, suite="x")
+    assert _no_clock(mine[0]) == _no_clock(alone)
