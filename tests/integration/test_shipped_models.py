@@ -53,8 +53,10 @@ def test_ppo_v1_is_pure_rl_on_v1_within_budget():
     assert cfg["features"]["previous_alarm"] is True and cfg["features"]["taus"] == [5.0, 20.0, 60.0]
     assert cfg["machine"]["cpus"] == 2
     # the command that made the model (remeasured after the layout move: the same weights, bit for bit)
-    assert cfg["command"] == ("python -m marine_fdi_env.training.train --algo ppo --env MarineFDI-v1 --seed 0 "
-                              "--out training/models/ppo --no-cache")
+    assert cfg["command"] == (
+        "python -m marine_fdi_env.training.train --algo ppo --env MarineFDI-v1 --seed 0 "
+        "--out training/models/ppo --no-cache"
+    )
     assert (MODELS / "ppo-v1" / "learning_curve.png").is_file()
     agent = load_agent(str(MODELS / "ppo-v1"))
     assert agent.features is not None and not agent.with_reference and agent.action_mode == "gated"
@@ -74,11 +76,44 @@ def test_robust_classifier_seeds_are_one_command_within_budget():
     cfgs = [_cfg(f"classifier/seed{s}") for s in (0, 1, 2)]
     for s, cfg in enumerate(cfgs):
         assert cfg["name"] == "classifier" and cfg["seed"] == s and cfg["hyperparams_entry"] == "robust"
-        assert cfg["command"] == f"marine-fdi train --algo classifier --hyperparams robust --seed {s} " \
-                                 f"--out training/models/classifier/seed{s}"
+        assert (
+            cfg["command"] == f"marine-fdi train --algo classifier --hyperparams robust --seed {s} "
+            f"--out training/models/classifier/seed{s}"
+        )
         assert cfg["cpu_minutes"] <= 30.0 and cfg["cpu_s_data"] > 0
         assert cfg["features"]["noise_window"] == 4 and cfg["declaration"]["isolation_conformal"]["alpha"] == 0.3
         assert sorted({x for d in cfg["datasets"] for x in d["noise_scales"]}) == [0.5, 0.75, 1.0, 1.25, 1.5]
     assert all(c["hyperparams"] == cfgs[0]["hyperparams"] for c in cfgs)  # the same command, seed aside
     agent = load_agent(str(MODELS / "classifier"))  # the folder: its default seed
     assert agent.name == "classifier" and agent.training_seed == 0
+
+
+# ----------------------------------------------------------------------------- the shipped models score as recorded
+RESULTS = ROOT / "docs" / "data" / "results"
+# (model folder, agent name, its results files' stem): one file per training seed of a multi-seed agent
+SHIPPED = [
+    ("ppo-v1", "ppo-v1", "ppo-v1"),
+    ("classifier-v1", "classifier-v1", "classifier-v1"),
+    ("classifier-v1+reference", "classifier-v1+reference", "classifier-v1+reference"),
+] + [(f"classifier/seed{s}", "classifier", f"classifier_s{s}") for s in (0, 1, 2)]
+
+
+@pytest.mark.parametrize("folder,name,stem", SHIPPED)
+def test_a_shipped_model_scores_a_few_episodes_as_recorded(folder, name, stem):
+    """CI never retrains: every shipped model loads and declares, on the first episodes of two suites,
+    exactly what its recorded results (docs/data/results, written by studies.agents.compare) hold."""
+    from marine_fdi_env.benchmark.evaluate import run_episodes, suite_env_kwargs
+    from marine_fdi_env.benchmark.suites import load_suite
+
+    agent = load_agent(str(MODELS / folder))
+    assert agent.name == name
+    for suite_name in ("single-v1", "transfer-v3"):
+        recorded = json.loads((RESULTS / f"{stem}_{suite_name}.json").read_text())
+        assert recorded["agent"] == name and recorded["training_seed"] == agent.training_seed
+        suite = load_suite(suite_name)
+        env_kwargs, _ = suite_env_kwargs(suite, None if suite["env"].get("reward") else "v1")
+        got = run_episodes(agent, suite.scenarios[:2], env_kwargs, suite=suite_name)
+        for g, r in zip(got, recorded["episodes"][:2], strict=True):
+            assert g["scenario_id"] == r["scenario_id"]
+            assert g["declared_changes"] == r["declared_changes"], (folder, suite_name, g["scenario_id"])
+            assert g["return"] == pytest.approx(r["return"], abs=1e-9)  # the same decisions: the same sum
