@@ -633,7 +633,12 @@ def test_long_commands_say_their_cost_first(capsys, tmp_path):
     from marine_fdi_env.benchmark.agent_registry import list_agents
 
     n_agents = len(list_agents())
-    assert capsys.readouterr().err.startswith(f"marine-fdi sweep: {n_agents} agents x 459 episodes: expect about ")
+    from marine_fdi_env.benchmark.suites import SUITE_NAMES, load_suite
+
+    n_episodes = sum(len(load_suite(name).scenarios) for name in SUITE_NAMES)  # 587 with transfer-v3's 128
+    assert capsys.readouterr().err.startswith(
+        f"marine-fdi sweep: {n_agents} agents x {n_episodes} episodes: expect about "
+    )
     from marine_fdi_env.benchmark.agent_registry import models_dir
     from marine_fdi_env.cli.train import say_training_cost
 
