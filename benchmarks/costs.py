@@ -39,7 +39,7 @@ from marine_fdi_env.benchmark.agent_api import load_agent  # noqa: E402
 from marine_fdi_env.benchmark.evaluate import run_episodes, suite_env_kwargs, warm_up  # noqa: E402
 from marine_fdi_env.benchmark.suites import load_suite  # noqa: E402
 
-AGENTS = ("reference", "sequential", "ppo", "classifier")
+AGENTS = ("reference", "sequential", "ppo-v1", "classifier-v1", "classifier")
 
 
 def cpu_per_episode(agent_spec: str, scenarios, env_kwargs) -> float:

@@ -76,6 +76,7 @@ class SB3Agent:
         self.cfg = cfg
         self.where = where
         self.name = cfg.get("name", cfg.get("algo", "sb3"))
+        self.training_seed = cfg.get("seed")
         self.action_mode = cfg["action_mode"]
         self.frame_stack = int(cfg.get("frame_stack", 1))
         self.recurrent = cfg["algo"] == "ppo_lstm"
@@ -89,7 +90,9 @@ class SB3Agent:
             self.features = AgentFeatures.from_dict(cfg["features"], feature_names(False))
 
     @classmethod
-    def from_dir(cls, path, **kwargs) -> "SB3Agent":
+    def from_dir(cls, path, model: str | None = None, **kwargs) -> "SB3Agent":
+        if model is not None:  # an agent directory that uses a model stored elsewhere (e.g. seed0/)
+            path = (Path(path) / model).resolve()
         path, cfg, f = _open_model_dir(path, "model.zip")
         algo = cfg.get("algo")
         import zipfile
@@ -190,7 +193,16 @@ class ClassifierAgent:
                              f"'first', got {self.use_reference!r}")
         base = cfg.get("name", "classifier")
         self.name = f"{base}+reference" if self.use_reference else base
+        self.training_seed = cfg.get("seed")
         self.obs_size = int(cfg["observation"]["size"])
+        conf = d.get("isolation_conformal")
+        self.conformal_quantile = None if conf is None else float(conf["quantile"])
+        # the agent's own preprocessing (training/features.py), for models trained with it
+        self.features = None
+        if cfg.get("features") is not None:
+            from .features import AgentFeatures
+
+            self.features = AgentFeatures.from_dict(cfg["features"], feature_names(False))
 
     @classmethod
     def from_dir(cls, path, model: str | None = None, **kwargs) -> "ClassifierAgent":
@@ -231,11 +243,14 @@ class ClassifierAgent:
         self.n = len(seeds)
         self.h = None
         self.alarm = np.zeros(self.n, dtype=bool)
+        self.feature_state = self.features.initial_state(self.n) if self.features is not None else None
 
     def act(self, obs: np.ndarray, infos: dict) -> np.ndarray:
         import torch
 
         x = _check_batch(obs, self.obs_size, self.where)
+        if self.features is not None:  # unstandardised: the network standardises its inputs itself
+            x = self.features.raw(x, self.feature_state)
         with torch.no_grad():
             logits, self.h = self.model(torch.as_tensor(x[:, None, :]), self.h)
             p = torch.sigmoid(logits[:, 0]).numpy()
@@ -245,7 +260,13 @@ class ClassifierAgent:
             self.alarm |= np.asarray(ref["detected"], dtype=bool)
         out = np.zeros((len(x), N_HYPOTHESES), dtype=np.float32)
         for i in np.flatnonzero(self.alarm):
-            dec = p[i, :-1] >= self.isolation_threshold
+            if self.conformal_quantile is None:
+                dec = p[i, :-1] >= self.isolation_threshold
+            else:
+                from .classifier import conformal_declaration
+
+                dec = conformal_declaration(p[i, :-1], self.isolation_threshold, self.conformal_quantile)
+                dec = np.zeros(p.shape[1] - 1, dtype=bool) if dec is None else dec
             if ref is not None and bool(ref["detected"][i]):
                 from marine_fdi_env.baselines.reference_agent import belief_from_diagnoses
 

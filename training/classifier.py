@@ -19,7 +19,10 @@ active" probability passes ``alarm_threshold`` and then stays on (latched: fault
 by themselves in the suites, and a flickering alarm would count one false alarm per rising
 edge); the threshold is calibrated on fault-free episodes for a target false-alarm rate
 (:func:`calibrate_threshold`).  While the alarm is on, the faults with probability >=
-``isolation_threshold`` are declared (``unknown`` when none is).
+``isolation_threshold`` are declared (``unknown`` when none is).  With a conformal isolation
+calibration (:func:`calibrate_isolation`), that set is declared only when it is the one hypothesis
+of the split-conformal prediction set; otherwise (no hypothesis fits, or several do) the agent
+abstains: alarm on, ``unknown`` (:func:`conformal_declaration`).
 """
 
 from __future__ import annotations
@@ -35,7 +38,7 @@ from torch import nn
 from marine_fdi_env.engine.faults import FAULT_IDS
 
 __all__ = ["GRUDiagnoser", "TrainResult", "train_classifier", "calibrate_threshold", "load_dataset",
-           "episode_scores"]
+           "episode_scores", "set_score", "calibrate_isolation", "conformal_declaration", "alarm_balance_weights"]
 
 N_FAULTS = len(FAULT_IDS)
 
@@ -119,8 +122,13 @@ def _targets(active: np.ndarray) -> np.ndarray:
 def train_classifier(data: dict, *, seed: int, hidden: int = 64, embed: int = 64, epochs: int = 30,
                      batch_size: int = 32, lr: float = 2e-3, weight_decay: float = 1e-5, alarm_weight: float = 4.0,
                      val_fraction: float = 0.1, drop_features=(), feature_names=None, ewma_features=(),
-                     ewma_taus=(), episode_weight=None, log=print) -> TrainResult:
-    """Train a :class:`GRUDiagnoser` on dataset arrays (``obs``, ``active``, ``valid``); seeded."""
+                     ewma_taus=(), episode_weight=None, balance_alarm: bool = False, log=print) -> TrainResult:
+    """Train a :class:`GRUDiagnoser` on dataset arrays (``obs``, ``active``, ``valid``); seeded.
+
+    ``balance_alarm``: weight the "some fault" term so that, at every decision index, the decisions
+    with and without an active fault weigh the same (:func:`alarm_balance_weights`): the alarm
+    output then carries the evidence, not the prior "a fault is likelier late in an episode" that a
+    recurrent network can learn by counting decisions."""
     c0 = time.process_time()
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
@@ -146,10 +154,14 @@ def train_classifier(data: dict, *, seed: int, hidden: int = 64, embed: int = 64
     w = torch.ones(N_FAULTS + 1)
     w[-1] = alarm_weight
     bce = nn.BCEWithLogitsLoss(reduction="none")
+    wa = torch.as_tensor(alarm_balance_weights(data["active"].any(-1), data["valid"]) if balance_alarm
+                         else np.ones(valid.shape, np.float32))
 
     def loss_of(idx):
         logits, _ = model.core(obs[idx])
-        per = (bce(logits, y[idx]) * w).sum(-1)
+        terms = bce(logits, y[idx]) * w
+        terms[..., -1] = terms[..., -1] * wa[idx]
+        per = terms.sum(-1)
         m = valid[idx] * ew[idx, None]
         return (per * m).sum() / m.sum().clamp_min(1.0)
 
@@ -178,6 +190,19 @@ def train_classifier(data: dict, *, seed: int, hidden: int = 64, embed: int = 64
                 (f"  val {row['val_loss']:.4f}" if n_val else "") + f"  cpu {row['cpu_s']:.0f} s")
     model.eval()
     return TrainResult(model, curve, time.process_time() - c0)
+
+
+def alarm_balance_weights(fault: np.ndarray, valid: np.ndarray, cap: float = 5.0) -> np.ndarray:
+    """Weights (E, T) of the "some fault" term: at each decision index t, ``N_t / (2 n_t)`` for the
+    n_t valid decisions of its class (fault active or not) among the N_t valid ones, so both classes
+    weigh half; at most ``cap``; 1 where a class is absent at t."""
+    fault = fault & valid
+    n_pos, n_all = fault.sum(axis=0).astype(float), valid.sum(axis=0).astype(float)
+    n_neg = n_all - n_pos
+    both = (n_pos > 0) & (n_neg > 0)
+    w_pos = np.where(both, n_all / (2 * np.maximum(n_pos, 1)), 1.0)
+    w_neg = np.where(both, n_all / (2 * np.maximum(n_neg, 1)), 1.0)
+    return np.minimum(np.where(fault, w_pos[None, :], w_neg[None, :]), cap).astype(np.float32)
 
 
 @torch.no_grad()
@@ -211,3 +236,46 @@ def calibrate_threshold(alarm_prob: np.ndarray, valid: np.ndarray, period_s: flo
     return {"alarm_threshold": thr, "calibration_peak": base, "calibration_hours": hours,
             "calibration_episodes": int(len(peaks)), "target_false_alarms_per_hour": target_per_hour,
             "margin_logodds": margin}
+
+
+def set_score(p: np.ndarray, members: np.ndarray) -> np.ndarray:
+    """Nonconformity of the fault set ``members`` (.., 26) bool under fault probabilities ``p`` (.., 26):
+    ``max(1 - min over members of p, max over the others of p)``: 0 when the network is sure of
+    exactly that set, above 0.5 when it leans to another one (1 for an empty set)."""
+    inside = np.where(members, 1.0 - p, 0.0).max(axis=-1)
+    inside = np.where(members.any(axis=-1), inside, 1.0)
+    outside = np.where(members, 0.0, p).max(axis=-1)
+    return np.maximum(inside, outside)
+
+
+def calibrate_isolation(probs: np.ndarray, active: np.ndarray, valid: np.ndarray, alpha: float) -> dict:
+    """Split-conformal quantile of :func:`set_score` of the true fault set at the last decision of
+    held-in faulty episodes (``probs`` (E, T, 27), ``active`` (E, T, 26), ``valid`` (E, T)): the
+    ``ceil((n + 1)(1 - alpha))``-th smallest of the n scores (1.0 when that exceeds n), so that on
+    exchangeable episodes the prediction set :func:`conformal_declaration` builds holds the truth
+    with probability >= 1 - alpha."""
+    if not 0.0 < alpha < 1.0:
+        raise ValueError(f"isolation_alpha must lie in (0, 1), got {alpha!r}")
+    last = valid.sum(axis=1) - 1
+    rows = np.arange(len(probs))
+    truth = active[rows, last]
+    faulty = truth.any(axis=1) & (last >= 0)
+    scores = np.sort(set_score(probs[rows, last, :N_FAULTS], truth)[faulty])
+    n = len(scores)
+    k = int(math.ceil((n + 1) * (1.0 - alpha)))
+    q = float(scores[k - 1]) if 0 < k <= n else 1.0
+    return {"alpha": float(alpha), "quantile": q, "episodes": int(n),
+            "coverage_in_calibration": float(np.mean(scores <= q)) if n else None}
+
+
+def conformal_declaration(p: np.ndarray, isolation_threshold: float, quantile: float) -> np.ndarray | None:
+    """The fault set to declare from fault probabilities ``p`` (26,): the faults at or above
+    ``isolation_threshold`` when that set is the only one whose :func:`set_score` is within the
+    conformal ``quantile``; ``None`` (abstain: ``unknown``) when no set or several sets are."""
+    best = p >= isolation_threshold
+    if not best.any() or set_score(p, best) > quantile:
+        return None
+    # another set is within the quantile iff some fault's probability lies in [1 - q, q]
+    if quantile >= 0.5 and np.any((p >= 1.0 - quantile) & (p <= quantile)):
+        return None
+    return best

@@ -79,13 +79,15 @@ def train_ppo_replay(seed: int, hp: dict, out: Path | None, use_cache: bool = Tr
     from stable_baselines3.common.utils import set_random_seed
     from stable_baselines3.common.vec_env import VecNormalize
 
-    from .datasets import _ensure_dataset
+    from .datasets import _ensure_dataset, for_training_seed
 
     hp = dict(hp)
     c0, w0 = time.process_time(), time.perf_counter()
     torch.set_num_threads(int(hp.pop("torch_threads", 1)))
     hp.pop("replay")
-    datasets = hp.pop("datasets")
+    name = hp.pop("name", "ppo")
+    stride = int(hp.pop("data_seed_stride", 0))
+    datasets = [for_training_seed(spec, seed, stride) for spec in hp.pop("datasets")]
     n_envs = int(hp.pop("n_envs"))
     n_timesteps = int(hp.pop("n_timesteps"))
     action_mode = hp.pop("action_mode", "pair")
@@ -176,10 +178,10 @@ def train_ppo_replay(seed: int, hp: dict, out: Path | None, use_cache: bool = Tr
     model.learn(total_timesteps=n_timesteps, callback=Curve())
     final = evaluate_on_episodes(model, val, features, action_mode, reward) if n_val else {}
     cpu_total = time.process_time() - c0 - fresh_cpu + data_cpu  # a cached export still counts
-    cfg = {"name": "ppo", "algo": "ppo", "env_id": "MarineFDI-v1", "seed": seed, "n_envs": n_envs,
+    cfg = {"name": name, "algo": "ppo", "env_id": "MarineFDI-v1", "seed": seed, "n_envs": n_envs,
            "n_timesteps": n_timesteps, "action_mode": action_mode, "frame_stack": 1,
            "scenario_config": "replay of the datasets below", "policy": policy, "policy_kwargs": pk,
-           "hyperparams": dict(hp, normalize_reward=norm_reward, validation_fraction=val_fraction,
+           "hyperparams": dict(hp, normalize_reward=norm_reward, validation_fraction=val_fraction, data_seed_stride=stride,
                                eval_every=eval_every, initial_alarm_logit=alarm_logit,
                                initial_single_logit=single_logit),
            "reward": reward.to_dict(), "datasets": datasets, "training_episodes": int(len(train["obs"])),
@@ -194,7 +196,7 @@ def train_ppo_replay(seed: int, hp: dict, out: Path | None, use_cache: bool = Tr
         out.mkdir(parents=True, exist_ok=True)
         model.save(out / "model.zip")
         _write_curve(out / "learning_curve.csv", curve)
-        plot_learning_curve(curve, out / "learning_curve.png", title=f"PPO on MarineFDI-v1 (seed {seed})")
+        plot_learning_curve(curve, out / "learning_curve.png", title=f"{name}: PPO on MarineFDI-v1 (seed {seed})")
         cfg["model_bytes"] = (out / "model.zip").stat().st_size
     return model, cfg
 

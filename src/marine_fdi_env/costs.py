@@ -38,9 +38,10 @@ AGENT_EPISODE_CPU_S = {
     "oracle": 0.0,
     "reference": 0.001,
     "sequential": 0.002,
-    "ppo": 0.01,
+    "ppo-v1": 0.01,
+    "classifier-v1": 0.01,
     "classifier": 0.01,
-    "classifier+reference": 0.01,
+    "classifier-v1+reference": 0.01,
 }
 RAW_BYTES_PER_SAMPLE = 382  # export-raw: bytes written per 100 Hz sample (sensor rows and ground truth)
 RAW_CPU_S_PER_SAMPLE = 1.0e-5  # export-raw: CPU seconds per 100 Hz sample (simulating and writing the CSV rows)

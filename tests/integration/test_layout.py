@@ -21,7 +21,7 @@ from tests.paths import ROOT
 FIXTURE = ROOT / "tests" / "data" / "layout_records.json"
 # scenario indices of the shipped suites: faults of every kind, nominal runs, several magnitudes
 SUBSETS = {"thesis-v1": (0, 5, 10, 15), "single-v1": (0, 40, 80, 140)}
-AGENTS = ("reference", "random", "classifier+reference")
+AGENTS = ("reference", "random", "classifier-v1+reference")
 
 
 def _records(agent: str, suite: str, idx, tmp: Path) -> list[dict]:

@@ -19,7 +19,17 @@ from tests.paths import ROOT
 pytest.importorskip("torch")  # the shipped models
 
 # every shipped agent: the baselines, the shipped models, and the hybrid that reads info["reference"]
-AGENTS = ("null", "random", "reference", "sequential", "oracle", "ppo", "classifier", "classifier+reference")
+AGENTS = (
+    "null",
+    "random",
+    "reference",
+    "sequential",
+    "oracle",
+    "ppo-v1",
+    "classifier-v1",
+    "classifier",
+    "classifier-v1+reference",
+)
 
 
 def _assert_lockstep_equals_alone(scenarios, env_kwargs, suite, seed_offset=0, batch_size=32):
@@ -35,7 +45,7 @@ def _assert_lockstep_equals_alone(scenarios, env_kwargs, suite, seed_offset=0, b
 
 
 def test_every_shipped_agent_scored_together_equals_it_alone():
-    """The first episode of every shipped suite (one batch; transfer-v2's noise scale in its own),
+    """The first episode of every shipped suite (one batch; transfer-v2's and transfer-v3's noise scales in theirs),
     every shipped agent in one pass (``sequential`` asks for observe_sequential: the others get the
     columns and infos they have alone)."""
     suites = [load_suite(name) for name in SUITE_NAMES]
@@ -46,7 +56,7 @@ def test_every_shipped_agent_scored_together_equals_it_alone():
     oracle = recs[AGENTS.index("oracle")]
     # a non-trivial comparison: the oracle isolates (its trace changes) on every faulty episode
     assert all(len(r["declared_changes"]) >= 2 for r, sc in zip(oracle, firsts) if sc.faults)
-    assert sum(1 for sc in firsts if sc.faults) >= 5 and {sc.noise_scale for sc in firsts} == {1.0, 0.7}
+    assert sum(1 for sc in firsts if sc.faults) >= 5 and {sc.noise_scale for sc in firsts} == {1.0, 0.7, 1.3}
 
 
 def test_a_batch_with_an_engine_failure_and_a_seed_offset():

@@ -12,19 +12,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_env_evaluate import SCENARIOS
 
-from marine_fdi_env.cli import main as cli_main
 from marine_fdi_env.benchmark import agent_registry
 from marine_fdi_env.benchmark.agent_api import load_agent
-from marine_fdi_env.outputs import prepare_out
 from marine_fdi_env.benchmark.dataset import load_dataset
 from marine_fdi_env.benchmark.evaluate import WALL_CLOCK_FIELDS, WALL_CLOCK_METRICS, evaluate
 from marine_fdi_env.benchmark.metrics import compute_metrics
 from marine_fdi_env.benchmark.records import read_records, read_results_parquet
 from marine_fdi_env.benchmark.suites import load_suite
 from marine_fdi_env.benchmark.sweep import run_sweep
-
-from test_env_evaluate import SCENARIOS
+from marine_fdi_env.cli import main as cli_main
+from marine_fdi_env.outputs import prepare_out
 from tests.paths import ROOT
 
 SLOW_AGENT = f"{ROOT / 'tests' / 'agents_for_tests.py'}:SlowRandomAgent"
@@ -32,9 +31,17 @@ EXAMPLE_AGENT = "docs/examples/fired_modules_agent.py:FiredModulesAgent"
 
 
 def _suite_file(path: Path, name: str, scenarios) -> Path:
-    path.write_text(json.dumps({"name": name, "version": 1, "description": "test",
-                                "env": {"decision_period_s": 1.0, "params": "thesis-12v28", "observe_sensors": False},
-                                "scenarios": [s.to_dict() for s in scenarios]}))
+    path.write_text(
+        json.dumps(
+            {
+                "name": name,
+                "version": 1,
+                "description": "test",
+                "env": {"decision_period_s": 1.0, "params": "thesis-12v28", "observe_sensors": False},
+                "scenarios": [s.to_dict() for s in scenarios],
+            }
+        )
+    )
     return path
 
 
@@ -69,16 +76,18 @@ def ray_local():
 
 
 # ----------------------------------------------------------------------------- backends
-@pytest.mark.parametrize("suite,idx,agent", [("thesis-v1", (0, 5, 10, 15), "reference"),
-                                             ("single-v1", (0, 40, 80, 140), "random")])
+@pytest.mark.parametrize(
+    "suite,idx,agent", [("thesis-v1", (0, 5, 10, 15), "reference"), ("single-v1", (0, 40, 80, 140), "random")]
+)
 def test_backends_give_the_same_results_bit_for_bit(suite, idx, agent, tmp_path, ray_local):
     """serial (one batch), process (2 workers, chunks of 1) and Ray (2 CPUs, chunks of 3): every
     episode record and every metric identical except the wall-clock compute time."""
     f = _subset(tmp_path, suite, idx)
     runs = {
         "serial": evaluate(agent, str(f), tmp_path / "s.json", backend="serial", batch_size=4, progress=False),
-        "process": evaluate(agent, str(f), tmp_path / "p.json", backend="process", workers=2, batch_size=1,
-                            progress=False),
+        "process": evaluate(
+            agent, str(f), tmp_path / "p.json", backend="process", workers=2, batch_size=1, progress=False
+        ),
         "ray": evaluate(agent, str(f), tmp_path / "r.json", backend="ray", workers=2, batch_size=3, progress=False),
     }
     ref = runs["serial"]
@@ -102,8 +111,23 @@ def test_ray_missing_names_the_extra(monkeypatch, tiny, tmp_path, capsys):
 
     monkeypatch.delitem(sys.modules, "ray", raising=False)  # as if Ray were not installed
     monkeypatch.setattr(builtins, "__import__", no_ray)
-    assert cli_main(["evaluate", "--agent", "null", "--suite", str(tiny), "--backend", "ray",
-                     "--out", str(tmp_path / "x.json"), "--no-progress"]) == 2
+    assert (
+        cli_main(
+            [
+                "evaluate",
+                "--agent",
+                "null",
+                "--suite",
+                str(tiny),
+                "--backend",
+                "ray",
+                "--out",
+                str(tmp_path / "x.json"),
+                "--no-progress",
+            ]
+        )
+        == 2
+    )
     assert "pip install 'marine-fdi-env[ray]'" in capsys.readouterr().err
 
 
@@ -128,8 +152,27 @@ def test_evaluation_records_round_trip_through_parquet(tiny, tmp_path):
 
 def test_dataset_parquet_and_npz_give_the_same_arrays(tiny, tmp_path):
     assert cli_main(["dataset", "--suite", str(tiny), "--out", str(tmp_path / "a"), "--no-progress"]) == 0
-    assert cli_main(["dataset", "--suite", str(tiny), "--out", str(tmp_path / "b"), "--format", "parquet",
-                     "--backend", "process", "--workers", "2", "--batch-size", "1", "--no-progress"]) == 0
+    assert (
+        cli_main(
+            [
+                "dataset",
+                "--suite",
+                str(tiny),
+                "--out",
+                str(tmp_path / "b"),
+                "--format",
+                "parquet",
+                "--backend",
+                "process",
+                "--workers",
+                "2",
+                "--batch-size",
+                "1",
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     a, b = load_dataset(tmp_path / "a"), load_dataset(tmp_path / "b" / "dataset.parquet")
     assert set(a) == set(b) == {"obs", "active", "valid", "t_s", "feature_names", "fault_ids"}
     for k in a:
@@ -145,8 +188,9 @@ def test_dataset_parquet_and_npz_give_the_same_arrays(tiny, tmp_path):
 def test_interrupted_dataset_export_resumes_from_kept_chunks(tiny, tmp_path):
     from marine_fdi_env.benchmark import dataset as ds
 
-    full = load_dataset(ds.export_dataset(load_suite(str(tiny)).scenarios, tmp_path / "full", {}, batch_size=1,
-                                          progress=False))
+    full = load_dataset(
+        ds.export_dataset(load_suite(str(tiny)).scenarios, tmp_path / "full", {}, batch_size=1, progress=False)
+    )
     calls = []
     real = ds.dataset_chunk
 
@@ -172,8 +216,27 @@ def test_interrupted_dataset_export_resumes_from_kept_chunks(tiny, tmp_path):
 # ----------------------------------------------------------------------------- sweeps
 def test_sweep_table_equals_evaluate_and_report_reads_it(tiny, tmp_path, capsys):
     out = tmp_path / "new" / "sweep"  # the parent is created, one level only
-    assert cli_main(["sweep", "--agents", "reference", "random", "--suites", str(tiny), "--seed-offsets", "0", "3",
-                     "--out", str(out), "--batch-size", "2", "--no-progress"]) == 0
+    assert (
+        cli_main(
+            [
+                "sweep",
+                "--agents",
+                "reference",
+                "random",
+                "--suites",
+                str(tiny),
+                "--seed-offsets",
+                "0",
+                "3",
+                "--out",
+                str(out),
+                "--batch-size",
+                "2",
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     last = capsys.readouterr().out.strip().splitlines()[-1]
     assert last.startswith(f"wrote {out / 'episodes.parquet'} (12 episodes, 2 agent x suite cells)")
     recs, meta = read_records(out / "episodes.parquet", keep_extra=True)
@@ -181,17 +244,27 @@ def test_sweep_table_equals_evaluate_and_report_reads_it(tiny, tmp_path, capsys)
     for agent in ("reference", "random"):
         for k in (0, 3):
             ev = evaluate(agent, str(tiny), tmp_path / f"{agent}{k}.json", seed_offset=k, progress=False)
-            mine = [{x: v for x, v in r.items() if x not in ("agent_spec", "seed_offset")} for r in recs
-                    if r["agent_spec"] == agent and r["seed_offset"] == k]
+            mine = [
+                {x: v for x, v in r.items() if x not in ("agent_spec", "seed_offset")}
+                for r in recs
+                if r["agent_spec"] == agent and r["seed_offset"] == k
+            ]
             assert _no_clock(mine) == _no_clock(ev["episodes"])
     metrics = json.loads((out / "metrics.json").read_text())
     cell = next(m for m in metrics["results"] if m["agent_spec"] == "reference")
     assert cell["seed_offsets"] == [0, 3] and cell["n_episodes"] == 6
-    assert cell["metrics"] == compute_metrics([{x: v for x, v in r.items() if x not in ("agent_spec", "seed_offset")}
-                                               for r in recs if r["agent_spec"] == "reference"])
+    assert cell["metrics"] == compute_metrics(
+        [
+            {x: v for x, v in r.items() if x not in ("agent_spec", "seed_offset")}
+            for r in recs
+            if r["agent_spec"] == "reference"
+        ]
+    )
     assert cli_main(["report", str(out), "--out", str(tmp_path / "rep"), "--no-plots"]) == 0
     text = (tmp_path / "rep" / "report.md").read_text()
-    assert "| tiny-v1 | reference | 6 |" in text and "| tiny-v1 | random | 6 |" in text
+    assert (
+        "| tiny-v1 | reference | 1 | 6 |" in text and "| tiny-v1 | random | 1 | 6 |" in text
+    )  # 1 training seed, 6 episodes
     # a wider grid into the same folder runs only the new cells
     res = run_sweep(["reference", "random", "null"], [str(tiny)], [0, 3], out, progress=False)
     assert res["run"]["episodes_run"] == 6 and res["run"]["episodes_resumed"] == 12
@@ -210,11 +283,28 @@ def ctrl_c_enabled() -> None:
 def test_sweep_resumes_after_ctrl_c_without_losing_or_redoing_work(tiny, tmp_path, capsys):
     """Two agents scored in lockstep: a finished chunk keeps both agents' records."""
     out = tmp_path / "sw"
-    cmd = [sys.executable, "-m", "marine_fdi_env.cli", "sweep", "--agents", SLOW_AGENT, "null", "--suites", str(tiny),
-           "--out", str(out), "--batch-size", "1", "--backend", "serial", "--no-progress"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "marine_fdi_env.cli",
+        "sweep",
+        "--agents",
+        SLOW_AGENT,
+        "null",
+        "--suites",
+        str(tiny),
+        "--out",
+        str(out),
+        "--batch-size",
+        "1",
+        "--backend",
+        "serial",
+        "--no-progress",
+    ]
     env = dict(os.environ, SLOW_AGENT_SLEEP_S="0.1")  # 20 decisions: 2 s per chunk
-    proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=ctrl_c_enabled)
+    proc = subprocess.Popen(
+        cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=ctrl_c_enabled
+    )
     partial = out / "sweep.partial.jsonl"
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and proc.poll() is None:
@@ -236,8 +326,12 @@ def test_sweep_resumes_after_ctrl_c_without_losing_or_redoing_work(tiny, tmp_pat
     assert f"resuming at {len(kept)}/6" in capsys.readouterr().err
     assert res["run"]["episodes_run"] == 6 - len(kept)
     recs, _ = read_records(out / "episodes.parquet")
-    assert next(r for r in recs if r["scenario_id"] == marked["scenario_id"] and r["agent"] == marked["agent"])[
-        "compute_s"] == 12345.0
+    assert (
+        next(r for r in recs if r["scenario_id"] == marked["scenario_id"] and r["agent"] == marked["agent"])[
+            "compute_s"
+        ]
+        == 12345.0
+    )
     fresh = run_sweep([SLOW_AGENT, "null"], [str(tiny)], [0], tmp_path / "fresh", progress=False)
     assert _no_clock(recs) == _no_clock(read_records(tmp_path / "fresh" / "episodes.parquet")[0])
     assert fresh["run"]["episodes_run"] == 6 and not partial.exists()
@@ -247,31 +341,33 @@ def test_sweep_resumes_after_ctrl_c_without_losing_or_redoing_work(tiny, tmp_pat
 def test_agents_by_name_and_the_agents_command(capsys):
     assert cli_main(["agents"]) == 0
     text = capsys.readouterr().out
-    for name in ("null", "random", "reference", "oracle", "classifier", "ppo"):
+    for name in ("null", "random", "reference", "oracle", "classifier", "classifier-v1", "ppo-v1"):
         assert any(line.split()[0] == name for line in text.splitlines()[:-1]), name
     assert cli_main(["agents", "--json"]) == 0
     entries = json.loads(capsys.readouterr().out)
     models = {e["name"]: e for e in entries if e["kind"] == "model"}
     assert Path(models["classifier"]["spec"]) == agent_registry.models_dir() / "classifier"
-    agent = load_agent("classifier")
-    assert agent.name == "classifier" and type(agent).__name__ == "ClassifierAgent"
+    assert "3 training seeds (seed0, seed1, seed2)" in models["classifier"]["description"]
+    agent = load_agent("classifier")  # the default of its training seeds
+    assert agent.name == "classifier" and type(agent).__name__ == "ClassifierAgent" and agent.training_seed == 0
+    assert load_agent("ppo-v1").name == "ppo-v1"
 
 
 def test_registry_discovers_model_folders_and_their_config_names(tmp_path, monkeypatch):
     import shutil
 
-    src = agent_registry.models_dir() / "classifier"
+    src = agent_registry.models_dir() / "classifier-v1"
     dst = tmp_path / "models" / "gru2"
     shutil.copytree(src, dst)
     cfg = json.loads((dst / "config.json").read_text())
     (dst / "config.json").write_text(json.dumps(dict(cfg, name="classifier+reference")))
-    shutil.copytree(agent_registry.models_dir() / "ppo", tmp_path / "models" / "ppo")
+    shutil.copytree(agent_registry.models_dir() / "ppo-v1", tmp_path / "models" / "ppo")
     (tmp_path / "models" / "notes").mkdir()  # a folder without agent.json is not an agent
     monkeypatch.setattr(agent_registry, "models_dir", lambda: tmp_path / "models")
     agent_registry._entries.cache_clear()
     try:
         names = [e.name for e in agent_registry.list_agents()]
-        assert names[-2:] == ["classifier+reference", "ppo"] and "notes" not in names
+        assert names[-2:] == ["classifier+reference", "ppo-v1"] and "notes" not in names
         assert agent_registry.find_agent("gru2").name == "classifier+reference"  # the folder name is an alias
         assert load_agent("classifier+reference").name == "classifier+reference"
     finally:
@@ -281,8 +377,27 @@ def test_registry_discovers_model_folders_and_their_config_names(tmp_path, monke
 def test_custom_agent_file_runs_with_evaluate(tiny, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(ROOT)
     out = tmp_path / "custom.json"
-    assert cli_main(["evaluate", "--agent", EXAMPLE_AGENT, "--suite", str(tiny), "--out", str(out),
-                     "--no-progress", "--backend", "process", "--workers", "2", "--batch-size", "1"]) == 0
+    assert (
+        cli_main(
+            [
+                "evaluate",
+                "--agent",
+                EXAMPLE_AGENT,
+                "--suite",
+                str(tiny),
+                "--out",
+                str(out),
+                "--no-progress",
+                "--backend",
+                "process",
+                "--workers",
+                "2",
+                "--batch-size",
+                "1",
+            ]
+        )
+        == 0
+    )
     assert "| tiny-v1 | fired-modules |" in capsys.readouterr().out
     res = json.loads(out.read_text())
     ep = {e["scenario_id"]: e for e in res["episodes"]}
@@ -301,10 +416,12 @@ def test_new_commands_have_help_and_reject_bad_input(cmd, capsys, tmp_path):
     if cmd == "agents":
         return
     deep = str(tmp_path / "no" / "such" / "dir")  # only the parent of --out is created, never more levels
-    args = {"sweep": ["--agents", "null", "--suites", "thesis-v1", "--out", deep],
-            "export-raw": ["--suite", "thesis-v1", "--out", deep],
-            "predict-raw": ["--data", str(tmp_path), "--out", deep],
-            "score-raw": ["--suite", "thesis-v1", "--predictions", str(tmp_path), "--out", deep + "/r.json"]}[cmd]
+    args = {
+        "sweep": ["--agents", "null", "--suites", "thesis-v1", "--out", deep],
+        "export-raw": ["--suite", "thesis-v1", "--out", deep],
+        "predict-raw": ["--data", str(tmp_path), "--out", deep],
+        "score-raw": ["--suite", "thesis-v1", "--predictions", str(tmp_path), "--out", deep + "/r.json"],
+    }[cmd]
     assert cli_main([cmd, *args]) == 2
     err = capsys.readouterr().err
     assert err.startswith(f"marine-fdi {cmd}: error: --out: folder") and len(err.strip().splitlines()) == 1

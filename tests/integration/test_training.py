@@ -19,16 +19,24 @@ from marine_fdi_env.envs.observation import observation_size  # noqa: E402
 from marine_fdi_env.envs.scenario_sampler import ScenarioConfig  # noqa: E402
 from marine_fdi_env.training.agents import ClassifierAgent, SB3Agent  # noqa: E402
 from marine_fdi_env.training.classifier import calibrate_threshold, train_classifier  # noqa: E402
-from marine_fdi_env.training.train import _observation_meta, save_meta, load_hyperparams, train_sb3  # noqa: E402
+from marine_fdi_env.training.train import _observation_meta, load_hyperparams, save_meta, train_sb3  # noqa: E402
 from marine_fdi_env.training.vec_adapter import SB3VecEnv, to_belief  # noqa: E402
-from tests.paths import ROOT
+from tests.paths import ROOT  # noqa: E402
 
 # fault-free 12 s episodes: no dependence on the detectability table, and episode ends happen
-SHORT = ScenarioConfig(name="short", duration_s=12.0, fault_count_weights=(1.0, 0.0, 0.0),
-                       onset_range_s=(2.0, 5.0)).to_dict()
+SHORT = ScenarioConfig(
+    name="short", duration_s=12.0, fault_count_weights=(1.0, 0.0, 0.0), onset_range_s=(2.0, 5.0)
+).to_dict()
 NF = observation_size(False)  # features per decision (module features + clock)
-TINY = dict(n_envs=2, n_timesteps=48, n_steps=12, batch_size=24, n_epochs=1, scenario_config=SHORT,
-            policy_kwargs="dict(net_arch=[16])")
+TINY = dict(
+    n_envs=2,
+    n_timesteps=48,
+    n_steps=12,
+    batch_size=24,
+    n_epochs=1,
+    scenario_config=SHORT,
+    policy_kwargs="dict(net_arch=[16])",
+)
 
 
 def _params(model) -> list[np.ndarray]:
@@ -97,8 +105,10 @@ def test_frame_stacked_ppo_agent(tmp_path):
 def test_reference_features_from_infos_and_ppo_agent_reading_them(tmp_path):
     from marine_fdi_env.training.vec_adapter import N_REFERENCE_FEATURES, reference_features
 
-    ref = {"detected": np.array([False, True, True]),
-           "diagnoses": np.array([[], [["S3.4"], ["S3.2"]], [["S1.1", "bore_damage"]]], dtype=object)}
+    ref = {
+        "detected": np.array([False, True, True]),
+        "diagnoses": np.array([[], [["S3.4"], ["S3.2"]], [["S1.1", "bore_damage"]]], dtype=object),
+    }
     f = reference_features(ref, 3)
     assert f.shape == (3, 27) and not f[0].any()
     assert f[1, 0] == 1 and f[1, 1 + 11] == 0.5 and f[1, 1 + 9] == 0.5 and f[1].sum() == 2.0  # S3.4, S3.2
@@ -126,9 +136,13 @@ def _tiny_classifier(tmp_path) -> Path:
     out = tmp_path / "clf"
     out.mkdir()
     torch.save(r1.model.state_dict(), out / "model.pt")
-    cfg = {"name": "classifier", "algo": "classifier", "observation": _observation_meta(),
-           "architecture": {"kind": "gru", "n_features": NF, "hidden": 8, "embed": 8},
-           "declaration": {"alarm_threshold": 0.99, "isolation_threshold": 0.5}}
+    cfg = {
+        "name": "classifier",
+        "algo": "classifier",
+        "observation": _observation_meta(),
+        "architecture": {"kind": "gru", "n_features": NF, "hidden": 8, "embed": 8},
+        "declaration": {"alarm_threshold": 0.99, "isolation_threshold": 0.5},
+    }
     save_meta(out, cfg, "marine_fdi_env.training.agents:ClassifierAgent")
     return out
 
@@ -175,8 +189,11 @@ def test_model_loading_errors(tmp_path):
     # missing / corrupt SB3 archive
     bad = tmp_path / "sb3"
     bad.mkdir()
-    save_meta(bad, {"algo": "ppo", "action_mode": "discrete", "observation": _observation_meta()},
-               "marine_fdi_env.training.agents:SB3Agent")
+    save_meta(
+        bad,
+        {"algo": "ppo", "action_mode": "discrete", "observation": _observation_meta()},
+        "marine_fdi_env.training.agents:SB3Agent",
+    )
     with pytest.raises(ValueError, match=r"model\.zip: missing"):
         load_agent(str(bad))
     (bad / "model.zip").write_bytes(b"PK\x03\x04 not really a zip")
@@ -188,26 +205,29 @@ def test_model_loading_errors(tmp_path):
         load_agent(str(bad))
 
 
-@pytest.mark.parametrize("name", ["classifier", "ppo"])
+@pytest.mark.parametrize("name", ["classifier-v1", "ppo-v1"] + [f"classifier/seed{s}" for s in (0, 1, 2)])
 def test_shipped_models_load(name):
     d = ROOT / "training" / "models" / name
-    if not (d / "agent.json").is_file():
-        pytest.skip(f"{d} not shipped yet")
+    assert (d / "agent.json").is_file(), f"{d} is not shipped"
     agent = load_agent(str(d))
     agent.reset([0, 1])
-    b = agent.act(np.zeros((2, NF), dtype=np.float32), {"reference": {"detected": np.zeros(2, bool),
-                                                                       "diagnoses": [[], []]}})
+    b = agent.act(
+        np.zeros((2, NF), dtype=np.float32), {"reference": {"detected": np.zeros(2, bool), "diagnoses": [[], []]}}
+    )
     assert b.shape == (2, N_HYPOTHESES)
     cfg = json.loads((d / "config.json").read_text())
     # the command recorded when the shipped model was made (older spellings of `marine-fdi train`)
-    assert cfg["command"].split(" --")[0] in ("python -m training.train", "python -m marine_fdi_env.training.train",
-                                              "marine-fdi train")
+    assert cfg["command"].split(" --")[0] in (
+        "python -m training.train",
+        "python -m marine_fdi_env.training.train",
+        "marine-fdi train",
+    )
 
 
 def test_classifier_ewma_inputs_streaming_equals_episode():
     """The EWMA inputs of the signed means are causal: one decision at a time gives the whole-episode logits."""
-    from marine_fdi_env.training.classifier import GRUDiagnoser
     from marine_fdi_env.envs.observation import feature_names
+    from marine_fdi_env.training.classifier import GRUDiagnoser
 
     names = feature_names(False)
     idx = [i for i, n in enumerate(names) if n.endswith(".signed_mean_ratio")]
@@ -227,7 +247,7 @@ def test_classifier_ewma_inputs_streaming_equals_episode():
         whole, _ = m(x)
         h, steps = None, []
         for t in range(7):
-            y, h = m(x[:, t:t + 1], h)
+            y, h = m(x[:, t : t + 1], h)
             steps.append(y)
     torch.testing.assert_close(torch.cat(steps, 1), whole, rtol=1e-5, atol=1e-5)
 
@@ -245,8 +265,13 @@ def test_make_vec_env_works_unchanged_and_the_gated_wrapper_declares():
         venv = make_vec_env("marine_fdi_env:MarineFDI-v1", n_envs=2, seed=0, env_kwargs={"scenario_config": SHORT})
     assert any("rendering is off" in str(w.message) for w in caught)
     assert venv.reset().shape == (2, NF) and venv.render_mode is None
-    gated = make_vec_env("marine_fdi_env:MarineFDI-v1", n_envs=2, seed=0, wrapper_class=GatedAction,
-                         env_kwargs={"scenario_config": SHORT})
+    gated = make_vec_env(
+        "marine_fdi_env:MarineFDI-v1",
+        n_envs=2,
+        seed=0,
+        wrapper_class=GatedAction,
+        env_kwargs={"scenario_config": SHORT},
+    )
     gated.reset()
     _, rew, _, infos = gated.step(np.array([[0, 5, 9], [1, 0, 0]]))  # quiet; alarm with no fault named
     assert infos[0]["declared"] == [] and not infos[0]["alarm"]
@@ -267,12 +292,14 @@ def gymnasium_env():
 def test_save_sb3_agent_makes_an_agent_that_evaluates(tmp_path):
     from stable_baselines3 import PPO
 
-    from marine_fdi_env.training import SB3VecEnv as Exported, save_sb3_agent
+    from marine_fdi_env.training import SB3VecEnv as Exported
+    from marine_fdi_env.training import save_sb3_agent
 
     assert Exported is SB3VecEnv
     venv = SB3VecEnv(2, scenario_config=SHORT, action_mode="gated", reference_features=True, seed=0)
-    model = PPO("MlpPolicy", venv, n_steps=12, batch_size=24, n_epochs=1, seed=0, device="cpu",
-                policy_kwargs={"net_arch": [8]})
+    model = PPO(
+        "MlpPolicy", venv, n_steps=12, batch_size=24, n_epochs=1, seed=0, device="cpu", policy_kwargs={"net_arch": [8]}
+    )
     model.learn(24)
     folder = save_sb3_agent(model, tmp_path / "mine")
     cfg = json.loads((folder / "config.json").read_text())

@@ -19,14 +19,22 @@ MODELS = ROOT / "training" / "models"
 
 
 def _specs() -> dict[str, dict]:
-    """Every dataset a training command simulates: name -> spec."""
+    """Every dataset a training command simulates: name -> spec (for each training seed 0-2 where the
+    entry moves its data with the seed)."""
+    from marine_fdi_env.training.train import training_specs
+
     out = {}
     for f in sorted(HYPERPARAMS.glob("*.yml")):
         for env_id, hp in yaml.safe_load(f.read_text()).items():
-            for k, spec in enumerate(hp.get("datasets", [])):
-                out[f"{f.stem}/{env_id}/data{k}"] = spec
-            if "calibration" in hp:
-                out[f"{f.stem}/{env_id}/calibration"] = hp["calibration"]
+            if "datasets" not in hp:
+                continue
+            for seed in ((0, 1, 2) if hp.get("data_seed_stride") else (0,)):
+                data, cal, iso = training_specs(hp, seed)
+                for k, spec in enumerate(data):
+                    out[f"{f.stem}/{env_id}/s{seed}/data{k}"] = spec
+                for kind, spec in (("calibration", cal), ("isolation_calibration", iso)):
+                    if spec is not None:
+                        out[f"{f.stem}/{env_id}/s{seed}/{kind}"] = spec
     return out
 
 
@@ -53,9 +61,10 @@ def test_training_and_calibration_data_are_disjoint_from_every_suite(suites):
             assert sc.noise_seed not in suite_noise, (name, sc.scenario_id, suite_noise.get(sc.noise_seed))
             if sc.faults:
                 assert _schedule(sc) not in suite_sched, (name, sc.scenario_id, suite_sched.get(_schedule(sc)))
-            # and the calibration episodes are not training episodes (nor are two datasets the same)
+            # and the calibration episodes are not training episodes (nor are two datasets the same, but the
+            # robust classifier's and PPO's, which are one spec simulated once)
             owner = seen.setdefault(sc.noise_seed, name)
-            assert owner == name or spec is specs[owner], (name, owner, sc.scenario_id)
+            assert owner == name or spec == specs[owner], (name, owner, sc.scenario_id)
 
 
 def test_dataset_specs_draw_what_marine_fdi_dataset_draws(tmp_path):

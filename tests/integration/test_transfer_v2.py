@@ -23,24 +23,30 @@ def _family(profile: str) -> str:
     return profile.split(":")[0]
 
 
-def training_configs() -> dict[str, ScenarioConfig]:
-    """Every scenario distribution a training or calibration run draws from: the presets and the
-    configs named in training/hyperparams/*.yml (datasets, calibration sets, RL scenario configs)."""
-    out = {f"preset {k}": v for k, v in PRESETS.items()}
+def training_specs() -> dict[str, dict]:
+    """Every dataset spec a training or calibration run simulates (training/hyperparams/*.yml:
+    datasets, calibration sets, RL scenario configs), by name."""
+    out = {}
     for f in sorted(HYPERPARAMS.glob("*.yml")):
         for env_id, hp in yaml.safe_load(f.read_text()).items():
-            specs = list(hp.get("datasets", [])) + ([hp["calibration"]] if "calibration" in hp else [])
+            specs = list(hp.get("datasets", [])) + [hp[k] for k in ("calibration", "isolation_calibration") if k in hp]
             if "scenario_config" in hp:
                 specs.append({"preset": hp["scenario_config"]} if isinstance(hp["scenario_config"], str)
                              else {"config": hp["scenario_config"]})
             for k, spec in enumerate(specs):
-                if "preset" in spec:
-                    cfg = PRESETS[spec["preset"]]
-                else:
-                    c = spec["config"]
-                    cfg = ScenarioConfig.from_dict({key: (tuple(tuple(x) if isinstance(x, list) else x for x in v)
-                                                          if isinstance(v, list) else v) for key, v in c.items()})
-                out[f"{f.name} {env_id} #{k}"] = cfg
+                out[f"{f.name} {env_id} #{k}"] = spec
+    return out
+
+
+def training_configs() -> dict[str, tuple[ScenarioConfig, set[float]]]:
+    """Every scenario distribution a training or calibration run draws from, with the sensor-noise
+    scales it draws: the presets and the specs of :func:`training_specs`."""
+    from marine_fdi_env.training.datasets import scenario_config_of
+
+    out = {f"preset {k}": (v, {v.noise_scale}) for k, v in PRESETS.items()}
+    for name, spec in training_specs().items():
+        cfg = scenario_config_of(spec)[1]
+        out[name] = (cfg, set(spec.get("noise_scales", [cfg.noise_scale])))
     return out
 
 
@@ -48,7 +54,7 @@ def test_transfer_v2_holds_only_held_out_profiles_and_the_off_grid_noise():
     suite = load_suite("transfer-v2")
     assert len(suite.scenarios) == 64 and suite["env"]["reward"] == "v1"
     fams = [_family(s.profile) for s in suite.scenarios]
-    assert set(fams) == set(HELD_OUT_PROFILES) and fams.count("harbour") == fams.count("seastate") == 32
+    assert set(fams) == {"harbour", "seastate"} and fams.count("harbour") == fams.count("seastate") == 32
     assert {s.noise_scale for s in suite.scenarios} == {TRANSFER_V2_NOISE_SCALE}
     assert {len(s.faults) for s in suite.scenarios} == {0, 1, 2}
 
@@ -56,16 +62,23 @@ def test_transfer_v2_holds_only_held_out_profiles_and_the_off_grid_noise():
 def test_no_training_or_calibration_config_can_draw_transfer_v2():
     configs = training_configs()
     assert any("classifier.yml" in k for k in configs) and any("ppo.yml" in k for k in configs)
-    for name, cfg in configs.items():
+    assert any(len(noise) > 1 for _, noise in configs.values())  # the noise-invariant agents' grid
+    for name, (cfg, noise) in configs.items():
         fams = {f for f, w in cfg.profiles if w > 0}
         assert fams <= set(SAMPLER_PROFILES) and not fams & set(HELD_OUT_PROFILES), name
-        assert cfg.noise_scale != TRANSFER_V2_NOISE_SCALE, name
+        assert TRANSFER_V2_NOISE_SCALE not in noise, name
         drawn = [cfg.sample(e) for e in range(40)]  # and what they actually draw
         assert not {_family(s.profile) for s in drawn} & set(HELD_OUT_PROFILES), name
         assert {s.noise_scale for s in drawn} == {cfg.noise_scale}, name
+    for name, spec in training_specs().items():  # the noise scales a spec's episodes get
+        if "noise_scales" in spec:
+            from marine_fdi_env.training.datasets import dataset_scenarios
+
+            got = {s.noise_scale for s in dataset_scenarios(dict(spec, episodes=60))}
+            assert got == set(spec["noise_scales"]), name
     # the sampler refuses the held-out families outright
     for fam in HELD_OUT_PROFILES:
-        with pytest.raises(ValueError, match="held out for the transfer-v2"):
+        with pytest.raises(ValueError, match="held out for the transfer suites"):
             ScenarioConfig(profiles=((fam, 1.0),))
 
 

@@ -633,16 +633,24 @@ def test_long_commands_say_their_cost_first(capsys, tmp_path):
     from marine_fdi_env.benchmark.agent_registry import list_agents
 
     n_agents = len(list_agents())
-    assert capsys.readouterr().err.startswith(f"marine-fdi sweep: {n_agents} agents x 459 episodes: expect about ")
+    from marine_fdi_env.benchmark.suites import SUITE_NAMES, load_suite
+
+    n_episodes = sum(len(load_suite(name).scenarios) for name in SUITE_NAMES)  # 587 with transfer-v3's 128
+    assert capsys.readouterr().err.startswith(
+        f"marine-fdi sweep: {n_agents} agents x {n_episodes} episodes: expect about "
+    )
     from marine_fdi_env.benchmark.agent_registry import models_dir
     from marine_fdi_env.cli.train import say_training_cost
 
-    shipped = json.loads((models_dir() / "ppo" / "config.json").read_text())["cpu_minutes"]
+    shipped = json.loads((models_dir() / "ppo-v1" / "config.json").read_text())["cpu_minutes"]
     say_training_cost("ppo", None)
     assert f"expect about {shipped:.0f} min" in capsys.readouterr().err
-    data = json.loads((models_dir() / "ppo" / "config.json").read_text())["cpu_s_data"] / 60.0
+    data = json.loads((models_dir() / "ppo-v1" / "config.json").read_text())["cpu_s_data"] / 60.0
     say_training_cost("ppo", 7_000_000 // 100)  # a hundredth of the budget: mostly simulating the episodes
     assert f"expect about {data + (shipped - data) / 100:.0f} min" in capsys.readouterr().err
+    robust = json.loads((models_dir() / "classifier" / "seed0" / "config.json").read_text())["cpu_minutes"]
+    say_training_cost("classifier", None, "robust")  # --hyperparams robust: the noise-invariant classifier's cost
+    assert f"expect about {robust:.0f} min" in capsys.readouterr().err
 
 
 def test_a_fault_free_suite_confusion_plot_has_room_for_its_labels(tmp_path):
@@ -663,5 +671,5 @@ def test_a_fault_free_suite_confusion_plot_has_room_for_its_labels(tmp_path):
 
 def test_a_clone_relative_model_path_elsewhere_names_the_agent(tmp_path, monkeypatch, capsys, tiny):
     monkeypatch.chdir(tmp_path)
-    line = _one_line_error(capsys, ["evaluate", "--agent", "training/models/ppo", "--suite", tiny])
-    assert "--agent ppo" in line and "any folder" in line
+    line = _one_line_error(capsys, ["evaluate", "--agent", "training/models/ppo-v1", "--suite", tiny])
+    assert "--agent ppo-v1" in line and "any folder" in line

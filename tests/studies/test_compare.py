@@ -36,16 +36,17 @@ def _episode(sid: str, delay):
 
 
 def _write(tmp_path, agent, suite, delays):
+    """The same episodes for every training seed of ``agent`` (one file per seed, as compare writes them)."""
     eps = [_episode(f"e{i}", d) for i, d in enumerate(delays)]
-    (tmp_path / f"{agent}_{suite}.json").write_text(
-        json.dumps({"agent": agent, "suite": suite, "metrics": compute_metrics(eps), "episodes": eps})
-    )
+    for k, path in enumerate(cmp._result_paths(agent, suite)):
+        seed = {"training_seed": k} if cmp._multi_seed(agent) else {}
+        path.write_text(json.dumps(dict(agent=agent, suite=suite, metrics=compute_metrics(eps), episodes=eps, **seed)))
 
 
 @pytest.fixture
 def results(tmp_path, monkeypatch):
     monkeypatch.setattr(cmp, "RESULTS", tmp_path)
-    monkeypatch.setattr(cmp, "_model_cfg", lambda name: None)
+    monkeypatch.setattr(cmp, "_model_cfgs", lambda name: [])
     return tmp_path
 
 
@@ -58,13 +59,13 @@ def test_not_reached_reference_loses_to_any_censored_median(results):
     _write(results, "classifier", "incipient-v1", [20.0, 30.0, 90.0, None, 100.0])  # 4 of 5
     checks = _checks("classifier: incipient-v1")
     censored = next(v for k, v in checks.items() if "censored" in k)
-    assert censored[1] is True and "not reached" in censored[0] and "90.0 s" in censored[0]
+    assert censored[1] is True and censored[0].startswith("90.0 (") and "s vs not reached" in censored[0]
     paired = next(v for k, v in checks.items() if "paired" in k)
-    # both detect e0, e1: 25 s vs 45 s, ratio 0.56 -> not met
+    # both detect e0, e1 (of each of the 3 training seeds): 25 s vs 45 s, ratio 0.56 -> not met
     assert (
         paired[1] is False
         and "25.0 s vs 45.0 s" in paired[0]
-        and "the 2 episodes" in next(k for k in checks if "paired" in k)
+        and "the 6 seed x episode pairs" in next(k for k in checks if "paired" in k)
     )
 
 

@@ -91,11 +91,15 @@ def profiles(draw, D: float) -> str:
     if fam == "random":
         a, b = sorted((draw(_u()), draw(_u())))
         return f"random:seed={draw(st.integers(0, 2**31))},u_min={a},u_max={b}"
-    if fam == "harbour":  # the transfer-v2 families: explicit scenarios may use them
+    if fam == "harbour":  # the transfer families: explicit scenarios may use them
         return f"harbour:seed={draw(st.integers(0, 2**31))},dwell={round(draw(st.floats(5.0, 60.0)), 2)}"
     if fam == "seastate":
         return (f"seastate:seed={draw(st.integers(0, 2**31))},u_mean={draw(_u())},"
                 f"amplitude={round(draw(st.floats(0.0, 0.09)), 4)},period={round(draw(st.floats(2.0, 20.0)), 2)}")
+    if fam == "slowsteaming":  # the transfer-v3 family
+        return (f"slowsteaming:seed={draw(st.integers(0, 2**31))},u_mean={draw(_u())},"
+                f"drift={round(draw(st.floats(-0.1, 0.1)), 3)},amplitude={round(draw(st.floats(0.0, 0.09)), 4)},"
+                f"period={round(draw(st.floats(2.0, 20.0)), 2)}")
     return f"manoeuvring:scale={round(draw(st.floats(0.35, 1.1)), 4)}"
 
 

@@ -136,3 +136,46 @@ def test_missing_matplotlib_gives_clear_error(result_files, tmp_path, monkeypatc
     assert report_main([*map(str, result_files), "--out", str(tmp_path / "r2")]) == 2
     assert "--no-plots" in capsys.readouterr().err
     assert report_main([*map(str, result_files), "--out", str(tmp_path / "r3"), "--no-plots"]) == 0
+
+
+def _seeded(tmp: Path, agent: str, suite: str, delays, seed: int) -> Path:
+    p = write_result(tmp, agent, suite, delays)
+    data = json.loads(p.read_text())
+    data["training_seed"] = seed
+    q = tmp / f"{suite}-{agent}-s{seed}.json"
+    q.write_text(json.dumps(data))
+    p.unlink()
+    return q
+
+
+def test_training_seeds_are_pooled_with_intervals(tmp_path):
+    files = [_seeded(tmp_path, "learner", "a", [1, 2, None, 3], s) for s in (0, 1)]
+    files.append(_seeded(tmp_path, "learner", "a", [1, None, None, None], 2))
+    table = markdown_table(load_results(files), intervals=True)
+    head, _, row = table.strip().splitlines()
+    cells = dict(zip([c.strip() for c in head.strip("|").split("|")], [c.strip() for c in row.strip("|").split("|")]))
+    assert cells["Seeds"] == "3" and cells["Episodes"] == "12"
+    assert cells["Detection"].startswith("58.3 % (")  # 7 of 12, with its interval
+    lo, hi = (float(x) for x in cells["Detection"].split("(")[1].rstrip(")").split("–"))
+    assert lo < 58.3 < hi
+    assert cells["False alarms [1/h]"].startswith("0.00 (0.00–")  # none: the exact Poisson bound
+    # the same seed twice is refused, and so is a mix of seeded and unseeded results
+    with pytest.raises(ValueError, match="training seed 0"):
+        markdown_table(load_results(files + [files[0]]))
+    with pytest.raises(ValueError, match="not all with a training_seed"):
+        markdown_table(load_results(files + [write_result(tmp_path, "learner", "a", [1, 2, 3, 4])]))
+
+
+def test_report_gives_normalised_scores(tmp_path):
+    files = [write_result(tmp_path, "null", "a", [None, None]), write_result(tmp_path, "oracle", "a", [0, 0]),
+             write_result(tmp_path, "alpha", "a", [1, None])]
+    for f, ret in zip(files, (-2.0, 10.0, 4.0)):
+        data = json.loads(f.read_text())
+        for e in data["episodes"]:
+            e["return"] = ret
+        data.pop("metrics")
+        f.write_text(json.dumps(data))
+    text = write_report(files, tmp_path / "rep", plots=False).read_text()
+    assert "## Normalised scores" in text
+    row = next(line for line in text.splitlines() if line.startswith("| alpha |"))
+    assert row.split("|")[2].strip().startswith("50.0")  # (4 + 2) / (10 + 2)

@@ -7,7 +7,9 @@ Nothing here lists the models: they are found where they are installed.
 * **Models**: every folder of ``MODELS_PACKAGE/MODELS_FOLDER/`` (package data) holding an
   ``agent.json``.  Its name is the ``name`` of its ``config.json`` (the name the agent reports in
   results), else the folder's name; the folder's name is accepted too.  A new model folder is a
-  new agent name, with no code change.
+  new agent name, with no code change.  A model trained with several seeds keeps one sub-folder per
+  seed (``seed0``, ...) and an ``agent.json`` naming the default one (``"kwargs": {"model":
+  "seed0"}``); every seed runs by its path (``training/models/classifier/seed1``).
 
 :data:`MODELS_PACKAGE` is the only place that knows where the training code is installed
 (``marine_fdi_env.training``, from the repository folder ``training/``), and the targets of
@@ -26,8 +28,7 @@ from pathlib import Path
 
 from ..jsonfile import read_json
 
-__all__ = ["AgentEntry", "list_agents", "find_agent", "MODELS_PACKAGE", "MODELS_FOLDER", "models_dir",
-           "BUILTIN_AGENTS"]
+__all__ = ["AgentEntry", "list_agents", "find_agent", "MODELS_PACKAGE", "MODELS_FOLDER", "models_dir", "BUILTIN_AGENTS"]
 
 MODELS_PACKAGE = "marine_fdi_env.training"  # the repository folder training/, installed under the namespace
 MODELS_FOLDER = "models"
@@ -65,8 +66,15 @@ class AgentEntry:
         return all(importlib.util.find_spec(m) is not None for m in self.needs)
 
     def to_dict(self) -> dict:
-        return {"name": self.name, "kind": self.kind, "spec": self.spec, "description": self.description,
-                "aliases": list(self.aliases), "needs": list(self.needs), "available": self.available}
+        return {
+            "name": self.name,
+            "kind": self.kind,
+            "spec": self.spec,
+            "description": self.description,
+            "aliases": list(self.aliases),
+            "needs": list(self.needs),
+            "available": self.available,
+        }
 
 
 def models_dir() -> Path | None:
@@ -96,14 +104,27 @@ def _model_entry(folder: Path) -> AgentEntry | None:
     name = str(cfg.get("name") or folder.name)
     desc = cfg.get("description")
     kw = spec.get("kwargs") or {}
-    if not desc and not cfg and kw.get("model"):  # an agent directory over another folder's model
-        desc = (f"the model of {MODELS_PACKAGE.rpartition('.')[2]}/{MODELS_FOLDER}/{Path(str(kw['model'])).name} with the reference diagnoser's "
-                f"conclusion ({kw.get('use_reference', '?')}): a hybrid")
+    where = f"{MODELS_PACKAGE.rpartition('.')[2]}/{MODELS_FOLDER}"
+    if not desc and not cfg and kw.get("model") and kw.get("use_reference"):  # a hybrid over another folder's model
+        desc = (
+            f"the model of {where}/{Path(str(kw['model'])).name} with the reference diagnoser's "
+            f"conclusion ({kw.get('use_reference', '?')}): a hybrid"
+        )
+    if not desc and not cfg and kw.get("model"):  # one model of several (training seeds) in sub-folders
+        sub = folder / str(kw["model"])
+        seeds = sorted(p.name for p in folder.iterdir() if (p / "config.json").is_file())
+        sub_cfg = read_json(sub / "config.json", "model config") if (sub / "config.json").is_file() else {}
+        minutes = sub_cfg.get("cpu_minutes")
+        desc = (
+            f"trained {sub_cfg.get('algo', '?')} model in {where}/{folder.name}: {sub.name} by default, "
+            f"{len(seeds)} training seeds ({', '.join(seeds)})"
+            + (f", {float(minutes):.1f} CPU min of training ({sub.name})" if minutes is not None else "")
+        )
     if not desc:
         algo = cfg.get("algo", "?")
         minutes = cfg.get("cpu_minutes")
         size = cfg.get("model_bytes")
-        parts = [f"trained {algo} model in {MODELS_PACKAGE.rpartition('.')[2]}/{MODELS_FOLDER}/{folder.name}"]
+        parts = [f"trained {algo} model in {where}/{folder.name}"]
         if minutes is not None:
             parts.append(f"{float(minutes):.1f} CPU min of training")
         if size:

@@ -66,8 +66,20 @@ from .lockstep import agent_view, episode_seed, score_agents
 from .metrics import compute_metrics
 from .suites import load_suite
 
-__all__ = ["run_episodes", "run_agents", "evaluate", "evaluate_agents", "episode_seed", "evaluate_chunk",
-           "suite_env_kwargs", "plan_passes", "Pass", "suite_caches", "WALL_CLOCK_FIELDS", "WALL_CLOCK_METRICS"]
+__all__ = [
+    "run_episodes",
+    "run_agents",
+    "evaluate",
+    "evaluate_agents",
+    "episode_seed",
+    "evaluate_chunk",
+    "suite_env_kwargs",
+    "plan_passes",
+    "Pass",
+    "suite_caches",
+    "WALL_CLOCK_FIELDS",
+    "WALL_CLOCK_METRICS",
+]
 
 # the fields of an episode record that are wall-clock measurements (everything else reproduces)
 WALL_CLOCK_FIELDS = ("compute_s", "feature_compute_s", "agent_compute_s")
@@ -119,8 +131,11 @@ class Pass:
 
 # the vector environment's own defaults: an option given at its default value makes the same simulation as one
 # left out (the reference agent asks for the default cell set, the null agent for nothing: one pass serves both)
-_ENV_DEFAULTS = {k: p.default for k, p in inspect.signature(MarineFDIVectorEnv.__init__).parameters.items()
-                 if p.default is not inspect.Parameter.empty}
+_ENV_DEFAULTS = {
+    k: p.default
+    for k, p in inspect.signature(MarineFDIVectorEnv.__init__).parameters.items()
+    if p.default is not inspect.Parameter.empty
+}
 
 
 def _is_default(option: str, value) -> bool:
@@ -130,8 +145,11 @@ def _is_default(option: str, value) -> bool:
 def _key(env_kwargs: dict) -> str:
     from .feature_cache import _jsonable
 
-    return json.dumps({k: _jsonable(v) for k, v in env_kwargs.items() if k not in OBSERVATION_OPTIONS
-                       and not _is_default(k, v)}, sort_keys=True, default=repr)
+    return json.dumps(
+        {k: _jsonable(v) for k, v in env_kwargs.items() if k not in OBSERVATION_OPTIONS and not _is_default(k, v)},
+        sort_keys=True,
+        default=repr,
+    )
 
 
 def plan_passes(agents: list, env_kwargs: dict, all_options: bool = False) -> list[Pass]:
@@ -154,9 +172,20 @@ def plan_passes(agents: list, env_kwargs: dict, all_options: bool = False) -> li
     return out
 
 
-def run_agents(agents: list, scenarios: list[ScenarioSpec], env_kwargs: dict | None = None, *, suite: str = "",
-               seed_offset: int = 0, batch_size: int = 32, trajectories: dict | None = None, keep: bool = False,
-               all_options: bool = False, progress=None, on_decision=None) -> tuple[list[list[dict]], dict]:
+def run_agents(
+    agents: list,
+    scenarios: list[ScenarioSpec],
+    env_kwargs: dict | None = None,
+    *,
+    suite: str = "",
+    seed_offset: int = 0,
+    batch_size: int = 32,
+    trajectories: dict | None = None,
+    keep: bool = False,
+    all_options: bool = False,
+    progress=None,
+    on_decision=None,
+) -> tuple[list[list[dict]], dict]:
     """Run every agent on every scenario, simulating each batch once per pass.
 
     Returns the episode records (one list per agent, scenario order) and, with ``keep``, the
@@ -172,8 +201,11 @@ def run_agents(agents: list, scenarios: list[ScenarioSpec], env_kwargs: dict | N
     groups: dict[float, list[int]] = {}  # one batched engine set per sensor-noise scale
     for i, s in enumerate(scenarios):
         groups.setdefault(float(s.noise_scale), []).append(i)
-    batches = [np.asarray(idx[a:a + batch_size], dtype=np.int64) for idx in groups.values()
-               for a in range(0, len(idx), batch_size)]
+    batches = [
+        np.asarray(idx[a : a + batch_size], dtype=np.int64)
+        for idx in groups.values()
+        for a in range(0, len(idx), batch_size)
+    ]
     for p in passes:
         given = (trajectories or {}).get(p.key)
         share = 0.0 if given is not None else _SIMULATION_SHARE
@@ -191,8 +223,12 @@ def run_agents(agents: list, scenarios: list[ScenarioSpec], env_kwargs: dict | N
                 traj = simulate([_offset(scenarios[i], seed_offset) for i in idx], p.env_kwargs, progress=sim_cb)
             views = [agent_view(kw, traj) for kw in p.agent_env]
             cb = None if on_decision is None else (lambda j, *a, p=p: on_decision(p.agents[j], *a))
-            for j, recs in zip(p.agents, score_agents(mine, views, traj, reward, suite=suite, seed_offset=seed_offset,
-                                                      progress=score_cb, on_decision=cb)):
+            for j, recs in zip(
+                p.agents,
+                score_agents(
+                    mine, views, traj, reward, suite=suite, seed_offset=seed_offset, progress=score_cb, on_decision=cb
+                ),
+            ):
                 for i, rec in zip(idx, recs):
                     records[j][i] = rec
             if keep:
@@ -202,8 +238,17 @@ def run_agents(agents: list, scenarios: list[ScenarioSpec], env_kwargs: dict | N
     return records, made
 
 
-def run_episodes(agent, scenarios: list[ScenarioSpec], env_kwargs: dict | None = None, *, suite: str = "",
-                 seed_offset: int = 0, batch_size: int = 32, progress=None, on_decision=None) -> list[dict]:
+def run_episodes(
+    agent,
+    scenarios: list[ScenarioSpec],
+    env_kwargs: dict | None = None,
+    *,
+    suite: str = "",
+    seed_offset: int = 0,
+    batch_size: int = 32,
+    progress=None,
+    on_decision=None,
+) -> list[dict]:
     """Run ``agent`` on every scenario; returns the episode records (scenario order).
 
     ``progress(x)`` after every decision with the episodes' worth of work done since the last call
@@ -212,8 +257,16 @@ def run_episodes(agent, scenarios: list[ScenarioSpec], env_kwargs: dict | None =
     this decision: its observation and its share of the agent's ``act``).
     """
     cb = None if on_decision is None else (lambda j, *a: on_decision(*a))
-    records, _ = run_agents([agent], scenarios, env_kwargs, suite=suite, seed_offset=seed_offset,
-                            batch_size=batch_size, progress=progress, on_decision=cb)
+    records, _ = run_agents(
+        [agent],
+        scenarios,
+        env_kwargs,
+        suite=suite,
+        seed_offset=seed_offset,
+        batch_size=batch_size,
+        progress=progress,
+        on_decision=cb,
+    )
     return records[0]
 
 
@@ -244,9 +297,18 @@ def cached_agent(spec: str):
     return _AGENTS[key]
 
 
-def evaluate_chunk(agent_specs: list[str], scenarios_dicts: list[dict], env_kwargs: dict, suite: str,
-                   seed_offset: int, batch_size: int, trajectories: dict | None = None, keep: bool = False,
-                   all_options: bool = False, progress=None) -> dict:
+def evaluate_chunk(
+    agent_specs: list[str],
+    scenarios_dicts: list[dict],
+    env_kwargs: dict,
+    suite: str,
+    seed_offset: int,
+    batch_size: int,
+    trajectories: dict | None = None,
+    keep: bool = False,
+    all_options: bool = False,
+    progress=None,
+) -> dict:
     """One task of a backend: every agent on a chunk of scenarios (given as dicts).
 
     Returns ``{"records": [records of each agent], "trajectories": {pass key: Trajectory}}`` (the
@@ -254,8 +316,18 @@ def evaluate_chunk(agent_specs: list[str], scenarios_dicts: list[dict], env_kwar
     agents = [cached_agent(s) for s in agent_specs]
     scs = [ScenarioSpec.from_dict(d) for d in scenarios_dicts]
     cb = None if progress is None else (lambda x, k=len(agents): progress(x * k))
-    records, made = run_agents(agents, scs, env_kwargs, suite=suite, seed_offset=seed_offset, batch_size=batch_size,
-                               trajectories=trajectories, keep=keep, all_options=all_options, progress=cb)
+    records, made = run_agents(
+        agents,
+        scs,
+        env_kwargs,
+        suite=suite,
+        seed_offset=seed_offset,
+        batch_size=batch_size,
+        trajectories=trajectories,
+        keep=keep,
+        all_options=all_options,
+        progress=cb,
+    )
     return {"records": records, "trajectories": made}
 
 
@@ -280,16 +352,17 @@ def suite_caches(mode: str, cache_dir, suite, seed_offset: int, agents: list, en
     from .feature_cache import SuiteCache, cache_header
 
     scs = [_offset(s, seed_offset) for s in suite.scenarios]
-    return {p.key: SuiteCache(mode, cache_dir,
-                              cache_header(suite.name, suite["version"], seed_offset, p.env_kwargs, scs))
-            for p in plan_passes(agents, env_kwargs, all_options=True)}
+    return {
+        p.key: SuiteCache(mode, cache_dir, cache_header(suite.name, suite["version"], seed_offset, p.env_kwargs, scs))
+        for p in plan_passes(agents, env_kwargs, all_options=True)
+    }
 
 
 def chunk_tasks(caches: dict, todo_idx: np.ndarray, per: int) -> list[tuple[np.ndarray, dict]]:
     """The chunks of ``todo_idx`` (suite indices) and the cached trajectories each replays."""
     out = []
     for a in range(0, len(todo_idx), per):
-        idx = todo_idx[a:a + per]
+        idx = todo_idx[a : a + per]
         out.append((idx, {k: c.trajectory.take(idx) for k, c in caches.items() if c.trajectory is not None}))
     return out
 
@@ -310,8 +383,10 @@ def _open_partial(partial: Path, header: dict) -> dict[str, dict]:
     if old != header:
         from ..outputs import differing_fields
 
-        raise ValueError(f"{partial} belongs to another evaluation ({differing_fields(old, header)}); rerun "
-                         "that command to finish it, remove the file, or choose another --out")
+        raise ValueError(
+            f"{partial} belongs to another evaluation ({differing_fields(old, header)}); rerun "
+            "that command to finish it, remove the file, or choose another --out"
+        )
     for ln in lines[1:]:
         try:
             rec = json.loads(ln)
@@ -321,10 +396,21 @@ def _open_partial(partial: Path, header: dict) -> dict[str, dict]:
     return done
 
 
-def evaluate_agents(agent_specs: list[str], suite_name: str, outs: list[Path], *, workers: int = 1,
-                    seed_offset: int = 0, batch_size: int = 32, progress: bool = True,
-                    backend: "Backend | str | None" = None, ray_address: str | None = None,
-                    reward: "str | dict | None" = None, cache: str = "off", cache_dir=None) -> list[dict]:
+def evaluate_agents(
+    agent_specs: list[str],
+    suite_name: str,
+    outs: list[Path],
+    *,
+    workers: int = 1,
+    seed_offset: int = 0,
+    batch_size: int = 32,
+    progress: bool = True,
+    backend: "Backend | str | None" = None,
+    ray_address: str | None = None,
+    reward: "str | dict | None" = None,
+    cache: str = "off",
+    cache_dir=None,
+) -> list[dict]:
     """Evaluate several agents on a suite in one pass over its episodes, resumably; returns the
     results object written to each ``outs[j]`` (as :func:`evaluate` writes it for one agent).
 
@@ -348,8 +434,17 @@ def evaluate_agents(agent_specs: list[str], suite_name: str, outs: list[Path], *
     for a, spec, out in zip(agents, agent_specs, outs):
         kw = dict(env_kwargs)
         kw.update(getattr(a, "env_kwargs", {}))  # options the agent needs (e.g. observe_sequential)
-        header = {"agent": a.name, "agent_spec": str(spec), "suite": suite.name, "suite_version": suite["version"],
-                  "seed_offset": int(seed_offset), "env_id": env_id_for(reward_cfg), "env": kw}
+        header = {
+            "agent": a.name,
+            "agent_spec": str(spec),
+            "suite": suite.name,
+            "suite_version": suite["version"],
+            "seed_offset": int(seed_offset),
+            "env_id": env_id_for(reward_cfg),
+            "env": kw,
+        }
+        if getattr(a, "training_seed", None) is not None:  # a learned agent: which of its trainings this is
+            header["training_seed"] = int(a.training_seed)
         partial = out.with_name(out.name + ".partial.jsonl")
         done.append(_open_partial(partial, header))
         headers.append(header)
@@ -368,8 +463,20 @@ def evaluate_agents(agent_specs: list[str], suite_name: str, outs: list[Path], *
     bar = progress_bar(len(ids), n_done, f"{name} on {suite.name}", progress)
     chunks = chunk_tasks(caches, todo, chunk_size(len(todo), batch_size, backend.workers))
     keep = any(c.keep for c in caches.values())
-    tasks = [(specs, [suite.scenarios[i].to_dict() for i in idx], env_kwargs, suite.name, seed_offset, batch_size,
-              given or None, keep, cache == "write") for idx, given in chunks]
+    tasks = [
+        (
+            specs,
+            [suite.scenarios[i].to_dict() for i in idx],
+            env_kwargs,
+            suite.name,
+            seed_offset,
+            batch_size,
+            given or None,
+            keep,
+            cache == "write",
+        )
+        for idx, given in chunks
+    ]
     in_flight: dict[int, float] = {}
     finished = [0]
 
@@ -401,8 +508,9 @@ def evaluate_agents(agent_specs: list[str], suite_name: str, outs: list[Path], *
     for header, partial, out, d in zip(headers, partials, outs, done):
         episodes = [d[i] for i in ids]
         result = dict(header)
-        result.update(package_version=__version__, n_scenarios=len(episodes), metrics=compute_metrics(episodes),
-                      episodes=episodes)
+        result.update(
+            package_version=__version__, n_scenarios=len(episodes), metrics=compute_metrics(episodes), episodes=episodes
+        )
         if used:
             result["feature_cache"] = sorted(used.values())
         tmp = out.with_name(out.name + ".tmp")
@@ -418,10 +526,21 @@ def evaluate_agents(agent_specs: list[str], suite_name: str, outs: list[Path], *
     return results
 
 
-def evaluate(agent_spec: str, suite_name: str, out: Path, *, workers: int = 1, seed_offset: int = 0,
-             batch_size: int = 32, progress: bool = True, backend: "Backend | str | None" = None,
-             ray_address: str | None = None, reward: "str | dict | None" = None, cache: str = "off",
-             cache_dir=None) -> dict:
+def evaluate(
+    agent_spec: str,
+    suite_name: str,
+    out: Path,
+    *,
+    workers: int = 1,
+    seed_offset: int = 0,
+    batch_size: int = 32,
+    progress: bool = True,
+    backend: "Backend | str | None" = None,
+    ray_address: str | None = None,
+    reward: "str | dict | None" = None,
+    cache: str = "off",
+    cache_dir=None,
+) -> dict:
     """Evaluate an agent on a suite, resumably; returns the results object written to ``out``.
 
     ``backend``: a :class:`~.backends.Backend` or its name (default: ``process`` if
@@ -429,6 +548,17 @@ def evaluate(agent_spec: str, suite_name: str, out: Path, *, workers: int = 1, s
     dict); default: the suite's ``env.reward``, else ``v1``.  A suite that fixes its reward refuses
     another one.  ``cache``, ``cache_dir``: the feature cache (:func:`evaluate_agents`).
     """
-    return evaluate_agents([agent_spec], suite_name, [out], workers=workers, seed_offset=seed_offset,
-                           batch_size=batch_size, progress=progress, backend=backend, ray_address=ray_address,
-                           reward=reward, cache=cache, cache_dir=cache_dir)[0]
+    return evaluate_agents(
+        [agent_spec],
+        suite_name,
+        [out],
+        workers=workers,
+        seed_offset=seed_offset,
+        batch_size=batch_size,
+        progress=progress,
+        backend=backend,
+        ray_address=ray_address,
+        reward=reward,
+        cache=cache,
+        cache_dir=cache_dir,
+    )[0]

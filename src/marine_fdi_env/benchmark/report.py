@@ -21,7 +21,13 @@ single-fault episodes is the isolation accuracy; an episode with two true and tw
 faults to four cells.
 
 A results file is JSON ``{"agent", "suite", "suite_version", "metrics", "episodes", ...}``;
-``metrics`` is recomputed from ``episodes`` when absent (see :mod:`.metrics`).
+``metrics`` is recomputed from ``episodes`` when absent (see :mod:`.metrics`).  A learned agent
+trained with several seeds has one results file per training seed (``training_seed``); the report
+pools them into one row per suite and agent (its metrics over all their episodes), and every rate
+carries its 95 % interval, a stratified bootstrap over episodes and training seeds
+(:mod:`.uncertainty`).  With the null agent's and the oracle's results of a suite, ``report.md``
+also gives each agent's normalised score per suite and their interquartile mean across suites,
+with intervals, and ``scores.png`` plots them (:mod:`.report_scores`).
 """
 
 from __future__ import annotations
@@ -37,7 +43,7 @@ from ..plotting import pyplot
 from ..jsonfile import read_json
 from .metrics import FAULT_CLASSES, compute_metrics, episode_outcome
 
-__all__ = ["load_results", "markdown_table", "write_report", "agent_sort_key", "fault_table",
+__all__ = ["load_results", "merge_seeds", "markdown_table", "write_report", "agent_sort_key", "fault_table",
            "confusion_matrix", "confusion_markdown", "NO_FAULT_LABEL", "UNKNOWN_LABEL", "NOTHING_LABEL"]
 
 _FIXED_FIRST = ("null", "random", "reference")
@@ -110,6 +116,37 @@ def load_results(paths: Iterable[str | Path]) -> list[dict]:
     return out
 
 
+def merge_seeds(results: Sequence[Mapping]) -> list[dict]:
+    """One result per suite and agent: the results of an agent's training seeds (``training_seed``)
+    pooled (episodes concatenated seed by seed, metrics recomputed), each with ``seed_results``, the
+    results it pools in seed order; ``ValueError`` for two results of the same suite, agent and
+    seed."""
+    groups: dict[tuple[str, str], list[Mapping]] = {}
+    seen: dict[tuple, str] = {}
+    for r in results:
+        key = (r["suite"], r["agent"], r.get("training_seed"))
+        if key in seen:
+            seed = "" if key[2] is None else f", training seed {key[2]}"
+            raise ValueError(f"two results for suite {key[0]!r}, agent {key[1]!r}{seed}: "
+                             f"{seen[key]} and {r.get('path', '?')}")
+        seen[key] = r.get("path", "?")
+        groups.setdefault(key[:2], []).append(r)
+    out = []
+    for (suite, agent), rs in groups.items():
+        rs = sorted(rs, key=lambda r: (r.get("training_seed") is None, r.get("training_seed") or 0))
+        if len(rs) > 1 and any(r.get("training_seed") is None for r in rs):
+            raise ValueError(f"suite {suite!r}, agent {agent!r}: several results, not all with a training_seed: "
+                             + ", ".join(str(r.get("path", "?")) for r in rs))
+        if len(rs) == 1:
+            out.append(dict(rs[0], seed_results=[rs[0]]))
+            continue
+        episodes = [e for r in rs for e in r["episodes"]]
+        out.append(dict(rs[0], episodes=episodes, metrics=compute_metrics(episodes), seed_results=list(rs),
+                        training_seeds=[r["training_seed"] for r in rs],
+                        path=", ".join(str(r.get("path", "?")) for r in rs)))
+    return out
+
+
 def agent_sort_key(agent: str) -> tuple[int, str]:
     """null, random, reference first, then others alphabetically, oracle last."""
     a = agent.lower()
@@ -121,13 +158,9 @@ def agent_sort_key(agent: str) -> tuple[int, str]:
 
 
 def _sorted(results: Sequence[Mapping]) -> list[Mapping]:
-    seen: dict[tuple[str, str], str] = {}
-    for r in results:
-        key = (r["suite"], r["agent"])
-        if key in seen:
-            raise ValueError(f"two results for suite {key[0]!r}, agent {key[1]!r}: "
-                             f"{seen[key]} and {r.get('path', '?')}")
-        seen[key] = r.get("path", "?")
+    """The results with the seeds of each agent pooled (:func:`merge_seeds`), in table order."""
+    if not all("seed_results" in r for r in results):
+        results = merge_seeds(results)
     return sorted(results, key=lambda r: (_suite_sort_key(r["suite"]), agent_sort_key(r["agent"])))
 
 
@@ -181,19 +214,49 @@ _FA_COLUMNS = tuple(c for c in COLUMNS if c.key in ("n_episodes", "false_alarm_r
                                                     "agent_compute_s_per_decision"))
 
 
-def _table(rows: Sequence[tuple[str, str, Mapping]], cols: Sequence[_Col]) -> str:
-    head = ["Suite", "Agent", *(c.title for c in cols)]
+# the columns that carry a 95 % interval (the metrics of :data:`.uncertainty.RATE_METRICS`)
+_INTERVAL_KEYS = ("detection_rate", "median_detection_delay_censored_s", "isolation_accuracy", "false_alarm_rate",
+                  "false_alarm_episode_rate", "mean_return")
+
+
+def _with_interval(col: _Col, est) -> str:
+    """``value (low–high)``; the bounds in the column's format without a unit."""
+    text = col.fmt(est.value)
+    if est.value is None or est.low is None or est.high is None:
+        return text
+    bound = (lambda v: col.fmt(v).replace(" %", "")) if col.fmt is _pct else col.fmt
+    high = "∞" if est.high == float("inf") else bound(est.high)  # a censored delay whose bound is not reached
+    return f"{text} ({bound(est.low)}–{high})"
+
+
+def _interval_cells(r: Mapping, cols: Sequence[_Col]) -> list[str]:
+    from .uncertainty import interval, outcomes
+
+    o = outcomes([x["episodes"] for x in r.get("seed_results") or [r]])
+    return [_with_interval(c, interval(o, c.key)) if c.key in _INTERVAL_KEYS else c.fmt(r["metrics"].get(c.key))
+            for c in cols]
+
+
+def _table(rows: Sequence[tuple[str, str, Mapping]], cols: Sequence[_Col], intervals: bool = False) -> str:
+    """Rows (suite, agent, result or metrics); with ``intervals`` the results' rate cells carry their
+    95 % intervals and a column gives the number of training seeds."""
+    head = ["Suite", "Agent", *(["Seeds"] if intervals else []), *(c.title for c in cols)]
     lines = ["| " + " | ".join(head) + " |",
-             "|" + "|".join([" --- ", " --- "] + [" ---: "] * len(cols)) + "|"]
-    for suite, agent, m in rows:
-        cells = [suite, agent, *(c.fmt(m.get(c.key)) for c in cols)]
+             "|" + "|".join([" --- ", " --- "] + [" ---: "] * (len(cols) + int(intervals))) + "|"]
+    for suite, agent, r in rows:
+        if intervals:
+            cells = [suite, agent, str(len(r.get("seed_results") or [r])), *_interval_cells(r, cols)]
+        else:
+            m = r.get("metrics", r)
+            cells = [suite, agent, *(c.fmt(m.get(c.key)) for c in cols)]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
-def markdown_table(results: Sequence[Mapping]) -> str:
-    """Main Markdown table: one row per (suite, agent)."""
-    return _table([(r["suite"], r["agent"], r["metrics"]) for r in _sorted(results)], COLUMNS)
+def markdown_table(results: Sequence[Mapping], intervals: bool = False) -> str:
+    """Main Markdown table: one row per (suite, agent), an agent's training seeds pooled; with
+    ``intervals``, every rate with its 95 % interval (:mod:`.uncertainty`) and a seeds column."""
+    return _table([(r["suite"], r["agent"], r) for r in _sorted(results)], COLUMNS, intervals)
 
 
 def class_table(results: Sequence[Mapping], fault_class: str) -> str:
@@ -471,12 +534,30 @@ def _write_report(paths, out_dir, plots: bool) -> Path:
     results = load_results(list(paths))
     if not results:
         raise ValueError("no results files given")
+    results = merge_seeds(results)  # one result per suite and agent, its training seeds pooled
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     groups = _by_suite(results)
     parts = ["# MarineFDI benchmark report\n",
              "Sources: " + ", ".join(f"`{r['path']}`" for r in _sorted(results)) + "\n",
-             "## All episodes\n", markdown_table(results)]
+             "## All episodes\n",
+             "Every rate with its 95 % interval in parentheses: a percentile bootstrap over the episodes, stratified "
+             "by fault class, and over the training seeds of a learned agent (Seeds: how many are pooled); where "
+             "every resample agrees (e.g. no false alarm at all), the exact interval of one seed's episodes "
+             "(Clopper-Pearson, Poisson).  `marine_fdi_env.benchmark.uncertainty`.\n",
+             markdown_table(results, intervals=True)]
+    from .report_scores import plot_scores, scores_markdown
+
+    agent_order = sorted({r["agent"] for r in results}, key=agent_sort_key)
+    score_md = scores_markdown(results, agent_order)
+    if score_md:
+        parts += ["## Normalised scores\n",
+                  "Per suite, 100 (R - R_null) / (R_oracle - R_null) with R the mean return: the null agent scores 0, "
+                  "the oracle 100; suites where the two earn the same (fault-free ones) are not scored.  IQM: the "
+                  "interquartile mean over training seeds x suites.  95 % intervals in parentheses (the episodes "
+                  "resampled within each suite, the null and oracle returns on the same resamples).\n", score_md]
+        if plots and plot_scores(results, out / "scores.png", agent_order) is not None:
+            parts.append("![normalised scores](scores.png)\n")
     for cls in FAULT_CLASSES:
         if not any((r["metrics"].get("by_class", {}).get(cls) or {}).get("n_episodes")
                    for r in results):

@@ -30,6 +30,11 @@ suite              content
                    steps) and ``seastate`` (wave load fluctuation around a mean), and sensor
                    noise at 0.7x table 6.3 (everything else is drawn at 1.0x); 0-2 faults as
                    the ``default`` preset; scored with the ``MarineFDI-v1`` reward
+``transfer-v3``    128 episodes in conditions no training or calibration config can draw: the
+                   held-out part-load family ``slowsteaming`` (mean fuel setting 0.3-0.5,
+                   drifting by up to 10 %, waves of 5-12 % peak) at sensor noise 1.3x (even
+                   indices) and 0.6x (odd), neither on the learned agents' training grid;
+                   0-2 faults at 1-3x their detectability limit; scored with ``MarineFDI-v1``
 =================  =========================================================================
 
 ``transfer-v2``'s noise is *below* the table bounds because the reference diagnoser's adaptive
@@ -54,7 +59,8 @@ from ..jsonfile import read_json
 
 __all__ = ["SUITE_NAMES", "load_suite", "build_suite", "Suite"]
 
-SUITE_NAMES = ("thesis-v1", "single-v1", "multi-v1", "incipient-v1", "transfer-v1", "nominal-v1", "transfer-v2")
+SUITE_NAMES = ("thesis-v1", "single-v1", "multi-v1", "incipient-v1", "transfer-v1", "nominal-v1", "transfer-v2",
+               "transfer-v3")
 _ENV = {"decision_period_s": 1.0, "params": "thesis-12v28", "observe_sensors": False}
 
 
@@ -193,6 +199,27 @@ def _transfer_v2() -> list[ScenarioSpec]:
     return out
 
 
+TRANSFER_V3_NOISE_SCALES = (1.3, 0.6)
+
+
+def _transfer_v3() -> list[ScenarioSpec]:
+    """128 episodes: 0-2 faults as the ``default`` preset draws them but at 1-3x their detectability
+    limit, a ``slowsteaming`` profile, noise 1.3x for even and 0.6x for odd indices."""
+    from dataclasses import replace
+
+    faults = ScenarioConfig(name="transfer-v3", magnitude_range=(1.0, 3.0))
+    seeds = _seeds("transfer-v3", 2 * 128)
+    out = []
+    for i in range(128):
+        sc = faults.sample(seeds[2 * i], scenario_id=f"transfer-v3/{i:03d}")
+        r = np.random.default_rng(seeds[2 * i + 1])
+        prof = (f"slowsteaming:seed={int(r.integers(0, 2**31))},u_mean={round(float(r.uniform(0.3, 0.5)), 3)},"
+                f"drift={round(float(r.uniform(-0.1, 0.1)), 3)},amplitude={round(float(r.uniform(0.05, 0.12)), 3)},"
+                f"period={round(float(r.uniform(6.0, 12.0)), 2)}")
+        out.append(replace(sc, profile=prof, noise_scale=TRANSFER_V3_NOISE_SCALES[i % 2]))
+    return out
+
+
 _BUILDERS = {
     "thesis-v1": (_thesis, "the four multiple-fault examples of thesis section 6.4 x 5 noise seeds"),
     "single-v1": (_single, "each of the 26 faults alone at 1x, 2x, 4x its detectability limit x 2 seeds"),
@@ -203,9 +230,11 @@ _BUILDERS = {
     "nominal-v1": (_nominal, "48 fault-free episodes over all profile families"),
     "transfer-v2": (_transfer_v2, "held-out profile families (harbour telegraph steps, sea-state load fluctuation) "
                     "and sensor noise 0.7x, never in training or calibration data; 0-2 faults"),
+    "transfer-v3": (_transfer_v3, "held-out part-load family (slow steaming at 0.3-0.5 with waves) at sensor noise "
+                    "1.3x and 0.6x, never in training or calibration data; 0-2 faults at 1-3x their limits"),
 }
-# the env block of a suite; transfer-v2 also fixes the reward it is scored with
-_SUITE_ENV = {"transfer-v2": dict(_ENV, reward="v1")}
+# the env block of a suite; transfer-v2 and -v3 also fix the reward they are scored with
+_SUITE_ENV = {"transfer-v2": dict(_ENV, reward="v1"), "transfer-v3": dict(_ENV, reward="v1")}
 
 
 def build_suite(name: str) -> dict:

@@ -17,24 +17,40 @@ __all__ = ["train_main"]
 
 
 # ----------------------------------------------------------------------------- CLI
-def say_training_cost(algo: str, n_timesteps: int | None) -> None:
-    """The expected training time, from the shipped model of ``algo`` (its measured CPU minutes,
-    scaled by the PPO budget), said before training starts."""
+def shipped_training_config(algo: str, entry: str | None = None) -> dict | None:
+    """The config of a shipped model trained like ``marine-fdi train --algo ALGO [--hyperparams ENTRY]``
+    (a model folder or one training seed of it; the first in name order), or None."""
     from ..benchmark.agent_registry import models_dir
-    from ..costs import CostEstimate, say_cost
     from ..jsonfile import read_json
 
     root = models_dir()
-    cfg_file = root / algo / "config.json" if root is not None else None
-    if cfg_file is None or not cfg_file.is_file():
+    if root is None:
+        return None
+    for f in sorted(root.glob("*/config.json")) + sorted(root.glob("*/*/config.json")):
+        cfg = read_json(f, "model config")
+        if cfg.get("algo") == algo and cfg.get("hyperparams_entry") == entry:
+            return cfg
+    return None
+
+
+def say_training_cost(algo: str, n_timesteps: int | None, entry: str | None = None) -> None:
+    """The expected training time, from the shipped model trained with the same algorithm and
+    hyperparameter entry (its measured CPU minutes, scaled by the PPO budget), said before training."""
+    from ..costs import CostEstimate, say_cost
+
+    cfg = shipped_training_config(algo, entry)
+    if cfg is None:
         return
-    cfg = read_json(cfg_file, "model config")
     minutes = float(cfg.get("cpu_minutes") or 0.0)
     if n_timesteps and cfg.get("n_timesteps"):
         data = float(cfg.get("cpu_s_data") or 0.0) / 60.0  # simulating the episodes does not scale with the budget
         minutes = data + (minutes - data) * n_timesteps / float(cfg["n_timesteps"])
-    say_cost("marine-fdi train", f"training {algo} (from the shipped model's measured CPU time, simulating its "
-             "training episodes included; less when they are cached)", CostEstimate(60.0 * minutes))
+    say_cost(
+        "marine-fdi train",
+        f"training {algo} (from the shipped model's measured CPU time, simulating its "
+        "training episodes included; less when they are cached)",
+        CostEstimate(60.0 * minutes),
+    )
 
 
 def _parse_params(items: list[str]) -> dict:
@@ -51,17 +67,30 @@ def _parse_params(items: list[str]) -> dict:
 
 def train_main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    ap = argparse.ArgumentParser(prog="marine-fdi train", description="Train a learned diagnoser for MarineFDI-v1 / "
-                                 "MarineFDI-v0 (RL Zoo style): the model, config.json with the exact command, "
-                                 "learning_curve.csv and agent.json go to --out.")
+    ap = argparse.ArgumentParser(
+        prog="marine-fdi train",
+        description="Train a learned diagnoser for MarineFDI-v1 / "
+        "MarineFDI-v0 (RL Zoo style): the model, config.json with the exact command, "
+        "learning_curve.csv and agent.json go to --out.",
+    )
     ap.add_argument("--algo", choices=("ppo", "ppo_lstm", "classifier"), required=True)
     ap.add_argument("--seed", type=int, default=0, help="random seed; negative: draw one (logged)")
     ap.add_argument("--env", default=ENV_ID)
+    ap.add_argument(
+        "--hyperparams",
+        default=None,
+        metavar="ENTRY",
+        help="the entry of training/hyperparams/ALGO.yml to train (default: the --env id; "
+        "'robust': the noise-invariant agents)",
+    )
     ap.add_argument("--out", type=Path, default=None, help="run directory (default training/logs/ALGO_sSEED)")
     ap.add_argument("--n-timesteps", type=int, default=None, help="override the PPO budget")
     ap.add_argument("--params", nargs="*", default=[], help="hyperparameter overrides key=value")
-    ap.add_argument("--no-cache", action="store_true", help="simulate the training datasets again (classifier, "
-                                                             "replayed PPO) instead of using training/.cache")
+    ap.add_argument(
+        "--no-cache",
+        action="store_true",
+        help="simulate the training datasets again (classifier, replayed PPO) instead of using training/.cache",
+    )
     args, code = parse_cli(ap, argv)
     if args is None:
         return code
@@ -85,10 +114,19 @@ def train_main(argv=None) -> int:
     cmd = ["marine-fdi", "train"] + [a for a in argv if a != "--no-cache"]
     if args.seed < 0:
         cmd = [a if a != str(args.seed) else str(seed) for a in cmd]
-    say_training_cost(args.algo, over.get("n_timesteps"))
+    say_training_cost(args.algo, over.get("n_timesteps"), args.hyperparams)
     try:
-        cfg = train_agent(args.algo, seed, out, env_id=args.env, overrides=over, use_cache=not args.no_cache,
-                          command=shlex.join(cmd), seed_drawn=args.seed < 0)
+        cfg = train_agent(
+            args.algo,
+            seed,
+            out,
+            env_id=args.env,
+            overrides=over,
+            use_cache=not args.no_cache,
+            command=shlex.join(cmd),
+            seed_drawn=args.seed < 0,
+            hyperparams=args.hyperparams,
+        )
     except ValueError as e:
         print(f"marine-fdi train: error: {e}", file=sys.stderr)
         return 2

@@ -23,9 +23,13 @@ Named profiles (``make_profile``), with optional ``key=value`` overrides, e.g.
                  five seeded sinusoids with periods in [0.6, 1.6] x ``period`` s (wave encounter)
                  and random phases, scaled to peak relative amplitude ``amplitude``; breakpoints
                  every 0.5 s.
+``slowsteaming`` slow-speed steaming at part load in a seaway: u = m(t) (1 + e(t)), the mean m(t)
+                 moving linearly from ``u_mean`` (1 - ``drift``) to ``u_mean`` (1 + ``drift``) over
+                 the run (speed adjustments; ``drift`` may be negative) and e(t) the waves of
+                 ``seastate`` (peak relative ``amplitude``, ``period``); breakpoints every 0.5 s.
 
-``harbour`` and ``seastate`` belong to the ``transfer-v2`` suite only: no scenario preset and no
-training configuration draws them (tested).
+``harbour`` and ``seastate`` belong to the ``transfer-v2`` suite only, ``slowsteaming`` to
+``transfer-v3`` only: no scenario preset and no training configuration draws them (tested).
 """
 
 from __future__ import annotations
@@ -40,7 +44,7 @@ from .steady_state import check_fuel_setting
 
 __all__ = ["Profile", "make_profile", "PROFILE_NAMES", "ProfileTable"]
 
-PROFILE_NAMES = ("constant", "step", "ramp", "manoeuvring", "random", "harbour", "seastate")
+PROFILE_NAMES = ("constant", "step", "ramp", "manoeuvring", "random", "harbour", "seastate", "slowsteaming")
 TELEGRAPH_LEVELS = (0.3, 0.45, 0.6, 0.8, 1.0)  # dead slow, slow, half, full, navigation full
 
 
@@ -211,6 +215,7 @@ def make_profile(spec: "str | Profile | float", duration_s: float = 300.0) -> Pr
         "random": {"seed", "u_min", "u_max", "dwell", "rate"},
         "harbour": {"seed", "u_min", "u_max", "dwell", "rate"},
         "seastate": {"seed", "u_mean", "amplitude", "period"},
+        "slowsteaming": {"seed", "u_mean", "drift", "amplitude", "period"},
     }
     if name not in allowed:
         raise ValueError(f"unknown profile {name!r}; allowed: {', '.join(PROFILE_NAMES)}")
@@ -249,6 +254,8 @@ def make_profile(spec: "str | Profile | float", duration_s: float = 300.0) -> Pr
         return _harbour(o, duration_s)
     if name == "seastate":
         return _seastate(o, duration_s)
+    if name == "slowsteaming":
+        return _slowsteaming(o, duration_s)
     # random
     rng = np.random.default_rng(int(o.get("seed", 0)))
     lo, hi = o.get("u_min", 0.4), o.get("u_max", 1.05)
@@ -290,16 +297,34 @@ def _harbour(o: dict[str, float], duration_s: float) -> Profile:
     return Profile("harbour", tuple(times), tuple(vals))
 
 
+def _waves(rng: np.random.Generator, amp: float, period: float, t: np.ndarray, name: str) -> np.ndarray:
+    """Relative wave load e(t): five seeded sinusoids, periods in [0.6, 1.6] x ``period``, peak ``amp``."""
+    if period <= 0 or not 0 <= amp < 1:
+        raise ValueError(f"profile {name!r} needs period > 0 and 0 <= amplitude < 1, got {period}, {amp}")
+    periods = rng.uniform(0.6, 1.6, size=5) * period
+    phases = rng.uniform(0.0, 2 * np.pi, size=5)
+    weights = rng.uniform(0.5, 1.0, size=5)
+    e = (weights[:, None] * np.sin(2 * np.pi * t[None, :] / periods[:, None] + phases[:, None])).sum(axis=0)
+    return e * (amp / weights.sum())
+
+
 def _seastate(o: dict[str, float], duration_s: float) -> Profile:
     """Wave-induced load fluctuation around a mean (module docstring, ``seastate``)."""
     rng = np.random.default_rng(int(o.get("seed", 0)))
     mean, amp, period = o.get("u_mean", 0.8), o.get("amplitude", 0.05), o.get("period", 9.0)
-    if period <= 0 or not 0 <= amp < 1:
-        raise ValueError(f"profile 'seastate' needs period > 0 and 0 <= amplitude < 1, got {period}, {amp}")
-    periods = rng.uniform(0.6, 1.6, size=5) * period
-    phases = rng.uniform(0.0, 2 * np.pi, size=5)
-    weights = rng.uniform(0.5, 1.0, size=5)
     t = np.arange(0.0, duration_s + 0.5, 0.5)
-    e = (weights[:, None] * np.sin(2 * np.pi * t[None, :] / periods[:, None] + phases[:, None])).sum(axis=0)
-    e *= amp / weights.sum()
+    e = _waves(rng, amp, period, t, "seastate")
     return Profile("seastate", tuple(float(x) for x in t), tuple(float(x) for x in mean * (1.0 + e)))
+
+
+def _slowsteaming(o: dict[str, float], duration_s: float) -> Profile:
+    """Part-load steaming with a drifting mean and waves (module docstring, ``slowsteaming``)."""
+    rng = np.random.default_rng(int(o.get("seed", 0)))
+    mean, drift = o.get("u_mean", 0.4), o.get("drift", 0.0)
+    amp, period = o.get("amplitude", 0.08), o.get("period", 9.0)
+    if not abs(drift) < 1:
+        raise ValueError(f"profile 'slowsteaming' needs -1 < drift < 1, got {drift}")
+    t = np.arange(0.0, duration_s + 0.5, 0.5)
+    level = mean * (1.0 + drift * (2.0 * t / max(duration_s, 1e-9) - 1.0))
+    e = _waves(rng, amp, period, t, "slowsteaming")
+    return Profile("slowsteaming", tuple(float(x) for x in t), tuple(float(x) for x in level * (1.0 + e)))

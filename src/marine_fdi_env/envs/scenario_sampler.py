@@ -43,9 +43,10 @@ __all__ = ["ScenarioSpec", "ScenarioConfig", "PRESETS", "get_preset", "with_nois
            "HELD_OUT_PROFILES"]
 
 # the profile families a ScenarioConfig can draw; ``harbour`` and ``seastate`` are held out for the
-# transfer-v2 suite (built by its own code in :mod:`.suites`), so no training configuration can draw them
+# transfer-v2 suite, ``slowsteaming`` for transfer-v3 (built by their own code in
+# :mod:`marine_fdi_env.benchmark.suites`), so no training configuration can draw them
 SAMPLER_PROFILES = ("constant", "step", "ramp", "random", "manoeuvring")
-HELD_OUT_PROFILES = ("harbour", "seastate")
+HELD_OUT_PROFILES = ("harbour", "seastate", "slowsteaming")
 
 SAMPLER_COMPONENTS = ("profile", "fault_count", "fault_ids", "sensor_kind", "onsets", "magnitudes", "noise")
 _MAX_SEED = 2**63 - 1
@@ -190,7 +191,8 @@ class ScenarioConfig:
 
     duration_s : episode length [s].
     profiles : (family, weight) pairs; families: constant, step, ramp, random, manoeuvring
-        (``harbour`` and ``seastate`` are held out for the ``transfer-v2`` suite).
+        (``harbour`` and ``seastate`` are held out for the ``transfer-v2`` suite, ``slowsteaming`` for
+        ``transfer-v3``).
     load_range : fuel settings [-] of the profiles are drawn uniformly in this range.
     fault_count_weights : weights of 0, 1 and 2 faults.
     fault_ids : the faults that may be drawn.
@@ -218,8 +220,8 @@ class ScenarioConfig:
             raise ValueError(f"scenario config field 'duration_s' must be > 0, got {self.duration_s!r}")
         for item in _as_tuple("scenario config", "profiles", self.profiles):
             if isinstance(item, (tuple, list)) and item and item[0] in HELD_OUT_PROFILES:
-                raise ValueError(f"scenario config field 'profiles': {item[0]!r} is held out for the transfer-v2 "
-                                 f"suite (never drawn by a scenario config); allowed: {', '.join(SAMPLER_PROFILES)}")
+                raise ValueError(f"scenario config field 'profiles': {item[0]!r} is held out for the transfer suites "
+                                 f"(never drawn by a scenario config); allowed: {', '.join(SAMPLER_PROFILES)}")
         object.__setattr__(self, "profiles", _check_weights("profiles", self.profiles, SAMPLER_PROFILES))
         object.__setattr__(self, "sensor_kinds", _check_weights("sensor_kinds", self.sensor_kinds, SENSOR_FAULT_KINDS))
         lr = _check_pair("load_range", self.load_range)
