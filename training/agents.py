@@ -40,8 +40,10 @@ def check_observation(cfg: dict, where: Path, observe_sensors: bool = False) -> 
     if ob.get("feature_names") != names:
         size = ob.get("size")
         same = " with different names" if size == len(names) else ""
-        raise ValueError(f"{where}: model made for another observation space ({size} features{same}); "
-                         f"this environment has {len(names)} features ({names[0]}, ..., {names[-1]})")
+        raise ValueError(
+            f"{where}: model made for another observation space ({size} features{same}); "
+            f"this environment has {len(names)} features ({names[0]}, ..., {names[-1]})"
+        )
     return len(names)
 
 
@@ -121,8 +123,10 @@ class SB3Agent:
         if cfg.get("features") is not None:
             want = (len(cfg["features"]["mean"]),)
         if tuple(model.observation_space.shape) != want:
-            raise ValueError(f"{f}: model made for another observation space (shape "
-                             f"{tuple(model.observation_space.shape)}, this environment gives {want})")
+            raise ValueError(
+                f"{f}: model made for another observation space (shape "
+                f"{tuple(model.observation_space.shape)}, this environment gives {want})"
+            )
         return cls(model, cfg, path)
 
     def reset(self, seeds: list[int]) -> None:
@@ -153,8 +157,9 @@ class SB3Agent:
             x = np.concatenate([x, reference_features(infos["reference"], len(x))], axis=1)
         x = self._stacked(x)
         if self.recurrent:
-            a, self.state = self.model.predict(x, state=self.state, episode_start=self.episode_start,
-                                               deterministic=True)
+            a, self.state = self.model.predict(
+                x, state=self.state, episode_start=self.episode_start, deterministic=True
+            )
             self.episode_start[:] = False
         else:
             a, _ = self.model.predict(x, deterministic=True)
@@ -189,8 +194,10 @@ class ClassifierAgent:
         # reference's isolation whenever it has one, the classifier's otherwise
         self.use_reference = d.get("use_reference", False) if use_reference is None else use_reference
         if self.use_reference not in (False, "fallback", "first"):
-            raise ValueError(f"{where / 'config.json'}: declaration.use_reference must be false, 'fallback' or "
-                             f"'first', got {self.use_reference!r}")
+            raise ValueError(
+                f"{where / 'config.json'}: declaration.use_reference must be false, 'fallback' or "
+                f"'first', got {self.use_reference!r}"
+            )
         base = cfg.get("name", "classifier")
         self.name = f"{base}+reference" if self.use_reference else base
         self.training_seed = cfg.get("seed")
@@ -210,8 +217,9 @@ class ClassifierAgent:
             path = (Path(path) / model).resolve()
         path, cfg, f = _open_model_dir(path, "model.pt")
         if "declaration" not in cfg or "architecture" not in cfg:
-            raise ValueError(f"{path / 'config.json'}: not a classifier config (needs 'declaration' and "
-                             "'architecture')")
+            raise ValueError(
+                f"{path / 'config.json'}: not a classifier config (needs 'declaration' and 'architecture')"
+            )
         import torch
 
         from .classifier import GRUDiagnoser
@@ -224,14 +232,21 @@ class ClassifierAgent:
         if not isinstance(state, dict):
             raise ValueError(f"{f}: corrupt model (not a state dict)")
         arch = cfg["architecture"]
-        model = GRUDiagnoser(int(arch["n_features"]), hidden=int(arch["hidden"]), embed=int(arch["embed"]),
-                             ewma_idx=arch.get("ewma_idx", ()), ewma_taus=arch.get("ewma_taus", ()))
+        model = GRUDiagnoser(
+            int(arch["n_features"]),
+            hidden=int(arch["hidden"]),
+            embed=int(arch["embed"]),
+            ewma_idx=arch.get("ewma_idx", ()),
+            ewma_taus=arch.get("ewma_taus", ()),
+        )
         w = state.get("inp.weight")
         if w is None or not hasattr(w, "shape"):
             raise ValueError(f"{f}: corrupt model (no input layer weights)")
         if w.shape[1] != model.n_inputs:
-            raise ValueError(f"{f}: model made for another observation space ({w.shape[1]} inputs, this "
-                             f"environment and config.json give {model.n_inputs})")
+            raise ValueError(
+                f"{f}: model made for another observation space ({w.shape[1]} inputs, this "
+                f"environment and config.json give {model.n_inputs})"
+            )
         try:
             model.load_state_dict(state)
         except Exception as e:  # noqa: BLE001

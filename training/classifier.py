@@ -2,7 +2,8 @@
 
 Model (:class:`GRUDiagnoser`): per decision, the observation features (115 without sensors), and
 optionally EWMAs of the signed residual means the model computes itself (``ewma_features``,
-``ewma_taus``), are standardised (mean and scale of the training data, stored with the weights), pass a linear layer + ReLU and a
+``ewma_taus``), are standardised (mean and scale of the training data, stored with the weights), pass a
+linear layer + ReLU and a
 one-layer GRU that carries the episode's history (causal: the output at decision k depends only
 on decisions 0..k), and a linear head gives 27 logits: one per fault id (multi-label: which
 faults are active) and one for "some fault is active".  Features listed in ``drop_features`` are
@@ -37,8 +38,18 @@ from torch import nn
 
 from marine_fdi_env.engine.faults import FAULT_IDS
 
-__all__ = ["GRUDiagnoser", "TrainResult", "train_classifier", "calibrate_threshold", "load_dataset",
-           "episode_scores", "set_score", "calibrate_isolation", "conformal_declaration", "alarm_balance_weights"]
+__all__ = [
+    "GRUDiagnoser",
+    "TrainResult",
+    "train_classifier",
+    "calibrate_threshold",
+    "load_dataset",
+    "episode_scores",
+    "set_score",
+    "calibrate_isolation",
+    "conformal_declaration",
+    "alarm_balance_weights",
+]
 
 N_FAULTS = len(FAULT_IDS)
 
@@ -119,10 +130,26 @@ def _targets(active: np.ndarray) -> np.ndarray:
     return np.concatenate([active, active.any(axis=-1, keepdims=True)], axis=-1).astype(np.float32)
 
 
-def train_classifier(data: dict, *, seed: int, hidden: int = 64, embed: int = 64, epochs: int = 30,
-                     batch_size: int = 32, lr: float = 2e-3, weight_decay: float = 1e-5, alarm_weight: float = 4.0,
-                     val_fraction: float = 0.1, drop_features=(), feature_names=None, ewma_features=(),
-                     ewma_taus=(), episode_weight=None, balance_alarm: bool = False, log=print) -> TrainResult:
+def train_classifier(
+    data: dict,
+    *,
+    seed: int,
+    hidden: int = 64,
+    embed: int = 64,
+    epochs: int = 30,
+    batch_size: int = 32,
+    lr: float = 2e-3,
+    weight_decay: float = 1e-5,
+    alarm_weight: float = 4.0,
+    val_fraction: float = 0.1,
+    drop_features=(),
+    feature_names=None,
+    ewma_features=(),
+    ewma_taus=(),
+    episode_weight=None,
+    balance_alarm: bool = False,
+    log=print,
+) -> TrainResult:
     """Train a :class:`GRUDiagnoser` on dataset arrays (``obs``, ``active``, ``valid``); seeded.
 
     ``balance_alarm``: weight the "some fault" term so that, at every decision index, the decisions
@@ -143,7 +170,7 @@ def train_classifier(data: dict, *, seed: int, hidden: int = 64, embed: int = 64
     ewma_idx = [i for i, n in enumerate(names) if any(n.endswith("." + f) for f in ewma_features)]
     model = GRUDiagnoser(D, hidden=hidden, embed=embed, ewma_idx=ewma_idx, ewma_taus=ewma_taus)
     with torch.no_grad():  # the EWMA inputs are fixed functions of the observations: computed once
-        obs = torch.cat([model.augment(obs[s:s + 256])[0] for s in range(0, E, 256)])
+        obs = torch.cat([model.augment(obs[s : s + 256])[0] for s in range(0, E, 256)])
     ew = torch.ones(E) if episode_weight is None else torch.as_tensor(episode_weight, dtype=torch.float32)
     flat = obs[tr_idx][valid[tr_idx] > 0]
     model.mean.copy_(flat.mean(0))
@@ -154,8 +181,11 @@ def train_classifier(data: dict, *, seed: int, hidden: int = 64, embed: int = 64
     w = torch.ones(N_FAULTS + 1)
     w[-1] = alarm_weight
     bce = nn.BCEWithLogitsLoss(reduction="none")
-    wa = torch.as_tensor(alarm_balance_weights(data["active"].any(-1), data["valid"]) if balance_alarm
-                         else np.ones(valid.shape, np.float32))
+    wa = torch.as_tensor(
+        alarm_balance_weights(data["active"].any(-1), data["valid"])
+        if balance_alarm
+        else np.ones(valid.shape, np.float32)
+    )
 
     def loss_of(idx):
         logits, _ = model.core(obs[idx])
@@ -171,7 +201,7 @@ def train_classifier(data: dict, *, seed: int, hidden: int = 64, embed: int = 64
         order = rng.permutation(tr_idx)
         tot, nb = 0.0, 0
         for s in range(0, len(order), batch_size):
-            idx = order[s:s + batch_size]
+            idx = order[s : s + batch_size]
             opt.zero_grad()
             loss = loss_of(idx)
             loss.backward()
@@ -186,8 +216,11 @@ def train_classifier(data: dict, *, seed: int, hidden: int = 64, embed: int = 64
                 row["val_loss"] = float(loss_of(val_idx))
         curve.append(row)
         if log:
-            log(f"epoch {ep + 1:3d}  train {row['train_loss']:.4f}" +
-                (f"  val {row['val_loss']:.4f}" if n_val else "") + f"  cpu {row['cpu_s']:.0f} s")
+            log(
+                f"epoch {ep + 1:3d}  train {row['train_loss']:.4f}"
+                + (f"  val {row['val_loss']:.4f}" if n_val else "")
+                + f"  cpu {row['cpu_s']:.0f} s"
+            )
     model.eval()
     return TrainResult(model, curve, time.process_time() - c0)
 
@@ -210,13 +243,14 @@ def episode_scores(model: GRUDiagnoser, obs: np.ndarray, batch: int = 64) -> np.
     """Probabilities (E, T, 27) for whole episodes (E, T, D)."""
     out = []
     for s in range(0, len(obs), batch):
-        logits, _ = model(torch.as_tensor(obs[s:s + batch], dtype=torch.float32))
+        logits, _ = model(torch.as_tensor(obs[s : s + batch], dtype=torch.float32))
         out.append(torch.sigmoid(logits).numpy())
     return np.concatenate(out)
 
 
-def calibrate_threshold(alarm_prob: np.ndarray, valid: np.ndarray, period_s: float = 1.0,
-                        target_per_hour: float = 0.0, margin: float = 1.0) -> dict:
+def calibrate_threshold(
+    alarm_prob: np.ndarray, valid: np.ndarray, period_s: float = 1.0, target_per_hour: float = 0.0, margin: float = 1.0
+) -> dict:
     """Alarm threshold for at most ``target_per_hour`` false alarms on fault-free episodes.
 
     ``alarm_prob`` (E, T): the "some fault" probability of fault-free episodes.  With the latched
@@ -233,9 +267,14 @@ def calibrate_threshold(alarm_prob: np.ndarray, valid: np.ndarray, period_s: flo
     base = min(max(base, 1e-6), 1 - 1e-6)
     logit = math.log(base / (1 - base)) + margin
     thr = 1.0 / (1.0 + math.exp(-logit))
-    return {"alarm_threshold": thr, "calibration_peak": base, "calibration_hours": hours,
-            "calibration_episodes": int(len(peaks)), "target_false_alarms_per_hour": target_per_hour,
-            "margin_logodds": margin}
+    return {
+        "alarm_threshold": thr,
+        "calibration_peak": base,
+        "calibration_hours": hours,
+        "calibration_episodes": int(len(peaks)),
+        "target_false_alarms_per_hour": target_per_hour,
+        "margin_logodds": margin,
+    }
 
 
 def set_score(p: np.ndarray, members: np.ndarray) -> np.ndarray:
@@ -264,8 +303,12 @@ def calibrate_isolation(probs: np.ndarray, active: np.ndarray, valid: np.ndarray
     n = len(scores)
     k = int(math.ceil((n + 1) * (1.0 - alpha)))
     q = float(scores[k - 1]) if 0 < k <= n else 1.0
-    return {"alpha": float(alpha), "quantile": q, "episodes": int(n),
-            "coverage_in_calibration": float(np.mean(scores <= q)) if n else None}
+    return {
+        "alpha": float(alpha),
+        "quantile": q,
+        "episodes": int(n),
+        "coverage_in_calibration": float(np.mean(scores <= q)) if n else None,
+    }
 
 
 def conformal_declaration(p: np.ndarray, isolation_threshold: float, quantile: float) -> np.ndarray | None:

@@ -33,8 +33,10 @@ def scenario_config_of(spec: dict):
     from marine_fdi_env.envs.scenario_sampler import ScenarioConfig, get_preset
 
     if "config" in spec:  # a scenario config (dict), over a named preset's fields if one is named
-        fields = {k: (tuple(tuple(x) if isinstance(x, list) else x for x in v) if isinstance(v, list) else v)
-                  for k, v in spec["config"].items()}
+        fields = {
+            k: (tuple(tuple(x) if isinstance(x, list) else x for x in v) if isinstance(v, list) else v)
+            for k, v in spec["config"].items()
+        }
         base = asdict(get_preset(spec["preset"])) if "preset" in spec else {}
         cfg = ScenarioConfig.from_dict(dict(base, **fields))
         return cfg.name, cfg
@@ -55,8 +57,9 @@ def _noise_grid(spec: dict) -> list[float] | None:
     except (TypeError, ValueError):
         out = []
     if not out or not all(np.isfinite(x) and x >= 0 for x in out):
-        raise ValueError(f"dataset spec {spec_name(spec)!r}: noise_scales must be a non-empty list of numbers >= 0, "
-                         f"got {grid!r}")
+        raise ValueError(
+            f"dataset spec {spec_name(spec)!r}: noise_scales must be a non-empty list of numbers >= 0, got {grid!r}"
+        )
     return out
 
 

@@ -53,9 +53,17 @@ class AgentFeatures:
     """Observation -> learned agent input (module docstring); state per slot: noise levels, EWMAs,
     previous alarm."""
 
-    def __init__(self, feature_names: list[str], drop=("time_fraction",), ewma_features=("signed_mean_ratio",),
-                 taus=(5.0, 20.0, 60.0), previous_alarm: bool = True, noise_window: int = 0, mean=None,
-                 scale=None) -> None:
+    def __init__(
+        self,
+        feature_names: list[str],
+        drop=("time_fraction",),
+        ewma_features=("signed_mean_ratio",),
+        taus=(5.0, 20.0, 60.0),
+        previous_alarm: bool = True,
+        noise_window: int = 0,
+        mean=None,
+        scale=None,
+    ) -> None:
         names = list(feature_names)
         unknown = [d for d in drop if d not in names]
         if unknown:
@@ -76,8 +84,9 @@ class AgentFeatures:
         else:
             self.modules = []
             self.keep = np.array([i for i, n in enumerate(names) if n not in self.drop], dtype=np.int64)
-            self.ewma_idx = np.array([i for i, n in enumerate(names)
-                                      if any(n.endswith("." + f) for f in ewma_features)], dtype=np.int64)
+            self.ewma_idx = np.array(
+                [i for i, n in enumerate(names) if any(n.endswith("." + f) for f in ewma_features)], dtype=np.int64
+            )
             n_base = len(self.keep)
             n_ewma_src = len(self.ewma_idx)
         self.taus = tuple(float(t) for t in taus) if n_ewma_src else ()
@@ -88,8 +97,9 @@ class AgentFeatures:
         self.mean = np.zeros(self.size, np.float32) if mean is None else np.asarray(mean, np.float32)
         self.scale = np.ones(self.size, np.float32) if scale is None else np.asarray(scale, np.float32)
         if self.mean.shape != (self.size,) or self.scale.shape != (self.size,):
-            raise ValueError(f"feature standardisation must have {self.size} entries, got {self.mean.shape}, "
-                             f"{self.scale.shape}")
+            raise ValueError(
+                f"feature standardisation must have {self.size} entries, got {self.mean.shape}, {self.scale.shape}"
+            )
 
     def input_names(self) -> list[str]:
         """The name of every input, in order."""
@@ -104,8 +114,12 @@ class AgentFeatures:
 
     # ------------------------------------------------------------------ state
     def initial_state(self, n: int) -> dict:
-        return {"ewma": np.zeros((n, len(self.alpha)), np.float32), "alarm": np.zeros(n, np.float32),
-                "noise_sum": np.zeros((n, len(self.modules)), np.float64), "noise_n": np.zeros(n, np.int64)}
+        return {
+            "ewma": np.zeros((n, len(self.alpha)), np.float32),
+            "alarm": np.zeros(n, np.float32),
+            "noise_sum": np.zeros((n, len(self.modules)), np.float64),
+            "noise_n": np.zeros(n, np.int64),
+        }
 
     def restart(self, state: dict, slots) -> None:
         """Slots that start a new episode."""
@@ -171,15 +185,28 @@ class AgentFeatures:
 
     # ------------------------------------------------------------------ storage
     def to_dict(self) -> dict:
-        return {"drop": list(self.drop), "ewma_features": list(self.ewma_features), "taus": list(self.taus),
-                "previous_alarm": self.previous_alarm, "noise_window": self.noise_window,
-                "mean": [float(x) for x in self.mean], "scale": [float(x) for x in self.scale]}
+        return {
+            "drop": list(self.drop),
+            "ewma_features": list(self.ewma_features),
+            "taus": list(self.taus),
+            "previous_alarm": self.previous_alarm,
+            "noise_window": self.noise_window,
+            "mean": [float(x) for x in self.mean],
+            "scale": [float(x) for x in self.scale],
+        }
 
     @classmethod
     def from_dict(cls, d: dict, feature_names: list[str]) -> "AgentFeatures":
-        return cls(feature_names, drop=d["drop"], ewma_features=d["ewma_features"], taus=d["taus"],
-                   previous_alarm=d["previous_alarm"], noise_window=int(d.get("noise_window", 0)),
-                   mean=d["mean"], scale=d["scale"])
+        return cls(
+            feature_names,
+            drop=d["drop"],
+            ewma_features=d["ewma_features"],
+            taus=d["taus"],
+            previous_alarm=d["previous_alarm"],
+            noise_window=int(d.get("noise_window", 0)),
+            mean=d["mean"],
+            scale=d["scale"],
+        )
 
 
 def transform_episodes(features: AgentFeatures, episodes: np.ndarray, batch: int = 1024) -> np.ndarray:
@@ -190,5 +217,5 @@ def transform_episodes(features: AgentFeatures, episodes: np.ndarray, batch: int
     for s in range(0, E, batch):
         state = features.initial_state(min(batch, E - s))
         for k in range(T):
-            out[s:s + batch, k] = features.raw(episodes[s:s + batch, k], state)
+            out[s : s + batch, k] = features.raw(episodes[s : s + batch, k], state)
     return out

@@ -40,8 +40,9 @@ def _subset(ep: dict, idx: np.ndarray) -> dict:
     return out
 
 
-def evaluate_on_episodes(model, episodes: dict, features: AgentFeatures, action_mode: str,
-                         reward: RewardConfigV1) -> dict:
+def evaluate_on_episodes(
+    model, episodes: dict, features: AgentFeatures, action_mode: str, reward: RewardConfigV1
+) -> dict:
     """Deterministic policy on every episode of ``episodes`` once: mean return and the metrics
     the reward terms reveal (isolation at the end, detection, false alarms)."""
     n = len(episodes["obs"])
@@ -61,14 +62,19 @@ def evaluate_on_episodes(model, episodes: dict, features: AgentFeatures, action_
     r = [done_eps[e] for e in range(n)]
     terms = {t: np.array([x["terms"][t] for x in r]) for t in REWARD_TERMS_V1}
     iso = terms["final_isolation"] > 0
-    by = {f"val_isolation_accuracy_{k}_faults": float(np.mean(iso[n_faults == k])) if np.any(n_faults == k) else None
-          for k in (1, 2)}
-    return {"val_return": float(np.mean([x["r"] for x in r])),
-            "val_isolation_accuracy": float(np.mean(iso[faulty])) if faulty.any() else None, **by,
-            "val_detection_rate": float(np.mean(terms["missed_detection"][faulty] == 0)) if faulty.any() else None,
-            "val_false_alarm_episodes": int(np.sum(terms["false_alarm"] < 0)),
-            "val_false_alarm_episodes_fault_free": int(np.sum(terms["false_alarm"][~faulty] < 0)),
-            "val_episodes": n}
+    by = {
+        f"val_isolation_accuracy_{k}_faults": float(np.mean(iso[n_faults == k])) if np.any(n_faults == k) else None
+        for k in (1, 2)
+    }
+    return {
+        "val_return": float(np.mean([x["r"] for x in r])),
+        "val_isolation_accuracy": float(np.mean(iso[faulty])) if faulty.any() else None,
+        **by,
+        "val_detection_rate": float(np.mean(terms["missed_detection"][faulty] == 0)) if faulty.any() else None,
+        "val_false_alarm_episodes": int(np.sum(terms["false_alarm"] < 0)),
+        "val_false_alarm_episodes_fault_free": int(np.sum(terms["false_alarm"][~faulty] < 0)),
+        "val_episodes": n,
+    }
 
 
 def train_ppo_replay(seed: int, hp: dict, out: Path | None, use_cache: bool = True, log=print):
@@ -123,8 +129,11 @@ def train_ppo_replay(seed: int, hp: dict, out: Path | None, use_cache: bool = Tr
 
     set_random_seed(seed)
     env = ReplayVecEnv(train, n_envs, action_mode, seed=seed, reward=reward, features=features)
-    venv = VecNormalize(env, norm_obs=False, norm_reward=norm_reward, gamma=float(hp.get("gamma", 0.99))) \
-        if norm_reward else env
+    venv = (
+        VecNormalize(env, norm_obs=False, norm_reward=norm_reward, gamma=float(hp.get("gamma", 0.99)))
+        if norm_reward
+        else env
+    )
     model = PPO(policy, venv, seed=seed, device="cpu", verbose=0, policy_kwargs=policy_kwargs, **hp)
     if alarm_logit is not None:  # start from a quiet policy: P(alarm on) = sigmoid(initial_alarm_logit)
         if action_mode != "gated":
@@ -159,8 +168,11 @@ def train_ppo_replay(seed: int, hp: dict, out: Path | None, use_cache: bool = Tr
             if self.rollouts % eval_every:
                 return
             recent = self.eps[-n_envs:]
-            row = {"timesteps": int(self.num_timesteps), "episodes": len(self.eps),
-                   "train_return": float(np.mean([e["r"] for e in recent])) if recent else None}
+            row = {
+                "timesteps": int(self.num_timesteps),
+                "episodes": len(self.eps),
+                "train_return": float(np.mean([e["r"] for e in recent])) if recent else None,
+            }
             for t in REWARD_TERMS_V1:
                 row[f"train_{t}"] = float(np.mean([e["terms"][t] for e in recent])) if recent else None
             if n_val:
@@ -169,27 +181,50 @@ def train_ppo_replay(seed: int, hp: dict, out: Path | None, use_cache: bool = Tr
             row["wall_s"] = round(time.perf_counter() - w0, 2)
             curve.append(row)
             f = lambda v: "–" if v is None else f"{v:.3f}"  # noqa: E731
-            log(f"{row['timesteps']:9d} steps  return {f(row['train_return'])}  val iso "
+            log(
+                f"{row['timesteps']:9d} steps  return {f(row['train_return'])}  val iso "
                 f"{f(row.get('val_isolation_accuracy'))} (1 fault {f(row.get('val_isolation_accuracy_1_faults'))}, "
                 f"2 faults {f(row.get('val_isolation_accuracy_2_faults'))})  val detection "
                 f"{f(row.get('val_detection_rate'))}  val FA episodes {row.get('val_false_alarm_episodes')}  "
-                f"val return {f(row.get('val_return'))}  cpu {row['cpu_s']:.0f} s")
+                f"val return {f(row.get('val_return'))}  cpu {row['cpu_s']:.0f} s"
+            )
 
     model.learn(total_timesteps=n_timesteps, callback=Curve())
     final = evaluate_on_episodes(model, val, features, action_mode, reward) if n_val else {}
     cpu_total = time.process_time() - c0 - fresh_cpu + data_cpu  # a cached export still counts
-    cfg = {"name": name, "algo": "ppo", "env_id": "MarineFDI-v1", "seed": seed, "n_envs": n_envs,
-           "n_timesteps": n_timesteps, "action_mode": action_mode, "frame_stack": 1,
-           "scenario_config": "replay of the datasets below", "policy": policy, "policy_kwargs": pk,
-           "hyperparams": dict(hp, normalize_reward=norm_reward, validation_fraction=val_fraction, data_seed_stride=stride,
-                               eval_every=eval_every, initial_alarm_logit=alarm_logit,
-                               initial_single_logit=single_logit),
-           "reward": reward.to_dict(), "datasets": datasets, "training_episodes": int(len(train["obs"])),
-           "validation_episodes": n_val, "validation": final,
-           "features": features.to_dict(), "observation": dict(_observation_meta(), reference_features=False),
-           "n_parameters": int(sum(p.numel() for p in model.policy.parameters())),
-           "cpu_s_data": round(data_cpu, 3), "cpu_s": round(cpu_total, 1),
-           "wall_s": round(time.perf_counter() - w0, 1)}
+    cfg = {
+        "name": name,
+        "algo": "ppo",
+        "env_id": "MarineFDI-v1",
+        "seed": seed,
+        "n_envs": n_envs,
+        "n_timesteps": n_timesteps,
+        "action_mode": action_mode,
+        "frame_stack": 1,
+        "scenario_config": "replay of the datasets below",
+        "policy": policy,
+        "policy_kwargs": pk,
+        "hyperparams": dict(
+            hp,
+            normalize_reward=norm_reward,
+            validation_fraction=val_fraction,
+            data_seed_stride=stride,
+            eval_every=eval_every,
+            initial_alarm_logit=alarm_logit,
+            initial_single_logit=single_logit,
+        ),
+        "reward": reward.to_dict(),
+        "datasets": datasets,
+        "training_episodes": int(len(train["obs"])),
+        "validation_episodes": n_val,
+        "validation": final,
+        "features": features.to_dict(),
+        "observation": dict(_observation_meta(), reference_features=False),
+        "n_parameters": int(sum(p.numel() for p in model.policy.parameters())),
+        "cpu_s_data": round(data_cpu, 3),
+        "cpu_s": round(cpu_total, 1),
+        "wall_s": round(time.perf_counter() - w0, 1),
+    }
     if out is not None:
         from .artifacts import _write_curve
 

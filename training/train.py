@@ -80,8 +80,9 @@ def train_sb3(algo: str, seed: int, hp: dict, out: Path | None, log=print) -> tu
     pk = hp.pop("policy_kwargs", None)
     policy_kwargs = eval(pk, {"dict": dict}) if isinstance(pk, str) else (pk or {})  # RL Zoo convention
     set_random_seed(seed)
-    env = SB3VecEnv(n_envs, scenario_config=scenario, action_mode=action_mode, seed=seed,
-                    reference_features=with_reference)
+    env = SB3VecEnv(
+        n_envs, scenario_config=scenario, action_mode=action_mode, seed=seed, reference_features=with_reference
+    )
     env = VecMonitor(env)
     if frame_stack > 1:
         env = VecFrameStack(env, frame_stack)
@@ -104,20 +105,39 @@ def train_sb3(algo: str, seed: int, hp: dict, out: Path | None, log=print) -> tu
             return True
 
         def _on_rollout_end(self) -> None:
-            row = {"timesteps": int(self.num_timesteps), "episodes": len(self.returns),
-                   "mean_return_last": float(np.mean(self.returns[-n_envs:])) if self.returns else "",
-                   "cpu_s": round(time.process_time() - c0, 2), "wall_s": round(time.perf_counter() - w0, 2)}
+            row = {
+                "timesteps": int(self.num_timesteps),
+                "episodes": len(self.returns),
+                "mean_return_last": float(np.mean(self.returns[-n_envs:])) if self.returns else "",
+                "cpu_s": round(time.process_time() - c0, 2),
+                "wall_s": round(time.perf_counter() - w0, 2),
+            }
             curve.append(row)
             if log:
-                log(f"{row['timesteps']:8d} steps  episodes {row['episodes']:5d}  "
-                    f"return {row['mean_return_last']}  cpu {row['cpu_s']:.0f} s")
+                log(
+                    f"{row['timesteps']:8d} steps  episodes {row['episodes']:5d}  "
+                    f"return {row['mean_return_last']}  cpu {row['cpu_s']:.0f} s"
+                )
 
     model.learn(total_timesteps=n_timesteps, callback=Curve())
-    cfg = {"name": algo, "algo": algo, "env_id": ENV_ID, "seed": seed, "n_envs": n_envs,
-           "n_timesteps": n_timesteps, "action_mode": action_mode, "frame_stack": frame_stack,
-           "scenario_config": scenario, "policy": policy, "policy_kwargs": pk, "hyperparams": hp,
-           "observation": dict(_observation_meta(), reference_features=with_reference), "n_parameters": int(sum(p.numel() for p in model.policy.parameters())),
-           "cpu_s": round(time.process_time() - c0, 1), "wall_s": round(time.perf_counter() - w0, 1)}
+    cfg = {
+        "name": algo,
+        "algo": algo,
+        "env_id": ENV_ID,
+        "seed": seed,
+        "n_envs": n_envs,
+        "n_timesteps": n_timesteps,
+        "action_mode": action_mode,
+        "frame_stack": frame_stack,
+        "scenario_config": scenario,
+        "policy": policy,
+        "policy_kwargs": pk,
+        "hyperparams": hp,
+        "observation": dict(_observation_meta(), reference_features=with_reference),
+        "n_parameters": int(sum(p.numel() for p in model.policy.parameters())),
+        "cpu_s": round(time.process_time() - c0, 1),
+        "wall_s": round(time.perf_counter() - w0, 1),
+    }
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
         model.save(out / "model.zip")
@@ -160,48 +180,90 @@ def train_classifier_run(seed: int, hp: dict, out: Path | None, use_cache: bool 
         return arr
 
     parts = [load(spec) for spec in datasets]
-    weights = [np.full(len(p["obs"]), float(spec.get("weight", 1.0)), dtype=np.float32)
-               for p, spec in zip(parts, datasets)]
+    weights = [
+        np.full(len(p["obs"]), float(spec.get("weight", 1.0)), dtype=np.float32) for p, spec in zip(parts, datasets)
+    ]
     data = {k: np.concatenate([p[k] for p in parts]) for k in ("obs", "active", "valid")}
     del parts
     in_names = features.input_names() if features is not None else names
     c_train = time.process_time()
-    res = train_classifier(data, seed=seed, hidden=int(hp["hidden"]), embed=int(hp["embed"]),
-                           epochs=int(hp["epochs"]), batch_size=int(hp["batch_size"]), lr=float(hp["lr"]),
-                           weight_decay=float(hp["weight_decay"]), alarm_weight=float(hp["alarm_weight"]),
-                           drop_features=tuple(hp.get("drop_features", ())), feature_names=in_names,
-                           ewma_features=tuple(hp.get("ewma_features", ())), ewma_taus=tuple(hp.get("ewma_taus", ())),
-                           episode_weight=np.concatenate(weights), balance_alarm=bool(hp.get("balance_alarm", False)),
-                           log=log)
+    res = train_classifier(
+        data,
+        seed=seed,
+        hidden=int(hp["hidden"]),
+        embed=int(hp["embed"]),
+        epochs=int(hp["epochs"]),
+        batch_size=int(hp["batch_size"]),
+        lr=float(hp["lr"]),
+        weight_decay=float(hp["weight_decay"]),
+        alarm_weight=float(hp["alarm_weight"]),
+        drop_features=tuple(hp.get("drop_features", ())),
+        feature_names=in_names,
+        ewma_features=tuple(hp.get("ewma_features", ())),
+        ewma_taus=tuple(hp.get("ewma_taus", ())),
+        episode_weight=np.concatenate(weights),
+        balance_alarm=bool(hp.get("balance_alarm", False)),
+        log=log,
+    )
     train_cpu = time.process_time() - c_train
     n_train = int(len(data["obs"]))
     del data
     cal_data = load(calibration)
     probs = episode_scores(res.model, cal_data["obs"])
-    cal = calibrate_threshold(probs[..., -1], cal_data["valid"], target_per_hour=float(hp["target_false_alarms_per_hour"]),
-                              margin=float(hp["margin_logodds"]))
-    log(f"alarm threshold {cal['alarm_threshold']:.4f} (calibration peak {cal['calibration_peak']:.4f} over "
-        f"{cal['calibration_episodes']} fault-free episodes)")
-    declaration = {"alarm_threshold": cal["alarm_threshold"], "isolation_threshold": float(hp["isolation_threshold"]),
-                   "use_reference": hp.get("use_reference", False), "calibration": cal}
+    cal = calibrate_threshold(
+        probs[..., -1],
+        cal_data["valid"],
+        target_per_hour=float(hp["target_false_alarms_per_hour"]),
+        margin=float(hp["margin_logodds"]),
+    )
+    log(
+        f"alarm threshold {cal['alarm_threshold']:.4f} (calibration peak {cal['calibration_peak']:.4f} over "
+        f"{cal['calibration_episodes']} fault-free episodes)"
+    )
+    declaration = {
+        "alarm_threshold": cal["alarm_threshold"],
+        "isolation_threshold": float(hp["isolation_threshold"]),
+        "use_reference": hp.get("use_reference", False),
+        "calibration": cal,
+    }
     if iso_calibration is not None:
         iso = load(iso_calibration)
-        conf = calibrate_isolation(episode_scores(res.model, iso["obs"]), iso["active"], iso["valid"],
-                                   alpha=float(hp["isolation_alpha"]))
+        conf = calibrate_isolation(
+            episode_scores(res.model, iso["obs"]), iso["active"], iso["valid"], alpha=float(hp["isolation_alpha"])
+        )
         declaration["isolation_conformal"] = conf
-        log(f"isolation: declare only the unique hypothesis of the conformal set at alpha {conf['alpha']} "
-            f"(score quantile {conf['quantile']:.4f} over {conf['episodes']} faulty episodes)")
+        log(
+            f"isolation: declare only the unique hypothesis of the conformal set at alpha {conf['alpha']} "
+            f"(score quantile {conf['quantile']:.4f} over {conf['episodes']} faulty episodes)"
+        )
     cpu_here = time.process_time() - c0
-    arch = {"kind": "gru", "n_features": int(res.model.n_features), "hidden": int(hp["hidden"]),
-            "embed": int(hp["embed"]), "ewma_idx": res.model.ewma_idx, "ewma_taus": res.model.ewma_taus}
-    cfg = {"name": hp.get("name", "classifier"), "algo": "classifier", "env_id": ENV_ID, "seed": seed,
-           "hyperparams": hp, "datasets": datasets, "calibration_sets": [c for c in (calibration, iso_calibration) if c],
-           "architecture": arch, "declaration": declaration,
-           "observation": _observation_meta(), "training_episodes": n_train,
-           "n_parameters": int(sum(p.numel() for p in res.model.parameters())),
-           "cpu_s_data": round(data_cpu, 3), "cpu_s_train": round(train_cpu, 1),
-           # a data export cached from an earlier run still counts
-           "cpu_s": round(cpu_here - fresh_cpu + data_cpu, 1), "wall_s": round(time.perf_counter() - w0, 1)}
+    arch = {
+        "kind": "gru",
+        "n_features": int(res.model.n_features),
+        "hidden": int(hp["hidden"]),
+        "embed": int(hp["embed"]),
+        "ewma_idx": res.model.ewma_idx,
+        "ewma_taus": res.model.ewma_taus,
+    }
+    cfg = {
+        "name": hp.get("name", "classifier"),
+        "algo": "classifier",
+        "env_id": ENV_ID,
+        "seed": seed,
+        "hyperparams": hp,
+        "datasets": datasets,
+        "calibration_sets": [c for c in (calibration, iso_calibration) if c],
+        "architecture": arch,
+        "declaration": declaration,
+        "observation": _observation_meta(),
+        "training_episodes": n_train,
+        "n_parameters": int(sum(p.numel() for p in res.model.parameters())),
+        "cpu_s_data": round(data_cpu, 3),
+        "cpu_s_train": round(train_cpu, 1),
+        # a data export cached from an earlier run still counts
+        "cpu_s": round(cpu_here - fresh_cpu + data_cpu, 1),
+        "wall_s": round(time.perf_counter() - w0, 1),
+    }
     if features is not None:
         cfg["features"] = features.to_dict()
     if out is not None:
@@ -212,9 +274,18 @@ def train_classifier_run(seed: int, hp: dict, out: Path | None, use_cache: bool 
     return res.model, cfg
 
 
-def train_agent(algo: str, seed: int, out: Path, *, env_id: str = ENV_ID, overrides: dict | None = None,
-                use_cache: bool = True, command: str = "", seed_drawn: bool = False,
-                hyperparams: str | None = None) -> dict:
+def train_agent(
+    algo: str,
+    seed: int,
+    out: Path,
+    *,
+    env_id: str = ENV_ID,
+    overrides: dict | None = None,
+    use_cache: bool = True,
+    command: str = "",
+    seed_drawn: bool = False,
+    hyperparams: str | None = None,
+) -> dict:
     """Train ``algo`` with ``seed`` and save the model, ``config.json`` and ``agent.json`` in ``out``; returns the
     config (``command``: the command that makes the model, recorded in it; ``seed_drawn``: the seed was drawn;
     ``hyperparams``: the entry of ``ALGO.yml`` to use, default ``env_id``)."""
@@ -231,7 +302,12 @@ def train_agent(algo: str, seed: int, out: Path, *, env_id: str = ENV_ID, overri
     else:
         _, cfg = train_sb3(algo, seed, hp, out)
         agent_class = "marine_fdi_env.training.agents:SB3Agent"
-    cfg.update(hyperparams_entry=key, command=command, seed_drawn=seed_drawn, cpu_minutes=round(cfg["cpu_s"] / 60.0, 2),
-               machine={"cpus": os.cpu_count(), "python": platform.python_version()})
+    cfg.update(
+        hyperparams_entry=key,
+        command=command,
+        seed_drawn=seed_drawn,
+        cpu_minutes=round(cfg["cpu_s"] / 60.0, 2),
+        machine={"cpus": os.cpu_count(), "python": platform.python_version()},
+    )
     save_meta(out, cfg, agent_class)
     return cfg

@@ -1,4 +1,4 @@
-"""The package layout: the engine subpackage move changes no result (issue 15, item 9).
+"""The package layout: moving code between subpackages changes no result.
 
 ``tests/data/layout_records.json`` holds the episode records (without the wall-clock fields) of a
 few agents on subsets of ``thesis-v1`` and ``single-v1``, made by the code *before* the move (its

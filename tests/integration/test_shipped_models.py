@@ -30,8 +30,8 @@ def test_classifier_v1_alone_is_the_shipped_rule_and_its_threshold_is_pinned():
     assert d["calibration"]["target_false_alarms_per_hour"] == 0.0
     assert cfg["hyperparams"]["drop_features"] == ["time_fraction"]
     assert cfg["architecture"]["ewma_taus"] == [5.0, 20.0, 60.0]
-    # the command that made the model, recorded before training/ moved under the namespace (issue 15);
-    # today's spelling is `python -m marine_fdi_env.training.train ...` (training/NOTES.md)
+    # the command that made the model, as recorded in its config (`marine-fdi train ...` makes new models;
+    # training/NOTES.md)
     assert cfg["command"] == "python -m training.train --algo classifier --seed 0 --out training/models/classifier"
     agent = load_agent(str(MODELS / "classifier-v1"))
     assert agent.name == "classifier-v1" and agent.use_reference is False and agent.features is None

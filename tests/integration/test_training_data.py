@@ -28,7 +28,7 @@ def _specs() -> dict[str, dict]:
         for env_id, hp in yaml.safe_load(f.read_text()).items():
             if "datasets" not in hp:
                 continue
-            for seed in ((0, 1, 2) if hp.get("data_seed_stride") else (0,)):
+            for seed in (0, 1, 2) if hp.get("data_seed_stride") else (0,):
                 data, cal, iso = training_specs(hp, seed)
                 for k, spec in enumerate(data):
                     out[f"{f.stem}/{env_id}/s{seed}/data{k}"] = spec
@@ -73,8 +73,24 @@ def test_dataset_specs_draw_what_marine_fdi_dataset_draws(tmp_path):
     from marine_fdi_env.cli import main as cli_main
 
     spec = {"preset": "nominal", "episodes": 2, "seed": 4}
-    assert cli_main(["dataset", "--preset", "nominal", "--episodes", "2", "--seed", "4", "--out", str(tmp_path),
-                     "--no-progress"]) == 0
+    assert (
+        cli_main(
+            [
+                "dataset",
+                "--preset",
+                "nominal",
+                "--episodes",
+                "2",
+                "--seed",
+                "4",
+                "--out",
+                str(tmp_path),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     exported = json.loads((tmp_path / "scenarios.json").read_text())["scenarios"]
-    assert [{k: v for k, v in e.items() if k != "truth"} for e in exported] == [s.to_dict() for s in
-                                                                                  dataset_scenarios(spec)]
+    assert [{k: v for k, v in e.items() if k != "truth"} for e in exported] == [
+        s.to_dict() for s in dataset_scenarios(spec)
+    ]

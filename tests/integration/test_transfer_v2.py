@@ -9,11 +9,16 @@ import pytest
 import yaml
 
 from marine_fdi_env.benchmark.evaluate import evaluate, run_episodes
-from marine_fdi_env.envs.scenario_sampler import (HELD_OUT_PROFILES, PRESETS, SAMPLER_PROFILES, ScenarioConfig,
-                                                  ScenarioSpec)
 from marine_fdi_env.benchmark.suites import TRANSFER_V2_NOISE_SCALE, load_suite
 from marine_fdi_env.engine.profiles import TELEGRAPH_LEVELS, make_profile
 from marine_fdi_env.engine.simulator import Simulator
+from marine_fdi_env.envs.scenario_sampler import (
+    HELD_OUT_PROFILES,
+    PRESETS,
+    SAMPLER_PROFILES,
+    ScenarioConfig,
+    ScenarioSpec,
+)
 from tests.paths import ROOT
 
 HYPERPARAMS = ROOT / "training" / "hyperparams"
@@ -31,8 +36,11 @@ def training_specs() -> dict[str, dict]:
         for env_id, hp in yaml.safe_load(f.read_text()).items():
             specs = list(hp.get("datasets", [])) + [hp[k] for k in ("calibration", "isolation_calibration") if k in hp]
             if "scenario_config" in hp:
-                specs.append({"preset": hp["scenario_config"]} if isinstance(hp["scenario_config"], str)
-                             else {"config": hp["scenario_config"]})
+                specs.append(
+                    {"preset": hp["scenario_config"]}
+                    if isinstance(hp["scenario_config"], str)
+                    else {"config": hp["scenario_config"]}
+                )
             for k, spec in enumerate(specs):
                 out[f"{f.name} {env_id} #{k}"] = spec
     return out
@@ -115,13 +123,16 @@ def test_evaluation_of_transfer_v2_records_v1_and_its_noise(tmp_path):
 
 
 def test_a_suite_mixing_noise_scales_runs_each_at_its_own():
-    sc = [ScenarioSpec(profile="constant", noise_seed=3, noise_scale=ns, duration_s=5.0, scenario_id=f"n{ns}")
-          for ns in (1.0, 0.5, 1.0)]
+    sc = [
+        ScenarioSpec(profile="constant", noise_seed=3, noise_scale=ns, duration_s=5.0, scenario_id=f"n{ns}")
+        for ns in (1.0, 0.5, 1.0)
+    ]
     from marine_fdi_env.benchmark.agent_api import load_agent
 
     mixed = run_episodes(load_agent("null"), sc, {}, suite="x")
     assert [r["scenario_id"] for r in mixed] == ["n1.0", "n0.5", "n1.0"]
     alone = run_episodes(load_agent("null"), sc[1:2], {"scenario_config": ScenarioConfig(noise_scale=0.5)}, suite="x")
     strip = ("compute_s", "feature_compute_s", "agent_compute_s")
-    assert {k: v for k, v in mixed[1].items() if k not in strip} == {k: v for k, v in alone[0].items()
-                                                                      if k not in strip}
+    assert {k: v for k, v in mixed[1].items() if k not in strip} == {
+        k: v for k, v in alone[0].items() if k not in strip
+    }

@@ -9,8 +9,8 @@ import pytest
 from marine_fdi_env.benchmark.suites import TRANSFER_V3_NOISE_SCALES, build_suite, load_suite
 from marine_fdi_env.engine.profiles import make_profile
 from marine_fdi_env.engine.simulator import Simulator
-from marine_fdi_env.envs.scenario_sampler import HELD_OUT_PROFILES
 from marine_fdi_env.envs.detectability import sampling_scale
+from marine_fdi_env.envs.scenario_sampler import HELD_OUT_PROFILES
 from tests.integration.test_transfer_v2 import training_configs, training_specs
 
 
@@ -26,7 +26,9 @@ def test_transfer_v3_is_slow_steaming_at_the_two_noise_scales():
     assert 1.0 <= min(scales) and max(scales) <= 3.0
     for s in scs:
         for f, x in zip(s.faults, s.magnitude_scales):
-            assert abs(f.magnitude) == pytest.approx(x * sampling_scale(f.fault_id) / (60.0 if f.kind == "drift" else 1.0))
+            assert abs(f.magnitude) == pytest.approx(
+                x * sampling_scale(f.fault_id) / (60.0 if f.kind == "drift" else 1.0)
+            )
     assert build_suite("transfer-v3")["scenarios"] == [s.to_dict() for s in scs]  # frozen
 
 

@@ -1,4 +1,4 @@
-"""The first fifteen minutes (issue 15): output folders, missing extras, the cold-cache notice,
+"""A new user's first minutes: output folders, missing extras, the cold-cache notice,
 Ctrl-C, progress lines, "did you mean", resume errors that name the field, report tables and
 the confusion matrix."""
 
@@ -459,7 +459,7 @@ def test_dataset_help_is_plain_text_and_documents_every_option(capsys):
         assert action.help, f"{action.option_strings} has no help"
 
 
-# ----------------------------------------------------------------------------- the first hour (issue 42)
+# ----------------------------------------------------------------------------- a user's first hour
 def _one_line_error(capsys, argv) -> str:
     """Run ``argv``; assert exit code 2 and one line on stderr without a traceback; return that line."""
     code = cli_main([str(a) for a in argv])

@@ -9,8 +9,11 @@ import pytest
 pytest.importorskip("torch")
 
 from marine_fdi_env.envs.observation import MODULE_FEATURES, feature_names  # noqa: E402
-from marine_fdi_env.training.classifier import (calibrate_isolation, conformal_declaration,  # noqa: E402
-                                                set_score)
+from marine_fdi_env.training.classifier import (
+    calibrate_isolation,
+    conformal_declaration,  # noqa: E402
+    set_score,
+)
 from marine_fdi_env.training.features import AgentFeatures, transform_episodes  # noqa: E402
 
 NAMES = feature_names(False)
@@ -27,7 +30,7 @@ def _obs(signed: np.ndarray, mean_abs: np.ndarray, peak: np.ndarray) -> np.ndarr
     f[..., 0] = np.log1p(peak)
     f[..., 1] = np.log1p(mean_abs)
     f[..., 2] = np.sign(signed) * np.log1p(np.abs(signed))
-    f[..., 3] = (peak > 1.0)
+    f[..., 3] = peak > 1.0
     f[..., 4] = np.maximum.accumulate(peak > 1.0, axis=1)
     return o
 
@@ -45,7 +48,9 @@ def test_a_noise_dominated_residual_gives_the_same_inputs_at_any_noise_level():
         scaled = transform_episodes(f, _obs(c * s, c * m, c * p))
         np.testing.assert_allclose(scaled, base, atol=2e-5)  # float32 observations
     raw = AgentFeatures(NAMES, previous_alarm=False)  # the v1 inputs: they see the noise level
-    assert np.abs(transform_episodes(raw, _obs(3 * s, 3 * m, 3 * p)) - transform_episodes(raw, _obs(s, m, p))).max() > 0.5
+    assert (
+        np.abs(transform_episodes(raw, _obs(3 * s, 3 * m, 3 * p)) - transform_episodes(raw, _obs(s, m, p))).max() > 0.5
+    )
     assert len(f.input_names()) == f.size == 6 * N_MOD and f.input_names()[0] == "M1.1.signed_mean_over_noise"
 
 
@@ -86,8 +91,10 @@ def test_the_conformal_quantile_holds_the_truth_with_the_asked_coverage():
     E, T = 400, 5
     active = np.zeros((E, T, 26), bool)
     active[np.arange(E), :, rng.integers(26, size=E)] = True
-    probs = np.concatenate([np.where(active, rng.uniform(0.3, 1.0, (E, T, 26)), rng.uniform(0, 0.6, (E, T, 26))),
-                            np.ones((E, T, 1))], axis=-1)
+    probs = np.concatenate(
+        [np.where(active, rng.uniform(0.3, 1.0, (E, T, 26)), rng.uniform(0, 0.6, (E, T, 26))), np.ones((E, T, 1))],
+        axis=-1,
+    )
     valid = np.ones((E, T), bool)
     cal = calibrate_isolation(probs[:200], active[:200], valid[:200], alpha=0.2)
     assert cal["episodes"] == 200 and cal["coverage_in_calibration"] >= 0.8

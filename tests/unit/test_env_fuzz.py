@@ -20,19 +20,27 @@ from hypothesis import HealthCheck, Phase, assume, event, given, settings
 from hypothesis import strategies as st
 
 import marine_fdi_env  # noqa: F401  (registers the environment)
-from marine_fdi_env.envs.fdi_env import MarineFDIEnv
-from marine_fdi_env.envs.hypotheses import N_HYPOTHESES, check_action
-from marine_fdi_env.envs.scenario_sampler import ScenarioConfig, ScenarioSpec
-from marine_fdi_env.envs.vector import MarineFDIVectorEnv
-from marine_fdi_env.engine.faults import (FAULT_IDS, PROCESS_FAULT_DEFAULTS, PROCESS_FAULT_IDS, SENSOR_FAULT_KINDS,
-                                   FaultSpec)
-from marine_fdi_env.envs.scenario_sampler import SAMPLER_PROFILES
+from marine_fdi_env.engine.faults import (
+    FAULT_IDS,
+    PROCESS_FAULT_DEFAULTS,
+    PROCESS_FAULT_IDS,
+    SENSOR_FAULT_KINDS,
+    FaultSpec,
+)
 from marine_fdi_env.engine.profiles import PROFILE_NAMES
 from marine_fdi_env.engine.sensors import SENSOR_IDS
+from marine_fdi_env.envs.fdi_env import MarineFDIEnv
+from marine_fdi_env.envs.hypotheses import N_HYPOTHESES, check_action
+from marine_fdi_env.envs.scenario_sampler import SAMPLER_PROFILES, ScenarioConfig, ScenarioSpec
+from marine_fdi_env.envs.vector import MarineFDIVectorEnv
 
 MAX_STEPS = 250  # per episode (a 30 s episode at 0.01 s decisions would be 3000)
-FUZZ = dict(deadline=None, phases=[Phase.explicit, Phase.reuse, Phase.generate, Phase.shrink],  # no explain: slow
-            suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+FUZZ = dict(
+    deadline=None,
+    phases=[Phase.explicit, Phase.reuse, Phase.generate, Phase.shrink],  # no explain: slow
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+
 
 # ----------------------------------------------------------------------------- strategies
 def _cs(k: int) -> float:  # k hundredths of a second, as a float on the 0.01 grid
@@ -50,14 +58,18 @@ def scenario_configs(draw) -> ScenarioConfig:
     fams = draw(st.lists(st.sampled_from(SAMPLER_PROFILES), min_size=1, max_size=len(SAMPLER_PROFILES), unique=True))
     lo = draw(st.floats(0.31, 1.1))
     hi = draw(st.floats(lo, 1.1))
-    cw = list(draw(st.tuples(st.sampled_from([0.0, 0.2, 1.0]), st.sampled_from([0.0, 0.5, 1.0]),
-                             st.sampled_from([0.0, 0.3, 1.0]))))
+    cw = list(
+        draw(
+            st.tuples(
+                st.sampled_from([0.0, 0.2, 1.0]), st.sampled_from([0.0, 0.5, 1.0]), st.sampled_from([0.0, 0.3, 1.0])
+            )
+        )
+    )
     if D < 10.0:
         cw[2] = 0.0  # second onsets of episodes < 10 s: see test_sampler_short_episodes_with_two_faults
     assume(sum(cw) > 0)
     max_count = max(i for i, x in enumerate(cw) if x > 0)
-    ids = draw(st.lists(st.sampled_from(FAULT_IDS), min_size=max(max_count, 1), max_size=len(FAULT_IDS),
-                        unique=True))
+    ids = draw(st.lists(st.sampled_from(FAULT_IDS), min_size=max(max_count, 1), max_size=len(FAULT_IDS), unique=True))
     kinds = draw(st.lists(st.sampled_from(SENSOR_FAULT_KINDS), min_size=1, unique=True))
     n_grid = int(round(D * 100))
     o_lo = draw(st.integers(0, n_grid - 1))
@@ -66,11 +78,19 @@ def scenario_configs(draw) -> ScenarioConfig:
     g_hi = draw(st.integers(g_lo, 2000))
     m_lo = draw(st.floats(0.1, 20.0))
     m_hi = draw(st.floats(m_lo, 20.0))
-    return ScenarioConfig(name="fuzz", duration_s=D, profiles=tuple((f, draw(weights)) for f in fams),
-                          load_range=(lo, hi), fault_count_weights=tuple(cw), fault_ids=tuple(ids),
-                          sensor_kinds=tuple((k, draw(weights)) for k in kinds),
-                          onset_range_s=(_cs(o_lo), _cs(o_hi)), second_onset_gap_s=(_cs(g_lo), _cs(g_hi)),
-                          magnitude_range=(m_lo, m_hi), noise_scale=draw(st.sampled_from([0.0, 0.5, 1.0, 2.0])))
+    return ScenarioConfig(
+        name="fuzz",
+        duration_s=D,
+        profiles=tuple((f, draw(weights)) for f in fams),
+        load_range=(lo, hi),
+        fault_count_weights=tuple(cw),
+        fault_ids=tuple(ids),
+        sensor_kinds=tuple((k, draw(weights)) for k in kinds),
+        onset_range_s=(_cs(o_lo), _cs(o_hi)),
+        second_onset_gap_s=(_cs(g_lo), _cs(g_hi)),
+        magnitude_range=(m_lo, m_hi),
+        noise_scale=draw(st.sampled_from([0.0, 0.5, 1.0, 2.0])),
+    )
 
 
 def _u() -> st.SearchStrategy[float]:
@@ -94,12 +114,16 @@ def profiles(draw, D: float) -> str:
     if fam == "harbour":  # the transfer families: explicit scenarios may use them
         return f"harbour:seed={draw(st.integers(0, 2**31))},dwell={round(draw(st.floats(5.0, 60.0)), 2)}"
     if fam == "seastate":
-        return (f"seastate:seed={draw(st.integers(0, 2**31))},u_mean={draw(_u())},"
-                f"amplitude={round(draw(st.floats(0.0, 0.09)), 4)},period={round(draw(st.floats(2.0, 20.0)), 2)}")
+        return (
+            f"seastate:seed={draw(st.integers(0, 2**31))},u_mean={draw(_u())},"
+            f"amplitude={round(draw(st.floats(0.0, 0.09)), 4)},period={round(draw(st.floats(2.0, 20.0)), 2)}"
+        )
     if fam == "slowsteaming":  # the transfer-v3 family
-        return (f"slowsteaming:seed={draw(st.integers(0, 2**31))},u_mean={draw(_u())},"
-                f"drift={round(draw(st.floats(-0.1, 0.1)), 3)},amplitude={round(draw(st.floats(0.0, 0.09)), 4)},"
-                f"period={round(draw(st.floats(2.0, 20.0)), 2)}")
+        return (
+            f"slowsteaming:seed={draw(st.integers(0, 2**31))},u_mean={draw(_u())},"
+            f"drift={round(draw(st.floats(-0.1, 0.1)), 3)},amplitude={round(draw(st.floats(0.0, 0.09)), 4)},"
+            f"period={round(draw(st.floats(2.0, 20.0)), 2)}"
+        )
     return f"manoeuvring:scale={round(draw(st.floats(0.35, 1.1)), 4)}"
 
 
@@ -139,8 +163,14 @@ def scenario_specs(draw, noise_scale: float = 1.0) -> ScenarioSpec:
     faults = [draw(fault_dicts(fid, D)) for fid in ids]
     if draw(st.booleans()):
         faults = [FaultSpec(**f) for f in faults]  # FaultSpec objects as well as dicts
-    return ScenarioSpec(faults=tuple(faults), profile=draw(profiles(D)), noise_seed=draw(st.integers(0, 2**63 - 1)),
-                        noise_scale=noise_scale, duration_s=D, scenario_id="fuzz")
+    return ScenarioSpec(
+        faults=tuple(faults),
+        profile=draw(profiles(D)),
+        noise_seed=draw(st.integers(0, 2**63 - 1)),
+        noise_scale=noise_scale,
+        duration_s=D,
+        scenario_id="fuzz",
+    )
 
 
 def _action(rng: np.random.Generator, mode: str, shape=(N_HYPOTHESES,)) -> np.ndarray:
@@ -204,8 +234,13 @@ def _check_finished_refuses_step(env, rng) -> None:
 
 # ----------------------------------------------------------------------------- valid inputs
 @settings(max_examples=30, **FUZZ)
-@given(cfg=scenario_configs(), period=decision_periods, observe=st.booleans(), seed=st.integers(0, 2**32 - 1),
-       mode=action_modes)
+@given(
+    cfg=scenario_configs(),
+    period=decision_periods,
+    observe=st.booleans(),
+    seed=st.integers(0, 2**32 - 1),
+    mode=action_modes,
+)
 def test_random_configs_give_finite_observations_in_the_space(cfg, period, observe, seed, mode):
     env = MarineFDIEnv(scenario_config=cfg, decision_period_s=period, observe_sensors=observe)
     rng = np.random.default_rng(seed)
@@ -221,8 +256,15 @@ def test_random_configs_give_finite_observations_in_the_space(cfg, period, obser
 
 
 @settings(max_examples=50, **FUZZ)
-@given(data=st.data(), period=decision_periods, observe=st.booleans(), seed=st.integers(0, 2**32 - 1),
-       mode=action_modes, noise_scale=st.sampled_from([0.0, 1.0, 3.0]), as_dict=st.booleans())
+@given(
+    data=st.data(),
+    period=decision_periods,
+    observe=st.booleans(),
+    seed=st.integers(0, 2**32 - 1),
+    mode=action_modes,
+    noise_scale=st.sampled_from([0.0, 1.0, 3.0]),
+    as_dict=st.booleans(),
+)
 def test_explicit_scenarios_with_stalls_end_cleanly(data, period, observe, seed, mode, noise_scale, as_dict):
     spec = data.draw(scenario_specs(noise_scale))
     cfg = ScenarioConfig(name="fuzz", duration_s=spec.duration_s, onset_range_s=(0.0, 0.0), noise_scale=noise_scale)
@@ -242,19 +284,32 @@ def stalling_specs(draw) -> ScenarioSpec:
     # stall within 7.5 s of the onset at any fuel setting in [0.6, 1.1] (checked by hand)
     D = draw(st.integers(1200, 2500).map(_cs))
     onset = _cs(draw(st.integers(1, int(D * 100) - 1000)))
-    fid, lo, hi = draw(st.sampled_from([("valve_seizing", 20.0, 1000.0), ("bore_damage", 1000.0, 3000.0),
-                                        ("compressor_seal_leak", 200.0, 1000.0),
-                                        ("turbine_seal_leak", 1000.0, 3000.0)]))
-    stall = FaultSpec(fid, onset, magnitude=PROCESS_FAULT_DEFAULTS[fid].magnitude * draw(st.floats(lo, hi)),
-                      kappa=math.inf)
+    fid, lo, hi = draw(
+        st.sampled_from(
+            [
+                ("valve_seizing", 20.0, 1000.0),
+                ("bore_damage", 1000.0, 3000.0),
+                ("compressor_seal_leak", 200.0, 1000.0),
+                ("turbine_seal_leak", 1000.0, 3000.0),
+            ]
+        )
+    )
+    stall = FaultSpec(
+        fid, onset, magnitude=PROCESS_FAULT_DEFAULTS[fid].magnitude * draw(st.floats(lo, hi)), kappa=math.inf
+    )
     others = [draw(fault_dicts(f, D)) for f in draw(st.lists(st.sampled_from(SENSOR_IDS), max_size=2, unique=True))]
-    return ScenarioSpec(faults=(stall, *others), profile=f"constant:u0={draw(st.floats(0.6, 1.1)):.3f}",
-                        noise_seed=draw(st.integers(0, 2**32)), duration_s=D)
+    return ScenarioSpec(
+        faults=(stall, *others),
+        profile=f"constant:u0={draw(st.floats(0.6, 1.1)):.3f}",
+        noise_seed=draw(st.integers(0, 2**32)),
+        duration_s=D,
+    )
 
 
 @settings(max_examples=15, **FUZZ)
-@given(spec=stalling_specs(), period=st.integers(10, 200).map(_cs), observe=st.booleans(),
-       seed=st.integers(0, 2**32 - 1))
+@given(
+    spec=stalling_specs(), period=st.integers(10, 200).map(_cs), observe=st.booleans(), seed=st.integers(0, 2**32 - 1)
+)
 def test_engine_failure_terminates_with_reason_and_refuses_step(spec, period, observe, seed):
     env = MarineFDIEnv(scenario_config="default", decision_period_s=period, observe_sensors=observe)
     rng = np.random.default_rng(seed)
@@ -270,12 +325,18 @@ def test_engine_failure_terminates_with_reason_and_refuses_step(spec, period, ob
 
 
 @settings(max_examples=12, **FUZZ)
-@given(data=st.data(), n=st.integers(2, 4), period=st.sampled_from([0.5, 1.0, 2.0]), observe=st.booleans(),
-       seed=st.integers(0, 2**31))
+@given(
+    data=st.data(),
+    n=st.integers(2, 4),
+    period=st.sampled_from([0.5, 1.0, 2.0]),
+    observe=st.booleans(),
+    seed=st.integers(0, 2**31),
+)
 def test_vector_env_fuzz_autoreset_and_failures(data, n, period, observe, seed):
     specs = [data.draw(st.one_of(scenario_specs(), stalling_specs())) for _ in range(n)]
-    cfg = ScenarioConfig(name="fuzz", duration_s=12.0, onset_range_s=(1.0, 6.0),
-                         profiles=tuple((f, 1.0) for f in SAMPLER_PROFILES))
+    cfg = ScenarioConfig(
+        name="fuzz", duration_s=12.0, onset_range_s=(1.0, 6.0), profiles=tuple((f, 1.0) for f in SAMPLER_PROFILES)
+    )
     env = MarineFDIVectorEnv(num_envs=n, scenario_config=cfg, decision_period_s=period, observe_sensors=observe)
     rng = np.random.default_rng(seed)
     obs, infos = env.reset(seed=seed, options={"scenarios": specs})
@@ -305,8 +366,10 @@ def bad_actions(draw):
     if kind == "shape":
         return np.full(draw(bad_shapes), 0.5, dtype=draw(st.sampled_from([np.float32, np.float64, np.int64])))
     if kind == "dtype":
-        return np.zeros(N_HYPOTHESES, dtype=draw(st.sampled_from([np.complex64, np.complex128, "U3", "S2",
-                                                                  "datetime64[s]", object])))
+        return np.zeros(
+            N_HYPOTHESES,
+            dtype=draw(st.sampled_from([np.complex64, np.complex128, "U3", "S2", "datetime64[s]", object])),
+        )
     if kind == "object":
         return draw(st.sampled_from([None, "belief", {"S1.1": 1.0}, {0.5}]))
     a = draw(st.lists(st.floats(0.0, 1.0), min_size=N_HYPOTHESES, max_size=N_HYPOTHESES))
@@ -349,8 +412,9 @@ _VECTOR_ENVS: dict = {}
 
 def _vector_env(n):
     if n not in _VECTOR_ENVS:
-        env = MarineFDIVectorEnv(num_envs=n, scenario_config=ScenarioConfig(name="short", duration_s=10_000.0,
-                                                                             onset_range_s=(1.0, 5.0)))
+        env = MarineFDIVectorEnv(
+            num_envs=n, scenario_config=ScenarioConfig(name="short", duration_s=10_000.0, onset_range_s=(1.0, 5.0))
+        )
         env.reset(seed=0)
         _VECTOR_ENVS[n] = env
     return _VECTOR_ENVS[n]
@@ -360,39 +424,67 @@ def _vector_env(n):
 _not_numbers = st.sampled_from(["ten", None, [1.0], {"s": 1}, math.nan, math.inf, -math.inf])
 BAD_SCENARIO_FIELDS = {
     "duration_s": st.one_of(_not_numbers, st.floats(max_value=0.0, allow_nan=False)),
-    "noise_seed": st.one_of(st.integers(max_value=-1), st.integers(min_value=2**63), st.floats(allow_nan=False),
-                            st.sampled_from([True, "1", None])),
+    "noise_seed": st.one_of(
+        st.integers(max_value=-1),
+        st.integers(min_value=2**63),
+        st.floats(allow_nan=False),
+        st.sampled_from([True, "1", None]),
+    ),
     "noise_scale": st.one_of(st.floats(max_value=-1e-9, allow_nan=False), _not_numbers),
-    "profile": st.one_of(st.sampled_from(["walk", "constant:u0=2", "constant:u0=-0.1", "step:x=1", "ramp:t0=9,t1=1",
-                                          "constant:u0=abc", "", None, ["constant"], 3.5]),
-                         st.text(max_size=8).filter(lambda s: s.split(":")[0].strip() not in PROFILE_NAMES)),
+    "profile": st.one_of(
+        st.sampled_from(
+            [
+                "walk",
+                "constant:u0=2",
+                "constant:u0=-0.1",
+                "step:x=1",
+                "ramp:t0=9,t1=1",
+                "constant:u0=abc",
+                "",
+                None,
+                ["constant"],
+                3.5,
+            ]
+        ),
+        st.text(max_size=8).filter(lambda s: s.split(":")[0].strip() not in PROFILE_NAMES),
+    ),
 }
-BAD_FAULTS = st.sampled_from([
-    [{"fault_id": "S9.9", "onset_s": 1.0}],
-    [{"fault_id": "S1.1"}],
-    [{"onset_s": 1.0}],
-    [{"fault_id": "S1.1", "onset_s": -1.0}],
-    [{"fault_id": "S1.1", "onset_s": 1e6}],
-    [{"fault_id": "S1.1", "onset_s": "soon"}],
-    [{"fault_id": "S1.1", "onset_s": 1.0, "kind": "wobble"}],
-    [{"fault_id": "bore_damage", "onset_s": 1.0, "kind": "offset"}],
-    [{"fault_id": "bore_damage", "onset_s": 1.0, "magnitude": -1.0}],
-    [{"fault_id": "S1.1", "onset_s": 1.0, "kind": "precision", "magnitude": -1.0}],
-    [{"fault_id": "S1.1", "onset_s": 1.0, "magnitude": math.nan}],
-    [{"fault_id": "S1.1", "onset_s": 2.0, "end_s": 1.0}],
-    [{"fault_id": "S1.1", "onset_s": 1.0, "period_s": 1.0}],
-    [{"fault_id": "S1.1", "onset_s": 1.0, "period_s": 1.0, "duty": 1.5}],
-    [{"fault_id": "S1.1", "onset_s": 1.0, "period_s": 0.0, "duty": 0.5}],
-    [{"fault_id": "S1.1", "onset_s": 1.0, "kappa": 0.0}],
-    [{"fault_id": "S1.1", "onset_s": 1.0, "size": 3}],
-    [{"fault_id": "S1.1", "onset_s": 1.0}, {"fault_id": "S1.1", "onset_s": 2.0}],
-    ["S1.1"], ["S1.1@x"], ["S1.1@1,foo=2"], ["S1.1@1:big"], [42], [None],
-])
+BAD_FAULTS = st.sampled_from(
+    [
+        [{"fault_id": "S9.9", "onset_s": 1.0}],
+        [{"fault_id": "S1.1"}],
+        [{"onset_s": 1.0}],
+        [{"fault_id": "S1.1", "onset_s": -1.0}],
+        [{"fault_id": "S1.1", "onset_s": 1e6}],
+        [{"fault_id": "S1.1", "onset_s": "soon"}],
+        [{"fault_id": "S1.1", "onset_s": 1.0, "kind": "wobble"}],
+        [{"fault_id": "bore_damage", "onset_s": 1.0, "kind": "offset"}],
+        [{"fault_id": "bore_damage", "onset_s": 1.0, "magnitude": -1.0}],
+        [{"fault_id": "S1.1", "onset_s": 1.0, "kind": "precision", "magnitude": -1.0}],
+        [{"fault_id": "S1.1", "onset_s": 1.0, "magnitude": math.nan}],
+        [{"fault_id": "S1.1", "onset_s": 2.0, "end_s": 1.0}],
+        [{"fault_id": "S1.1", "onset_s": 1.0, "period_s": 1.0}],
+        [{"fault_id": "S1.1", "onset_s": 1.0, "period_s": 1.0, "duty": 1.5}],
+        [{"fault_id": "S1.1", "onset_s": 1.0, "period_s": 0.0, "duty": 0.5}],
+        [{"fault_id": "S1.1", "onset_s": 1.0, "kappa": 0.0}],
+        [{"fault_id": "S1.1", "onset_s": 1.0, "size": 3}],
+        [{"fault_id": "S1.1", "onset_s": 1.0}, {"fault_id": "S1.1", "onset_s": 2.0}],
+        ["S1.1"],
+        ["S1.1@x"],
+        ["S1.1@1,foo=2"],
+        ["S1.1@1:big"],
+        [42],
+        [None],
+    ]
+)
 
 
 @settings(max_examples=120, **FUZZ)
-@given(data=st.data(), field=st.sampled_from(sorted(BAD_SCENARIO_FIELDS) + ["faults", "unknown"]),
-       via=st.sampled_from(["from_dict", "reset"]))
+@given(
+    data=st.data(),
+    field=st.sampled_from(sorted(BAD_SCENARIO_FIELDS) + ["faults", "unknown"]),
+    via=st.sampled_from(["from_dict", "reset"]),
+)
 def test_bad_scenarios_raise_value_error_naming_the_field(running_env, data, field, via):
     d = ScenarioSpec(profile="constant:u0=0.9", duration_s=20.0).to_dict()
     if field == "faults":
@@ -413,20 +505,62 @@ def test_bad_scenarios_raise_value_error_naming_the_field(running_env, data, fie
 
 
 def _valid_config_kwargs() -> dict:
-    return dict(name="fuzz", duration_s=20.0, profiles=(("constant", 1.0),), load_range=(0.5, 1.0),
-                fault_count_weights=(0.2, 0.5, 0.3), fault_ids=FAULT_IDS, sensor_kinds=(("offset", 1.0),),
-                onset_range_s=(1.0, 10.0), second_onset_gap_s=(0.0, 5.0), magnitude_range=(1.0, 4.0), noise_scale=1.0)
+    return dict(
+        name="fuzz",
+        duration_s=20.0,
+        profiles=(("constant", 1.0),),
+        load_range=(0.5, 1.0),
+        fault_count_weights=(0.2, 0.5, 0.3),
+        fault_ids=FAULT_IDS,
+        sensor_kinds=(("offset", 1.0),),
+        onset_range_s=(1.0, 10.0),
+        second_onset_gap_s=(0.0, 5.0),
+        magnitude_range=(1.0, 4.0),
+        noise_scale=1.0,
+    )
 
 
-_pairs_bad = st.one_of(st.sampled_from([(1.0,), (1.0, 2.0, 3.0), (2.0, 1.0), (math.nan, 1.0), (1.0, math.inf),
-                                        "ab", None, 5.0, ("a", "b"), (-1.0, 1.0)]))
+_pairs_bad = st.one_of(
+    st.sampled_from(
+        [
+            (1.0,),
+            (1.0, 2.0, 3.0),
+            (2.0, 1.0),
+            (math.nan, 1.0),
+            (1.0, math.inf),
+            "ab",
+            None,
+            5.0,
+            ("a", "b"),
+            (-1.0, 1.0),
+        ]
+    )
+)
 BAD_CONFIG_FIELDS = {
     "duration_s": st.one_of(_not_numbers, st.floats(max_value=0.0, allow_nan=False)),
-    "profiles": st.sampled_from([(("walk", 1.0),), (("constant", -1.0),), (("constant", 0.0),), (), "constant",
-                                 (("constant",),), (("constant", "heavy"),), (("constant", math.nan),)]),
+    "profiles": st.sampled_from(
+        [
+            (("walk", 1.0),),
+            (("constant", -1.0),),
+            (("constant", 0.0),),
+            (),
+            "constant",
+            (("constant",),),
+            (("constant", "heavy"),),
+            (("constant", math.nan),),
+        ]
+    ),
     "load_range": st.one_of(_pairs_bad, st.sampled_from([(0.0, 1.0), (0.5, 1.3), (-0.5, 0.5)])),
-    "fault_count_weights": st.sampled_from([(1.0, 1.0), (1.0, 1.0, 1.0, 1.0), (-1.0, 1.0, 1.0), (0.0, 0.0, 0.0),
-                                            (math.nan, 1.0, 1.0), (0.0, 0.0, math.inf)]),
+    "fault_count_weights": st.sampled_from(
+        [
+            (1.0, 1.0),
+            (1.0, 1.0, 1.0, 1.0),
+            (-1.0, 1.0, 1.0),
+            (0.0, 0.0, 0.0),
+            (math.nan, 1.0, 1.0),
+            (0.0, 0.0, math.inf),
+        ]
+    ),
     "fault_ids": st.sampled_from([("S9.9",), ("S1.1", "S1.1"), (), ("S1.1",), "S1.1"]),
     "sensor_kinds": st.sampled_from([(("wobble", 1.0),), (("offset", -1.0),), (), (("offset", 0.0),)]),
     "onset_range_s": st.one_of(_pairs_bad, st.sampled_from([(1.0, 20.0), (1.0, 25.0), (30.0, 40.0)])),
@@ -437,8 +571,11 @@ BAD_CONFIG_FIELDS = {
 
 
 @settings(max_examples=150, **FUZZ)
-@given(data=st.data(), field=st.sampled_from(sorted(BAD_CONFIG_FIELDS) + ["unknown"]),
-       via=st.sampled_from(["init", "from_dict", "env"]))
+@given(
+    data=st.data(),
+    field=st.sampled_from(sorted(BAD_CONFIG_FIELDS) + ["unknown"]),
+    via=st.sampled_from(["init", "from_dict", "env"]),
+)
 def test_bad_scenario_configs_raise_value_error_naming_the_field(data, field, via):
     kw = _valid_config_kwargs()
     if field == "unknown":
@@ -461,8 +598,9 @@ def test_bad_scenario_configs_raise_value_error_naming_the_field(data, field, vi
 
 
 @settings(max_examples=40, **FUZZ)
-@given(period=st.one_of(st.floats(max_value=0.0), st.sampled_from([math.nan, math.inf, "1", None, 0.015, 1.005,
-                                                                 0.001])))
+@given(
+    period=st.one_of(st.floats(max_value=0.0), st.sampled_from([math.nan, math.inf, "1", None, 0.015, 1.005, 0.001]))
+)
 def test_bad_decision_periods_raise_value_error(period):
     with pytest.raises(ValueError, match="decision_period_s"):
         MarineFDIEnv(scenario_config="nominal", decision_period_s=period)
@@ -482,10 +620,13 @@ def test_sampler_onset_rounding_stays_inside_the_episode():
     cfg.sample(1)
 
 
-@pytest.mark.parametrize("spec", [
-    ScenarioSpec(profile="constant:u0=0.0", duration_s=5.0),
-    ScenarioSpec(faults=("valve_seizing@0:0.97,kappa=inf",), profile="constant:u0=0.8", duration_s=5.0),
-])
+@pytest.mark.parametrize(
+    "spec",
+    [
+        ScenarioSpec(profile="constant:u0=0.0", duration_s=5.0),
+        ScenarioSpec(faults=("valve_seizing@0:0.97,kappa=inf",), profile="constant:u0=0.8", duration_s=5.0),
+    ],
+)
 def test_failure_at_time_zero_terminates_the_episode(spec):
     env = MarineFDIEnv(scenario_config="default")
     env.reset(options={"scenario": spec})
@@ -512,8 +653,11 @@ def test_ragged_action_error_names_the_action():
 
 
 def test_vector_final_info_is_the_single_env_final_info():
-    spec = ScenarioSpec(faults=(FaultSpec("compressor_seal_leak", 0.01, magnitude=10.0, kappa=math.inf),),
-                        profile="constant:u0=0.625", duration_s=5.0)
+    spec = ScenarioSpec(
+        faults=(FaultSpec("compressor_seal_leak", 0.01, magnitude=10.0, kappa=math.inf),),
+        profile="constant:u0=0.625",
+        duration_s=5.0,
+    )
     single = MarineFDIEnv(decision_period_s=0.5)
     single.reset(options={"scenario": spec})
     vec = MarineFDIVectorEnv(num_envs=1, decision_period_s=0.5)

@@ -8,9 +8,8 @@ from pathlib import Path
 import pytest
 
 from marine_fdi_env.benchmark.metrics import compute_metrics
+from marine_fdi_env.benchmark.report import agent_sort_key, load_results, markdown_table, write_report
 from marine_fdi_env.cli.report import report_main
-from marine_fdi_env.benchmark.report import (agent_sort_key, load_results, markdown_table,
-                                        write_report)
 
 
 def episode(agent: str, suite: str, delay: float | None, sid: str = "e") -> dict:
@@ -18,12 +17,24 @@ def episode(agent: str, suite: str, delay: float | None, sid: str = "e") -> dict
     if delay is not None:
         changes.append([5.0 + delay, ["S1.1"], True])
     return {
-        "scenario_id": sid, "suite": suite, "seed": 0, "agent": agent, "duration_s": 20.0,
-        "decision_period_s": 1.0, "n_samples": 1000, "profile": "constant",
+        "scenario_id": sid,
+        "suite": suite,
+        "seed": 0,
+        "agent": agent,
+        "duration_s": 20.0,
+        "decision_period_s": 1.0,
+        "n_samples": 1000,
+        "profile": "constant",
         "faults": [{"id": "S1.1", "class": "sensor", "onset_s": 5.0, "magnitude": 1.0, "end_s": None}],
-        "declared_changes": changes, "terminated": False, "failure_reason": None,
-        "compute_s": 0.0125, "return": 0.0, "reward_terms": {},
-        "feature_compute_s": 0.0100, "agent_compute_s": 0.0025, "n_decisions": 10,
+        "declared_changes": changes,
+        "terminated": False,
+        "failure_reason": None,
+        "compute_s": 0.0125,
+        "return": 0.0,
+        "reward_terms": {},
+        "feature_compute_s": 0.0100,
+        "agent_compute_s": 0.0025,
+        "n_decisions": 10,
     }
 
 
@@ -62,8 +73,14 @@ def test_table_rows_order_and_formatting(result_files):
     assert "Features [µs/sample]" in lines[0] and "Agent [µs/decision]" in lines[0]
     rows = [[c.strip() for c in line.strip("|").split("|")] for line in lines[2:]]
     assert [(r[0], r[1]) for r in rows] == [
-        ("a", "null"), ("a", "reference"), ("a", "alpha"), ("a", "zeta"), ("a", "oracle"),
-        ("b", "random"), ("b", "oracle")]
+        ("a", "null"),
+        ("a", "reference"),
+        ("a", "alpha"),
+        ("a", "zeta"),
+        ("a", "oracle"),
+        ("b", "random"),
+        ("b", "oracle"),
+    ]
     ref = dict(zip([c.strip() for c in lines[0].strip("|").split("|")], rows[1]))
     assert ref["Episodes"] == "2"
     assert ref["Detection"] == "50.0 %"
@@ -167,8 +184,11 @@ def test_training_seeds_are_pooled_with_intervals(tmp_path):
 
 
 def test_report_gives_normalised_scores(tmp_path):
-    files = [write_result(tmp_path, "null", "a", [None, None]), write_result(tmp_path, "oracle", "a", [0, 0]),
-             write_result(tmp_path, "alpha", "a", [1, None])]
+    files = [
+        write_result(tmp_path, "null", "a", [None, None]),
+        write_result(tmp_path, "oracle", "a", [0, 0]),
+        write_result(tmp_path, "alpha", "a", [1, None]),
+    ]
     for f, ret in zip(files, (-2.0, 10.0, 4.0)):
         data = json.loads(f.read_text())
         for e in data["episodes"]:

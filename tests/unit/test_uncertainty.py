@@ -6,8 +6,14 @@ import numpy as np
 import pytest
 from scipy.stats import beta, chi2, trim_mean
 
-from marine_fdi_env.benchmark.uncertainty import (difference, interval, iqm_score, normalised_score, outcomes,
-                                                  seed_spread)
+from marine_fdi_env.benchmark.uncertainty import (
+    difference,
+    interval,
+    iqm_score,
+    normalised_score,
+    outcomes,
+    seed_spread,
+)
 
 
 def _episode(sid: str, fault: str | None, delay: float | None, ret: float = 0.0, false_alarm: bool = False) -> dict:
@@ -17,11 +23,36 @@ def _episode(sid: str, fault: str | None, delay: float | None, ret: float = 0.0,
         trace += [[10.0, [], True], [11.0, [], False]]
     if delay is not None:
         trace.append([50.0 + delay, [fault] if fault else [], True])
-    faults = [] if fault is None else [{"id": fault, "class": "sensor" if fault.startswith("S") else "process",
-                                        "onset_s": 50.0, "magnitude": 1.0, "end_s": None}]
-    return {"scenario_id": sid, "suite": "s", "seed": 0, "agent": "a", "profile": "constant", "duration_s": 100.0,
-            "decision_period_s": 1.0, "n_samples": 1000, "faults": faults, "declared_changes": trace,
-            "terminated": False, "failure_reason": None, "compute_s": 0.0, "return": ret, "reward_terms": {}}
+    faults = (
+        []
+        if fault is None
+        else [
+            {
+                "id": fault,
+                "class": "sensor" if fault.startswith("S") else "process",
+                "onset_s": 50.0,
+                "magnitude": 1.0,
+                "end_s": None,
+            }
+        ]
+    )
+    return {
+        "scenario_id": sid,
+        "suite": "s",
+        "seed": 0,
+        "agent": "a",
+        "profile": "constant",
+        "duration_s": 100.0,
+        "decision_period_s": 1.0,
+        "n_samples": 1000,
+        "faults": faults,
+        "declared_changes": trace,
+        "terminated": False,
+        "failure_reason": None,
+        "compute_s": 0.0,
+        "return": ret,
+        "reward_terms": {},
+    }
 
 
 def _suite(detected: list[bool], fault: str = "S1.1", **kw) -> list[dict]:
@@ -75,8 +106,10 @@ def test_difference_is_paired_on_the_episodes():
     d = difference(outcomes([a]), outcomes([b]), "detection_rate")
     assert (d.value, d.low, d.high) == (0.0, 0.0, 0.0)  # the same outcome on every episode: no doubt at all
     c = _suite([True] * 20 + [False] * 20)
-    d1, d2 = difference(outcomes([a]), outcomes([c]), "detection_rate"), difference(outcomes([c]), outcomes([a]),
-                                                                                    "detection_rate")
+    d1, d2 = (
+        difference(outcomes([a]), outcomes([c]), "detection_rate"),
+        difference(outcomes([c]), outcomes([a]), "detection_rate"),
+    )
     assert d1.value == pytest.approx(0.25) and d1.low > 0  # 10 more episodes detected, never fewer
     assert d2.value == pytest.approx(-d1.value) and d2.high == pytest.approx(-d1.low)
 

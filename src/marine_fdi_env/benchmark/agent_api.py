@@ -12,7 +12,7 @@ key, Gymnasium's vector convention: ``infos["reference"]["diagnoses"][i]`` ...).
 read ground truth (``true_faults``, ``active_faults``) are oracles and say so in their name.
 
 NAME is one of :data:`BUILTIN_AGENTS` (``null``, ``random``, ``reference``, ``sequential``,
-``oracle``, from ``baselines/``) or a shipped model (``classifier``, ``ppo``, ...: every folder of
+``oracle``, from ``baselines/``) or a shipped model (``classifier``, ``ppo-v1``, ...: every folder of
 ``training/models/``, see :mod:`.agent_registry` and ``marine-fdi agents``).  An agent may name
 environment options it needs in an ``env_kwargs`` attribute (``sequential``:
 ``{"observe_sequential": True}``); ``evaluate`` adds them to the suite's.  PATH is a directory

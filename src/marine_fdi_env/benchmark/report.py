@@ -39,12 +39,23 @@ from typing import Any, Callable, Iterable, Mapping, Sequence
 
 from ..engine.faults import FAULT_IDS
 from ..errors import DataFileError
-from ..plotting import pyplot
 from ..jsonfile import read_json
+from ..plotting import pyplot
 from .metrics import FAULT_CLASSES, compute_metrics, episode_outcome
 
-__all__ = ["load_results", "merge_seeds", "markdown_table", "write_report", "agent_sort_key", "fault_table",
-           "confusion_matrix", "confusion_markdown", "NO_FAULT_LABEL", "UNKNOWN_LABEL", "NOTHING_LABEL"]
+__all__ = [
+    "load_results",
+    "merge_seeds",
+    "markdown_table",
+    "write_report",
+    "agent_sort_key",
+    "fault_table",
+    "confusion_matrix",
+    "confusion_markdown",
+    "NO_FAULT_LABEL",
+    "UNKNOWN_LABEL",
+    "NOTHING_LABEL",
+]
 
 _FIXED_FIRST = ("null", "random", "reference")
 _FIXED_LAST = ("oracle",)
@@ -52,6 +63,7 @@ _DASH = "–"
 
 
 # ----------------------------------------------------------------------------- loading
+
 
 def _parquet_results(p: Path) -> list[dict]:
     """Results objects from a Parquet file: an evaluation's records, or a sweep's table (one
@@ -96,8 +108,9 @@ def load_results(paths: Iterable[str | Path]) -> list[dict]:
             if not isinstance(data.get(key), str):
                 raise ValueError(f"{p}: field {key!r} missing or not a string")
         if "episodes" not in data:
-            raise DataFileError(f"{p}: field 'episodes' is missing (a results file of 'marine-fdi evaluate' lists "
-                                "its episode records)")
+            raise DataFileError(
+                f"{p}: field 'episodes' is missing (a results file of 'marine-fdi evaluate' lists its episode records)"
+            )
         episodes = data["episodes"]
         if not isinstance(episodes, list):
             raise DataFileError(f"{p}: field 'episodes' must be a list of episode records")
@@ -127,23 +140,33 @@ def merge_seeds(results: Sequence[Mapping]) -> list[dict]:
         key = (r["suite"], r["agent"], r.get("training_seed"))
         if key in seen:
             seed = "" if key[2] is None else f", training seed {key[2]}"
-            raise ValueError(f"two results for suite {key[0]!r}, agent {key[1]!r}{seed}: "
-                             f"{seen[key]} and {r.get('path', '?')}")
+            raise ValueError(
+                f"two results for suite {key[0]!r}, agent {key[1]!r}{seed}: {seen[key]} and {r.get('path', '?')}"
+            )
         seen[key] = r.get("path", "?")
         groups.setdefault(key[:2], []).append(r)
     out = []
     for (suite, agent), rs in groups.items():
         rs = sorted(rs, key=lambda r: (r.get("training_seed") is None, r.get("training_seed") or 0))
         if len(rs) > 1 and any(r.get("training_seed") is None for r in rs):
-            raise ValueError(f"suite {suite!r}, agent {agent!r}: several results, not all with a training_seed: "
-                             + ", ".join(str(r.get("path", "?")) for r in rs))
+            raise ValueError(
+                f"suite {suite!r}, agent {agent!r}: several results, not all with a training_seed: "
+                + ", ".join(str(r.get("path", "?")) for r in rs)
+            )
         if len(rs) == 1:
             out.append(dict(rs[0], seed_results=[rs[0]]))
             continue
         episodes = [e for r in rs for e in r["episodes"]]
-        out.append(dict(rs[0], episodes=episodes, metrics=compute_metrics(episodes), seed_results=list(rs),
-                        training_seeds=[r["training_seed"] for r in rs],
-                        path=", ".join(str(r.get("path", "?")) for r in rs)))
+        out.append(
+            dict(
+                rs[0],
+                episodes=episodes,
+                metrics=compute_metrics(episodes),
+                seed_results=list(rs),
+                training_seeds=[r["training_seed"] for r in rs],
+                path=", ".join(str(r.get("path", "?")) for r in rs),
+            )
+        )
     return out
 
 
@@ -172,6 +195,7 @@ def _suite_sort_key(suite: str) -> tuple:
 
 
 # ----------------------------------------------------------------------------- formatting
+
 
 def _f(fmt: Callable[[float], str]) -> Callable[[Any], str]:
     return lambda v: _DASH if v is None else fmt(float(v))
@@ -208,15 +232,30 @@ COLUMNS: tuple[_Col, ...] = (
     _Col("Features [µs/sample]", "feature_compute_s_per_sample", _usps),
     _Col("Agent [µs/decision]", "agent_compute_s_per_decision", _usps),
 )
-_FA_COLUMNS = tuple(c for c in COLUMNS if c.key in ("n_episodes", "false_alarm_rate",
-                                                    "false_alarm_episode_rate", "mean_return",
-                                                    "feature_compute_s_per_sample",
-                                                    "agent_compute_s_per_decision"))
+_FA_COLUMNS = tuple(
+    c
+    for c in COLUMNS
+    if c.key
+    in (
+        "n_episodes",
+        "false_alarm_rate",
+        "false_alarm_episode_rate",
+        "mean_return",
+        "feature_compute_s_per_sample",
+        "agent_compute_s_per_decision",
+    )
+)
 
 
 # the columns that carry a 95 % interval (the metrics of :data:`.uncertainty.RATE_METRICS`)
-_INTERVAL_KEYS = ("detection_rate", "median_detection_delay_censored_s", "isolation_accuracy", "false_alarm_rate",
-                  "false_alarm_episode_rate", "mean_return")
+_INTERVAL_KEYS = (
+    "detection_rate",
+    "median_detection_delay_censored_s",
+    "isolation_accuracy",
+    "false_alarm_rate",
+    "false_alarm_episode_rate",
+    "mean_return",
+)
 
 
 def _with_interval(col: _Col, est) -> str:
@@ -233,16 +272,20 @@ def _interval_cells(r: Mapping, cols: Sequence[_Col]) -> list[str]:
     from .uncertainty import interval, outcomes
 
     o = outcomes([x["episodes"] for x in r.get("seed_results") or [r]])
-    return [_with_interval(c, interval(o, c.key)) if c.key in _INTERVAL_KEYS else c.fmt(r["metrics"].get(c.key))
-            for c in cols]
+    return [
+        _with_interval(c, interval(o, c.key)) if c.key in _INTERVAL_KEYS else c.fmt(r["metrics"].get(c.key))
+        for c in cols
+    ]
 
 
 def _table(rows: Sequence[tuple[str, str, Mapping]], cols: Sequence[_Col], intervals: bool = False) -> str:
     """Rows (suite, agent, result or metrics); with ``intervals`` the results' rate cells carry their
     95 % intervals and a column gives the number of training seeds."""
     head = ["Suite", "Agent", *(["Seeds"] if intervals else []), *(c.title for c in cols)]
-    lines = ["| " + " | ".join(head) + " |",
-             "|" + "|".join([" --- ", " --- "] + [" ---: "] * (len(cols) + int(intervals))) + "|"]
+    lines = [
+        "| " + " | ".join(head) + " |",
+        "|" + "|".join([" --- ", " --- "] + [" ---: "] * (len(cols) + int(intervals))) + "|",
+    ]
     for suite, agent, r in rows:
         if intervals:
             cells = [suite, agent, str(len(r.get("seed_results") or [r])), *_interval_cells(r, cols)]
@@ -262,12 +305,12 @@ def markdown_table(results: Sequence[Mapping], intervals: bool = False) -> str:
 def class_table(results: Sequence[Mapping], fault_class: str) -> str:
     """Markdown table of one fault class (``metrics["by_class"][fault_class]``)."""
     cols = _FA_COLUMNS if fault_class == "none" else COLUMNS
-    rows = [(r["suite"], r["agent"], r["metrics"].get("by_class", {}).get(fault_class) or {})
-            for r in _sorted(results)]
+    rows = [(r["suite"], r["agent"], r["metrics"].get("by_class", {}).get(fault_class) or {}) for r in _sorted(results)]
     return _table(rows, cols)
 
 
 # ----------------------------------------------------------------------------- per fault, confusion
+
 
 def fault_table(results: Sequence[Mapping]) -> str:
     """Markdown table of one suite's single-fault episodes per fault id (``metrics["by_fault"]``):
@@ -277,8 +320,10 @@ def fault_table(results: Sequence[Mapping]) -> str:
     faults = [f for f in FAULT_IDS if any(f in (r["metrics"].get("by_fault") or {}) for r in rs)]
     if not faults:
         return ""
-    lines = ["| Fault | Episodes | " + " | ".join(r["agent"] for r in rs) + " |",
-             "| --- | ---: |" + " :---: |" * len(rs)]
+    lines = [
+        "| Fault | Episodes | " + " | ".join(r["agent"] for r in rs) + " |",
+        "| --- | ---: |" + " :---: |" * len(rs),
+    ]
     for f in faults:
         cells, n = [], None
         for r in rs:
@@ -287,15 +332,17 @@ def fault_table(results: Sequence[Mapping]) -> str:
                 cells.append(_DASH)
                 continue
             n = m.get("n_episodes") if n is None else n
-            cells.append(f"{_pct0(m.get('detection_rate'))} / {_pct0(m.get('isolation_accuracy'))} / "
-                         f"{_sec(m.get('median_detection_delay_s'))}")
+            cells.append(
+                f"{_pct0(m.get('detection_rate'))} / {_pct0(m.get('isolation_accuracy'))} / "
+                f"{_sec(m.get('median_detection_delay_s'))}"
+            )
         lines.append(f"| {f} | {_int(n)} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
-NO_FAULT_LABEL = "no fault"   # true label of an episode with no fault active at its end
-UNKNOWN_LABEL = "unknown"     # declared: alarm on, no fault named
-NOTHING_LABEL = "nothing"     # declared: no alarm
+NO_FAULT_LABEL = "no fault"  # true label of an episode with no fault active at its end
+UNKNOWN_LABEL = "unknown"  # declared: alarm on, no fault named
+NOTHING_LABEL = "nothing"  # declared: no alarm
 
 
 _OUTCOMES: dict[int, tuple[Mapping, list[dict]]] = {}  # scored episodes of a result, while a report is written
@@ -329,8 +376,7 @@ def _label_order(labels: Iterable[str], extra: Sequence[str]) -> list[str]:
     return sorted(set(labels), key=lambda x: (order.get(x, len(order)), x))
 
 
-def confusion_matrix(result: Mapping, rows: Sequence[str] | None = None,
-                     cols: Sequence[str] | None = None) -> dict:
+def confusion_matrix(result: Mapping, rows: Sequence[str] | None = None, cols: Sequence[str] | None = None) -> dict:
     """``{"true": [...], "declared": [...], "counts": [[...]], "episodes": [...]}``: counts[i][j] =
     episodes (module docstring) with true label ``true[i]`` and declared label ``declared[j]``;
     episodes[i] = episodes with true label ``true[i]`` (a row of ``counts`` sums to more when
@@ -371,13 +417,15 @@ def confusion_markdown(cm: Mapping) -> str:
         row = cm["counts"][i]
         n = cm["episodes"][i] if "episodes" in cm else sum(row)
         cells = sorted(((c, d) for d, c in zip(cm["declared"], row) if c), key=lambda x: -x[0])
-        text = ", ".join((f"**{d}** {c}" if d == t or (t == NO_FAULT_LABEL and d == NOTHING_LABEL) else f"{d} {c}")
-                         for c, d in cells)
+        text = ", ".join(
+            (f"**{d}** {c}" if d == t or (t == NO_FAULT_LABEL and d == NOTHING_LABEL) else f"{d} {c}") for c, d in cells
+        )
         lines.append(f"| {t} | {n} | {text} |")
     return "\n".join(lines) + "\n"
 
 
 # ----------------------------------------------------------------------------- plots
+
 
 def _pyplot():
     return pyplot("or pass --no-plots")
@@ -406,13 +454,21 @@ def plot_detection_delays(results: Sequence[Mapping], path: Path) -> Path | None
     for ax, (suite, rs) in zip(axes[:, 0], groups.items()):
         data = [[o["detection_delay_s"] for o in _outcomes(r) if o["detection_delay_s"] is not None] for r in rs]
         n_faulty = [r["metrics"].get("n_faulty") or 0 for r in rs]
-        ax.boxplot([d if d else [float("nan")] for d in data], showfliers=True, widths=0.5,
-                   medianprops={"color": "C1", "lw": 2}, flierprops={"markersize": 3, "alpha": 0.5})
+        ax.boxplot(
+            [d if d else [float("nan")] for d in data],
+            showfliers=True,
+            widths=0.5,
+            medianprops={"color": "C1", "lw": 2},
+            flierprops={"markersize": 3, "alpha": 0.5},
+        )
         for i, d in enumerate(data, start=1):
             if not d:
                 ax.text(i, 0.5, "no detection", ha="center", va="center", fontsize=8, color="0.4")
-        ax.set_xticks(range(1, len(rs) + 1),
-                      [f"{r['agent']}\n{len(d)}/{n} detected" for r, d, n in zip(rs, data, n_faulty)], fontsize=8)
+        ax.set_xticks(
+            range(1, len(rs) + 1),
+            [f"{r['agent']}\n{len(d)}/{n} detected" for r, d, n in zip(rs, data, n_faulty)],
+            fontsize=8,
+        )
         ax.set_yscale("symlog", linthresh=1.0)
         top = max([max(d) for d in data if d] + [1.0]) * 1.5
         ax.set_ylim(0, top)
@@ -428,8 +484,11 @@ def plot_detection_delays(results: Sequence[Mapping], path: Path) -> Path | None
     return path
 
 
-_BARS = (("detection_rate", "detection rate"), ("isolation_accuracy", "isolation accuracy"),
-         ("false_alarm_episode_rate", "episodes with a false alarm"))
+_BARS = (
+    ("detection_rate", "detection rate"),
+    ("isolation_accuracy", "isolation accuracy"),
+    ("false_alarm_episode_rate", "episodes with a false alarm"),
+)
 
 
 def plot_summary(results: Sequence[Mapping], path: Path) -> Path:
@@ -450,18 +509,33 @@ def plot_summary(results: Sequence[Mapping], path: Path) -> Path:
             if len(handles) < len(_BARS):
                 handles.append(bars)
             for x, v, r in zip(xs, vals, raw):
-                ax.text(x, v + 1.5, "n/a" if r is None else f"{v:.0f}", ha="center", va="bottom", fontsize=6.5,
-                        color="0.45" if r is None else "0.1")
+                ax.text(
+                    x,
+                    v + 1.5,
+                    "n/a" if r is None else f"{v:.0f}",
+                    ha="center",
+                    va="bottom",
+                    fontsize=6.5,
+                    color="0.45" if r is None else "0.1",
+                )
         ax.set_xticks(range(len(rs)), [r["agent"] for r in rs], fontsize=9)
         ax.set_xlim(-0.6, max(len(rs), 2) - 0.4)
         ax.set_ylim(0, 115)
         ax.set_yticks(range(0, 101, 20))
         ax.set_ylabel("%")
-        ax.set_title(f"suite {suite}" + ("" if _has_faults(rs) else " (fault-free: only false alarms apply)"),
-                     fontsize=10)
+        ax.set_title(
+            f"suite {suite}" + ("" if _has_faults(rs) else " (fault-free: only false alarms apply)"), fontsize=10
+        )
         ax.grid(axis="y", alpha=0.3)
-    fig.legend(handles, [label for _, label in _BARS], loc="upper center", ncol=len(_BARS), fontsize=9,
-               frameon=False, bbox_to_anchor=(0.5, 1.0))
+    fig.legend(
+        handles,
+        [label for _, label in _BARS],
+        loc="upper center",
+        ncol=len(_BARS),
+        fontsize=9,
+        frameon=False,
+        bbox_to_anchor=(0.5, 1.0),
+    )
     fig.tight_layout(rect=(0, 0, 1, 1 - 0.35 / fig.get_figheight()))
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -480,8 +554,8 @@ def plot_confusion(rs: Sequence[Mapping], path: Path) -> Path:
     cell = 0.24
     w = cell * len(cols) + 0.4
     h = max(cell * len(rows) + 0.5, 1.4)  # a one-row matrix (a fault-free suite) still needs room for title and labels
-    lab_w = 0.07 * max(len(x) for x in rows) + 0.6    # room for the y tick labels of the first column
-    lab_h = 0.065 * max(len(x) for x in cols) + 0.5   # room for the x tick labels of the bottom row
+    lab_w = 0.07 * max(len(x) for x in rows) + 0.6  # room for the y tick labels of the first column
+    lab_h = 0.065 * max(len(x) for x in cols) + 0.5  # room for the x tick labels of the bottom row
     fig, axes = plt.subplots(nrow, ncol, figsize=(w * ncol + lab_w, h * nrow + lab_h + 0.3), squeeze=False)
     for k, ax in enumerate(axes.flat):
         if k >= n:
@@ -493,9 +567,16 @@ def plot_confusion(rs: Sequence[Mapping], path: Path) -> Path:
         for i in range(len(rows)):
             for j in range(len(cols)):
                 if c[i, j]:
-                    ax.text(j, i, f"{int(c[i, j])}", ha="center", va="center", fontsize=6,
-                            color="white" if c[i, j] > 0.6 * c.max() else "black")
-        bottom = k + ncol >= n          # tick labels on the outer panels only
+                    ax.text(
+                        j,
+                        i,
+                        f"{int(c[i, j])}",
+                        ha="center",
+                        va="center",
+                        fontsize=6,
+                        color="white" if c[i, j] > 0.6 * c.max() else "black",
+                    )
+        bottom = k + ncol >= n  # tick labels on the outer panels only
         ax.set_xticks(range(len(cols)), cols if bottom else [], rotation=90, fontsize=6.5)
         ax.set_yticks(range(len(rows)), rows if k % ncol == 0 else [], fontsize=6.5)
         ax.hlines(np.arange(len(rows) + 1) - 0.5, -0.5, len(cols) - 0.5, color="0.9", lw=0.5)
@@ -520,6 +601,7 @@ def _file_stem(name: str) -> str:
 
 # ----------------------------------------------------------------------------- report
 
+
 def write_report(paths: Iterable[str | Path], out_dir: str | Path, *, plots: bool = True) -> Path:
     """Write ``out_dir/report.md``, ``confusion.json`` (and the PNG plots); return the report path."""
     try:
@@ -538,47 +620,56 @@ def _write_report(paths, out_dir, plots: bool) -> Path:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     groups = _by_suite(results)
-    parts = ["# MarineFDI benchmark report\n",
-             "Sources: " + ", ".join(f"`{r['path']}`" for r in _sorted(results)) + "\n",
-             "## All episodes\n",
-             "Every rate with its 95 % interval in parentheses: a percentile bootstrap over the episodes, stratified "
-             "by fault class, and over the training seeds of a learned agent (Seeds: how many are pooled); where "
-             "every resample agrees (e.g. no false alarm at all), the exact interval of one seed's episodes "
-             "(Clopper-Pearson, Poisson).  `marine_fdi_env.benchmark.uncertainty`.\n",
-             markdown_table(results, intervals=True)]
+    parts = [
+        "# MarineFDI benchmark report\n",
+        "Sources: " + ", ".join(f"`{r['path']}`" for r in _sorted(results)) + "\n",
+        "## All episodes\n",
+        "Every rate with its 95 % interval in parentheses: a percentile bootstrap over the episodes, stratified "
+        "by fault class, and over the training seeds of a learned agent (Seeds: how many are pooled); where "
+        "every resample agrees (e.g. no false alarm at all), the exact interval of one seed's episodes "
+        "(Clopper-Pearson, Poisson).  `marine_fdi_env.benchmark.uncertainty`.\n",
+        markdown_table(results, intervals=True),
+    ]
     from .report_scores import plot_scores, scores_markdown
 
     agent_order = sorted({r["agent"] for r in results}, key=agent_sort_key)
     score_md = scores_markdown(results, agent_order)
     if score_md:
-        parts += ["## Normalised scores\n",
-                  "Per suite, 100 (R - R_null) / (R_oracle - R_null) with R the mean return: the null agent scores 0, "
-                  "the oracle 100; suites where the two earn the same (fault-free ones) are not scored.  IQM: the "
-                  "interquartile mean over training seeds x suites.  95 % intervals in parentheses (the episodes "
-                  "resampled within each suite, the null and oracle returns on the same resamples).\n", score_md]
+        parts += [
+            "## Normalised scores\n",
+            "Per suite, 100 (R - R_null) / (R_oracle - R_null) with R the mean return: the null agent scores 0, "
+            "the oracle 100; suites where the two earn the same (fault-free ones) are not scored.  IQM: the "
+            "interquartile mean over training seeds x suites.  95 % intervals in parentheses (the episodes "
+            "resampled within each suite, the null and oracle returns on the same resamples).\n",
+            score_md,
+        ]
         if plots and plot_scores(results, out / "scores.png", agent_order) is not None:
             parts.append("![normalised scores](scores.png)\n")
     for cls in FAULT_CLASSES:
-        if not any((r["metrics"].get("by_class", {}).get(cls) or {}).get("n_episodes")
-                   for r in results):
-            continue   # no episode of this class in any results file
+        if not any((r["metrics"].get("by_class", {}).get(cls) or {}).get("n_episodes") for r in results):
+            continue  # no episode of this class in any results file
         title = "fault-free episodes" if cls == "none" else f"{cls} fault episodes"
         parts += [f"## {title[0].upper() + title[1:]}\n", class_table(results, cls)]
     per_fault = [(suite, fault_table(rs)) for suite, rs in groups.items()]
     if any(t for _, t in per_fault):
-        parts += ["## Per fault\n", "Single-fault episodes of each suite, per fault and agent: detection rate [%] / "
-                  "isolation accuracy [%] / median detection delay [s].\n"]
+        parts += [
+            "## Per fault\n",
+            "Single-fault episodes of each suite, per fault and agent: detection rate [%] / "
+            "isolation accuracy [%] / median detection delay [s].\n",
+        ]
         for suite, table in per_fault:
             if table:
                 parts += [f"### Suite {suite}\n", table]
-    parts += ["## Confusion matrices\n",
-              "Final declaration against the truth, per suite and agent: for each true label (the faults "
-              "active at the end, or `no fault`) the declared labels (the final declared faults, `unknown`: "
-              "alarm on and no fault named, `nothing`: no alarm) with the number of episodes; the correct one in bold.  An "
-              "episode counts once per (true, declared) pair: an episode with two true faults is in two rows, one "
-              "that declared two faults adds to two entries of its row (so a row's entries may sum to more than "
-              "its episodes).  "
-              "Full matrices: `confusion.json`" + (", heat maps: `confusion_<suite>.png`" if plots else "") + ".\n"]
+    parts += [
+        "## Confusion matrices\n",
+        "Final declaration against the truth, per suite and agent: for each true label (the faults "
+        "active at the end, or `no fault`) the declared labels (the final declared faults, `unknown`: "
+        "alarm on and no fault named, `nothing`: no alarm) with the number of episodes; the correct one in bold.  An "
+        "episode counts once per (true, declared) pair: an episode with two true faults is in two rows, one "
+        "that declared two faults adds to two entries of its row (so a row's entries may sum to more than "
+        "its episodes).  "
+        "Full matrices: `confusion.json`" + (", heat maps: `confusion_<suite>.png`" if plots else "") + ".\n",
+    ]
     matrices = []
     for suite, rs in groups.items():
         rows, cols = _suite_labels(rs)
@@ -597,11 +688,13 @@ def _write_report(paths, out_dir, plots: bool) -> Path:
             plot_confusion(rs, out / name)
             parts.append(f"![confusion matrices, suite {suite}]({name})\n")
     envs = sorted({str(r.get("env_id", "?")) for r in results})
-    parts.append("Rates in %, delays in s (censored median: a missed fault counts as never detected; – when "
-                 "fewer than half are detected), false alarms per fault-free hour; mean return of the reward "
-                 f"scored ({', '.join(envs)}); features: the observation features every agent shares, in µs per "
-                 "sensor sample; agent: the agent's own decision, in µs per decision and engine (both measured "
-                 "at the evaluation's batch size); – = undefined. Definitions: `marine_fdi_env.benchmark.metrics`.\n")
+    parts.append(
+        "Rates in %, delays in s (censored median: a missed fault counts as never detected; – when "
+        "fewer than half are detected), false alarms per fault-free hour; mean return of the reward "
+        f"scored ({', '.join(envs)}); features: the observation features every agent shares, in µs per "
+        "sensor sample; agent: the agent's own decision, in µs per decision and engine (both measured "
+        "at the evaluation's batch size); – = undefined. Definitions: `marine_fdi_env.benchmark.metrics`.\n"
+    )
     report = out / "report.md"
     report.write_text("\n".join(parts), encoding="utf-8")
     return report

@@ -27,8 +27,10 @@ def scores(results: Sequence[Mapping]) -> tuple[list[str], dict[str, dict[str, E
     by_suite: dict[str, dict[str, Mapping]] = {}
     from .suites import SUITE_NAMES
 
-    for r in sorted(results, key=lambda r: (SUITE_NAMES.index(r["suite"]) if r["suite"] in SUITE_NAMES
-                                            else len(SUITE_NAMES), r["suite"])):
+    for r in sorted(
+        results,
+        key=lambda r: (SUITE_NAMES.index(r["suite"]) if r["suite"] in SUITE_NAMES else len(SUITE_NAMES), r["suite"]),
+    ):
         by_suite.setdefault(r["suite"], {})[r["agent"]] = r
     table: dict[str, dict[str, Estimate]] = {}
     parts: dict[str, list] = {}
@@ -65,11 +67,11 @@ def scores_markdown(results: Sequence[Mapping], order: Sequence[str] | None = No
     if not suites:
         return ""
     agents = [a for a in (order or table) if a in table]
-    lines = ["| Agent | " + " | ".join(suites) + " | IQM across suites |",
-             "| --- |" + " ---: |" * (len(suites) + 1)]
+    lines = ["| Agent | " + " | ".join(suites) + " | IQM across suites |", "| --- |" + " ---: |" * (len(suites) + 1)]
     for a in agents:
-        lines.append(f"| {a} | " + " | ".join(_cell(table[a].get(s)) for s in suites)
-                     + f" | {_cell(table[a].get('IQM'))} |")
+        lines.append(
+            f"| {a} | " + " | ".join(_cell(table[a].get(s)) for s in suites) + f" | {_cell(table[a].get('IQM'))} |"
+        )
     return "\n".join(lines) + "\n"
 
 
@@ -92,14 +94,22 @@ def plot_scores(results: Sequence[Mapping], path: Path, order: Sequence[str] | N
         for k, s in enumerate(suites):
             v = table[a].get(s)
             if v is not None and v.value is not None:
-                ax.plot(v.value, i + (k - (len(suites) - 1) / 2) * 0.07, "o", ms=3.5, color=f"C{k + 1}",
-                        label=s if i == 0 else None)
+                ax.plot(
+                    v.value,
+                    i + (k - (len(suites) - 1) / 2) * 0.07,
+                    "o",
+                    ms=3.5,
+                    color=f"C{k + 1}",
+                    label=s if i == 0 else None,
+                )
     ax.set_yticks(range(len(agents)), agents, fontsize=9)
     ax.invert_yaxis()
     ax.axvline(0, color="0.5", lw=0.8)
     ax.axvline(100, color="0.5", lw=0.8, ls="--")
-    ax.set_xlabel("normalised score (null = 0, oracle = 100): bar = IQM across suites with its 95 % interval, "
-                  "points = suites", fontsize=8)
+    ax.set_xlabel(
+        "normalised score (null = 0, oracle = 100): bar = IQM across suites with its 95 % interval, points = suites",
+        fontsize=8,
+    )
     ax.legend(fontsize=7, ncol=min(4, len(suites)), loc="lower right", frameon=False)
     ax.grid(axis="x", alpha=0.3)
     fig.tight_layout()

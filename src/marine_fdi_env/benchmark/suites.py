@@ -53,14 +53,22 @@ from pathlib import Path
 import numpy as np
 
 from ..engine.faults import FAULT_IDS, PROCESS_FAULT_IDS
-from ..scenarios import get_scenario
 from ..envs.scenario_sampler import PRESETS, ScenarioConfig, ScenarioSpec, _fault_at_scale
 from ..jsonfile import read_json
+from ..scenarios import get_scenario
 
 __all__ = ["SUITE_NAMES", "load_suite", "build_suite", "Suite"]
 
-SUITE_NAMES = ("thesis-v1", "single-v1", "multi-v1", "incipient-v1", "transfer-v1", "nominal-v1", "transfer-v2",
-               "transfer-v3")
+SUITE_NAMES = (
+    "thesis-v1",
+    "single-v1",
+    "multi-v1",
+    "incipient-v1",
+    "transfer-v1",
+    "nominal-v1",
+    "transfer-v2",
+    "transfer-v3",
+)
 _ENV = {"decision_period_s": 1.0, "params": "thesis-12v28", "observe_sensors": False}
 
 
@@ -108,8 +116,10 @@ def load_suite(name_or_path: str) -> Suite:
     if not p.is_file():
         from ..suggest import did_you_mean
 
-        raise ValueError(f"unknown suite {name_or_path!r}{did_you_mean(name_or_path, SUITE_NAMES)}; shipped: "
-                         f"{', '.join(SUITE_NAMES)} (or a JSON path)")
+        raise ValueError(
+            f"unknown suite {name_or_path!r}{did_you_mean(name_or_path, SUITE_NAMES)}; shipped: "
+            f"{', '.join(SUITE_NAMES)} (or a JSON path)"
+        )
     data = read_json(p, "suite file")
     return _validate(data, str(p))
 
@@ -127,8 +137,15 @@ def _thesis() -> list[ScenarioSpec]:
     for k, name in enumerate(("thesis-6.4.1", "thesis-6.4.2", "thesis-6.4.3", "thesis-6.4.4")):
         sc = get_scenario(name)
         for j in range(5):
-            out.append(ScenarioSpec(faults=tuple(sc.fault_specs()), profile=sc.profile, noise_seed=seeds[5 * k + j],
-                                    duration_s=sc.duration_s, scenario_id=f"{name}/seed{j}"))
+            out.append(
+                ScenarioSpec(
+                    faults=tuple(sc.fault_specs()),
+                    profile=sc.profile,
+                    noise_seed=seeds[5 * k + j],
+                    duration_s=sc.duration_s,
+                    scenario_id=f"{name}/seed{j}",
+                )
+            )
     return out
 
 
@@ -145,14 +162,21 @@ def _grid(name: str, fault_ids, scales, reps: int, signed: bool) -> list[Scenari
     for fid in fault_ids:
         for scale in scales:
             for rep in range(reps):
-                s_prof, s_onset, s_noise = seeds[k:k + 3]
+                s_prof, s_onset, s_noise = seeds[k : k + 3]
                 k += 3
                 r = np.random.default_rng(s_onset)
                 onset = round(float(r.uniform(*base.onset_range_s)), 2)
                 sign = (1.0 if r.random() < 0.5 else -1.0) if signed else 1.0
                 f = _fault_at_scale(fid, "offset", onset, scale, sign)
-                out.append(ScenarioSpec(faults=(f,), profile=_profile_of(base, s_prof), noise_seed=s_noise,
-                                        scenario_id=f"{fid}/x{scale:g}/r{rep}", magnitude_scales=(scale,)))
+                out.append(
+                    ScenarioSpec(
+                        faults=(f,),
+                        profile=_profile_of(base, s_prof),
+                        noise_seed=s_noise,
+                        scenario_id=f"{fid}/x{scale:g}/r{rep}",
+                        magnitude_scales=(scale,),
+                    )
+                )
     return out
 
 
@@ -170,8 +194,11 @@ def _sampled(name: str, preset: str, n: int) -> list[ScenarioSpec]:
 
 
 def _nominal() -> list[ScenarioSpec]:
-    cfg = ScenarioConfig(name="nominal-all-profiles", fault_count_weights=(1.0, 0.0, 0.0),
-                         profiles=tuple((p, 1.0) for p in ("constant", "step", "ramp", "random", "manoeuvring")))
+    cfg = ScenarioConfig(
+        name="nominal-all-profiles",
+        fault_count_weights=(1.0, 0.0, 0.0),
+        profiles=tuple((p, 1.0) for p in ("constant", "step", "ramp", "random", "manoeuvring")),
+    )
     return [cfg.sample(e, scenario_id=f"nominal-v1/{i:03d}") for i, e in enumerate(_seeds("nominal-v1", 48))]
 
 
@@ -190,11 +217,15 @@ def _transfer_v2() -> list[ScenarioSpec]:
         sc = faults.sample(seeds[2 * i], scenario_id=f"transfer-v2/{i:03d}")
         r = np.random.default_rng(seeds[2 * i + 1])
         if i % 2 == 0:
-            prof = (f"harbour:seed={int(r.integers(0, 2**31))},u_min=0.3,u_max=1.0,"
-                    f"dwell={round(float(r.uniform(15.0, 45.0)), 1)}")
+            prof = (
+                f"harbour:seed={int(r.integers(0, 2**31))},u_min=0.3,u_max=1.0,"
+                f"dwell={round(float(r.uniform(15.0, 45.0)), 1)}"
+            )
         else:
-            prof = (f"seastate:seed={int(r.integers(0, 2**31))},u_mean={round(float(r.uniform(0.6, 0.95)), 3)},"
-                    f"amplitude={round(float(r.uniform(0.03, 0.08)), 3)},period={round(float(r.uniform(6.0, 12.0)), 2)}")
+            prof = (
+                f"seastate:seed={int(r.integers(0, 2**31))},u_mean={round(float(r.uniform(0.6, 0.95)), 3)},"
+                f"amplitude={round(float(r.uniform(0.03, 0.08)), 3)},period={round(float(r.uniform(6.0, 12.0)), 2)}"
+            )
         out.append(replace(sc, profile=prof))
     return out
 
@@ -213,9 +244,11 @@ def _transfer_v3() -> list[ScenarioSpec]:
     for i in range(128):
         sc = faults.sample(seeds[2 * i], scenario_id=f"transfer-v3/{i:03d}")
         r = np.random.default_rng(seeds[2 * i + 1])
-        prof = (f"slowsteaming:seed={int(r.integers(0, 2**31))},u_mean={round(float(r.uniform(0.3, 0.5)), 3)},"
-                f"drift={round(float(r.uniform(-0.1, 0.1)), 3)},amplitude={round(float(r.uniform(0.05, 0.12)), 3)},"
-                f"period={round(float(r.uniform(6.0, 12.0)), 2)}")
+        prof = (
+            f"slowsteaming:seed={int(r.integers(0, 2**31))},u_mean={round(float(r.uniform(0.3, 0.5)), 3)},"
+            f"drift={round(float(r.uniform(-0.1, 0.1)), 3)},amplitude={round(float(r.uniform(0.05, 0.12)), 3)},"
+            f"period={round(float(r.uniform(6.0, 12.0)), 2)}"
+        )
         out.append(replace(sc, profile=prof, noise_scale=TRANSFER_V3_NOISE_SCALES[i % 2]))
     return out
 
@@ -225,13 +258,21 @@ _BUILDERS = {
     "single-v1": (_single, "each of the 26 faults alone at 1x, 2x, 4x its detectability limit x 2 seeds"),
     "multi-v1": (lambda: _sampled("multi-v1", "multi", 48), "48 random fault pairs at 1-4x their limits"),
     "incipient-v1": (_incipient, "each process fault at 0.5x, 1x, 1.5x its detectability limit x 3 seeds"),
-    "transfer-v1": (lambda: _sampled("transfer-v1", "transfer", 60),
-                    "manoeuvring and random profiles (never used by the training presets), 0-2 faults"),
+    "transfer-v1": (
+        lambda: _sampled("transfer-v1", "transfer", 60),
+        "manoeuvring and random profiles (never used by the training presets), 0-2 faults",
+    ),
     "nominal-v1": (_nominal, "48 fault-free episodes over all profile families"),
-    "transfer-v2": (_transfer_v2, "held-out profile families (harbour telegraph steps, sea-state load fluctuation) "
-                    "and sensor noise 0.7x, never in training or calibration data; 0-2 faults"),
-    "transfer-v3": (_transfer_v3, "held-out part-load family (slow steaming at 0.3-0.5 with waves) at sensor noise "
-                    "1.3x and 0.6x, never in training or calibration data; 0-2 faults at 1-3x their limits"),
+    "transfer-v2": (
+        _transfer_v2,
+        "held-out profile families (harbour telegraph steps, sea-state load fluctuation) "
+        "and sensor noise 0.7x, never in training or calibration data; 0-2 faults",
+    ),
+    "transfer-v3": (
+        _transfer_v3,
+        "held-out part-load family (slow steaming at 0.3-0.5 with waves) at sensor noise "
+        "1.3x and 0.6x, never in training or calibration data; 0-2 faults at 1-3x their limits",
+    ),
 }
 # the env block of a suite; transfer-v2 and -v3 also fix the reward they are scored with
 _SUITE_ENV = {"transfer-v2": dict(_ENV, reward="v1"), "transfer-v3": dict(_ENV, reward="v1")}
@@ -242,6 +283,11 @@ def build_suite(name: str) -> dict:
     if name not in _BUILDERS:
         raise ValueError(f"unknown suite {name!r}; allowed: {', '.join(_BUILDERS)}")
     fn, desc = _BUILDERS[name]
-    return {"name": name, "version": int(name.rsplit("-v", 1)[1]), "description": desc,
-            "built_with": f"python -m studies.benchmark.build_suites {name}", "env": dict(_SUITE_ENV.get(name, _ENV)),
-            "scenarios": [s.to_dict() for s in fn()]}
+    return {
+        "name": name,
+        "version": int(name.rsplit("-v", 1)[1]),
+        "description": desc,
+        "built_with": f"python -m studies.benchmark.build_suites {name}",
+        "env": dict(_SUITE_ENV.get(name, _ENV)),
+        "scenarios": [s.to_dict() for s in fn()],
+    }

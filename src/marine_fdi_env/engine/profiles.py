@@ -234,8 +234,18 @@ def make_profile(spec: "str | Profile | float", duration_s: float = 300.0) -> Pr
         return Profile(name, (0.0, t0, t1), (o.get("u0", 0.6), o.get("u0", 0.6), o.get("u1", 1.0)))
     if name == "manoeuvring":
         s = o.get("scale", 1.0)
-        setpoints = [(0, 1.0), (40, 1.0), (65, 0.5), (110, 0.5), (125, 0.3), (170, 0.3), (190, 0.7), (240, 0.7),
-                     (255, 1.0), (300, 1.0)]
+        setpoints = [
+            (0, 1.0),
+            (40, 1.0),
+            (65, 0.5),
+            (110, 0.5),
+            (125, 0.3),
+            (170, 0.3),
+            (190, 0.7),
+            (240, 0.7),
+            (255, 1.0),
+            (300, 1.0),
+        ]
         times, vals = [], []
         period = 300.0
         k = 0
@@ -281,8 +291,10 @@ def _harbour(o: dict[str, float], duration_s: float) -> Profile:
     dwell, rate = o.get("dwell", 30.0), o.get("rate", 0.1)
     levels = [v for v in TELEGRAPH_LEVELS if lo - 1e-9 <= v <= hi + 1e-9]
     if len(levels) < 2 or rate <= 0 or dwell <= 0:
-        raise ValueError(f"profile 'harbour' needs at least two telegraph levels {TELEGRAPH_LEVELS} in "
-                         f"[u_min, u_max] = [{lo}, {hi}] and dwell, rate > 0")
+        raise ValueError(
+            f"profile 'harbour' needs at least two telegraph levels {TELEGRAPH_LEVELS} in "
+            f"[u_min, u_max] = [{lo}, {hi}] and dwell, rate > 0"
+        )
     u = float(levels[int(rng.integers(len(levels)))])
     t, times, vals = 0.0, [0.0], [u]
     while t < duration_s:

@@ -39,8 +39,16 @@ import numpy as np
 from ..engine.faults import FAULT_IDS, PROCESS_FAULT_IDS, SENSOR_FAULT_KINDS, FaultSpec, fault_class
 from ..engine.profiles import make_profile
 
-__all__ = ["ScenarioSpec", "ScenarioConfig", "PRESETS", "get_preset", "with_noise_scale", "SAMPLER_COMPONENTS", "SAMPLER_PROFILES",
-           "HELD_OUT_PROFILES"]
+__all__ = [
+    "ScenarioSpec",
+    "ScenarioConfig",
+    "PRESETS",
+    "get_preset",
+    "with_noise_scale",
+    "SAMPLER_COMPONENTS",
+    "SAMPLER_PROFILES",
+    "HELD_OUT_PROFILES",
+]
 
 # the profile families a ScenarioConfig can draw; ``harbour`` and ``seastate`` are held out for the
 # transfer-v2 suite, ``slowsteaming`` for transfer-v3 (built by their own code in
@@ -108,19 +116,28 @@ class ScenarioSpec:
         object.__setattr__(self, "faults", faults)
         object.__setattr__(self, "magnitude_scales", _as_tuple("scenario", "magnitude_scales", self.magnitude_scales))
         if not (isinstance(self.duration_s, (int, float)) and math.isfinite(self.duration_s) and self.duration_s > 0):
-            raise ValueError(f"scenario field 'duration_s' must be a positive number of seconds, got {self.duration_s!r}")
-        if not (isinstance(self.noise_scale, (int, float)) and math.isfinite(self.noise_scale) and self.noise_scale >= 0):
+            raise ValueError(
+                f"scenario field 'duration_s' must be a positive number of seconds, got {self.duration_s!r}"
+            )
+        if not (
+            isinstance(self.noise_scale, (int, float)) and math.isfinite(self.noise_scale) and self.noise_scale >= 0
+        ):
             raise ValueError(f"scenario field 'noise_scale' must be a finite number >= 0, got {self.noise_scale!r}")
-        if not isinstance(self.noise_seed, (int, np.integer)) or isinstance(self.noise_seed, bool) \
-                or not 0 <= int(self.noise_seed) <= _MAX_SEED:
+        if (
+            not isinstance(self.noise_seed, (int, np.integer))
+            or isinstance(self.noise_seed, bool)
+            or not 0 <= int(self.noise_seed) <= _MAX_SEED
+        ):
             raise ValueError(f"scenario field 'noise_seed' must be an integer in [0, 2**63), got {self.noise_seed!r}")
         ids = [f.fault_id for f in faults]
         if len(set(ids)) != len(ids):
             raise ValueError(f"scenario field 'faults': each fault id at most once, got {ids}")
         for f in faults:
             if f.onset_s >= self.duration_s:
-                raise ValueError(f"scenario field 'faults': onset of {f.fault_id} ({f.onset_s} s) must be before "
-                                 f"the end of the episode ({self.duration_s} s)")
+                raise ValueError(
+                    f"scenario field 'faults': onset of {f.fault_id} ({f.onset_s} s) must be before "
+                    f"the end of the episode ({self.duration_s} s)"
+                )
         make_profile(self.profile, self.duration_s)  # raises ValueError for a bad profile
 
     @property
@@ -129,15 +146,27 @@ class ScenarioSpec:
 
     def truth(self) -> list[dict]:
         """Ground truth in the metrics' record format (id, class, onset, magnitude, end)."""
-        return [{"id": f.fault_id, "class": fault_class(f.fault_id), "onset_s": float(f.onset_s),
-                 "magnitude": float(f.resolved_magnitude) if math.isfinite(f.resolved_magnitude) else 0.0,
-                 "end_s": None if f.end_s is None else float(f.end_s)} for f in self.faults]
+        return [
+            {
+                "id": f.fault_id,
+                "class": fault_class(f.fault_id),
+                "onset_s": float(f.onset_s),
+                "magnitude": float(f.resolved_magnitude) if math.isfinite(f.resolved_magnitude) else 0.0,
+                "end_s": None if f.end_s is None else float(f.end_s),
+            }
+            for f in self.faults
+        ]
 
     def to_dict(self) -> dict:
-        return {"scenario_id": self.scenario_id, "profile": self.profile, "noise_seed": int(self.noise_seed),
-                "noise_scale": float(self.noise_scale), "duration_s": float(self.duration_s),
-                "faults": [_fault_to_dict(f) for f in self.faults],
-                "magnitude_scales": [float(x) for x in self.magnitude_scales]}
+        return {
+            "scenario_id": self.scenario_id,
+            "profile": self.profile,
+            "noise_seed": int(self.noise_seed),
+            "noise_scale": float(self.noise_scale),
+            "duration_s": float(self.duration_s),
+            "faults": [_fault_to_dict(f) for f in self.faults],
+            "magnitude_scales": [float(x) for x in self.magnitude_scales],
+        }
 
     @classmethod
     def from_dict(cls, d: dict) -> "ScenarioSpec":
@@ -220,8 +249,10 @@ class ScenarioConfig:
             raise ValueError(f"scenario config field 'duration_s' must be > 0, got {self.duration_s!r}")
         for item in _as_tuple("scenario config", "profiles", self.profiles):
             if isinstance(item, (tuple, list)) and item and item[0] in HELD_OUT_PROFILES:
-                raise ValueError(f"scenario config field 'profiles': {item[0]!r} is held out for the transfer suites "
-                                 f"(never drawn by a scenario config); allowed: {', '.join(SAMPLER_PROFILES)}")
+                raise ValueError(
+                    f"scenario config field 'profiles': {item[0]!r} is held out for the transfer suites "
+                    f"(never drawn by a scenario config); allowed: {', '.join(SAMPLER_PROFILES)}"
+                )
         object.__setattr__(self, "profiles", _check_weights("profiles", self.profiles, SAMPLER_PROFILES))
         object.__setattr__(self, "sensor_kinds", _check_weights("sensor_kinds", self.sensor_kinds, SENSOR_FAULT_KINDS))
         lr = _check_pair("load_range", self.load_range)
@@ -233,8 +264,10 @@ class ScenarioConfig:
         except (TypeError, ValueError):
             w = ()
         if len(w) != 3 or not all(math.isfinite(x) and x >= 0 for x in w) or sum(w) <= 0:
-            raise ValueError("scenario config field 'fault_count_weights' must be 3 weights >= 0 (0, 1, 2 faults) "
-                             f"with a positive sum, got {self.fault_count_weights!r}")
+            raise ValueError(
+                "scenario config field 'fault_count_weights' must be 3 weights >= 0 (0, 1, 2 faults) "
+                f"with a positive sum, got {self.fault_count_weights!r}"
+            )
         object.__setattr__(self, "fault_count_weights", w)
         ids = _as_tuple("scenario config", "fault_ids", self.fault_ids)
         for f in ids:
@@ -244,21 +277,29 @@ class ScenarioConfig:
             raise ValueError("scenario config field 'fault_ids' lists a fault twice")
         max_count = max(i for i, x in enumerate(w) if x > 0)
         if len(ids) < max_count:
-            raise ValueError(f"scenario config field 'fault_ids' has {len(ids)} faults but up to {max_count} "
-                             "faults per episode are asked for")
+            raise ValueError(
+                f"scenario config field 'fault_ids' has {len(ids)} faults but up to {max_count} "
+                "faults per episode are asked for"
+            )
         object.__setattr__(self, "fault_ids", ids)
         onset = _check_pair("onset_range_s", self.onset_range_s)
         if onset[1] >= self.duration_s:
-            raise ValueError(f"scenario config field 'onset_range_s' must end before duration_s ({self.duration_s} s),"
-                             f" got {self.onset_range_s!r}")
+            raise ValueError(
+                f"scenario config field 'onset_range_s' must end before duration_s ({self.duration_s} s),"
+                f" got {self.onset_range_s!r}"
+            )
         object.__setattr__(self, "onset_range_s", onset)
         object.__setattr__(self, "second_onset_gap_s", _check_pair("second_onset_gap_s", self.second_onset_gap_s))
         mr = _check_pair("magnitude_range", self.magnitude_range)
         if mr[0] <= 0:
             raise ValueError(f"scenario config field 'magnitude_range' must be > 0, got {self.magnitude_range!r}")
         object.__setattr__(self, "magnitude_range", mr)
-        if not (isinstance(self.noise_scale, (int, float)) and math.isfinite(self.noise_scale) and self.noise_scale >= 0):
-            raise ValueError(f"scenario config field 'noise_scale' must be a finite number >= 0, got {self.noise_scale!r}")
+        if not (
+            isinstance(self.noise_scale, (int, float)) and math.isfinite(self.noise_scale) and self.noise_scale >= 0
+        ):
+            raise ValueError(
+                f"scenario config field 'noise_scale' must be a finite number >= 0, got {self.noise_scale!r}"
+            )
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -301,9 +342,15 @@ class ScenarioConfig:
             scales.append(scale)
         order = np.argsort([f.onset_s for f in faults], kind="stable")
         noise_seed = int(rng["noise"].integers(0, _MAX_SEED))
-        return ScenarioSpec(faults=tuple(faults[i] for i in order), profile=profile, noise_seed=noise_seed,
-                            noise_scale=self.noise_scale, duration_s=self.duration_s, scenario_id=scenario_id,
-                            magnitude_scales=tuple(scales[i] for i in order))
+        return ScenarioSpec(
+            faults=tuple(faults[i] for i in order),
+            profile=profile,
+            noise_seed=noise_seed,
+            noise_scale=self.noise_scale,
+            duration_s=self.duration_s,
+            scenario_id=scenario_id,
+            magnitude_scales=tuple(scales[i] for i in order),
+        )
 
     def _profile(self, r: np.random.Generator) -> str:
         names = [k for k, _ in self.profiles]
@@ -365,13 +412,21 @@ PRESETS: dict[str, ScenarioConfig] = {
         ScenarioConfig(name="multi", fault_count_weights=(0.0, 0.0, 1.0)),
         ScenarioConfig(name="nominal", fault_count_weights=(1.0, 0.0, 0.0)),
         # process faults near their detectability limit
-        ScenarioConfig(name="incipient", fault_count_weights=(0.0, 1.0, 0.0), fault_ids=PROCESS_FAULT_IDS,
-                       magnitude_range=(0.5, 1.5)),
+        ScenarioConfig(
+            name="incipient",
+            fault_count_weights=(0.0, 1.0, 0.0),
+            fault_ids=PROCESS_FAULT_IDS,
+            magnitude_range=(0.5, 1.5),
+        ),
         # operating profiles the training presets never use
         ScenarioConfig(name="transfer", profiles=(("manoeuvring", 0.5), ("random", 0.5))),
         # every sensor fault kind, not only offsets
-        ScenarioConfig(name="sensor-kinds", fault_ids=FAULT_IDS[:19], fault_count_weights=(0.0, 1.0, 0.0),
-                       sensor_kinds=tuple((k, 1.0) for k in SENSOR_FAULT_KINDS)),
+        ScenarioConfig(
+            name="sensor-kinds",
+            fault_ids=FAULT_IDS[:19],
+            fault_count_weights=(0.0, 1.0, 0.0),
+            sensor_kinds=tuple((k, 1.0) for k in SENSOR_FAULT_KINDS),
+        ),
     )
 }
 
@@ -396,5 +451,7 @@ def get_preset(name: "str | ScenarioConfig | dict") -> ScenarioConfig:
     if name not in PRESETS:
         from ..suggest import did_you_mean
 
-        raise ValueError(f"unknown scenario preset {name!r}{did_you_mean(name, PRESETS)}; allowed: {', '.join(PRESETS)}")
+        raise ValueError(
+            f"unknown scenario preset {name!r}{did_you_mean(name, PRESETS)}; allowed: {', '.join(PRESETS)}"
+        )
     return PRESETS[name]
