@@ -119,8 +119,8 @@ def layer_of(module: str) -> str:
 def package_roots() -> dict[str, Path]:
     """Package name -> directory, for the package and the subpackages installed from other folders
     (``marine_fdi_env.baselines``, ``marine_fdi_env.training``), editable install or not."""
-    roots: dict[str, Path] = {}
-    for name in (PACKAGE, f"{PACKAGE}.baselines", f"{PACKAGE}.training"):
+    roots: dict[str, Path] = {PACKAGE: Path(__file__).resolve().parent}  # this module's own package
+    for name in (f"{PACKAGE}.baselines", f"{PACKAGE}.training"):
         spec = importlib.util.find_spec(name)
         if spec is None or not spec.submodule_search_locations:
             raise RuntimeError(f"cannot find the installed package {name}; reinstall with pip install -e .")

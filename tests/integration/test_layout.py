@@ -88,11 +88,12 @@ if __name__ == "__main__":  # regenerate the fixture with the code in this check
 
 
 # ----------------------------------------------------------------------------- layers and names
-def test_info_imports_finds_no_circle_and_no_backward_import():
-    """``python -m marine_fdi_env.info --imports`` on the installed package: exit 0, and every
-    module of the package (engine, agents, training included) is in the graph."""
+def test_info_imports_finds_no_circle_and_no_backward_import(tmp_path):
+    """``python -m marine_fdi_env.info --imports`` on the installed package, run outside the repository (an empty
+    folder: not the clone's parent, where a clone named ``marine_fdi_env`` would shadow the package as a namespace
+    package): exit 0, and every module of the package (engine, agents, training included) is in the graph."""
     out = subprocess.run(
-        [sys.executable, "-m", "marine_fdi_env.info", "--imports"], capture_output=True, text=True, cwd=ROOT.parent
+        [sys.executable, "-m", "marine_fdi_env.info", "--imports"], capture_output=True, text=True, cwd=tmp_path
     )
     assert out.returncode == 0, out.stdout + out.stderr
     assert "no import circle, no backward import between layers" in out.stdout
