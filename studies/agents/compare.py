@@ -61,13 +61,14 @@ AGENTS: dict[str, tuple[str, ...]] = {
     "reference": ("reference",),
     "sequential": ("sequential",),
     "classifier": _seeded("training/models/classifier"),
+    "ppo": _seeded("training/models/ppo"),
     "ppo-v1": ("training/models/ppo-v1",),
     "classifier-v1": ("training/models/classifier-v1",),
     "classifier-v1+reference": ("training/models/classifier-v1+reference",),
     "oracle": ("oracle",),
 }
-LEARNED = ("classifier", "ppo-v1", "classifier-v1", "classifier-v1+reference")
-ROBUST = ("classifier",)  # the agents the must-show checks are about (every training seed)
+LEARNED = ("classifier", "ppo", "ppo-v1", "classifier-v1", "classifier-v1+reference")
+ROBUST = ("classifier", "ppo")  # the agents the must-show checks are about (every training seed)
 # what each row is, and whether it reads the reference diagnoser's conclusion (info["reference"])
 WHAT = {
     "null": ("never declares anything", False),
@@ -83,6 +84,11 @@ WHAT = {
         "first 4 s), trained over sensor noise 0.5-1.5x and all sampler profile families; alarm threshold and "
         "conformal isolation (abstains with `unknown` unless one hypothesis fits) calibrated on held-in "
         "episodes; 3 training seeds",
+        False,
+    ),
+    "ppo": (
+        "reinforcement learning (PPO on replayed episodes, reward MarineFDI-v1) on the same noise-invariant inputs "
+        "and training episodes as `classifier`; 3 training seeds",
         False,
     ),
     "ppo-v1": (
@@ -578,6 +584,8 @@ def must_shows() -> list[tuple[str, str, bool | None]]:
 PAIRS = (
     ("classifier", "classifier-v1"),
     ("classifier", "ppo-v1"),
+    ("classifier", "ppo"),
+    ("ppo", "ppo-v1"),
     ("classifier", "reference"),
     ("classifier", "sequential"),
     ("classifier-v1", "ppo-v1"),
@@ -845,7 +853,7 @@ HEADLINE_COLS = (
     ("transfer-v3", "isolation_accuracy", "pct", "transfer-v3 isolation"),
     ("nominal-v1", "n_false_alarms", "int", "nominal-v1 false alarms"),
 )
-README_AGENTS = 8  # rows of the README's table (the hybrid classifier-v1+reference is in docs/results.md)
+README_AGENTS = 9  # rows of the README's table (the hybrid classifier-v1+reference is in docs/results.md)
 
 
 def headline_table(agents) -> str:

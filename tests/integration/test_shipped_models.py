@@ -88,6 +88,23 @@ def test_robust_classifier_seeds_are_one_command_within_budget():
     assert agent.name == "classifier" and agent.training_seed == 0
 
 
+def test_robust_ppo_seeds_are_one_command_within_budget():
+    """The noise-invariant PPO: seeds 0-2 of one hyperparameter entry, each within 30 CPU minutes (its replayed
+    episodes' simulation counted), on the noise-scaled inputs of the robust classifier."""
+    cfgs = [_cfg(f"ppo/seed{s}") for s in (0, 1, 2)]
+    for s, cfg in enumerate(cfgs):
+        assert cfg["seed"] == s and cfg["hyperparams_entry"] == "robust" and cfg["algo"] == "ppo"
+        assert (
+            cfg["command"]
+            == f"marine-fdi train --algo ppo --hyperparams robust --seed {s} --out training/models/ppo/seed{s}"
+        )
+        assert cfg["cpu_minutes"] <= 30.0 and cfg["cpu_s_data"] > 0
+        assert cfg["features"]["noise_window"] == 4
+    assert all(c["hyperparams"] == cfgs[0]["hyperparams"] for c in cfgs)  # the same command, seed aside
+    agent = load_agent(str(MODELS / "ppo"))  # the folder: its default seed
+    assert agent.name == "ppo" and agent.training_seed == 0
+
+
 # ----------------------------------------------------------------------------- the shipped models score as recorded
 RESULTS = ROOT / "docs" / "data" / "results"
 # (model folder, agent name, its results files' stem): one file per training seed of a multi-seed agent
@@ -95,7 +112,7 @@ SHIPPED = [
     ("ppo-v1", "ppo-v1", "ppo-v1"),
     ("classifier-v1", "classifier-v1", "classifier-v1"),
     ("classifier-v1+reference", "classifier-v1+reference", "classifier-v1+reference"),
-] + [(f"classifier/seed{s}", "classifier", f"classifier_s{s}") for s in (0, 1, 2)]
+] + [(f"{a}/seed{s}", a, f"{a}_s{s}") for a in ("classifier", "ppo") for s in (0, 1, 2)]
 
 
 @pytest.mark.parametrize("folder,name,stem", SHIPPED)
