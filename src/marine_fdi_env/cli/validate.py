@@ -18,9 +18,10 @@ from ..validation.report import clean_json, out_path, run_validation, split_engi
 from ..validation.report_markdown import markdown_summary
 from ..validation.report_plots import write_plots
 from ..validation.rules import SelectionRules
-from ..validation.unexplained import ALPHA_UNEXPLAINED
 from .selection_options import add_valve_options
 from .sidecar import check_sidecar_numbers
+
+RULES = SelectionRules()  # the selection's default rules: the options' defaults
 
 
 def build_parser(prog: str = "marine-fdi validate") -> argparse.ArgumentParser:
@@ -60,19 +61,29 @@ def build_parser(prog: str = "marine-fdi validate") -> argparse.ArgumentParser:
         "the environment and --params",
     )
     ap.add_argument("--target", default="auto", help="what fixes each operating point: " + ", ".join(TARGETS))
-    ap.add_argument("--max-causes", type=int, default=4, help="most mechanisms to combine (default 4)")
+    ap.add_argument(
+        "--max-causes",
+        type=int,
+        default=RULES.max_causes,
+        help=f"most mechanisms to combine (default {RULES.max_causes})",
+    )
     ap.add_argument(
         "--max-folds",
         type=int,
         default=None,
         help="cross-validate single-engine data with at most this many folds (default: leave one out)",
     )
-    ap.add_argument("--alpha", type=float, default=0.01, help="significance level of a named cause (default 0.01)")
+    ap.add_argument(
+        "--alpha",
+        type=float,
+        default=RULES.alpha,
+        help=f"significance level of a named cause (default {RULES.alpha:g})",
+    )
     ap.add_argument(
         "--alpha-unexplained",
         type=float,
-        default=ALPHA_UNEXPLAINED,
-        help=f"family-wise level of what is reported as unexplained (default {ALPHA_UNEXPLAINED:g})",
+        default=RULES.alpha_unexplained,
+        help=f"family-wise level of what is reported as unexplained (default {RULES.alpha_unexplained:g})",
     )
     ap.add_argument(
         "--tolerance",

@@ -34,6 +34,7 @@ do not depend on the number of workers.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 import time
@@ -64,20 +65,6 @@ __all__ = [
 ]
 
 NOISE_MODELS = ("residual", "tolerance")
-#: the rules (:class:`~.rules.SelectionRules`) a replica reuses from the selection on the data
-_PASSED = (
-    "max_causes",
-    "alpha",
-    "alpha_unexplained",
-    "min_gain",
-    "penalty",
-    "cv_all",
-    "max_folds",
-    "pairs",
-    "prune",
-    "exchange",
-    "beside_valve",
-)
 
 
 @dataclass(frozen=True)
@@ -261,8 +248,7 @@ def replicate(
     problem = sel.problem
     scale = noise_scale(sel, noise)
     hyps = hypotheses(sel, alternatives, top)
-    settings = {k: sel.settings[k] for k in _PASSED if k in sel.settings}
-    rules = SelectionRules(held_out_valves=problem.held_out_valves, **settings)
+    rules = sel.rules  # every replica runs under the rules the data were selected with
     tol = dict(zip(problem.channels, map(float, problem.tolerance)))
     jobs = [(h, r) for h in range(len(hyps)) for r in range(int(replicas))]
     args = {
@@ -314,7 +300,7 @@ def replicate(
             "replicas": int(replicas),
             "noise": noise,
             "seed": int(seed),
-            "selection": {**settings, "held_out_valves": problem.held_out_valves},
+            "selection": dataclasses.asdict(rules),
             "noise_scale": {c: [float(abs(x)) for x in scale[:, j]] for j, c in enumerate(chans)},
         },
         "hypotheses": [

@@ -168,6 +168,8 @@ class Selection:
     calibration_scans: dict[str, dict[str, Any]] = field(default_factory=dict)
     #: every structure the data do not decide against (:func:`~.explanations.explanation_set`), when asked for
     explanations: Any = None
+    #: the rules it was selected under (a replica reuses them)
+    rules: SelectionRules = field(default_factory=SelectionRules)
 
     @property
     def selected_causes(self) -> list[str]:
@@ -331,6 +333,7 @@ def select_causes(
         alternatives=alternatives,
         cause_notes=cause_notes,
         calibration_scans=cal_scans,
+        rules=rules,
         settings={
             "held_out_valves": problem.held_out_valves,
             "beside_valve": beside_valve,
