@@ -21,8 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from marine_fdi_env._jit import jit
-from marine_fdi_env.diagnosis.cell_sets import DEFAULT_CELLS, CellDecisions, check_cells
-from marine_fdi_env.diagnosis.decision import DiagnosisState, candidate_classes, sorted_diagnoses
+from marine_fdi_env.diagnosis.cell_sets import DEFAULT_CELLS, CellDecisions, DecidesWithCellSets, check_cells
+from marine_fdi_env.diagnosis.decision import candidate_classes, sorted_diagnoses
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
 from marine_fdi_env.diagnosis.peak_ratio import ratios, running_peaks
 from marine_fdi_env.diagnosis.residuals import (
@@ -182,7 +182,7 @@ class ReferenceDecisions(CellDecisions):
             self.next_peak[i] = st.next_peak
 
 
-class ReferenceDiagnoser:
+class ReferenceDiagnoser(DecidesWithCellSets):
     """Streaming reference diagnoser for N engines.
 
     Parameters
@@ -259,26 +259,9 @@ class ReferenceDiagnoser:
     def _decider(self, cells: str) -> ReferenceDecisions:
         return ReferenceDecisions(self.n, cells, self.exoneration, self.max_cardinality)
 
-    def add_cells(self, cells: str) -> None:
-        """Decide with the cell set ``cells`` too, on the same residuals and violations (its
-        conclusions: :meth:`decider`); before the first block."""
-        if self.samples:
-            raise RuntimeError("add_cells before the first block: a cell set decides from the first sample")
-        if check_cells(cells) not in self.cell_sets:
-            self.cell_sets += (cells,)
-            self._deciders.append(self._decider(cells))
-
-    def decider(self, cells: str | None = None) -> ReferenceDecisions:
-        """The decisions with the cell set ``cells`` (default: ``cells`` of the constructor)."""
-        c = self.cells if cells is None else cells
-        if c not in self.cell_sets:
-            raise ValueError(f"cells must be one of the cell sets decided ({', '.join(self.cell_sets)}), got {c!r}")
-        return self._deciders[self.cell_sets.index(c)]
-
     @property
-    def decisions(self) -> list[DiagnosisState]:
-        """The engines' decision states with the constructor's cell set."""
-        return self._deciders[0].decisions
+    def _started(self) -> bool:
+        return self.samples > 0
 
     @property
     def _track_peaks(self) -> bool:

@@ -28,7 +28,15 @@ from .sized_cells import SIZED_FILES, load_sized_cells
 from .sized_decision import SizedDiagnosisState
 from .sure_cells import SureCells, load_sure_cells
 
-__all__ = ["CELL_SETS", "DEFAULT_CELLS", "check_cells", "size_blind_cells", "decision_state", "CellDecisions"]
+__all__ = [
+    "CELL_SETS",
+    "DEFAULT_CELLS",
+    "check_cells",
+    "size_blind_cells",
+    "decision_state",
+    "CellDecisions",
+    "DecidesWithCellSets",
+]
 
 CELL_SETS = ("thesis", "grid", "sized")
 DEFAULT_CELLS = "sized"
@@ -120,3 +128,34 @@ class CellDecisions:
             det[j] = bool(st.detected)
             diag[j] = [sorted(d) for d in st.diagnoses] if st.detected else []
         return det, diag
+
+
+class DecidesWithCellSets:
+    """A diagnoser's cell sets: ``cells`` (the constructor's, first) and those :meth:`add_cells`
+    adds, each with its :class:`CellDecisions` (``_deciders``, made by ``_decider(cells)``) fed the
+    same stream.  ``_started``: whether a block has been fed since the last reset."""
+
+    cells: str
+    cell_sets: tuple[str, ...]
+    _deciders: list
+
+    def add_cells(self, cells: str) -> None:
+        """Decide with the cell set ``cells`` too, on the same stream (its conclusions:
+        :meth:`decider`); before the first block."""
+        if self._started:
+            raise RuntimeError("add_cells before the first block: a cell set decides from the first sample")
+        if check_cells(cells) not in self.cell_sets:
+            self.cell_sets += (cells,)
+            self._deciders.append(self._decider(cells))
+
+    def decider(self, cells: str | None = None) -> CellDecisions:
+        """The decisions with the cell set ``cells`` (default: the constructor's)."""
+        c = self.cells if cells is None else cells
+        if c not in self.cell_sets:
+            raise ValueError(f"cells must be one of the cell sets decided ({', '.join(self.cell_sets)}), got {c!r}")
+        return self._deciders[self.cell_sets.index(c)]
+
+    @property
+    def decisions(self) -> list[DiagnosisState]:
+        """The engines' decision states with the constructor's cell set."""
+        return self._deciders[0].decisions

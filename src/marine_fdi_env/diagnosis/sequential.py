@@ -54,8 +54,8 @@ import numpy as np
 
 from .._jit import jit
 from .agent import ReferenceDiagnoser
-from .cell_sets import DEFAULT_CELLS, CellDecisions, check_cells
-from .decision import DiagnosisState, candidate_classes, sorted_diagnoses
+from .cell_sets import DEFAULT_CELLS, CellDecisions, DecidesWithCellSets, check_cells
+from .decision import candidate_classes, sorted_diagnoses
 from .incipient_glr import GATE_DELTA, GATE_TAU_S, ORDER, WINDOW_BLOCKS, common_shift, glr_norms, glr_pair_update
 from .modules import MODULE_IDS
 from .peak_ratio import ratios, running_peaks
@@ -367,7 +367,7 @@ class SequentialDecisions(CellDecisions):
             self.next_expiry[i] = st._next_expiry
 
 
-class SequentialStage:
+class SequentialStage(DecidesWithCellSets):
     """The CUSUM tests and the decision logic of N engines, fed with the reference diagnoser's
     residuals and violations (the environment's feature generator already computes them).
 
@@ -405,25 +405,6 @@ class SequentialStage:
     def _decider(self, cells: str) -> SequentialDecisions:
         return SequentialDecisions(self.n, cells, self.exoneration, self.max_cardinality)
 
-    def add_cells(self, cells: str) -> None:
-        """Decide with the cell set ``cells`` too, on the same tests (its conclusions:
-        :meth:`decider`); before the first block."""
-        if check_cells(cells) not in self.cell_sets:
-            self.cell_sets += (cells,)
-            self._deciders.append(self._decider(cells))
-
-    def decider(self, cells: str | None = None) -> SequentialDecisions:
-        """The decisions with the cell set ``cells`` (default: ``cells`` of the constructor)."""
-        c = self.cells if cells is None else cells
-        if c not in self.cell_sets:
-            raise ValueError(f"cells must be one of the cell sets decided ({', '.join(self.cell_sets)}), got {c!r}")
-        return self._deciders[self.cell_sets.index(c)]
-
-    @property
-    def decisions(self) -> list[DiagnosisState]:
-        """The engines' decision states with the constructor's cell set."""
-        return self._deciders[0].decisions
-
     def _receiver_arrays(self) -> None:
         r = self.cal.receiver
         self._pair = np.array([MODULE_IDS.index(m) for m in r.modules], dtype=np.int64)
@@ -444,6 +425,7 @@ class SequentialStage:
         self.gstate[:, 1] = np.nan
         self._deciders = [self._decider(c) for c in self.cell_sets]
         self.peak_run = np.zeros((self.n, N_MODULES))
+        self._started = False
 
     def reset_engines(self, engines) -> None:
         idx = np.asarray(engines, dtype=np.int64).reshape(-1)
@@ -509,6 +491,7 @@ class SequentialStage:
                 raise ValueError("the sized cells need the reference's thresholds: pass thresholds=")
             THR = np.asarray(thresholds, dtype=np.float64)
             pk = ratios(R, THR).max(axis=1) if peaks is None else np.asarray(peaks, dtype=np.float64)
+        self._started = True
         for d in self._deciders:
             d.update(self.first, new, t0, self.dt, R, THR, pk, self.peak_run)
         if pk is not None:
