@@ -107,6 +107,16 @@ class EpisodeBatch:
             raise ValueError("no sequential diagnoser: the environment was made without observe_sequential")
         return (self.diag if diagnoser == "reference" else self.seq).decider(cells).declarations(slots)
 
+    def reference_declaration(self, slot: int) -> dict:
+        """The reference diagnoser's current conclusion for a slot (the ``reference`` agent's input)."""
+        det, diag = self.declarations("reference", self.diag.cells, [slot])
+        return {"detected": bool(det[0]), "diagnoses": diag[0]}
+
+    def sequential_declaration(self, slot: int) -> dict:
+        """The sequential diagnoser's current conclusion for a slot (``observe_sequential`` only)."""
+        det, diag = self.declarations("sequential", self.seq.cells if self.seq else "", [slot])
+        return {"detected": bool(det[0]), "diagnoses": diag[0]}
+
     # ------------------------------------------------------------------------------ episodes
     def start(self, slots, scenarios: list[ScenarioSpec]) -> None:
         """Start new episodes in ``slots`` and advance them by their first decision period.
