@@ -47,11 +47,12 @@ def test_a_written_cache_scores_any_agent_without_simulating(suite_file, tmp_pat
     assert "feature_cache" not in null and not list(cache.glob("*.parts"))
     f = _only_cache(cache)
     assert f.name.startswith("tiny-v1_o0_")
-    plain = {
-        a: evaluate(a, str(suite_file), tmp_path / f"{a}.json", progress=False) for a in ("reference", "sequential")
-    }
+    agents = ("reference", "sequential", "sequential-thesis")
+    plain = {a: evaluate(a, str(suite_file), tmp_path / f"{a}.json", progress=False) for a in agents}
     _no_simulation(monkeypatch)
-    for a in ("reference", "sequential"):  # sequential needs observe_sequential: the cache has every option
+    # sequential needs observe_sequential, sequential-thesis the thesis cells too: the cache has every option and
+    # every cell set's conclusions
+    for a in agents:
         got = evaluate(a, str(suite_file), tmp_path / f"{a}c.json", cache="use", cache_dir=cache, progress=False)
         assert got["feature_cache"] == [str(f)]
         assert _strip(got["episodes"]) == _strip(plain[a]["episodes"]), a
@@ -60,21 +61,25 @@ def test_a_written_cache_scores_any_agent_without_simulating(suite_file, tmp_pat
 
 def test_the_cache_holds_the_trajectory_bit_for_bit(suite_file, tmp_path):
     scs = load_suite(str(suite_file)).scenarios
-    traj = trajectory.simulate(scs, {"observe_sensors": True, "observe_sequential": True})
-    header = fc.cache_header("tiny-v1", 1, 0, {"observe_sensors": True, "observe_sequential": True}, scs)
+    kw = {"observe_sensors": True, "observe_sequential": True, "diagnosis_cells": ["thesis", "grid", "sized"]}
+    traj = trajectory.simulate(scs, kw)
+    header = fc.cache_header("tiny-v1", 1, 0, kw, scs)
     f = fc.write_trajectory(tmp_path / "t.parquet", np.arange(4), traj, header)
     idx, back = fc.read_trajectory(f, header)
     assert idx.tolist() == [0, 1, 2, 3] and back.scenarios == traj.scenarios
-    for k in range(traj.steps):  # what an agent sees at every decision
+    assert back.cell_sets == traj.cell_sets == ("thesis", "grid", "sized")
+    for k in range(traj.steps):  # what an agent sees at every decision, with every cell set
         assert np.array_equal(back.observation(k), traj.observation(k))
-        a, b = back.info_arrays(k, back.active(k)[0], True), traj.info_arrays(k, traj.active(k)[0], True)
-        assert json.dumps(a, default=lambda x: x.tolist()) == json.dumps(b, default=lambda x: x.tolist())
+        for cells in traj.cell_sets:
+            a = back.info_arrays(k, back.active(k)[0], True, cells)
+            b = traj.info_arrays(k, traj.active(k)[0], True, cells)
+            assert json.dumps(a, default=lambda x: x.tolist()) == json.dumps(b, default=lambda x: x.tolist())
     for name in ("n_decisions", "terminated", "failure_step", "compute_s"):
         assert np.array_equal(getattr(back, name), getattr(traj, name)), name
     assert back.failures == traj.failures and back.failures[3]["reason"]
 
 
-@pytest.mark.parametrize("change", ["code", "params", "content"])
+@pytest.mark.parametrize("change", ["code", "params", "content", "format"])
 def test_a_cache_of_other_code_or_parameters_or_damaged_is_refused(change, suite_file, tmp_path, monkeypatch, capsys):
     cache = tmp_path / "cache"
     evaluate("null", str(suite_file), tmp_path / "n.json", cache="write", cache_dir=cache, progress=False)
@@ -90,6 +95,14 @@ def test_a_cache_of_other_code_or_parameters_or_damaged_is_refused(change, suite
         other = next(p for p in cache.glob("*.parquet") if p != f)
         shutil.copy(other, f)
         expect = "made with other parameters (params.seed_offset: 3 there, 0 here"
+    elif change == "format":  # a cache of format 1, which held one cell set's conclusions only
+        import pyarrow.parquet as pq
+
+        t = pq.read_table(f)
+        meta = json.loads(t.schema.metadata[fc.META_KEY])
+        meta["header"]["format"] = 1
+        pq.write_table(t.replace_schema_metadata({fc.META_KEY: json.dumps(meta).encode()}), f)
+        expect = f"feature cache of format 1, this code reads {fc.FORMAT}"
     else:  # a value edited in place, metadata untouched
         import pyarrow as pa
         import pyarrow.parquet as pq

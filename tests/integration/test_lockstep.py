@@ -18,12 +18,17 @@ from tests.paths import ROOT
 
 pytest.importorskip("torch")  # the shipped models
 
-# every shipped agent: the baselines, the shipped models, and the hybrid that reads info["reference"]
+# every shipped agent: the baselines (the diagnosers with each cell set), the shipped models, and the hybrid that
+# reads info["reference"]
 AGENTS = (
     "null",
     "random",
     "reference",
+    "reference-thesis",
+    "reference-grid",
     "sequential",
+    "sequential-thesis",
+    "sequential-grid",
     "oracle",
     "ppo-v1",
     "classifier-v1",
@@ -46,13 +51,22 @@ def _assert_lockstep_equals_alone(scenarios, env_kwargs, suite, seed_offset=0, b
 
 def test_every_shipped_agent_scored_together_equals_it_alone():
     """The first episode of every shipped suite (one batch; transfer-v2's and transfer-v3's noise scales in theirs),
-    every shipped agent in one pass (``sequential`` asks for observe_sequential: the others get the
-    columns and infos they have alone)."""
+    every shipped agent in one pass (``sequential`` asks for observe_sequential, the ``-thesis`` and
+    ``-grid`` agents for other cell sets: each gets the columns and infos it has alone)."""
     suites = [load_suite(name) for name in SUITE_NAMES]
     env_kwargs = {k: v for k, v in suite_env_kwargs(suites[0])[0].items()}
     assert all(suite_env_kwargs(s)[0] == env_kwargs for s in suites)  # one environment: one comparison
+    assert len(plan_passes([load_agent(a) for a in AGENTS], env_kwargs)) == 1
     firsts = [s.scenarios[0] for s in suites]
     recs = _assert_lockstep_equals_alone(firsts, env_kwargs, "first-episodes")
+    # the cell sets matter on these episodes: some conclusion differs between them
+    traces = {
+        a: [r["declared_changes"] for r in recs[AGENTS.index(a)]]
+        for a in AGENTS
+        if a.startswith(("reference", "sequential"))
+    }
+    assert traces["reference"] != traces["reference-thesis"] or traces["reference"] != traces["reference-grid"]
+    assert traces["sequential"] != traces["sequential-thesis"] or traces["sequential"] != traces["sequential-grid"]
     oracle = recs[AGENTS.index("oracle")]
     # a non-trivial comparison: the oracle isolates (its trace changes) on every faulty episode
     assert all(len(r["declared_changes"]) >= 2 for r, sc in zip(oracle, firsts) if sc.faults)
@@ -87,14 +101,24 @@ def test_observation_options_share_one_pass_and_other_arguments_get_their_own():
         ],
         {"decision_period_s": 1.0, "observe_sensors": False},
     )
-    # an option at the environment's default value (decision_period_s 1.0, diagnosis_cells "sized") makes the
-    # same simulation as one left out: one pass, which leaves it out
-    assert [p.agents for p in passes] == [(0, 1, 2, 4), (3,), (5,)]
-    assert passes[0].env_kwargs == {"observe_sensors": True, "observe_sequential": True}
+    # an option at the environment's default value (decision_period_s 1.0) makes the same simulation as one left
+    # out; the cell sets change only the diagnosers' conclusions: one pass decides with each one asked for
+    assert [p.agents for p in passes] == [(0, 1, 2, 4, 5), (3,)]
+    assert passes[0].env_kwargs == {
+        "observe_sensors": True,
+        "observe_sequential": True,
+        "diagnosis_cells": ["grid", "sized"],
+    }
+    assert passes[0].agent_env[4]["diagnosis_cells"] == "grid"
     assert passes[1].env_kwargs == {"decision_period_s": 2.0, "observe_sensors": False}
-    assert passes[2].env_kwargs == {"diagnosis_cells": "grid", "observe_sensors": False}
+    # only the default cell set: left out
+    assert plan_passes([Wants(), Wants(diagnosis_cells="sized")], {})[0].env_kwargs == {}
     everything = plan_passes([Wants()], {}, all_options=True)[0].env_kwargs
-    assert everything == {"observe_sensors": True, "observe_sequential": True}
+    assert everything == {
+        "observe_sensors": True,
+        "observe_sequential": True,
+        "diagnosis_cells": ["thesis", "grid", "sized"],
+    }
 
 
 def test_an_agent_with_sensor_features_sees_its_own_columns():

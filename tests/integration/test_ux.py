@@ -629,7 +629,7 @@ def test_long_commands_say_their_cost_first(capsys, tmp_path):
     assert "marine-fdi export-raw: 20 scenarios of thesis-v1: expect about" in err and "MB" in err
     from marine_fdi_env.cli.sweep import say_sweep_cost
 
-    say_sweep_cost(["all"], ["all"], 1, workers=2)
+    say_sweep_cost(["all"], ["all"], 4, workers=2)  # every agent on every suite at four seed offsets
     from marine_fdi_env.benchmark.agent_registry import list_agents
 
     n_agents = len(list_agents())
@@ -637,7 +637,7 @@ def test_long_commands_say_their_cost_first(capsys, tmp_path):
 
     n_episodes = sum(len(load_suite(name).scenarios) for name in SUITE_NAMES)  # 587 with transfer-v3's 128
     assert capsys.readouterr().err.startswith(
-        f"marine-fdi sweep: {n_agents} agents x {n_episodes} episodes: expect about "
+        f"marine-fdi sweep: {n_agents} agents x {4 * n_episodes} episodes: expect about "
     )
     from marine_fdi_env.benchmark.agent_registry import models_dir
     from marine_fdi_env.cli.train import say_training_cost

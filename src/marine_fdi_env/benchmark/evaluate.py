@@ -7,8 +7,10 @@ conclusions.  So the episodes of a batch are simulated once
 batch in lockstep (:mod:`.lockstep`), seeing exactly what the vector environment shows it alone
 (tested bit for bit, for every shipped agent on every shipped suite).  Agents that ask for
 observation options (``env_kwargs``: ``observe_sequential`` for ``sequential``, ``observe_sensors``)
-share one pass that computes the union of the options, and each gets its own columns; an agent
-asking for other environment arguments gets a pass of its own (:func:`plan_passes`).  A suite's
+or for another cell set of the diagnosers (``diagnosis_cells``: ``reference-thesis``, ...) share
+one pass that computes the union of the options and decides with every cell set asked for, and
+each gets its own columns and conclusions; an agent asking for other environment arguments gets a
+pass of its own (:func:`plan_passes`).  A suite's
 trajectories can be kept as a feature cache and scored again without simulating
 (:mod:`.feature_cache`, ``--cache``).
 
@@ -55,10 +57,11 @@ from pathlib import Path
 import numpy as np
 
 from .._version import __version__
+from ..diagnosis.cell_sets import CELL_SETS, DEFAULT_CELLS
 from ..envs.fdi_env import env_id_for
 from ..envs.reward import make_reward_config
 from ..envs.scenario_sampler import ScenarioSpec
-from ..envs.trajectory import Trajectory, assemble, simulate
+from ..envs.trajectory import Trajectory, assemble, cell_sets_of, one_cell_set, simulate
 from ..envs.vector import MarineFDIVectorEnv
 from .agent_api import load_agent, resolve_agent_spec
 from .backends import Backend, chunk_size, run_tasks
@@ -87,6 +90,9 @@ WALL_CLOCK_FIELDS = ("compute_s", "feature_compute_s", "agent_compute_s")
 WALL_CLOCK_METRICS = ("compute_s_per_sample", "feature_compute_s_per_sample", "agent_compute_s_per_decision")
 # environment options that only add observation columns or infos: one pass computes their union
 OBSERVATION_OPTIONS = ("observe_sensors", "observe_sequential")
+# the option that only changes the diagnosers' conclusions: one pass decides with every cell set asked for
+CELLS_OPTION = "diagnosis_cells"
+_SHARED_OPTIONS = OBSERVATION_OPTIONS + (CELLS_OPTION,)
 _SIMULATION_SHARE = 0.8  # of a chunk's progress when it simulates (the rest is scoring)
 
 _MAX_SEED = 2**63 - 1
@@ -109,7 +115,7 @@ def warm_up(env_kwargs: dict | None = None) -> None:
     if _WARM["done"]:
         return
     sc = ScenarioSpec(profile="constant:u0=1.0", noise_seed=0, duration_s=2.0, scenario_id="warm-up")
-    venv = MarineFDIVectorEnv(num_envs=1, **dict(env_kwargs or {}))
+    venv = MarineFDIVectorEnv(num_envs=1, **one_cell_set(dict(env_kwargs or {})))
     venv.reset(options={"scenarios": [sc]})
     venv.step(np.zeros((1, venv.single_action_space.shape[0]), dtype=np.float32))
     venv.close()
@@ -120,8 +126,8 @@ def warm_up(env_kwargs: dict | None = None) -> None:
 @dataclass(frozen=True)
 class Pass:
     """One simulation for a group of agents: the environment it runs (``env_kwargs``, with the union
-    of their observation options, or every option for a feature cache), the agents (indices) and
-    the environment each would be made with alone."""
+    of their observation options and the list of their cell sets, or every option and cell set for
+    a feature cache), the agents (indices) and the environment each would be made with alone."""
 
     key: str
     env_kwargs: dict
@@ -146,7 +152,7 @@ def _key(env_kwargs: dict) -> str:
     from .feature_cache import _jsonable
 
     return json.dumps(
-        {k: _jsonable(v) for k, v in env_kwargs.items() if k not in OBSERVATION_OPTIONS and not _is_default(k, v)},
+        {k: _jsonable(v) for k, v in env_kwargs.items() if k not in _SHARED_OPTIONS and not _is_default(k, v)},
         sort_keys=True,
         default=repr,
     )
@@ -154,7 +160,9 @@ def _key(env_kwargs: dict) -> str:
 
 def plan_passes(agents: list, env_kwargs: dict, all_options: bool = False) -> list[Pass]:
     """The passes that serve ``agents`` on an environment made with ``env_kwargs`` (each agent's
-    ``env_kwargs`` attribute added); ``all_options``: every pass computes every observation option."""
+    ``env_kwargs`` attribute added); ``all_options``: every pass computes every observation option
+    and decides with every cell set.  A pass's ``diagnosis_cells`` lists its cell sets (in
+    ``CELL_SETS`` order), left out when only the default is asked for."""
     groups: dict[str, list[tuple[int, dict]]] = {}
     for j, a in enumerate(agents):
         kw = dict(env_kwargs)
@@ -162,12 +170,16 @@ def plan_passes(agents: list, env_kwargs: dict, all_options: bool = False) -> li
         groups.setdefault(_key(kw), []).append((j, kw))
     out = []
     for key, members in groups.items():
-        kw = {k: v for k, v in members[0][1].items() if k not in OBSERVATION_OPTIONS and not _is_default(k, v)}
+        kw = {k: v for k, v in members[0][1].items() if k not in _SHARED_OPTIONS and not _is_default(k, v)}
         for opt in OBSERVATION_OPTIONS:
             if all_options or any(m.get(opt, False) for _, m in members):
                 kw[opt] = True
             elif any(opt in m for _, m in members):
                 kw[opt] = False
+        wanted = {c for _, m in members for c in cell_sets_of(m)}
+        cells = [c for c in CELL_SETS if all_options or c in wanted]
+        if cells != [DEFAULT_CELLS]:
+            kw[CELLS_OPTION] = cells
         out.append(Pass(key, kw, tuple(j for j, _ in members), tuple(m for _, m in members)))
     return out
 

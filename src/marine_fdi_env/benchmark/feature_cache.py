@@ -17,11 +17,14 @@ one cache serves every agent.  ``--cache off``: caches are neither read nor writ
 
 **What.**  One row per decision: ``episode`` (int32, the suite index), ``step`` (int32), ``t_s``
 and ``feature_s`` (float64: decision time and the wall time spent on its observation), ``obs``
-(fixed-size list of float32, the columns of ``feature_names``), ``reference_detected`` (bool),
-``reference_diagnoses`` (JSON string, dictionary-encoded), the same two for ``sequential``.  The
-metadata (key ``marine_fdi``) holds the header (below), the feature names, the decision period,
-per episode its scenario (seed offset applied), number of decisions, engine failure and feature
-time, and ``checksum``: the SHA-256 of all of that and of every column's values.
+(fixed-size list of float32, the columns of ``feature_names``), and per cell set C of the
+diagnosers (``cell_sets``: all three in a cache) ``reference_detected_C`` (bool),
+``reference_diagnoses_C`` (JSON string, dictionary-encoded), the same two for ``sequential``.  The
+metadata (key ``marine_fdi``) holds the header (below), the feature names, the cell sets, the
+decision period, per episode its scenario (seed offset applied), number of decisions, engine
+failure and feature time, and ``checksum``: the SHA-256 of all of that and of every column's
+values.  The header's ``format`` (:data:`FORMAT`) numbers this layout; a file of another format
+is refused.
 
 **Refused, never used silently.**  The header records the code that made the cache (package
 version, SHA-256 of the source and data of the simulator, the diagnosers and the environment:
@@ -66,7 +69,7 @@ __all__ = [
 
 CACHE_MODES = ("use", "write", "off")
 DEFAULT_CACHE_DIR = Path("results") / "cache"
-FORMAT = 1
+FORMAT = 2
 KIND = "marine-fdi feature cache"
 META_KEY = b"marine_fdi"
 _SOURCES = ("engine", "diagnosis", "envs", "_jit.py", "data/params", "data/diagnosis", "data/env")
@@ -161,12 +164,13 @@ def _columns(idx: np.ndarray, traj: Trajectory) -> dict:
         "t_s": traj.t[kk, jj],
         "feature_s": traj.feature_s[kk, jj],
         "obs": np.ascontiguousarray(traj.obs[kk, jj], dtype=np.float32),
-        "reference_detected": traj.reference_detected[kk, jj],
-        "reference_diagnoses": [_dumps(x) for x in traj.reference_diagnoses[kk, jj]],
     }
-    if traj.observe_sequential:
-        cols["sequential_detected"] = traj.sequential_detected[kk, jj]
-        cols["sequential_diagnoses"] = [_dumps(x) for x in traj.sequential_diagnoses[kk, jj]]
+    diagnosers = ("reference", "sequential") if traj.observe_sequential else ("reference",)
+    for name in diagnosers:
+        det, diag = getattr(traj, f"{name}_detected"), getattr(traj, f"{name}_diagnoses")
+        for c, cells in enumerate(traj.cell_sets):
+            cols[f"{name}_detected_{cells}"] = det[kk, jj, c]
+            cols[f"{name}_diagnoses_{cells}"] = [_dumps(x) for x in diag[kk, jj, c]]
     return cols
 
 
@@ -186,6 +190,7 @@ def write_trajectory(path: "str | Path", idx, traj: Trajectory, header: dict) ->
     meta = {
         "header": header,
         "feature_names": list(traj.feature_names),
+        "cell_sets": list(traj.cell_sets),
         "decision_period_s": traj.decision_period_s,
         "period_samples": traj.period_samples,
         "observe_sequential": traj.observe_sequential,
@@ -315,19 +320,31 @@ def _trajectory(cols: dict, meta: dict) -> tuple[np.ndarray, Trajectory]:
         out[kk, jj] = v
         return out
 
-    seq = bool(meta["observe_sequential"])
+    cell_sets = tuple(meta["cell_sets"])
+
+    def conclusions(name: str) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
+        if name == "sequential" and not meta["observe_sequential"]:
+            return None, None
+        det = np.stack([grid(cols[f"{name}_detected_{c}"], bool, False) for c in cell_sets], axis=-1)
+        diag = np.empty(det.shape, dtype=object)
+        for j, c in enumerate(cell_sets):
+            diag[..., j] = grid(_parse(cols[f"{name}_diagnoses_{c}"]), object, None)
+        return det, diag
+
+    ref, seq = conclusions("reference"), conclusions("sequential")
     traj = Trajectory(
         scenarios=[ScenarioSpec.from_dict(e["scenario"]) for e in eps],
         feature_names=tuple(meta["feature_names"]),
+        cell_sets=cell_sets,
         decision_period_s=float(meta["decision_period_s"]),
         period_samples=int(meta["period_samples"]),
         obs=grid(cols["obs"], np.float32, 0.0, (len(meta["feature_names"]),)),
         t=grid(cols["t_s"], float, 0.0),
         feature_s=grid(cols["feature_s"], float, 0.0),
-        reference_detected=grid(cols["reference_detected"], bool, False),
-        reference_diagnoses=grid(_parse(cols["reference_diagnoses"]), object, None),
-        sequential_detected=grid(cols["sequential_detected"], bool, False) if seq else None,
-        sequential_diagnoses=grid(_parse(cols["sequential_diagnoses"]), object, None) if seq else None,
+        reference_detected=ref[0],
+        reference_diagnoses=ref[1],
+        sequential_detected=seq[0],
+        sequential_diagnoses=seq[1],
         n_decisions=n_dec,
         terminated=np.array([e["terminated"] for e in eps], dtype=bool),
         failures=[e["failure"] for e in eps],

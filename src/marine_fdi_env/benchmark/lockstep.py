@@ -2,7 +2,8 @@
 
 At each decision every agent gets the trajectory's observation (its own columns: an agent that
 asks for fewer observation options than the trajectory has gets the features it would get alone)
-and infos (``info["sequential"]`` only if it asked for it), plus the scoring of its own previous
+and infos (``info["sequential"]`` only if it asked for it; ``info["reference"]`` and
+``info["sequential"]`` with the diagnosers' cell set it asked for), plus the scoring of its own previous
 decision (``declared``, ``alarm``, ``belief_on_truth``, ``reward_terms``, ``decision_time_s``,
 ``termination_reason``), exactly as ``MarineFDIVectorEnv.step`` returns them.  The decisions of all
 agents are scored in one call of :class:`~marine_fdi_env.envs.scoring.DecisionScorer` (one slot per
@@ -27,7 +28,7 @@ from ..envs.hypotheses import DECLARE_THRESHOLD, N_FAULTS, check_action
 from ..envs.observation import feature_names
 from ..envs.reward import RewardConfig, RewardConfigV1
 from ..envs.scoring import DecisionScorer
-from ..envs.trajectory import Trajectory, feature_columns
+from ..envs.trajectory import Trajectory, cell_sets_of, feature_columns
 from ..envs.vector import object_array, scatter_infos
 
 __all__ = ["episode_seed", "AgentView", "agent_view", "score_agents"]
@@ -43,11 +44,12 @@ def episode_seed(scenario_id: str, seed_offset: int) -> int:
 
 @dataclass(frozen=True)
 class AgentView:
-    """What an agent sees of a trajectory: its observation columns (None: all) and whether its
-    infos hold ``info["sequential"]``."""
+    """What an agent sees of a trajectory: its observation columns (None: all), whether its
+    infos hold ``info["sequential"]`` and the diagnosers' cell set of their conclusions."""
 
     columns: np.ndarray | None
     sequential: bool
+    cells: str
 
 
 def agent_view(env_kwargs: dict, traj: Trajectory) -> AgentView:
@@ -57,7 +59,9 @@ def agent_view(env_kwargs: dict, traj: Trajectory) -> AgentView:
     want = feature_names(bool(env_kwargs.get("observe_sensors", False)), seq)
     if seq and not traj.observe_sequential:
         raise ValueError("the trajectory has no sequential diagnoser (made without observe_sequential)")
-    return AgentView(feature_columns(traj.feature_names, want), seq)
+    cells = cell_sets_of(env_kwargs)[0]
+    traj.cell_index(cells)
+    return AgentView(feature_columns(traj.feature_names, want), seq, cells)
 
 
 class _Episodes:
@@ -157,13 +161,14 @@ def score_agents(
     for k in range(traj.steps):
         live = np.flatnonzero(traj.n_decisions > k)
         active, first, last = traj.active(k)
-        shared = {seq: None for seq in {v.sequential for v in views}}
+        shared: dict[tuple[bool, str], dict] = {}  # the infos of each (sequential, cells) asked for
         beliefs, spent = [], []
         for j, (agent, view) in enumerate(zip(agents, views)):
-            if shared[view.sequential] is None:
-                info = traj.info_arrays(k, active, view.sequential)
-                shared[view.sequential] = scatter_infos(n, [(np.arange(n), info)])
-            infos = dict(shared[view.sequential])
+            key = (view.sequential, view.cells)
+            if key not in shared:
+                info = traj.info_arrays(k, active, view.sequential, view.cells)
+                shared[key] = scatter_infos(n, [(np.arange(n), info)])
+            infos = dict(shared[key])
             infos.update(own[j])
             obs = traj.observation(k, view.columns)
             t0 = time.perf_counter()

@@ -21,8 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from marine_fdi_env._jit import jit
-from marine_fdi_env.diagnosis.cell_sets import DEFAULT_CELLS, check_cells, decision_state
-from marine_fdi_env.diagnosis.decision import DiagnosisState, candidate_classes, sorted_diagnoses
+from marine_fdi_env.diagnosis.cell_sets import DEFAULT_CELLS, CellDecisions, DecidesWithCellSets, check_cells
+from marine_fdi_env.diagnosis.decision import candidate_classes, sorted_diagnoses
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
 from marine_fdi_env.diagnosis.peak_ratio import ratios, running_peaks
 from marine_fdi_env.diagnosis.residuals import (
@@ -39,7 +39,7 @@ from marine_fdi_env.engine.integrators import THREADED_MIN_ENGINES, _executor
 from marine_fdi_env.engine.params import EngineParams, load_params
 from marine_fdi_env.engine.sensors import N_SENSORS, NOISE_BOUNDS
 
-__all__ = ["ReferenceDiagnoser", "BlockOutput", "N_FEATURES_PER_MODULE"]
+__all__ = ["ReferenceDiagnoser", "ReferenceDecisions", "BlockOutput", "N_FEATURES_PER_MODULE"]
 
 N_MODULES = len(MODULE_IDS)
 # per module: max |r|/threshold over the block, latched decision, time since first violation [s]
@@ -123,7 +123,66 @@ def _post_process(R, THR, viol, peak, stats) -> None:
     )
 
 
-class ReferenceDiagnoser:
+class ReferenceDecisions(CellDecisions):
+    """The reference diagnoser's decision logic of N engines with one cell set, fed the module
+    violations of each block (:class:`~marine_fdi_env.diagnosis.cell_sets.CellDecisions`)."""
+
+    def __init__(self, n: int, cells: str, exoneration: str = "sure", max_cardinality: int | None = 2) -> None:
+        super().__init__("reference", n, cells, exoneration, max_cardinality)
+
+    def update(self, R, THR, viol, peak, tt, new_mod, fresh, peak_run) -> None:
+        """One block: residuals R and thresholds THR (N, B, 19), violations viol (N, B, 19), block
+        peak ratios peak (N, 19), engine clocks tt (N, B) [s], the modules firing for the first time
+        new_mod (N, 19) and ``fresh`` = new_mod.any(axis=1); peak_run (N, 19) the running peak
+        ratios before the block (sized cells).
+
+        Only engines where a module fires for the first time, a grace period ends within the block
+        or (sized) a size band moves up need the (Python) decision update; for all others
+        DiagnosisState.update/advance would change nothing."""
+        t_end_all = tt[:, -1]
+        busy = fresh | (t_end_all > self.next_expiry)
+        if self.sized:
+            busy |= (peak > self.next_peak).any(axis=1)
+            self._update_sized(np.flatnonzero(busy), R, THR, viol, tt, peak_run)
+            return
+        if not busy.any():
+            return
+        any_row = viol.any(axis=2)  # (N, B)
+        for i in np.flatnonzero(busy):
+            t = tt[i]
+            st = self.decisions[i]
+            v = viol[i]
+            rows = np.flatnonzero(any_row[i])
+            if len(rows):
+                # a row that fires no new module only advances the clock: feed it only where a
+                # grace period may have ended (the same recomputations as feeding every row)
+                fired = np.logical_or.accumulate(v[rows], axis=0) | st.fired
+                adds = np.empty(len(rows), dtype=bool)
+                adds[0] = (fired[0] != st.fired).any()
+                adds[1:] = (fired[1:] != fired[:-1]).any(axis=1)
+                for r, a in zip(rows, adds):
+                    if a or t[r] > st._next_expiry:
+                        st.update(v[r], float(t[r]))
+            st.advance(float(t_end_all[i]))
+            self.next_expiry[i] = st._next_expiry
+
+    def _update_sized(self, engines, R, THR, viol, tt, peak_run) -> None:
+        """The decision update of the sized cells for the engines that need one: every sample where
+        a module fires first, a grace period ends or a size band moves up, in time order."""
+        for i in engines:
+            st: SizedDiagnosisState = self.decisions[i]
+            v = viol[i]
+            q = running_peaks(ratios(R[i : i + 1], THR[i : i + 1]), peak_run[i : i + 1])[0]
+            fired = np.logical_or.accumulate(v, axis=0) | st.fired
+            changed = np.empty(len(v), dtype=bool)
+            changed[0] = (fired[0] != st.fired).any()
+            changed[1:] = (fired[1:] != fired[:-1]).any(axis=1)
+            drive_block(st, tt[i], q, [(r, v[r]) for r in np.flatnonzero(changed)], float(tt[i, -1]))
+            self.next_expiry[i] = st._next_expiry
+            self.next_peak[i] = st.next_peak
+
+
+class ReferenceDiagnoser(DecidesWithCellSets):
     """Streaming reference diagnoser for N engines.
 
     Parameters
@@ -140,7 +199,8 @@ class ReferenceDiagnoser:
         ``"all"``: every structural sensitivity counts as sure.
     cells : which measured sure cells (:mod:`marine_fdi_env.diagnosis.cell_sets`): ``"sized"``
         (default; the cells of the size the evidence bounds each candidate to), ``"grid"``
-        (sure at every size of the grid) or ``"thesis"`` (the table sizes only).
+        (sure at every size of the grid) or ``"thesis"`` (the table sizes only).  :meth:`add_cells`
+        adds other cell sets decided on the same residuals (:meth:`decider`).
     inclusion : ``"tabulated"`` (default): the Σ2 inclusion terms of the adaptive thresholds
         interpolated from a table with a certified margin (never below ``"exact"``'s, at most 1 %
         above; :mod:`marine_fdi_env.diagnosis.inclusion_table`); ``"exact"``: computed at every
@@ -178,6 +238,7 @@ class ReferenceDiagnoser:
         self.exoneration = "none" if exoneration is None else exoneration
         self.cells = check_cells(cells)
         self.sized = self.exoneration == "sure" and self.cells == "sized"
+        self.cell_sets: tuple[str, ...] = (self.cells,)
         if inclusion not in INCLUSIONS:
             raise ValueError(f"inclusion must be one of {', '.join(INCLUSIONS)}, got {inclusion!r}")
         self.inclusion = inclusion
@@ -188,16 +249,23 @@ class ReferenceDiagnoser:
         """Forget everything: observers restart on the next sample."""
         self.state = new_state(self.n, self.params.n_nom_rev_s)
         self.samples = 0
-        self.decisions = [self._new_decision() for _ in range(self.n)]
+        self._deciders = [self._decider(c) for c in self.cell_sets]
         self.first_violation = np.full((self.n, N_MODULES), np.nan)
-        # per engine, the next time a grace period of its decision state ends (inf: none pending)
-        self._next_expiry = np.full(self.n, np.inf)
         # per engine, the stream sample whose time is 0 (engines restarted mid-stream differ)
         self._offset = np.zeros(self.n, dtype=np.int64)
-        # sized cells: per engine and module the running peak of |r|/threshold, and the peak above
-        # which a size band of the decision logic moves up (inf: none)
+        # per engine and module the running peak of |r|/threshold (the sized cells' size bands)
         self.peak_run = np.zeros((self.n, N_MODULES))
-        self._next_peak = np.full((self.n, N_MODULES), np.inf)
+
+    def _decider(self, cells: str) -> ReferenceDecisions:
+        return ReferenceDecisions(self.n, cells, self.exoneration, self.max_cardinality)
+
+    @property
+    def _started(self) -> bool:
+        return self.samples > 0
+
+    @property
+    def _track_peaks(self) -> bool:
+        return any(d.sized for d in self._deciders)
 
     def reset_engines(self, engines, first_sample_index: int = 0) -> None:
         """Forget everything about some engines (new runs on them); the others carry on.
@@ -210,19 +278,11 @@ class ReferenceDiagnoser:
             raise ValueError(f"engines must be indices in [0, {self.n}), got {engines!r}")
         for i in idx:
             self.state[i] = new_state(1, self.params.n_nom_rev_s)[0]
-            self.decisions[i] = self._new_decision()
             self.first_violation[i] = np.nan
-            self._next_expiry[i] = np.inf
             self._offset[i] = self.samples - int(first_sample_index)
             self.peak_run[i] = 0.0
-            self._next_peak[i] = np.inf
-
-    def _new_decision(self) -> DiagnosisState:
-        if self.exoneration == "sure":
-            return decision_state("reference", self.cells, self.max_cardinality)
-        return DiagnosisState(
-            exoneration=True if self.exoneration == "all" else None, max_cardinality=self.max_cardinality
-        )
+        for d in self._deciders:
+            d.reset_engines(idx)
 
     # ------------------------------------------------------------------------------ streaming
     def observe(self, measurements, u) -> BlockOutput:
@@ -252,39 +312,15 @@ class ReferenceDiagnoser:
         stats = np.empty((N, N_MODULES, 4))
         _post_process(R, THR, viol, peak, stats)
         tt = (self.samples - self._offset[:, None] + np.arange(B)[None, :]) * self.dt  # (N, B) engine clocks
-        t_end_all = tt[:, -1]
-        # Only engines where a module fires for the first time, or a grace period of the decision
-        # logic ends within the block, need the (Python) decision update; for all others
-        # DiagnosisState.update/advance would change nothing.
         new_mod = viol.any(axis=1) & np.isnan(self.first_violation)  # (N, 19)
-        busy = new_mod.any(axis=1) | (t_end_all > self._next_expiry)
-        if self.sized:
-            busy |= (peak > self._next_peak).any(axis=1)
-            self._observe_sized(np.flatnonzero(busy), R, THR, viol, tt, new_mod)
+        fresh = new_mod.any(axis=1)
+        for d in self._deciders:
+            d.update(R, THR, viol, peak, tt, new_mod, fresh, self.peak_run)
+        for i in np.flatnonzero(fresh):
+            first = np.argmax(viol[i], axis=0)
+            self.first_violation[i, new_mod[i]] = tt[i][first[new_mod[i]]]
+        if self._track_peaks:
             np.maximum(self.peak_run, peak, out=self.peak_run)
-        elif busy.any():
-            any_row = viol.any(axis=2)  # (N, B)
-            for i in np.flatnonzero(busy):
-                t = tt[i]
-                t_end = float(t_end_all[i])
-                st = self.decisions[i]
-                v = viol[i]
-                rows = np.flatnonzero(any_row[i])
-                if len(rows):
-                    # a row that fires no new module only advances the clock: feed it only where a
-                    # grace period may have ended (the same recomputations as feeding every row)
-                    fired = np.logical_or.accumulate(v[rows], axis=0) | st.fired
-                    adds = np.empty(len(rows), dtype=bool)
-                    adds[0] = (fired[0] != st.fired).any()
-                    adds[1:] = (fired[1:] != fired[:-1]).any(axis=1)
-                    for r, a in zip(rows, adds):
-                        if a or t[r] > st._next_expiry:
-                            st.update(v[r], float(t[r]))
-                if new_mod[i].any():
-                    first = np.argmax(v, axis=0)
-                    self.first_violation[i, new_mod[i]] = t[first[new_mod[i]]]
-                st.advance(t_end)
-                self._next_expiry[i] = st._next_expiry
         self.samples += B
         feats = self._features(peak)
         return BlockOutput(
@@ -296,24 +332,6 @@ class ReferenceDiagnoser:
             stats=stats,
             peaks=peak,
         )
-
-    def _observe_sized(self, engines, R, THR, viol, tt, new_mod) -> None:
-        """The decision update of the sized cells for the engines that need one: every sample where
-        a module fires first, a grace period ends or a size band moves up, in time order."""
-        for i in engines:
-            st: SizedDiagnosisState = self.decisions[i]
-            v = viol[i]
-            q = running_peaks(ratios(R[i : i + 1], THR[i : i + 1]), self.peak_run[i : i + 1])[0]
-            fired = np.logical_or.accumulate(v, axis=0) | st.fired
-            changed = np.empty(len(v), dtype=bool)
-            changed[0] = (fired[0] != st.fired).any()
-            changed[1:] = (fired[1:] != fired[:-1]).any(axis=1)
-            drive_block(st, tt[i], q, [(r, v[r]) for r in np.flatnonzero(changed)], float(tt[i, -1]))
-            if new_mod[i].any():
-                first = np.argmax(v, axis=0)
-                self.first_violation[i, new_mod[i]] = tt[i][first[new_mod[i]]]
-            self._next_expiry[i] = st._next_expiry
-            self._next_peak[i] = st.next_peak
 
     def _features(self, peak: np.ndarray) -> np.ndarray:
         """peak: (N, 19) max |r|/threshold over the block, capped at 1e3 (see _violations_and_peaks)."""

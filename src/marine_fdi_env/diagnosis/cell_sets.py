@@ -14,17 +14,29 @@
   large fault.
 
 The residuals, thresholds and module decisions do not depend on the cell set; only the minimal
-diagnoses do.
+diagnoses do, so one diagnoser can decide with several cell sets on the same residuals
+(:class:`CellDecisions`, one per cell set).
 """
 
 from __future__ import annotations
 
+import numpy as np
+
 from .decision import DiagnosisState
+from .modules import MODULE_IDS
 from .sized_cells import SIZED_FILES, load_sized_cells
 from .sized_decision import SizedDiagnosisState
 from .sure_cells import SureCells, load_sure_cells
 
-__all__ = ["CELL_SETS", "DEFAULT_CELLS", "check_cells", "size_blind_cells", "decision_state"]
+__all__ = [
+    "CELL_SETS",
+    "DEFAULT_CELLS",
+    "check_cells",
+    "size_blind_cells",
+    "decision_state",
+    "CellDecisions",
+    "DecidesWithCellSets",
+]
 
 CELL_SETS = ("thesis", "grid", "sized")
 DEFAULT_CELLS = "sized"
@@ -67,3 +79,83 @@ def decision_state(diagnoser: str, cells: str, max_cardinality: int | None = 2) 
         settle_s=sc.settle_times(),
         grace_s=sc.grace_times(),
     )
+
+
+class CellDecisions:
+    """The decision states of N engines with one cell set: the part of a diagnoser (``reference``
+    or ``sequential``) that depends on its cells.
+
+    ``exoneration`` as :class:`~marine_fdi_env.diagnosis.agent.ReferenceDiagnoser` (``"sure"``: the
+    cells ``cells``; ``"none"`` or ``"all"``: no cells).  Per engine, ``next_expiry`` [s] is the
+    next time a grace period of its state ends and ``next_peak`` (19,) the running peak ratios above
+    which a size band moves up (sized cells; inf: none pending): until then an update that fires no
+    new module changes nothing, so the diagnosers skip it.
+    """
+
+    def __init__(self, diagnoser: str, n: int, cells: str, exoneration: str, max_cardinality: int | None) -> None:
+        self.diagnoser, self.n, self.cells = diagnoser, int(n), check_cells(cells)
+        self.exoneration, self.max_cardinality = exoneration, max_cardinality
+        self.sized = exoneration == "sure" and self.cells == "sized"
+        self.reset()
+
+    def new_state(self) -> DiagnosisState:
+        """A fresh decision state of one engine."""
+        if self.exoneration == "sure":
+            return decision_state(self.diagnoser, self.cells, self.max_cardinality)
+        return DiagnosisState(
+            exoneration=True if self.exoneration == "all" else None, max_cardinality=self.max_cardinality
+        )
+
+    def reset(self) -> None:
+        self.decisions = [self.new_state() for _ in range(self.n)]
+        self.next_expiry = np.full(self.n, np.inf)
+        self.next_peak = np.full((self.n, len(MODULE_IDS)), np.inf)
+
+    def reset_engines(self, engines) -> None:
+        for i in np.asarray(engines, dtype=np.int64).reshape(-1):
+            self.decisions[i] = self.new_state()
+            self.next_expiry[i] = np.inf
+            self.next_peak[i] = np.inf
+
+    def declarations(self, slots) -> tuple[np.ndarray, np.ndarray]:
+        """(detected (k,) bool, diagnoses (k,) object: lists of sorted fault-id lists, empty when
+        not detected) of the engines ``slots``: the environment's ``info["reference"]`` /
+        ``info["sequential"]``."""
+        det = np.zeros(len(slots), dtype=bool)
+        diag = np.empty(len(slots), dtype=object)
+        for j, s in enumerate(slots):
+            st = self.decisions[s]
+            det[j] = bool(st.detected)
+            diag[j] = [sorted(d) for d in st.diagnoses] if st.detected else []
+        return det, diag
+
+
+class DecidesWithCellSets:
+    """A diagnoser's cell sets: ``cells`` (the constructor's, first) and those :meth:`add_cells`
+    adds, each with its :class:`CellDecisions` (``_deciders``, made by ``_decider(cells)``) fed the
+    same stream.  ``_started``: whether a block has been fed since the last reset."""
+
+    cells: str
+    cell_sets: tuple[str, ...]
+    _deciders: list
+
+    def add_cells(self, cells: str) -> None:
+        """Decide with the cell set ``cells`` too, on the same stream (its conclusions:
+        :meth:`decider`); before the first block."""
+        if self._started:
+            raise RuntimeError("add_cells before the first block: a cell set decides from the first sample")
+        if check_cells(cells) not in self.cell_sets:
+            self.cell_sets += (cells,)
+            self._deciders.append(self._decider(cells))
+
+    def decider(self, cells: str | None = None) -> CellDecisions:
+        """The decisions with the cell set ``cells`` (default: the constructor's)."""
+        c = self.cells if cells is None else cells
+        if c not in self.cell_sets:
+            raise ValueError(f"cells must be one of the cell sets decided ({', '.join(self.cell_sets)}), got {c!r}")
+        return self._deciders[self.cell_sets.index(c)]
+
+    @property
+    def decisions(self) -> list[DiagnosisState]:
+        """The engines' decision states with the constructor's cell set."""
+        return self._deciders[0].decisions

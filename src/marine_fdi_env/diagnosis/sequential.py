@@ -54,8 +54,8 @@ import numpy as np
 
 from .._jit import jit
 from .agent import ReferenceDiagnoser
-from .cell_sets import DEFAULT_CELLS, check_cells, decision_state
-from .decision import DiagnosisState, candidate_classes, sorted_diagnoses
+from .cell_sets import DEFAULT_CELLS, CellDecisions, DecidesWithCellSets, check_cells
+from .decision import candidate_classes, sorted_diagnoses
 from .incipient_glr import GATE_DELTA, GATE_TAU_S, ORDER, WINDOW_BLOCKS, common_shift, glr_norms, glr_pair_update
 from .modules import MODULE_IDS
 from .peak_ratio import ratios, running_peaks
@@ -65,6 +65,7 @@ __all__ = [
     "SequentialCalibration",
     "ReceiverTest",
     "SequentialStage",
+    "SequentialDecisions",
     "SequentialDiagnoser",
     "SEQUENTIAL_FEATURES",
     "CALIBRATION_FILE",
@@ -326,7 +327,47 @@ def cusum_blocks(
             feats[i, m, 1] = st[i, m, 1] / h[m]
 
 
-class SequentialStage:
+class SequentialDecisions(CellDecisions):
+    """The sequential diagnoser's decision logic of N engines with one cell set, fed its modules'
+    first firing times (:class:`~marine_fdi_env.diagnosis.cell_sets.CellDecisions`)."""
+
+    def __init__(self, n: int, cells: str, exoneration: str = "sure", max_cardinality: int | None = 2) -> None:
+        super().__init__("sequential", n, cells, exoneration, max_cardinality)
+
+    def update(self, first, new, t0, dt, R, THR, peaks, peak_run) -> None:
+        """One block of B samples: first (N, 19) the modules' first firing times [s] (NaN: not
+        yet), new (N, 19) those that fired in this block, t0 (N,) each engine's time of its first
+        sample, dt [s]; sized cells only: residuals R and thresholds THR (N, B, 19), the block's
+        peak ratios peaks (N, 19) and peak_run (N, 19) the running peak ratios before it."""
+        B = R.shape[1]
+        t_end = t0 + (B - 1) * dt
+        busy = new.any(axis=1) | (t_end > self.next_expiry)
+        if self.sized:
+            busy |= (peaks > self.next_peak).any(axis=1)
+            for i in np.flatnonzero(busy):
+                st = self.decisions[i]
+                times = first[i]
+                tt = t0[i] + np.arange(B) * dt
+                q = running_peaks(ratios(R[i : i + 1], THR[i : i + 1]), peak_run[i : i + 1])[0]
+                firings = [
+                    (min(B - 1, max(0, int(round((t - t0[i]) / dt)))), ~np.isnan(times) & (times <= t))
+                    for t in np.unique(times[new[i]])
+                ]
+                drive_block(st, tt, q, firings, float(tt[-1]))
+                self.next_expiry[i] = st._next_expiry
+                self.next_peak[i] = st.next_peak
+            return
+        for i in np.flatnonzero(busy):
+            st = self.decisions[i]
+            if new[i].any():
+                times = first[i]
+                for t in np.unique(times[new[i]]):
+                    st.update(~np.isnan(times) & (times <= t), float(t))
+            st.advance(float(t_end[i]))
+            self.next_expiry[i] = st._next_expiry
+
+
+class SequentialStage(DecidesWithCellSets):
     """The CUSUM tests and the decision logic of N engines, fed with the reference diagnoser's
     residuals and violations (the environment's feature generator already computes them).
 
@@ -358,14 +399,11 @@ class SequentialStage:
         self.max_cardinality = max_cardinality
         self.cells = check_cells(cells)
         self.sized = self.exoneration == "sure" and self.cells == "sized"
+        self.cell_sets: tuple[str, ...] = (self.cells,)
         self.reset()
 
-    def _new_decision(self) -> DiagnosisState:
-        if self.exoneration == "sure":
-            return decision_state("sequential", self.cells, self.max_cardinality)
-        return DiagnosisState(
-            exoneration=True if self.exoneration == "all" else None, max_cardinality=self.max_cardinality
-        )
+    def _decider(self, cells: str) -> SequentialDecisions:
+        return SequentialDecisions(self.n, cells, self.exoneration, self.max_cardinality)
 
     def _receiver_arrays(self) -> None:
         r = self.cal.receiver
@@ -385,13 +423,15 @@ class SequentialStage:
         self.gavg = np.full(self.n, np.nan)
         self.gstate = np.zeros((self.n, 4))
         self.gstate[:, 1] = np.nan
-        self.decisions = [self._new_decision() for _ in range(self.n)]
-        self._next_expiry = np.full(self.n, np.inf)
+        self._deciders = [self._decider(c) for c in self.cell_sets]
         self.peak_run = np.zeros((self.n, N_MODULES))
-        self._next_peak = np.full((self.n, N_MODULES), np.inf)
+        self._started = False
 
     def reset_engines(self, engines) -> None:
-        for i in np.asarray(engines, dtype=np.int64).reshape(-1):
+        idx = np.asarray(engines, dtype=np.int64).reshape(-1)
+        for d in self._deciders:
+            d.reset_engines(idx)
+        for i in idx:
             self.acc[i] = 0.0
             self.st[i] = 0.0
             self.first[i] = np.nan
@@ -401,10 +441,7 @@ class SequentialStage:
             self.gpos[i] = 0
             self.gavg[i] = np.nan
             self.gstate[i] = (0.0, np.nan, 0.0, 0.0)
-            self.decisions[i] = self._new_decision()
-            self._next_expiry[i] = np.inf
             self.peak_run[i] = 0.0
-            self._next_peak[i] = np.inf
 
     def update(self, residuals, u, ratio, violations, t0, thresholds=None, peaks=None) -> None:
         """One block: residuals (N, B, 19), u (N, B), ratio (N, B) the measured pressure ratio
@@ -447,42 +484,18 @@ class SequentialStage:
             self.gavg,
             self.gstate,
         )
-        t_end = t0 + (B - 1) * self.dt
         new = before & ~np.isnan(self.first)
-        busy = new.any(axis=1) | (t_end > self._next_expiry)
-        if self.sized:
+        THR = pk = None
+        if any(d.sized for d in self._deciders):
             if thresholds is None:
                 raise ValueError("the sized cells need the reference's thresholds: pass thresholds=")
             THR = np.asarray(thresholds, dtype=np.float64)
             pk = ratios(R, THR).max(axis=1) if peaks is None else np.asarray(peaks, dtype=np.float64)
-            busy |= (pk > self._next_peak).any(axis=1)
-            self._update_sized(np.flatnonzero(busy), R, THR, t0, new)
+        self._started = True
+        for d in self._deciders:
+            d.update(self.first, new, t0, self.dt, R, THR, pk, self.peak_run)
+        if pk is not None:
             np.maximum(self.peak_run, pk, out=self.peak_run)
-            return
-        for i in np.flatnonzero(busy):
-            st = self.decisions[i]
-            if new[i].any():
-                times = self.first[i]
-                for t in np.unique(times[new[i]]):
-                    st.update(~np.isnan(times) & (times <= t), float(t))
-            st.advance(float(t_end[i]))
-            self._next_expiry[i] = st._next_expiry
-
-    def _update_sized(self, engines, R, THR, t0, new) -> None:
-        """The decision update of the sized cells (as the reference's, :func:`drive_block`)."""
-        B = R.shape[1]
-        for i in engines:
-            st = self.decisions[i]
-            times = self.first[i]
-            tt = t0[i] + np.arange(B) * self.dt
-            q = running_peaks(ratios(R[i : i + 1], THR[i : i + 1]), self.peak_run[i : i + 1])[0]
-            firings = [
-                (min(B - 1, max(0, int(round((t - t0[i]) / self.dt)))), ~np.isnan(times) & (times <= t))
-                for t in np.unique(times[new[i]])
-            ]
-            drive_block(st, tt, q, firings, float(tt[-1]))
-            self._next_expiry[i] = st._next_expiry
-            self._next_peak[i] = st.next_peak
 
     def features(self) -> np.ndarray:
         """(N, 19 * 4) float32: per module S+/h and S-/h (capped at 10), the last block's z, fired."""

@@ -65,7 +65,7 @@ class EpisodeBatch:
         self.obs_size = observation_size(self.observe_sensors, self.observe_sequential)
         self.sim: Simulator | None = None
         # diagnosis_cells: the diagnosers' sure cells (thesis | grid | sized, diagnosis.cell_sets); only
-        # info["reference"] / info["sequential"] depend on it, not the observation
+        # info["reference"] / info["sequential"] depend on it, not the observation (decide_cells adds others)
         self.diag = ReferenceDiagnoser(self.params, n_engines=self.n, dt=self.dt, cells=diagnosis_cells)
         # the sequential diagnoser's tests on the same residuals (observe_sequential only)
         self.seq = SequentialStage(self.n, dt=self.dt, cells=diagnosis_cells) if self.observe_sequential else None
@@ -83,6 +83,39 @@ class EpisodeBatch:
             from ..engine.sensors import SENSOR_IDS
 
             self._nominal = np.array([nominal_reading(s) for s in SENSOR_IDS])
+
+    @property
+    def cell_sets(self) -> tuple[str, ...]:
+        """The cell sets the diagnosers decide with, ``diagnosis_cells`` first (the infos' one)."""
+        return self.diag.cell_sets
+
+    def decide_cells(self, cells) -> None:
+        """Let the diagnosers decide with the cell sets ``cells`` too, on the same residuals and
+        tests (:meth:`declarations`; the simulation, observation and infos do not change); before
+        the first :meth:`start`."""
+        if self.sim is not None:
+            raise RuntimeError("decide_cells before the first start: a cell set decides from an episode's start")
+        for c in cells:
+            self.diag.add_cells(c)
+            if self.seq is not None:
+                self.seq.add_cells(c)
+
+    def declarations(self, diagnoser: str, cells: str, slots) -> tuple[np.ndarray, np.ndarray]:
+        """(detected, diagnoses) of ``slots`` now, as ``info[diagnoser]`` gives them (``reference``, or
+        ``sequential`` with ``observe_sequential``), with the cell set ``cells`` (:attr:`cell_sets`)."""
+        if diagnoser == "sequential" and self.seq is None:
+            raise ValueError("no sequential diagnoser: the environment was made without observe_sequential")
+        return (self.diag if diagnoser == "reference" else self.seq).decider(cells).declarations(slots)
+
+    def reference_declaration(self, slot: int) -> dict:
+        """The reference diagnoser's current conclusion for a slot (the ``reference`` agent's input)."""
+        det, diag = self.declarations("reference", self.diag.cells, [slot])
+        return {"detected": bool(det[0]), "diagnoses": diag[0]}
+
+    def sequential_declaration(self, slot: int) -> dict:
+        """The sequential diagnoser's current conclusion for a slot (``observe_sequential`` only)."""
+        det, diag = self.declarations("sequential", self.seq.cells if self.seq else "", [slot])
+        return {"detected": bool(det[0]), "diagnoses": diag[0]}
 
     # ------------------------------------------------------------------------------ episodes
     def start(self, slots, scenarios: list[ScenarioSpec]) -> None:
@@ -195,16 +228,6 @@ class EpisodeBatch:
         ``ended`` slots to ``outcome`` (scored over ``slots``); nothing for v0."""
         self.scorer.end_terms(outcome, slots, ended)
 
-    def reference_declaration(self, slot: int) -> dict:
-        """The reference diagnoser's current conclusion for a slot (the ``reference`` agent's input)."""
-        st = self.diag.decisions[slot]
-        return {"detected": bool(st.detected), "diagnoses": [sorted(d) for d in st.diagnoses] if st.detected else []}
-
-    def sequential_declaration(self, slot: int) -> dict:
-        """The sequential diagnoser's current conclusion for a slot (``observe_sequential`` only)."""
-        st = self.seq.decisions[slot]
-        return {"detected": bool(st.detected), "diagnoses": [sorted(d) for d in st.diagnoses] if st.detected else []}
-
     def info(self, slot: int) -> dict:
         """The info of one slot now (the single environment's ``info``)."""
         parts = self.info_arrays([slot])
@@ -237,11 +260,10 @@ class EpisodeBatch:
         k = len(slots)
         act, _, _ = self.active_matrix(slots)
         active = row_members(act)
-        sid, prof, truth, act_ids, diagnoses = (np.empty(k, dtype=object) for _ in range(5))
+        sid, prof, truth, act_ids = (np.empty(k, dtype=object) for _ in range(4))
         engine = np.full(k, -1, dtype=np.int64)
         fail_t = np.full(k, math.nan)
         reason = np.full(k, "", dtype=object)
-        detected = np.zeros(k, dtype=bool)
         for j, s in enumerate(slots):
             sc = self.scenarios[s]
             sid[j] = sc.scenario_id
@@ -251,8 +273,7 @@ class EpisodeBatch:
             fail = self.failure[s]
             if fail is not None:
                 engine[j], fail_t[j], reason[j] = fail["engine"], fail["time_s"], fail["reason"]
-            ref = self.reference_declaration(s)
-            detected[j], diagnoses[j] = ref["detected"], ref["diagnoses"]
+        detected, diagnoses = self.declarations("reference", self.diag.cells, slots)
         out = {
             "t_s": self.t[slots].astype(float),
             "scenario_id": sid,
@@ -263,10 +284,6 @@ class EpisodeBatch:
             "reference": {"detected": detected, "diagnoses": diagnoses},
         }
         if self.seq is not None:
-            sdet = np.zeros(k, dtype=bool)
-            sdiag = np.empty(k, dtype=object)
-            for j, s in enumerate(slots):
-                d = self.sequential_declaration(s)
-                sdet[j], sdiag[j] = d["detected"], d["diagnoses"]
+            sdet, sdiag = self.declarations("sequential", self.seq.cells, slots)
             out["sequential"] = {"detected": sdet, "diagnoses": sdiag}
         return out

@@ -8,6 +8,11 @@ engine failure).  :func:`simulate` runs that part of N episodes once on the vect
 be stepped on it (:mod:`marine_fdi_env.benchmark.lockstep`) and each sees exactly the observations
 and infos ``MarineFDIVectorEnv`` gives it alone, bit for bit (tested on every shipped suite).
 
+The diagnosers' cell sets (``diagnosis_cells``) change only their conclusions, never the engines
+or the observation: one simulation decides with every cell set asked for (``diagnosis_cells`` a
+list of them) and keeps each one's conclusions (the trajectory's ``cell_sets`` axis); an agent sees
+those of its own cell set.
+
 Decision ``k`` of episode ``i`` is made on ``obs[k, i]`` at time ``t[k, i]``; the episode has
 ``n_decisions[i]`` of them.  Past its end a slot's row repeats its last decision's (the vector
 environment would show an unrelated new episode there: a slot's numbers never depend on that row).
@@ -20,28 +25,50 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..diagnosis.cell_sets import DEFAULT_CELLS, check_cells
 from ..engine.faults import FAULT_IDS
 from .fault_windows import FaultWindows
 from .scenario_sampler import ScenarioSpec, with_noise_scale
 from .scoring import row_members
 from .vector import MarineFDIVectorEnv, object_array
 
-__all__ = ["Trajectory", "simulate", "assemble", "feature_columns"]
+__all__ = ["Trajectory", "simulate", "assemble", "feature_columns", "cell_sets_of", "one_cell_set"]
+
+
+def cell_sets_of(env_kwargs: dict) -> tuple[str, ...]:
+    """The cell sets of ``env_kwargs["diagnosis_cells"]`` (default ``sized``): one cell set, or a
+    list of them (a simulation pass's; the first is the one the environment's infos show)."""
+    cells = env_kwargs.get("diagnosis_cells", DEFAULT_CELLS)
+    out = (cells,) if isinstance(cells, str) else tuple(cells)
+    if not out:
+        raise ValueError("diagnosis_cells must name at least one cell set")
+    for c in out:
+        check_cells(c)
+    return tuple(dict.fromkeys(out))
+
+
+def one_cell_set(env_kwargs: dict) -> dict:
+    """``env_kwargs`` as the environment takes them: ``diagnosis_cells`` its first cell set (when given)."""
+    if "diagnosis_cells" not in env_kwargs:
+        return dict(env_kwargs)
+    return {**env_kwargs, "diagnosis_cells": cell_sets_of(env_kwargs)[0]}
 
 
 @dataclass
 class Trajectory:
-    """What every agent sees in a batch of ``n`` episodes over ``S`` decisions (arrays (S, n, ...))."""
+    """What every agent sees in a batch of ``n`` episodes over ``S`` decisions (arrays (S, n, ...)),
+    the diagnosers' conclusions with each of ``C`` cell sets."""
 
     scenarios: list[ScenarioSpec]  # as simulated (a seed offset already applied)
     feature_names: tuple[str, ...]  # the observation's columns
+    cell_sets: tuple[str, ...]  # (C,) the diagnosers' cell sets of the conclusions (diagnosis.cell_sets)
     decision_period_s: float  # [s]
     period_samples: int  # sensor samples per decision
     obs: np.ndarray  # (S, n, D) float32: the observation of each decision
     t: np.ndarray  # (S, n) float64: decision times [s]
     feature_s: np.ndarray  # (S, n) float64: wall time spent making each observation [s]
-    reference_detected: np.ndarray  # (S, n) bool: info["reference"]["detected"]
-    reference_diagnoses: np.ndarray  # (S, n) object: info["reference"]["diagnoses"] (lists of fault ids)
+    reference_detected: np.ndarray  # (S, n, C) bool: info["reference"]["detected"] with each cell set
+    reference_diagnoses: np.ndarray  # (S, n, C) object: info["reference"]["diagnoses"] (lists of fault ids)
     sequential_detected: np.ndarray | None  # the same for info["sequential"] (observe_sequential only)
     sequential_diagnoses: np.ndarray | None
     n_decisions: np.ndarray  # (n,) int64: decisions of each episode
@@ -106,10 +133,20 @@ class Trajectory:
                 self._windows.set(i, sc.faults)
         return self._windows.active(np.arange(self.n), self.t[self.last(k), np.arange(self.n)])
 
-    def info_arrays(self, k: int, active: np.ndarray, sequential: bool) -> dict:
+    def cell_index(self, cells: str) -> int:
+        """The column of the cell set ``cells`` in the conclusions; ``ValueError`` if it has none."""
+        if cells not in self.cell_sets:
+            raise ValueError(
+                f"the trajectory has no conclusions with the cell set {cells!r} (it has {', '.join(self.cell_sets)})"
+            )
+        return self.cell_sets.index(cells)
+
+    def info_arrays(self, k: int, active: np.ndarray, sequential: bool, cells: str | None = None) -> dict:
         """The infos of decision ``k`` as :meth:`.core.EpisodeBatch.info_arrays` gives them for every
-        slot (``active``: :meth:`active` of ``k``; ``sequential``: include ``info["sequential"]``)."""
+        slot (``active``: :meth:`active` of ``k``; ``sequential``: include ``info["sequential"]``;
+        ``cells``: the diagnosers' cell set, default the first of :attr:`cell_sets`)."""
         n, ar, kk = self.n, np.arange(self.n), self.last(k)
+        c = self.cell_index(self.cell_sets[0] if cells is None else cells)
         shows = (self.failure_step >= 0) & (self.failure_step <= k)
         engine = np.where(shows, ar, -1).astype(np.int64)
         fail_t = np.full(n, math.nan)
@@ -127,14 +164,17 @@ class Trajectory:
             **self._constant,
             "active_faults": object_array([[FAULT_IDS[c] for c in cols] for cols in row_members(active)]),
             "engine_failure": {"engine": engine, "time_s": fail_t, "reason": reason},
-            "reference": {"detected": self.reference_detected[kk, ar], "diagnoses": self.reference_diagnoses[kk, ar]},
+            "reference": {
+                "detected": self.reference_detected[kk, ar, c],
+                "diagnoses": self.reference_diagnoses[kk, ar, c],
+            },
         }
         if sequential:
             if self.sequential_detected is None:
                 raise ValueError("this trajectory has no sequential diagnoser (made without observe_sequential)")
             out["sequential"] = {
-                "detected": self.sequential_detected[kk, ar],
-                "diagnoses": self.sequential_diagnoses[kk, ar],
+                "detected": self.sequential_detected[kk, ar, c],
+                "diagnoses": self.sequential_diagnoses[kk, ar, c],
             }
         return out
 
@@ -148,13 +188,14 @@ def assemble(parts: list[tuple[np.ndarray, Trajectory]]) -> Trajectory:
         raise ValueError("the parts' episode indices must be 0..N-1, each once")
     first = parts[0][1]
     for _, p in parts[1:]:
-        if (p.feature_names, p.decision_period_s, p.period_samples, p.observe_sequential) != (
+        if (p.feature_names, p.cell_sets, p.decision_period_s, p.period_samples, p.observe_sequential) != (
             first.feature_names,
+            first.cell_sets,
             first.decision_period_s,
             first.period_samples,
             first.observe_sequential,
         ):
-            raise ValueError("the parts were made with other observation options or decision periods")
+            raise ValueError("the parts were made with other observation options, cell sets or decision periods")
     S = max(p.steps for _, p in parts)
 
     def put(name: str, dtype, fill):
@@ -180,6 +221,7 @@ def assemble(parts: list[tuple[np.ndarray, Trajectory]]) -> Trajectory:
     return Trajectory(
         scenarios=scenarios,
         feature_names=first.feature_names,
+        cell_sets=first.cell_sets,
         decision_period_s=first.decision_period_s,
         period_samples=first.period_samples,
         obs=put("obs", np.float32, 0.0),
@@ -212,20 +254,11 @@ def feature_columns(have: tuple[str, ...], want: list[str]) -> np.ndarray | None
     return np.array([pos[name] for name in want], dtype=np.int64)
 
 
-def _declaration(states, slots) -> tuple[np.ndarray, np.ndarray]:
-    """(detected, diagnoses) of a diagnoser's decision states for ``slots``, as the infos give them."""
-    det = np.zeros(len(slots), dtype=bool)
-    diag = np.empty(len(slots), dtype=object)
-    for j, s in enumerate(slots):
-        st = states[s]
-        det[j] = bool(st.detected)
-        diag[j] = [sorted(d) for d in st.diagnoses] if st.detected else []
-    return det, diag
-
-
 def simulate(scenarios: list[ScenarioSpec], env_kwargs: dict | None = None, progress=None) -> Trajectory:
     """Run ``scenarios`` (one sensor-noise scale) to their ends on one batch of the vector
     environment made with ``env_kwargs``; the :class:`Trajectory` any agent would see.
+    ``env_kwargs["diagnosis_cells"]`` may list several cell sets: the diagnosers decide with each
+    on the same residuals (:func:`cell_sets_of`).
 
     The decisions, their ends and the infos follow ``MarineFDIVectorEnv.step``: a decision whose
     engine has failed, or at or after the episode's duration, is the episode's last; an engine that
@@ -236,8 +269,11 @@ def simulate(scenarios: list[ScenarioSpec], env_kwargs: dict | None = None, prog
     if len(scales) != 1:
         raise ValueError(f"a simulated batch must share one sensor-noise scale, got {sorted(scales)}")
     n = len(scenarios)
-    venv = MarineFDIVectorEnv(num_envs=n, **with_noise_scale(dict(env_kwargs or {}), scales.pop()))
+    env_kwargs = dict(env_kwargs or {})
+    cells = cell_sets_of(env_kwargs)
+    venv = MarineFDIVectorEnv(num_envs=n, **with_noise_scale(one_cell_set(env_kwargs), scales.pop()))
     b = venv.batch
+    b.decide_cells(cells[1:])
     b.start(range(n), list(scenarios))
     b.advance()
     expected = max(1, max(math.ceil(s.duration_s / b.decision_period_s - 1e-9) for s in scenarios))
@@ -253,11 +289,12 @@ def simulate(scenarios: list[ScenarioSpec], env_kwargs: dict | None = None, prog
         rows["obs"].append(b.obs.copy())
         rows["t"].append(b.t.astype(float))
         rows["feature_s"].append(spent.copy())
-        for key, states in (("r", b.diag.decisions), ("s", None if b.seq is None else b.seq.decisions)):
-            if states is None:
+        for key, diagnoser in (("r", "reference"), ("s", None if b.seq is None else "sequential")):
+            if diagnoser is None:
                 continue
-            det, diag = np.zeros(n, dtype=bool), np.empty(n, dtype=object)
-            det[slots], diag[slots] = _declaration(states, slots)
+            det, diag = np.zeros((n, len(cells)), dtype=bool), np.empty((n, len(cells)), dtype=object)
+            for c, name in enumerate(cells):
+                det[slots, c], diag[slots, c] = b.declarations(diagnoser, name, slots)
             rows[key + "det"].append(det)
             rows[key + "diag"].append(diag)
 
@@ -292,6 +329,7 @@ def simulate(scenarios: list[ScenarioSpec], env_kwargs: dict | None = None, prog
     return Trajectory(
         scenarios=list(scenarios),
         feature_names=tuple(venv.feature_names),
+        cell_sets=cells,
         decision_period_s=b.decision_period_s,
         period_samples=b.period_samples,
         obs=np.stack(rows["obs"]),
