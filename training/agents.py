@@ -82,6 +82,10 @@ class SB3Agent:
         self.action_mode = cfg["action_mode"]
         self.frame_stack = int(cfg.get("frame_stack", 1))
         self.recurrent = cfg["algo"] == "ppo_lstm"
+        if not self.recurrent:  # eval mode once (model.predict sets it at every call)
+            from .sb3_inference import prepare
+
+            prepare(model.policy)
         self.obs_size = int(cfg["observation"]["size"])
         self.with_reference = bool(cfg["observation"].get("reference_features", False))
         # the agent's own input preprocessing (training/features.py), for models trained with it
@@ -148,6 +152,7 @@ class SB3Agent:
         return self.stack
 
     def act(self, obs: np.ndarray, infos: dict) -> np.ndarray:
+        from .sb3_inference import deterministic_actions
         from .vec_adapter import reference_features, to_belief
 
         x = _check_batch(obs, self.obs_size, self.where)
@@ -162,7 +167,7 @@ class SB3Agent:
             )
             self.episode_start[:] = False
         else:
-            a, _ = self.model.predict(x, deterministic=True)
+            a = deterministic_actions(self.model.policy, x)  # model.predict's actions, bit for bit
         beliefs = to_belief(a, self.action_mode)
         if self.features is not None:
             from .replay import declaration_masks
