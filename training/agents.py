@@ -264,6 +264,19 @@ class ClassifierAgent:
         self.h = None
         self.alarm = np.zeros(self.n, dtype=bool)
         self.feature_state = self.features.initial_state(self.n) if self.features is not None else None
+        self.reference_memo: list[tuple | None] = [None] * self.n  # per slot: (diagnoses, faults declared)
+
+    def _reference_faults(self, slot: int, diagnoses) -> np.ndarray:
+        """The faults (26,) bool the reference's belief declares (``belief_from_diagnoses``), kept per
+        slot while its diagnoses stay the same."""
+        key = tuple(tuple(d) for d in diagnoses)
+        memo = self.reference_memo[slot]
+        if memo is None or memo[0] != key:
+            from marine_fdi_env.baselines.reference_agent import belief_from_diagnoses
+
+            memo = (key, belief_from_diagnoses(True, diagnoses)[:-2] >= 0.5)
+            self.reference_memo[slot] = memo
+        return memo[1]
 
     def act(self, obs: np.ndarray, infos: dict) -> np.ndarray:
         import torch
@@ -271,30 +284,31 @@ class ClassifierAgent:
         x = _check_batch(obs, self.obs_size, self.where)
         if self.features is not None:  # unstandardised: the network standardises its inputs itself
             x = self.features.raw(x, self.feature_state)
-        with torch.no_grad():
+        with torch.inference_mode():
             logits, self.h = self.model(torch.as_tensor(x[:, None, :]), self.h)
             p = torch.sigmoid(logits[:, 0]).numpy()
         self.alarm |= p[:, -1] >= self.alarm_threshold
         ref = infos.get("reference") if self.use_reference else None
         if ref is not None:
-            self.alarm |= np.asarray(ref["detected"], dtype=bool)
-        out = np.zeros((len(x), N_HYPOTHESES), dtype=np.float32)
-        for i in np.flatnonzero(self.alarm):
-            if self.conformal_quantile is None:
-                dec = p[i, :-1] >= self.isolation_threshold
-            else:
-                from .classifier import conformal_declaration
+            detected = np.asarray(ref["detected"], dtype=bool)
+            self.alarm |= detected
+        alarmed = np.flatnonzero(self.alarm)
+        declared = np.zeros((len(x), p.shape[1] - 1), dtype=bool)  # the faults each slot declares
+        if self.conformal_quantile is None:
+            declared[alarmed] = p[alarmed, :-1] >= self.isolation_threshold
+        else:
+            from .classifier import conformal_declaration
 
+            for i in alarmed:
                 dec = conformal_declaration(p[i, :-1], self.isolation_threshold, self.conformal_quantile)
-                dec = np.zeros(p.shape[1] - 1, dtype=bool) if dec is None else dec
-            if ref is not None and bool(ref["detected"][i]):
-                from marine_fdi_env.baselines.reference_agent import belief_from_diagnoses
-
-                rb = belief_from_diagnoses(True, ref["diagnoses"][i])[:-2] >= 0.5
-                if rb.any() and (self.use_reference == "first" or not dec.any()):
-                    dec = rb
-            if dec.any():
-                out[i, :-2][dec] = 1.0
-            else:
-                out[i, UNKNOWN] = 1.0
+                if dec is not None:
+                    declared[i] = dec
+        if ref is not None:
+            for i in alarmed[detected[alarmed]]:
+                rb = self._reference_faults(i, ref["diagnoses"][i])
+                if rb.any() and (self.use_reference == "first" or not declared[i].any()):
+                    declared[i] = rb
+        out = np.zeros((len(x), N_HYPOTHESES), dtype=np.float32)
+        out[:, :-2][declared] = 1.0
+        out[alarmed[~declared[alarmed].any(axis=1)], UNKNOWN] = 1.0
         return out
