@@ -71,7 +71,11 @@ def _check_batch(obs: np.ndarray, size: int, where: Path) -> np.ndarray:
 
 
 class SB3Agent:
-    """A Stable-Baselines3 policy (PPO, or RecurrentPPO from sb3-contrib), deterministic actions."""
+    """A Stable-Baselines3 policy (PPO, or RecurrentPPO from sb3-contrib), deterministic actions.
+
+    ``model``: the PPO policy (:func:`~marine_fdi_env.training.sb3_inference.load_policy`), or the
+    RecurrentPPO model (``algo`` ``ppo_lstm``).
+    """
 
     def __init__(self, model, cfg: dict, where: Path) -> None:
         self.model = model
@@ -82,10 +86,10 @@ class SB3Agent:
         self.action_mode = cfg["action_mode"]
         self.frame_stack = int(cfg.get("frame_stack", 1))
         self.recurrent = cfg["algo"] == "ppo_lstm"
-        if not self.recurrent:  # eval mode once (model.predict sets it at every call)
+        if not self.recurrent:  # eval mode once (predict sets it at every call)
             from .sb3_inference import prepare
 
-            prepare(model.policy)
+            prepare(model)
         self.obs_size = int(cfg["observation"]["size"])
         self.with_reference = bool(cfg["observation"].get("reference_features", False))
         # the agent's own input preprocessing (training/features.py), for models trained with it
@@ -110,12 +114,15 @@ class SB3Agent:
 
             torch.set_num_threads(1)
             if algo == "ppo_lstm":
-                from sb3_contrib import RecurrentPPO as Algo
+                from sb3_contrib import RecurrentPPO
+
+                model = RecurrentPPO.load(f, device="cpu")
             elif algo == "ppo":
-                from stable_baselines3 import PPO as Algo
+                from .sb3_inference import load_policy
+
+                model = load_policy(f)  # the policy alone: what acting needs
             else:
                 raise ValueError(f"{path / 'config.json'}: unknown algo {algo!r} (ppo, ppo_lstm)")
-            model = Algo.load(f, device="cpu")
         except ValueError:
             raise
         except Exception as e:  # noqa: BLE001 - any failure inside SB3/torch is a bad file
@@ -167,7 +174,7 @@ class SB3Agent:
             )
             self.episode_start[:] = False
         else:
-            a = deterministic_actions(self.model.policy, x)  # model.predict's actions, bit for bit
+            a = deterministic_actions(self.model, x)  # the policy's predict actions, bit for bit
         beliefs = to_belief(a, self.action_mode)
         if self.features is not None:
             from .replay import declaration_masks

@@ -12,6 +12,11 @@ softmax and the argmax, as ``Categorical`` and SB3's ``mode`` compute them) unde
 ``tests/unit/test_sb3_inference.py`` checks the equality against ``predict``.
 
 The caller puts the policy in eval mode once (:func:`prepare`); recurrent policies keep ``predict``.
+
+:func:`load_policy` reads the policy of a ``model.zip`` without the algorithm object: SB3's
+``PPO.load`` also builds the training state (a rollout buffer, an Adam optimizer whose first
+construction imports ``torch._dynamo``: 0.75 s of CPU per process) and reseeds the global random
+generators with the training seed.  The network and its weights are the same.
 """
 
 from __future__ import annotations
@@ -23,7 +28,32 @@ from gymnasium import spaces
 from stable_baselines3.common.distributions import CategoricalDistribution, MultiCategoricalDistribution
 from stable_baselines3.common.policies import BaseModel
 
-__all__ = ["prepare", "deterministic_actions"]
+__all__ = ["load_policy", "prepare", "deterministic_actions"]
+
+
+class _NoOptimizer:
+    """Stands in for the optimizer an SB3 policy builds: inference does not train."""
+
+    def __init__(self, params, **kwargs) -> None:
+        pass
+
+
+def load_policy(path):
+    """The policy of an SB3 on-policy model file, as ``PPO.load(path, device="cpu").policy`` (the same
+    network and weights)."""
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    data, params, _ = load_from_zip_file(path, device="cpu")
+    kwargs = {k: v for k, v in data.get("policy_kwargs", {}).items() if k != "device"}
+    policy = data["policy_class"](
+        data["observation_space"],
+        data["action_space"],
+        lambda _: 0.0,  # the learning rate: only the optimizer reads it
+        use_sde=data.get("use_sde", False),
+        **dict(kwargs, optimizer_class=_NoOptimizer),
+    )
+    policy.load_state_dict(params["policy"])
+    return policy
 
 
 def prepare(policy) -> None:
