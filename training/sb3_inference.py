@@ -4,8 +4,8 @@
 ``predict`` switches the network to eval mode, checks and copies the observation, runs the network
 under ``torch.no_grad`` and, for discrete actions, builds one ``torch.distributions.Categorical``
 per action dimension (validating its arguments) only to take the argmax of its probabilities.
-At a decision of a benchmark batch (32 engines, a 256 x 256 MLP) that work costs about as much as
-the network.  :func:`deterministic_actions` runs the same tensor operations in the same order on
+At a decision of a benchmark batch (32 engines, a 256 x 256 MLP) that work costs more than the
+network itself.  :func:`deterministic_actions` runs the same tensor operations in the same order on
 the same dtypes (the network, then per categorical dimension ``logits - logsumexp(logits)``, its
 softmax and the argmax, as ``Categorical`` and SB3's ``mode`` compute them) under
 ``torch.inference_mode``; other action distributions take SB3's own ``get_actions``.
@@ -15,8 +15,9 @@ The caller puts the policy in eval mode once (:func:`prepare`); recurrent polici
 
 :func:`load_policy` reads the policy of a ``model.zip`` without the algorithm object: SB3's
 ``PPO.load`` also builds the training state (a rollout buffer, an Adam optimizer whose first
-construction imports ``torch._dynamo``: 0.75 s of CPU per process) and reseeds the global random
-generators with the training seed.  The network and its weights are the same.
+construction imports ``torch._dynamo``) and reseeds the global random generators with the training
+seed: loading every registered agent takes 0.8-0.9 s of CPU instead of 1.5-1.6 s
+(``load_agents_cpu_s`` of ``benchmarks/lockstep_costs.py``).  The network and its weights are the same.
 """
 
 from __future__ import annotations
