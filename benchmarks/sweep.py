@@ -23,7 +23,9 @@ a shared machine slows every number; compare ratios within one run.
 
 ``--other-src DIR`` also runs the one/every pair with another version of the package, alternating
 with this one (``other_*``; e.g. ``mkdir -p /tmp/before && git archive ca28256 src | tar -x -C
-/tmp/before`` and ``--other-src /tmp/before/src``; that version is given no ``--cache`` option).
+/tmp/before`` and ``--other-src /tmp/before/src``; that version is given no ``--cache`` option).  For
+that version's own agents too, archive ``training`` and ``baselines`` with ``src`` and move them into
+``/tmp/before/src/marine_fdi_env/`` (otherwise the installed ones are imported).
 """
 
 from __future__ import annotations

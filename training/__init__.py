@@ -8,7 +8,9 @@
 * :mod:`marine_fdi_env.training.vec_adapter` - SB3 ``VecEnv`` over the batched vector environment, action modes;
 * :mod:`marine_fdi_env.training.classifier` - the supervised GRU diagnoser and its threshold calibration;
 * :mod:`marine_fdi_env.training.agents` - trained models as benchmark agents (``marine-fdi evaluate --agent
-  NAME`` for a shipped model, ``--agent FOLDER`` for any model folder).
+  NAME`` for a shipped model, ``--agent FOLDER`` for any model folder);
+* :mod:`marine_fdi_env.training.sb3_inference` - a PPO policy loaded alone and its deterministic actions, bit
+  for bit SB3's ``predict`` without its per-call work.
 
 ``SB3VecEnv`` and ``save_sb3_agent`` are importable from here (loaded on first use, so that importing
 this package needs no extra)::

@@ -71,7 +71,11 @@ def _check_batch(obs: np.ndarray, size: int, where: Path) -> np.ndarray:
 
 
 class SB3Agent:
-    """A Stable-Baselines3 policy (PPO, or RecurrentPPO from sb3-contrib), deterministic actions."""
+    """A Stable-Baselines3 policy (PPO, or RecurrentPPO from sb3-contrib), deterministic actions.
+
+    ``model``: the PPO policy (:func:`~marine_fdi_env.training.sb3_inference.load_policy`), or the
+    RecurrentPPO model (``algo`` ``ppo_lstm``).
+    """
 
     def __init__(self, model, cfg: dict, where: Path) -> None:
         self.model = model
@@ -82,6 +86,10 @@ class SB3Agent:
         self.action_mode = cfg["action_mode"]
         self.frame_stack = int(cfg.get("frame_stack", 1))
         self.recurrent = cfg["algo"] == "ppo_lstm"
+        if not self.recurrent:  # eval mode once (predict sets it at every call)
+            from .sb3_inference import prepare
+
+            prepare(model)
         self.obs_size = int(cfg["observation"]["size"])
         self.with_reference = bool(cfg["observation"].get("reference_features", False))
         # the agent's own input preprocessing (training/features.py), for models trained with it
@@ -106,12 +114,15 @@ class SB3Agent:
 
             torch.set_num_threads(1)
             if algo == "ppo_lstm":
-                from sb3_contrib import RecurrentPPO as Algo
+                from sb3_contrib import RecurrentPPO
+
+                model = RecurrentPPO.load(f, device="cpu")
             elif algo == "ppo":
-                from stable_baselines3 import PPO as Algo
+                from .sb3_inference import load_policy
+
+                model = load_policy(f)  # the policy alone: what acting needs
             else:
                 raise ValueError(f"{path / 'config.json'}: unknown algo {algo!r} (ppo, ppo_lstm)")
-            model = Algo.load(f, device="cpu")
         except ValueError:
             raise
         except Exception as e:  # noqa: BLE001 - any failure inside SB3/torch is a bad file
@@ -148,6 +159,7 @@ class SB3Agent:
         return self.stack
 
     def act(self, obs: np.ndarray, infos: dict) -> np.ndarray:
+        from .sb3_inference import deterministic_actions
         from .vec_adapter import reference_features, to_belief
 
         x = _check_batch(obs, self.obs_size, self.where)
@@ -162,7 +174,7 @@ class SB3Agent:
             )
             self.episode_start[:] = False
         else:
-            a, _ = self.model.predict(x, deterministic=True)
+            a = deterministic_actions(self.model, x)  # the policy's predict actions, bit for bit
         beliefs = to_belief(a, self.action_mode)
         if self.features is not None:
             from .replay import declaration_masks
@@ -259,6 +271,19 @@ class ClassifierAgent:
         self.h = None
         self.alarm = np.zeros(self.n, dtype=bool)
         self.feature_state = self.features.initial_state(self.n) if self.features is not None else None
+        self.reference_memo: list[tuple | None] = [None] * self.n  # per slot: (diagnoses, faults declared)
+
+    def _reference_faults(self, slot: int, diagnoses) -> np.ndarray:
+        """The faults (26,) bool the reference's belief declares (``belief_from_diagnoses``), kept per
+        slot while its diagnoses stay the same."""
+        key = tuple(tuple(d) for d in diagnoses)
+        memo = self.reference_memo[slot]
+        if memo is None or memo[0] != key:
+            from marine_fdi_env.baselines.reference_agent import belief_from_diagnoses
+
+            memo = (key, belief_from_diagnoses(True, diagnoses)[:-2] >= 0.5)
+            self.reference_memo[slot] = memo
+        return memo[1]
 
     def act(self, obs: np.ndarray, infos: dict) -> np.ndarray:
         import torch
@@ -266,30 +291,31 @@ class ClassifierAgent:
         x = _check_batch(obs, self.obs_size, self.where)
         if self.features is not None:  # unstandardised: the network standardises its inputs itself
             x = self.features.raw(x, self.feature_state)
-        with torch.no_grad():
+        with torch.inference_mode():
             logits, self.h = self.model(torch.as_tensor(x[:, None, :]), self.h)
             p = torch.sigmoid(logits[:, 0]).numpy()
         self.alarm |= p[:, -1] >= self.alarm_threshold
         ref = infos.get("reference") if self.use_reference else None
         if ref is not None:
-            self.alarm |= np.asarray(ref["detected"], dtype=bool)
-        out = np.zeros((len(x), N_HYPOTHESES), dtype=np.float32)
-        for i in np.flatnonzero(self.alarm):
-            if self.conformal_quantile is None:
-                dec = p[i, :-1] >= self.isolation_threshold
-            else:
-                from .classifier import conformal_declaration
+            detected = np.asarray(ref["detected"], dtype=bool)
+            self.alarm |= detected
+        alarmed = np.flatnonzero(self.alarm)
+        declared = np.zeros((len(x), p.shape[1] - 1), dtype=bool)  # the faults each slot declares
+        if self.conformal_quantile is None:
+            declared[alarmed] = p[alarmed, :-1] >= self.isolation_threshold
+        else:
+            from .classifier import conformal_declaration
 
+            for i in alarmed:
                 dec = conformal_declaration(p[i, :-1], self.isolation_threshold, self.conformal_quantile)
-                dec = np.zeros(p.shape[1] - 1, dtype=bool) if dec is None else dec
-            if ref is not None and bool(ref["detected"][i]):
-                from marine_fdi_env.baselines.reference_agent import belief_from_diagnoses
-
-                rb = belief_from_diagnoses(True, ref["diagnoses"][i])[:-2] >= 0.5
-                if rb.any() and (self.use_reference == "first" or not dec.any()):
-                    dec = rb
-            if dec.any():
-                out[i, :-2][dec] = 1.0
-            else:
-                out[i, UNKNOWN] = 1.0
+                if dec is not None:
+                    declared[i] = dec
+        if ref is not None:
+            for i in alarmed[detected[alarmed]]:
+                rb = self._reference_faults(i, ref["diagnoses"][i])
+                if rb.any() and (self.use_reference == "first" or not declared[i].any()):
+                    declared[i] = rb
+        out = np.zeros((len(x), N_HYPOTHESES), dtype=np.float32)
+        out[:, :-2][declared] = 1.0
+        out[alarmed[~declared[alarmed].any(axis=1)], UNKNOWN] = 1.0
         return out
