@@ -32,6 +32,7 @@ __all__ = [
     "ReferenceThesisAgent",
     "ReferenceGridAgent",
     "belief_from_diagnoses",
+    "beliefs_from_conclusions",
     "cells_name",
     "with_cells",
 ]
@@ -60,6 +61,26 @@ def belief_from_diagnoses(detected: bool, diagnoses) -> np.ndarray:
     return b
 
 
+_NOT_DETECTED = np.zeros(N_HYPOTHESES, dtype=np.float32)
+
+
+def beliefs_from_conclusions(detected, diagnoses, memo: dict) -> np.ndarray:
+    """:func:`belief_from_diagnoses` of every slot (rows of ``detected`` and ``diagnoses``), each distinct set of
+    diagnoses computed once (``memo``: the caller's cache, keyed by the diagnoses' fault ids; a diagnoser's
+    conclusion changes rarely, so most decisions find theirs there)."""
+    rows = []
+    for d, g in zip(detected, diagnoses):
+        if not d:
+            rows.append(_NOT_DETECTED)
+            continue
+        key = tuple(tuple(x) for x in g)
+        b = memo.get(key)
+        if b is None:
+            b = memo[key] = belief_from_diagnoses(True, g)
+        rows.append(b)
+    return np.stack(rows)
+
+
 def cells_name(base: str, cells: str) -> str:
     """The agent name of a diagnoser agent with a cell set: ``base`` for the default, else
     ``base-cells``."""
@@ -73,13 +94,14 @@ class ReferenceAgent:
         self.cells = check_cells(cells)
         self.name = cells_name("reference", cells)
         self.env_kwargs = {"diagnosis_cells": self.cells}
+        self._beliefs: dict = {}
 
     def reset(self, seeds: list[int]) -> None:
         self.n = len(seeds)
 
     def act(self, obs: np.ndarray, infos: dict) -> np.ndarray:
         ref = infos["reference"]
-        return np.stack([belief_from_diagnoses(bool(d), g) for d, g in zip(ref["detected"], ref["diagnoses"])])
+        return beliefs_from_conclusions(ref["detected"], ref["diagnoses"], self._beliefs)
 
 
 def with_cells(base: type, cells: str) -> type:

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from marine_fdi_env.baselines.reference_agent import belief_from_diagnoses, cells_name, with_cells
+from marine_fdi_env.baselines.reference_agent import beliefs_from_conclusions, cells_name, with_cells
 from marine_fdi_env.diagnosis.cell_sets import DEFAULT_CELLS, check_cells
 
 __all__ = ["SequentialAgent", "SequentialThesisAgent", "SequentialGridAgent"]
@@ -26,6 +26,7 @@ class SequentialAgent:
         self.cells = check_cells(cells)
         self.name = cells_name("sequential", cells)
         self.env_kwargs = {"observe_sequential": True, "diagnosis_cells": self.cells}
+        self._beliefs: dict = {}
 
     def reset(self, seeds: list[int]) -> None:
         self.n = len(seeds)
@@ -34,7 +35,7 @@ class SequentialAgent:
         if "sequential" not in infos:
             raise ValueError("the sequential agent needs the environment made with observe_sequential=True")
         seq = infos["sequential"]
-        return np.stack([belief_from_diagnoses(bool(d), g) for d, g in zip(seq["detected"], seq["diagnoses"])])
+        return beliefs_from_conclusions(seq["detected"], seq["diagnoses"], self._beliefs)
 
 
 SequentialThesisAgent = with_cells(SequentialAgent, "thesis")
