@@ -10,7 +10,9 @@ training seeds (seeds 25, 1025, 2025; each model calibrated on its own 256 only)
 * the outcome of its declaration at each faulty episode's last decision, by number of true faults:
   no alarm, ``unknown`` (the conformal rule abstains), the exact true set, one of the two true faults
   alone, anything else;
-* its per-fault recall (probability >= 0.5 at the last decision) on one- and two-fault episodes;
+* how many exact sets the faults at or above its isolation threshold would give without the conformal
+  abstention, and its per-fault recall (probability >= 0.5 at the last decision), on one- and
+  two-fault episodes;
 * its alarm threshold against the peaks of the "some fault" probability on fault-free episodes: the
   two highest on its own calibration episodes (the threshold is the highest + 0.5 log-odds), the
   highest on the other seeds' calibration episodes, and how many of those would raise a false alarm;
@@ -114,9 +116,12 @@ def diagnose(model_dir: str | Path, data: dict, calibration: dict[int, dict]) ->
         counts = dict.fromkeys(OUTCOMES, 0)
         for i in idx:
             counts[outcome(bool(alarm[i]), declared[i], truth[i])] += 1
+        best = p_last[idx] >= agent.isolation_threshold
         res[f"{k} fault"] = {
             "episodes": int(len(idx)),
             "outcomes": counts,
+            # the faults at or above the isolation threshold, declared without the conformal abstention
+            "exact_without_abstention": int(np.sum(alarm[idx] & (best == truth[idx]).all(axis=1))),
             "recall": float(np.mean(p_last[idx][truth[idx]] >= 0.5)),
         }
     own_seed = ALARM_CALIBRATION_SEEDS[int(agent.training_seed)]
@@ -149,13 +154,18 @@ def main(argv=None) -> int:
     data, _, _ = _dataset(DIAGNOSIS_SPEC, True, print)
     calibration = {s: _calibration_export(s) for s in ALARM_CALIBRATION_SEEDS}
     results = [diagnose(REPO / m if (REPO / m).exists() else m, data, calibration) for m in args.models]
-    print("| model | faults (episodes) | " + " | ".join(OUTCOMES) + " | per-fault recall |")
-    print("|---|---|" + "---:|" * (len(OUTCOMES) + 1))
+    print(
+        "| model | faults (episodes) | " + " | ".join(OUTCOMES) + " | exact set without abstaining | per-fault recall |"
+    )
+    print("|---|---|" + "---:|" * (len(OUTCOMES) + 2))
     for r in results:
         for k in (1, 2):
             c = r[f"{k} fault"]
             cells = " | ".join(str(c["outcomes"][o]) for o in OUTCOMES)
-            print(f"| {Path(r['model']).name} | {k} ({c['episodes']}) | {cells} | {100 * c['recall']:.1f} % |")
+            print(
+                f"| {Path(r['model']).name} | {k} ({c['episodes']}) | {cells} | {c['exact_without_abstention']} | "
+                f"{100 * c['recall']:.1f} % |"
+            )
     print()
     print(
         "| model | alarm threshold [log-odds] | own calibration: two highest peaks | other seeds' calibration: "
