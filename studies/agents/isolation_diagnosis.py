@@ -1,6 +1,7 @@
 """Where a classifier's detections and isolations go, on held-in episodes of its training distribution.
 
-    python -m studies.agents.isolation_diagnosis training/models/classifier/seed0 training/models/classifier/seed1 training/models/classifier/seed2
+    python -m studies.agents.isolation_diagnosis training/models/classifier/seed0 \
+        training/models/classifier/seed1 training/models/classifier/seed2
 
 Never a suite: the episodes are the development episodes of :mod:`studies.agents.development` (drawn like
 the robust training data from seed 31, which no training or calibration spec uses; 384 of them, the
@@ -110,7 +111,11 @@ def diagnose(model_dir: str | Path, data: dict, calibration: dict[int, dict]) ->
     alarm, declared = last_declarations(agent, obs, valid)
     probs, _ = _peaks(agent, obs, valid)
     p_last = probs[rows, last, :-1]
-    res: dict = {"model": str(model_dir), "alarm_threshold": agent.alarm_threshold, "quantile": agent.conformal_quantile}
+    res: dict = {
+        "model": str(model_dir),
+        "alarm_threshold": agent.alarm_threshold,
+        "quantile": agent.conformal_quantile,
+    }
     for k in (1, 2):
         idx = np.flatnonzero(n_true == k)
         counts = dict.fromkeys(OUTCOMES, 0)
@@ -126,9 +131,7 @@ def diagnose(model_dir: str | Path, data: dict, calibration: dict[int, dict]) ->
         }
     own_seed = ALARM_CALIBRATION_SEEDS[int(agent.training_seed)]
     own = np.sort(_peaks(agent, calibration[own_seed]["obs"], calibration[own_seed]["valid"])[1])[::-1]
-    other = np.concatenate(
-        [_peaks(agent, c["obs"], c["valid"])[1] for s, c in calibration.items() if s != own_seed]
-    )
+    other = np.concatenate([_peaks(agent, c["obs"], c["valid"])[1] for s, c in calibration.items() if s != own_seed])
     res["alarm"] = {
         "threshold_logit": float(_logit(agent.alarm_threshold)),
         "own_top2_logit": [float(x) for x in _logit(own[:2])],
