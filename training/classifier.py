@@ -148,6 +148,7 @@ def train_classifier(
     ewma_taus=(),
     episode_weight=None,
     balance_alarm: bool = False,
+    lr_schedule: str = "constant",
     log=print,
 ) -> TrainResult:
     """Train a :class:`GRUDiagnoser` on dataset arrays (``obs``, ``active``, ``valid``); seeded.
@@ -155,7 +156,13 @@ def train_classifier(
     ``balance_alarm``: weight the "some fault" term so that, at every decision index, the decisions
     with and without an active fault weigh the same (:func:`alarm_balance_weights`): the alarm
     output then carries the evidence, not the prior "a fault is likelier late in an episode" that a
-    recurrent network can learn by counting decisions."""
+    recurrent network can learn by counting decisions.
+
+    ``lr_schedule``: ``"constant"`` (``lr`` throughout) or ``"cosine"`` (``lr`` annealed to 0 over the
+    epochs along a half cosine, stepped once per epoch: the last epochs average out the minibatch noise,
+    so the final weights are not one noisy step of a walk at full learning rate)."""
+    if lr_schedule not in ("constant", "cosine"):
+        raise ValueError(f"lr_schedule must be 'constant' or 'cosine', got {lr_schedule!r}")
     c0 = time.process_time()
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
@@ -178,6 +185,7 @@ def train_classifier(
     for name in drop_features:
         model.mask[list(feature_names).index(name)] = 0.0
     opt = torch.optim.Adam(model.parameters(), lr=lr, weight_decay=weight_decay)
+    sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=epochs) if lr_schedule == "cosine" else None
     w = torch.ones(N_FAULTS + 1)
     w[-1] = alarm_weight
     bce = nn.BCEWithLogitsLoss(reduction="none")
@@ -209,6 +217,8 @@ def train_classifier(
             opt.step()
             tot += loss.item()
             nb += 1
+        if sched is not None:
+            sched.step()
         row = {"epoch": ep + 1, "train_loss": tot / max(nb, 1), "cpu_s": time.process_time() - c0}
         if n_val:
             model.eval()

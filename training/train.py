@@ -203,6 +203,7 @@ def train_classifier_run(seed: int, hp: dict, out: Path | None, use_cache: bool 
         ewma_taus=tuple(hp.get("ewma_taus", ())),
         episode_weight=np.concatenate(weights),
         balance_alarm=bool(hp.get("balance_alarm", False)),
+        lr_schedule=str(hp.get("lr_schedule", "constant")),
         log=log,
     )
     train_cpu = time.process_time() - c_train

@@ -123,12 +123,31 @@ def test_reference_features_from_infos_and_ppo_agent_reading_them(tmp_path):
     assert rec["duration_s"] == 12.0
 
 
-def _tiny_classifier(tmp_path) -> Path:
+def _tiny_data() -> dict:
     rng = np.random.default_rng(0)
     obs = rng.random((6, 10, NF)).astype(np.float32)
     active = np.zeros((6, 10, 26), dtype=bool)
     active[:3, 5:, 4] = True
-    data = {"obs": obs, "active": active, "valid": np.ones((6, 10), dtype=bool)}
+    return {"obs": obs, "active": active, "valid": np.ones((6, 10), dtype=bool)}
+
+
+def test_classifier_cosine_schedule_starts_at_the_learning_rate_and_anneals_it():
+    """Epoch 1 runs at ``lr`` under both schedules (the same weights after it, bit for bit: one minibatch
+    per epoch here, whose loss is measured before its step); epoch 2's smaller cosine rate gives other
+    weights, so epoch 3's loss differs; an unknown schedule is refused by name."""
+    data = _tiny_data()
+    const = train_classifier(data, seed=0, hidden=8, embed=8, epochs=3, log=None)
+    cosine = train_classifier(data, seed=0, hidden=8, embed=8, epochs=3, lr_schedule="cosine", log=None)
+    assert const.curve[1]["train_loss"] == cosine.curve[1]["train_loss"]
+    assert const.curve[2]["train_loss"] != cosine.curve[2]["train_loss"]
+    w_const, w_cos = const.model.state_dict()["head.weight"], cosine.model.state_dict()["head.weight"]
+    assert not torch.equal(w_const, w_cos)
+    with pytest.raises(ValueError, match="lr_schedule must be 'constant' or 'cosine'"):
+        train_classifier(data, seed=0, hidden=8, embed=8, epochs=1, lr_schedule="step", log=None)
+
+
+def _tiny_classifier(tmp_path) -> Path:
+    data = _tiny_data()
     r1 = train_classifier(data, seed=0, hidden=8, embed=8, epochs=2, log=None)
     r2 = train_classifier(data, seed=0, hidden=8, embed=8, epochs=2, log=None)
     for (k, a), (_, b) in zip(r1.model.state_dict().items(), r2.model.state_dict().items()):
