@@ -237,7 +237,6 @@ class ReferenceDiagnoser(DecidesWithCellSets):
             raise ValueError(f"exoneration must be 'sure', 'none' or 'all', got {exoneration!r}")
         self.exoneration = "none" if exoneration is None else exoneration
         self.cells = check_cells(cells)
-        self.sized = self.exoneration == "sure" and self.cells == "sized"
         self.cell_sets: tuple[str, ...] = (self.cells,)
         if inclusion not in INCLUSIONS:
             raise ValueError(f"inclusion must be one of {', '.join(INCLUSIONS)}, got {inclusion!r}")
@@ -262,10 +261,6 @@ class ReferenceDiagnoser(DecidesWithCellSets):
     @property
     def _started(self) -> bool:
         return self.samples > 0
-
-    @property
-    def _track_peaks(self) -> bool:
-        return any(d.sized for d in self._deciders)
 
     def reset_engines(self, engines, first_sample_index: int = 0) -> None:
         """Forget everything about some engines (new runs on them); the others carry on.
@@ -319,7 +314,7 @@ class ReferenceDiagnoser(DecidesWithCellSets):
         for i in np.flatnonzero(fresh):
             first = np.argmax(viol[i], axis=0)
             self.first_violation[i, new_mod[i]] = tt[i][first[new_mod[i]]]
-        if self._track_peaks:
+        if self.needs_peaks:
             np.maximum(self.peak_run, peak, out=self.peak_run)
         self.samples += B
         feats = self._features(peak)

@@ -156,6 +156,11 @@ class DecidesWithCellSets:
         return self._deciders[self.cell_sets.index(c)]
 
     @property
+    def needs_peaks(self) -> bool:
+        """Whether a cell set decided is sized (its size bands follow the running peak ratios)."""
+        return any(d.sized for d in self._deciders)
+
+    @property
     def decisions(self) -> list[DiagnosisState]:
         """The engines' decision states with the constructor's cell set."""
         return self._deciders[0].decisions

@@ -398,7 +398,6 @@ class SequentialStage(DecidesWithCellSets):
         self.exoneration = "none" if exoneration is None else exoneration
         self.max_cardinality = max_cardinality
         self.cells = check_cells(cells)
-        self.sized = self.exoneration == "sure" and self.cells == "sized"
         self.cell_sets: tuple[str, ...] = (self.cells,)
         self.reset()
 
@@ -486,7 +485,7 @@ class SequentialStage(DecidesWithCellSets):
         )
         new = before & ~np.isnan(self.first)
         THR = pk = None
-        if any(d.sized for d in self._deciders):
+        if self.needs_peaks:
             if thresholds is None:
                 raise ValueError("the sized cells need the reference's thresholds: pass thresholds=")
             THR = np.asarray(thresholds, dtype=np.float64)
