@@ -33,6 +33,7 @@ __all__ = [
     "ReferenceGridAgent",
     "belief_from_diagnoses",
     "beliefs_from_conclusions",
+    "memoised_belief",
     "cells_name",
     "with_cells",
 ]
@@ -68,17 +69,17 @@ def beliefs_from_conclusions(detected, diagnoses, memo: dict) -> np.ndarray:
     """:func:`belief_from_diagnoses` of every slot (rows of ``detected`` and ``diagnoses``), each distinct set of
     diagnoses computed once (``memo``: the caller's cache, keyed by the diagnoses' fault ids; a diagnoser's
     conclusion changes rarely, so most decisions find theirs there)."""
-    rows = []
-    for d, g in zip(detected, diagnoses):
-        if not d:
-            rows.append(_NOT_DETECTED)
-            continue
-        key = tuple(tuple(x) for x in g)
-        b = memo.get(key)
-        if b is None:
-            b = memo[key] = belief_from_diagnoses(True, g)
-        rows.append(b)
-    return np.stack(rows)
+    return np.stack([memoised_belief(g, memo) if d else _NOT_DETECTED for d, g in zip(detected, diagnoses)])
+
+
+def memoised_belief(diagnoses, memo: dict) -> np.ndarray:
+    """:func:`belief_from_diagnoses` of a detected fault with ``diagnoses``, from ``memo`` (keyed by the diagnoses'
+    fault ids) when it holds them; the caller must not change the array it returns."""
+    key = tuple(tuple(x) for x in diagnoses)
+    b = memo.get(key)
+    if b is None:
+        b = memo[key] = belief_from_diagnoses(True, diagnoses)
+    return b
 
 
 def cells_name(base: str, cells: str) -> str:

@@ -271,19 +271,7 @@ class ClassifierAgent:
         self.h = None
         self.alarm = np.zeros(self.n, dtype=bool)
         self.feature_state = self.features.initial_state(self.n) if self.features is not None else None
-        self.reference_memo: list[tuple | None] = [None] * self.n  # per slot: (diagnoses, faults declared)
-
-    def _reference_faults(self, slot: int, diagnoses) -> np.ndarray:
-        """The faults (26,) bool the reference's belief declares (``belief_from_diagnoses``), kept per
-        slot while its diagnoses stay the same."""
-        key = tuple(tuple(d) for d in diagnoses)
-        memo = self.reference_memo[slot]
-        if memo is None or memo[0] != key:
-            from marine_fdi_env.baselines.reference_agent import belief_from_diagnoses
-
-            memo = (key, belief_from_diagnoses(True, diagnoses)[:-2] >= 0.5)
-            self.reference_memo[slot] = memo
-        return memo[1]
+        self.reference_beliefs: dict = {}  # the reference's belief per distinct set of diagnoses
 
     def act(self, obs: np.ndarray, infos: dict) -> np.ndarray:
         import torch
@@ -311,8 +299,10 @@ class ClassifierAgent:
                 if dec is not None:
                     declared[i] = dec
         if ref is not None:
+            from marine_fdi_env.baselines.reference_agent import memoised_belief
+
             for i in alarmed[detected[alarmed]]:
-                rb = self._reference_faults(i, ref["diagnoses"][i])
+                rb = memoised_belief(ref["diagnoses"][i], self.reference_beliefs)[:-2] >= 0.5
                 if rb.any() and (self.use_reference == "first" or not declared[i].any()):
                     declared[i] = rb
         out = np.zeros((len(x), N_HYPOTHESES), dtype=np.float32)
