@@ -21,8 +21,8 @@ by themselves in the suites, and a flickering alarm would count one false alarm 
 edge); the threshold is calibrated on fault-free episodes for a target false-alarm rate
 (:func:`calibrate_threshold`).  While the alarm is on, the faults with probability >=
 ``isolation_threshold`` are declared (``unknown`` when none is).  With a conformal isolation
-calibration (:func:`calibrate_isolation`), that set is declared only when it is the one hypothesis
-of the split-conformal prediction set; otherwise (no hypothesis fits, or several do) the agent
+calibration (:func:`calibrate_isolation`), that set is declared only when it is as decisive as
+the most probable sets of all but ``alpha`` of the held-in faulty episodes; otherwise the agent
 abstains: alarm on, ``unknown`` (:func:`conformal_declaration`).
 """
 
@@ -297,38 +297,42 @@ def set_score(p: np.ndarray, members: np.ndarray) -> np.ndarray:
     return np.maximum(inside, outside)
 
 
-def calibrate_isolation(probs: np.ndarray, active: np.ndarray, valid: np.ndarray, alpha: float) -> dict:
-    """Split-conformal quantile of :func:`set_score` of the true fault set at the last decision of
-    held-in faulty episodes (``probs`` (E, T, 27), ``active`` (E, T, 26), ``valid`` (E, T)): the
-    ``ceil((n + 1)(1 - alpha))``-th smallest of the n scores (1.0 when that exceeds n), so that on
-    exchangeable episodes the prediction set :func:`conformal_declaration` builds holds the truth
-    with probability >= 1 - alpha."""
+def calibrate_isolation(
+    probs: np.ndarray, active: np.ndarray, valid: np.ndarray, alpha: float, isolation_threshold: float = 0.5
+) -> dict:
+    """Split-conformal quantile of :func:`set_score` of the *most probable* fault set (the faults at or above
+    ``isolation_threshold``) at the last decision of held-in faulty episodes that have one (``probs``
+    (E, T, 27), ``active`` (E, T, 26), ``valid`` (E, T)): the ``ceil((n + 1)(1 - alpha))``-th smallest of
+    the n scores (1.0 when that exceeds n).  On exchangeable episodes the most probable set of a new
+    faulty episode then scores within the quantile with probability >= 1 - alpha: the agent
+    (:func:`conformal_declaration`) abstains on at most ``alpha`` of the episodes like the held-in ones,
+    and more often on evidence less decisive than theirs."""
     if not 0.0 < alpha < 1.0:
         raise ValueError(f"isolation_alpha must lie in (0, 1), got {alpha!r}")
     last = valid.sum(axis=1) - 1
     rows = np.arange(len(probs))
-    truth = active[rows, last]
-    faulty = truth.any(axis=1) & (last >= 0)
-    scores = np.sort(set_score(probs[rows, last, :N_FAULTS], truth)[faulty])
+    faulty = active[rows, last].any(axis=1) & (last >= 0)
+    p = probs[rows, last, :N_FAULTS]
+    best = p >= isolation_threshold
+    scores = np.sort(set_score(p, best)[faulty & best.any(axis=1)])
     n = len(scores)
     k = int(math.ceil((n + 1) * (1.0 - alpha)))
     q = float(scores[k - 1]) if 0 < k <= n else 1.0
     return {
         "alpha": float(alpha),
+        "score": "most probable set",
         "quantile": q,
         "episodes": int(n),
-        "coverage_in_calibration": float(np.mean(scores <= q)) if n else None,
+        "declared_in_calibration": float(np.mean(scores <= q)) if n else None,
     }
 
 
 def conformal_declaration(p: np.ndarray, isolation_threshold: float, quantile: float) -> np.ndarray | None:
-    """The fault set to declare from fault probabilities ``p`` (26,): the faults at or above
-    ``isolation_threshold`` when that set is the only one whose :func:`set_score` is within the
-    conformal ``quantile``; ``None`` (abstain: ``unknown``) when no set or several sets are."""
+    """The fault set to declare from fault probabilities ``p`` (26,): the most probable set (the faults at or
+    above ``isolation_threshold``) when its :func:`set_score` is within the conformal ``quantile`` of
+    :func:`calibrate_isolation`; ``None`` (abstain: ``unknown``) when no fault reaches the threshold or the
+    set is less decisive than that of ``1 - alpha`` of the held-in faulty episodes."""
     best = p >= isolation_threshold
     if not best.any() or set_score(p, best) > quantile:
-        return None
-    # another set is within the quantile iff some fault's probability lies in [1 - q, q]
-    if quantile >= 0.5 and np.any((p >= 1.0 - quantile) & (p <= quantile)):
         return None
     return best

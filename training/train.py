@@ -230,11 +230,15 @@ def train_classifier_run(seed: int, hp: dict, out: Path | None, use_cache: bool 
     if iso_calibration is not None:
         iso = load(iso_calibration)
         conf = calibrate_isolation(
-            episode_scores(res.model, iso["obs"]), iso["active"], iso["valid"], alpha=float(hp["isolation_alpha"])
+            episode_scores(res.model, iso["obs"]),
+            iso["active"],
+            iso["valid"],
+            alpha=float(hp["isolation_alpha"]),
+            isolation_threshold=float(hp["isolation_threshold"]),
         )
         declaration["isolation_conformal"] = conf
         log(
-            f"isolation: declare only the unique hypothesis of the conformal set at alpha {conf['alpha']} "
+            f"isolation: declare the most probable set unless it is less decisive than at alpha {conf['alpha']} "
             f"(score quantile {conf['quantile']:.4f} over {conf['episodes']} faulty episodes)"
         )
     cpu_here = time.process_time() - c0

@@ -82,8 +82,8 @@ WHAT = {
     "classifier": (
         "supervised GRU on noise-invariant inputs (each residual over its noise level from the episode's "
         "first 4 s), trained over sensor noise 0.5-1.5x and all sampler profile families; alarm threshold and "
-        "conformal isolation (abstains with `unknown` unless one hypothesis fits) calibrated on held-in "
-        "episodes; 3 training seeds",
+        "conformal isolation (abstains with `unknown` when its most probable fault set is less decisive than on "
+        "95 % of held-in faulty episodes) calibrated on held-in episodes; 3 training seeds",
         False,
     ),
     "ppo": (

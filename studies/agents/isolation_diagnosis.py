@@ -14,6 +14,8 @@ training seeds (seeds 25, 1025, 2025; each model calibrated on its own 256 only)
 * how many exact sets the faults at or above its isolation threshold would give without the conformal
   abstention, and its per-fault recall (probability >= 0.5 at the last decision), on one- and
   two-fault episodes;
+* with ``--alphas``, the same outcomes had its abstention quantile been calibrated at each of those
+  levels on its own isolation-calibration episodes (seeds 26, 1026, 2026);
 * its alarm threshold against the peaks of the "some fault" probability on fault-free episodes: the
   two highest on its own calibration episodes (the threshold is the highest + 0.5 log-odds), the
   highest on the other seeds' calibration episodes, and how many of those would raise a false alarm;
@@ -34,11 +36,22 @@ import numpy as np
 from studies.agents.development import DEV_SPEC
 from studies.paths import REPO
 
-__all__ = ["OUTCOMES", "DIAGNOSIS_SPEC", "ALARM_CALIBRATION_SEEDS", "outcome", "last_declarations", "diagnose", "main"]
+__all__ = [
+    "OUTCOMES",
+    "DIAGNOSIS_SPEC",
+    "ALARM_CALIBRATION_SEEDS",
+    "ISOLATION_CALIBRATION_SEEDS",
+    "outcome",
+    "last_declarations",
+    "diagnose",
+    "abstention_levels",
+    "main",
+]
 
 OUTCOMES = ("no alarm", "unknown", "exact set", "one of the two", "other")
 DIAGNOSIS_SPEC = dict(DEV_SPEC, episodes=384, seed=31)
 ALARM_CALIBRATION_SEEDS = (25, 1025, 2025)
+ISOLATION_CALIBRATION_SEEDS = (26, 1026, 2026)
 
 
 def outcome(alarm: bool, declared: np.ndarray, truth: np.ndarray) -> str:
@@ -85,16 +98,45 @@ def _logit(p) -> np.ndarray:
     return np.log(p / (1 - p))
 
 
-def _calibration_export(seed: int) -> dict:
+def _calibration_export(seed: int, kind: str = "alarm", episodes: int = 256) -> dict:
     from marine_fdi_env.training.classifier import load_dataset
 
-    found = sorted(glob.glob(str(REPO / "training" / ".cache" / f"robust-alarm-calibration_256_{seed}_*")))
+    found = sorted(glob.glob(str(REPO / "training" / ".cache" / f"robust-{kind}-calibration_{episodes}_{seed}_*")))
     if not found:
         raise FileNotFoundError(
-            f"no cached alarm-calibration export of seed {seed} in training/.cache "
+            f"no cached {kind}-calibration export of seed {seed} in training/.cache "
             "(made by marine-fdi train --algo classifier --hyperparams robust)"
         )
     return load_dataset(found[-1])
+
+
+def abstention_levels(model_dir: str | Path, data: dict, calibration: dict, alphas: list[float]) -> dict:
+    """Outcomes (as in :func:`diagnose`) on the development arrays ``data`` had the model's abstention
+    quantile been calibrated at each level of ``alphas`` on ``calibration`` (its isolation-calibration
+    arrays); the alarm is the model's own."""
+    from marine_fdi_env.benchmark.agent_api import load_agent
+    from marine_fdi_env.training.classifier import N_FAULTS, calibrate_isolation, conformal_declaration
+
+    agent = load_agent(str(model_dir))
+    obs, active, valid = data["obs"], data["active"], data["valid"]
+    rows = np.arange(len(obs))
+    last = valid.sum(axis=1) - 1
+    truth = active[rows, last]
+    alarm, _ = last_declarations(agent, obs, valid)
+    p_last = _peaks(agent, obs, valid)[0][rows, last, :N_FAULTS]
+    cal_probs = _peaks(agent, calibration["obs"], calibration["valid"])[0]
+    out = {}
+    for alpha in alphas:
+        q = calibrate_isolation(cal_probs, calibration["active"], calibration["valid"], alpha)["quantile"]
+        row: dict = {"quantile": q}
+        for k in (1, 2):
+            counts = dict.fromkeys(OUTCOMES, 0)
+            for i in np.flatnonzero(truth.sum(axis=1) == k):
+                dec = conformal_declaration(p_last[i], agent.isolation_threshold, q)
+                counts[outcome(bool(alarm[i]), np.zeros(N_FAULTS, bool) if dec is None else dec, truth[i])] += 1
+            row[f"{k} fault"] = counts
+        out[alpha] = row
+    return out
 
 
 def diagnose(model_dir: str | Path, data: dict, calibration: dict[int, dict]) -> dict:
@@ -115,6 +157,7 @@ def diagnose(model_dir: str | Path, data: dict, calibration: dict[int, dict]) ->
         "model": str(model_dir),
         "alarm_threshold": agent.alarm_threshold,
         "quantile": agent.conformal_quantile,
+        "training_seed": agent.training_seed,
     }
     for k in (1, 2):
         idx = np.flatnonzero(n_true == k)
@@ -150,6 +193,9 @@ def main(argv=None) -> int:
         prog="python -m studies.agents.isolation_diagnosis", description=__doc__.splitlines()[0]
     )
     ap.add_argument("models", nargs="+", help="model folders (e.g. training/models/classifier/seed1)")
+    ap.add_argument(
+        "--alphas", type=float, nargs="*", default=[], help="abstention levels to compare (e.g. 0.2 0.1 0.05)"
+    )
     ap.add_argument("--json", type=Path, help="also write the numbers to this file")
     args = ap.parse_args(argv)
     from marine_fdi_env.training.datasets import _dataset
@@ -182,6 +228,21 @@ def main(argv=None) -> int:
             f"{a['own_top2_logit'][1]:.2f} | {a['other_max_logit']:.2f} | {a['other_false_alarms']} of "
             f"{a['other_episodes']} | {v['last']:.3f} / {v['best']:.3f} ({v['best_epoch']} of {v['epochs']}) |"
         )
+    if args.alphas:
+        print()
+        print("| model | alpha | quantile | faults | unknown | exact set | one of the two | other |")
+        print("|---|---:|---:|---|---:|---:|---:|---:|")
+        for m, r in zip(args.models, results, strict=True):
+            seed = ISOLATION_CALIBRATION_SEEDS[int(r["training_seed"])]
+            levels = abstention_levels(r["model"], data, _calibration_export(seed, "isolation", 384), args.alphas)
+            r["abstention_levels"] = {str(a): v for a, v in levels.items()}
+            for a, v in levels.items():
+                for k in (1, 2):
+                    c = v[f"{k} fault"]
+                    print(
+                        f"| {Path(m).name} | {a:g} | {v['quantile']:.3f} | {k} | {c['unknown']} | {c['exact set']} | "
+                        f"{c['one of the two']} | {c['other']} |"
+                    )
     if args.json:
         args.json.write_text(json.dumps(results, indent=1))
     return 0

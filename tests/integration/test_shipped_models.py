@@ -81,7 +81,7 @@ def test_robust_classifier_seeds_are_one_command_within_budget():
             f"--out training/models/classifier/seed{s}"
         )
         assert cfg["cpu_minutes"] <= 30.0 and cfg["cpu_s_data"] > 0
-        assert cfg["features"]["noise_window"] == 4 and cfg["declaration"]["isolation_conformal"]["alpha"] == 0.3
+        assert cfg["features"]["noise_window"] == 4 and cfg["declaration"]["isolation_conformal"]["alpha"] == 0.05
         assert sorted({x for d in cfg["datasets"] for x in d["noise_scales"]}) == [0.5, 0.75, 1.0, 1.25, 1.5]
         # two fault-pair exports of 1024 episodes each, with their own seeds (no episode twice)
         pairs = [d for d in cfg["datasets"] if d["preset"] == "multi"]
