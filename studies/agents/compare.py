@@ -88,7 +88,8 @@ WHAT = {
     ),
     "ppo": (
         "reinforcement learning (PPO on replayed episodes, reward MarineFDI-v1) on the same noise-invariant inputs "
-        "and training episodes as `classifier`; 3 training seeds",
+        "and training episodes as `classifier`, started from a supervised fit of its policy to those episodes' "
+        "ground truth; 3 training seeds",
         False,
     ),
     "ppo-v1": (
