@@ -93,11 +93,18 @@ def test_agent_features_are_causal_and_restart_per_episode(recorded):
 
 
 def test_tiny_replay_ppo_is_seeded_and_runs_as_an_agent(tmp_path, monkeypatch):
+    """Seeded, evaluates as an agent, and without ``pretrain`` (every entry but robust) never pretrains."""
     import marine_fdi_env.training.datasets as ds
+    import marine_fdi_env.training.pretrain as pre
     from marine_fdi_env.training.rl import train_ppo_replay
     from marine_fdi_env.training.train import load_hyperparams, save_meta
 
     monkeypatch.setattr(ds, "CACHE", tmp_path / "cache")
+
+    def refuse(*a, **k):
+        raise AssertionError("pretraining ran")
+
+    monkeypatch.setattr(pre, "pretrain_policy", refuse)
     short = {"name": "short", "duration_s": 12.0, "onset_range_s": [2.0, 5.0], "second_onset_gap_s": [0.0, 2.0]}
     hp = load_hyperparams(
         "ppo",
@@ -119,6 +126,9 @@ def test_tiny_replay_ppo_is_seeded_and_runs_as_an_agent(tmp_path, monkeypatch):
     for a, b in zip(m1.policy.parameters(), m2.policy.parameters()):
         assert torch.equal(a, b)
     assert cfg["env_id"] == "MarineFDI-v1" and cfg["validation_episodes"] == 2 and cfg["cpu_s_data"] > 0
+    assert "pretraining" not in cfg and "pretrain" not in cfg["hyperparams"] and "final_alarm" not in cfg
+    with pytest.raises(AssertionError, match="pretraining ran"):
+        train_ppo_replay(3, dict(hp, pretrain={"epochs": 1}), None, log=None)
     assert (tmp_path / "a" / "learning_curve.csv").is_file()
     save_meta(tmp_path / "a", dict(cfg, command="test"), "marine_fdi_env.training.agents:SB3Agent")
     agent = load_agent(str(tmp_path / "a"))
@@ -178,38 +188,3 @@ def test_final_alarm_calibration_silences_the_policy_before_every_onset(recorded
     info = final_quiet_alarm(model.policy, f, recorded, margin=0.5)
     assert info["alarm_logit_shift"] > 5.0
     assert evaluate_on_episodes(model, recorded, f, "gated", RewardConfigV1())["val_false_alarm_episodes"] == 0
-
-
-def test_replay_ppo_without_pretrain_never_pretrains(tmp_path, monkeypatch):
-    """``pretrain`` off (every shipped entry but robust): the PPO path is the plain one."""
-    import marine_fdi_env.training.datasets as ds
-    import marine_fdi_env.training.pretrain as pre
-    from marine_fdi_env.training.rl import train_ppo_replay
-    from marine_fdi_env.training.train import load_hyperparams
-
-    assert "pretrain" not in load_hyperparams("ppo", "MarineFDI-v1", {})
-    monkeypatch.setattr(ds, "CACHE", tmp_path / "cache")
-
-    def refuse(*a, **k):
-        raise AssertionError("pretraining ran")
-
-    monkeypatch.setattr(pre, "pretrain_policy", refuse)
-    short = {"name": "short", "duration_s": 8.0, "onset_range_s": [2.0, 5.0], "second_onset_gap_s": [0.0, 2.0]}
-    hp = load_hyperparams(
-        "ppo",
-        "MarineFDI-v1",
-        dict(
-            datasets=[{"config": short, "episodes": 4, "seed": 1}],
-            n_envs=2,
-            n_timesteps=16,
-            n_steps=8,
-            batch_size=8,
-            n_epochs=1,
-            validation_fraction=0.0,
-            policy_kwargs="dict(net_arch=[8])",
-        ),
-    )
-    _, cfg = train_ppo_replay(3, hp, None, log=None)
-    assert "pretraining" not in cfg and "pretrain" not in cfg["hyperparams"]
-    with pytest.raises(AssertionError, match="pretraining ran"):
-        train_ppo_replay(3, dict(hp, pretrain={"epochs": 1}), None, log=None)
