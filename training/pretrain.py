@@ -14,10 +14,11 @@ never another agent's outputs):
    start at 0, so the fitted policy ignores its previous alarm (teacher-forcing it with the
    target alarm would teach "keep the alarm as it was", which the agent cannot rely on when its
    own alarm is wrong); PPO then learns what the input is worth;
-3. :func:`quiet_alarm`: the alarm logit is moved down by the largest alarm margin
+3. :func:`quiet_alarm`: the alarm logit is shifted so that the largest alarm margin
    ``logit(on) - logit(off)`` over every decision before the first onset of the training
-   episodes plus ``alarm_margin``, so the deterministic policy raises no false alarm on them
-   (the zero-false-alarm calibration of the classifier, ``classifier.calibrate_threshold``);
+   episodes is ``-alarm_margin``: the deterministic policy raises no false alarm on them, and no
+   alarm is held back beyond that (the zero-false-alarm calibration of the classifier,
+   ``classifier.calibrate_threshold``);
 4. PPO fine-tunes the whole policy on the reward (the value head starts untrained);
 5. with ``final_alarm_margin`` (:func:`final_quiet_alarm`), step 3 once more after PPO, on the
    same decisions with the previous alarm off: PPO's exploration leaves the deterministic policy
@@ -115,8 +116,9 @@ def alarm_margins(policy, x: np.ndarray, batch: int = 65536) -> np.ndarray:
 
 
 def quiet_alarm(policy, x_before_onset: np.ndarray, margin: float) -> dict:
-    """Lower the alarm logit so that every decision of ``x_before_onset`` keeps the alarm off with
-    at least ``margin`` in log-odds (the deterministic policy's alarm is the larger logit)."""
+    """Shift the alarm logit so that the largest alarm margin over ``x_before_onset`` is ``-margin``
+    (log-odds): every one of those decisions keeps the deterministic alarm (the larger logit) off;
+    ``alarm_logit_shift`` > 0 lowers the alarm, < 0 raises it."""
     import torch
 
     peak = float(alarm_margins(policy, x_before_onset).max())
@@ -168,5 +170,5 @@ def pretrain_policy(policy, features, episodes: dict, spec: dict, seed: int, log
     quiet = quiet_alarm(policy, x[before_onset(episodes)], float(spec.get("alarm_margin", 1.0)))
     if log:
         peak, shift = quiet["peak_margin_before_onset"], quiet["alarm_logit_shift"]
-        log(f"alarm logit lowered by {shift:.3f} (peak margin before onset {peak:.3f})")
+        log(f"alarm logit shifted by {-shift:.3f} (peak margin before onset {peak:.3f})")
     return {"cross_entropy": [round(v, 5) for v in losses], **quiet, "decisions": int(valid.sum())}

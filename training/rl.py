@@ -210,7 +210,7 @@ def train_ppo_replay(seed: int, hp: dict, out: Path | None, use_cache: bool = Tr
         from .pretrain import final_quiet_alarm
 
         final_alarm = final_quiet_alarm(model.policy, features, train, float(final_alarm_margin))
-        log(f"final alarm logit lowered by {final_alarm['alarm_logit_shift']:.3f}")
+        log(f"final alarm logit shifted by {-final_alarm['alarm_logit_shift']:.3f}")
     final = evaluate_on_episodes(model, val, features, action_mode, reward) if n_val else {}
     cpu_total = time.process_time() - c0 - fresh_cpu + data_cpu  # a cached export still counts
     cfg = {
