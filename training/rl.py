@@ -103,6 +103,8 @@ def train_ppo_replay(seed: int, hp: dict, out: Path | None, use_cache: bool = Tr
     norm_reward = bool(hp.pop("normalize_reward", True))
     alarm_logit = hp.pop("initial_alarm_logit", None)
     single_logit = hp.pop("initial_single_logit", None)
+    pretrain = hp.pop("pretrain", None)
+    final_alarm_margin = hp.pop("final_alarm_margin", None)
     reward = make_reward_config(hp.pop("reward", "v1"))
     policy = hp.pop("policy")
     pk = hp.pop("policy_kwargs", None)
@@ -149,6 +151,17 @@ def train_ppo_replay(seed: int, hp: dict, out: Path | None, use_cache: bool = Tr
 
         with torch.no_grad():
             model.policy.action_net.bias[2 + 27] += float(single_logit)
+    pretraining = None
+    if pretrain:  # a supervised start (training/pretrain.py), then PPO fine-tunes
+        if action_mode != "gated":
+            raise ValueError("pretrain needs action_mode 'gated'")
+        from .pretrain import pretrain_policy
+
+        pretraining = pretrain_policy(model.policy, features, train, dict(pretrain), seed, log)
+        if n_val:
+            pretraining["validation"] = evaluate_on_episodes(model, val, features, action_mode, reward)
+            log(f"pretrained policy on the validation episodes: {pretraining['validation']}")
+        pretraining["cpu_s"] = round(time.process_time() - c0 - fresh_cpu + data_cpu, 2)
     curve: list[dict] = []
 
     class Curve(BaseCallback):
@@ -190,6 +203,14 @@ def train_ppo_replay(seed: int, hp: dict, out: Path | None, use_cache: bool = Tr
             )
 
     model.learn(total_timesteps=n_timesteps, callback=Curve())
+    final_alarm = None
+    if final_alarm_margin is not None:  # the alarm quiet before every training onset (training/pretrain.py)
+        if action_mode != "gated":
+            raise ValueError("final_alarm_margin needs action_mode 'gated'")
+        from .pretrain import final_quiet_alarm
+
+        final_alarm = final_quiet_alarm(model.policy, features, train, float(final_alarm_margin))
+        log(f"final alarm logit shifted by {-final_alarm['alarm_logit_shift']:.3f}")
     final = evaluate_on_episodes(model, val, features, action_mode, reward) if n_val else {}
     cpu_total = time.process_time() - c0 - fresh_cpu + data_cpu  # a cached export still counts
     cfg = {
@@ -212,12 +233,16 @@ def train_ppo_replay(seed: int, hp: dict, out: Path | None, use_cache: bool = Tr
             eval_every=eval_every,
             initial_alarm_logit=alarm_logit,
             initial_single_logit=single_logit,
+            **({"pretrain": dict(pretrain)} if pretrain else {}),
+            **({"final_alarm_margin": final_alarm_margin} if final_alarm_margin is not None else {}),
         ),
         "reward": reward.to_dict(),
         "datasets": datasets,
         "training_episodes": int(len(train["obs"])),
         "validation_episodes": n_val,
         "validation": final,
+        **({"pretraining": pretraining} if pretraining else {}),
+        **({"final_alarm": final_alarm} if final_alarm else {}),
         "features": features.to_dict(),
         "observation": dict(_observation_meta(), reference_features=False),
         "n_parameters": int(sum(p.numel() for p in model.policy.parameters())),

@@ -16,11 +16,11 @@ must-show checks, the seed-to-seed spread, the differences between agents, train
 of each shipped model), the tables of ``docs/results.md`` (the main table is ``marine-fdi report``'s)
 and the README's headline table (one row per agent), each between ``compare:`` markers.
 
-Every row is named for what it is: ``classifier`` is the noise-invariant learned agent (three
-training seeds, pooled in every row), ``ppo-v1`` and ``classifier-v1`` the first learned agents (one
+Every row is named for what it is: ``classifier`` and ``ppo`` are the noise-invariant learned agents
+(three training seeds each, pooled in every row; ``ppo`` starts from a supervised fit of its policy to
+its training episodes' ground truth), ``ppo-v1`` and ``classifier-v1`` the first learned agents (one
 seed, nominal noise only), kept as named baselines; ``classifier-v1+reference`` the hybrid that also
-takes the reference diagnoser's alarm and isolation.  A noise-invariant PPO (``marine-fdi train --algo
-ppo --hyperparams robust``) has no trained seeds in ``training/models/`` and no row.
+takes the reference diagnoser's alarm and isolation.
 """
 
 from __future__ import annotations
@@ -88,7 +88,8 @@ WHAT = {
     ),
     "ppo": (
         "reinforcement learning (PPO on replayed episodes, reward MarineFDI-v1) on the same noise-invariant inputs "
-        "and training episodes as `classifier`; 3 training seeds",
+        "and training episodes as `classifier`, started from a supervised fit of its policy to those episodes' "
+        "ground truth; 3 training seeds",
         False,
     ),
     "ppo-v1": (

@@ -93,11 +93,18 @@ def test_agent_features_are_causal_and_restart_per_episode(recorded):
 
 
 def test_tiny_replay_ppo_is_seeded_and_runs_as_an_agent(tmp_path, monkeypatch):
+    """Seeded, evaluates as an agent, and without ``pretrain`` (every entry but robust) never pretrains."""
     import marine_fdi_env.training.datasets as ds
+    import marine_fdi_env.training.pretrain as pre
     from marine_fdi_env.training.rl import train_ppo_replay
     from marine_fdi_env.training.train import load_hyperparams, save_meta
 
     monkeypatch.setattr(ds, "CACHE", tmp_path / "cache")
+
+    def refuse(*a, **k):
+        raise AssertionError("pretraining ran")
+
+    monkeypatch.setattr(pre, "pretrain_policy", refuse)
     short = {"name": "short", "duration_s": 12.0, "onset_range_s": [2.0, 5.0], "second_onset_gap_s": [0.0, 2.0]}
     hp = load_hyperparams(
         "ppo",
@@ -119,9 +126,65 @@ def test_tiny_replay_ppo_is_seeded_and_runs_as_an_agent(tmp_path, monkeypatch):
     for a, b in zip(m1.policy.parameters(), m2.policy.parameters()):
         assert torch.equal(a, b)
     assert cfg["env_id"] == "MarineFDI-v1" and cfg["validation_episodes"] == 2 and cfg["cpu_s_data"] > 0
+    assert "pretraining" not in cfg and "pretrain" not in cfg["hyperparams"] and "final_alarm" not in cfg
+    with pytest.raises(AssertionError, match="pretraining ran"):
+        train_ppo_replay(3, dict(hp, pretrain={"epochs": 1}), None, log=None)
     assert (tmp_path / "a" / "learning_curve.csv").is_file()
     save_meta(tmp_path / "a", dict(cfg, command="test"), "marine_fdi_env.training.agents:SB3Agent")
     agent = load_agent(str(tmp_path / "a"))
     sc = ScenarioConfig.from_dict({k: tuple(v) if isinstance(v, list) else v for k, v in short.items()})
     rec = run_episodes(agent, [sc.sample(9, scenario_id="x")], {"reward": "v1"})[0]
     assert rec["duration_s"] == 12.0
+
+
+def test_pretrained_policy_is_quiet_before_every_onset_and_names_the_faults(recorded):
+    """The supervised start on recorded episodes: the deterministic policy raises no alarm before
+    any onset of them, and ignores its previous-alarm input until PPO trains it."""
+    from stable_baselines3 import PPO
+
+    from marine_fdi_env.training.pretrain import gated_targets, policy_inputs, pretrain_policy
+
+    names = feature_names(False)
+    f = AgentFeatures(names, noise_window=4).fit(recorded["obs"], recorded["valid"])
+    env = ReplayVecEnv(recorded, 2, "gated", features=f)
+    model = PPO("MlpPolicy", env, seed=0, device="cpu", policy_kwargs=dict(net_arch=[32]))
+    spec = {"epochs": 30, "batch_size": 16, "learning_rate": 3e-3, "alarm_margin": 0.5}
+    info = pretrain_policy(model.policy, f, recorded, spec, seed=0)
+    assert info["cross_entropy"][-1] < 0.5 * info["cross_entropy"][0]
+    valid = recorded["valid"].astype(bool)
+    x = torch.as_tensor(policy_inputs(f, recorded["obs"])[valid])
+    with torch.no_grad():
+        act, _, _ = model.policy(x, deterministic=True)
+        x_alarm = x.clone()
+        x_alarm[:, -1] = 1.0 / float(f.scale[-1]) * (1.0 - float(f.mean[-1]))  # the previous alarm on
+        act_alarm, _, _ = model.policy(x_alarm, deterministic=True)
+    act = act.numpy()
+    before = (recorded["t_s"] < recorded["first_onset"][:, None])[valid]
+    assert info["decisions_before_onset"] == int(before.sum()) > 0
+    assert not act[before, 0].any()  # no false alarm on the episodes it was fitted to
+    assert np.array_equal(act, act_alarm.numpy())  # the previous alarm does not matter yet
+    y = gated_targets(recorded["active"])[valid]
+    assert np.mean(act[~before, 1] == y[~before, 1]) > 0.5  # it has learned to name faults
+    with pytest.raises(ValueError, match="unknown keys"):
+        pretrain_policy(model.policy, f, recorded, {"epoch": 1}, seed=0)
+
+
+def test_final_alarm_calibration_silences_the_policy_before_every_onset(recorded):
+    """After PPO: an alarm-happy policy that also reads its previous alarm raises none before any onset of the
+    episodes it is calibrated on, in the replayed environment (its own previous alarm fed back)."""
+    from stable_baselines3 import PPO
+
+    from marine_fdi_env.envs.reward import RewardConfigV1
+    from marine_fdi_env.training.pretrain import before_onset, final_quiet_alarm
+    from marine_fdi_env.training.rl import evaluate_on_episodes
+
+    f = AgentFeatures(feature_names(False), noise_window=4).fit(recorded["obs"], recorded["valid"])
+    model = PPO("MlpPolicy", ReplayVecEnv(recorded, 2, "gated", features=f), seed=0, policy_kwargs=dict(net_arch=[32]))
+    with torch.no_grad():
+        model.policy.action_net.bias[1] += 5.0
+        model.policy.mlp_extractor.policy_net[0].weight[:, -1] = 1.0
+    scored = evaluate_on_episodes(model, recorded, f, "gated", RewardConfigV1())
+    assert scored["val_false_alarm_episodes"] == int(before_onset(recorded).any(axis=1).sum()) == 4  # every one
+    info = final_quiet_alarm(model.policy, f, recorded, margin=0.5)
+    assert info["alarm_logit_shift"] > 5.0
+    assert evaluate_on_episodes(model, recorded, f, "gated", RewardConfigV1())["val_false_alarm_episodes"] == 0

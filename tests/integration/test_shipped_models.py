@@ -103,6 +103,11 @@ def test_robust_ppo_seeds_are_one_command_within_budget():
         )
         assert cfg["cpu_minutes"] <= 30.0 and cfg["cpu_s_data"] > 0
         assert cfg["features"]["noise_window"] == 4
+        # a supervised start on the training episodes' ground truth, then PPO, then the alarm quiet before
+        # every training onset (training/pretrain.py): no false alarm on its own held-in episodes
+        assert cfg["hyperparams"]["pretrain"]["epochs"] == 4 and cfg["hyperparams"]["final_alarm_margin"] == 1.0
+        assert cfg["pretraining"]["decisions_before_onset"] == cfg["final_alarm"]["decisions_before_onset"] > 0
+        assert cfg["validation"]["val_false_alarm_episodes"] == 0
     assert all(c["hyperparams"] == cfgs[0]["hyperparams"] for c in cfgs)  # the same command, seed aside
     agent = load_agent(str(MODELS / "ppo"))  # the folder: its default seed
     assert agent.name == "ppo" and agent.training_seed == 0
