@@ -292,12 +292,9 @@ class ClassifierAgent:
         if self.conformal_quantile is None:
             declared[alarmed] = p[alarmed, :-1] >= self.isolation_threshold
         else:
-            from .classifier import conformal_declaration
+            from .classifier import conformal_sets
 
-            for i in alarmed:
-                dec = conformal_declaration(p[i, :-1], self.isolation_threshold, self.conformal_quantile)
-                if dec is not None:
-                    declared[i] = dec
+            declared[alarmed] = conformal_sets(p[alarmed, :-1], self.isolation_threshold, self.conformal_quantile)
         if ref is not None:
             from marine_fdi_env.baselines.reference_agent import memoised_belief
 

@@ -47,6 +47,7 @@ __all__ = [
     "episode_scores",
     "set_score",
     "calibrate_isolation",
+    "conformal_sets",
     "conformal_declaration",
     "alarm_balance_weights",
 ]
@@ -327,12 +328,16 @@ def calibrate_isolation(
     }
 
 
-def conformal_declaration(p: np.ndarray, isolation_threshold: float, quantile: float) -> np.ndarray | None:
-    """The fault set to declare from fault probabilities ``p`` (26,): the most probable set (the faults at or
-    above ``isolation_threshold``) when its :func:`set_score` is within the conformal ``quantile`` of
-    :func:`calibrate_isolation`; ``None`` (abstain: ``unknown``) when no fault reaches the threshold or the
-    set is less decisive than that of ``1 - alpha`` of the held-in faulty episodes."""
+def conformal_sets(p: np.ndarray, isolation_threshold: float, quantile: float) -> np.ndarray:
+    """The fault sets to declare from fault probabilities ``p`` (..., 26), bool (..., 26): the most probable
+    set (the faults at or above ``isolation_threshold``) where its :func:`set_score` is within the conformal
+    ``quantile`` of :func:`calibrate_isolation`; the empty set (abstain: ``unknown``) where no fault reaches
+    the threshold or the set is less decisive than that of ``1 - alpha`` of the held-in faulty episodes."""
     best = p >= isolation_threshold
-    if not best.any() or set_score(p, best) > quantile:
-        return None
-    return best
+    return best & (set_score(p, best) <= quantile)[..., None]
+
+
+def conformal_declaration(p: np.ndarray, isolation_threshold: float, quantile: float) -> np.ndarray | None:
+    """:func:`conformal_sets` of one decision's probabilities ``p`` (26,); ``None`` where it abstains."""
+    best = conformal_sets(p, isolation_threshold, quantile)
+    return best if best.any() else None

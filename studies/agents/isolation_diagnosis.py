@@ -44,7 +44,6 @@ __all__ = [
     "outcome",
     "last_declarations",
     "diagnose",
-    "abstention_levels",
     "main",
 ]
 
@@ -110,38 +109,40 @@ def _calibration_export(seed: int, kind: str = "alarm", episodes: int = 256) -> 
     return load_dataset(found[-1])
 
 
-def abstention_levels(model_dir: str | Path, data: dict, calibration: dict, alphas: list[float]) -> dict:
-    """Outcomes (as in :func:`diagnose`) on the development arrays ``data`` had the model's abstention
-    quantile been calibrated at each level of ``alphas`` on ``calibration`` (its isolation-calibration
-    arrays); the alarm is the model's own."""
-    from marine_fdi_env.benchmark.agent_api import load_agent
-    from marine_fdi_env.training.classifier import N_FAULTS, calibrate_isolation, conformal_declaration
+def _abstention_levels(
+    agent, alarm: np.ndarray, p_last: np.ndarray, truth: np.ndarray, calibration: dict, alphas
+) -> dict:
+    """Outcomes of the final declarations (alarm (E,), fault probabilities (E, 26), true sets (E, 26)) had
+    the model's abstention quantile been calibrated at each level of ``alphas`` on ``calibration`` (its
+    isolation-calibration arrays); the alarm is the model's own."""
+    from marine_fdi_env.training.classifier import calibrate_isolation, conformal_sets
 
-    agent = load_agent(str(model_dir))
-    obs, active, valid = data["obs"], data["active"], data["valid"]
-    rows = np.arange(len(obs))
-    last = valid.sum(axis=1) - 1
-    truth = active[rows, last]
-    alarm, _ = last_declarations(agent, obs, valid)
-    p_last = _peaks(agent, obs, valid)[0][rows, last, :N_FAULTS]
     cal_probs = _peaks(agent, calibration["obs"], calibration["valid"])[0]
     out = {}
     for alpha in alphas:
         q = calibrate_isolation(cal_probs, calibration["active"], calibration["valid"], alpha)["quantile"]
+        declared = conformal_sets(p_last, agent.isolation_threshold, q)
         row: dict = {"quantile": q}
         for k in (1, 2):
             counts = dict.fromkeys(OUTCOMES, 0)
             for i in np.flatnonzero(truth.sum(axis=1) == k):
-                dec = conformal_declaration(p_last[i], agent.isolation_threshold, q)
-                counts[outcome(bool(alarm[i]), np.zeros(N_FAULTS, bool) if dec is None else dec, truth[i])] += 1
+                counts[outcome(bool(alarm[i]), declared[i], truth[i])] += 1
             row[f"{k} fault"] = counts
         out[alpha] = row
     return out
 
 
-def diagnose(model_dir: str | Path, data: dict, calibration: dict[int, dict]) -> dict:
+def diagnose(
+    model_dir: str | Path,
+    data: dict,
+    calibration: dict[int, dict],
+    isolation_calibration: dict[int, dict] | None = None,
+    alphas=(),
+) -> dict:
     """The module docstring's numbers for one model on the development arrays ``data`` and the alarm
-    calibration arrays ``calibration`` (keyed by dataset seed)."""
+    calibration arrays ``calibration`` (keyed by dataset seed); with ``alphas``, the outcomes at those
+    abstention levels calibrated on its own isolation-calibration arrays in ``isolation_calibration`` (keyed
+    by dataset seed)."""
     from marine_fdi_env.benchmark.agent_api import load_agent
 
     agent = load_agent(str(model_dir))
@@ -182,6 +183,9 @@ def diagnose(model_dir: str | Path, data: dict, calibration: dict[int, dict]) ->
         "other_false_alarms": int((other >= agent.alarm_threshold).sum()),
         "other_episodes": int(len(other)),
     }
+    if alphas:
+        own = isolation_calibration[ISOLATION_CALIBRATION_SEEDS[int(agent.training_seed)]]
+        res["abstention_levels"] = _abstention_levels(agent, alarm, p_last, truth, own, alphas)
     with open(Path(model_dir) / "learning_curve.csv") as f:
         val = [float(r["val_loss"]) for r in csv.DictReader(f)]
     res["val_loss"] = {"epochs": len(val), "last": val[-1], "best": min(val), "best_epoch": int(np.argmin(val)) + 1}
@@ -202,7 +206,12 @@ def main(argv=None) -> int:
 
     data, _, _ = _dataset(DIAGNOSIS_SPEC, True, print)
     calibration = {s: _calibration_export(s) for s in ALARM_CALIBRATION_SEEDS}
-    results = [diagnose(REPO / m if (REPO / m).exists() else m, data, calibration) for m in args.models]
+    isolation = None
+    if args.alphas:
+        isolation = {s: _calibration_export(s, "isolation", 384) for s in ISOLATION_CALIBRATION_SEEDS}
+    results = [
+        diagnose(REPO / m if (REPO / m).exists() else m, data, calibration, isolation, args.alphas) for m in args.models
+    ]
     print(
         "| model | faults (episodes) | " + " | ".join(OUTCOMES) + " | exact set without abstaining | per-fault recall |"
     )
@@ -233,10 +242,7 @@ def main(argv=None) -> int:
         print("| model | alpha | quantile | faults | unknown | exact set | one of the two | other |")
         print("|---|---:|---:|---|---:|---:|---:|---:|")
         for m, r in zip(args.models, results, strict=True):
-            seed = ISOLATION_CALIBRATION_SEEDS[int(r["training_seed"])]
-            levels = abstention_levels(r["model"], data, _calibration_export(seed, "isolation", 384), args.alphas)
-            r["abstention_levels"] = {str(a): v for a, v in levels.items()}
-            for a, v in levels.items():
+            for a, v in r["abstention_levels"].items():
                 for k in (1, 2):
                     c = v[f"{k} fault"]
                     print(
