@@ -66,12 +66,15 @@ class DatasetError(DataFileError):
 
 
 class MissingExtra(MarineFDIError):
-    """An option needs an optional dependency: "WHAT needs MODULE: pip install 'marine-fdi-env[EXTRA]'"."""
+    """An option needs an optional dependency: "WHAT needs MODULE: pip install 'marine-fdi-env[EXTRA]'"
+    (and `` (HINT)``, e.g. an option that does without it)."""
 
-    def __init__(self, module: str, what: str):
+    def __init__(self, module: str, what: str, hint: str = ""):
         top = module.split(".")[0]
         self.module, self.extra = top, EXTRAS.get(top, "dev")
-        super().__init__(f"{what} needs {top}: pip install 'marine-fdi-env[{self.extra}]'")
+        super().__init__(
+            f"{what} needs {top}: pip install 'marine-fdi-env[{self.extra}]'" + (f" ({hint})" if hint else "")
+        )
 
 
 def require_extra(module: str, what: str) -> None:

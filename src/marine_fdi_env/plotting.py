@@ -6,14 +6,14 @@ __all__ = ["pyplot"]
 
 
 def pyplot(hint: str = ""):
-    """``matplotlib.pyplot`` on the non-interactive Agg backend; RuntimeError naming the ``plots`` extra (and
-    ``hint``, e.g. an option that skips the plots) when matplotlib is missing."""
+    """``matplotlib.pyplot`` on the non-interactive Agg backend; :class:`~marine_fdi_env.errors.MissingExtra`
+    naming the ``plots`` extra (and ``hint``, e.g. an option that skips the plots) when matplotlib is missing."""
     try:
         import matplotlib
     except ImportError:
-        raise RuntimeError(
-            "plots need matplotlib: pip install 'marine-fdi-env[plots]'" + (f" ({hint})" if hint else "")
-        ) from None
+        from .errors import MissingExtra
+
+        raise MissingExtra("matplotlib", "plots", hint) from None
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 

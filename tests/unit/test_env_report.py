@@ -10,6 +10,7 @@ import pytest
 from marine_fdi_env.benchmark.metrics import compute_metrics
 from marine_fdi_env.benchmark.report import agent_sort_key, load_results, markdown_table, write_report
 from marine_fdi_env.cli.report import report_main
+from marine_fdi_env.errors import MissingExtra
 
 
 def episode(agent: str, suite: str, delay: float | None, sid: str = "e") -> dict:
@@ -148,7 +149,7 @@ def test_report_main_error_exit_code(tmp_path, capsys):
 
 def test_missing_matplotlib_gives_clear_error(result_files, tmp_path, monkeypatch, capsys):
     monkeypatch.setitem(__import__("sys").modules, "matplotlib", None)
-    with pytest.raises(RuntimeError, match="matplotlib"):
+    with pytest.raises(MissingExtra, match=r"plots needs matplotlib: pip install 'marine-fdi-env\[plots\]'"):
         write_report(result_files, tmp_path / "rep")
     assert report_main([*map(str, result_files), "--out", str(tmp_path / "r2")]) == 2
     assert "--no-plots" in capsys.readouterr().err

@@ -36,7 +36,19 @@ import numpy as np
 from ..jsonfile import read_json
 from .agent_registry import BUILTIN_AGENTS, LEGACY_PACKAGES  # the names live in the registry
 
-__all__ = ["Agent", "BUILTIN_AGENTS", "load_agent", "resolve_agent_spec", "agent_file_stem"]
+__all__ = [
+    "Agent",
+    "BUILTIN_AGENTS",
+    "load_agent",
+    "resolve_agent_spec",
+    "agent_file_stem",
+    "user_agent_files",
+    "zoo_run_model",
+]
+
+ZOO_AGENT = "marine_fdi_env.training.zoo:ZooAgent"  # loads an RL Zoo run folder (needs the train extra)
+
+_USER_FILES: set[str] = set()  # the agent files (path/to/file.py:Class) this process loaded, resolved
 
 
 class Agent(Protocol):
@@ -76,6 +88,21 @@ def _split_file_spec(spec: str) -> tuple[Path, str] | None:
     return None
 
 
+def user_agent_files() -> frozenset[str]:
+    """The resolved paths of the agent files (``path/to/file.py:Class``) loaded in this process: where
+    the command line looks for the line of a user's agent that raised (:mod:`marine_fdi_env.cli.failures`)."""
+    return frozenset(_USER_FILES)
+
+
+def _at_line(exc: BaseException, path: Path) -> str:
+    """`` at FILE:LINE``: the innermost line of ``path`` in the exception's traceback, or ""."""
+    import traceback
+
+    where = str(path.resolve())
+    lines = [fs.lineno for fs in traceback.extract_tb(exc.__traceback__) if str(Path(fs.filename).resolve()) == where]
+    return f" at {path}:{lines[-1]}" if lines else ""
+
+
 def _load_file_agent(path: Path, cls_name: str, spec: str) -> Agent:
     import hashlib
     import importlib.util
@@ -83,6 +110,7 @@ def _load_file_agent(path: Path, cls_name: str, spec: str) -> Agent:
 
     if not path.is_file():
         raise ValueError(f"agent {spec!r}: no such file {str(path)!r}")
+    _USER_FILES.add(str(path.resolve()))
     mod_name = "_marine_fdi_agent_" + hashlib.sha1(str(path.resolve()).encode()).hexdigest()[:12]
     mod = sys.modules.get(mod_name)
     if mod is None:
@@ -93,7 +121,9 @@ def _load_file_agent(path: Path, cls_name: str, spec: str) -> Agent:
             ms.loader.exec_module(mod)
         except Exception as e:  # noqa: BLE001 - any error in a user's file is a bad agent spec
             del sys.modules[mod_name]
-            raise ValueError(f"agent {spec!r}: {path} failed to import ({type(e).__name__}: {e})") from None
+            raise ValueError(
+                f"agent {spec!r}: {path} failed to import ({type(e).__name__}: {e}{_at_line(e, path)})"
+            ) from None
     cls = getattr(mod, cls_name, None)
     if cls is None:
         raise ValueError(f"agent {spec!r}: {path} has no {cls_name!r}")
@@ -101,8 +131,8 @@ def _load_file_agent(path: Path, cls_name: str, spec: str) -> Agent:
         agent = cls()
     except Exception as e:  # noqa: BLE001
         raise ValueError(
-            f"agent {spec!r}: {cls_name}() failed ({type(e).__name__}: {e}); a custom agent class "
-            "must be constructible without arguments"
+            f"agent {spec!r}: {cls_name}() failed ({type(e).__name__}: {e}{_at_line(e, path)}); a custom agent "
+            "class must be constructible without arguments"
         ) from None
     for attr in ("reset", "act"):
         if not callable(getattr(agent, attr, None)):
@@ -133,8 +163,21 @@ def agent_file_stem(spec: str) -> str:
     return p.name if p.exists() else str(spec).replace("/", "_")
 
 
+def zoo_run_model(path: Path) -> Path | None:
+    """The model of an RL Zoo run folder (``python -m rl_zoo3.train`` writes ``logs/ALGO/ENV_ID_N/`` with
+    ``ENV_ID.zip`` beside the folder ``ENV_ID/`` of ``args.yml`` and ``config.yml``), or None."""
+    path = Path(path)
+    if not path.is_dir():
+        return None
+    for f in sorted(path.glob("*.zip")):
+        if (path / f.stem / "args.yml").is_file() and (path / f.stem / "config.yml").is_file():
+            return f
+    return None
+
+
 def load_agent(spec: str) -> Agent:
-    """An agent by name, path or ``file.py:Class`` (see module docstring)."""
+    """An agent by name, path (a model folder with agent.json, or an RL Zoo run folder) or ``file.py:Class``
+    (see module docstring)."""
     spec = str(spec)
     if spec in BUILTIN_AGENTS:
         return _import(BUILTIN_AGENTS[spec], f"built-in agent {spec!r}")()
@@ -169,8 +212,13 @@ def load_agent(spec: str) -> Agent:
                 "no such path, and not path/to/file.py:ClassName"
             )
     meta_file = path / "agent.json" if path.is_dir() else path
+    if path.is_dir() and not meta_file.is_file() and zoo_run_model(path) is not None:
+        return _import(ZOO_AGENT, f"RL Zoo run {path}").from_dir(path)
     if not meta_file.is_file():
-        raise ValueError(f"agent directory {path} has no agent.json")
+        raise ValueError(
+            f"agent directory {path} has no agent.json (nor is it an RL Zoo run folder: ENV_ID.zip beside "
+            "ENV_ID/args.yml)"
+        )
     meta = read_json(meta_file, "agent description")
     if not isinstance(meta, dict) or "class" not in meta:
         raise ValueError(f"{meta_file}: must be a JSON object with a 'class' entry")

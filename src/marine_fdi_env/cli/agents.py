@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
+
+from .failures import fail
 
 __all__ = ["agents_main"]
 
@@ -26,8 +27,7 @@ def agents_main(argv=None) -> int:
     try:
         entries = list_agents()
     except ValueError as e:
-        print(f"marine-fdi agents: error: {e}", file=sys.stderr)
-        return 2
+        return fail("marine-fdi agents", e)
     if args.json:
         print(json.dumps([e.to_dict() for e in entries], indent=2))
         return 0

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +12,7 @@ from ..benchmark.suites import load_suite
 from ..costs import CostEstimate, check_memory, episode_cpu_s, say_cost
 from ..envs.observation import feature_names
 from ..envs.scenario_sampler import get_preset
+from .failures import fail
 
 EPISODE_DECISION_PERIOD_S = 1.0  # the environment's decision period, which the exported episodes keep
 
@@ -35,8 +35,10 @@ Runs the episodes of a frozen suite (--suite) or of a scenario preset (--preset,
 Load either file with marine_fdi_env.benchmark.dataset.load_dataset(path) (the same arrays, bit for
 bit).  Training data must not come from the evaluation suites: use --preset for training.
 
-Finished chunks are kept in OUT/dataset.partial/ until the dataset is written: after Ctrl-C
-(or a lost worker) the same command resumes where it stopped.  A folder that already holds a
+Episodes run in chunks of up to --batch-size (default 64); each finished chunk is kept in
+OUT/dataset.partial/ until the dataset is written: after Ctrl-C (or a lost worker) the same
+command resumes where it stopped, and says how many episodes it kept (none when Ctrl-C came
+before the first chunk finished).  A folder that already holds a
 finished dataset is not overwritten without --force.
 """
 
@@ -101,6 +103,17 @@ def build_parser() -> argparse.ArgumentParser:
     add_backend_args(ap, default_batch=64)
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     return ap
+
+
+def _kept(out: Path | None, scenarios: list | None) -> str:
+    """What an interrupted export keeps, exactly: the episodes of its finished chunks, or nothing."""
+    from ..benchmark.dataset import PARTIAL, kept_episodes
+
+    n = kept_episodes(out) if out is not None else 0
+    if n == 0:
+        return "no chunk of episodes had finished, nothing is kept"
+    total = f" of {len(scenarios)}" if scenarios else ""
+    return f"the {n}{total} episodes of the finished chunks are kept in {out / PARTIAL}"
 
 
 def dataset_main(argv=None) -> int:
@@ -172,9 +185,8 @@ def dataset_main(argv=None) -> int:
             force=args.force,
         )
     except ValueError as e:
-        print(f"marine-fdi dataset: error: {e}", file=sys.stderr)
-        return 2
+        return fail("marine-fdi dataset", e)
     except KeyboardInterrupt:
-        return interrupted("marine-fdi dataset", "finished chunks are kept")
+        return interrupted("marine-fdi dataset", _kept(locals().get("out"), locals().get("scenarios")))
     print(f"wrote {path} and {out / 'scenarios.json'} ({len(scenarios)} episodes)")
     return 0

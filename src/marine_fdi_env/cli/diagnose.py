@@ -16,6 +16,8 @@ from ..runio import load_run
 def cmd_diagnose(args: argparse.Namespace) -> int:
     if args.plots:  # before any work: a missing extra or a bad folder costs nothing
         require_extra("matplotlib", "--plots")
+    if Path(args.run).is_dir():
+        raise UsageError(f"--run: {args.run!r} is a folder; give a .npz run file written by 'marine-fdi simulate'")
     if not Path(args.run).is_file():
         raise UsageError(f"--run: run file {args.run!r} does not exist")
     # checked here, created when written (a run that fails to load leaves no new folder)

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 from ..benchmark.evaluate import evaluate
 from ..errors import UsageError
+from .failures import fail
 
 RESULT_SUFFIXES = (".json", ".parquet")  # the formats a results file is written in
 
@@ -150,8 +150,7 @@ def evaluate_main(argv=None) -> int:
             cache_dir=cache_dir,
         )
     except ValueError as e:
-        print(f"marine-fdi evaluate: error: {e}", file=sys.stderr)
-        return 2
+        return fail("marine-fdi evaluate", e)
     except KeyboardInterrupt:
         return interrupted("marine-fdi evaluate")
     print(markdown_table([result]))

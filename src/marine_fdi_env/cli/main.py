@@ -1,10 +1,10 @@
 """The ``marine-fdi`` command: one parser with a subcommand per job, each in its own module of this package.
 
 The engine's commands (:mod:`.simulation`) and ``diagnose`` (:mod:`.diagnose`) are subparsers here; the
-others (:data:`OWN_PARSER_COMMANDS`) parse their own arguments.  Invalid input ends with a one-line message on
-stderr naming the option and what it allows, and
-exit code 2 (never a traceback).  ``main(argv)`` returns the exit code, so it can be called
-in-process.
+others (:data:`OWN_PARSER_COMMANDS`) parse their own arguments.  Every command runs through
+:func:`.failures.run_command`: invalid input ends with a one-line message on stderr naming the
+option and what it allows, and exit code 2 (a traceback only with ``--debug``).  ``main(argv)``
+returns the exit code, so it can be called in-process.
 """
 
 from __future__ import annotations
@@ -21,8 +21,9 @@ from ..engine.steady_state import FUEL_SETTING_RANGE
 from ..errors import require_extra
 from ..outputs import prepare_out
 from ..scenarios import SCENARIOS
-from .common import PROG, USAGE_ERROR
+from .common import PROG
 from .diagnose import cmd_diagnose
+from .failures import DEBUG_ENV, DEBUG_FLAG, debugging, fail, run_command, split_debug
 from .simulation import (
     DEFAULT_PARAMS,
     FAULT_SPEC_HELP,
@@ -53,6 +54,12 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=fmt,
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    parser.add_argument(
+        DEBUG_FLAG,
+        action="store_true",
+        help=f"on any command, anywhere on its line (or {DEBUG_ENV}=1): print the full traceback "
+        "under an error's one-line message",
+    )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
     p = sub.add_parser(
@@ -326,8 +333,7 @@ def _run_validation_command(command: str, argv: list[str]) -> int:
                 parent.mkdir()
                 created.append(parent)
     except ValueError as e:
-        print(f"{PROG} {command}: error: {e}", file=sys.stderr)
-        return USAGE_ERROR
+        return fail(f"{PROG} {command}", e)
     rc = 1
     try:
         rc = run(argv)
@@ -342,28 +348,32 @@ def _run_validation_command(command: str, argv: list[str]) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the CLI; returns the exit code (0 ok, 2 invalid input, 1 I/O error, 130 interrupted).
+    """Run the CLI; returns the exit code (0 ok, 2 invalid input, 1 a failure that is not the input's
+    fault, 130 interrupted).
 
-    Every command: Ctrl-C prints "interrupted" and returns 130 (commands that write
-    incrementally keep their finished work and resume when rerun); a cold numba cache prints one
-    line before the first compilation (:mod:`marine_fdi_env._coldstart`).
+    Every command ends a failure the same way (:mod:`.failures`: one line, the traceback with
+    ``--debug`` anywhere on the command line); Ctrl-C prints "interrupted" and returns 130 (commands
+    that write incrementally keep their finished work and resume when rerun); a cold numba cache
+    prints one line before the first compilation (:mod:`marine_fdi_env._coldstart`).
     """
-    argv = list(sys.argv[1:] if argv is None else argv)
-    try:
-        from .. import _coldstart
+    argv, debug = split_debug(sys.argv[1:] if argv is None else argv)
+    prog = PROG + (f" {argv[0]}" if argv and not argv[0].startswith("-") else "")
+    with debugging(debug):
+        return run_command(prog, lambda: _dispatch(argv))
 
-        _coldstart.enable(PROG)
-        if argv and argv[0] in _VALIDATION_OUTPUTS:
-            return _run_validation_command(argv[0], argv[1:])
-        if argv and argv[0] in OWN_PARSER_COMMANDS:
-            import importlib
 
-            mod, fn = OWN_PARSER_COMMANDS[argv[0]]
-            return getattr(importlib.import_module(mod), fn)(argv[1:])
-        return _main(argv)
-    except KeyboardInterrupt:  # a command without its own handler, or Ctrl-C while importing
-        print(f"{PROG}{' ' + argv[0] if argv and not argv[0].startswith('-') else ''}: interrupted", file=sys.stderr)
-        return 130
+def _dispatch(argv: list[str]) -> int:
+    from .. import _coldstart
+
+    _coldstart.enable(PROG)
+    if argv and argv[0] in _VALIDATION_OUTPUTS:
+        return _run_validation_command(argv[0], argv[1:])
+    if argv and argv[0] in OWN_PARSER_COMMANDS:
+        import importlib
+
+        mod, fn = OWN_PARSER_COMMANDS[argv[0]]
+        return getattr(importlib.import_module(mod), fn)(argv[1:])
+    return _main(argv)
 
 
 def _main(argv: list[str]) -> int:
@@ -375,26 +385,9 @@ def _main(argv: list[str]) -> int:
     if args.command is None:
         parser.print_help(sys.stderr)
         return 2
-    try:
-        if args.command == "simulate":
-            return cmd_simulate(args, argv)
-        return args.func(args)
-    except ValueError as exc:
-        print(f"{PROG} {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except BrokenPipeError:  # output piped into e.g. head: stop quietly (Python docs' recipe)
-        try:
-            devnull = os.open(os.devnull, os.O_WRONLY)
-            os.dup2(devnull, sys.stdout.fileno())
-        except (OSError, ValueError, AttributeError):
-            pass
-        return 1
-    except OSError as exc:
-        print(f"{PROG} {args.command}: error: {exc}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        print(f"{PROG} {args.command}: interrupted", file=sys.stderr)
-        return 130
+    if args.command == "simulate":
+        return cmd_simulate(args, argv)
+    return args.func(args)
 
 
 def console_main() -> None:

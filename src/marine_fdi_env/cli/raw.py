@@ -11,6 +11,7 @@ from pathlib import Path
 from ..benchmark import rawdata, rawscore
 from ..benchmark.rawdata import export_raw, predict_raw, read_manifest
 from ..benchmark.rawscore import dx_table, score_raw
+from .failures import fail
 
 
 # ----------------------------------------------------------------------------- commands
@@ -55,8 +56,7 @@ def export_raw_main(argv=None) -> int:
         say_export_cost(args.suite)
         man = export_raw(args.suite, out, seed_offset=args.seed_offset, progress=not args.no_progress)
     except ValueError as e:
-        print(f"marine-fdi export-raw: error: {e}", file=sys.stderr)
-        return 2
+        return fail("marine-fdi export-raw", e)
     except KeyboardInterrupt:
         return interrupted("marine-fdi export-raw", "written scenarios are kept")
     n = sum(e["n_samples"] for e in man["scenarios"])
@@ -93,8 +93,7 @@ def predict_raw_main(argv=None) -> int:
         out = prepare_out(args.out, create=False)  # predict_raw creates it after checking data and agent
         predict_raw(args.agent, args.data, out, batch_size=args.batch_size, progress=not args.no_progress)
     except ValueError as e:
-        print(f"marine-fdi predict-raw: error: {e}", file=sys.stderr)
-        return 2
+        return fail("marine-fdi predict-raw", e)
     except KeyboardInterrupt:
         return interrupted("marine-fdi predict-raw", "written files are kept")
     n = len(read_manifest(args.data)["scenarios"])
@@ -154,8 +153,7 @@ def score_raw_main(argv=None) -> int:
             else:
                 args.out.write_text(json.dumps(res, separators=(",", ":")) + "\n")
     except ValueError as e:
-        print(f"marine-fdi score-raw: error: {e}", file=sys.stderr)
-        return 2
+        return fail("marine-fdi score-raw", e)
     except KeyboardInterrupt:
         print("marine-fdi score-raw: interrupted (nothing written)", file=sys.stderr)
         return INTERRUPTED

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
+from ..errors import UsageError
 from ..validation.dataset import load_data_arg
 from ..validation.mechanisms import PHYSICAL_MECHANISMS
 from ..validation.problem import Problem
@@ -15,6 +16,7 @@ from ..validation.replicas import NOISE_MODELS, markdown_table, replicate
 from ..validation.rules import SelectionRules
 from ..validation.selection import select_causes
 from .common import parse_cli
+from .failures import fail
 from .selection_options import add_valve_options
 from .sidecar import check_sidecar_numbers
 
@@ -67,8 +69,11 @@ def replicas_main(argv: Sequence[str] | None = None) -> int:
                 f"--alternatives: unknown physical mechanism(s) {', '.join(sorted(set(alts) - known))}; "
                 f"known: {', '.join(sorted(known))}"
             )
-        check_sidecar_numbers(args.data)
-        ds = load_data_arg(args.data, args.params)
+        try:
+            check_sidecar_numbers(args.data)
+            ds = load_data_arg(args.data, args.params)
+        except ValueError as e:
+            raise UsageError(f"--data: {e}") from None
         rules = SelectionRules(
             max_folds=args.max_folds, beside_valve=args.beside_valve, held_out_valves=args.held_out_valves
         )
@@ -98,8 +103,7 @@ def replicas_main(argv: Sequence[str] | None = None) -> int:
             progress=not args.no_progress,
         )
     except ValueError as e:
-        print(f"replicas: error: {e}", file=sys.stderr)
-        return 2
+        return fail("marine-fdi replicas", e)
     table = markdown_table(rep)
     print(table)
     if args.out:

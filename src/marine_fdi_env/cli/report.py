@@ -7,6 +7,8 @@ import sys
 from typing import Sequence
 
 from ..benchmark.report import _pyplot, write_report
+from ..errors import UsageError
+from .failures import fail
 
 
 def build_report_parser(prog: str = "marine-fdi report") -> argparse.ArgumentParser:
@@ -23,6 +25,9 @@ def build_report_parser(prog: str = "marine-fdi report") -> argparse.ArgumentPar
         help="output folder (default: ./report; created, and its parent if missing, never more levels)",
     )
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots (no matplotlib needed)")
+    p.add_argument(
+        "--force", action="store_true", help="overwrite the report in --out (without it: an error when it has one)"
+    )
     return p
 
 
@@ -39,10 +44,13 @@ def report_main(argv: Sequence[str] | None = None) -> int:
         if not args.no_plots:
             _pyplot()
         out = prepare_out(args.out, "--out", is_dir=True, create=False)  # write_report creates it
+        if (out / "report.md").exists() and not args.force:
+            raise UsageError(
+                f"--out {out} already holds a report (report.md); pass --force to overwrite it, or choose another --out"
+            )
         path = write_report(args.results, out, plots=not args.no_plots)
-    except (ValueError, RuntimeError, OSError) as e:
-        print(f"marine-fdi report: error: {e}", file=sys.stderr)
-        return 2
+    except (ValueError, OSError) as e:
+        return fail("marine-fdi report", e)
     except KeyboardInterrupt:
         print("marine-fdi report: interrupted", file=sys.stderr)
         return 130

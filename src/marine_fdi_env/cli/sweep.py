@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 from pathlib import Path
 
 from ..benchmark import sweep
 from ..benchmark.suites import SUITE_NAMES
 from ..benchmark.sweep import TABLE, run_sweep
+from .failures import fail
 
 
 def say_sweep_cost(agents: list[str], suites: list[str], n_offsets: int, workers: int) -> None:
@@ -66,7 +66,13 @@ def sweep_main(argv=None) -> int:
         metavar="K",
         help="noise seed offsets (default 0): each reruns the suite's scenarios with new noise",
     )
-    ap.add_argument("--out", type=Path, required=True, help="sweep folder (its parent is created if missing)")
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=Path("results") / "sweep",
+        help="sweep folder (default results/sweep; its parent is created if missing); a later sweep into the "
+        "same folder adds its cells to the table",
+    )
     add_backend_args(ap)
     add_cache_args(ap)
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -91,10 +97,16 @@ def sweep_main(argv=None) -> int:
             cache_dir=cache_dir,
         )
     except ValueError as e:
-        print(f"marine-fdi sweep: error: {e}", file=sys.stderr)
-        return 2
+        return fail("marine-fdi sweep", e)
     except KeyboardInterrupt:
-        return interrupted("marine-fdi sweep", "finished chunks are kept")
+        out = locals().get("out")
+        n = sweep.kept_episodes(out) if out is not None else 0
+        kept = (
+            f"the {n} episode records of the finished chunks are kept in {out / sweep.PARTIAL}"
+            if n
+            else "no chunk of episodes had finished, nothing is kept"
+        )
+        return interrupted("marine-fdi sweep", kept)
     run = res["run"]
     print(markdown_table(res["table"]))
     n = sum(r["n_episodes"] for r in res["results"])

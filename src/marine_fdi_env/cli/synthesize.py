@@ -11,6 +11,7 @@ from ..engine.params import list_parameter_sets
 from ..errors import UsageError
 from ..validation.mechanisms import MECHANISM_IDS, parse_mechanism_spec
 from ..validation.synthesize import DEFAULT_COLUMNS, LOAD_RANGE, synthesize
+from .failures import fail
 
 
 def build_parser(prog: str = "marine-fdi synthesize-measurements") -> argparse.ArgumentParser:
@@ -112,8 +113,7 @@ def synthesize_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi s
         out.parent.mkdir(exist_ok=True)
         syn.write(out, args.truth)
     except ValueError as e:
-        print(f"{prog}: error: {e}", file=sys.stderr)
-        return 2
+        return fail(prog, e)
     n = len(next(iter(syn.columns.values())))
     print(
         f"wrote {out} ({n} points, {len(syn.columns)} columns) and {out.name[:-4]}.meta.json"

@@ -9,9 +9,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..envs.fdi_env import ENV_ID
-from ..errors import require_extra
+from ..envs.fdi_env import ENV_ID, ENV_ID_V1
+from ..errors import UsageError, require_extra
+from ..outputs import prepare_out
 from .common import parse_cli
+from .failures import fail
 
 __all__ = ["train_main"]
 
@@ -75,7 +77,13 @@ def train_main(argv=None) -> int:
     )
     ap.add_argument("--algo", choices=("ppo", "ppo_lstm", "classifier"), required=True)
     ap.add_argument("--seed", type=int, default=0, help="random seed; negative: draw one (logged)")
-    ap.add_argument("--env", default=ENV_ID)
+    ap.add_argument(
+        "--env",
+        default=ENV_ID,
+        metavar="ID",
+        help=f"environment id: the entry of training/hyperparams/ALGO.yml and the reward trained on (default "
+        f"{ENV_ID}; {ENV_ID_V1}: the reward derived from the metrics)",
+    )
     ap.add_argument(
         "--hyperparams",
         default=None,
@@ -84,7 +92,9 @@ def train_main(argv=None) -> int:
         "'robust': the noise-invariant agents)",
     )
     ap.add_argument("--out", type=Path, default=None, help="run directory (default training/logs/ALGO_sSEED)")
-    ap.add_argument("--n-timesteps", type=int, default=None, help="override the PPO budget")
+    ap.add_argument(
+        "--n-timesteps", type=int, default=None, metavar="N", help="override the PPO budget (a positive integer)"
+    )
     ap.add_argument("--params", nargs="*", default=[], help="hyperparameter overrides key=value")
     ap.add_argument(
         "--no-cache",
@@ -97,14 +107,18 @@ def train_main(argv=None) -> int:
     try:
         require_extra("torch", "marine-fdi train")
         require_extra("stable_baselines3", "marine-fdi train")
-        from ..training.train import HERE, train_agent
+        from ..training.train import HERE, load_hyperparams, train_agent
 
         over = _parse_params(args.params)
         if args.n_timesteps is not None:
+            if args.n_timesteps < 1:
+                raise UsageError(f"--n-timesteps must be a positive integer, got {args.n_timesteps}")
             over["n_timesteps"] = args.n_timesteps
+        load_hyperparams(args.algo, args.hyperparams or args.env, over)  # its checks, before any work
+        if args.out is not None:
+            prepare_out(args.out, "--out", is_dir=True, create=False)
     except ValueError as e:
-        print(f"marine-fdi train: error: {e}", file=sys.stderr)
-        return 2
+        return fail("marine-fdi train", e)
     seed = args.seed
     if seed < 0:
         seed = int(np.random.SeedSequence().entropy % (2**31))
@@ -128,8 +142,7 @@ def train_main(argv=None) -> int:
             hyperparams=args.hyperparams,
         )
     except ValueError as e:
-        print(f"marine-fdi train: error: {e}", file=sys.stderr)
-        return 2
+        return fail("marine-fdi train", e)
     except KeyboardInterrupt:
         print("marine-fdi train: interrupted", file=sys.stderr)
         return 130

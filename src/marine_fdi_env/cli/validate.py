@@ -11,13 +11,14 @@ from ..engine.params import list_parameter_sets, load_params
 from ..errors import UsageError
 from ..plotting import pyplot
 from ..validation.data_check import column_registry, describe
-from ..validation.dataset import DatasetError, list_shipped, load_data_arg
+from ..validation.dataset import list_shipped, load_data_arg
 from ..validation.matching import TARGETS
 from ..validation.problem import Problem
 from ..validation.report import clean_json, out_path, run_validation, split_engine, summary_lines
 from ..validation.report_markdown import markdown_summary
 from ..validation.report_plots import write_plots
 from ..validation.rules import SelectionRules
+from .failures import fail
 from .selection_options import add_valve_options
 from .sidecar import check_sidecar_numbers
 
@@ -167,8 +168,8 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
         try:
             check_sidecar_numbers(args.data)
             ds = load_data_arg(args.data, args.params if args.params in list_parameter_sets() else None)
-        except DatasetError as e:
-            raise ValueError(f"--data: {e}") from None
+        except ValueError as e:
+            raise UsageError(f"--data: {e}") from None
         holdout = None
         notes = []
         if args.holdout_engine is not None:
@@ -181,8 +182,8 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
                 holdout = load_data_arg(
                     args.holdout, args.params if args.params in list_parameter_sets() else ds.params_name
                 )
-            except DatasetError as e:
-                raise ValueError(f"--holdout: {e}") from None
+            except ValueError as e:
+                raise UsageError(f"--holdout: {e}") from None
         problem = Problem(ds, target=args.target, params=params) if args.tolerance or args.check else None
         tolerances = problem.stated_tolerances(args.tolerance) if args.tolerance else None
         if args.check:
@@ -229,12 +230,8 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
             rep["replicas"] = clean_json(
                 replicate(sel, replicas=args.replicas, workers=args.workers, progress=not args.quiet)
             )
-    except RuntimeError as e:  # a missing optional extra
-        print(f"{prog}: error: {e}", file=sys.stderr)
-        return 2
     except ValueError as e:
-        print(f"{prog}: error: {e}", file=sys.stderr)
-        return 2
+        return fail(prog, e)
     except KeyboardInterrupt:
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130
