@@ -55,6 +55,9 @@ def load_hyperparams(algo: str, env_id: str = ENV_ID, overrides: dict | None = N
         raise ValueError(f"{f}: no entry {env_id!r} (has {', '.join(data)})")
     hp = dict(data[env_id])
     hp.update(overrides or {})
+    n = hp.get("n_timesteps")
+    if n is not None and (isinstance(n, bool) or not isinstance(n, int) or n < 1):
+        raise ValueError(f"n_timesteps must be a positive integer, got {n!r}")
     return hp
 
 

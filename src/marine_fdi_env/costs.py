@@ -15,6 +15,7 @@ from .errors import UsageError
 
 __all__ = [
     "available_memory_bytes",
+    "address_space_left_bytes",
     "check_memory",
     "CostEstimate",
     "say_cost",
@@ -91,14 +92,42 @@ def fmt_seconds(s: float) -> str:
     return f"{s:.0f} s"
 
 
+def address_space_left_bytes() -> int | None:
+    """What this process may still map under its address-space limit (``RLIMIT_AS``, ``ulimit -v``): the
+    limit less the address space in use (``VmSize`` of /proc/self/status); None without a limit."""
+    try:
+        import resource
+
+        soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    except (ImportError, OSError, ValueError, AttributeError):
+        return None
+    if soft == resource.RLIM_INFINITY or soft < 0:
+        return None
+    used = 0
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("VmSize:"):
+                    used = int(line.split()[1]) * 1024
+                    break
+    except (OSError, ValueError, IndexError):
+        pass
+    return max(0, int(soft) - used)
+
+
 def check_memory(need_bytes: float, what: str, option: str) -> None:
     """A :class:`UsageError` naming ``option`` and the limit when ``need_bytes`` exceed the memory
-    available, before anything is allocated."""
-    have = available_memory_bytes()
+    available (the machine's, or less under the process's address-space limit), before anything is
+    allocated."""
+    machine, limit = available_memory_bytes(), address_space_left_bytes()
+    if limit is not None and (machine is None or limit < machine):
+        have, where = limit, "left under this process's address-space limit (ulimit -v)"
+    else:
+        have, where = machine, "available"
     if have is not None and need_bytes > have:
         raise UsageError(
             f"{option}: {what} needs about {fmt_bytes(need_bytes)} of memory, more than the "
-            f"{fmt_bytes(have)} available; ask for less"
+            f"{fmt_bytes(have)} {where}; ask for less"
         )
 
 

@@ -27,6 +27,7 @@ def prepare_out(path: "str | Path", option: str = "--out", *, is_dir: bool = Tru
             raise UsageError(
                 f"{option}: folder {str(parent.parent)!r} does not exist (only the parent of {option} is created)"
             )
+        _check_writable(parent.parent, option, p)
         if create:
             parent.mkdir()
     elif not parent.is_dir():
@@ -34,11 +35,31 @@ def prepare_out(path: "str | Path", option: str = "--out", *, is_dir: bool = Tru
     if is_dir:
         if p.exists() and not p.is_dir():
             raise UsageError(f"{option} must be a folder, got the file {str(p)!r}")
+        if p.is_dir():
+            _check_writable(p, option, p)
+        elif parent.is_dir():
+            _check_writable(parent, option, p)
         if create:
             p.mkdir(exist_ok=True)
     elif p.is_dir():
         raise UsageError(f"{option} must be a file path, got the folder {str(p)!r}")
+    elif parent.is_dir():
+        _check_writable(parent, option, p)
     return p
+
+
+def _check_writable(folder: Path, option: str, path: Path) -> None:
+    """A :class:`UsageError` naming ``option`` when no file can be created in ``folder`` (tried with a
+    temporary file, removed at once: permissions alone do not tell, e.g. for root or a read-only mount)."""
+    import tempfile
+
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as e:
+        raise UsageError(
+            f"{option} {str(path)!r}: cannot write in the folder {str(folder)!r} ({e.strerror or e})"
+        ) from None
 
 
 def check_suffix(path: "str | Path", option: str, allowed: tuple[str, ...], what: str) -> Path:

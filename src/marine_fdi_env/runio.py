@@ -342,6 +342,8 @@ def load_run(path: "str | os.PathLike[str]", *, allow_nonfinite: bool = False) -
     fault values must always be finite.
     """
     path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"{str(path)!r} is a folder; a run file is a .npz file written by 'marine-fdi simulate'")
     if not path.is_file():
         raise ValueError(f"run file {str(path)!r} does not exist")
     where = f"run file {str(path)!r}"

@@ -46,7 +46,9 @@ from ..engine.faults import FAULT_IDS
 from ..envs.scenario_sampler import ScenarioSpec, with_noise_scale
 from ..envs.vector import MarineFDIVectorEnv
 
-__all__ = ["export_dataset", "load_dataset", "dataset_chunk", "dataset_bytes", "FORMATS"]
+__all__ = ["export_dataset", "load_dataset", "dataset_chunk", "dataset_bytes", "kept_episodes", "FORMATS", "PARTIAL"]
+
+PARTIAL = "dataset.partial"  # the folder of finished chunks inside OUT_DIR, until the dataset is written
 
 FORMATS = ("npz", "parquet")
 _COL = {f: j for j, f in enumerate(FAULT_IDS)}
@@ -139,7 +141,7 @@ def export_dataset(
     env_json = _env_json(env_kwargs)
     scen_json = [dict(s.to_dict(), truth=s.truth()) for s in scenarios]
     key = hashlib.sha256(json.dumps({"env": env_json, "scenarios": scen_json}, sort_keys=True).encode()).hexdigest()
-    part_dir = out_dir / "dataset.partial"
+    part_dir = out_dir / PARTIAL
     head = json.loads(
         json.dumps(
             {
@@ -199,6 +201,15 @@ def export_dataset(
     (out_dir / "scenarios.json").write_text(json.dumps({"env": env_json, "scenarios": scen_json}, indent=1) + "\n")
     shutil.rmtree(part_dir, ignore_errors=True)
     return path
+
+
+def kept_episodes(out_dir: "str | Path") -> int:
+    """Episodes of an unfinished export in ``out_dir`` whose chunk finished (a rerun does not redo them)."""
+    n = 0
+    for f in (Path(out_dir) / PARTIAL).glob("chunk_*_*.npz"):
+        if not f.name.endswith(".tmp.npz"):
+            n += int(f.stem.rsplit("_", 1)[1])
+    return n
 
 
 def _read_head(part_dir: Path) -> dict | None:

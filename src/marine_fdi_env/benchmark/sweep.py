@@ -41,7 +41,7 @@ from .evaluate import cached_agent, chunk_tasks, evaluate_chunk, suite_caches, s
 from .records import sweep_results  # noqa: F401 - part of this module's API
 from .suites import SUITE_NAMES, load_suite
 
-__all__ = ["run_sweep", "sweep_results"]
+__all__ = ["run_sweep", "sweep_results", "kept_episodes"]
 
 PARTIAL = "sweep.partial.jsonl"
 TABLE = "episodes.parquet"
@@ -69,6 +69,22 @@ def _expand_suites(suites: list[str]) -> list[str]:
 
 def _key(rec: dict) -> tuple:
     return (rec["agent_spec"], rec["suite"], int(rec["seed_offset"]), rec["scenario_id"])
+
+
+def kept_episodes(out_dir: "str | Path") -> int:
+    """Episode records an unfinished sweep in ``out_dir`` holds (a rerun does not redo them)."""
+    try:
+        lines = (Path(out_dir) / PARTIAL).read_text().splitlines()
+    except OSError:
+        return 0
+    n = 0
+    for ln in lines[1:]:  # the first line is the grid
+        try:
+            json.loads(ln)
+            n += 1
+        except json.JSONDecodeError:
+            pass
+    return n
 
 
 def _load_partial(path: Path, header: dict) -> dict[tuple, dict]:

@@ -56,7 +56,7 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 
 from ..engine.params import EngineParams, list_parameter_sets, load_params
-from ..errors import DatasetError
+from ..errors import DataFileError, DatasetError
 from .boundary_readings import BOUNDARY_OUTLIER_Z, boundary_conditions, cylinder_groups
 from .columns import ID_COLUMNS, QUANTITIES, ColumnSpec, column_problem, lookup_column, resolve_quantity
 from .plausibility import ENVELOPE, SETPOINT_QUANTITIES, check_across_engines, check_duplicates, check_values
@@ -413,9 +413,14 @@ def load_dataset(
 
     # ---- CSV
     try:
-        content = text if text is not None else path.read_text()
+        content = text if text is not None else path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise DatasetError(source, [Problem("error", f"no such file {path}")]) from None
+    except UnicodeDecodeError as e:  # one line: nothing else can be checked in a file that cannot be read
+        line = e.object[: e.start].count(b"\n") + 1
+        raise DataFileError(
+            f"{path}: not UTF-8 text (byte 0x{e.object[e.start]:02x} on line {line}); save the CSV as UTF-8"
+        ) from None
     rows = list(csv.reader(io.StringIO(content)))
     while rows and not any(c.strip() for c in rows[-1]):
         rows.pop()
@@ -532,6 +537,10 @@ def _read_sidecar(
                 )
         except json.JSONDecodeError as e:
             err(f"sidecar {meta_path.name} is not valid JSON: {e}")
+        except UnicodeDecodeError:
+            err(f"sidecar {meta_path.name} is not UTF-8 text; save it as UTF-8")
+        except IsADirectoryError:
+            err(f"sidecar {meta_path.name} is a folder, not a JSON file")
     return meta_d
 
 
@@ -742,6 +751,11 @@ def load_data_arg(text: str, params: str | None = None) -> MeasuredDataset:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DataWarning)
         p = Path(text)
+        if p.is_dir():
+            raise ValueError(
+                f"{text!r} is a folder; give a CSV file (with its sidecar FILE.meta.json beside it) or a shipped "
+                f"dataset name ({', '.join(list_shipped())})"
+            )
         if p.exists():
             return load_dataset(p, params=params)
         if text in list_shipped():
