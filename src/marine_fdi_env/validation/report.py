@@ -16,11 +16,15 @@ submodels) that the simulator, the steady-state solver, the environment and the 
 ``man_12v32_40_fpp_iso``).  ``--holdout-engine ID`` leaves one engine of ``--data`` out of everything
 (fit and cross-validation) and reports the fitted model on it.
 
-Report keys: ``dataset`` (with ``columns``: what happens to every column, ``boundary_outliers``),
+Report keys, first ``what_the_data_allow`` (:mod:`.conclusion`: how many explanations the data do not decide
+between, the first-ranked one, the measurement that decides, where the forward selection's path ends among
+them), then ``dataset`` (with ``columns``: what happens to every column, ``boundary_outliers``),
 ``model``, ``settings``, ``channels`` (per channel: tolerance, the base model's bias / RMSE as it is,
 ``cv_rmse_base`` of the base calibrated within its uncertainty, ``cv_rmse_extended``, ``cv_gain`` against
 the base as it is, and with a hold-out ``holdout_rmse_*``), ``discrepancies`` (the base model's, ranked),
-``candidates``, ``steps``, ``selected_causes`` / ``selected_labels``, ``alternatives``, ``cause_notes``
+``candidates``, ``steps``, ``selected_causes`` / ``selected_labels`` (the forward selection's path: one
+cause added per step until none earns its place; kept under these names for existing readers, it is not a
+ranking of what the data allow), ``alternatives``, ``cause_notes``
 (per cause: a bound its fit touches without the data wanting more, parameters the data do not determine),
 ``parameters`` (fitted values with standard errors), ``nuisance`` (the calibration within uncertainty), ``activity``
 (per valve-type cause:
@@ -43,6 +47,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ..engine.params import EngineParams, engine_file_dict, list_parameter_sets
+from .conclusion import lead_line, what_the_data_allow
 from .dataset import MeasuredDataset, load_data_arg
 from .explanation_report import explain
 from .explanation_report import summary_lines as explanation_summary_lines
@@ -408,6 +413,7 @@ def run_validation(
             return clean_json({k: v for k, v in r.items() if not k.startswith("_")})
 
         rep.update(clean_json(explain(sel, holdout=each if holdout is not None else None, say=progress)))
+    rep = {"what_the_data_allow": clean_json(what_the_data_allow(rep)), **rep}  # the report leads with it
     if ho is not None:
         hf = holdout_evaluation(sel, holdout, conditions="fit")
         if hf["conditions"]["filled"]:
@@ -418,8 +424,8 @@ def run_validation(
 
 def summary_lines(rep: Mapping[str, Any]) -> list[str]:
     lines = [
-        f"{rep['dataset']['name']} ({rep['model']['params']}, matched on {rep['model']['target']}, "
-        f"{rep['cv']['scheme']}): selected causes: {', '.join(rep['selected_labels']) or 'none'}"
+        lead_line(rep),
+        f"  the forward selection's path (selected_causes): {', '.join(rep['selected_labels']) or 'none'}",
     ]
     prof = next((e.get("profiles") or {} for e in rep.get("explanations") or () if e["named"]), {})
     for lab, ps in rep["parameters"].items():

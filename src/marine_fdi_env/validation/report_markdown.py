@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from typing import Any, Mapping
 
+from .conclusion import lead_markdown, selection_path_markdown
 from .explanation_report import interval as explanation_interval
 from .explanation_report import markdown_lines as explanation_markdown
 
@@ -51,6 +52,8 @@ def markdown_summary(rep: Mapping[str, Any], title: str | None = None) -> str:
         + f"; operating points matched on {rep['model']['target']} ({', '.join(rep['model']['target_columns'])}); "
         f"cross-validation: {rep['cv']['scheme']} ({rep['cv']['n_folds']} folds)."
     )
+    L.append("")
+    L.append(lead_markdown(rep))
     L.append("")
     nc = rep.get("not_compared") or []
     if nc:
@@ -128,7 +131,7 @@ def markdown_summary(rep: Mapping[str, Any], title: str | None = None) -> str:
         best = f"best `{s['best']}`" if s.get("best") else "no eligible candidate"
         L.append(f"* step {s['step']}: {best}, {s['decision']}")
     L.append("")
-    L.append(f"**Selected causes: {', '.join(f'`{x}`' for x in rep['selected_labels']) or 'none'}.**")
+    L.append(selection_path_markdown(rep))
     L.append("")
     for lab, alts in (rep.get("alternatives") or {}).items():
         if alts:
