@@ -51,15 +51,18 @@ def _help(cmd: str) -> str:
 
             code = main([*cmd.split()[1:], "--help"])
         else:
-            saved = sys.argv
-            sys.argv = [cmd.split()[-1], "--help"]
+            name = cmd.split()[-1]
+            saved, imported = sys.argv, sys.modules.pop(name, None)  # run as __main__, not over an import of it
+            sys.argv = [name, "--help"]
             try:
-                runpy.run_module(cmd.split()[-1], run_name="__main__")
+                runpy.run_module(name, run_name="__main__")
                 code = 0
             except SystemExit as e:
                 code = e.code or 0
             finally:
                 sys.argv = saved
+                if imported is not None:
+                    sys.modules[name] = imported
     assert code == 0, f"{cmd} --help failed: {err.getvalue()[-500:]}"
     return out.getvalue()
 

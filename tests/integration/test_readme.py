@@ -48,7 +48,7 @@ README = ROOT / "README.md"
 MINI_DURATION_S = 20.0
 MINI_EPISODES = 3
 MINI_TIMESTEPS = 512
-MINI_ENVS = 4
+MINI_ENVS = 16  # 16 engines x the block's 64-step rollout = its mini-batch of 1024: no truncated mini-batch
 SKIP = ("python -m venv", "python -m pip install", "python -m pytest")
 OUTPUT_OPTIONS = ("--out",)
 

@@ -284,13 +284,16 @@ def test_make_vec_env_works_unchanged_and_the_gated_wrapper_declares():
         venv = make_vec_env("marine_fdi_env:MarineFDI-v1", n_envs=2, seed=0, env_kwargs={"scenario_config": SHORT})
     assert any("rendering is off" in str(w.message) for w in caught)
     assert venv.reset().shape == (2, NF) and venv.render_mode is None
-    gated = make_vec_env(
-        "marine_fdi_env:MarineFDI-v1",
-        n_envs=2,
-        seed=0,
-        wrapper_class=GatedAction,
-        env_kwargs={"scenario_config": SHORT},
-    )
+    with warnings.catch_warnings(record=True) as caught:  # the same render_mode warning, said once above
+        warnings.simplefilter("always")
+        gated = make_vec_env(
+            "marine_fdi_env:MarineFDI-v1",
+            n_envs=2,
+            seed=0,
+            wrapper_class=GatedAction,
+            env_kwargs={"scenario_config": SHORT},
+        )
+    assert any("rendering is off" in str(w.message) for w in caught)
     gated.reset()
     _, rew, _, infos = gated.step(np.array([[0, 5, 9], [1, 0, 0]]))  # quiet; alarm with no fault named
     assert infos[0]["declared"] == [] and not infos[0]["alarm"]

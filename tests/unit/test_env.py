@@ -16,6 +16,9 @@ from marine_fdi_env.envs.scenario_sampler import PRESETS, ScenarioConfig, Scenar
 from marine_fdi_env.envs.vector import MarineFDIVectorEnv
 from marine_fdi_env.envs.wrappers import DiscreteHypothesis
 
+# this module is about MarineFDI-v0, whose making Gymnasium flags as out of date beside v1: said once here
+pytestmark = pytest.mark.filterwarnings("ignore:.*MarineFDI-v0 is out of date:DeprecationWarning")
+
 # short episodes keep the suite fast; every fault kind, 0-2 faults, all profile families
 SHORT = ScenarioConfig(
     name="short",

@@ -202,7 +202,7 @@ def test_fitted_engine_file_runs_everywhere(waste_gate_validation):
 
     import marine_fdi_env  # noqa: F401
 
-    env = gym.make("marine_fdi_env:MarineFDI-v0", params=str(eng_file))
+    env = gym.make("marine_fdi_env:MarineFDI-v1", params=str(eng_file))
     obs, _ = env.reset(seed=0)
     obs, *_ = env.step(env.action_space.sample())
     assert np.all(np.isfinite(obs))
