@@ -29,6 +29,7 @@ EXTRAS: dict[str, str] = {
     "ray": "ray",
     "torch": "train",
     "stable_baselines3": "train",
+    "rl_zoo3": "zoo",
 }
 
 
