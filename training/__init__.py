@@ -12,13 +12,13 @@
 * :mod:`marine_fdi_env.training.sb3_inference` - a PPO policy loaded alone and its deterministic actions, bit
   for bit SB3's ``predict`` without its per-call work.
 
-``SB3VecEnv`` and ``save_sb3_agent`` are importable from here (loaded on first use, so that importing
-this package needs no extra)::
+``SB3VecEnv``, ``save_sb3_agent`` and ``ProgressLine`` (:mod:`.progress_line`: a line of progress while SB3
+trains) are importable from here (loaded on first use, so that importing this package needs no extra)::
 
-    from marine_fdi_env.training import SB3VecEnv, save_sb3_agent
+    from marine_fdi_env.training import ProgressLine, SB3VecEnv, save_sb3_agent
 """
 
-__all__ = ["SB3VecEnv", "save_sb3_agent"]
+__all__ = ["SB3VecEnv", "save_sb3_agent", "ProgressLine"]
 
 
 def __getattr__(name: str):
@@ -26,6 +26,10 @@ def __getattr__(name: str):
         from .vec_adapter import SB3VecEnv
 
         return SB3VecEnv
+    if name == "ProgressLine":
+        from .progress_line import ProgressLine
+
+        return ProgressLine
     if name == "save_sb3_agent":
         from .artifacts import save_sb3_agent
 
