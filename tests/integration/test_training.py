@@ -336,3 +336,31 @@ def test_save_sb3_agent_makes_an_agent_that_evaluates(tmp_path):
     x = np.concatenate([raw, reference_features(infos["reference"], len(raw))], axis=1)
     agent.reset([0, 1])
     assert np.array_equal(agent.act(raw, infos), to_belief(model.predict(x, deterministic=True)[0], "gated"))
+
+
+def test_progress_line_prints_progress_and_changes_nothing_in_the_training():
+    """The README block's ProgressLine: lines with the steps done of the total, and the same policy as without it."""
+    import io
+
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from marine_fdi_env.training import ProgressLine
+
+    def trained(callback):
+        torch.set_num_threads(1)
+        venv = SB3VecEnv(num_envs=4, scenario_config=SHORT, action_mode="gated", reference_features=True, seed=0)
+        model = PPO("MlpPolicy", VecNormalize(venv, norm_obs=False, gamma=0.5), n_steps=16, batch_size=32,
+                    n_epochs=2, gamma=0.5, seed=0, device="cpu")  # fmt: skip
+        model.learn(total_timesteps=128, callback=callback)
+        return torch.cat([p.detach().flatten() for p in model.policy.parameters()])
+
+    stream = io.StringIO()
+    with_line = trained(ProgressLine(every_s=1e-6, stream=stream))
+    assert torch.equal(with_line, trained(None))
+    lines = stream.getvalue().splitlines()
+    assert len(lines) >= 2 and lines[-1].startswith("ppo: 128/128 steps (100 %), ")
+    assert "reward per decision" in lines[0]  # the mean since the previous line (none after the last)
+    with pytest.raises(ValueError, match="every_s"):
+        ProgressLine(every_s=0)
