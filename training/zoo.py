@@ -132,6 +132,6 @@ def _refuse_obs_normalisation(pkl: Path) -> None:
     if getattr(norm, "norm_obs", False):
         raise ValueError(
             f"{pkl}: the run normalises observations (normalize: norm_obs=True); this loader acts on raw "
-            "observations: train with normalize: \"dict(norm_obs=False, norm_reward=True)\" as the shipped "
+            'observations: train with normalize: "dict(norm_obs=False, norm_reward=True)" as the shipped '
             "hyperparameters do"
         )
