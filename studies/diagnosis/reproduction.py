@@ -16,10 +16,14 @@ Columns (:data:`COLUMNS`): ``local`` (the reference as it ships: `reference`), t
   measurement" read by its noise rule (noise = 3 % of the maximum, so X % is X/3 noise bounds) with
   ``--seeds`` seeds; onset 30 s;
 * the 7 process faults (6.2) at their table 6.4 sizes and onsets, ``--seeds`` seeds;
-* the four examples of 6.4 (:func:`~.kpis.scenario_checks`), ``--seeds`` seeds;
+* the four examples of 6.4, ``--seeds`` seeds, the minimal diagnoses with the column's sized cells at
+  the end and at the time of the thesis's interim set;
 * table 6.10 (:func:`~.kpis.detectability_limits` of the process faults, ``--limit-seeds`` seeds);
 * false alarms: ``--hours`` fault-free engine-hours over the five profile families
-  (:func:`~.kpis.false_alarms`).
+  (:func:`~.kpis.false_alarms`);
+* the column's agent (``reference``, ``reference-lipschitz``, ..., ``sequential``) on every frozen
+  suite (``marine-fdi evaluate``, records in ``results/reproduction/suites/``): what a reading costs
+  in isolation and false alarms where the benchmark scores it.
 
 Seeds: ``--first-seed`` (4,000,000) onwards and fault-free entropy 9.5e9 onwards, disjoint from every
 seed any setting of the diagnosers or of the readings was chosen on (the certainty grid 1e6-3e6, the
@@ -33,6 +37,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from pathlib import Path
@@ -42,8 +47,9 @@ from marine_fdi_env.diagnosis.modules import MODULE_IDS, MODULES
 from marine_fdi_env.diagnosis.thresholds import DEFAULT_THRESHOLDS, THRESHOLD_READINGS
 from marine_fdi_env.engine.faults import PROCESS_FAULT_DEFAULTS, PROCESS_FAULT_IDS, FaultSpec
 from marine_fdi_env.engine.sensors import SENSOR_IDS, SENSORS
+from marine_fdi_env.scenarios import SCENARIOS, get_scenario
 
-from .kpis import SENSOR_ONSET_S, detectability_limits, false_alarms, scenario_checks
+from .kpis import SENSOR_ONSET_S, detectability_limits, false_alarms
 
 __all__ = ["COLUMNS", "measure_column", "sensor_sizes", "main"]
 
@@ -110,6 +116,84 @@ def _fault_runs(jobs: list[tuple[str, str, float]], n_seeds: int, seed0: int, op
     return out
 
 
+def _interim_times() -> dict[str, float]:
+    """Per example the time its interim diagnosis set is read at: 1 s before the end of the interval
+    the thesis states it for (the next event, the time of its final set)."""
+    from .thesis_claims import claims
+
+    final = {c.scenario: c.time_s for c in claims("final_set")}
+    return {c.scenario: float(math.floor(final[c.scenario]) - 1.0) for c in claims("interim_set")}
+
+
+def _scenario_runs(n_seeds: int, seed0: int, options: dict) -> dict:
+    """The four examples of 6.4 over ``n_seeds`` seeds (``marine-fdi simulate --scenario NAME --seed
+    S``), exoneration by the column's sized cells: per run the module firing times [s, absolute], the
+    first detection, the minimal diagnoses at the interim time (:func:`_interim_times`) and at the end."""
+    interim = _interim_times()
+    out = {}
+    for k, name in enumerate(SCENARIOS):
+        sc = get_scenario(name)
+        seeds = [seed0 + 1000 * k + i for i in range(n_seeds)]
+        at = interim.get(name)
+        seen: list = [None] * n_seeds
+
+        def grab(agent, engines, blk, at=at, seen=seen):
+            if at is not None and blk.t[0] <= at + 1e-9 <= blk.t[-1] + 1e-9:
+                for j, i in enumerate(range(engines.start, engines.stop)):
+                    seen[i] = [sorted(d) for d in agent.diagnoses(j)] if agent.detected[j] else []
+
+        reps = diagnose_batch(
+            [sc.fault_specs()] * n_seeds, seeds, sc.profile, sc.duration_s, block_samples=100, on_block=grab, **options
+        )
+        out[name] = {
+            "faults": [f.to_dict() for f in sc.fault_specs()],
+            "interim_at_s": at,
+            "runs": [
+                {
+                    "seed": sd,
+                    "first_s": r["first_detection_time_s"] if r["detected"] else None,
+                    "modules_s": [r["module_detection_times_s"][m] for m in MODULE_IDS],
+                    "final": r["final_minimal_diagnoses"],
+                    "interim": seen[i],
+                }
+                for i, (sd, r) in enumerate(zip(seeds, reps))
+            ],
+        }
+    return out
+
+
+def column_agent(column: str) -> str:
+    """The benchmark agent of a column: ``reference``, ``reference-lipschitz``, ..., ``sequential``."""
+    if column in ("sequential", DEFAULT_THRESHOLDS):
+        return "sequential" if column == "sequential" else "reference"
+    return "reference-" + column.removeprefix("thesis-")
+
+
+def _suite_metrics(column: str, folder: Path) -> dict:
+    """The column's agent on every frozen suite (``marine-fdi evaluate``): per suite the episodes,
+    faulty episodes, exact isolations, detections and false alarms (the records in ``folder``)."""
+    from marine_fdi_env.benchmark.evaluate import evaluate_agents
+    from marine_fdi_env.benchmark.suites import SUITE_NAMES
+
+    agent = column_agent(column)
+    folder.mkdir(parents=True, exist_ok=True)
+    out = {}
+    for suite in SUITE_NAMES:
+        path = folder / f"{agent}_{suite}.json"
+        res = evaluate_agents([agent], suite, [path], progress=False)[0]
+        m = res["metrics"]
+        out[suite] = {
+            "episodes": m["n_episodes"],
+            "faulty": m["n_faulty"],
+            "isolated": int(round(m["isolation_accuracy"] * m["n_faulty"])) if m["n_faulty"] else 0,
+            "detected": int(round(m["detection_rate"] * m["n_faulty"])) if m["n_faulty"] else 0,
+            "false_alarms": m["n_false_alarms"],
+            "fault_free_hours": m["fault_free_hours"],
+            "false_alarm_episodes": int(round(m["false_alarm_episode_rate"] * m["n_episodes"])),
+        }
+    return out
+
+
 def measure_column(
     column: str,
     pct_of_max: dict[str, float | None],
@@ -118,6 +202,7 @@ def measure_column(
     limit_seeds: int,
     hours: float,
     first_seed: int = FIRST_SEED,
+    suite_dir: Path = WORK / "suites",
     log=print,
 ) -> dict:
     """Every measurement of one column (module docstring); timings in ``cpu_s``."""
@@ -144,10 +229,7 @@ def measure_column(
             out["sensor"][s].update(labels)
     proc_jobs = [(f, "table", PROCESS_FAULT_DEFAULTS[f].magnitude) for f in PROCESS_FAULT_IDS]
     out["process"] = timed("process", lambda: _fault_runs(proc_jobs, seeds, first_seed + 200_000, opts))
-    out["scenarios"] = timed(
-        "scenarios",
-        lambda: scenario_checks(seeds, first_seed + 300_000, diagnoser=diagnoser, thresholds=thresholds),
-    )
+    out["scenarios"] = timed("scenarios", lambda: _scenario_runs(seeds, first_seed + 300_000, opts))
     out["min_detectable"] = timed(
         "min_detectable",
         lambda: detectability_limits(
@@ -161,6 +243,7 @@ def measure_column(
     )
     fa = timed("false_alarms", lambda: false_alarms(hours, FA_ENTROPY0, thresholds=thresholds))
     out["false_alarms"] = fa["sequential" if column == "sequential" else "reference"]
+    out["suites"] = timed("suites", lambda: _suite_metrics(column, suite_dir))
     return out
 
 
@@ -206,7 +289,16 @@ def main(argv=None) -> int:
                 if old.get("settings") == settings:
                     print(f"{col}: measured ({path})")
                     continue
-            data = measure_column(col, pct, args.seeds, args.kpi_seeds, args.limit_seeds, args.hours, args.first_seed)
+            data = measure_column(
+                col,
+                pct,
+                args.seeds,
+                args.kpi_seeds,
+                args.limit_seeds,
+                args.hours,
+                args.first_seed,
+                suite_dir=args.work_dir / "suites",
+            )
             data["settings"] = settings
             path.write_text(json.dumps(data) + "\n")
             print(f"wrote {path}")

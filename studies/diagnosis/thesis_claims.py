@@ -87,6 +87,8 @@ __all__ = [
     "COUNTS",
     "THESIS_TEXT",
     "TABLE_6_3",
+    "TABLE_ONE_CELLS",
+    "NOISE_SHARE_PCT",
     "claims",
     "claim",
     "diagnoses",
@@ -430,8 +432,7 @@ _PROCESS_CLAIMS: tuple[ThesisClaim, ...] = (
         "turbine_seal_leak",
         "f_{x,tur}^(3)",
         1262,
-        "In both cases, this process fault was detected successfully and in a relatively short time after it "
-        "occurred.",
+        "In both cases, this process fault was detected successfully and in a relatively short time after it occurred.",
         "relatively short time",
         "-",
         15.0,
@@ -687,7 +688,9 @@ _Q644_104 = (
 )
 
 _N641_175 = "D^(3) = [0 0 0 1 1] (M3.4, M3.5 set), D^(2) and D^(4) zero, from 175 s."
-_N641_235 = "From 235 s: D^(2) = [0 1 0 1 0 0] (M2.2, M2.4), D^(3) = [0 0 0 1 1] unchanged, D^(4) = [0 1 0 0 0 0] (M4.2)."
+_N641_235 = (
+    "From 235 s: D^(2) = [0 1 0 1 0 0] (M2.2, M2.4), D^(3) = [0 0 0 1 1] unchanged, D^(4) = [0 1 0 0 0 0] (M4.2)."
+)
 _N642_146 = "D^(2) = [0 0 1 1 0 0] (M2.3, M2.4) from 146.1 s; the other agents' vectors are empty."
 _N642_201 = (
     "D^(2) = [1 1 1 1 0 0] (M2.1, M2.2 added) from 201.6 s, 1.6 s after the valve_seizing onset (200 s); the "
@@ -991,8 +994,11 @@ def _spread(module: str, fault: str) -> ThesisClaim:
         "noise of the same amplitude and different realisations",
         size_pct_of_max=None,
         note=f"Table {_TABLE_OF_AGENT[module[1]]} cell ({module}, {fault}) = 1; "
-        + ("the module's own sensor (also in the narrow reading, one sigma per module)." if own else "not the "
-           "module's own sensor (only in the wide reading).")
+        + (
+            "the module's own sensor (also in the narrow reading, one sigma per module)."
+            if own
+            else "not the module's own sensor (only in the wide reading)."
+        )
         + "  Std over the 100 runs of the delay T_D - T_f (eq. 6.1-6.2); fig. 6.35 is missing.",
         thesis_symbol=f"f_{fault[3]}^({fault[1]})",
     )

@@ -24,11 +24,11 @@ import sys
 
 import numpy as np
 
-from marine_fdi_env.diagnosis.residuals import _SIDE_COLS, _T_OUT_COL, model_terms
+from marine_fdi_env.diagnosis.residuals import model_terms
 from marine_fdi_env.diagnosis.thresholds import GLOBAL_BOUNDS_FILE, SENSOR_TERMS, STATE_TERM
 from marine_fdi_env.engine.constants import model_constants
 from marine_fdi_env.engine.params import load_params
-from marine_fdi_env.engine.sensors import NOISE_BOUNDS
+from marine_fdi_env.engine.sensors import NOISE_BOUNDS, sensor_index
 from marine_fdi_env.engine.simulator import Simulator
 from studies.paths import PACKAGE_DATA
 
@@ -47,25 +47,23 @@ def envelope_bounds(params: str, runs: int, every_s: float, entropy0: int = ENTR
     sim = Simulator(params, runs, seeds=[s for _, s in drawn], profiles=[p for p, _ in drawn], noise_scale=0.0)
     res = sim.run(DURATION_S)
     every = max(1, int(round(every_s / sim.dt)))
-    cols = _SIDE_COLS[0]
-    y = res.measurements[::every]  # (T, N, 19) noise-free readings = true values
-    states = y[:, :, [cols[0], cols[4], cols[6], cols[7], cols[5], _T_OUT_COL]].reshape(-1, 6)
+    y = res.measurements[::every].reshape(-1, 19)  # noise-free readings = true values
     u = res.truth_of("u")[::every].reshape(-1)
     c = model_constants(load_params(params))
     bar = None
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(states), desc="forcing terms", unit="point", file=sys.stderr)
-    terms = np.empty((len(states), 2, 5))
-    for a in range(0, len(states), 20000):
-        terms[a : a + 20000] = model_terms(c, states[a : a + 20000])[:, :2, :5]
+        bar = tqdm(total=len(y), desc="forcing terms", unit="point", file=sys.stderr)
+    terms = np.empty((len(y), 2, 5))
+    for a in range(0, len(y), 20000):
+        terms[a : a + 20000] = model_terms(c, y[a : a + 20000])[:, :2, :5]
         if bar is not None:
-            bar.update(min(20000, len(states) - a))
+            bar.update(min(20000, len(y) - a))
     if bar is not None:
         bar.close()
-    db = NOISE_BOUNDS
-    state_bound = {"M3": db[cols[4]], "M4": db[cols[6]]}
+    state_bound = {"M3": NOISE_BOUNDS[sensor_index("S3.1")], "M4": NOISE_BOUNDS[sensor_index("S4.1")]}
+    chain = [sensor_index(s) for s in ("S1.1", "S3.1", "S4.1", "S4.3", "S3.3")]
     out = {}
     for q, obs in enumerate(("M3", "M4")):
         t = terms[:, q, :]
@@ -76,7 +74,7 @@ def envelope_bounds(params: str, runs: int, every_s: float, entropy0: int = ENTR
             "lambda_state_per_s": float(t[:, si].max() / state_bound[obs]),
             "largest_sum_at": {
                 "fuel_setting": float(u[k]),
-                "state": dict(zip(SENSOR_TERMS, (float(v) for v in states[k, :5]))),
+                "state": dict(zip(SENSOR_TERMS, (float(v) for v in y[k, chain]))),
                 "sum": float(t[k].sum()),
             },
             "median_sum": float(np.median(t.sum(axis=1))),

@@ -94,6 +94,7 @@ __all__ = [
     "model_terms",
     "MODEL_TERM_OUTPUTS",
     "MODEL_TERM_INPUTS",
+    "observer_steady_gains",
     "ResidualTrace",
     "SAFETY",
     "MODEL_MARGIN",
@@ -213,11 +214,12 @@ def _point(c, csm, x1, x3, x4, m1, n, psi, Pi, T_in, T_out, T6, p6, out, j):
     return s_sl, mdot, df
 
 
-@jit
+@jit_inline
 def _box_points(c, csm, x1, x3, x4, T1, m1, t, psi, Pi, T_in, T_out, T6m, p6m, d1, d3, d4, dT1, G):
     """The model values at the centre and at ±d̄ of x1, x3, x4, T1 into G[0:9] (columns h3, h4,
     T_in, T_co; the rows of the kernel's box) with the Σ2 speeds of ``t`` (the cycle table: centre,
-    x1±, x4±, T1±); returns the centre's (s_sl, ṁ_g, δ_f)."""
+    x1±, x4±, T1±); returns the centre's (s_sl, ṁ_g, δ_f).  Inlined by numba into the kernel (an
+    out-of-line call with these arrays costs 3-5 % of the kernel, measured)."""
     n0 = t[0, 0]
     s_sl, mdot, df = _point(c, csm, x1, x3, x4, m1, n0, psi, Pi, T_in, T_out, T6m, p6m, G, 0)
     # the x1, x3, x4, T1 points, unrolled (x + 0.0 and x + (-d) equal x and x - d exactly)
@@ -332,29 +334,44 @@ MODEL_TERM_OUTPUTS = ("h3", "h4", "T_co")
 MODEL_TERM_INPUTS = ("x1", "x3", "x4", "T1", "T_in", "T_out")
 
 
-def model_terms(c, states: np.ndarray, dbar=None) -> np.ndarray:
+def model_terms(c, readings: np.ndarray, dbar=None, side: int = 0) -> np.ndarray:
     """The inclusion terms of the observers' forcing and of the compressor-outlet model (the
-    deviation of the output at ±d̄ of one input, without the safety factor) at operating points
-    ``states`` (K, 6): columns x1 [kg], x3 [Pa], x4 [Pa], T1 [K], T_in [K], T_out [K] (one sensor
-    chain's readings, or the true values).  Returns (K, 3, 6): rows :data:`MODEL_TERM_OUTPUTS` (h3
-    of M3.q, h4 of M4.q, T_co of M4.5/M4.6), columns :data:`MODEL_TERM_INPUTS`; the Σ2 speeds solved
-    as the exact inclusion does.  The base model only (no gas-path submodel)."""
+    deviation of the output at ±d̄ of one input, without the safety factor) at the readings (K, 19)
+    of one sensor chain (``side`` 0: the odd sensors, 1: the even ones; true values give the terms
+    at the true state).  Returns (K, 3, 6): rows :data:`MODEL_TERM_OUTPUTS` (h3 of M3.q, h4 of
+    M4.q, T_co of M4.5/M4.6), columns :data:`MODEL_TERM_INPUTS`; the Σ2 speeds solved as the exact
+    inclusion does.  The base model only (no gas-path submodel)."""
     kc, csm = kernel_constants(c)
     if csm is not None and c.sm_on != 0.0:
         raise ValueError("model_terms covers the base model only (a gas-path submodel is on)")
     db = np.array(NOISE_BOUNDS if dbar is None else dbar, dtype=np.float64)
-    cols = _SIDE_COLS[0]
+    cols = _SIDE_COLS[side]
     d1, d3, d4, dT1, dTin = (db[cols[0]], db[cols[4]], db[cols[6]], db[cols[7]], db[cols[5]])
     dTo = db[_T_OUT_COL]
-    X = np.asarray(states, dtype=np.float64)
-    if X.ndim != 2 or X.shape[1] != 6:
-        raise ValueError(f"states must have shape (K, 6) (x1, x3, x4, T1, T_in, T_out), got {X.shape}")
+    Y = np.asarray(readings, dtype=np.float64)
+    if Y.ndim != 2 or Y.shape[1] != len(SENSOR_IDS):
+        raise ValueError(f"readings must have shape (K, {len(SENSOR_IDS)}), got {Y.shape}")
+    X = Y[:, [cols[0], cols[4], cols[6], cols[7], cols[5], _T_OUT_COL]]
     out = np.zeros((len(X), 3, 6))
     tab = np.empty((7, 3))
     G = np.empty((22, 4))
     n = c.n_nom_rev_s
     for i, (x1, x3, x4, T1, T_in, T_out) in enumerate(X):
         n = _model_terms_at(kc, x1, x3, x4, T1, T_in, T_out, d1, d3, d4, dT1, dTin, dTo, n, tab, G, out[i])
+    return out
+
+
+def observer_steady_gains(c, dt: float) -> dict[str, tuple[float, float]]:
+    """Per observer pair (``M3``, ``M4``) the steady gains (g_d, g_H) of the threshold recursion at a
+    constant operating point: ē → g_d d̄ + g_H H̄ with g_d = E L_d / (1 - E (1 - L_d)) and
+    g_H = q / (1 - E (1 - L_d)) (E, q of the exact step, L_d = 1 - exp(-L h)); the model margin
+    aside."""
+    out = {}
+    for name, tau, L in (("M3", c.tau_pd_s, OBSERVER_GAINS[1]), ("M4", c.tau_TC_s, OBSERVER_GAINS[2])):
+        E, q, _ = _etd_scalar(-1.0 / tau, dt)
+        Ld = -math.expm1(-L * dt)
+        den = 1.0 - E * (1.0 - Ld)
+        out[name] = (E * Ld / den, q / den)
     return out
 
 

@@ -12,7 +12,9 @@ sensors it reads besides its state sensor, ``H̄`` (the ``λ_h d̄`` of eq. 5.11
 * ``thesis-lipschitz``: eq. 5.11 with a global Lipschitz constant: the terms of the table 6.2
   interconnection sensors are replaced by their largest value over the operating envelope
   (``λ_h d̄_χ``, a constant per observer, :data:`GLOBAL_BOUNDS_FILE`); the own sensor set's terms
-  stay local.  A valid bound, looser than ``local`` wherever the operating point is not the worst.
+  stay local, and so does the kink's corner term (a Lipschitz constant does not exist where Ψ_sc has
+  its kink, so a global one cannot cover it: docs/diagnosis.md, "Where the model has a kink").
+  Looser than ``local`` wherever the operating point is not the worst of the envelope.
 * ``thesis-no-interconnection``: the interconnection sensors' terms left out (the forcing read as
   exact in them); the own sensor set's terms stay local.  Not a valid bound: the hypothesis that the
   thesis's M3.q/M4.q thresholds did not carry the interconnection noise.
@@ -151,7 +153,8 @@ def threshold_array(thresholds: str, params_name: str = "thesis-12v28") -> np.nd
             row = _ROWS[obs]
             inter = [t for t in H_TERMS if t not in OWN_TERMS[obs]]
             for t in inter:
-                a[row, H_TERMS.index(t)] = 0.0
+                if not (t == "corner" and thresholds == "thesis-lipschitz"):
+                    a[row, H_TERMS.index(t)] = 0.0
             if thresholds == "thesis-lipschitz":
                 a[row, 7] = sum(bounds[obs]["terms"][t] for t in inter if t in SENSOR_TERMS)
     if thresholds in _CLOSED_FORM:
