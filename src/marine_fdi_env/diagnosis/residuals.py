@@ -85,7 +85,7 @@ from .sigma2 import (
     _perturbed_rows,
     _perturbed_rows2,
 )
-from .thresholds import DEFAULT_THRESHOLDS, threshold_array
+from .thresholds import DEFAULT_THRESHOLDS, closed_form, threshold_array
 
 __all__ = [
     "OBSERVER_GAINS",
@@ -700,25 +700,6 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table
 
 
 @jit
-def _closed_form(t, dbar, w):
-    """Eq. 5.10-5.12 in closed form (``thesis-table-6.1``) with the constants of one row ``w`` of the
-    threshold array: :func:`~marine_fdi_env.diagnosis.thresholds.closed_form_threshold`, the same
-    operations."""
-    rho, xi, rho_d, xi_d, lam, hbar = w[9], w[10], w[11], w[12], w[13], w[14]
-    xbar = w[15] * dbar
-    K = (rho_d * dbar + rho * hbar) / xi
-    e = math.exp(-xi * t)
-    ed = math.exp(-xi_d * t)
-    E = rho * e * xbar + K * (1.0 - ed)
-    integral = rho * xbar * t * e + K * (1.0 - e) / xi
-    if abs(xi - xi_d) > 1e-12 * xi:
-        integral -= K * (ed - e) / (xi - xi_d)
-    else:
-        integral -= K * t * e
-    return E + rho * lam * integral + dbar
-
-
-@jit
 def _kernel(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_table, tw):
     """:func:`compute_residuals` (``use_table`` False: exact inclusion, ``table`` unused) with the
     constants of :func:`kernel_constants` and the observers' threshold reading ``tw``
@@ -811,7 +792,7 @@ def _kernel(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use
                         st[0] = prior
                 THR[kk, m] = st[1] + d1
                 if tw[0, 8] != 0.0:
-                    THR[kk, m] = _closed_form(st[14] * dt, d1, tw[0])
+                    THR[kk, m] = closed_form(st[14] * dt, d1, tw[0])
                 # ---------------------------------------------------------------- M2.(1,2): p6, M2.(3,4): T6
                 for j in range(2):
                     m = 2 + 2 * j + side
@@ -948,7 +929,7 @@ def _kernel(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use
                 R[kk, m], THR[kk, m] = _observer_update(st, 2, first, ok, x3, F, H, E3, q3, r3, Ld3, d3)
                 if w[8] != 0.0:
                     st[15] = 0.0 if restart else st[15] + dt
-                    THR[kk, m] = _closed_form(st[15], d3, w)
+                    THR[kk, m] = closed_form(st[15], d3, w)
                 # ---------------------------------------------------------------- M3.(3,4): T_in
                 m = 10 + side
                 if ok and math.isfinite(p6m) and math.isfinite(T6m):
@@ -988,7 +969,7 @@ def _kernel(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use
                 R[kk, m], THR[kk, m] = _observer_update(st, 7, first, ok, x4, F, H, E4, q4, r4, Ld4, d4)
                 if w[8] != 0.0:
                     st[16] = 0.0 if restart else st[16] + dt
-                    THR[kk, m] = _closed_form(st[16], d4, w)
+                    THR[kk, m] = closed_form(st[16], d4, w)
                 # ---------------------------------------------------------------- M4.(3,4): T1
                 m = 15 + side
                 T1m = T1_model

@@ -48,6 +48,8 @@ from importlib import resources
 
 import numpy as np
 
+from .._jit import jit
+
 __all__ = [
     "THRESHOLD_READINGS",
     "DEFAULT_THRESHOLDS",
@@ -57,6 +59,7 @@ __all__ = [
     "GLOBAL_BOUNDS_FILE",
     "load_global_bounds",
     "threshold_array",
+    "closed_form",
     "closed_form_threshold",
     "H_TERMS",
     "OWN_TERMS",
@@ -171,20 +174,28 @@ def threshold_array(thresholds: str, params_name: str = "thesis-12v28") -> np.nd
     return a
 
 
-def closed_form_threshold(t: float, dbar: float, rho, xi, rho_d, xi_d, lam, hbar, xbar_rel) -> float:
-    """Eq. 5.10-5.12 in closed form at time t [s] since the observer started: E(t) + ρ Λ ∫₀ᵗ E(τ)
-    e^{-ξ(t-τ)} dτ + d̄ with E(t) = ρ e^{-ξt} x̄ + K (1 - e^{-ξ_d t}), K = (ρ_d d̄ + ρ λ_h d̄_χ)/ξ,
-    x̄ = ``xbar_rel`` d̄ and ``hbar`` = λ_h d̄_χ (the kernel's compiled twin is
-    ``residuals._closed_form``)."""
-    xbar = xbar_rel * dbar
+@jit
+def closed_form(t, dbar, w):
+    """Eq. 5.10-5.12 in closed form at time t [s] since the observer started, with the constants of
+    one row ``w`` of :func:`threshold_array` (ρ, ξ, ρ_d, ξ_d, Λ, λ_h d̄_χ, x̄/d̄ in columns 9-15):
+    E(t) + ρ Λ ∫₀ᵗ E(τ) e^{-ξ(t-τ)} dτ + d̄ with E(t) = ρ e^{-ξt} x̄ + K (1 - e^{-ξ_d t}),
+    K = (ρ_d d̄ + ρ λ_h d̄_χ)/ξ (the kernel's ``thesis-table-6.1`` thresholds)."""
+    rho, xi, rho_d, xi_d, lam, hbar = w[9], w[10], w[11], w[12], w[13], w[14]
+    xbar = w[15] * dbar
     K = (rho_d * dbar + rho * hbar) / xi
     e = math.exp(-xi * t)
     ed = math.exp(-xi_d * t)
     E = rho * e * xbar + K * (1.0 - ed)
-    # ∫₀ᵗ E(τ) e^{-ξ(t-τ)} dτ
-    integral = rho * xbar * t * e + K * (1.0 - e) / xi
+    integral = rho * xbar * t * e + K * (1.0 - e) / xi  # ∫₀ᵗ E(τ) e^{-ξ(t-τ)} dτ
     if abs(xi - xi_d) > 1e-12 * xi:
         integral -= K * (ed - e) / (xi - xi_d)
     else:
         integral -= K * t * e
     return E + rho * lam * integral + dbar
+
+
+def closed_form_threshold(t: float, dbar: float, rho, xi, rho_d, xi_d, lam, hbar, xbar_rel) -> float:
+    """:func:`closed_form` with its constants given one by one (x̄ = ``xbar_rel`` d̄, ``hbar`` = λ_h d̄_χ)."""
+    w = np.zeros(N_THR_COLS)
+    w[9:16] = (rho, xi, rho_d, xi_d, lam, hbar, xbar_rel)
+    return float(closed_form(float(t), float(dbar), w))
