@@ -62,7 +62,7 @@ LIMIT_SENSOR_ONSET_S = 50.0  # onset of the sensor offsets in the detectability-
 ENV_TABLE = PACKAGE_DATA / "env" / "detectability.json"
 # Detection times the thesis states for its examples (section 6.4) and KPI table 6.10.
 THESIS_DELAYS_S = {
-    "thesis-6.4.2": {"bore_damage": 146.1, "valve_seizing (M2)": 201.6, "valve_seizing (M1)": 207.1},
+    "thesis-6.4.2": {"bore_damage (M2.3, M2.4)": 146.1, "bore_damage (M2.1, M2.2)": 201.6, "valve_seizing (M1)": 207.1},
     "thesis-6.4.3": {"S2.2": 20.0, "compressor_seal_leak": 156.8},
     "thesis-6.4.4": {"turbine_lubrication_loss": 104.6},
 }
@@ -579,7 +579,7 @@ def seal_leak_snr(
 
 
 _THESIS_NOTES = {
-    "valve_seizing": "about 10 s with noise (fig. 6.22); 6.4.2: M2 at +1.6 s, M1 at +7.1 s",
+    "valve_seizing": "almost 10 s with noise (fig. 6.22); 6.4.2: M1.1/M1.2 at +7.1 s",
     "bore_damage": "6.4.2: 141.1 s after onset (146.1 s)",
     "turbine_seal_leak": "'relatively short time' (fig. 6.26)",
     "turbine_lubrication_loss": "6.4.4: 74.6 s after onset (104.6 s)",
