@@ -16,8 +16,9 @@ from every other set, :mod:`.reproduction`).
   (the exact recursion's gain g_d d̄ with g_d = E L_d / (1 - E (1 - L_d)), or table 6.1's ρ_d d̄/ξ)
   and the forcing's uncertainty per input (g_H · 1.05 · term, g_H = q / (1 - E (1 - L_d)), the
   recursion's steady gain of H̄; the terms of :func:`~marine_fdi_env.diagnosis.residuals.model_terms`
-  at the noise-free state); for M4.5, 1.05 x each input's inclusion term.  Checked against the
-  kernel's own threshold at the same point (``kernel_threshold``).
+  at the noise-free state; ``forcing_uncertainty_relative``: each term over the forcing itself); for
+  M4.5, 1.05 x each input's inclusion term.  Checked against the kernel's own threshold at the same
+  point (``kernel_threshold``).
 * ``margins``: every sensor offset of table 6.3 against each module that reads the sensor: the
   noise-free residual's largest |r|/threshold over the 30 s after the onset (``effect_ratio``; the
   threshold of the same run with noise) and, over ``--seeds`` noisy runs, the share of runs the
@@ -121,7 +122,16 @@ def threshold_budget(loads=(1.0, 0.5)) -> dict:
                     "in_noise_bounds": float(total / d),
                     "kernel_threshold": _kernel_threshold(u0, reading, module),
                 }
-            per_load[module] = {"unit": SENSORS[sensor_index(sensor)].unit, "readings": readings}
+            # at a steady state x' = 0: the forcing equals x/τ (h3 = x3/τ_pd, h4 = x4/τ_TC)
+            forcing = float(y[sensor_index(sensor)] / (c.tau_pd_s if obs == "M3" else c.tau_TC_s))
+            per_load[module] = {
+                "unit": SENSORS[sensor_index(sensor)].unit,
+                "forcing_per_s": forcing,
+                "forcing_uncertainty_relative": {
+                    name: float(terms[q, i] / forcing) for i, name in enumerate(MODEL_TERM_INPUTS[:5])
+                },
+                "readings": readings,
+            }
         d = float(NOISE_BOUNDS[sensor_index("S4.5")])
         parts = {"noise_bound": d}
         for i, name in enumerate(MODEL_TERM_INPUTS):
@@ -198,6 +208,7 @@ def offset_margins(n_seeds: int = 20) -> dict:
 
 
 CASES = {
+    "thesis-6.4.1": None,
     "thesis-6.4.2": None,
     "thesis-6.4.3": None,
     "thesis-6.4.4": None,

@@ -89,6 +89,15 @@ class _Causes:
         )
 
     def sensor(self, sensor: str, module: str, column: str, scale: float = 1.0) -> str | None:
+        from marine_fdi_env.diagnosis.modules import MODULES
+
+        spec = next(x for x in MODULES if x.id == module)
+        if sensor not in spec.all_sensors:
+            return (
+                f"{module} does not read {sensor}: table 6.2 gives it {', '.join(spec.all_sensors)}, so the '1' "
+                "the thesis's signature table puts in this cell contradicts its own sensor sets "
+                "(docs/diagnosis_structure.md)"
+            )
         m = self.margin(sensor, module)
         if m is None:
             return None
@@ -212,7 +221,10 @@ def causes_for(table: dict, cols: dict) -> dict:
                 elif c.kind in ("process_detection", "min_detectable") and c.fault:
                     text = k.fault(c.fault, column)
                 elif c.kind == "event_time":
-                    text = k.fault(c.fault, column) or k.order(c.scenario, column)
+                    if c.fault and c.fault.startswith("S"):
+                        text = k.sensor(c.fault, c.module, column)
+                    else:
+                        text = k.fault(c.fault, column) or k.order(c.scenario, column)
                 elif c.kind in ("module_order", "final_set", "interim_set"):
                     text = k.order(c.scenario, column)
                     if c.scenario == "thesis-6.4.3":

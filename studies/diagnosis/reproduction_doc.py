@@ -175,9 +175,8 @@ def _section(out: dict, kind: str, title: str) -> list[str]:
     lines = [
         f"### {title}",
         "",
-        "| claim (line) | thesis | size | `reference`: ours | ratio | verdict | cause | "
-        + " | ".join(TITLES.get(c, c) for c in others)
-        + " |",
+        "| claim (line) | thesis | size | `reference`: ours | ratio | verdict | cause |"
+        + "".join(f" {TITLES.get(c, c)} |" for c in others),
         "|---|---|---|---|---:|---|---|" + "---|" * len(others),
     ]
     for r in rows:
@@ -189,8 +188,7 @@ def _section(out: dict, kind: str, title: str) -> list[str]:
             cells.append("-" if o is None else SHORT[o["verdict"]])
         lines.append(
             f"| {r['claim']} ({r['line']}) | {r['thesis']} | {r['size']} | {r['ours']} | {ratio} "
-            f"| **{r['verdict']}** | "
-            f"{cause} | " + " | ".join(cells) + " |"
+            f"| **{r['verdict']}** | {cause} |" + "".join(f" {x} |" for x in cells)
         )
     lines.append("")
     return lines
@@ -234,7 +232,7 @@ def markdown(out: dict) -> str:
         *_counts_table(out),
         "",
         f"Regenerate: `{out['command']}` (every column measured once and kept in `results/reproduction/`; "
-        + ", ".join(f"{TITLES.get(c, c).strip('`')} {v:.0f}" for c, v in cpu.items())
+        + ", ".join(f"{out['columns'][c]['agent']} {v:.0f}" for c, v in cpu.items())
         + " CPU minutes on the 2-core machine; `--render-only` rewrites this page from them).  Seeds "
         f"{s['first_seed']:,} onwards and fault-free entropy 9.5e9 onwards, disjoint from every seed any setting "
         "was chosen on (the readings' definitions were chosen looking at seeds 1000-1009, 10000-10009 and the first "
