@@ -231,12 +231,14 @@ def causes_for(table: dict, cols: dict) -> dict:
                         extra = k.fault("compressor_seal_leak", column)
                         text = f"{text}; {extra}" if text and extra else text or extra
                 elif c.kind == "process_signature":
-                    text = (
+                    speed = (
                         "the modules of Σ3 and Σ4 read the engine speed from Σ2's equations with their interconnection "
                         "sensors, so a fault of Σ2 moves them too (docs/diagnosis_structure.md)"
-                        if c.fault is None
-                        else k.fault(c.fault, column)
                     )
+                    if c.fault is None or r["detail"].get("extra"):
+                        text = speed
+                    else:
+                        text = k.fault(c.fault, column)
                 elif c.kind == "false_alarms" and column == "thesis-table-6.1-m4":
                     text = (
                         "table 6.1's ρ_d = 0.02 is below the observer gain L = 0.3764, so its 0.1 d̄ does not bound the "

@@ -34,11 +34,13 @@ def _pct(k, n) -> str:
 
 
 def best_column(out: dict) -> str:
-    """The reading (not ``local``, not ``sequential``) with the most rows reproduced or better."""
+    """The reading (not ``local``, not ``sequential``) with the most rows reproduced or better, and
+    of those the fewest not reproduced."""
     readings = [c for c in out["counts"] if c not in ("local", "sequential")]
     if not readings:
         return "local"
-    return max(readings, key=lambda c: out["counts"][c]["reproduced"] + out["counts"][c]["better"])
+    k = out["counts"]
+    return max(readings, key=lambda c: (k[c]["reproduced"] + k[c]["better"], -k[c]["not reproduced"]))
 
 
 def _iso_ci(k: int, n: int) -> tuple[float, float]:
@@ -139,6 +141,51 @@ def _must_show(out: dict) -> list[str]:
         f"| false alarms in {out['settings']['hours']:g} fault-free engine-hours (0) | " + " | ".join(fa_cells) + " |"
     )
     return lines
+
+
+def _checks_say(out: dict, best: str) -> list[str]:
+    """What the checks say, in words, from the rows and the one-noisy-sensor study."""
+    import json
+    from pathlib import Path
+
+    rows = {r["claim"]: r for r in out["rows"].get(best, [])}
+    one_path = Path("docs/data/reproduction_causes/one-noisy-sensor.json")
+    if not rows or not one_path.exists():
+        return []
+    one = {(c["case"], r): v for c in json.loads(one_path.read_text())["cases"] for r, v in c["readings"].items()}
+    leak, uniq = rows.get("6.4.3/event/M4.1"), rows.get("6.4.3/final")
+    fa = out["false_alarms"][best]
+    tsl = one.get(("turbine_seal_leak", "local"), {}).get("only the checked sensor noisy")
+    s31 = one.get(("S3.1 offset", "local"), {}).get("only the checked sensor noisy")
+    icb = one.get(("intercooler_blockage", "local"), {}).get("only the checked sensor noisy")
+    text = (
+        f"With **{best}**, the compressor seal leak of 6.4.3 is detected {leak['detail']['median_s']:.0f} s after its "
+        f"onset (the thesis: 126.8 s) and 6.4.3 ends with the thesis's set alone in "
+        f"{uniq['detail']['counts'].get('equal', 0)}/{uniq['n']} runs, at {fa['runs_with_alarm']} false alarms in "
+        f"{fa['engine_hours']:.0f} fault-free engine-hours ({fa['per_hour']:.3g}/h, 95 % interval "
+        f"{fa['ci_per_hour'][0]:.3g}-{fa['ci_per_hour'][1]:.3g}): table 6.1's ρ_d does not bound the observer's "
+        "injected noise.  The turbine seal leak, the S3.1/S3.2 spreads and the intercooler blockage are reproduced by "
+        "no reading: those that keep the other inputs' noise in their thresholds miss them, and those that leave it out "
+        "(thesis-no-interconnection, thesis-table-6.1) fire within a second in every fault-free run.  What reproduces "
+        "them is a module whose other inputs carry no noise ([one-noisy-sensor](data/reproduction_causes/"
+        "one-noisy-sensor.json): with every sensor noise-free but the checked one"
+    )
+    parts = []
+    if tsl:
+        parts.append(
+            f"M3.1 detects the turbine seal leak in {tsl['fired']}/{tsl['runs']} runs, "
+            f"{tsl['median_delay_s']:.0f} s after the onset"
+        )
+    if s31:
+        parts.append(
+            f"M3.1 fires on S3.1's offset after {s31['median_delay_s']:.2f} s with a spread of {s31['spread_s']:.3f} s"
+        )
+    if icb:
+        parts.append(f"M4.5 detects the intercooler blockage {icb['median_delay_s']:.1f} s after the onset")
+    text += (
+        ", " + "; ".join(parts) if parts else ""
+    ) + "), which the benchmark's sensors, like real ones, do not give."
+    return [text, ""]
 
 
 def _suite_table(out: dict) -> list[str]:
@@ -261,10 +308,12 @@ def markdown(out: dict) -> str:
         "",
         "## The thesis's published timings: what reproduces them, and at what cost",
         "",
-        f"The reading with the most rows reproduced or better is **{best}**.  The issue's checks, every column:",
+        f"The reading with the most rows reproduced or better (and of those the fewest not reproduced) is **{best}**.  "
+        "The checks of the thesis's published timings, every column:",
         "",
         *_must_show(out),
         "",
+        *_checks_say(out, best),
         "What each reading costs where the benchmark scores it: isolation accuracy on every suite (exact set, 95 % "
         "interval) and false-alarm episodes (FA), beside the fault-free hours above:",
         "",
