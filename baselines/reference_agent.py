@@ -17,7 +17,12 @@ declaration:
 ``cells`` chooses the reference's measured sure cells (``thesis``, ``grid`` or ``sized``, the
 default; :mod:`marine_fdi_env.diagnosis.cell_sets`) through the environment option
 ``diagnosis_cells``; the agents ``reference-thesis`` and ``reference-grid`` are this agent with the
-other two.
+other two.  ``thresholds`` chooses the reading of the observer modules' thresholds
+(:mod:`marine_fdi_env.diagnosis.thresholds`) through the environment option
+``diagnosis_thresholds``, with the cells measured at that reading: the agents
+``reference-lipschitz``, ``reference-no-interconnection``, ``reference-table-6.1`` and
+``reference-table-6.1-m4`` are this agent with the readings ``thesis-lipschitz``, ... (a name
+without ``thesis-`` so that none is confused with the cell set ``reference-thesis``).
 """
 
 from __future__ import annotations
@@ -25,17 +30,24 @@ from __future__ import annotations
 import numpy as np
 
 from marine_fdi_env.diagnosis.cell_sets import DEFAULT_CELLS, check_cells
+from marine_fdi_env.diagnosis.thresholds import DEFAULT_THRESHOLDS, check_thresholds
 from marine_fdi_env.envs.hypotheses import HYPOTHESES, N_HYPOTHESES, UNKNOWN
 
 __all__ = [
     "ReferenceAgent",
     "ReferenceThesisAgent",
     "ReferenceGridAgent",
+    "ReferenceLipschitzAgent",
+    "ReferenceNoInterconnectionAgent",
+    "ReferenceTable61Agent",
+    "ReferenceTable61M4Agent",
     "belief_from_diagnoses",
     "beliefs_from_conclusions",
     "memoised_belief",
     "cells_name",
+    "thresholds_name",
     "with_cells",
+    "with_thresholds",
 ]
 
 _INDEX = {h: i for i, h in enumerate(HYPOTHESES)}
@@ -88,13 +100,26 @@ def cells_name(base: str, cells: str) -> str:
     return base if check_cells(cells) == DEFAULT_CELLS else f"{base}-{cells}"
 
 
+def thresholds_name(base: str, thresholds: str) -> str:
+    """The agent name of a diagnoser agent with a threshold reading: ``base`` for the default, else
+    ``base-`` and the reading without its ``thesis-`` prefix (``reference-lipschitz``)."""
+    if check_thresholds(thresholds) == DEFAULT_THRESHOLDS:
+        return base
+    return f"{base}-{thresholds.removeprefix('thesis-')}"
+
+
 class ReferenceAgent:
     """The reference diagnoser's conclusion as a declaration (module docstring)."""
 
-    def __init__(self, cells: str = DEFAULT_CELLS) -> None:
+    def __init__(self, cells: str = DEFAULT_CELLS, thresholds: str = DEFAULT_THRESHOLDS) -> None:
         self.cells = check_cells(cells)
-        self.name = cells_name("reference", cells)
-        self.env_kwargs = {"diagnosis_cells": self.cells}
+        self.thresholds = check_thresholds(thresholds)
+        if self.thresholds == DEFAULT_THRESHOLDS:
+            self.name = cells_name("reference", cells)
+            self.env_kwargs = {"diagnosis_cells": self.cells}
+        else:
+            self.name = cells_name(thresholds_name("reference", thresholds), cells)
+            self.env_kwargs = {"diagnosis_cells": self.cells, "diagnosis_thresholds": self.thresholds}
         self._beliefs: dict = {}
 
     def reset(self, seeds: list[int]) -> None:
@@ -123,3 +148,30 @@ def with_cells(base: type, cells: str) -> type:
 
 ReferenceThesisAgent = with_cells(ReferenceAgent, "thesis")
 ReferenceGridAgent = with_cells(ReferenceAgent, "grid")
+
+
+def with_thresholds(base: type, thresholds: str) -> type:
+    """``base`` (an agent class taking ``cells`` and ``thresholds``) with another threshold reading,
+    as a class constructible without arguments (how the agent registry builds its agents)."""
+    check_thresholds(thresholds)
+
+    def __init__(self) -> None:
+        base.__init__(self, DEFAULT_CELLS, thresholds)
+
+    words = thresholds.removeprefix("thesis-").replace(".", "").split("-")
+    name = f"{base.__name__.removesuffix('Agent')}{''.join(w.capitalize() for w in words)}Agent"
+    return type(
+        name,
+        (base,),
+        {
+            "__init__": __init__,
+            "__module__": base.__module__,
+            "__doc__": f"{base.__name__} with the observers' thresholds read as {thresholds} (its own measured cells).",
+        },
+    )
+
+
+ReferenceLipschitzAgent = with_thresholds(ReferenceAgent, "thesis-lipschitz")
+ReferenceNoInterconnectionAgent = with_thresholds(ReferenceAgent, "thesis-no-interconnection")
+ReferenceTable61Agent = with_thresholds(ReferenceAgent, "thesis-table-6.1")
+ReferenceTable61M4Agent = with_thresholds(ReferenceAgent, "thesis-table-6.1-m4")

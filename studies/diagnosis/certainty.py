@@ -52,13 +52,14 @@ from pathlib import Path
 
 import numpy as np
 
+from marine_fdi_env.diagnosis.agent import ReferenceDiagnoser
 from marine_fdi_env.diagnosis.batch import BATCH, DIAGNOSERS, PARAMS
-from marine_fdi_env.diagnosis.cell_sets import size_blind_cells
+from marine_fdi_env.diagnosis.cell_sets import cell_files, size_blind_cells
 from marine_fdi_env.diagnosis.decision import DiagnosisState, declared_faults
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
 from marine_fdi_env.diagnosis.peak_ratio import PeakRecorder, peak_at
 from marine_fdi_env.diagnosis.sequential import SequentialDiagnoser
-from marine_fdi_env.diagnosis.sized_cells import SIZED_FILES, SizedCells, load_sized_cells
+from marine_fdi_env.diagnosis.sized_cells import SizedCells, load_sized_cells
 from marine_fdi_env.diagnosis.sized_decision import SizedDiagnosisState
 from marine_fdi_env.diagnosis.structure import fault_signature_matrix
 from marine_fdi_env.diagnosis.sure_cells import (
@@ -69,6 +70,7 @@ from marine_fdi_env.diagnosis.sure_cells import (
     settle_times,  # noqa: F401
     sure_cells,
 )
+from marine_fdi_env.diagnosis.thresholds import DEFAULT_THRESHOLDS, THRESHOLD_READINGS, check_thresholds
 from marine_fdi_env.engine.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, FaultSpec
 from marine_fdi_env.engine.simulator import Simulator
 from studies.paths import PACKAGE_DATA
@@ -191,11 +193,19 @@ def _runs(held_out: bool, n_seeds: int, seed0: int | None = None) -> list[dict]:
     return runs
 
 
-def measure(n_seeds: int = 8, held_out: bool = False, progress: bool = True, seed0: int | None = None) -> dict:
+def measure(
+    n_seeds: int = 8,
+    held_out: bool = False,
+    progress: bool = True,
+    seed0: int | None = None,
+    thresholds: str = DEFAULT_THRESHOLDS,
+) -> dict:
     """Module firing times of every run of the grid (or the held-out grid) for both diagnosers at
     once (the sequential diagnoser runs the reference's residual generators and worst-case tests):
     {"reference": (runs, 19), "sequential": (runs, 19)} seconds after the fault's onset (NaN:
-    never), with each run's fault, magnitude, profile and seed."""
+    never), with each run's fault, magnitude, profile and seed.  With another reading of the
+    observers' ``thresholds`` than ``local``: the reference at that reading only."""
+    local = check_thresholds(thresholds) == DEFAULT_THRESHOLDS
     runs = _runs(held_out, n_seeds, seed0)
     schedules = [
         [
@@ -221,7 +231,10 @@ def measure(n_seeds: int = 8, held_out: bool = False, progress: bool = True, see
     for a in range(0, len(runs), BATCH):
         b = min(len(runs), a + BATCH)
         sim = Simulator(PARAMS, b - a, seeds=seeds[a:b], faults=schedules[a:b], profiles=profiles[a:b])
-        agent = SequentialDiagnoser(PARAMS, n_engines=b - a, dt=sim.dt, exoneration="none")
+        if local:
+            agent = SequentialDiagnoser(PARAMS, n_engines=b - a, dt=sim.dt, exoneration="none")
+        else:
+            agent = ReferenceDiagnoser(PARAMS, n_engines=b - a, dt=sim.dt, exoneration="none", thresholds=thresholds)
         rec = PeakRecorder(b - a)
         on = np.array([_onset(r["fault"]) for r in runs[a:b]])
         out = agent.observe(sim.y[:, None, :], sim.u[:, None])
@@ -230,21 +243,26 @@ def measure(n_seeds: int = 8, held_out: bool = False, progress: bool = True, see
             blk = sim.advance(1000)
             out = agent.observe(blk.measurements, blk.u)
             rec.update(out.residuals, out.thresholds, (1 + 1000 * k) * sim.dt - on, sim.dt)
-        ref_t[a:b] = agent.ref.first_violation
-        seq_t[a:b] = agent.stage.first
+        ref_t[a:b] = agent.ref.first_violation if local else agent.first_violation
+        if local:
+            seq_t[a:b] = agent.stage.first
         peaks += rec.events
         if bar is not None:
             bar.update(b - a)
     if bar is not None:
         bar.close()
     on = np.array([_onset(r["fault"]) for r in runs])[:, None]
+    times = {"reference": (ref_t - on).tolist()}
+    if local:
+        times["sequential"] = (seq_t - on).tolist()
     return {
+        "thresholds": thresholds,
         "held_out": held_out,
         "n_seeds": n_seeds,
         "runs": runs,
         "duration_s": DURATION_S,
         "sensor_onset_s": SENSOR_ONSET_S,
-        "times_after_onset_s": {"reference": (ref_t - on).tolist(), "sequential": (seq_t - on).tolist()},
+        "times_after_onset_s": times,
         "peak_events": peaks,
     }
 
@@ -430,7 +448,19 @@ def main(argv=None) -> int:
     ap.add_argument("what", choices=("measure", "derive", "validate", "report"))
     ap.add_argument("--diagnoser", choices=DIAGNOSERS, default="reference", help="derive / report: which one")
     ap.add_argument("--seeds", type=int, default=None, help="seeds per grid cell (measure 6, validate 3)")
-    ap.add_argument("--work-dir", type=Path, default=Path("results/certainty"))
+    ap.add_argument(
+        "--work-dir",
+        type=Path,
+        default=None,
+        help="default results/certainty (results/certainty/READING for a reading)",
+    )
+    ap.add_argument(
+        "--thresholds",
+        choices=THRESHOLD_READINGS,
+        default=DEFAULT_THRESHOLDS,
+        help="the reading of the observers' thresholds the reference decides with (its cells go to "
+        "data/diagnosis/thresholds/READING/; the sequential diagnoser: local only)",
+    )
     ap.add_argument(
         "--first-seed",
         type=int,
@@ -439,6 +469,12 @@ def main(argv=None) -> int:
         "reported ones; another value makes a development set beside them)",
     )
     args = ap.parse_args(argv)
+    local = args.thresholds == DEFAULT_THRESHOLDS
+    if not local and args.diagnoser != "reference":
+        ap.error("--thresholds: the sequential diagnoser decides with the local thresholds only")
+    if args.work_dir is None:
+        args.work_dir = Path("results/certainty") if local else Path("results/certainty") / args.thresholds
+    files = cell_files(args.diagnoser, args.thresholds)
     grid_file = args.work_dir / "grid.json"
     dev = args.first_seed != HELD_OUT_SEED0
     held_file = args.work_dir / ("held_out.json" if not dev else f"held_out_{args.first_seed}.json")
@@ -447,7 +483,12 @@ def main(argv=None) -> int:
         n = args.seeds or (6 if args.what == "measure" else 3)
         if n < 1:
             ap.error("--seeds must be >= 1")
-        data = measure(n, held_out=args.what == "validate", seed0=args.first_seed if args.what == "validate" else None)
+        data = measure(
+            n,
+            held_out=args.what == "validate",
+            seed0=args.first_seed if args.what == "validate" else None,
+            thresholds=args.thresholds,
+        )
         args.work_dir.mkdir(parents=True, exist_ok=True)
         out = grid_file if args.what == "measure" else held_file
         out.write_text(json.dumps(data) + "\n")
@@ -457,13 +498,22 @@ def main(argv=None) -> int:
         if not grid_file.exists():
             ap.error(f"{grid_file} not found: run 'measure' first")
         grid = json.loads(grid_file.read_text())
-        out = data_dir / SURE_FILES[args.diagnoser]
+        if grid.get("thresholds", DEFAULT_THRESHOLDS) != args.thresholds:
+            ap.error(f"{grid_file} was measured at the thresholds {grid.get('thresholds')!r}, not {args.thresholds!r}")
+        out = data_dir / files["grid"]
+        out.parent.mkdir(parents=True, exist_ok=True)
         data = derive_sure_cells(grid, args.diagnoser)
+        if not local:
+            data["settings"]["thresholds"] = args.thresholds
+            data["command"] += f" --thresholds {args.thresholds}"
         out.write_text(json.dumps(data) + "\n")
         load_sure_cells.cache_clear()
         print(f"wrote {out}: {int(np.sum(data['sure']))} sure cells")
-        out = data_dir / SIZED_FILES[args.diagnoser]
+        out = data_dir / files["sized"]
         data = derive_sized_cells(grid, args.diagnoser)
+        if not local:
+            data["thresholds"] = args.thresholds
+            data["command"] = data.get("command", "") + f" --thresholds {args.thresholds}"
         out.write_text(json.dumps(data) + "\n")
         load_sized_cells.cache_clear()
         print(f"wrote {out}: sure cells per band " + ", ".join(str(int(np.sum(b))) for b in data["sure"]))
@@ -472,13 +522,16 @@ def main(argv=None) -> int:
         ap.error(f"{held_file} not found: run 'validate' first")
     held = json.loads(held_file.read_text())
     sets = {
-        "thesis": size_blind_cells(args.diagnoser, "thesis"),
-        "grid": size_blind_cells(args.diagnoser, "grid"),
-        "sized": load_sized_cells(SIZED_FILES[args.diagnoser]),
+        "thesis": size_blind_cells(args.diagnoser, "thesis", args.thresholds),
+        "grid": size_blind_cells(args.diagnoser, "grid", args.thresholds),
+        "sized": load_sized_cells(files["sized"]),
     }
     seed_opt = f" --first-seed {args.first_seed}" if dev else ""
+    if not local:
+        seed_opt += f" --thresholds {args.thresholds}"
     res = {
         "diagnoser": args.diagnoser,
+        "thresholds": args.thresholds,
         "runs": len(held["runs"]),
         "held_out": {
             "magnitudes": "geometric midpoints of the grid",
@@ -490,9 +543,10 @@ def main(argv=None) -> int:
         f"python -m studies.diagnosis.certainty report --diagnoser {args.diagnoser}{seed_opt}",
         "result": validate(held, args.diagnoser, sets),
     }
+    stem = f"certainty_{args.diagnoser}" + ("" if local else f"_{args.thresholds}")
     report = (
         Path("docs/data") if not dev else args.work_dir
-    ) / f"certainty_{args.diagnoser}{'' if not dev else '_' + str(args.first_seed)}.json"
+    ) / f"{stem}{'' if not dev else '_' + str(args.first_seed)}.json"
     report.parent.mkdir(parents=True, exist_ok=True)
     report.write_text(json.dumps(res, indent=1) + "\n")
     for name, per in res["result"].items():

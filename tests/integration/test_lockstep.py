@@ -140,3 +140,27 @@ def _assert_one(agent, scenarios):
     mine, _ = run_agents([agent, load_agent("sequential")], scenarios, {"reward": "v1"}, suite="x")
     alone = env_runner.run_episodes(agent, scenarios, {"reward": "v1"}, suite="x")
     assert _no_clock(mine[0]) == _no_clock(alone)
+
+
+def test_threshold_readings_get_passes_of_their_own_and_equal_themselves_alone():
+    """A reading of the observers' thresholds changes the observation, so each gets its own simulation pass;
+    scored with the reference in one call, each equals itself alone."""
+    from marine_fdi_env.benchmark.evaluate import run_agents as run
+
+    suite = load_suite("thesis-v1")
+    env_kwargs = suite_env_kwargs(suite)[0]
+    names = ("reference", "reference-lipschitz", "reference-table-6.1-m4")
+    agents = [load_agent(a) for a in names]
+    assert len(plan_passes(agents, env_kwargs)) == 3
+    scenarios = [suite.scenarios[k] for k in (10, 11)]  # two 6.4.3 episodes: the compressor seal leak
+    together, _ = run(agents, scenarios, env_kwargs, suite="thesis-v1")
+    for name, mine in zip(names, together):
+        alone = env_runner.run_episodes(load_agent(name), scenarios, env_kwargs, suite="thesis-v1")
+        assert _no_clock(mine) == _no_clock(alone), name
+    # table 6.1's constants in M4.q name the leak earlier than the local thresholds
+    for k in range(len(scenarios)):
+        named = {
+            n: min((c[0] for c in r[k]["declared_changes"] if "compressor_seal_leak" in c[1]), default=np.inf)
+            for n, r in zip(names, together)
+        }
+        assert named["reference-table-6.1-m4"] < named["reference"]

@@ -61,9 +61,9 @@ def test_not_reached_reference_loses_to_any_censored_median(results):
     censored = next(v for k, v in checks.items() if "censored" in k)
     assert censored[1] is True and censored[0].startswith("90.0 (") and "s vs not reached" in censored[0]
     paired = next(v for k, v in checks.items() if "paired" in k)
-    # both detect e0, e1 (of each of the 3 training seeds): 25 s vs 45 s, ratio 0.56 -> not met
+    # both detect e0, e1 (of each of the 3 training seeds): 25 s vs 45 s, reported beside the check
     assert (
-        paired[1] is False
+        paired[1] == "reported"
         and "25.0 s vs 45.0 s" in paired[0]
         and "the 6 seed x episode pairs" in next(k for k in checks if "paired" in k)
     )
@@ -76,7 +76,7 @@ def test_an_agent_that_does_not_reach_its_median_fails(results):
     censored = next(v for k, v in checks.items() if "censored" in k)
     assert censored[1] is False and censored[0].startswith("not reached vs 60.0 s")  # the middle of 5
     paired = next(v for k, v in checks.items() if "paired" in k)
-    assert paired[1] is True and "5.0 s vs 40.0 s" in paired[0]
+    assert paired[1] == "reported" and "5.0 s vs 40.0 s" in paired[0]
 
 
 def test_every_agent_row_says_what_it_is(results):
@@ -86,3 +86,20 @@ def test_every_agent_row_says_what_it_is(results):
     table = cmp.compact_table(list(cmp.AGENTS))
     assert all(f"| {a} | " in table for a in cmp.AGENTS)
     assert "| sequential | no |" in table  # CUSUM on the residuals, not the reference's conclusion
+
+
+def test_a_rate_over_training_seeds_is_judged_pooled_with_every_seed_shown(results):
+    # seeds 0 and 1 detect all 10 episodes, seed 2 detects 8: pooled 28/30 = 93.3 % meets >= 90 %,
+    # and the row names seed 2, which alone would not
+    for k, path in enumerate(cmp._result_paths("classifier", "transfer-v2")):
+        eps = [_episode(f"e{i}", None if (k == 2 and i < 2) else 5.0) for i in range(10)]
+        path.write_text(
+            json.dumps(
+                dict(
+                    agent="classifier", suite="transfer-v2", metrics=compute_metrics(eps), episodes=eps, training_seed=k
+                )
+            )
+        )
+    checks = _checks("classifier: transfer-v2 detection")
+    text, met = next(iter(checks.values()))
+    assert met is True and "93.3 %" in text and "seed 2 alone would not meet it" in text

@@ -42,6 +42,10 @@ BUILTIN_AGENTS = {
     "reference-grid": "marine_fdi_env.baselines.reference_agent:ReferenceGridAgent",
     "sequential-thesis": "marine_fdi_env.baselines.sequential_agent:SequentialThesisAgent",
     "sequential-grid": "marine_fdi_env.baselines.sequential_agent:SequentialGridAgent",
+    "reference-lipschitz": "marine_fdi_env.baselines.reference_agent:ReferenceLipschitzAgent",
+    "reference-no-interconnection": "marine_fdi_env.baselines.reference_agent:ReferenceNoInterconnectionAgent",
+    "reference-table-6.1": "marine_fdi_env.baselines.reference_agent:ReferenceTable61Agent",
+    "reference-table-6.1-m4": "marine_fdi_env.baselines.reference_agent:ReferenceTable61M4Agent",
     "oracle": "marine_fdi_env.baselines.oracle_agent:OracleAgent",
 }
 # top-level package names of the agents and the training code before they moved under the namespace

@@ -16,6 +16,10 @@ from ..runio import load_run
 def cmd_diagnose(args: argparse.Namespace) -> int:
     if args.plots:  # before any work: a missing extra or a bad folder costs nothing
         require_extra("matplotlib", "--plots")
+    if args.thresholds != "local" and args.diagnoser != "reference":
+        raise UsageError(
+            f"--thresholds {args.thresholds}: only with --diagnoser reference (the sequential tests: local)"
+        )
     if Path(args.run).is_dir():
         raise UsageError(f"--run: {args.run!r} is a folder; give a .npz run file written by 'marine-fdi simulate'")
     if not Path(args.run).is_file():
@@ -30,7 +34,12 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
 def _diagnose(args: argparse.Namespace) -> int:
     run = load_run(args.run, allow_nonfinite=True)
     report, block = diagnose_run(
-        run, engine=args.engine, exoneration=args.exoneration, diagnoser=args.diagnoser, cells=args.cells
+        run,
+        engine=args.engine,
+        exoneration=args.exoneration,
+        diagnoser=args.diagnoser,
+        cells=args.cells,
+        thresholds=args.thresholds,
     )
     if args.plots:
         report["plots"] = [str(p) for p in plot_residuals(run, block, Path(args.plots), report)]

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Sequence
 
 from .._version import __version__
+from ..diagnosis.thresholds import THRESHOLD_READINGS
 from ..engine.steady_state import FUEL_SETTING_RANGE
 from ..errors import require_extra
 from ..outputs import prepare_out
@@ -213,6 +214,16 @@ def build_parser() -> argparse.ArgumentParser:
         help="which measured sure cells exonerate (with --exoneration sure): sized (default: those of the "
         "size the evidence bounds each candidate fault to), grid (sure at every size from 0.5x the "
         "detectability limit to the table size) or thesis (the table sizes only)",
+    )
+    p.add_argument(
+        "--thresholds",
+        choices=THRESHOLD_READINGS,
+        default="local",
+        help="the reading of the observer modules' adaptive thresholds (reference only): local (default: the "
+        "local inclusion of the forcing over every input's noise box), thesis-lipschitz (eq. 5.11 with a "
+        "global Lipschitz bound on the interconnection term), thesis-no-interconnection, thesis-table-6.1 "
+        "(eq. 5.10-5.12 with table 6.1's constants) or thesis-table-6.1-m4 (those constants in M4.1/M4.2 only); "
+        "each with its own measured cells (docs/diagnosis.md)",
     )
     p.set_defaults(func=cmd_diagnose)
 

@@ -34,6 +34,7 @@ from marine_fdi_env.diagnosis.residuals import (
     new_state,
 )
 from marine_fdi_env.diagnosis.sized_decision import SizedDiagnosisState, drive_block
+from marine_fdi_env.diagnosis.thresholds import DEFAULT_THRESHOLDS, check_thresholds, threshold_array
 from marine_fdi_env.engine.constants import model_constants
 from marine_fdi_env.engine.integrators import THREADED_MIN_ENGINES, _executor
 from marine_fdi_env.engine.params import EngineParams, load_params
@@ -127,8 +128,15 @@ class ReferenceDecisions(CellDecisions):
     """The reference diagnoser's decision logic of N engines with one cell set, fed the module
     violations of each block (:class:`~marine_fdi_env.diagnosis.cell_sets.CellDecisions`)."""
 
-    def __init__(self, n: int, cells: str, exoneration: str = "sure", max_cardinality: int | None = 2) -> None:
-        super().__init__("reference", n, cells, exoneration, max_cardinality)
+    def __init__(
+        self,
+        n: int,
+        cells: str,
+        exoneration: str = "sure",
+        max_cardinality: int | None = 2,
+        thresholds: str = DEFAULT_THRESHOLDS,
+    ) -> None:
+        super().__init__("reference", n, cells, exoneration, max_cardinality, thresholds)
 
     def update(self, R, THR, viol, peak, tt, new_mod, fresh, peak_run) -> None:
         """One block: residuals R and thresholds THR (N, B, 19), violations viol (N, B, 19), block
@@ -205,6 +213,11 @@ class ReferenceDiagnoser(DecidesWithCellSets):
         interpolated from a table with a certified margin (never below ``"exact"``'s, at most 1 %
         above; :mod:`marine_fdi_env.diagnosis.inclusion_table`); ``"exact"``: computed at every
         sample.
+    thresholds : the reading of the observer modules' adaptive thresholds
+        (:mod:`marine_fdi_env.diagnosis.thresholds`): ``"local"`` (default; the local inclusion of
+        the forcing over every input's noise box), ``"thesis-lipschitz"``,
+        ``"thesis-no-interconnection"`` or ``"thesis-table-6.1"``.  The residuals are the same in
+        every reading.
     """
 
     name = "reference"
@@ -219,6 +232,7 @@ class ReferenceDiagnoser(DecidesWithCellSets):
         exoneration: str = "sure",
         inclusion: str = "tabulated",
         cells: str = DEFAULT_CELLS,
+        thresholds: str = DEFAULT_THRESHOLDS,
     ) -> None:
         self.params = load_params(params) if isinstance(params, str) else params
         if not isinstance(n_engines, (int, np.integer)) or n_engines < 1:
@@ -242,6 +256,8 @@ class ReferenceDiagnoser(DecidesWithCellSets):
             raise ValueError(f"inclusion must be one of {', '.join(INCLUSIONS)}, got {inclusion!r}")
         self.inclusion = inclusion
         self._table = inclusion_arrays(self.c, self.noise_bounds, inclusion)
+        self.thresholds = check_thresholds(thresholds)
+        self._thr = threshold_array(thresholds, self.params.name)
         self.reset()
 
     def reset(self) -> None:
@@ -256,7 +272,7 @@ class ReferenceDiagnoser(DecidesWithCellSets):
         self.peak_run = np.zeros((self.n, N_MODULES))
 
     def _decider(self, cells: str) -> ReferenceDecisions:
-        return ReferenceDecisions(self.n, cells, self.exoneration, self.max_cardinality)
+        return ReferenceDecisions(self.n, cells, self.exoneration, self.max_cardinality, self.thresholds)
 
     @property
     def _started(self) -> bool:
@@ -300,7 +316,7 @@ class ReferenceDiagnoser(DecidesWithCellSets):
         R = np.empty((N, B, N_MODULES))
         THR = np.empty((N, B, N_MODULES))
         compute_residuals_batch(
-            self.c, Y, U, self.dt, self.noise_bounds, _SIDE_COLS, _T_OUT_COL, R, THR, self.state, self._table
+            self.c, Y, U, self.dt, self.noise_bounds, _SIDE_COLS, _T_OUT_COL, R, THR, self.state, self._table, self._thr
         )
         viol = np.empty((N, B, N_MODULES), dtype=np.bool_)
         peak = np.empty((N, N_MODULES))

@@ -16,6 +16,12 @@
 The residuals, thresholds and module decisions do not depend on the cell set; only the minimal
 diagnoses do, so one diagnoser can decide with several cell sets on the same residuals
 (:class:`CellDecisions`, one per cell set).
+
+Cells are measured for the thresholds they decide with: a reading of the observers' thresholds other
+than ``local`` (:mod:`.thresholds`) has its own ``grid`` and ``sized`` cells, measured by the same
+certainty grid at its thresholds (``data/diagnosis/thresholds/<reading>/``, :func:`cell_files`), and
+its ``thesis`` cells are the top band of its sized cells (the table sizes' level, as the sequential
+diagnoser's).
 """
 
 from __future__ import annotations
@@ -27,11 +33,13 @@ from .modules import MODULE_IDS
 from .sized_cells import SIZED_FILES, load_sized_cells
 from .sized_decision import SizedDiagnosisState
 from .sure_cells import SureCells, load_sure_cells
+from .thresholds import DEFAULT_THRESHOLDS, check_thresholds
 
 __all__ = [
     "CELL_SETS",
     "DEFAULT_CELLS",
     "check_cells",
+    "cell_files",
     "size_blind_cells",
     "decision_state",
     "CellDecisions",
@@ -51,27 +59,46 @@ def check_cells(cells: str) -> str:
     return cells
 
 
-def size_blind_cells(diagnoser: str, cells: str) -> SureCells:
-    """The ``thesis`` or ``grid`` cells of ``reference`` or ``sequential``."""
+def cell_files(diagnoser: str, thresholds: str = DEFAULT_THRESHOLDS) -> dict[str, str | None]:
+    """The cell files (relative to ``data/diagnosis/``) of a diagnoser deciding with a threshold
+    reading: {"grid": ..., "sized": ..., "thesis": ... or None (the top band of the sized cells)}."""
+    if diagnoser not in _GRID_FILES:
+        raise ValueError(f"diagnoser must be 'reference' or 'sequential', got {diagnoser!r}")
+    if check_thresholds(thresholds) == DEFAULT_THRESHOLDS:
+        return {
+            "grid": _GRID_FILES[diagnoser],
+            "sized": SIZED_FILES[diagnoser],
+            "thesis": _THESIS_FILE if diagnoser == "reference" else None,
+        }
+    if diagnoser != "reference":
+        raise ValueError(f"the {diagnoser} diagnoser decides with the local thresholds only, got {thresholds!r}")
+    return {
+        "grid": f"thresholds/{thresholds}/{_GRID_FILES[diagnoser]}",
+        "sized": f"thresholds/{thresholds}/{SIZED_FILES[diagnoser]}",
+        "thesis": None,
+    }
+
+
+def size_blind_cells(diagnoser: str, cells: str, thresholds: str = DEFAULT_THRESHOLDS) -> SureCells:
+    """The ``thesis`` or ``grid`` cells of ``reference`` or ``sequential`` (with a threshold reading)."""
+    files = cell_files(diagnoser, thresholds)
     if check_cells(cells) == "grid":
-        return load_sure_cells(_GRID_FILES[diagnoser])
+        return load_sure_cells(files["grid"])
     if cells == "thesis":
-        return (
-            load_sure_cells(_THESIS_FILE)
-            if diagnoser == "reference"
-            else load_sized_cells(SIZED_FILES[diagnoser]).top_band()
-        )
+        return load_sure_cells(files["thesis"]) if files["thesis"] else load_sized_cells(files["sized"]).top_band()
     raise ValueError("the sized cells are not size-blind: use decision_state")
 
 
-def decision_state(diagnoser: str, cells: str, max_cardinality: int | None = 2) -> DiagnosisState:
-    """A fresh decision state of a diagnoser (``reference`` or ``sequential``) with a cell set:
-    exoneration by sure cells, grace periods and the time order."""
-    if diagnoser not in _GRID_FILES:
-        raise ValueError(f"diagnoser must be 'reference' or 'sequential', got {diagnoser!r}")
+def decision_state(
+    diagnoser: str, cells: str, max_cardinality: int | None = 2, thresholds: str = DEFAULT_THRESHOLDS
+) -> DiagnosisState:
+    """A fresh decision state of a diagnoser (``reference`` or ``sequential``) with a cell set
+    (measured at the threshold reading ``thresholds``): exoneration by sure cells, grace periods and
+    the time order."""
+    files = cell_files(diagnoser, thresholds)
     if check_cells(cells) == "sized":
-        return SizedDiagnosisState(load_sized_cells(SIZED_FILES[diagnoser]), max_cardinality=max_cardinality)
-    sc = size_blind_cells(diagnoser, cells)
+        return SizedDiagnosisState(load_sized_cells(files["sized"]), max_cardinality=max_cardinality)
+    sc = size_blind_cells(diagnoser, cells, thresholds)
     return DiagnosisState(
         exoneration=sc.sure,
         max_cardinality=max_cardinality,
@@ -86,22 +113,32 @@ class CellDecisions:
     or ``sequential``) that depends on its cells.
 
     ``exoneration`` as :class:`~marine_fdi_env.diagnosis.agent.ReferenceDiagnoser` (``"sure"``: the
-    cells ``cells``; ``"none"`` or ``"all"``: no cells).  Per engine, ``next_expiry`` [s] is the
+    cells ``cells`` measured at the threshold reading ``thresholds``; ``"none"`` or ``"all"``: no
+    cells).  Per engine, ``next_expiry`` [s] is the
     next time a grace period of its state ends and ``next_peak`` (19,) the running peak ratios above
     which a size band moves up (sized cells; inf: none pending): until then an update that fires no
     new module changes nothing, so the diagnosers skip it.
     """
 
-    def __init__(self, diagnoser: str, n: int, cells: str, exoneration: str, max_cardinality: int | None) -> None:
+    def __init__(
+        self,
+        diagnoser: str,
+        n: int,
+        cells: str,
+        exoneration: str,
+        max_cardinality: int | None,
+        thresholds: str = DEFAULT_THRESHOLDS,
+    ) -> None:
         self.diagnoser, self.n, self.cells = diagnoser, int(n), check_cells(cells)
         self.exoneration, self.max_cardinality = exoneration, max_cardinality
+        self.thresholds = check_thresholds(thresholds)
         self.sized = exoneration == "sure" and self.cells == "sized"
         self.reset()
 
     def new_state(self) -> DiagnosisState:
         """A fresh decision state of one engine."""
         if self.exoneration == "sure":
-            return decision_state(self.diagnoser, self.cells, self.max_cardinality)
+            return decision_state(self.diagnoser, self.cells, self.max_cardinality, self.thresholds)
         return DiagnosisState(
             exoneration=True if self.exoneration == "all" else None, max_cardinality=self.max_cardinality
         )

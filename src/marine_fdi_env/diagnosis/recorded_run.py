@@ -40,19 +40,28 @@ def check_dropouts(run: RunData, engine: int) -> dict[str, float]:
 
 
 def diagnose_run(
-    run: RunData, engine: int = 0, exoneration: str = "sure", diagnoser: str = "reference", cells: str = "sized"
+    run: RunData,
+    engine: int = 0,
+    exoneration: str = "sure",
+    diagnoser: str = "reference",
+    cells: str = "sized",
+    thresholds: str = "local",
 ) -> tuple[dict, object]:
     """Diagnose one engine of a run; returns (JSON-ready report, the residual block output).
     ``diagnoser``: ``reference`` (the thesis's scheme) or ``sequential`` (CUSUM tests on the same
     residuals, :mod:`marine_fdi_env.diagnosis.sequential`); ``cells``: the sure cells
-    (:mod:`marine_fdi_env.diagnosis.cell_sets`)."""
+    (:mod:`marine_fdi_env.diagnosis.cell_sets`); ``thresholds``: the reading of the observer modules'
+    thresholds (:mod:`marine_fdi_env.diagnosis.thresholds`; the reference only)."""
     from .batch import make_diagnoser
 
     if not 0 <= engine < run.n_engines:
         raise ValueError(f"--engine must lie in [0, {run.n_engines - 1}], got {engine}")
     dropouts = check_dropouts(run, engine)
+    extra = {} if thresholds == "local" else {"thresholds": thresholds}
+    if extra and diagnoser != "reference":
+        raise ValueError(f"--thresholds {thresholds} needs --diagnoser reference (the sequential tests: local only)")
     agent = make_diagnoser(
-        diagnoser, run.params_name or "thesis-12v28", 1, run.dt, exoneration=exoneration, cells=cells
+        diagnoser, run.params_name or "thesis-12v28", 1, run.dt, exoneration=exoneration, cells=cells, **extra
     )
     u = run.truth_of("u", engine)
     block = agent.observe(run.measurements[:, engine, :], u)
@@ -65,6 +74,7 @@ def diagnose_run(
                 "name": agent.name,
                 "exoneration": exoneration,
                 "cells": cells,
+                "thresholds": thresholds,
                 "max_cardinality": getattr(agent, "max_cardinality", None) or agent.stage.max_cardinality,
             },
             "sensor_dropouts_s": dropouts,

@@ -76,12 +76,25 @@ from ..engine.subsystems.exhaust_receiver import (
 from ..engine.subsystems.gas_path import extended_gas_path, flow_law_pressure, valve_flows
 from .inclusion_table import interpolate_rows, sigma2_table
 from .modules import MODULE_IDS
-from .sigma2 import ONE_SIDED, SLOPE_STEP, _centre_speed, _centre_speed2, _perturbed_rows, _perturbed_rows2
+from .sigma2 import (
+    ONE_SIDED,
+    SLOPE_STEP,
+    _centre_speed,
+    _centre_speed2,
+    _cycle_table,
+    _perturbed_rows,
+    _perturbed_rows2,
+)
+from .thresholds import DEFAULT_THRESHOLDS, closed_form, threshold_array
 
 __all__ = [
     "OBSERVER_GAINS",
     "compute_residuals",
     "compute_residuals_batch",
+    "model_terms",
+    "MODEL_TERM_OUTPUTS",
+    "MODEL_TERM_INPUTS",
+    "observer_steady_gains",
     "ResidualTrace",
     "SAFETY",
     "MODEL_MARGIN",
@@ -199,6 +212,167 @@ def _point(c, csm, x1, x3, x4, m1, n, psi, Pi, T_in, T_out, T6, p6, out, j):
     out[j, 2] = _mixing(x1, m1, s_sl, mdot, T6, p6, c)
     out[j, 3] = compressor_outlet_temperature(df, T_in, T_out, 0.0, c)
     return s_sl, mdot, df
+
+
+@jit_inline
+def _box_points(c, csm, x1, x3, x4, T1, m1, t, psi, Pi, T_in, T_out, T6m, p6m, d1, d3, d4, dT1, G):
+    """The model values at the centre and at ±d̄ of x1, x3, x4, T1 into G[0:9] (columns h3, h4,
+    T_in, T_co; the rows of the kernel's box) with the Σ2 speeds of ``t`` (the cycle table: centre,
+    x1±, x4±, T1±); returns the centre's (s_sl, ṁ_g, δ_f).  Inlined by numba into the kernel (an
+    out-of-line call with these arrays costs 3-5 % of the kernel, measured)."""
+    n0 = t[0, 0]
+    s_sl, mdot, df = _point(c, csm, x1, x3, x4, m1, n0, psi, Pi, T_in, T_out, T6m, p6m, G, 0)
+    # the x1, x3, x4, T1 points, unrolled (x + 0.0 and x + (-d) equal x and x - d exactly)
+    _point(c, csm, x1 + d1, x3, x4, m1, t[1, 0], psi, Pi, T_in, T_out, T6m, p6m, G, 1)
+    _point(c, csm, x1 - d1, x3, x4, m1, t[2, 0], psi, Pi, T_in, T_out, T6m, p6m, G, 2)
+    _point(
+        c,
+        csm,
+        x1,
+        x3 + d3,
+        x4,
+        m1,
+        n0,
+        scavenge_flow_function((x3 + d3) / x4, c),
+        turbine_expansion(x3 + d3, c),
+        T_in,
+        T_out,
+        T6m,
+        p6m,
+        G,
+        3,
+    )
+    _point(
+        c,
+        csm,
+        x1,
+        x3 - d3,
+        x4,
+        m1,
+        n0,
+        scavenge_flow_function((x3 - d3) / x4, c),
+        turbine_expansion(x3 - d3, c),
+        T_in,
+        T_out,
+        T6m,
+        p6m,
+        G,
+        4,
+    )
+    _point(
+        c,
+        csm,
+        x1,
+        x3,
+        x4 + d4,
+        _charge_mass(x4 + d4, T1, c),
+        t[3, 0],
+        scavenge_flow_function(x3 / (x4 + d4), c),
+        Pi,
+        T_in,
+        T_out,
+        T6m,
+        p6m,
+        G,
+        5,
+    )
+    _point(
+        c,
+        csm,
+        x1,
+        x3,
+        x4 - d4,
+        _charge_mass(x4 - d4, T1, c),
+        t[4, 0],
+        scavenge_flow_function(x3 / (x4 - d4), c),
+        Pi,
+        T_in,
+        T_out,
+        T6m,
+        p6m,
+        G,
+        6,
+    )
+    _point(c, csm, x1, x3, x4, _charge_mass(x4, T1 + dT1, c), t[5, 0], psi, Pi, T_in, T_out, T6m, p6m, G, 7)
+    _point(c, csm, x1, x3, x4, _charge_mass(x4, T1 - dT1, c), t[6, 0], psi, Pi, T_in, T_out, T6m, p6m, G, 8)
+    return s_sl, mdot, df
+
+
+@jit
+def _model_terms_at(c, x1, x3, x4, T1, T_in, T_out, d1, d3, d4, dT1, dTin, dTo, n_guess, tab, G, out):
+    """:func:`model_terms` at one point into out (3, 6); returns the engine speed there."""
+    _cycle_table(c, x1, x4, T1, d1, d4, dT1, n_guess, tab)
+    psi = scavenge_flow_function(x3 / x4, c)
+    Pi = turbine_expansion(x3, c)
+    m1 = _charge_mass(x4, T1, c)
+    s_sl, mdot, df = _box_points(
+        c, None, x1, x3, x4, T1, m1, tab, psi, Pi, T_in, T_out, tab[0, 2], tab[0, 1], d1, d3, d4, dT1, G
+    )
+    for q, col in enumerate((0, 1, 3)):
+        F = G[0, col]
+        for k in range(4):
+            out[q, k] = _dev(F, G[1 + 2 * k, col], G[2 + 2 * k, col])
+        out[q, 5] = 0.0
+    out[0, 4] = _dev(G[0, 0], _h3(mdot, T_in + dTin, c), _h3(mdot, T_in - dTin, c))
+    out[1, 4] = _dev(
+        G[0, 1], _compressor_forcing(x4, df, T_in + dTin, Pi, c), _compressor_forcing(x4, df, T_in - dTin, Pi, c)
+    )
+    out[2, 4] = _dev(
+        G[0, 3],
+        compressor_outlet_temperature(df, T_in + dTin, T_out, 0.0, c),
+        compressor_outlet_temperature(df, T_in - dTin, T_out, 0.0, c),
+    )
+    out[2, 5] = _dev(
+        G[0, 3],
+        compressor_outlet_temperature(df, T_in, T_out + dTo, 0.0, c),
+        compressor_outlet_temperature(df, T_in, T_out - dTo, 0.0, c),
+    )
+    return tab[0, 0]
+
+
+MODEL_TERM_OUTPUTS = ("h3", "h4", "T_co")
+MODEL_TERM_INPUTS = ("x1", "x3", "x4", "T1", "T_in", "T_out")
+
+
+def model_terms(c, readings: np.ndarray, dbar=None, side: int = 0) -> np.ndarray:
+    """The inclusion terms of the observers' forcing and of the compressor-outlet model (the
+    deviation of the output at ±d̄ of one input, without the safety factor) at the readings (K, 19)
+    of one sensor chain (``side`` 0: the odd sensors, 1: the even ones; true values give the terms
+    at the true state).  Returns (K, 3, 6): rows :data:`MODEL_TERM_OUTPUTS` (h3 of M3.q, h4 of
+    M4.q, T_co of M4.5/M4.6), columns :data:`MODEL_TERM_INPUTS`; the Σ2 speeds solved as the exact
+    inclusion does.  The base model only (no gas-path submodel)."""
+    kc, csm = kernel_constants(c)
+    if csm is not None and c.sm_on != 0.0:
+        raise ValueError("model_terms covers the base model only (a gas-path submodel is on)")
+    db = np.array(NOISE_BOUNDS if dbar is None else dbar, dtype=np.float64)
+    cols = _SIDE_COLS[side]
+    d1, d3, d4, dT1, dTin = (db[cols[0]], db[cols[4]], db[cols[6]], db[cols[7]], db[cols[5]])
+    dTo = db[_T_OUT_COL]
+    Y = np.asarray(readings, dtype=np.float64)
+    if Y.ndim != 2 or Y.shape[1] != len(SENSOR_IDS):
+        raise ValueError(f"readings must have shape (K, {len(SENSOR_IDS)}), got {Y.shape}")
+    X = Y[:, [cols[0], cols[4], cols[6], cols[7], cols[5], _T_OUT_COL]]
+    out = np.zeros((len(X), 3, 6))
+    tab = np.empty((7, 3))
+    G = np.empty((22, 4))
+    n = c.n_nom_rev_s
+    for i, (x1, x3, x4, T1, T_in, T_out) in enumerate(X):
+        n = _model_terms_at(kc, x1, x3, x4, T1, T_in, T_out, d1, d3, d4, dT1, dTin, dTo, n, tab, G, out[i])
+    return out
+
+
+def observer_steady_gains(c, dt: float) -> dict[str, tuple[float, float]]:
+    """Per observer pair (``M3``, ``M4``) the steady gains (g_d, g_H) of the threshold recursion at a
+    constant operating point: ē → g_d d̄ + g_H H̄ with g_d = E L_d / (1 - E (1 - L_d)) and
+    g_H = q / (1 - E (1 - L_d)) (E, q of the exact step, L_d = 1 - exp(-L h)); the model margin
+    aside."""
+    out = {}
+    for name, tau, L in (("M3", c.tau_pd_s, OBSERVER_GAINS[1]), ("M4", c.tau_TC_s, OBSERVER_GAINS[2])):
+        E, q, _ = _etd_scalar(-1.0 / tau, dt)
+        Ld = -math.expm1(-L * dt)
+        den = 1.0 - E * (1.0 - Ld)
+        out[name] = (E * Ld / den, q / den)
+    return out
 
 
 # ------------------------------------------------------------------------------------------------
@@ -447,6 +621,8 @@ _NO_TABLE = (
     np.zeros(2, dtype=np.int64),
 )
 
+# the kernel's threshold array of the ``local`` reading (every H̄ term weighed 1, nothing added)
+_LOCAL_THRESHOLDS = threshold_array(DEFAULT_THRESHOLDS)
 
 INCLUSIONS = ("tabulated", "exact")
 
@@ -491,8 +667,9 @@ def table_arrays(c, dbar, side_cols=None) -> tuple:
 
 # Observer state of one engine, one row per side (0: odd sensors, 1: even sensors):
 # columns of ST: 0 x̂1, 1 ē1, 2 x̂3, 3 ē3, 4 F3(prev), 5 H3(prev), 6 ok3(prev), 7 x̂4, 8 ē4, 9 F4(prev),
-# 10 H4(prev), 11 ok4(prev), 12 speed warm start, 13 u(prev), 14 samples seen
-N_STATE = 15
+# 10 H4(prev), 11 ok4(prev), 12 speed warm start, 13 u(prev), 14 samples seen, 15/16 time since the
+# M3/M4 observer (re)started [s] (kept for the closed-form thresholds of ``thesis-table-6.1`` only)
+N_STATE = 17
 
 
 def new_state(n_engines: int, n_nom: float) -> np.ndarray:
@@ -502,7 +679,7 @@ def new_state(n_engines: int, n_nom: float) -> np.ndarray:
     return st
 
 
-def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table=None) -> None:
+def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table=None, thr=None) -> None:
     """Residuals R (T, 19) and thresholds THR (T, 19) of all modules for samples Y (T, 19) of one
     engine, continuing from the observer state ST (2, N_STATE), which is updated in place.
 
@@ -511,18 +688,22 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table
     (its ARR is violated).
     table : None (exact inclusion) or :func:`table_arrays` (the tabulated Σ2 inclusion terms with
     their certified margins, :mod:`marine_fdi_env.diagnosis.inclusion_table`).
+    thr : None (the ``local`` thresholds) or :func:`~marine_fdi_env.diagnosis.thresholds.threshold_array`
+    of a reading of the observers' thresholds.
     """
     kc, csm = kernel_constants(c)
+    tw = _LOCAL_THRESHOLDS if thr is None else thr
     if table is None:
-        _kernel(kc, csm, Y, U, float(dt), dbar, side_cols, t_out_col, R, THR, ST, _NO_TABLE, False)
+        _kernel(kc, csm, Y, U, float(dt), dbar, side_cols, t_out_col, R, THR, ST, _NO_TABLE, False, tw)
     else:
-        _kernel(kc, csm, Y, U, float(dt), dbar, side_cols, t_out_col, R, THR, ST, table, True)
+        _kernel(kc, csm, Y, U, float(dt), dbar, side_cols, t_out_col, R, THR, ST, table, True, tw)
 
 
 @jit
-def _kernel(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_table):
+def _kernel(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_table, tw):
     """:func:`compute_residuals` (``use_table`` False: exact inclusion, ``table`` unused) with the
-    constants of :func:`kernel_constants`."""
+    constants of :func:`kernel_constants` and the observers' threshold reading ``tw``
+    (:func:`~marine_fdi_env.diagnosis.thresholds.threshold_array`: rows M1, M3, M4)."""
     T = Y.shape[0]
     L1, L3, L4 = OBSERVER_GAINS
     E1, q1, r1 = _etd_scalar(-1.0 / c.tau_X_s, dt)
@@ -610,6 +791,8 @@ def _kernel(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use
                         R[kk, m] = math.inf
                         st[0] = prior
                 THR[kk, m] = st[1] + d1
+                if tw[0, 8] != 0.0:
+                    THR[kk, m] = closed_form(st[14] * dt, d1, tw[0])
                 # ---------------------------------------------------------------- M2.(1,2): p6, M2.(3,4): T6
                 for j in range(2):
                     m = 2 + 2 * j + side
@@ -672,83 +855,8 @@ def _kernel(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use
                     psi = scavenge_flow_function(x3 / x4, c)
                     Pi = turbine_expansion(x3, c)
                     m1 = _charge_mass(x4, T1, c)
-                    s_sl, mdot, df = _point(c, csm, x1, x3, x4, m1, n0, psi, Pi, T_in, T_out, T6m, p6m, G, 0)
-                    # the x1, x3, x4, T1 points, unrolled (x + 0.0 and x + (-d) equal x and x - d exactly)
-                    _point(c, csm, x1 + d1, x3, x4, m1, t[1, 0], psi, Pi, T_in, T_out, T6m, p6m, G, 1)
-                    _point(c, csm, x1 - d1, x3, x4, m1, t[2, 0], psi, Pi, T_in, T_out, T6m, p6m, G, 2)
-                    _point(
-                        c,
-                        csm,
-                        x1,
-                        x3 + d3,
-                        x4,
-                        m1,
-                        n0,
-                        scavenge_flow_function((x3 + d3) / x4, c),
-                        turbine_expansion(x3 + d3, c),
-                        T_in,
-                        T_out,
-                        T6m,
-                        p6m,
-                        G,
-                        3,
-                    )
-                    _point(
-                        c,
-                        csm,
-                        x1,
-                        x3 - d3,
-                        x4,
-                        m1,
-                        n0,
-                        scavenge_flow_function((x3 - d3) / x4, c),
-                        turbine_expansion(x3 - d3, c),
-                        T_in,
-                        T_out,
-                        T6m,
-                        p6m,
-                        G,
-                        4,
-                    )
-                    _point(
-                        c,
-                        csm,
-                        x1,
-                        x3,
-                        x4 + d4,
-                        _charge_mass(x4 + d4, T1, c),
-                        t[3, 0],
-                        scavenge_flow_function(x3 / (x4 + d4), c),
-                        Pi,
-                        T_in,
-                        T_out,
-                        T6m,
-                        p6m,
-                        G,
-                        5,
-                    )
-                    _point(
-                        c,
-                        csm,
-                        x1,
-                        x3,
-                        x4 - d4,
-                        _charge_mass(x4 - d4, T1, c),
-                        t[4, 0],
-                        scavenge_flow_function(x3 / (x4 - d4), c),
-                        Pi,
-                        T_in,
-                        T_out,
-                        T6m,
-                        p6m,
-                        G,
-                        6,
-                    )
-                    _point(
-                        c, csm, x1, x3, x4, _charge_mass(x4, T1 + dT1, c), t[5, 0], psi, Pi, T_in, T_out, T6m, p6m, G, 7
-                    )
-                    _point(
-                        c, csm, x1, x3, x4, _charge_mass(x4, T1 - dT1, c), t[6, 0], psi, Pi, T_in, T_out, T6m, p6m, G, 8
+                    s_sl, mdot, df = _box_points(
+                        c, csm, x1, x3, x4, T1, m1, t, psi, Pi, T_in, T_out, T6m, p6m, d1, d3, d4, dT1, G
                     )
                     # near a kink of Ψ_sc (x3/x4 clipped to [r_crit, 1]) the coordinate-wise terms miss
                     # the range of the slip flow (e.g. measured x3/x4 > 1, no slip at any coordinate-wise
@@ -802,20 +910,26 @@ def _kernel(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use
                 # ---------------------------------------------------------------- M3.q (receiver observer)
                 m = 8 + side
                 F, H = 0.0, 0.0
+                w = tw[1]
                 if ok:
                     F = G[0, 0]
                     H = SAFETY * (
-                        _dev(F, G[1, 0], G[2, 0])
-                        + _dev(F, G[3, 0], G[4, 0])
-                        + _dev(F, G[5, 0], G[6, 0])
-                        + _dev(F, G[7, 0], G[8, 0])
-                        + _dev(F, G[9, 0], G[10, 0])
+                        w[0] * _dev(F, G[1, 0], G[2, 0])
+                        + w[1] * _dev(F, G[3, 0], G[4, 0])
+                        + w[2] * _dev(F, G[5, 0], G[6, 0])
+                        + w[3] * _dev(F, G[7, 0], G[8, 0])
+                        + w[4] * _dev(F, G[9, 0], G[10, 0])
+                        + w[7]
                     )
                     if tabd[side]:
-                        H += SAFETY * spm[0]
+                        H += SAFETY * (w[5] * spm[0])
                     if kinked:
-                        H = (H + SAFETY * kc[0]) * KINK_SAFETY
+                        H = (H + SAFETY * (w[6] * kc[0])) * KINK_SAFETY
+                restart = first or st[6] == 0.0
                 R[kk, m], THR[kk, m] = _observer_update(st, 2, first, ok, x3, F, H, E3, q3, r3, Ld3, d3)
+                if w[8] != 0.0:
+                    st[15] = 0.0 if restart else st[15] + dt
+                    THR[kk, m] = closed_form(st[15], d3, w)
                 # ---------------------------------------------------------------- M3.(3,4): T_in
                 m = 10 + side
                 if ok and math.isfinite(p6m) and math.isfinite(T6m):
@@ -836,20 +950,26 @@ def _kernel(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use
                 # ---------------------------------------------------------------- M4.q (charge observer)
                 m = 13 + side
                 F, H = 0.0, 0.0
+                w = tw[2]
                 if ok:
                     F = G[0, 1]
                     H = SAFETY * (
-                        _dev(F, G[1, 1], G[2, 1])
-                        + _dev(F, G[3, 1], G[4, 1])
-                        + _dev(F, G[5, 1], G[6, 1])
-                        + _dev(F, G[7, 1], G[8, 1])
-                        + _dev(F, G[9, 1], G[10, 1])
+                        w[0] * _dev(F, G[1, 1], G[2, 1])
+                        + w[1] * _dev(F, G[3, 1], G[4, 1])
+                        + w[2] * _dev(F, G[5, 1], G[6, 1])
+                        + w[3] * _dev(F, G[7, 1], G[8, 1])
+                        + w[4] * _dev(F, G[9, 1], G[10, 1])
+                        + w[7]
                     )
                     if tabd[side]:
-                        H += SAFETY * spm[1]
+                        H += SAFETY * (w[5] * spm[1])
                     if kinked:
-                        H = (H + SAFETY * kc[1]) * KINK_SAFETY
+                        H = (H + SAFETY * (w[6] * kc[1])) * KINK_SAFETY
+                restart = first or st[11] == 0.0
                 R[kk, m], THR[kk, m] = _observer_update(st, 7, first, ok, x4, F, H, E4, q4, r4, Ld4, d4)
+                if w[8] != 0.0:
+                    st[16] = 0.0 if restart else st[16] + dt
+                    THR[kk, m] = closed_form(st[16], d4, w)
                 # ---------------------------------------------------------------- M4.(3,4): T1
                 m = 15 + side
                 T1m = T1_model
@@ -988,9 +1108,12 @@ def residuals_for_run(
     dt: float,
     noise_bounds: np.ndarray | None = None,
     inclusion: str = "tabulated",
+    thresholds: str = DEFAULT_THRESHOLDS,
+    params_name: str = "thesis-12v28",
 ) -> ResidualTrace:
     """Run all 19 modules over one engine's measurements (T, 19) with the applied fuel setting (T,);
-    ``inclusion`` as :class:`~marine_fdi_env.diagnosis.agent.ReferenceDiagnoser`'s."""
+    ``inclusion`` and ``thresholds`` as :class:`~marine_fdi_env.diagnosis.agent.ReferenceDiagnoser`'s
+    (``params_name``: the parameter set whose global bounds a ``thesis-...`` reading takes)."""
     Y = np.ascontiguousarray(measurements, dtype=np.float64)
     U = np.ascontiguousarray(u, dtype=np.float64)
     db = np.array(NOISE_BOUNDS if noise_bounds is None else noise_bounds, dtype=np.float64)
@@ -999,30 +1122,33 @@ def residuals_for_run(
     THR = np.zeros((T, len(MODULE_IDS)))
     st = new_state(1, constants.n_nom_rev_s)[0]
     table = inclusion_arrays(constants, db, inclusion)
-    compute_residuals(constants, Y, U, float(dt), db, _SIDE_COLS, _T_OUT_COL, R, THR, st, table)
+    thr = threshold_array(thresholds, params_name)
+    compute_residuals(constants, Y, U, float(dt), db, _SIDE_COLS, _T_OUT_COL, R, THR, st, table, thr)
     return ResidualTrace(R, THR)
 
 
 @jit
-def _batch_loop(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_table, i0, i1):
+def _batch_loop(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_table, tw, i0, i1):
     for i in range(i0, i1):
-        _kernel(c, csm, Y[i], U[i], dt, dbar, side_cols, t_out_col, R[i], THR[i], ST[i], table, use_table)
+        _kernel(c, csm, Y[i], U[i], dt, dbar, side_cols, t_out_col, R[i], THR[i], ST[i], table, use_table, tw)
 
 
-def _batch_range(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_table, i0, i1) -> None:
+def _batch_range(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use_table, i0, i1, thr=None) -> None:
     """Engines i0..i1-1 of :func:`compute_residuals_batch` on this thread (``table`` the kernel's:
-    ``_NO_TABLE`` with ``use_table`` False for the exact inclusion)."""
+    ``_NO_TABLE`` with ``use_table`` False for the exact inclusion; ``thr`` as
+    :func:`compute_residuals`'s)."""
     kc, csm = kernel_constants(c)
-    _batch_loop(kc, csm, Y, U, float(dt), dbar, side_cols, t_out_col, R, THR, ST, table, use_table, i0, i1)
+    tw = _LOCAL_THRESHOLDS if thr is None else thr
+    _batch_loop(kc, csm, Y, U, float(dt), dbar, side_cols, t_out_col, R, THR, ST, table, use_table, tw, i0, i1)
 
 
-def compute_residuals_batch(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table=None):
+def compute_residuals_batch(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table=None, thr=None):
     """:func:`compute_residuals` for N engines: Y (N, B, 19), U (N, B), R/THR (N, B, 19), ST (N, 2, N_STATE).
 
     Batches of at least ``THREADED_MIN_ENGINES`` engines run on the simulator's two worker
     threads (the compiled loop releases the GIL) as ``THREAD_CHUNKS`` contiguous chunks, so that a
     thread slowed down by other load does not hold up the other; engines are independent, so the
-    results equal the single-thread loop bit for bit.
+    results equal the single-thread loop bit for bit.  ``thr`` as :func:`compute_residuals`'s.
     """
     n = Y.shape[0]
     kc, csm = kernel_constants(c)
@@ -1040,6 +1166,7 @@ def compute_residuals_batch(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST,
         ST,
         _NO_TABLE if table is None else table,
         table is not None,
+        _LOCAL_THRESHOLDS if thr is None else thr,
     )
     if n < THREADED_MIN_ENGINES:
         _batch_loop(*args, 0, n)

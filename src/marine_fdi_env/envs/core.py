@@ -41,6 +41,7 @@ class EpisodeBatch:
         noise_scale: float = 1.0,
         observe_sequential: bool = False,
         diagnosis_cells: str = "sized",
+        diagnosis_thresholds: str = "local",
     ) -> None:
         self.n = int(n)
         self.params = load_params(params) if isinstance(params, str) else params
@@ -66,7 +67,16 @@ class EpisodeBatch:
         self.sim: Simulator | None = None
         # diagnosis_cells: the diagnosers' sure cells (thesis | grid | sized, diagnosis.cell_sets); only
         # info["reference"] / info["sequential"] depend on it, not the observation (decide_cells adds others)
-        self.diag = ReferenceDiagnoser(self.params, n_engines=self.n, dt=self.dt, cells=diagnosis_cells)
+        # diagnosis_thresholds: the reading of the observer modules' thresholds (diagnosis.thresholds); it
+        # changes the reference's thresholds, so the observation too (the sequential tests: local only)
+        if diagnosis_thresholds != "local" and self.observe_sequential:
+            raise ValueError(
+                f"observe_sequential needs diagnosis_thresholds='local' (the sequential diagnoser's tests are "
+                f"calibrated on the local thresholds), got {diagnosis_thresholds!r}"
+            )
+        self.diag = ReferenceDiagnoser(
+            self.params, n_engines=self.n, dt=self.dt, cells=diagnosis_cells, thresholds=diagnosis_thresholds
+        )
         # the sequential diagnoser's tests on the same residuals (observe_sequential only)
         self.seq = SequentialStage(self.n, dt=self.dt, cells=diagnosis_cells) if self.observe_sequential else None
         self.scenarios: list[ScenarioSpec | None] = [None] * self.n

@@ -95,8 +95,11 @@ class MarineFDIEnv(gym.Env):
     ## Arguments
     ``gymnasium.make("marine_fdi_env:MarineFDI-v0", scenario_config="default",
     decision_period_s=1.0, observe_sensors=False, reward=RewardConfig(), params="thesis-12v28",
-    dt=0.01, observe_sequential=False, diagnosis_cells="sized")`` (``MarineFDI-v1``: ``reward="v1"``, or a
-    ``RewardConfigV1``); ``scenario_config`` is a preset name (``default``, ``single``, ``multi``,
+    dt=0.01, observe_sequential=False, diagnosis_cells="sized", diagnosis_thresholds="local")``
+    (``MarineFDI-v1``: ``reward="v1"``, or a ``RewardConfigV1``); ``diagnosis_thresholds`` reads the
+    reference's observer thresholds another way (``thesis-lipschitz``, ...,
+    :mod:`marine_fdi_env.diagnosis.thresholds`: the observation's thresholds change with it);
+    ``scenario_config`` is a preset name (``default``, ``single``, ``multi``,
     ``nominal``, ``incipient``, ``transfer``, ``sensor-kinds``), a
     :class:`~marine_fdi_env.envs.scenario_sampler.ScenarioConfig` or its dict.
     ``reset(options={"scenario": ScenarioSpec | dict})`` runs a given scenario instead of a drawn
@@ -133,6 +136,7 @@ class MarineFDIEnv(gym.Env):
         render_mode: str | None = None,
         observe_sequential: bool = False,
         diagnosis_cells: str = "sized",
+        diagnosis_thresholds: str = "local",
     ) -> None:
         self.scenario_config = get_preset(scenario_config)
         reward = make_reward_config(reward)
@@ -146,6 +150,7 @@ class MarineFDIEnv(gym.Env):
             dt=dt,
             observe_sequential=observe_sequential,
             diagnosis_cells=diagnosis_cells,
+            diagnosis_thresholds=diagnosis_thresholds,
         )
         self.batch = EpisodeBatch(
             1,
@@ -157,6 +162,7 @@ class MarineFDIEnv(gym.Env):
             noise_scale=self.scenario_config.noise_scale,
             observe_sequential=observe_sequential,
             diagnosis_cells=diagnosis_cells,
+            diagnosis_thresholds=diagnosis_thresholds,
         )
         low, high = observation_bounds(observe_sensors, observe_sequential)
         self.observation_space = spaces.Box(low, high, dtype=np.float32)

@@ -49,6 +49,7 @@ class MarineFDIVectorEnv(VectorEnv):
         render_mode: str | None = None,
         observe_sequential: bool = False,
         diagnosis_cells: str = "sized",
+        diagnosis_thresholds: str = "local",
     ) -> None:
         if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
@@ -66,6 +67,7 @@ class MarineFDIVectorEnv(VectorEnv):
             noise_scale=self.scenario_config.noise_scale,
             observe_sequential=observe_sequential,
             diagnosis_cells=diagnosis_cells,
+            diagnosis_thresholds=diagnosis_thresholds,
         )
         low, high = observation_bounds(observe_sensors, observe_sequential)
         self.single_observation_space = spaces.Box(low, high, dtype=np.float32)
