@@ -16,6 +16,10 @@ from ``os.getloadavg``):
 ``cache_write_s``      ``marine-fdi evaluate --agent null --suite single-v1 --workers W --cache write``
 ``new_agent_cached_s`` ``marine-fdi evaluate --agent docs/examples/fired_modules_agent.py:FiredModulesAgent
                        --suite single-v1`` on that cache (an agent no other command ran; target <= 10 s)
+``eight_over_one``     with ``--marginal``: ``marine-fdi sweep --agents EIGHT --suites single-v1`` over one agent,
+                       EIGHT the agents registered when the 2x target was set (:data:`EIGHT`)
+``marginal``           with ``--marginal``: per agent registered since, the CPU and wall seconds it adds to the
+                       eight on single-v1 (``sweep --agents EIGHT AGENT`` minus ``sweep --agents EIGHT``)
 
 With ``--repeats R`` the one/every pair runs R times, alternating (``every_over_one`` is the median
 ratio).  ``episodes``: the episodes each command scored (agent x episode).  Load from other jobs on
@@ -46,6 +50,8 @@ from pathlib import Path
 from _report import emit  # noqa: E402  (benchmarks/ is the script directory)
 
 ROOT = Path(__file__).resolve().parents[1]
+# the agents registered when the "every agent <= 2x one agent" target was set
+EIGHT = ("null", "random", "reference", "sequential", "ppo-v1", "classifier-v1", "classifier-v1+reference", "oracle")
 NEW_AGENT = f"{ROOT / 'docs' / 'examples' / 'fired_modules_agent.py'}:FiredModulesAgent"
 
 
@@ -79,12 +85,37 @@ def _run(args: list[str], cwd: Path, src: Path | None = None) -> dict:
     }
 
 
+def _marginal(tmp: Path, w: list[str], one_s: float) -> dict:
+    """The eight agents of the 2x target on single-v1, and what each later agent adds to them."""
+    from marine_fdi_env.benchmark.agent_registry import list_agents
+
+    def sweep(agents, out):
+        return _run(["sweep", "--agents", *agents, "--suites", "single-v1", "--out", out, "--cache", "off", *w], tmp)
+
+    eight = sweep(EIGHT, "eight")
+    later = [e.name for e in list_agents() if e.available and e.name not in EIGHT]
+    marginal = {}
+    for k, name in enumerate(later):
+        r = sweep((*EIGHT, name), f"eight_plus_{k}")
+        marginal[name] = {
+            "cpu_s": round(r["cpu_s"] - eight["cpu_s"], 2),
+            "wall_s": round(r["wall_s"] - eight["wall_s"], 2),
+            "load_before": r["load_before"],
+        }
+    return {"eight_agents": eight, "eight_over_one": round(eight["wall_s"] / one_s, 2), "marginal": marginal}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--repeats", type=int, default=1, help="runs of the one-agent / every-agent pair")
     ap.add_argument("--skip-full", action="store_true", help="leave out the full sweep")
+    ap.add_argument(
+        "--marginal",
+        action="store_true",
+        help="also the eight agents of the 2x target over one agent, and each later agent's marginal cost",
+    )
     ap.add_argument("--keep", type=Path, default=None, help="run in this folder and keep it (default: a temporary one)")
     ap.add_argument(
         "--other-src",
@@ -176,6 +207,8 @@ def main(argv=None) -> int:
             every_over_one=round(statistics.median(e["wall_s"] / o["wall_s"] for o, e in zip(one, every)), 2),
             episodes={"one_agent": 156, "every_agent": 156 * n_agents},
         )
+        if args.marginal:
+            out.update(_marginal(tmp, w, out["one_agent_s"]))
         if not args.skip_full:
             full = _run(["sweep", "--agents", "all", "--suites", "all", "--out", "full", "--cache", "off", *w], tmp)
             run = json.loads((tmp / "full" / "sweep.json").read_text())

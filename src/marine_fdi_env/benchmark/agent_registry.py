@@ -48,6 +48,21 @@ BUILTIN_AGENTS = {
     "reference-table-6.1-m4": "marine_fdi_env.baselines.reference_agent:ReferenceTable61M4Agent",
     "oracle": "marine_fdi_env.baselines.oracle_agent:OracleAgent",
 }
+# what a variant of a baseline is (the others are described by their module's docstring)
+BUILTIN_VARIANTS = {
+    "reference-thesis": "The reference with the table-size cells (the thesis's exoneration)",
+    "reference-grid": "The reference with the size-blind grid cells",
+    "sequential-thesis": "The sequential diagnoser with the table-size cells",
+    "sequential-grid": "The sequential diagnoser with the size-blind grid cells",
+    "reference-lipschitz": "The reference with the thesis's eq. 5.11 read with a global Lipschitz bound "
+    "(docs/reproduction.md)",
+    "reference-no-interconnection": "The reference without the interconnection term in its observers' "
+    "thresholds (fires at once: docs/reproduction.md)",
+    "reference-table-6.1": "The reference with eq. 5.10-5.12 and table 6.1's constants in every observer "
+    "(fires at once: docs/reproduction.md)",
+    "reference-table-6.1-m4": "The reference with table 6.1's constants in the charge-air observers M4.1/M4.2 "
+    "(docs/reproduction.md)",
+}
 # top-level package names of the agents and the training code before they moved under the namespace
 LEGACY_PACKAGES = ("baselines", "training")
 TRAIN_EXTRA_HINT = "pip install 'marine-fdi-env[train]'"
@@ -156,7 +171,7 @@ def _entries() -> tuple[AgentEntry, ...]:
                 doc = ast.get_docstring(ast.parse(Path(spec.origin).read_text(encoding="utf-8")))
         except (ImportError, OSError, SyntaxError, ValueError):
             pass
-        out.append(AgentEntry(name, "baseline", name, _first_line(doc) or target))
+        out.append(AgentEntry(name, "baseline", name, BUILTIN_VARIANTS.get(name) or _first_line(doc) or target))
     root = models_dir()
     if root is not None:
         for folder in sorted(p for p in root.iterdir() if p.is_dir()):
