@@ -178,6 +178,11 @@ class _Causes:
         return None
 
     def order(self, scenario: str, column: str) -> str | None:
+        if column == "sequential":
+            return (
+                "the sequential diagnoser's CUSUM tests fire modules that the worst-case thresholds leave silent, and "
+                "earlier (the median firing times are this row's; docs/diagnosis.md, the sequential diagnoser)"
+            )
         reading = column if column in ("local", "thesis-table-6.1-m4") else "local"
         f = self.fired(scenario, reading)
         if f is None:
@@ -221,7 +226,14 @@ def causes_for(table: dict, cols: dict) -> dict:
                 elif c.kind in ("process_detection", "min_detectable") and c.fault:
                     text = k.fault(c.fault, column)
                 elif c.kind == "event_time":
-                    if c.fault and c.fault.startswith("S"):
+                    early, n = r["detail"].get("early", 0), r["n"]
+                    if early * 2 > n:
+                        order = k.order(c.scenario, column)
+                        text = (
+                            f"{c.module} fires before {c.fault}'s onset in {early}/{n} runs: another fault of the "
+                            "example reaches it first" + (f" ({order})" if order else "")
+                        )
+                    elif c.fault and c.fault.startswith("S"):
                         text = k.sensor(c.fault, c.module, column)
                     else:
                         text = k.fault(c.fault, column) or k.order(c.scenario, column)
