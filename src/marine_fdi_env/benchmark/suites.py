@@ -58,7 +58,7 @@ from ..envs.scenario_sampler import PRESETS, ScenarioConfig, ScenarioSpec, _faul
 from ..jsonfile import read_json
 from ..scenarios import get_scenario
 
-__all__ = ["SUITE_NAMES", "load_suite", "build_suite", "Suite"]
+__all__ = ["SUITE_NAMES", "load_suite", "build_suite", "single_fault_suite", "Suite"]
 
 SUITE_NAMES = (
     "thesis-v1",
@@ -278,6 +278,23 @@ _BUILDERS = {
 }
 # the env block of a suite; transfer-v2 and -v3 also fix the reward they are scored with
 _SUITE_ENV = {"transfer-v2": dict(_ENV, reward="v1"), "transfer-v3": dict(_ENV, reward="v1")}
+
+
+def single_fault_suite(name: str, fault_ids, built_with: str = "") -> dict:
+    """The JSON object of a suite like ``single-v1`` for some faults (e.g. a fault of a plugin): each fault
+    alone at 1x, 2x and 4x its detectability limit x 2 seeds (sensor offsets with random sign), training-type
+    profiles; ``name`` ends in ``-vN``.  The faults' detectability limits must exist."""
+    if "-v" not in name or not name.rsplit("-v", 1)[1].isdigit():
+        raise ValueError(f"a suite name ends in -vN (N the version), got {name!r}")
+    fault_ids = tuple(fault_ids)
+    return {
+        "name": name,
+        "version": int(name.rsplit("-v", 1)[1]),
+        "description": f"each of {', '.join(fault_ids)} alone at 1x, 2x, 4x its detectability limit x 2 seeds",
+        "built_with": built_with,
+        "env": dict(_ENV),
+        "scenarios": [s.to_dict() for s in _grid(name, fault_ids, (1.0, 2.0, 4.0), 2, signed=True)],
+    }
 
 
 def build_suite(name: str) -> dict:

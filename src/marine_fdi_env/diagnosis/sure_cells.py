@@ -11,8 +11,14 @@ File format (JSON): ``module_ids``, ``fault_ids``; ``sure`` (19 x 26 bool) and `
 measured runs); ``spread_s`` (26,), the settle time's basis: the largest delay of a fault's sure
 modules after its first fired module (in a file of the first format: their spread among themselves);
 ``settings`` and ``command`` say how it is measured.  A file without ``format`` holds fire counts
-at the table magnitudes only: ``fire_counts``, ``runs_per_fault``, ``sure_lag_s``,
+at the table magnitudes only: ``fire_counts``, ``runs_per_fault`` (or ``runs`` per fault), ``sure_lag_s``,
 ``sure_spread_s``; it is read too.
+
+The files are read from the package's ``data/diagnosis/`` or the folder ``MARINE_FDI_TABLES``
+(:func:`~marine_fdi_env.engine.fault_registry.measured_table`); a file may hold more faults than are
+registered (those are read), and a registered fault it lacks is refused by name
+(:class:`~marine_fdi_env.engine.fault_registry.MissingFaultTable`).  :func:`select_faults` and
+:func:`merge_faults` pick and join the per-fault columns (``python -m studies.fault_tables``).
 """
 
 from __future__ import annotations
@@ -162,7 +168,8 @@ def load_sure_cells(name: str = SURE_CELLS_FILE) -> SureCells:
     else:  # the first format: fire counts at the table magnitudes
         counts = np.asarray(data["fire_counts"])
         lag = np.asarray(data.get("sure_lag_s", np.zeros(counts.shape)), dtype=float)
-        sure = (counts == data["runs_per_fault"]) & support & ~(_IS_SENSOR[None, :] & (lag > SENSOR_MAX_LAG_S))
+        runs = np.asarray(data.get("runs", data["runs_per_fault"]))  # per fault when faults were added later
+        sure = (counts == runs) & support & ~(_IS_SENSOR[None, :] & (lag > SENSOR_MAX_LAG_S))
         spread = np.asarray(data.get("sure_spread_s", [0.0] * len(FAULT_IDS)), dtype=float)
     for a in (sure, lag, spread):
         a.setflags(write=False)
