@@ -316,3 +316,27 @@ def test_the_compiled_functions_cache_key_follows_the_sources_of_their_layers(tm
     (tmp_path / "diagnosis" / "agent.py").write_text("# another\n")
     assert key("marine_fdi_env.engine.model") == engine2  # a later layer does not recompile the engine
     assert key("marine_fdi_env.diagnosis.x") != diagnosis
+
+
+@pytest.mark.parametrize("submodels", ["base", "inert", "all_on"])
+def test_the_receiver_leak_term_takes_gas_from_the_turbine(submodels):
+    """phi_rec: the turbine passes (1 - phi_rec) of the cylinders' gas, in the base model and in the extended gas
+    path (inert submodels: the base model's numbers), and 0 is the model without the term."""
+    from marine_fdi_env.engine.model import EngineModel
+    from marine_fdi_env.engine.params import load_params
+    from marine_fdi_env.engine.steady_state import steady_state
+    from tests.unit.test_submodels import ALL_ON, INERT
+
+    p = load_params("thesis-12v28")
+    if submodels != "base":
+        p = p.replace(submodels={"inert": INERT, "all_on": ALL_ON}[submodels])
+    m = EngineModel(p)
+    ss = steady_state(m, np.array([0.7, 0.9]))
+    healthy = m.algebraic(ss.x1, ss.x3, ss.x4)
+    zero = m.algebraic(ss.x1, ss.x3, ss.x4, ProcessFaultValues(phi_rec=0.0))
+    leak = m.algebraic(ss.x1, ss.x3, ss.x4, ProcessFaultValues(phi_rec=0.1))
+    assert all(np.array_equal(getattr(zero, f), getattr(healthy, f)) for f in vars(healthy))
+    assert np.all(leak.h3 < healthy.h3) and np.all(leak.h4 < healthy.h4) and np.all(leak.T_co < healthy.T_co)
+    if submodels == "base":
+        np.testing.assert_allclose(leak.mdot_g, 0.9 * healthy.mdot_g, rtol=1e-14)
+    assert np.array_equal(leak.n, healthy.n) and np.array_equal(leak.p6, healthy.p6)  # Σ2 sees no leak
