@@ -225,8 +225,11 @@ def regenerate(fault_ids, out: Path, settings: Settings = Settings(), suite_name
                 rel = f"diagnosis/{files[kind]}"
                 new = derive(grid, diagnoser, fault_ids=fault_ids)
                 new["command"] = w.command
-                if not local:
-                    new["settings"]["thresholds"] = reading
+                if not local:  # where certainty's derive writes it
+                    if kind == "grid":
+                        new["settings"]["thresholds"] = reading
+                    else:
+                        new["thresholds"] = reading
                 base = w.base(rel)
                 data = merge(base, new, _order(base["fault_ids"], new["fault_ids"]))
                 data["registry"] = registry_key()

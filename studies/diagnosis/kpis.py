@@ -408,7 +408,9 @@ def detectability_limits(
         extra = {} if diagnoser == "reference" else {"diagnoser": diagnoser}
         if thresholds != DEFAULT_THRESHOLDS:
             extra["thresholds"] = thresholds
-        reps = diagnose_batch(schedules, seeds * len(todo), duration_s=duration_s, exoneration=exoneration, **extra)
+        if exoneration != "sure":
+            extra["exoneration"] = exoneration
+        reps = diagnose_batch(schedules, seeds * len(todo), duration_s=duration_s, **extra)
         for k, (f, m) in enumerate(todo):
             st = state[f]
             onset = schedules[k * n_seeds][0].onset_s
