@@ -82,6 +82,7 @@ def train_ppo_replay(seed: int, hp: dict, out: Path | None, use_cache: bool = Tr
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.logger import Logger
     from stable_baselines3.common.utils import set_random_seed
     from stable_baselines3.common.vec_env import VecNormalize
 
@@ -137,6 +138,8 @@ def train_ppo_replay(seed: int, hp: dict, out: Path | None, use_cache: bool = Tr
         else env
     )
     model = PPO(policy, venv, seed=seed, device="cpu", verbose=0, policy_kwargs=policy_kwargs, **hp)
+    # SB3 makes an empty /tmp/SB3-<date> folder per learn() without a logger of its own; ours writes nowhere
+    model.set_logger(Logger(None, []))
     if alarm_logit is not None:  # start from a quiet policy: P(alarm on) = sigmoid(initial_alarm_logit)
         if action_mode != "gated":
             raise ValueError("initial_alarm_logit needs action_mode 'gated'")

@@ -65,6 +65,7 @@ def train_sb3(algo: str, seed: int, hp: dict, out: Path | None, log=print) -> tu
     """Train PPO / RecurrentPPO on the batched env; returns (model, config)."""
     import torch
     from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.logger import Logger
     from stable_baselines3.common.utils import set_random_seed
     from stable_baselines3.common.vec_env import VecFrameStack, VecMonitor
 
@@ -94,6 +95,8 @@ def train_sb3(algo: str, seed: int, hp: dict, out: Path | None, log=print) -> tu
     else:
         from sb3_contrib import RecurrentPPO as Algo
     model = Algo(policy, env, seed=seed, device="cpu", verbose=0, policy_kwargs=policy_kwargs, **hp)
+    # SB3 makes an empty /tmp/SB3-<date> folder per learn() without a logger of its own; ours writes nowhere
+    model.set_logger(Logger(None, []))
     curve: list[dict] = []
 
     class Curve(BaseCallback):

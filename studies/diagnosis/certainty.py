@@ -47,7 +47,7 @@ import argparse
 import json
 import math
 import sys
-from importlib import resources
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -71,6 +71,7 @@ from marine_fdi_env.diagnosis.sure_cells import (
     sure_cells,
 )
 from marine_fdi_env.diagnosis.thresholds import DEFAULT_THRESHOLDS, THRESHOLD_READINGS, check_thresholds
+from marine_fdi_env.engine.fault_registry import check_table_faults, fault_type, measured_table
 from marine_fdi_env.engine.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, FaultSpec
 from marine_fdi_env.engine.simulator import Simulator
 from studies.paths import PACKAGE_DATA
@@ -109,28 +110,31 @@ def _onset(fault_id: str) -> float:
 
 
 def _limits() -> dict:
-    path = resources.files("marine_fdi_env") / "data" / "env" / "detectability.json"
-    faults = json.loads(path.read_text())["faults"]
+    """(limit, table magnitude) per fault of the detectability table (the package's, or that of the folder
+    ``MARINE_FDI_TABLES``)."""
+    faults = json.loads(measured_table("env/detectability.json").read_text())["faults"]
     return {f: (float(v["limit"]), float(v["table_magnitude"])) for f, v in faults.items()}
 
 
-def grid_magnitudes(fault_id: str, held_out: bool = False) -> list[float]:
-    """The grid's magnitudes of a fault (positive; see module docstring), or with ``held_out`` the
+def grid_magnitudes(fault_id: str, held_out: bool = False, sizes: int = N_GRID) -> list[float]:
+    """The grid's ``sizes`` magnitudes of a fault (positive; see module docstring), or with ``held_out`` the
     geometric midpoints between them."""
-    limit, table = _limits()[fault_id]
+    limits = _limits()
+    check_table_faults("env/detectability.json", limits, [fault_id])
+    limit, table = limits[fault_id]
     lo = LOWEST_SCALE * limit
     hi = max(table, lo)
-    x = np.exp(np.linspace(math.log(lo), math.log(hi), N_GRID))
+    x = np.exp(np.linspace(math.log(lo), math.log(hi), sizes))
     if held_out:
         x = np.sqrt(x[:-1] * x[1:])
     return [float(v) for v in x]
 
 
-def sized_magnitudes(fault_id: str) -> list[float]:
+def sized_magnitudes(fault_id: str, sizes: int = N_GRID) -> list[float]:
     """The magnitudes of the size-aware cells: the grid's (:func:`grid_magnitudes`) and, in every
     gap between adjacent grid sizes wider than a factor ``THIN_GAP``, two more at its log-thirds
     (not at the geometric midpoints, which are the held-out sizes); ascending."""
-    g = grid_magnitudes(fault_id)
+    g = grid_magnitudes(fault_id, sizes=sizes)
     out = [g[0]]
     for a, b in zip(g[:-1], g[1:]):
         if b / a > THIN_GAP:
@@ -153,44 +157,57 @@ def _profile(name: str, rng: np.random.Generator) -> str:
     return name
 
 
-def _runs(held_out: bool, n_seeds: int, seed0: int | None = None) -> list[dict]:
+def _runs(held_out: bool, n_seeds: int, seed0: int | None = None, fault_ids=None, sizes: int = N_GRID) -> list[dict]:
     """The runs of the grid (or the held-out grid).  The grid's own runs come first, in the order
     and with the seeds and profiles they always had (so the grid cells derive from them unchanged);
-    the runs at the sizes that :func:`sized_magnitudes` adds follow (``grid_index`` None)."""
+    the runs at the sizes that :func:`sized_magnitudes` adds follow (``grid_index`` None).  That is the
+    group of the suites' faults (``suite_version`` set in the fault registry); every other fault (a
+    plugin's) is a group of its own after them, with its own seeds and profiles, so that it changes no run
+    of another fault.  ``fault_ids``: the runs of these faults only (the same runs, seeds and profiles as in
+    the whole grid; the suites' group needs the detectability limits of all its faults for that)."""
     profiles = HELD_OUT_PROFILES if held_out else GRID_PROFILES
     if seed0 is None:
         seed0 = HELD_OUT_SEED0 if held_out else GRID_SEED0
-    rng = np.random.default_rng(seed0)
-    runs = []
+    runs: list[dict] = []
 
-    def add(f, mags, grid_index, size_index):
+    def add(group, f, mags, grid_index, size_index):
         signs = (1.0,) if f in PROCESS_FAULT_DEFAULTS else (1.0, -1.0)
         for j, mag in zip(grid_index, mags):
             for sign in signs:
                 for prof in profiles:
                     for s in range(n_seeds):
-                        runs.append(
+                        group["runs"].append(
                             {
                                 "fault": f,
                                 "magnitude": sign * mag,
                                 "grid_index": j,
                                 "size_index": size_index(mag),
-                                "profile": _profile(prof, rng),
+                                "profile": _profile(prof, group["rng"]),
                                 "family": prof,
-                                "seed": seed0 + len(runs),
+                                "seed": group["seed0"] + len(group["runs"]),
                             }
                         )
 
-    for f in FAULT_IDS:
-        g = grid_magnitudes(f, held_out)
-        sized = sized_magnitudes(f)
-        add(f, g, range(len(g)), (lambda m: None) if held_out else sized.index)
-    if not held_out:
-        for f in FAULT_IDS:
-            sized = sized_magnitudes(f)
-            extra = [m for m in sized if m not in grid_magnitudes(f)]
-            add(f, extra, [None] * len(extra), sized.index)
-    return runs
+    keep = None if fault_ids is None else set(fault_ids)
+    shipped = [f for f in FAULT_IDS if fault_type(f).suite_version is not None]
+    groups = [(shipped, seed0)] + [
+        ([f], seed0 + 1_000_000 * (1 + zlib.crc32(f.encode()) % 997)) for f in FAULT_IDS if f not in shipped
+    ]
+    for faults, first in groups:
+        if keep is not None and not keep.intersection(faults):
+            continue
+        group = {"runs": [], "rng": np.random.default_rng(first), "seed0": first}
+        for f in faults:
+            g = grid_magnitudes(f, held_out, sizes)
+            sized = sized_magnitudes(f, sizes)
+            add(group, f, g, range(len(g)), (lambda m: None) if held_out else sized.index)
+        if not held_out:
+            for f in faults:
+                sized = sized_magnitudes(f, sizes)
+                extra = [m for m in sized if m not in grid_magnitudes(f, sizes=sizes)]
+                add(group, f, extra, [None] * len(extra), sized.index)
+        runs += group["runs"]
+    return runs if keep is None else [r for r in runs if r["fault"] in keep]
 
 
 def measure(
@@ -199,14 +216,17 @@ def measure(
     progress: bool = True,
     seed0: int | None = None,
     thresholds: str = DEFAULT_THRESHOLDS,
+    fault_ids=None,
+    sizes: int = N_GRID,
 ) -> dict:
     """Module firing times of every run of the grid (or the held-out grid) for both diagnosers at
     once (the sequential diagnoser runs the reference's residual generators and worst-case tests):
     {"reference": (runs, 19), "sequential": (runs, 19)} seconds after the fault's onset (NaN:
     never), with each run's fault, magnitude, profile and seed.  With another reading of the
-    observers' ``thresholds`` than ``local``: the reference at that reading only."""
+    observers' ``thresholds`` than ``local``: the reference at that reading only.  ``fault_ids``: the runs
+    of these faults only (:func:`_runs`); ``sizes``: magnitudes per fault (default ``N_GRID``)."""
     local = check_thresholds(thresholds) == DEFAULT_THRESHOLDS
-    runs = _runs(held_out, n_seeds, seed0)
+    runs = _runs(held_out, n_seeds, seed0, fault_ids, sizes)
     schedules = [
         [
             FaultSpec(
@@ -259,6 +279,7 @@ def measure(
         "thresholds": thresholds,
         "held_out": held_out,
         "n_seeds": n_seeds,
+        "sizes": sizes,
         "runs": runs,
         "duration_s": DURATION_S,
         "sensor_onset_s": SENSOR_ONSET_S,
@@ -267,23 +288,25 @@ def measure(
     }
 
 
-def derive_sure_cells(grid: dict, diagnoser: str) -> dict:
+def derive_sure_cells(grid: dict, diagnoser: str, fault_ids=FAULT_IDS) -> dict:
     """The sure-cell file content of a diagnoser from a measured grid (rule in the module docstring);
-    the runs at the sizes only the sized cells use (``grid_index`` None) are left out."""
+    the runs at the sizes only the sized cells use (``grid_index`` None) are left out.  The columns of
+    ``fault_ids`` (default every registered fault)."""
+    fault_ids = tuple(fault_ids)
     own = [k for k, r in enumerate(grid["runs"]) if r.get("grid_index", 0) is not None]
     runs = [grid["runs"][k] for k in own]
     times = np.asarray(grid["times_after_onset_s"][diagnoser], dtype=float)[own]
     fired = ~np.isnan(times) & (times >= 0.0)
-    sure = np.zeros((len(MODULE_IDS), len(FAULT_IDS)), dtype=bool)
+    sure = np.zeros((len(MODULE_IDS), len(fault_ids)), dtype=bool)
     lag = np.zeros(sure.shape)
-    spread = np.zeros(len(FAULT_IDS))
-    detected_runs = np.zeros(len(FAULT_IDS), dtype=int)
-    total_runs = np.zeros(len(FAULT_IDS), dtype=int)
-    fault_of = np.array([FAULT_IDS.index(r["fault"]) for r in runs])
-    for j, f in enumerate(FAULT_IDS):
+    spread = np.zeros(len(fault_ids))
+    detected_runs = np.zeros(len(fault_ids), dtype=int)
+    total_runs = np.zeros(len(fault_ids), dtype=int)
+    fault_of = np.array([fault_ids.index(r["fault"]) if r["fault"] in fault_ids else -1 for r in runs])
+    for j, f in enumerate(fault_ids):
         sel = fault_of == j
         total_runs[j] = sel.sum()
-        sup = _SUPPORT[:, j]
+        sup = _SUPPORT[:, FAULT_IDS.index(f)]
         det = sel & (fired[:, sup].any(axis=1))
         detected_runs[j] = det.sum()
         if not det.any():
@@ -303,7 +326,7 @@ def derive_sure_cells(grid: dict, diagnoser: str) -> dict:
     return {
         "format": 2,
         "module_ids": list(MODULE_IDS),
-        "fault_ids": list(FAULT_IDS),
+        "fault_ids": list(fault_ids),
         "sure": sure.astype(int).tolist(),
         "lag_s": lag.round(3).tolist(),
         "spread_s": spread.round(3).tolist(),
@@ -311,7 +334,7 @@ def derive_sure_cells(grid: dict, diagnoser: str) -> dict:
         "runs": total_runs.tolist(),
         "settings": {
             "diagnoser": diagnoser,
-            "grid": f"{N_GRID} magnitudes log-spaced from {LOWEST_SCALE}x the "
+            "grid": f"{grid.get('sizes', N_GRID)} magnitudes log-spaced from {LOWEST_SCALE}x the "
             "detectability limit (data/env/detectability.json) to the table 6.3/6.4 size; sensor offsets "
             "of both signs",
             "profiles": list(GRID_PROFILES),

@@ -372,9 +372,11 @@ def detectability_limits(
     log=None,
     diagnoser: str = "reference",
     thresholds: str = DEFAULT_THRESHOLDS,
+    exoneration: str = "sure",
 ) -> dict:
     """Smallest magnitude of every fault detected (any module violated, first at or after the onset)
-    before ``duration_s`` in each of ``n_seeds`` noise seeds, at constant fuel setting 1.0.
+    before ``duration_s`` in each of ``n_seeds`` noise seeds, at constant fuel setting 1.0.  Detection does
+    not depend on the diagnoser's cells: ``exoneration="none"`` measures a fault that has none yet.
 
     Sensor faults: abrupt positive offsets with onset ``sensor_onset_s``; process faults: their
     table 6.4 fault functions with their default onsets and κ (as in :func:`min_detectable`).
@@ -406,6 +408,8 @@ def detectability_limits(
         extra = {} if diagnoser == "reference" else {"diagnoser": diagnoser}
         if thresholds != DEFAULT_THRESHOLDS:
             extra["thresholds"] = thresholds
+        if exoneration != "sure":
+            extra["exoneration"] = exoneration
         reps = diagnose_batch(schedules, seeds * len(todo), duration_s=duration_s, **extra)
         for k, (f, m) in enumerate(todo):
             st = state[f]
@@ -453,7 +457,7 @@ def detectability_limits(
             "bracket": [st["lo"], st["hi"]],
             "unit": _fault_unit(f),
             "table_magnitude": st["table"],
-            "onset_s": _limit_spec(f, 1.0, sensor_onset_s).onset_s,
+            "onset_s": _limit_spec(f, None, sensor_onset_s).onset_s,
             "seeds": n_seeds,
             "evaluations": st["evals"],
         }

@@ -49,29 +49,32 @@ def _band_cells(fired: np.ndarray, times: np.ndarray, sup: np.ndarray) -> tuple[
     return sure, lag, int(det.sum())
 
 
-def derive_sized_cells(grid: dict, diagnoser: str, margin: float = PEAK_MARGIN) -> dict:
-    """The sized-cell file content of a diagnoser from a measured grid with peak records."""
+def derive_sized_cells(grid: dict, diagnoser: str, margin: float = PEAK_MARGIN, fault_ids=FAULT_IDS) -> dict:
+    """The sized-cell file content of a diagnoser from a measured grid with peak records: the columns of
+    ``fault_ids`` (default every registered fault)."""
+    fault_ids = tuple(fault_ids)
     if "peak_events" not in grid:
         raise ValueError("the grid has no peak records: measure it again with this version")
     runs = grid["runs"]
     times = np.asarray(grid["times_after_onset_s"][diagnoser], dtype=float)
     fired = ~np.isnan(times) & (times >= 0.0)
     peaks = final_peaks(grid)
-    fault_of = np.array([FAULT_IDS.index(r["fault"]) for r in runs])
+    fault_of = np.array([fault_ids.index(r["fault"]) if r["fault"] in fault_ids else -1 for r in runs])
     level = np.array([r["size_index"] for r in runs])
     n_levels = np.array(
-        [int(level[fault_of == j].max()) + 1 if (fault_of == j).any() else 1 for j in range(len(FAULT_IDS))]
+        [int(level[fault_of == j].max()) + 1 if (fault_of == j).any() else 1 for j in range(len(fault_ids))]
     )
     k_max = int(n_levels.max())
-    shape = (k_max, len(MODULE_IDS), len(FAULT_IDS))
+    shape = (k_max, len(MODULE_IDS), len(fault_ids))
+    support = _SUPPORT[:, [FAULT_IDS.index(f) for f in fault_ids]]
     sure = np.zeros(shape, dtype=bool)
     lag = np.zeros(shape)
     peak = np.full(shape, np.inf)
-    detected = np.zeros((k_max, len(FAULT_IDS)), dtype=int)
-    total = np.zeros((k_max, len(FAULT_IDS)), dtype=int)
+    detected = np.zeros((k_max, len(fault_ids)), dtype=int)
+    total = np.zeros((k_max, len(fault_ids)), dtype=int)
     magnitudes = []
-    never = np.array([_SUPPORT[:, j] & ~fired[fault_of == j].any(axis=0) for j in range(len(FAULT_IDS))]).T
-    for j, f in enumerate(FAULT_IDS):
+    never = np.array([support[:, j] & ~fired[fault_of == j].any(axis=0) for j in range(len(fault_ids))]).T
+    for j, f in enumerate(fault_ids):
         sel = fault_of == j
         mags = {}
         for r, s in zip(np.flatnonzero(sel), level[sel]):
@@ -80,7 +83,7 @@ def derive_sized_cells(grid: dict, diagnoser: str, margin: float = PEAK_MARGIN) 
         for k in range(k_max):
             kk = min(k, n_levels[j] - 1)
             band = sel & (level >= kk)
-            sure[k, :, j], lag[k, :, j], detected[k, j] = _band_cells(fired[band], times[band], _SUPPORT[:, j])
+            sure[k, :, j], lag[k, :, j], detected[k, j] = _band_cells(fired[band], times[band], support[:, j])
             total[k, j] = int(band.sum())
             if k < n_levels[j] and sel.any():
                 peak[k, :, j] = peaks[sel & (level <= k)].max(axis=0)
@@ -88,7 +91,7 @@ def derive_sized_cells(grid: dict, diagnoser: str, margin: float = PEAK_MARGIN) 
     return {
         "format": 3,
         "module_ids": list(MODULE_IDS),
-        "fault_ids": list(FAULT_IDS),
+        "fault_ids": list(fault_ids),
         "n_levels": n_levels.tolist(),
         "magnitudes": magnitudes,
         "sure": sure.astype(int).tolist(),
@@ -101,7 +104,7 @@ def derive_sized_cells(grid: dict, diagnoser: str, margin: float = PEAK_MARGIN) 
         "rule": RULE,
         "settings": {
             "diagnoser": diagnoser,
-            "levels": "the grid's 5 magnitudes (0.5x the detectability limit to the "
+            "levels": f"the grid's {grid.get('sizes', 5)} magnitudes (0.5x the detectability limit to the "
             "table size) and two more at the log-thirds of every gap wider than a factor 4 "
             "(certainty.sized_magnitudes); sensor offsets of both signs",
             "profiles": sorted({r["family"] for r in runs}),

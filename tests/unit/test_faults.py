@@ -283,7 +283,6 @@ def test_healthy_schedule_has_no_process_or_sensor_faults():
     sched = CompiledSchedule.compile([[], []])
     assert sched.process == {}
     assert len(sched.s_engine) == 0
-    assert not sched.has_seal_faults
 
 
 # ----------------------------------------------------------------------------- scheduling

@@ -46,18 +46,19 @@ was made), so a noisier suite would only measure that broken assumption.
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
-from ..engine.faults import FAULT_IDS, PROCESS_FAULT_IDS
+from ..engine.fault_registry import suite_fault_ids
 from ..envs.scenario_sampler import PRESETS, ScenarioConfig, ScenarioSpec, _fault_at_scale
 from ..jsonfile import read_json
 from ..scenarios import get_scenario
 
-__all__ = ["SUITE_NAMES", "load_suite", "build_suite", "Suite"]
+__all__ = ["SUITE_NAMES", "load_suite", "build_suite", "single_fault_suite", "Suite"]
 
 SUITE_NAMES = (
     "thesis-v1",
@@ -180,22 +181,27 @@ def _grid(name: str, fault_ids, scales, reps: int, signed: bool) -> list[Scenari
     return out
 
 
+# The published suites draw from the faults of their version (a fault declared later joins newer suites only).
+_V1_FAULTS = suite_fault_ids(1)
+
+
 def _single() -> list[ScenarioSpec]:
-    return _grid("single-v1", FAULT_IDS, (1.0, 2.0, 4.0), 2, signed=True)
+    return _grid("single-v1", _V1_FAULTS, (1.0, 2.0, 4.0), 2, signed=True)
 
 
 def _incipient() -> list[ScenarioSpec]:
-    return _grid("incipient-v1", PROCESS_FAULT_IDS, (0.5, 1.0, 1.5), 3, signed=False)
+    return _grid("incipient-v1", suite_fault_ids(1, "process"), (0.5, 1.0, 1.5), 3, signed=False)
 
 
 def _sampled(name: str, preset: str, n: int) -> list[ScenarioSpec]:
-    cfg = PRESETS[preset]
+    cfg = replace(PRESETS[preset], fault_ids=_V1_FAULTS)
     return [cfg.sample(e, scenario_id=f"{name}/{i:03d}") for i, e in enumerate(_seeds(name, n))]
 
 
 def _nominal() -> list[ScenarioSpec]:
     cfg = ScenarioConfig(
         name="nominal-all-profiles",
+        fault_ids=_V1_FAULTS,
         fault_count_weights=(1.0, 0.0, 0.0),
         profiles=tuple((p, 1.0) for p in ("constant", "step", "ramp", "random", "manoeuvring")),
     )
@@ -208,9 +214,7 @@ TRANSFER_V2_NOISE_SCALE = 0.7
 def _transfer_v2() -> list[ScenarioSpec]:
     """64 episodes: faults as the ``default`` preset draws them, the profile from a held-out family
     (``harbour`` for even, ``seastate`` for odd indices), noise at 0.7x."""
-    from dataclasses import replace
-
-    faults = ScenarioConfig(name="transfer-v2", noise_scale=TRANSFER_V2_NOISE_SCALE)
+    faults = ScenarioConfig(name="transfer-v2", fault_ids=_V1_FAULTS, noise_scale=TRANSFER_V2_NOISE_SCALE)
     seeds = _seeds("transfer-v2", 2 * 64)
     out = []
     for i in range(64):
@@ -236,9 +240,7 @@ TRANSFER_V3_NOISE_SCALES = (1.3, 0.6)
 def _transfer_v3() -> list[ScenarioSpec]:
     """128 episodes: 0-2 faults as the ``default`` preset draws them but at 1-3x their detectability
     limit, a ``slowsteaming`` profile, noise 1.3x for even and 0.6x for odd indices."""
-    from dataclasses import replace
-
-    faults = ScenarioConfig(name="transfer-v3", magnitude_range=(1.0, 3.0))
+    faults = ScenarioConfig(name="transfer-v3", fault_ids=_V1_FAULTS, magnitude_range=(1.0, 3.0))
     seeds = _seeds("transfer-v3", 2 * 128)
     out = []
     for i in range(128):
@@ -276,6 +278,23 @@ _BUILDERS = {
 }
 # the env block of a suite; transfer-v2 and -v3 also fix the reward they are scored with
 _SUITE_ENV = {"transfer-v2": dict(_ENV, reward="v1"), "transfer-v3": dict(_ENV, reward="v1")}
+
+
+def single_fault_suite(name: str, fault_ids, built_with: str = "") -> dict:
+    """The JSON object of a suite like ``single-v1`` for some faults (e.g. a fault of a plugin): each fault
+    alone at 1x, 2x and 4x its detectability limit x 2 seeds (sensor offsets with random sign), training-type
+    profiles; ``name`` ends in ``-vN``.  The faults' detectability limits must exist."""
+    if "-v" not in name or not name.rsplit("-v", 1)[1].isdigit():
+        raise ValueError(f"a suite name ends in -vN (N the version), got {name!r}")
+    fault_ids = tuple(fault_ids)
+    return {
+        "name": name,
+        "version": int(name.rsplit("-v", 1)[1]),
+        "description": f"each of {', '.join(fault_ids)} alone at 1x, 2x, 4x its detectability limit x 2 seeds",
+        "built_with": built_with,
+        "env": dict(_ENV),
+        "scenarios": [s.to_dict() for s in _grid(name, fault_ids, (1.0, 2.0, 4.0), 2, signed=True)],
+    }
 
 
 def build_suite(name: str) -> dict:

@@ -33,9 +33,9 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from ..engine.faults import FAULT_IDS
+from ..engine.faults import FAULT_IDS, fault_class
 from .modules import AGENTS, MODULE_IDS
-from .structure import STAR, fault_agent, fault_class, fault_signature_matrix, thesis_signature_matrix
+from .structure import STAR, fault_agent, fault_signature_matrix, thesis_signature_matrix
 
 __all__ = [
     "LatchedDecisions",

@@ -41,6 +41,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..engine.fault_registry import EQUATION_IDS, fault_type
 from ..engine.faults import PROCESS_FAULT_IDS
 from ..engine.sensors import SENSOR_IDS
 
@@ -116,18 +117,10 @@ MODULES: tuple[ModuleSpec, ...] = (
 MODULE_IDS: tuple[str, ...] = tuple(m.id for m in MODULES)
 AGENTS: dict[int, tuple[str, ...]] = {a: tuple(m.id for m in MODULES if m.agent == a) for a in (1, 2, 3, 4)}
 
-# Which process faults enter which model equation (table 3.1, eq. 3.4-3.38 as implemented).
+# Which process faults enter which model equation: those whose term (table 3.1, eq. 3.4-3.38 as implemented)
+# enters it, from the fault registry.
 EQUATION_FAULTS: dict[str, tuple[str, ...]] = {
-    "fuel": ("valve_seizing",),
-    "cycle": ("bore_damage",),
-    "torque": ("bore_damage",),
-    "speed": ("bore_damage",),
-    "receiver": ("turbine_seal_leak",),
-    "mixing": ("turbine_lubrication_loss",),
-    "turbine": (),
-    "charge": ("compressor_seal_leak",),
-    "inlet": ("compressor_lubrication_loss",),
-    "comp_out": ("intercooler_blockage",),
+    eq: tuple(f for f in PROCESS_FAULT_IDS if eq in fault_type(f).equations) for eq in EQUATION_IDS
 }
 
 _INDEX = {m: i for i, m in enumerate(MODULE_IDS)}

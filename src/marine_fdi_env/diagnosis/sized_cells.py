@@ -31,19 +31,19 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from functools import lru_cache
-from importlib import resources
 
 import numpy as np
 
-from ..engine.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS
+from ..engine.fault_registry import check_table_faults, measured_table
+from ..engine.faults import FAULT_IDS, fault_class
 from .modules import MODULE_IDS
 from .structure import fault_signature_matrix
-from .sure_cells import SureCells
+from .sure_cells import SureCells, merge_faults, select_faults
 
-__all__ = ["SizedCells", "load_sized_cells", "SIZED_FILES"]
+__all__ = ["SizedCells", "load_sized_cells", "SIZED_FILES", "FAULT_AXES", "select_sized_faults", "merge_sized_faults"]
 
 SIZED_FILES = {"reference": "sized_cells.json", "sequential": "sequential_sized_cells.json"}
-_IS_SENSOR = np.array([f not in PROCESS_FAULT_DEFAULTS for f in FAULT_IDS])
+_IS_SENSOR = np.array([fault_class(f) == "sensor" for f in FAULT_IDS])
 
 
 @dataclass(frozen=True)
@@ -138,16 +138,59 @@ def _array(data: dict, key: str, shape: tuple, name: str) -> np.ndarray:
     return a
 
 
+# the axis of every per-fault field of a sized-cell file; the band axis of the banded ones is 0
+FAULT_AXES = {
+    "n_levels": 0,
+    "magnitudes": 0,
+    "sure": 2,
+    "lag_s": 2,
+    "peak": 2,
+    "never_fired": 1,
+    "detected_runs": 1,
+    "runs": 1,
+}
+_BANDED = ("sure", "lag_s", "peak", "detected_runs", "runs")
+
+
+def _bands(data: dict, k: int) -> dict:
+    """The content with ``k`` bands: bands past a fault's levels repeat its top band (``peak``: null)."""
+    out = dict(data)
+    for key in _BANDED:
+        rows = list(data[key][:k])
+        while len(rows) < k:
+            last = rows[-1]
+            rows.append([[None] * len(r) for r in last] if key == "peak" else last)
+        out[key] = rows
+    return out
+
+
+def select_sized_faults(data: dict, fault_ids) -> dict:
+    """A sized-cell file's content restricted to ``fault_ids`` (:func:`~.sure_cells.select_faults`), with as
+    many bands as its faults have levels."""
+    out = select_faults(data, fault_ids, FAULT_AXES)
+    k = max(out["n_levels"])
+    return out if out is data or len(out["sure"]) == k else _bands(out, k)
+
+
+def merge_sized_faults(base: dict, new: dict, fault_ids) -> dict:
+    """The sized-cell file of ``fault_ids`` from two (:func:`~.sure_cells.merge_faults`)."""
+    k = max(len(base["sure"]), len(new["sure"]))
+    return select_sized_faults(merge_faults(_bands(base, k), _bands(new, k), fault_ids, FAULT_AXES), fault_ids)
+
+
 @lru_cache(maxsize=None)
 def load_sized_cells(name: str = SIZED_FILES["reference"]) -> SizedCells:
-    """The sized cells of ``data/diagnosis/<name>`` (cached)."""
-    path = resources.files("marine_fdi_env") / "data" / "diagnosis" / name
+    """The sized cells of ``data/diagnosis/<name>`` (cached; ``MARINE_FDI_TABLES``, see
+    :func:`~marine_fdi_env.engine.fault_registry.measured_table`)."""
+    rel = f"diagnosis/{name}"
     try:
-        data = json.loads(path.read_text())
+        data = json.loads(measured_table(rel).read_text())
     except FileNotFoundError:
         raise ValueError(f"no sized-cell file {name!r} in marine_fdi_env/data/diagnosis") from None
-    if data.get("format") != 3 or data["module_ids"] != list(MODULE_IDS) or data["fault_ids"] != list(FAULT_IDS):
-        raise ValueError(f"{name} is not a sized-cell file of the current module and fault ids; regenerate it")
+    if data.get("format") != 3 or data["module_ids"] != list(MODULE_IDS):
+        raise ValueError(f"{name} is not a sized-cell file of the current module ids; regenerate it")
+    check_table_faults(rel, data["fault_ids"], FAULT_IDS)  # a registered fault without cells: refused by name
+    data = select_sized_faults(data, FAULT_IDS)
     n_levels = np.asarray(data["n_levels"], dtype=int)
     k = int(n_levels.max())
     shape = (k, len(MODULE_IDS), len(FAULT_IDS))

@@ -40,7 +40,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..engine.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, PROCESS_FAULT_IDS
+from ..engine.fault_registry import fault_type
+from ..engine.faults import FAULT_IDS, PROCESS_FAULT_IDS
 from ..engine.sensors import SENSOR_IDS, SENSORS
 from .modules import AGENTS, EQUATION_FAULTS, MODULE_IDS, MODULES, ModuleSpec
 
@@ -50,7 +51,6 @@ __all__ = [
     "fault_support",
     "fault_modules",
     "fault_agent",
-    "fault_class",
     "AgentMatrix",
     "agent_signature_matrices",
     "global_propagation_matrix",
@@ -98,18 +98,11 @@ def _module(module_id: str) -> ModuleSpec:
         raise ValueError(f"unknown module {module_id!r}; allowed: {', '.join(MODULE_IDS)}") from None
 
 
-def fault_class(fault_id: str) -> str:
-    """'sensor' or 'process'."""
-    _fault_index(fault_id)
-    return "sensor" if fault_id in SENSOR_IDS else "process"
-
-
 def fault_agent(fault_id: str) -> int:
-    """The subsystem/agent a fault belongs to: l of ``S<l>.<j>``, table 6.4's subsystem for process faults."""
+    """The subsystem/agent a fault belongs to (its registry record's: l of ``S<l>.<j>``, table 6.4's for a
+    process fault)."""
     _fault_index(fault_id)
-    if fault_id in SENSOR_IDS:
-        return int(fault_id[1])
-    return int(PROCESS_FAULT_DEFAULTS[fault_id].subsystem)
+    return fault_type(fault_id).subsystem
 
 
 # ----------------------------------------------------------------------------- the derived FSM
@@ -309,16 +302,7 @@ def isolability_report(fsm: np.ndarray | None = None) -> dict:
 
 
 # ----------------------------------------------------------------------------- thesis tables 6.5-6.8
-THESIS_SYMBOLS: dict[str, str] = {
-    **{s: f"f_{s.split('.')[1]}^({s[1]})" for s in SENSOR_IDS},
-    "valve_seizing": "f_u^(1)",
-    "bore_damage": "f_z,V1^(2)",
-    "turbine_seal_leak": "f_x,tur^(3)",
-    "turbine_lubrication_loss": "f_z,Tsl^(3)",
-    "compressor_seal_leak": "f_x,int^(4)",
-    "compressor_lubrication_loss": "f_z,Tinl^(4)",
-    "intercooler_blockage": "f_z,Tc^(4)",
-}
+THESIS_SYMBOLS: dict[str, str] = {f: fault_type(f).thesis_symbol for f in FAULT_IDS}
 
 
 @dataclass(frozen=True)
@@ -818,15 +802,7 @@ def _cell(v) -> str:
 
 
 def _short(f: str) -> str:
-    return {
-        "valve_seizing": "f_u",
-        "bore_damage": "f_V1",
-        "turbine_seal_leak": "f_xtur",
-        "turbine_lubrication_loss": "f_Tsl",
-        "compressor_seal_leak": "f_xint",
-        "compressor_lubrication_loss": "f_Tinl",
-        "intercooler_blockage": "f_Tc",
-    }.get(f, f)
+    return fault_type(f).label
 
 
 def _md_table(header: list[str], rows: list[list[str]]) -> str:

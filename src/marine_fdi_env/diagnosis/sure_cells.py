@@ -11,8 +11,14 @@ File format (JSON): ``module_ids``, ``fault_ids``; ``sure`` (19 x 26 bool) and `
 measured runs); ``spread_s`` (26,), the settle time's basis: the largest delay of a fault's sure
 modules after its first fired module (in a file of the first format: their spread among themselves);
 ``settings`` and ``command`` say how it is measured.  A file without ``format`` holds fire counts
-at the table magnitudes only: ``fire_counts``, ``runs_per_fault``, ``sure_lag_s``,
+at the table magnitudes only: ``fire_counts``, ``runs_per_fault`` (or ``runs`` per fault), ``sure_lag_s``,
 ``sure_spread_s``; it is read too.
+
+The files are read from the package's ``data/diagnosis/`` or the folder ``MARINE_FDI_TABLES``
+(:func:`~marine_fdi_env.engine.fault_registry.measured_table`); a file may hold more faults than are
+registered (those are read), and a registered fault it lacks is refused by name
+(:class:`~marine_fdi_env.engine.fault_registry.MissingFaultTable`).  :func:`select_faults` and
+:func:`merge_faults` pick and join the per-fault columns (``python -m studies.fault_tables``).
 """
 
 from __future__ import annotations
@@ -20,11 +26,11 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from functools import lru_cache
-from importlib import resources
 
 import numpy as np
 
-from ..engine.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS
+from ..engine.fault_registry import check_table_faults, measured_table
+from ..engine.faults import FAULT_IDS, fault_class
 from .modules import MODULE_IDS
 from .structure import fault_signature_matrix
 
@@ -36,6 +42,9 @@ __all__ = [
     "grace_times",
     "SURE_CELLS_FILE",
     "SENSOR_MAX_LAG_S",
+    "FAULT_AXES",
+    "select_faults",
+    "merge_faults",
 ]
 
 SURE_CELLS_FILE = "sure_cells.json"
@@ -44,7 +53,7 @@ SURE_CELLS_FILE = "sure_cells.json"
 # which may as well stay silent in a shorter run).  Applies to the first file format; the grid
 # measurement decides with its own rule (certainty.derive_sure_cells).
 SENSOR_MAX_LAG_S = 30.0
-_IS_SENSOR = np.array([f not in PROCESS_FAULT_DEFAULTS for f in FAULT_IDS])
+_IS_SENSOR = np.array([fault_class(f) == "sensor" for f in FAULT_IDS])
 
 
 @dataclass(frozen=True)
@@ -70,15 +79,81 @@ class SureCells:
         return factor * self.lag_s + margin_s
 
 
+# the axis of every per-fault field of a sure-cell file (both formats)
+FAULT_AXES = {
+    "sure": 1,
+    "lag_s": 1,
+    "spread_s": 0,
+    "detected_runs": 0,
+    "runs": 0,
+    "fire_counts": 1,
+    "sure_lag_s": 1,
+    "sure_spread_s": 0,
+}
+
+
+def _take(value, axis: int, idx: list[int]):
+    if axis == 0:
+        return [value[j] for j in idx]
+    return [_take(v, axis - 1, idx) for v in value]
+
+
+def select_faults(data: dict, fault_ids, axes: dict = FAULT_AXES) -> dict:
+    """A cell file's content restricted to ``fault_ids`` (in that order; every one must be in the file):
+    the per-fault fields (``axes``: field -> fault axis) subset, the rest kept.  The content itself when the
+    file holds exactly those faults in that order."""
+    fault_ids = list(fault_ids)
+    if data["fault_ids"] == fault_ids:
+        return data
+    idx = [data["fault_ids"].index(f) for f in fault_ids]
+    out = dict(data, fault_ids=fault_ids)
+    for key, axis in axes.items():
+        if key in data:
+            out[key] = _take(data[key], axis, idx)
+    return out
+
+
+def merge_faults(base: dict, new: dict, fault_ids, axes: dict = FAULT_AXES) -> dict:
+    """The cell file of ``fault_ids``: each fault's fields from ``new`` if it has the fault, else from
+    ``base`` (per-fault measurements do not depend on the other faults); the other fields, ``settings`` and
+    ``command`` from ``new`` (with ``merged_from`` naming the faults of each)."""
+    if base["module_ids"] != new["module_ids"]:
+        raise ValueError("merge_faults: the two cell files have different module ids")
+    fault_ids = list(fault_ids)
+    src = [new if f in new["fault_ids"] else base for f in fault_ids]
+    missing = [f for f, d in zip(fault_ids, src) if f not in d["fault_ids"]]
+    if missing:
+        raise ValueError(f"merge_faults: no cells for {', '.join(missing)}")
+    out = dict(new, fault_ids=fault_ids)
+    for key, axis in axes.items():
+        if key in new:
+            cols = [_take(d[key], axis, [d["fault_ids"].index(f)]) for f, d in zip(fault_ids, src)]
+            out[key] = _concat(cols, axis)
+    out["merged_from"] = {
+        "new": [f for f in fault_ids if f in new["fault_ids"]],
+        "base": [f for f in fault_ids if f not in new["fault_ids"]],
+    }
+    return out
+
+
+def _concat(cols: list, axis: int):
+    """Join single-fault pieces (each with a fault axis of length 1 at ``axis``) along that axis."""
+    if axis == 0:
+        return [c[0] for c in cols]
+    return [_concat([c[i] for c in cols], axis - 1) for i in range(len(cols[0]))]
+
+
 def _read(name: str) -> dict:
-    path = resources.files("marine_fdi_env") / "data" / "diagnosis" / name
+    rel = f"diagnosis/{name}"
+    path = measured_table(rel)
     try:
         data = json.loads(path.read_text())
     except FileNotFoundError:
         raise ValueError(f"no sure-cell file {name!r} in marine_fdi_env/data/diagnosis") from None
-    if data["module_ids"] != list(MODULE_IDS) or data["fault_ids"] != list(FAULT_IDS):
-        raise ValueError(f"{name} does not match the current module or fault ids; regenerate it")
-    return data
+    if data["module_ids"] != list(MODULE_IDS):
+        raise ValueError(f"{name} does not match the current module ids; regenerate it")
+    check_table_faults(rel, data["fault_ids"], FAULT_IDS)  # a registered fault without cells: refused by name
+    return select_faults(data, FAULT_IDS)
 
 
 @lru_cache(maxsize=None)
@@ -93,7 +168,8 @@ def load_sure_cells(name: str = SURE_CELLS_FILE) -> SureCells:
     else:  # the first format: fire counts at the table magnitudes
         counts = np.asarray(data["fire_counts"])
         lag = np.asarray(data.get("sure_lag_s", np.zeros(counts.shape)), dtype=float)
-        sure = (counts == data["runs_per_fault"]) & support & ~(_IS_SENSOR[None, :] & (lag > SENSOR_MAX_LAG_S))
+        runs = np.asarray(data.get("runs", data["runs_per_fault"]))  # per fault when faults were added later
+        sure = (counts == runs) & support & ~(_IS_SENSOR[None, :] & (lag > SENSOR_MAX_LAG_S))
         spread = np.asarray(data.get("sure_spread_s", [0.0] * len(FAULT_IDS)), dtype=float)
     for a in (sure, lag, spread):
         a.setflags(write=False)

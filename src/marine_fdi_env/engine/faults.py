@@ -17,23 +17,13 @@ Sensor faults (any of the 19 sensor ids), ``kind``:
 ``gain``       y = (1 + β g) (true value) + noise, g = magnitude (default 0.05).
 ``precision``  extra uniform noise with bound β·magnitude (default: 3x the sensor's noise bound).
 
-Process faults (tables 3.1, 3.2, 6.4), fixed fault functions with the thesis's defaults:
-
-=============================  ============  =====================  ==========  ==========
-id                             symbol        value                  κ [1/s]     magnitude
-=============================  ============  =====================  ==========  ==========
-valve_seizing                  f_u           f_u = 1 - β φ           1e-2        φ = 0.25
-bore_damage                    f_z,V1        ΔV1 = β R s [m³]        1e-5        R = 3e-3 m³/s
-turbine_seal_leak              f_x,tur       φ_tur = β R s           2e-5        R = 3.5e-4 1/s
-turbine_lubrication_loss       f_z,Tsl       ΔT_sl = β R s [K]       1e3         R = 1.25 K/s
-compressor_seal_leak           f_x,int       φ_int = β R s           1e-4        R = 5e-2 1/s
-compressor_lubrication_loss    f_z,Tinl      ΔT_inl = β R s [K]      1e3         R = 2.5 K/s
-intercooler_blockage           f_z,Tc        ΔT_co = β R s [K]       1e-3        R = 2 K/s
-=============================  ============  =====================  ==========  ==========
-
-(s = time since the window opened.)  Table 6.4 gives φ_u = 25 "%"; we read it as the fraction
-0.25 (a multiplier 1 - 25 would be meaningless).  The seal leaks act as ``f_x = φ x`` on the state
-(table 3.2) and are subtracted, see :mod:`marine_fdi_env.engine.subsystems.exhaust_receiver`.
+Process faults (tables 3.1, 3.2, 6.4): declared in :mod:`.fault_registry`, one record each (symbol, the
+equation term it drives, its law, the table 6.4 onset, κ and magnitude, allowed ranges).  A fault's law
+gives its contribution to its term at time s after its window opened: ``fraction`` 1 - β φ (valve_seizing:
+the fuel-setting factor f_u; table 6.4 gives φ_u = 25 "%", read as the fraction 0.25), ``ramp`` β R s (the
+other six: ΔV1, φ_tur, ΔT_sl, φ_int, ΔT_inl, ΔT_co), ``level`` β φ; the faults on one term add (a factor:
+multiply).  The seal leaks act as ``f_x = φ x`` on the state (table 3.2) and are subtracted, see
+:mod:`marine_fdi_env.engine.subsystems.exhaust_receiver`.
 
 Fault SPEC strings (CLI ``--fault``): ``ID@ONSET[:MAGNITUDE][,key=value...]`` e.g.
 ``S4.2@235:5e4``, ``S3.4@175``, ``bore_damage@5``, ``S2.1@20:3e4,kind=drift``,
@@ -48,6 +38,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .fault_registry import FAULT_TYPES, TERM_INDEX, TERMS, fault_type
 from .sensors import DEFAULT_FAULT_MAGNITUDES, NOISE_BOUNDS, SENSOR_IDS, sensor_index
 
 __all__ = [
@@ -61,21 +52,17 @@ __all__ = [
     "fault_class",
 ]
 
-PROCESS_FAULT_IDS: tuple[str, ...] = (
-    "valve_seizing",
-    "bore_damage",
-    "turbine_seal_leak",
-    "turbine_lubrication_loss",
-    "compressor_seal_leak",
-    "compressor_lubrication_loss",
-    "intercooler_blockage",
-)
-FAULT_IDS: tuple[str, ...] = SENSOR_IDS + PROCESS_FAULT_IDS
+PROCESS_FAULT_IDS: tuple[str, ...] = tuple(f.id for f in FAULT_TYPES if f.kind == "process")
+FAULT_IDS: tuple[str, ...] = tuple(f.id for f in FAULT_TYPES)
 SENSOR_FAULT_KINDS: tuple[str, ...] = ("offset", "drift", "stuck", "gain", "precision")
+if FAULT_IDS[: len(SENSOR_IDS)] != SENSOR_IDS:  # the sensor faults come first, in sensor order
+    raise ImportError("the fault registry must list the 19 sensor faults first, in sensor order")
 
 
 @dataclass(frozen=True)
 class ProcessFaultDefault:
+    """Table 6.4's defaults of a process fault (a view of its :class:`FaultType`)."""
+
     symbol: str
     onset_s: float
     kappa: float
@@ -85,27 +72,15 @@ class ProcessFaultDefault:
 
 
 PROCESS_FAULT_DEFAULTS: dict[str, ProcessFaultDefault] = {
-    "valve_seizing": ProcessFaultDefault("f_u", 20.0, 1e-2, 0.25, "-", 1),
-    "bore_damage": ProcessFaultDefault("f_z,V1", 15.0, 1e-5, 3e-3, "m3/s", 2),
-    "turbine_seal_leak": ProcessFaultDefault("f_x,tur", 15.0, 2e-5, 3.5e-4, "1/s", 3),
-    "turbine_lubrication_loss": ProcessFaultDefault("f_z,Tsl", 30.0, 1e3, 1.25, "K/s", 3),
-    "compressor_seal_leak": ProcessFaultDefault("f_x,int", 30.0, 1e-4, 5e-2, "1/s", 4),
-    "compressor_lubrication_loss": ProcessFaultDefault("f_z,Tinl", 30.0, 1e3, 2.5, "K/s", 4),
-    "intercooler_blockage": ProcessFaultDefault("f_z,Tc", 30.0, 1e-3, 2.0, "K/s", 4),
+    f.id: ProcessFaultDefault(f.symbol, f.onset_s, f.kappa, f.magnitude, f.unit, f.subsystem)
+    for f in FAULT_TYPES
+    if f.kind == "process"
 }
 
 
 def fault_class(fault_id: str) -> str:
     """'sensor' or 'process'; ``ValueError`` for an unknown id."""
-    if fault_id in SENSOR_IDS:
-        return "sensor"
-    if fault_id in PROCESS_FAULT_IDS:
-        return "process"
-    from ..suggest import did_you_mean
-
-    raise ValueError(
-        f"unknown fault id {fault_id!r}{did_you_mean(fault_id, FAULT_IDS)}; allowed: {', '.join(FAULT_IDS)}"
-    )
+    return fault_type(fault_id).kind
 
 
 def _check_number(name: str, value, *, positive: bool = False, nonneg: bool = False, allow_inf: bool = False):
@@ -149,8 +124,12 @@ class FaultSpec:
         _check_number("onset_s", self.onset_s, nonneg=True)
         if self.magnitude is not None:
             m = _check_number("magnitude", self.magnitude)
-            if cls == "process" and m < 0:
-                raise ValueError(f"fault field 'magnitude' of {self.fault_id} must be >= 0, got {self.magnitude!r}")
+            if cls == "process":
+                lo, hi = fault_type(self.fault_id).magnitude_range
+                if not lo <= m <= hi:
+                    raise ValueError(
+                        f"fault field 'magnitude' of {self.fault_id} must lie in [{lo:g}, {hi:g}], got {m!r}"
+                    )
             if cls == "sensor" and self.resolved_kind in ("precision",) and m < 0:
                 raise ValueError(f"fault field 'magnitude' of a precision fault must be >= 0, got {m!r}")
         if self.kind is not None:
@@ -158,7 +137,11 @@ class FaultSpec:
             if self.kind not in allowed:
                 raise ValueError(f"fault field 'kind' of {self.fault_id} must be one of {allowed}, got {self.kind!r}")
         if self.kappa is not None:
-            _check_number("kappa", self.kappa, positive=True, allow_inf=True)
+            k = _check_number("kappa", self.kappa, positive=True, allow_inf=True)
+            if cls == "process":
+                lo, hi = fault_type(self.fault_id).kappa_range
+                if not lo <= k <= hi:
+                    raise ValueError(f"fault field 'kappa' of {self.fault_id} must lie in [{lo:g}, {hi:g}], got {k!r}")
         if self.end_s is not None:
             e = _check_number("end_s", self.end_s, nonneg=True)
             if e <= float(self.onset_s):
@@ -177,7 +160,7 @@ class FaultSpec:
 
     @property
     def resolved_kind(self) -> str:
-        if self.fault_id in PROCESS_FAULT_IDS:
+        if fault_class(self.fault_id) == "process":
             return "process"
         return self.kind or "offset"
 
@@ -185,16 +168,14 @@ class FaultSpec:
     def resolved_kappa(self) -> float:
         if self.kappa is not None:
             return float(self.kappa)
-        if self.fault_id in PROCESS_FAULT_IDS:
-            return PROCESS_FAULT_DEFAULTS[self.fault_id].kappa
-        return math.inf
+        return fault_type(self.fault_id).kappa  # table 6.4's for a process fault, inf (abrupt) for a sensor
 
     @property
     def resolved_magnitude(self) -> float:
         if self.magnitude is not None:
             return float(self.magnitude)
-        if self.fault_id in PROCESS_FAULT_IDS:
-            return PROCESS_FAULT_DEFAULTS[self.fault_id].magnitude
+        if fault_class(self.fault_id) == "process":
+            return fault_type(self.fault_id).magnitude
         j = sensor_index(self.fault_id)
         kind = self.resolved_kind
         if kind == "offset":
@@ -355,41 +336,53 @@ class CompiledSchedule:
         out.breakpoints = np.unique(np.asarray(breaks, dtype=float))
         return out
 
-    @property
-    def has_seal_faults(self) -> bool:
-        return "turbine_seal_leak" in self.process or "compressor_seal_leak" in self.process
+    def fault_state(self, fault_id: str, t, per_engine: bool = False):
+        """(s, contribution) of a scheduled process fault at time(s) t on the engines that have it (last
+        axis): the time since its window opened (NaN: inactive) and its own contribution to its term
+        (the law of its :class:`~marine_fdi_env.engine.fault_registry.FaultType`; 1 or 0 when inactive).
+        t as in :meth:`process_values`."""
+        d = self.process[fault_id]
+        t_arr = np.asarray(t, dtype=float)
+        tt = t_arr[..., d["engine"]] if per_engine else t_arr[..., None]
+        s = _window_time(tt, d["onset"], d["end"], d["period"], d["duty"])
+        b = _beta(s, d["kappa"])
+        law = fault_type(fault_id).law
+        if law == "fraction":
+            return s, 1.0 - b * d["mag"]
+        if law == "ramp":
+            return s, b * d["mag"] * np.where(np.isnan(s), 0.0, s)
+        return s, b * d["mag"]
+
+    def fault_values(self, fault_id: str, t, per_engine: bool = False):
+        """(s, value) of a scheduled process fault: the time since its window opened (NaN: inactive) and
+        its fault function's value (β φ, β R s; what the ground truth records) on its engines."""
+        s, own = self.fault_state(fault_id, t, per_engine)
+        return s, (1.0 - own) if fault_type(fault_id).law == "fraction" else own
 
     def process_values(self, t, per_engine: bool = False):
-        """Values of the seven process faults at time t (scalar -> arrays (N,); array (T,) -> (T, N)).
+        """Values of the model's fault terms (``fault_registry.TERMS``) at time t (scalar -> arrays (N,);
+        array (T,) -> (T, N)): each scheduled fault's contribution (:meth:`fault_state`) combined into its
+        term (added, or multiplied for a factor).
 
         With ``per_engine``, t is (T, N): each engine's own clock (engines restarted at different
-        times).  Engines without a fault get the healthy value (1 for f_u, 0 otherwise).
+        times).  A term no scheduled fault drives keeps its healthy value (a scalar: 1 for f_u, 0 otherwise).
         """
         from .model import ProcessFaultValues
 
         t_arr = np.asarray(t, dtype=float)
         shape = t_arr.shape if per_engine else t_arr.shape + (self.n_engines,)
-        vals = {}
+        vals: dict[str, np.ndarray] = {}
         for k, d in self.process.items():
-            tt = t_arr[..., d["engine"]] if per_engine else t_arr[..., None]
-            s = _window_time(tt, d["onset"], d["end"], d["period"], d["duty"])
-            b = _beta(s, d["kappa"])
-            if k == "valve_seizing":
-                v = np.ones(shape)
-                v[..., d["engine"]] = 1.0 - b * d["mag"]
+            term = TERMS[TERM_INDEX[fault_type(k).term]]
+            _, own = self.fault_state(k, t_arr, per_engine)
+            if term.name not in vals:
+                vals[term.name] = np.full(shape, term.healthy)
+            v = vals[term.name]
+            if term.combine == "multiply":
+                v[..., d["engine"]] *= own
             else:
-                v = np.zeros(shape)
-                v[..., d["engine"]] = b * d["mag"] * np.where(np.isnan(s), 0.0, s)
-            vals[k] = v
-        return ProcessFaultValues(
-            f_u=vals.get("valve_seizing", 1.0),
-            dV1_m3=vals.get("bore_damage", 0.0),
-            phi_tur=vals.get("turbine_seal_leak", 0.0),
-            dT_sl_K=vals.get("turbine_lubrication_loss", 0.0),
-            phi_int=vals.get("compressor_seal_leak", 0.0),
-            dT_inl_K=vals.get("compressor_lubrication_loss", 0.0),
-            dT_c_K=vals.get("intercooler_blockage", 0.0),
-        )
+                v[..., d["engine"]] += own
+        return ProcessFaultValues(**vals)
 
     def sensor_fault_state(self, t, entries=None):
         """(active window time s or NaN, β) for every scheduled sensor fault (or the ``entries``

@@ -30,7 +30,8 @@ import numpy as np
 
 from .._jit import jit, jit_inline
 from .constants import kernel_constants
-from .model import PF_FIELDS, _solve_algebraic, forcings
+from .fault_registry import I_F_U, I_PHI_INT, I_PHI_TUR
+from .model import _solve_algebraic, forcings
 
 __all__ = ["advance_batch", "reference_solve", "FAILURE_REASONS", "PREDICTOR_SWEEPS", "OUTPUT_SWEEPS", "TRANSIENT_TOL"]
 
@@ -97,8 +98,8 @@ def _etd_once(c, csm, h, coef, x1, x3, x4, u0, u1, pf0, pf1, alg0, algp, alg_out
     changes the linear rate of x3 or x4 and its coefficients are recomputed.
     """
     E1, q1, r1, E3, q3, r3, E4, q4, r4 = coef
-    phi_tur = 0.5 * (pf0[2] + pf1[2])
-    phi_int = 0.5 * (pf0[4] + pf1[4])
+    phi_tur = 0.5 * (pf0[I_PHI_TUR] + pf1[I_PHI_TUR])
+    phi_int = 0.5 * (pf0[I_PHI_INT] + pf1[I_PHI_INT])
     if phi_tur != 0.0:
         E3, q3, r3 = _etd_scalar(-(1.0 + phi_tur) / c.tau_pd_s, h)
     if phi_int != 0.0:
@@ -135,17 +136,6 @@ def _failure_code(c, x1, x3, x4, alg):
     return 0
 
 
-if len(PF_FIELDS) != 7:  # _pf_row unpacks them one by one
-    raise ImportError("_pf_row unpacks 7 process-fault values; PF_FIELDS has " + str(len(PF_FIELDS)))
-
-
-@jit_inline
-def _pf_row(PF, r, i):
-    """The process-fault vector PF[r, i] (7 values, ``PF_FIELDS``) as a tuple: a value, where a view
-    would cost a reference-count increment and decrement per sample."""
-    return (PF[r, i, 0], PF[r, i, 1], PF[r, i, 2], PF[r, i, 3], PF[r, i, 4], PF[r, i, 5], PF[r, i, 6])
-
-
 @jit_inline
 def _engine_step(
     c,
@@ -173,10 +163,10 @@ def _engine_step(
     """One sample of one engine from the state (x1, x3, x4) and algebraic state ``alg`` under the commanded
     fuel settings u0, u1 and the process-fault vectors pf0, pf1 at the start and end: returns the state and
     the failure code at the end, the algebraic state in ``alg_new`` (algp, pfa, pfb, alg_a, alg_b: the
-    engine's scratch rows).  Inlined into the loop by numba with scalars, tuples and the engine's row views
-    as arguments: every array argument of an out-of-line call, and every view made per sample, costs an
-    atomic reference-count increment and decrement."""
-    target = c.x1_nom_kg * pf1[0] * limited_fuel_setting(u1, x4, alg[9], lam_lim, c)
+    engine's scratch rows; pf0, pf1 too, filled per sample).  Inlined into the loop by numba with scalars and
+    the engine's row views as arguments: every array argument of an out-of-line call, and every view made
+    per sample, costs an atomic reference-count increment and decrement."""
+    target = c.x1_nom_kg * pf1[I_F_U] * limited_fuel_setting(u1, x4, alg[9], lam_lim, c)
     if substeps > 1 and abs(x1 - target) > TRANSIENT_TOL * c.x1_nom_kg:
         # fuel pump far from its target: substeps, u and process faults linear within the step
         hs = h / substeps
@@ -233,17 +223,23 @@ def _advance_range(
     K = Y.shape[1]
     n_s = SENSOR_COLS.shape[0]
     n_alg = ALG.shape[1]
+    n_pf = PF.shape[2]
     coef = healthy_coefficients(c, h)
     coef_sub = healthy_coefficients(c, h / max(substeps, 1))
     multi_pf = PF.shape[0] > 1
     for i in range(i0, i1):
         alg, alg_new = ALG[i], ALG_NEW[i]  # the engine's rows, one view each per call (not per sample)
         algp, alg_a, alg_b = SCR_ALG[i, 0], SCR_ALG[i, 1], SCR_ALG[i, 2]
-        pfa, pfb = SCR_PF[i, 1], SCR_PF[i, 2]
+        # the fault terms at the sample's start and end and two substep rows: views made once per engine,
+        # filled per sample (a view per sample would cost a reference-count increment and decrement)
+        pf0, pf1, pfa, pfb = SCR_PF[i, 0], SCR_PF[i, 1], SCR_PF[i, 2], SCR_PF[i, 3]
         for k in range(K):
             r0 = k if multi_pf else 0
             r1 = k + 1 if multi_pf else 0
             if alive[i]:
+                for m in range(n_pf):
+                    pf0[m] = PF[r0, i, m]
+                    pf1[m] = PF[r1, i, m]
                 x1, x3, x4, code = _engine_step(
                     c,
                     csm,
@@ -254,8 +250,8 @@ def _advance_range(
                     X[i, 2],
                     UR[k, i],
                     UL[k + 1, i],
-                    _pf_row(PF, r0, i),
-                    _pf_row(PF, r1, i),
+                    pf0,
+                    pf1,
                     alg,
                     alg_new,
                     algp,
@@ -319,7 +315,8 @@ def advance_batch(
     """Advance every engine by K = Y.shape[1] samples in one compiled call (state updated in place).
 
     UR, UL: (K+1, N) right and left limits of the commanded fuel setting at the K+1 sample times;
-    PF: (K+1, N, 7) process-fault values, or (1, N, 7) when constant; alive: (N,) bool, cleared
+    PF: (K+1, N, T) the fault terms' values (T = len(``fault_registry.TERMS``), the order of
+    ``model.PF_FIELDS``), or (1, N, T) when constant; SCR_PF: (N, 4, T) scratch; alive: (N,) bool, cleared
     at a failure (CODES gets the reason, FAIL_K the sample index within the block; the state
     freezes).  NOISE: (N, M) pre-drawn U[0,1) - 1/2 values, sample k of the block at columns
     (noise_pos + k) * 19 ...; NB: (19,) twice the noise bounds.  Outputs: Y (N, K, 19) noisy

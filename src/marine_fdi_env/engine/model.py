@@ -22,12 +22,13 @@ engines with compiled loops and returns named arrays (:class:`Algebraic`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, make_dataclass
 
 import numpy as np
 
 from .._jit import jit, jit_inline
 from .constants import ModelConstants, kernel_constants, model_constants
+from .fault_registry import I_DT_C, I_DT_INL, I_DT_SL, I_DV1, I_F_U, I_PHI_INT, I_PHI_REC, I_PHI_TUR, TERMS
 from .params import EngineParams
 from .subsystems.air_intake import (
     air_excess_ratio,
@@ -53,9 +54,9 @@ __all__ = [
     "HEALTHY_PF",
 ]
 
-# Order of the process-fault vector and of the algebraic output vector of compiled code.
-PF_FIELDS = ("f_u", "dV1_m3", "phi_tur", "dT_sl_K", "phi_int", "dT_inl_K", "dT_c_K")
-HEALTHY_PF = np.array([1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+# The process-fault vector of compiled code: one value per equation term of the fault registry, in its order.
+PF_FIELDS: tuple[str, ...] = tuple(t.name for t in TERMS)
+HEALTHY_PF = np.array([t.healthy for t in TERMS])
 ALG_FIELDS = (
     "n",
     "torque",
@@ -84,33 +85,27 @@ ALG_FIELDS = (
 N_ALG = len(ALG_FIELDS)
 
 
-@dataclass
-class ProcessFaultValues:
-    """Values of the seven process faults at one instant (tables 3.1, 3.2); healthy defaults.
+def _as_array(self, n: int) -> np.ndarray:
+    """The values as a contiguous (n, len(PF_FIELDS)) array in the order of ``PF_FIELDS``."""
+    out = np.empty((n, len(PF_FIELDS)))
+    for j, name in enumerate(PF_FIELDS):
+        out[:, j] = getattr(self, name)
+    return out
 
-    f_u : valve seizing, multiplier of the fuel setting [-] (1 = healthy).
-    dV1_m3 : bore damage f_z,V1, added to V1.
-    phi_tur : turbine seal leak, f_x,tur = phi_tur x3 (dimensionless).
-    dT_sl_K : turbine lubrication loss f_z,Tsl, added to T_sl.
-    phi_int : compressor seal leak, f_x,int = phi_int x4 (dimensionless).
-    dT_inl_K : compressor lubrication loss f_z,Tinl, added to T_inl.
-    dT_c_K : intercooler blockage f_z,Tc, added to the compressor outlet temperature.
-    """
 
-    f_u: np.ndarray | float = 1.0
-    dV1_m3: np.ndarray | float = 0.0
-    phi_tur: np.ndarray | float = 0.0
-    dT_sl_K: np.ndarray | float = 0.0
-    phi_int: np.ndarray | float = 0.0
-    dT_inl_K: np.ndarray | float = 0.0
-    dT_c_K: np.ndarray | float = 0.0
-
-    def as_array(self, n: int) -> np.ndarray:
-        """The values as a contiguous (n, 7) array in the order of ``PF_FIELDS``."""
-        out = np.empty((n, len(PF_FIELDS)))
-        for j, name in enumerate(PF_FIELDS):
-            out[:, j] = getattr(self, name)
-        return out
+ProcessFaultValues = make_dataclass(
+    "ProcessFaultValues",
+    [(t.name, "np.ndarray | float", field(default=t.healthy)) for t in TERMS],
+    namespace={"as_array": _as_array},
+)
+ProcessFaultValues.__module__ = __name__
+ProcessFaultValues.__doc__ = (
+    "Values of the model's fault terms at one instant, healthy by default: one field per term of "
+    ":data:`~marine_fdi_env.engine.fault_registry.TERMS` (f_u: fuel-setting factor, 1 healthy; dV1_m3: bore "
+    "damage added to V1 [m3]; phi_tur, phi_int: seal leaks f_x = phi x on x3, x4; dT_sl_K, dT_inl_K, dT_c_K: "
+    "added to T_sl, T_inl, the compressor outlet [K]; phi_rec: the share of the gas flow leaving the exhaust "
+    "receiver past the turbine), scalars or arrays over engines."
+)
 
 
 HEALTHY = ProcessFaultValues()
@@ -161,6 +156,7 @@ def _gas_exchange(c, csm, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, 
     # the cylinder process (Σ2) only, the variables of table 3.1.
     m1 = x4 * c.V1_m3 / (c.R_a_J_per_kgK * T1)
     s_sl = slip_ratio(x3, x4, m1, max(n, 1e-9), c)
+    share = 1.0 - pf[I_PHI_REC]  # of the cylinders' gas flow through the turbine (1 when healthy)
     out[0] = n
     out[1] = torque
     out[2] = p6
@@ -173,7 +169,9 @@ def _gas_exchange(c, csm, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, 
     if csm is not None:  # compiled only where a gas-path submodel may be on
         if c.sm_on != 0.0:
             T_c = cooler_outlet_temperature(x4, c)
-            g = _extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, c.T_sl_K + pf[3], T_c, pf[6], c, csm, ov_wg, ov_bp)
+            g = _extended_gas_path(
+                x1, x3, x4, m1, s_sl, n, T6, p6, c.T_sl_K + pf[I_DT_SL], T_c, pf[I_DT_C], c, csm, ov_wg, ov_bp, share
+            )
             out[14] = g[0]
             out[7] = g[1]
             out[8] = g[2]
@@ -189,11 +187,11 @@ def _gas_exchange(c, csm, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, 
             out[21] = g[11]
             out[22] = g[12]
             return
-    h3, T_in, T_out, Pi, mdot = receiver_and_turbine(x1, x3, x4, m1, s_sl, n, T6, p6, c.T_sl_K + pf[3], c)
-    d_f = delta_f(x1, m1, s_sl)
+    h3, T_in, T_out, Pi, mdot = receiver_and_turbine(x1, x3, x4, m1, s_sl, n, T6, p6, c.T_sl_K + pf[I_DT_SL], c, share)
+    d_f = delta_f(x1, m1, s_sl) * share  # the turbine's share of the flow in the power balance (eq. 3.31, 3.38)
     out[7] = T_in
     out[8] = T_out
-    out[10] = compressor_outlet_temperature(d_f, T_in, T_out, pf[6], c)
+    out[10] = compressor_outlet_temperature(d_f, T_in, T_out, pf[I_DT_C], c)
     out[12] = mdot
     out[13] = Pi
     out[14] = h3
@@ -211,8 +209,8 @@ def _gas_exchange(c, csm, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, 
 def _solve_algebraic(c, csm, x1, x3, x4, pf, n_guess, sweeps, out):
     """:func:`solve_algebraic` with the constants of :func:`kernel_constants` (``c`` floats only,
     ``csm`` the full constants or None): the compiled kernels' form, the same numbers."""
-    T1 = inlet_air_temperature_at(pf[5], x4, c)
-    n, torque, p6, T6, p_max, m1_cyl = engine_block(x1, x4, T1, c.V1_m3 + pf[1], n_guess, c, sweeps)
+    T1 = inlet_air_temperature_at(pf[I_DT_INL], x4, c)
+    n, torque, p6, T6, p_max, m1_cyl = engine_block(x1, x4, T1, c.V1_m3 + pf[I_DV1], n_guess, c, sweeps)
     _gas_exchange(c, csm, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, out, math.nan, math.nan)
 
 
@@ -231,21 +229,21 @@ def algebraic_at_speed(c, x1, x3, x4, n, pf, out, ov_wg=math.nan, ov_bp=math.nan
     """The algebraic equations of Σ2-Σ4 at a given engine speed n [rev/s] (no load law), for the
     steady-state solver of :mod:`marine_fdi_env.engine.operating_point`; fills ``out`` (``ALG_FIELDS``).
     ov_wg, ov_bp : valve openings overriding the schedules (NaN: the schedules)."""
-    T1 = inlet_air_temperature_at(pf[5], x4, c)
-    torque, p6, T6, p_max, m1_cyl = engine_block_at_speed(x1, x4, T1, c.V1_m3 + pf[1], n, c)
+    T1 = inlet_air_temperature_at(pf[I_DT_INL], x4, c)
+    torque, p6, T6, p_max, m1_cyl = engine_block_at_speed(x1, x4, T1, c.V1_m3 + pf[I_DV1], n, c)
     _gas_exchange(c, c, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, out, ov_wg, ov_bp)
 
 
 @jit
 def linear_rates(pf, c):
     """Diagonal linear parts a1, a3, a4 [1/s] (eq. 3.4, 3.15, 3.30 with the seal-leak faults)."""
-    return -1.0 / c.tau_X_s, -(1.0 + pf[2]) / c.tau_pd_s, -(1.0 + pf[4]) / c.tau_TC_s
+    return -1.0 / c.tau_X_s, -(1.0 + pf[I_PHI_TUR]) / c.tau_pd_s, -(1.0 + pf[I_PHI_INT]) / c.tau_TC_s
 
 
 @jit_inline
 def forcings(u, pf, alg, c):
     """Forcings F1 [kg/s] (eq. 3.4), F3 = h3, F4 = h4 [Pa/s] of one engine."""
-    return fuel_pump_forcing(u, pf[0], c), alg[14], alg[15]
+    return fuel_pump_forcing(u, pf[I_F_U], c), alg[14], alg[15]
 
 
 @jit

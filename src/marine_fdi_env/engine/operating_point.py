@@ -32,6 +32,7 @@ from scipy.optimize import root
 
 from .._jit import jit
 from .constants import model_constants
+from .fault_registry import I_PHI_INT, I_PHI_TUR
 from .model import ALG_FIELDS, HEALTHY_PF, N_ALG, algebraic_at_speed
 from .params import EngineParams
 from .turbocharger_speed import turbocharger_speed_rpm
@@ -226,8 +227,8 @@ def _residual(mode, law, y0, y1, y2, a0, a1, c, pf, alg, ov):
         n = y2
         x1 = a0 / (max(n, 1e-9) * c.cycles_per_rev)
     algebraic_at_speed(c, x1, x3, x4, n, pf, alg, ov[0], ov[1])
-    r3 = 1.0 - c.tau_pd_s * alg[14] / ((1.0 + pf[2]) * x3)
-    r4 = 1.0 - c.tau_TC_s * alg[15] / ((1.0 + pf[4]) * x4)
+    r3 = 1.0 - c.tau_pd_s * alg[14] / ((1.0 + pf[I_PHI_TUR]) * x3)
+    r4 = 1.0 - c.tau_TC_s * alg[15] / ((1.0 + pf[I_PHI_INT]) * x4)
     torque = alg[1]
     if mode == 1:
         r5 = (torque - a0 / (2.0 * math.pi * n)) * (2.0 * math.pi * c.n_nom_rev_s / c.P_nom_W)

@@ -205,7 +205,7 @@ class Simulator:
         self._X_new = np.empty_like(self.X)
         self._ALG_new = np.empty_like(self.ALG)
         self._codes = np.zeros(n, dtype=np.int64)
-        self._scr_pf = np.empty((n, 3, len(PF_FIELDS)))
+        self._scr_pf = np.empty((n, 4, len(PF_FIELDS)))
         self._scr_alg = np.empty((n, 3, N_ALG))
         self.u = self._applied_u(u0)
         self.failed = np.zeros(n, dtype=bool)
@@ -619,15 +619,12 @@ class Simulator:
             act[sch.s_engine, sch.s_sensor] = a
             val[sch.s_engine, sch.s_sensor] = np.where(a, dev, 0.0)
         if sch.process:
-            pf = self._pf_values(self._grid_row(self.k))
             t_now = self._t_local[self._grid_row(self.k)]
             for k, d in sch.process.items():
                 col = FAULT_IDS.index(k)
-                s = _active_time(t_now[d["engine"]], d)
+                s, v = sch.fault_values(k, t_now, per_engine=True)
                 act[d["engine"], col] = ~np.isnan(s)
-                v = getattr(pf, _PF_FIELD[k])
-                v = v[d["engine"]]
-                val[d["engine"], col] = (1.0 - v) if k == "valve_seizing" else v
+                val[d["engine"], col] = v
         return act, val
 
     def truth_vector(self) -> np.ndarray:
@@ -665,13 +662,11 @@ class Simulator:
             act[sch.s_engine, :, sch.s_sensor] = a.T
             val[sch.s_engine, :, sch.s_sensor] = np.where(a, dev, 0.0).T
         if sch.process:
-            pf = self._pf[rows]
             for k, d in sch.process.items():
                 col = FAULT_IDS.index(k)
-                s = _active_time(t[:, d["engine"]], d)  # (m, engines of the fault)
+                s, v = sch.fault_values(k, t, per_engine=True)  # (m, engines of the fault)
                 act[d["engine"], :, col] = ~np.isnan(s).T
-                v = pf[:, d["engine"], PF_FIELDS.index(_PF_FIELD[k])].T
-                val[d["engine"], :, col] = (1.0 - v) if k == "valve_seizing" else v
+                val[d["engine"], :, col] = v.T
         return act, val
 
     # ------------------------------------------------------------------------- whole runs
@@ -772,26 +767,9 @@ def _truth_from_state(state: np.ndarray, u: np.ndarray) -> np.ndarray:
     )
 
 
-_PF_FIELD = {
-    "valve_seizing": "f_u",
-    "bore_damage": "dV1_m3",
-    "turbine_seal_leak": "phi_tur",
-    "turbine_lubrication_loss": "dT_sl_K",
-    "compressor_seal_leak": "phi_int",
-    "compressor_lubrication_loss": "dT_inl_K",
-    "intercooler_blockage": "dT_c_K",
-}
-
-
 # columns of [X | ALG] holding the measured variables, in MEASURED_VARIABLES / sensor order
 _STATE_COLS = {"x1": 0, "x3": 1, "x4": 2}
 _MEASURED_COLUMNS = np.array(
     [_STATE_COLS[v] if v in _STATE_COLS else 3 + ALG_FIELDS.index(v) for v in MEASURED_VARIABLES]
 )
 _SENSOR_COLUMNS = _MEASURED_COLUMNS[VARIABLE_OF_SENSOR]
-
-
-def _active_time(t, d):
-    from .faults import _window_time
-
-    return _window_time(t, d["onset"], d["end"], d["period"], d["duty"])

@@ -13,8 +13,10 @@ constant nominal fuel setting 1.0.  That is, detected within ``300 s - onset``:
 It is found by bisection on a log scale (bracketed from the table 6.3 / 6.4 magnitude by factors
 of 2, then bisected to a 5 % bracket; the limit is the upper, detected end) with
 ``python -m studies.diagnosis.kpis min-detectable --all --seeds 4``, which regenerates
-``marine_fdi_env/data/env/detectability.json``.  A fault never detected at any magnitude tried
-(``turbine_seal_leak``: its effect on the receiver pressure stays far below the sensor noise) has
+``marine_fdi_env/data/env/detectability.json`` (``python -m studies.fault_tables`` for some faults;
+the table of the folder ``MARINE_FDI_TABLES`` is read when it has one,
+:func:`~marine_fdi_env.engine.fault_registry.measured_table`).  A fault never detected at any magnitude
+tried (``turbine_seal_leak``: its effect on the receiver pressure stays far below the sensor noise) has
 ``"detected": false`` and its table magnitude as limit, so it is sampled relative to that.
 
 The limit is a *scale* for sampling scenarios (e.g. magnitudes 0.5x .. 4x the limit: some below,
@@ -29,11 +31,11 @@ import copy
 import json
 import math
 from functools import lru_cache
-from importlib import resources
 
+from ..engine.fault_registry import check_table_faults, measured_table
 from ..engine.faults import FAULT_IDS
 
-__all__ = ["detectability_limit", "detectability_table", "sampling_scale", "TABLE_RESOURCE", "SCALE_FLOOR"]
+__all__ = ["detectability_limit", "detectability_table", "sampling_scale", "TABLE", "SCALE_FLOOR"]
 
 # Scenario magnitudes are drawn relative to max(limit, SCALE_FLOOR x table magnitude).  Without the
 # floor, the inlet-air-temperature sensors S4.3/S4.4 (limits 3.5e-3 K and 6.7e-4 K against a 22 K
@@ -45,29 +47,24 @@ __all__ = ["detectability_limit", "detectability_table", "sampling_scale", "TABL
 # which it raises only slightly.
 SCALE_FLOOR = 0.02
 
-TABLE_RESOURCE = ("marine_fdi_env", "data/env/detectability.json")
+TABLE = "env/detectability.json"  # relative to the package's data/ (or MARINE_FDI_TABLES, fault_registry)
 
 
 @lru_cache(maxsize=1)
 def _load() -> dict:
-    pkg, rel = TABLE_RESOURCE
-    data = json.loads(resources.files(pkg).joinpath(rel).read_text())
+    data = json.loads(measured_table(TABLE).read_text())
     faults = data["faults"]
-    if set(faults) != set(FAULT_IDS):
-        raise RuntimeError(
-            f"{rel} must cover exactly the {len(FAULT_IDS)} fault ids; "
-            f"missing {sorted(set(FAULT_IDS) - set(faults))}, extra {sorted(set(faults) - set(FAULT_IDS))}"
-        )
-    for f, v in faults.items():
-        lim = v.get("limit")
+    check_table_faults(TABLE, faults, FAULT_IDS)  # a registered fault without its limit is refused by name
+    for f in FAULT_IDS:
+        lim = faults[f].get("limit")
         if not (isinstance(lim, (int, float)) and math.isfinite(lim) and lim > 0):
-            raise RuntimeError(f"{rel}: limit of {f} must be a positive finite number, got {lim!r}")
+            raise RuntimeError(f"{TABLE}: limit of {f} must be a positive finite number, got {lim!r}")
     return data
 
 
 def detectability_table() -> dict:
-    """``{fault_id: {"limit", "unit", "source", "table_magnitude", "detected", ...}}`` for all 26
-    fault ids, in ``FAULT_IDS`` order (a fresh copy of the cached file)."""
+    """``{fault_id: {"limit", "unit", "source", "table_magnitude", "detected", ...}}`` for every registered
+    fault, in ``FAULT_IDS`` order (a fresh copy of the cached file)."""
     faults = _load()["faults"]
     return {f: copy.deepcopy(faults[f]) for f in FAULT_IDS}
 
@@ -75,7 +72,7 @@ def detectability_table() -> dict:
 def detectability_limit(fault_id: str) -> float:
     """Detectability limit of one fault (unit of its magnitude); ``ValueError`` for an unknown id."""
     faults = _load()["faults"]
-    if fault_id not in faults:
+    if fault_id not in FAULT_IDS:
         raise ValueError(f"unknown fault id {fault_id!r}; allowed: {', '.join(FAULT_IDS)}")
     return float(faults[fault_id]["limit"])
 

@@ -38,6 +38,7 @@ import numpy as np
 
 from ..engine.faults import FAULT_IDS, PROCESS_FAULT_IDS, SENSOR_FAULT_KINDS, FaultSpec, fault_class
 from ..engine.profiles import make_profile
+from ..engine.sensors import SENSOR_IDS
 
 __all__ = [
     "ScenarioSpec",
@@ -376,7 +377,7 @@ def _fault_at_scale(fault_id: str, kind: str, onset: float, scale: float, sign: 
     from .detectability import sampling_scale
 
     limit = sampling_scale(fault_id)
-    if fault_id in PROCESS_FAULT_IDS:
+    if fault_class(fault_id) == "process":
         return FaultSpec(fault_id, onset, magnitude=scale * limit)
     if kind == "offset":
         return FaultSpec(fault_id, onset, magnitude=sign * scale * limit)
@@ -423,7 +424,7 @@ PRESETS: dict[str, ScenarioConfig] = {
         # every sensor fault kind, not only offsets
         ScenarioConfig(
             name="sensor-kinds",
-            fault_ids=FAULT_IDS[:19],
+            fault_ids=SENSOR_IDS,
             fault_count_weights=(0.0, 1.0, 0.0),
             sensor_kinds=tuple((k, 1.0) for k in SENSOR_FAULT_KINDS),
         ),

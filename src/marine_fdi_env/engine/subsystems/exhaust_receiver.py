@@ -104,16 +104,18 @@ def turbine_outlet_temperature(T_in: float, x3: float, x4: float, c) -> float:
 
 
 @jit
-def receiver_and_turbine(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, c) -> tuple:
+def receiver_and_turbine(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, c, turbine_share=1.0) -> tuple:
     """Algebraic part of Σ3 and the forcing h3 (eq. 3.16, 3.20-3.26, corrected as documented above).
 
-    T_sl is the slip-air temperature including the lubrication-loss fault f_z,Tsl [K].
+    T_sl is the slip-air temperature including the lubrication-loss fault f_z,Tsl [K]; turbine_share the
+    share of the cylinders' gas flow that passes the turbine, 1 - φ_rec (the receiver leak term of
+    :mod:`marine_fdi_env.engine.fault_registry`; 1 when healthy).
 
     Returns
     -------
     (h3 [Pa/s], T_in = z1 [K], T_out = z2 [K], Π_turbo, ṁ_g [kg/s])
     """
-    mdot = turbine_mass_flow(x1, m1, s_sl, n, c)
+    mdot = turbine_mass_flow(x1, m1, s_sl, n, c) * turbine_share
     psi2 = c.c_p_a_J_per_kgK * s_sl * m1
     psi3 = c.c_p_g_J_per_kgK * (x1 + m1)
     inv = 1.0 / (psi2 + psi3)

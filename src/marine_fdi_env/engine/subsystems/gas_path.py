@@ -107,13 +107,14 @@ def _valve_flows(x1, x3, x4, m1, s_sl, n, T_c, c, csm, ov_wg, ov_bp) -> tuple:
 
 
 @jit
-def extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, T_c, dT_c, c, ov_wg, ov_bp) -> tuple:
+def extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, T_c, dT_c, c, ov_wg, ov_bp, turbine_share=1.0) -> tuple:
     """Algebraic part of Σ3 and Σ4 with the gas-path submodels (module docstring).
 
     m1 : trapped mass of the gas exchange [kg]; T_sl : slip-air temperature incl. f_z,Tsl [K];
     T_c : cooler outlet temperature [K]; dT_c : intercooler-blockage fault f_z,Tc [K].
     ov_wg, ov_bp : waste-gate and bypass openings that override the schedules (NaN: use the schedules;
     the steady-state solver sets one opening per measured point while a fit looks for them).
+    turbine_share : share of the cylinders' gas flow that reaches the turbine, 1 - φ_rec (receiver leak term).
 
     Returns
     -------
@@ -121,15 +122,16 @@ def extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, T_c, dT_c, c, ov_wg
     [kg/s], h4 [Pa/s], T_co [K], T_cyl [K], T_t (turbine gas inlet) [K], ṁ_bp [kg/s], waste-gate flow
     fraction [-], ṁ_c (compressor air) [kg/s], T_exh (after the waste-gate junction) [K])
     """
-    return _extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, T_c, dT_c, c, c, ov_wg, ov_bp)
+    return _extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, T_c, dT_c, c, c, ov_wg, ov_bp, turbine_share)
 
 
 @jit
-def _extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, T_c, dT_c, c, csm, ov_wg, ov_bp) -> tuple:
+def _extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, T_c, dT_c, c, csm, ov_wg, ov_bp, turbine_share) -> tuple:
     """:func:`extended_gas_path` with the constants split as the compiled kernels take them (``c``
     floats only, ``csm`` the full constants with the valve schedules; see
     :func:`~marine_fdi_env.engine.constants.kernel_constants`): the same numbers."""
     mdot_g, mdot_bp, a_wg, m_air = _valve_flows(x1, x3, x4, m1, s_sl, n, T_c, c, csm, ov_wg, ov_bp)
+    mdot_gt = mdot_g * turbine_share  # the cylinders' gas that reaches the turbine (receiver leak term)
     # receiver mixing of exhaust and slip air: T_cyl = alpha + beta P (blowdown term, eq. 3.20-3.23)
     psi2 = c.c_p_a_J_per_kgK * s_sl * m1
     psi3 = c.c_p_g_J_per_kgK * (x1 + m1)
@@ -139,13 +141,13 @@ def _extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, T_c, dT_c, c, csm,
     E = 1.0
     if c.hl_on != 0.0:
         E = math.exp(-c.hl_ntu_nom * math.exp(-c.hl_e * math.log(max(mdot_g, 1e-9) / c.hl_mdot_nom)))
-    cg = c.c_p_g_J_per_kgK * mdot_g
+    cg = c.c_p_g_J_per_kgK * mdot_gt
     ca = c.c_p_a_J_per_kgK * mdot_bp
     wg = cg / (cg + ca)
     # turbine gas temperature T_t = A0 + A1 P
     A0 = wg * ((1.0 - E) * c.T_amb_K + E * alpha) + (1.0 - wg) * T_c
     A1 = wg * E * beta
-    mdot_t = mdot_g + mdot_bp
+    mdot_t = mdot_gt + mdot_bp
     area = c.tf_s * (1.0 + a_wg)
     gam = c.gamma_coeff * mdot_t * mdot_t / (area * area)
     P = flow_law_pressure(gam, A0, A1, c)
