@@ -239,7 +239,7 @@ def test_duplicate_operating_points_listed_with_their_rows(tmp_path):
 
 
 def test_points_outside_the_envelope_listed(tmp_path):
-    # wartsila-6l46: 500 rpm, 5890 kW; envelope: load <= 1.15, speed <= 550 rpm, power <= 6773.5 kW
+    # wartsila-6l46: 500 rpm, 5890 kW; envelope: load <= 1.15, speed <= 575 rpm, power <= 6773.5 kW
     path = _write(
         tmp_path,
         "load_fraction,speed_rpm,power_kW,charge_air_pressure_bar_abs\n"
@@ -255,10 +255,24 @@ def test_points_outside_the_envelope_listed(tmp_path):
     text = "\n".join(errs)
     assert re.search(r"row 2 \(line 3\), column 'load_fraction': load fraction above 1.15", text)
     assert re.search(r"row 4 \(line 5\), column 'load_fraction': negative load fraction", text)
-    assert re.search(r"row 3 \(line 4\), column 'speed_rpm': speed above 1.1 x nominal", text)
+    assert re.search(r"row 3 \(line 4\), column 'speed_rpm': speed above 1.15 x nominal \(575 rpm", text)
     assert re.search(r"row 2 \(line 3\), column 'power_kW': power above 1.15 x rated", text)
     assert re.search(r"row 3 \(line 4\), column 'charge_air_pressure_bar_abs': negative absolute pressure", text)
     assert len(errs) == 5, text
+
+
+def test_the_speed_bound_is_the_engine_envelope(tmp_path):
+    """One operating envelope: the loader refuses a speed beyond the engine envelope's 115 % of the rated speed (the
+    governor's limit, IACS UR M3.1.1) and keeps one between 110 % and 115 % (an overspeed test reaches it)."""
+    from marine_fdi_env.engine.envelope import ENVELOPE, envelope_warnings
+
+    assert ENVELOPE.max_speed_fraction == 1.15
+    rows = "0.5,397\n0.75,454\n1.0,560\n"  # 560 rpm: 1.12 x the rated 500 rpm
+    ds = _quiet(load_dataset, _write(tmp_path, "load_fraction,speed_rpm\n" + rows, META))
+    assert ds.raw["speed_rpm"][2] == 560 and envelope_warnings(560 / 60, 200 / 3.6e9, 500 / 60) == []
+    with pytest.raises(DatasetError, match=r"row 3 .*speed above 1.15 x nominal \(575 rpm"):
+        load_dataset(_write(tmp_path, "load_fraction,speed_rpm\n" + rows.replace("560", "580"), META))
+    assert envelope_warnings(580 / 60, 200 / 3.6e9, 500 / 60)  # the same bound as the steady states'
 
 
 def test_gauge_pressure_below_minus_ambient_is_an_error_slightly_negative_a_warning(tmp_path):

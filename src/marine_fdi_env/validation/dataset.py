@@ -59,7 +59,7 @@ from ..engine.params import EngineParams, list_parameter_sets, load_params
 from ..errors import DataFileError, DatasetError
 from .boundary_readings import BOUNDARY_OUTLIER_Z, boundary_conditions, cylinder_groups
 from .columns import ID_COLUMNS, QUANTITIES, ColumnSpec, column_problem, lookup_column, resolve_quantity
-from .plausibility import ENVELOPE, SETPOINT_QUANTITIES, check_across_engines, check_duplicates, check_values
+from .plausibility import SETPOINT_QUANTITIES, check_across_engines, check_duplicates, check_values
 
 __all__ = [
     "MeasuredDataset",
@@ -74,7 +74,6 @@ __all__ = [
     "parse_ambient",
     "normalise_load_law",
     "MISSING_TOKENS",
-    "ENVELOPE",
     "BOUNDARY_OUTLIER_Z",
 ]
 

@@ -1,5 +1,6 @@
-"""Plausibility checks of measured values that need no model: the engine envelope (errors beyond it), suspicious
-values (warnings, kept), duplicate operating points, and an engine far from the others at the same set point.
+"""Plausibility checks of measured values that need no model: the engine's operating envelope (errors beyond it:
+:data:`marine_fdi_env.engine.envelope.ENVELOPE` and the fuel-setting range of the steady states), suspicious values
+(warnings, kept), duplicate operating points, and an engine far from the others at the same set point.
 
 Used by :func:`~.dataset.load_dataset`; each check reports through the loader's ``err``/``warn`` callables (message,
 1-based rows, column).
@@ -12,18 +13,13 @@ from typing import Mapping
 
 import numpy as np
 
+from ..engine.envelope import ENVELOPE
 from ..engine.params import EngineParams
+from ..engine.steady_state import FUEL_SETTING_RANGE
 from .columns import QUANTITIES, lookup_column
 
-__all__ = ["ENVELOPE", "SETPOINT_QUANTITIES", "check_across_engines", "check_duplicates", "check_values", "rows_where"]
+__all__ = ["SETPOINT_QUANTITIES", "check_across_engines", "check_duplicates", "check_values", "rows_where"]
 
-# Envelope of a plausible operating point (errors beyond, see check_values for the warnings).
-ENVELOPE = {
-    "load_fraction_max": 1.15,
-    "speed_max_rel": 1.10,
-    "power_max_rel": 1.15,
-    "fuel_setting_max": 1.2,
-}
 # Columns that set an operating point (identify duplicates); responses are everything else.
 SETPOINT_QUANTITIES = ("load_fraction", "engine_speed_rev_s", "power_W")
 
@@ -40,6 +36,7 @@ def rows_where(mask) -> list[int]:
 def check_values(raw, values, column_quantity, p: EngineParams, rated, ambient, engines, err, warn) -> None:
     """Envelope (errors) and plausibility (warnings) of every value, one problem per column and kind."""
     n_nom = p.n_nom_rev_s
+    speed_max, power_max = ENVELOPE.max_speed_fraction, ENVELOPE.max_power_fraction
     for col, q in column_quantity.items():
         v = values[q]
         fin = np.isfinite(v)
@@ -52,30 +49,23 @@ def check_values(raw, values, column_quantity, p: EngineParams, rated, ambient, 
 
         if q == "load_fraction":
             flag(v < 0, "negative load fraction")
-            flag(
-                v > ENVELOPE["load_fraction_max"],
-                f"load fraction above {ENVELOPE['load_fraction_max']} (outside the engine envelope)",
-            )
+            flag(v > power_max, f"load fraction above {power_max:g} (outside the engine envelope)")
         elif q == "engine_speed_rev_s":
             flag(v <= 0, "speed not positive")
             flag(
-                v > ENVELOPE["speed_max_rel"] * n_nom,
-                f"speed above {ENVELOPE['speed_max_rel']} x nominal ({ENVELOPE['speed_max_rel'] * n_nom * 60:g} rpm;"
-                " outside the engine envelope)",
+                v > speed_max * n_nom,
+                f"speed above {speed_max:g} x nominal ({speed_max * n_nom * 60:g} rpm; outside the engine envelope)",
             )
             flag((v > 0) & (v < 0.2 * n_nom), "speed below 0.2 x nominal (suspicious, kept)", warn)
         elif q == "power_W":
             flag(v < 0, "negative power")
             flag(
-                v > ENVELOPE["power_max_rel"] * rated,
-                f"power above {ENVELOPE['power_max_rel']} x rated ({ENVELOPE['power_max_rel'] * rated / 1e3:g} kW;"
-                " outside the engine envelope)",
+                v > power_max * rated,
+                f"power above {power_max:g} x rated ({power_max * rated / 1e3:g} kW; outside the engine envelope)",
             )
         elif q == "fuel_setting":
-            flag(
-                (v < 0) | (v > ENVELOPE["fuel_setting_max"]),
-                f"fuel setting outside [0, {ENVELOPE['fuel_setting_max']}]",
-            )
+            lo, hi = FUEL_SETTING_RANGE
+            flag((v < lo) | (v > hi), f"fuel setting outside [{lo:g}, {hi:g}]")
         elif q in ("exhaust_back_pressure_Pa", "cooler_pressure_drop_Pa"):
             flag(v < -5e3, "pressure difference below -50 mbar (suspicious, kept)", warn)
             flag(v > 1e5, "pressure difference above 1 bar (outside any engine's exhaust or cooler)")
