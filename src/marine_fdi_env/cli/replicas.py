@@ -13,11 +13,10 @@ from ..validation.dataset import load_data_arg
 from ..validation.mechanisms import PHYSICAL_MECHANISMS
 from ..validation.problem import Problem
 from ..validation.replicas import NOISE_MODELS, markdown_table, replicate
-from ..validation.rules import SelectionRules
 from ..validation.selection import select_causes
 from .common import parse_cli
 from .failures import fail
-from .selection_options import add_valve_options
+from .selection_options import add_valve_options, rules_from_args
 from .sidecar import check_sidecar_numbers
 
 
@@ -69,14 +68,12 @@ def replicas_main(argv: Sequence[str] | None = None) -> int:
                 f"--alternatives: unknown physical mechanism(s) {', '.join(sorted(set(alts) - known))}; "
                 f"known: {', '.join(sorted(known))}"
             )
+        rules = rules_from_args(args)
         try:
             check_sidecar_numbers(args.data)
             ds = load_data_arg(args.data, args.params)
         except ValueError as e:
             raise UsageError(f"--data: {e}") from None
-        rules = SelectionRules(
-            max_folds=args.max_folds, beside_valve=args.beside_valve, held_out_valves=args.held_out_valves
-        )
         pr = Problem(ds, params=args.params, target=args.target, held_out_valves=rules.held_out_valves)
         if args.tolerance:
             pr = Problem(

@@ -4,11 +4,25 @@ replicas`` and the open-world study, and the :class:`~marine_fdi_env.validation.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 
+from ..errors import UsageError
 from ..validation.evidence import BESIDE_VALVE, BESIDE_VALVE_DEFAULT
 from ..validation.problem import HELD_OUT_VALVES
+from ..validation.rules import RuleError, SelectionRules
 
-__all__ = ["add_valve_options"]
+__all__ = ["add_valve_options", "rules_from_args"]
+
+
+def rules_from_args(args: argparse.Namespace) -> SelectionRules:
+    """The :class:`SelectionRules` of the parsed options: each rule a command has as an option (``--max-causes``
+    for ``max_causes``) takes the option's value, the others their defaults.  The rules check themselves; a rule
+    out of its range is a :class:`~marine_fdi_env.errors.UsageError` naming the option."""
+    given = {f.name: getattr(args, f.name) for f in dataclasses.fields(SelectionRules) if hasattr(args, f.name)}
+    try:
+        return SelectionRules(**given)
+    except RuleError as e:
+        raise UsageError(f"--{e.rule.replace('_', '-')} {e.requirement}") from None
 
 
 def add_valve_options(ap: argparse.ArgumentParser) -> None:

@@ -11,7 +11,16 @@ from .evidence import BESIDE_VALVE, BESIDE_VALVE_DEFAULT
 from .problem import HELD_OUT_VALVES
 from .unexplained import ALPHA_UNEXPLAINED
 
-__all__ = ["SelectionRules"]
+__all__ = ["SelectionRules", "RuleError"]
+
+
+class RuleError(ValueError):
+    """A selection rule outside what it allows: ``rule`` names the field, ``requirement`` says what is allowed and
+    what was given (the message is both); a command line names its option instead (``--max-causes``)."""
+
+    def __init__(self, rule: str, requirement: str):
+        self.rule, self.requirement = rule, requirement
+        super().__init__(f"{rule} {requirement}")
 
 
 @dataclass(frozen=True)
@@ -44,19 +53,20 @@ class SelectionRules:
     held_out_valves: str = "schedule"
 
     def __post_init__(self) -> None:
+        """Every rule checked here, once: a :class:`RuleError` names the first one out of its range."""
         if self.beside_valve not in BESIDE_VALVE:
-            raise ValueError(f"beside_valve must be one of {', '.join(BESIDE_VALVE)}, got {self.beside_valve!r}")
+            raise RuleError("beside_valve", f"must be one of {', '.join(BESIDE_VALVE)}, got {self.beside_valve!r}")
         if self.held_out_valves not in HELD_OUT_VALVES:
-            raise ValueError(
-                f"held_out_valves must be one of {', '.join(HELD_OUT_VALVES)}, got {self.held_out_valves!r}"
+            raise RuleError(
+                "held_out_valves", f"must be one of {', '.join(HELD_OUT_VALVES)}, got {self.held_out_valves!r}"
             )
         if self.max_causes < 0:
-            raise ValueError(f"max_causes must be >= 0, got {self.max_causes}")
+            raise RuleError("max_causes", f"must be >= 0, got {self.max_causes}")
         for name in ("alpha", "alpha_unexplained"):
             if not 0.0 < getattr(self, name) < 1.0:
-                raise ValueError(f"{name} must be in (0, 1), got {getattr(self, name)}")
+                raise RuleError(name, f"must lie in (0, 1), got {getattr(self, name)}")
         if self.max_folds is not None and self.max_folds < 2:
-            raise ValueError(f"max_folds must be >= 2 (or None: leave one out), got {self.max_folds}")
+            raise RuleError("max_folds", f"must be >= 2 (unset: leave one point out), got {self.max_folds}")
 
     def replace(self, **changes: Any) -> SelectionRules:
         """A copy with ``changes`` (checked like the constructor's arguments)."""
