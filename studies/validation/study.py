@@ -20,9 +20,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from marine_fdi_env.validation.evidence import BESIDE_VALVE_DEFAULT
-from marine_fdi_env.validation.mechanisms import MECHANISM_IDS, equivalents
-from marine_fdi_env.validation.synthesize import (
+from marine_fdi_env.validation.fit.mechanisms import MECHANISM_IDS, equivalents
+from marine_fdi_env.validation.fit.synthesize import (
     DEFAULT_COLUMNS,
     FAMILIES,
     Synthesis,
@@ -30,6 +29,7 @@ from marine_fdi_env.validation.synthesize import (
     effect_region,
     synthesize,
 )
+from marine_fdi_env.validation.select.evidence import BESIDE_VALVE_DEFAULT
 
 from .study_pool import SIZE_BINS
 
@@ -212,7 +212,7 @@ def loaded(syn: Synthesis, name: str = "trial", workdir: str | Path | None = Non
     import tempfile
     import warnings
 
-    from marine_fdi_env.validation.dataset import DataWarning, load_dataset
+    from marine_fdi_env.validation.measured.dataset import DataWarning, load_dataset
 
     with tempfile.TemporaryDirectory(dir=workdir) as d:
         path = Path(d) / f"{name}.csv"
@@ -269,10 +269,10 @@ def trial(
     :data:`TOLERANCE_MODES`; ``exchange``: the selection's exchange step, on by default; ``held_out_valves``: one of
     :data:`~.problem.HELD_OUT_VALVES`; ``beside_valve``: one of :data:`~.evidence.BESIDE_VALVE`; ``explanations``:
     also the explanation set, :mod:`.study_sets`) and compare with the truth."""
-    from marine_fdi_env.validation.dataset import DatasetError
-    from marine_fdi_env.validation.problem import Problem
-    from marine_fdi_env.validation.rules import SelectionRules
-    from marine_fdi_env.validation.selection import select_causes
+    from marine_fdi_env.validation.fit.problem import Problem
+    from marine_fdi_env.validation.measured.dataset import DatasetError
+    from marine_fdi_env.validation.select.rules import SelectionRules
+    from marine_fdi_env.validation.select.selection import select_causes
 
     t0 = time.perf_counter()
     draw = trial_draw(condition, seed, control=control)

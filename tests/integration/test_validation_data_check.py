@@ -14,7 +14,7 @@ import pytest
 
 from marine_fdi_env.cli.synthesize import synthesize_main
 from marine_fdi_env.cli.validate import validate_main
-from marine_fdi_env.validation.columns import COLUMNS, GROUP_PATTERNS
+from marine_fdi_env.validation.measured.columns import COLUMNS, GROUP_PATTERNS
 from tests.paths import ROOT
 
 EXAMPLE = ROOT / "docs" / "examples" / "measured" / "example_engine.csv"

@@ -1,4 +1,4 @@
-"""Replicas of a dataset drawn from fitted hypotheses (:mod:`marine_fdi_env.validation.replicas`): the noise, the
+"""Replicas of a dataset drawn from fitted hypotheses (:mod:`marine_fdi_env.validation.select.replicas`): the noise, the
 design kept, the seeding, and the pipeline run on them."""
 
 from __future__ import annotations
@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 from marine_fdi_env.validation import DataWarning, load_dataset
-from marine_fdi_env.validation.mechanisms import PHYSICAL_MECHANISMS
-from marine_fdi_env.validation.problem import Problem
-from marine_fdi_env.validation.replicas import (
+from marine_fdi_env.validation.fit.mechanisms import PHYSICAL_MECHANISMS
+from marine_fdi_env.validation.fit.problem import Problem
+from marine_fdi_env.validation.fit.synthesize import synthesize
+from marine_fdi_env.validation.select.replicas import (
     hypotheses,
     markdown_table,
     noise_scale,
@@ -19,9 +20,8 @@ from marine_fdi_env.validation.replicas import (
     replicate,
     run_replica,
 )
-from marine_fdi_env.validation.rules import SelectionRules
-from marine_fdi_env.validation.selection import select_causes
-from marine_fdi_env.validation.synthesize import synthesize
+from marine_fdi_env.validation.select.rules import SelectionRules
+from marine_fdi_env.validation.select.selection import select_causes
 from tests.paths import TEST_DATA
 
 #: a small library keeps the pipeline runs of this file to seconds
@@ -141,7 +141,7 @@ def test_every_replica_follows_the_rules_the_data_were_selected_with(waste_gate_
     selection rules: the valve rules (``beside_valve``, ``held_out_valves``) and the exchange step too, not the
     defaults (else ``marine-fdi validate --beside-valve ... --replicas N`` would judge the replicas by another rule
     than the data).  No cause may be named here, so each run is a base fit."""
-    import marine_fdi_env.validation.replicas as replicas
+    import marine_fdi_env.validation.select.replicas as replicas
 
     _, sel0 = waste_gate_selection
     pr = sel0.problem
@@ -176,7 +176,7 @@ def test_a_candidate_pinned_at_a_bound_does_not_screen_the_others_out():
     import json
 
     from marine_fdi_env.validation import load_shipped
-    from marine_fdi_env.validation.mechanisms import SensorCalibration, sensor_reference
+    from marine_fdi_env.validation.fit.mechanisms import SensorCalibration, sensor_reference
 
     rec = json.loads((TEST_DATA / "protocol_replica_flow_law.json").read_text())
     with warnings.catch_warnings():

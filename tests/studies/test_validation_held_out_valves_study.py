@@ -1,11 +1,11 @@
-"""How cross-validation predicts a valve's opening at a held-out point (validation/fitting.py, HELD_OUT_VALVES)."""
+"""How cross-validation predicts a valve's opening at a held-out point (validation/fit/fitting.py, HELD_OUT_VALVES)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from marine_fdi_env.validation.fitting import (
+from marine_fdi_env.validation.fit.fitting import (
     L1_LAMBDA,
     SUPPORT_FRACTION,
     Combination,
@@ -14,9 +14,9 @@ from marine_fdi_env.validation.fitting import (
     fit_combination,
     robust_loss,
 )
-from marine_fdi_env.validation.held_out_state import state_predictions
-from marine_fdi_env.validation.mechanisms import PHYSICAL_MECHANISMS
-from marine_fdi_env.validation.problem import Problem
+from marine_fdi_env.validation.fit.held_out_state import state_predictions
+from marine_fdi_env.validation.fit.mechanisms import PHYSICAL_MECHANISMS
+from marine_fdi_env.validation.fit.problem import Problem
 from studies.validation.study import _trial_settings, loaded, trial, trial_data
 
 LOADS = np.array([0.25, 0.36, 0.52, 0.67, 0.77, 0.85, 0.96, 1.08])
@@ -31,7 +31,7 @@ class _Loads:
 
 
 def test_the_option_is_checked_and_recorded_only_when_it_is_not_the_default():
-    from marine_fdi_env.validation.problem import Problem
+    from marine_fdi_env.validation.fit.problem import Problem
 
     with pytest.raises(ValueError, match="held_out_valves"):
         Problem(None, held_out_valves="nearest")  # checked before the dataset is touched
@@ -40,7 +40,7 @@ def test_the_option_is_checked_and_recorded_only_when_it_is_not_the_default():
     assert _trial_settings(held_out_valves="state")["held_out_valves"] == "state"
 
 
-# --- the opening at a held-out point as a state (held_out_valves="state", validation/held_out_state.py) ---
+# --- the opening at a held-out point as a state (held_out_valves="state", validation/fit/held_out_state.py) ---
 
 OPEN = np.array([0, 0, 0, 0, 0, 0.12, 0.18, 0.25])  # a gate shut below 85 % load, opening with load above
 

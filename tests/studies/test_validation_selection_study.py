@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 
 from marine_fdi_env.validation import DataWarning, load_dataset
-from marine_fdi_env.validation.problem import Problem
-from marine_fdi_env.validation.selection import select_causes
-from marine_fdi_env.validation.synthesize import synthesize
+from marine_fdi_env.validation.fit.problem import Problem
+from marine_fdi_env.validation.fit.synthesize import synthesize
+from marine_fdi_env.validation.select.selection import select_causes
 from studies.validation.study import CONDITIONS, study, trial
 
 
@@ -73,7 +73,7 @@ def test_study_told_the_true_noise(monkeypatch):
     where the stated tolerance is 5 K on both), records it in the trial's settings (a resumed study does not mix it
     with the stated-tolerance trials; the default is not recorded, so earlier files still resume) and refuses an
     unknown mode."""
-    import marine_fdi_env.validation.selection as selection
+    import marine_fdi_env.validation.select.selection as selection
     from studies.validation.study import _trial_settings, noise_tolerances, trial_data
 
     seen = {}

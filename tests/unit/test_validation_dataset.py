@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from marine_fdi_env.validation import DatasetError, DataWarning, list_shipped, load_dataset, load_shipped, write_dataset
-from marine_fdi_env.validation.columns import COLUMNS, QUANTITIES, column_problem
+from marine_fdi_env.validation.measured.columns import COLUMNS, QUANTITIES, column_problem
 from tests.paths import ROOT
 
 SHARED = ROOT.parent / "shared" / "data"

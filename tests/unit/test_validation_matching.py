@@ -17,9 +17,14 @@ from marine_fdi_env import load_params
 from marine_fdi_env.engine.model import EngineModel
 from marine_fdi_env.engine.steady_state import steady_state
 from marine_fdi_env.validation import DataWarning, load_dataset, load_shipped, write_dataset
-from marine_fdi_env.validation.columns import COLUMNS
-from marine_fdi_env.validation.discrepancy import analyse_discrepancies, change_point, linear_trend, robust_zscores
-from marine_fdi_env.validation.matching import infer_load_law, match_operating_points, predict_columns
+from marine_fdi_env.validation.measured.columns import COLUMNS
+from marine_fdi_env.validation.measured.discrepancy import (
+    analyse_discrepancies,
+    change_point,
+    linear_trend,
+    robust_zscores,
+)
+from marine_fdi_env.validation.measured.matching import infer_load_law, match_operating_points, predict_columns
 
 PARAMS = "man-12v32-40"
 COLS = [

@@ -12,8 +12,8 @@ import pytest
 from marine_fdi_env.cli.synthesize import synthesize_main
 from marine_fdi_env.engine.params import load_params
 from marine_fdi_env.validation import DataWarning, load_dataset, load_shipped
-from marine_fdi_env.validation.fitting import Combination, fit_combination, predict_setting
-from marine_fdi_env.validation.mechanisms import (
+from marine_fdi_env.validation.fit.fitting import Combination, fit_combination, predict_setting
+from marine_fdi_env.validation.fit.mechanisms import (
     MECHANISM_IDS,
     PHYSICAL_MECHANISMS,
     BypassValveM,
@@ -23,9 +23,9 @@ from marine_fdi_env.validation.mechanisms import (
     equivalents,
     parse_mechanism_spec,
 )
-from marine_fdi_env.validation.nuisance import NUISANCE
-from marine_fdi_env.validation.problem import BASE_SETTING, Problem
-from marine_fdi_env.validation.synthesize import DEFAULT_COLUMNS, synthesize
+from marine_fdi_env.validation.fit.nuisance import NUISANCE
+from marine_fdi_env.validation.fit.problem import BASE_SETTING, Problem
+from marine_fdi_env.validation.fit.synthesize import DEFAULT_COLUMNS, synthesize
 
 
 def _quiet(f, *a, **k):
@@ -184,7 +184,7 @@ def test_nuisance_absorbs_small_model_error_within_its_box():
     import tempfile
     from pathlib import Path
 
-    from marine_fdi_env.validation.dataset import write_dataset
+    from marine_fdi_env.validation.measured.dataset import write_dataset
 
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / "ne.csv"

@@ -1,4 +1,4 @@
-"""The selection's rules in one object (validation/rules.py): checked on construction, shared by validate, the
+"""The selection's rules in one object (validation/select/rules.py): checked on construction, shared by validate, the
 replicas and the study, and consistent with the problem they select on."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ import dataclasses
 import pytest
 
 from marine_fdi_env.cli.validate import validate_main
-from marine_fdi_env.validation.evidence import BESIDE_VALVE_DEFAULT
-from marine_fdi_env.validation.rules import SelectionRules
-from marine_fdi_env.validation.selection import select_causes
+from marine_fdi_env.validation.select.evidence import BESIDE_VALVE_DEFAULT
+from marine_fdi_env.validation.select.rules import SelectionRules
+from marine_fdi_env.validation.select.selection import select_causes
 
 
 def test_the_defaults_are_the_pipelines():

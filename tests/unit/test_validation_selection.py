@@ -20,11 +20,11 @@ from marine_fdi_env.engine.operating_point import MODE_U, solve_points
 from marine_fdi_env.engine.params import load_params
 from marine_fdi_env.engine.submodels import NO_SUBMODELS
 from marine_fdi_env.validation import DataWarning, load_dataset, load_shipped
-from marine_fdi_env.validation.problem import Problem
-from marine_fdi_env.validation.report import run_validation
-from marine_fdi_env.validation.selection import match_result
-from marine_fdi_env.validation.synthesize import effect_region, synthesize
-from marine_fdi_env.validation.unexplained import local_excess
+from marine_fdi_env.validation.fit.problem import Problem
+from marine_fdi_env.validation.fit.synthesize import effect_region, synthesize
+from marine_fdi_env.validation.report.build import run_validation
+from marine_fdi_env.validation.select.selection import match_result
+from marine_fdi_env.validation.select.unexplained import local_excess
 
 
 def _load(path):
@@ -43,8 +43,8 @@ def test_a_bound_is_widened_within_the_submodels_validity(tmp_path):
     """The binding-bound test widens one bound of one parameter (a quarter of its span, halved until the submodel
     accepts the value), keeps the mechanism's type, label and other parameters, and the widened mechanism still
     builds its submodel at the new bound."""
-    from marine_fdi_env.validation.eligibility import relaxed_mechanism
-    from marine_fdi_env.validation.mechanisms import TurbineEfficiencyBSRM
+    from marine_fdi_env.validation.fit.mechanisms import TurbineEfficiencyBSRM
+    from marine_fdi_env.validation.select.eligibility import relaxed_mechanism
 
     syn = synthesize("wartsila-6l46", ["none"], points=5, noise=0.005, seed=3)
     path = tmp_path / "x.csv"
@@ -67,9 +67,9 @@ def test_a_named_cause_touching_a_bound_says_so():
     the widening test that let it stay (the three-engine Birka shop test: four channels, a weakly identified
     cause: the friction losses the full pipeline names there, with the library restricted to them so the test
     runs in seconds), in the JSON ``cause_notes`` and the Markdown summary."""
-    from marine_fdi_env.validation.mechanisms import get_mechanism
-    from marine_fdi_env.validation.report import build_report, markdown_summary
-    from marine_fdi_env.validation.selection import select_causes
+    from marine_fdi_env.validation.fit.mechanisms import get_mechanism
+    from marine_fdi_env.validation.report.build import build_report, markdown_summary
+    from marine_fdi_env.validation.select.selection import select_causes
 
     sel = select_causes(Problem(_shipped("birka_6l46_shop_test")), [get_mechanism("friction_losses")], pairs=False)
     rep = build_report(sel, None, (), None)
@@ -88,8 +88,8 @@ def test_leave_one_channel_out_refit_at_a_natural_upper_bound(tmp_path):
     refuses; this stopped a study run)."""
     import dataclasses
 
-    from marine_fdi_env.validation.fitting import Combination, fit_combination, loco_predictions
-    from marine_fdi_env.validation.mechanisms import get_mechanism
+    from marine_fdi_env.validation.fit.fitting import Combination, fit_combination, loco_predictions
+    from marine_fdi_env.validation.fit.mechanisms import get_mechanism
 
     syn = synthesize(
         "wartsila-6l46", ["intercooler_effectiveness:effectiveness=1.0,dT_outlet_K=6"], points=6, noise=0.003, seed=5
@@ -135,7 +135,7 @@ def test_a_relative_effect_is_as_many_tolerances_as_its_amplitude_says(channel, 
     """An out-of-library step of 5 % is 5 of the pipeline's tolerances (1 % of the mean reading in SI, absolute for a
     gauge pressure) on the loaded data, on gauge and absolute channels alike; measured noise-free, the ratio can only
     differ by the effect's own share of the mean reading (< 5 % of 5 tolerances, the step covers part of the loads)."""
-    from marine_fdi_env.validation.discrepancy import column_tolerance
+    from marine_fdi_env.validation.measured.discrepancy import column_tolerance
 
     e = {
         "kind": "step",

@@ -9,11 +9,11 @@ from pathlib import Path
 from typing import Sequence
 
 from ..errors import UsageError
-from ..validation.dataset import load_data_arg
-from ..validation.mechanisms import PHYSICAL_MECHANISMS
-from ..validation.problem import Problem
-from ..validation.replicas import NOISE_MODELS, markdown_table, replicate
-from ..validation.selection import select_causes
+from ..validation.fit.mechanisms import PHYSICAL_MECHANISMS
+from ..validation.fit.problem import Problem
+from ..validation.measured.dataset import load_data_arg
+from ..validation.select.replicas import NOISE_MODELS, markdown_table, replicate
+from ..validation.select.selection import select_causes
 from .common import parse_cli
 from .failures import fail
 from .selection_options import add_valve_options, rules_from_args

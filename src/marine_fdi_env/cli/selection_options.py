@@ -1,5 +1,6 @@
 """The command-line options of the selection's valve rules, shared by ``marine-fdi validate``, ``marine-fdi
-replicas`` and the open-world study, and the :class:`~marine_fdi_env.validation.rules.SelectionRules` they give."""
+replicas`` and the open-world study, and the :class:`~marine_fdi_env.validation.select.rules.SelectionRules` they
+give."""
 
 from __future__ import annotations
 
@@ -7,9 +8,9 @@ import argparse
 import dataclasses
 
 from ..errors import UsageError
-from ..validation.evidence import BESIDE_VALVE, BESIDE_VALVE_DEFAULT
-from ..validation.problem import HELD_OUT_VALVES
-from ..validation.rules import RuleError, SelectionRules
+from ..validation.fit.problem import HELD_OUT_VALVES
+from ..validation.select.evidence import BESIDE_VALVE, BESIDE_VALVE_DEFAULT
+from ..validation.select.rules import RuleError, SelectionRules
 
 __all__ = ["add_valve_options", "rules_from_args"]
 
@@ -27,7 +28,7 @@ def rules_from_args(args: argparse.Namespace) -> SelectionRules:
 
 def add_valve_options(ap: argparse.ArgumentParser) -> None:
     """``--held-out-valves`` and ``--beside-valve``: how valves are cross-validated and how a cause beside a valve
-    earns its place (:class:`~marine_fdi_env.validation.rules.SelectionRules`)."""
+    earns its place (:class:`~marine_fdi_env.validation.select.rules.SelectionRules`)."""
     ap.add_argument(
         "--held-out-valves",
         default="schedule",

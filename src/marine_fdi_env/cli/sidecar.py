@@ -11,7 +11,7 @@ from ..errors import DataFileError
 
 __all__ = ["NUMERIC_FIELDS", "check_sidecar_numbers"]
 
-# field -> unit, as the sidecar format defines them (marine_fdi_env.validation.dataset; docs/measured_data.md)
+# field -> unit, as the sidecar format defines them (marine_fdi_env.validation.measured.dataset; docs/measured_data.md)
 NUMERIC_FIELDS = {
     "ambient_pressure_bar": "bar",
     "ambient_pressure_Pa": "Pa",

@@ -9,8 +9,8 @@ from typing import Sequence
 
 from ..engine.params import list_parameter_sets
 from ..errors import UsageError
-from ..validation.mechanisms import MECHANISM_IDS, parse_mechanism_spec
-from ..validation.synthesize import DEFAULT_COLUMNS, LOAD_RANGE, synthesize
+from ..validation.fit.mechanisms import MECHANISM_IDS, parse_mechanism_spec
+from ..validation.fit.synthesize import DEFAULT_COLUMNS, LOAD_RANGE, synthesize
 from .failures import fail
 
 

@@ -10,14 +10,14 @@ from typing import Sequence
 from ..engine.params import list_parameter_sets, load_params
 from ..errors import UsageError
 from ..plotting import pyplot
-from ..validation.data_check import column_registry, describe
-from ..validation.dataset import list_shipped, load_data_arg
-from ..validation.matching import TARGETS
-from ..validation.problem import Problem
-from ..validation.report import clean_json, out_path, run_validation, split_engine, summary_lines
-from ..validation.report_markdown import markdown_summary
-from ..validation.report_plots import write_plots
-from ..validation.rules import SelectionRules
+from ..validation.fit.problem import Problem
+from ..validation.measured.dataset import list_shipped, load_data_arg
+from ..validation.measured.matching import TARGETS
+from ..validation.report.build import clean_json, out_path, run_validation, split_engine, summary_lines
+from ..validation.report.data_check import column_registry, describe
+from ..validation.report.markdown import markdown_summary
+from ..validation.report.plots import write_plots
+from ..validation.select.rules import SelectionRules
 from .failures import fail
 from .selection_options import add_valve_options, rules_from_args
 from .sidecar import check_sidecar_numbers
@@ -217,7 +217,7 @@ def run(args: argparse.Namespace, argv: Sequence[str], prog: str = "marine-fdi v
             explanations=not args.no_explanations,
         )
         if args.replicas:
-            from ..validation.replicas import replicate
+            from ..validation.select.replicas import replicate
 
             if say:
                 say(f"replicas: {args.replicas} per hypothesis, each through the whole pipeline")

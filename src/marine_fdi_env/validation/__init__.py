@@ -1,13 +1,17 @@
-"""Validation of the engine model against measured data (docs/validation.md).
+"""Validation of the engine model against measured data (docs/validation.md), stage by stage.
 
-* :mod:`.dataset` - the measured-data format (CSV with units in the column names + ``.meta.json``
-  sidecar), its checked loader and the datasets shipped with the package;
-* :mod:`.columns` - the column registry (column name -> model quantity, unit conversion);
-* :mod:`.matching` - running the model at each measured operating point, load-law inference;
-* :mod:`.discrepancy` - bias, RMSE, relative error and the structure of the residuals, ranked.
+* :mod:`.measured` - data in: the measured-data format, its checked loader, the shipped datasets, the model run at
+  each measured point and its discrepancies;
+* :mod:`.fit` - the fitting problem, the mechanism library, fits and cross-validation, synthetic data;
+* :mod:`.select` - which mechanisms the data name, what is left unexplained, replicas;
+* :mod:`.explain` - the explanations the data do not decide between and the measurement that would decide;
+* :mod:`.report` - the report (JSON, Markdown, plots) and ``validate --check``.
+
+Each stage imports only the stages before it (``python -m marine_fdi_env.info --imports`` checks it).  The names
+below are the measured-data entry points.
 """
 
-from .dataset import (
+from .measured.dataset import (
     DatasetError,
     DataWarning,
     MeasuredDataset,
