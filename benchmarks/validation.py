@@ -37,7 +37,7 @@ from marine_fdi_env.engine import operating_point
 from marine_fdi_env.validation import load_shipped
 from marine_fdi_env.validation.fit.fitting import Combination, _Objective, fit_combination
 from marine_fdi_env.validation.fit.mechanisms import WasteGateM
-from marine_fdi_env.validation.fit.problem import Problem
+from marine_fdi_env.validation.fit.problem import FitProblem
 
 
 def _best(fn, zs, repeats: int) -> float:
@@ -62,7 +62,7 @@ def main(argv=None) -> int:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         ds = load_shipped("birka_me1_test_protocol")
-    problem = Problem(ds)
+    problem = FitProblem(ds)
     rows = problem.rows_with_data()
     gate = Combination((WasteGateM(),))
     fit = fit_combination(problem, gate)  # a realistic point: the gate open where the data want it

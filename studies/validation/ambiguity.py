@@ -26,7 +26,7 @@ import numpy as np
 from marine_fdi_env.validation.explain.explanations import BAND
 from marine_fdi_env.validation.fit.fitting import Combination, fit_combination, predict_setting
 from marine_fdi_env.validation.fit.mechanisms import get_mechanism
-from marine_fdi_env.validation.fit.problem import Problem
+from marine_fdi_env.validation.fit.problem import FitProblem
 
 __all__ = ["ATTEMPTS", "DRAWS", "PAIRS", "ambiguous_draw"]
 
@@ -70,7 +70,7 @@ def ambiguous_draw(
         specs = _specs(truth_ids, rng)
         try:
             clean = synthesize(params, specs, points=points, noise=0.0, seed=int(seed) * 31 + 7)
-            pr = Problem(load(clean))
+            pr = FitProblem(load(clean))
         except ValueError:
             continue
         comb = Combination(tuple(get_mechanism(m) for m in alt_ids))

@@ -73,13 +73,13 @@ def passes_bar(
 
 
 def _problem(condition: str, seed: int, params: str, points: int):
-    """The trial's data and :class:`~.problem.Problem`, written and loaded as the study does."""
-    from marine_fdi_env.validation.fit.problem import Problem
+    """The trial's data and :class:`~.problem.FitProblem`, written and loaded as the study does."""
+    from marine_fdi_env.validation.fit.problem import FitProblem
 
     from .study import loaded, trial_data
 
     syn = trial_data(condition, seed, params=params, points=points)
-    return syn, Problem(loaded(syn, f"hidden_{condition}_{seed}"))
+    return syn, FitProblem(loaded(syn, f"hidden_{condition}_{seed}"))
 
 
 def trial_check(result: Mapping[str, Any], *, min_gain: float = 0.10, alpha: float = 0.01) -> dict[str, Any]:

@@ -212,14 +212,14 @@ def loaded(syn: Synthesis, name: str = "trial", workdir: str | Path | None = Non
     import tempfile
     import warnings
 
-    from marine_fdi_env.validation.measured.dataset import DataWarning, load_dataset
+    from marine_fdi_env.validation.measured.dataset import DataWarning, load_measured
 
     with tempfile.TemporaryDirectory(dir=workdir) as d:
         path = Path(d) / f"{name}.csv"
         syn.write(path)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DataWarning)
-            return load_dataset(path)
+            return load_measured(path)
 
 
 def trial_data(
@@ -269,7 +269,7 @@ def trial(
     :data:`TOLERANCE_MODES`; ``exchange``: the selection's exchange step, on by default; ``held_out_valves``: one of
     :data:`~.problem.HELD_OUT_VALVES`; ``beside_valve``: one of :data:`~.evidence.BESIDE_VALVE`; ``explanations``:
     also the explanation set, :mod:`.study_sets`) and compare with the truth."""
-    from marine_fdi_env.validation.fit.problem import Problem
+    from marine_fdi_env.validation.fit.problem import FitProblem
     from marine_fdi_env.validation.measured.dataset import DatasetError
     from marine_fdi_env.validation.select.rules import SelectionRules
     from marine_fdi_env.validation.select.selection import select_causes
@@ -322,10 +322,10 @@ def trial(
     rules = SelectionRules(
         max_folds=max_folds, prune=prune, exchange=exchange, beside_valve=beside_valve, held_out_valves=held_out_valves
     )
-    problem = Problem(ds, held_out_valves=rules.held_out_valves)
+    problem = FitProblem(ds, held_out_valves=rules.held_out_valves)
     if tolerance in ("noise", "noise2x"):
         factor = 2.0 if tolerance == "noise2x" else 1.0
-        problem = Problem(
+        problem = FitProblem(
             ds,
             tolerances={c: factor * v for c, v in noise_tolerances(syn, problem.channels).items()},
             held_out_valves=rules.held_out_valves,

@@ -8,9 +8,9 @@ import warnings
 import numpy as np
 import pytest
 
-from marine_fdi_env.validation import DataWarning, load_dataset
+from marine_fdi_env.validation import DataWarning, load_measured
 from marine_fdi_env.validation.fit.mechanisms import PHYSICAL_MECHANISMS
-from marine_fdi_env.validation.fit.problem import Problem
+from marine_fdi_env.validation.fit.problem import FitProblem
 from marine_fdi_env.validation.fit.synthesize import synthesize
 from marine_fdi_env.validation.select.replicas import (
     hypotheses,
@@ -38,8 +38,8 @@ def waste_gate_selection(tmp_path_factory):
     syn.write(path)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DataWarning)
-        ds = load_dataset(path)
-    sel = select_causes(Problem(ds), _LIB, pairs=False, max_causes=1)
+        ds = load_measured(path)
+    sel = select_causes(FitProblem(ds), _LIB, pairs=False, max_causes=1)
     return syn, sel
 
 
@@ -96,7 +96,7 @@ def test_a_replica_keeps_the_design_and_only_changes_the_readings(waste_gate_sel
     hyp = hypotheses(sel, [])[0]
     Y = replica_readings(pr, hyp, noise_scale(sel, "tolerance"), 0, 0, 0, "tolerance")
     rep = pr.ds.with_readings({c: Y[:, j] for j, c in enumerate(pr.channels)})
-    q = Problem(rep, params=pr.params, target=pr.target, tolerances=dict(zip(pr.channels, pr.tolerance)))
+    q = FitProblem(rep, params=pr.params, target=pr.target, tolerances=dict(zip(pr.channels, pr.tolerance)))
     np.testing.assert_array_equal(q.Y, Y)
     np.testing.assert_array_equal(q.target_si, pr.target_si)
     np.testing.assert_array_equal(q.tolerance_cells, pr.tolerance_cells)
@@ -145,7 +145,7 @@ def test_every_replica_follows_the_rules_the_data_were_selected_with(waste_gate_
 
     _, sel0 = waste_gate_selection
     pr = sel0.problem
-    q = Problem(pr.ds, params=pr.params, target=pr.target, held_out_valves="support")
+    q = FitProblem(pr.ds, params=pr.params, target=pr.target, held_out_valves="support")
     sel = select_causes(q, _LIB, pairs=False, max_causes=0, exchange=False, beside_valve="cross_validated")
     seen = []
     real = replicas.select_causes
@@ -182,10 +182,10 @@ def test_a_candidate_pinned_at_a_bound_does_not_screen_the_others_out():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DataWarning)
         ds = load_shipped("birka_me1_test_protocol")
-    pr = Problem(ds)
+    pr = FitProblem(ds)
     assert list(pr.channels) == rec["channels"]
     rep = ds.with_readings(rec["readings"])
-    q = Problem(rep, params=pr.params, target=pr.target, tolerances=dict(zip(pr.channels, pr.tolerance)))
+    q = FitProblem(rep, params=pr.params, target=pr.target, tolerances=dict(zip(pr.channels, pr.tolerance)))
     ch = "cylinder_exhaust_temperature_mean_C"
     lib = [m for m in PHYSICAL_MECHANISMS if m.id in ("waste_gate", "turbine_flow_law", "turbocharger_map")]
     lib.append(SensorCalibration(channel=ch, reference=sensor_reference(ch, q.Y[:, q.channels.index(ch)])))

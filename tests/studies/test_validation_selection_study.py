@@ -15,8 +15,8 @@ import warnings
 import numpy as np
 import pytest
 
-from marine_fdi_env.validation import DataWarning, load_dataset
-from marine_fdi_env.validation.fit.problem import Problem
+from marine_fdi_env.validation import DataWarning, load_measured
+from marine_fdi_env.validation.fit.problem import FitProblem
 from marine_fdi_env.validation.fit.synthesize import synthesize
 from marine_fdi_env.validation.select.selection import select_causes
 from studies.validation.study import CONDITIONS, study, trial
@@ -25,7 +25,7 @@ from studies.validation.study import CONDITIONS, study, trial
 def _load(path):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DataWarning)
-        return load_dataset(path)
+        return load_measured(path)
 
 
 # --------------------------------------------------------------------------------------- the study, CI-sized
@@ -153,7 +153,7 @@ def test_two_mechanisms_that_only_fit_together_are_named_as_a_pair(tmp_path):
     )
     path = tmp_path / "d6.csv"
     syn.write(path)
-    sel = select_causes(Problem(_load(path)))
+    sel = select_causes(FitProblem(_load(path)))
     assert sorted(sel.selected_labels) == ["exhaust_heat_loss", "friction_losses"], sel.selected_labels
     step1 = sel.steps[0]
     assert step1.get("pair") and set(step1["best"].split(" + ")) == {"friction_losses", "exhaust_heat_loss"}

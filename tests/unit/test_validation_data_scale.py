@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from marine_fdi_env.validation.fit.problem import Problem
+from marine_fdi_env.validation.fit.problem import FitProblem
 from marine_fdi_env.validation.fit.synthesize import synthesize
 from marine_fdi_env.validation.select.data_scale import channel_noise, channel_scales
 from marine_fdi_env.validation.select.selection import select_causes
@@ -93,7 +93,7 @@ def test_a_bump_below_a_loose_tolerance_is_reported_at_the_data_scale(seed, bump
         else []
     )
     syn = synthesize("wartsila-6l46", ["none"], points=14, noise=0.005, seed=seed, effects=eff)
-    sel = select_causes(Problem(loaded(syn)))
+    sel = select_causes(FitProblem(loaded(syn)))
     assert sel.selected_labels == []
     local = [u for u in sel.unexplained if u["kind"] == "local"]
     if bump:

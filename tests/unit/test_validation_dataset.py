@@ -10,7 +10,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from marine_fdi_env.validation import DatasetError, DataWarning, list_shipped, load_dataset, load_shipped, write_dataset
+from marine_fdi_env.validation import (
+    DatasetError,
+    DataWarning,
+    list_shipped,
+    load_measured,
+    load_shipped,
+    write_measured,
+)
 from marine_fdi_env.validation.measured.columns import COLUMNS, QUANTITIES, column_problem
 from tests.paths import ROOT
 
@@ -73,7 +80,7 @@ def test_man_loads():
 @pytest.mark.skipif(not SHARED.is_dir(), reason="shared data directory not present")
 @pytest.mark.parametrize("name", [BIRKA, PROTOCOL, MAN])
 def test_shared_files_load_as_they_are_and_match_the_shipped_copies(name):
-    ds = _quiet(load_dataset, SHARED / f"{name}.csv")
+    ds = _quiet(load_measured, SHARED / f"{name}.csv")
     shipped = _quiet(load_shipped, name)
     assert ds.columns == shipped.columns
     for c in ds.columns:
@@ -89,7 +96,7 @@ def test_ambiguous_temperature_without_the_key_is_a_warning_naming_the_column():
     """The shared Birka sidecar places the charge-air temperature only in free text: the loader takes the
     documented default (after the cooler) and warns, naming the column; it never reads free text."""
     with pytest.warns(DataWarning) as rec:  # all of them: the file's other warnings are expected too
-        ds = load_dataset(SHARED / f"{BIRKA}.csv")
+        ds = load_measured(SHARED / f"{BIRKA}.csv")
     assert any(re.search(r"charge_air_temperature_C.*column_quantities", str(w.message)) for w in rec)
     assert ds.column_quantity["charge_air_temperature_C"] == "charge_air_cooler_outlet_temperature_K"
 
@@ -138,7 +145,7 @@ def test_per_row_ambient_values_are_checked(tmp_path):
     head = "load_fraction,power_kW,ambient_pressure_hPa,compressor_inlet_temperature_C,relative_humidity_percent\n"
     path = _write(tmp_path, head + "0.5,2945,1013,25,40\n0.75,4418,-3,25,140\n1.0,5890,700,90,40\n", META)
     with pytest.raises(DatasetError) as ei:
-        load_dataset(path)
+        load_measured(path)
     text = str(ei.value)
     assert "row 2 (line 3), column 'ambient_pressure_hPa': ambient pressure not positive" in text
     assert "column 'relative_humidity_percent': relative humidity outside [0, 100] %" in text
@@ -151,7 +158,7 @@ def test_boundary_outlier_needs_a_real_departure(tmp_path):
         f"{lf},{lf * 5890:.0f},{t}" for lf, t in [(0.25, 28), (0.5, 29), (0.75, 31), (0.85, 32), (1.0, 34), (1.1, 36)]
     )
     path = _write(tmp_path, "load_fraction,power_kW,compressor_inlet_temperature_C\n" + rows + "\n", META)
-    ds = _quiet(load_dataset, path)
+    ds = _quiet(load_measured, path)
     assert ds.boundary_outliers == ()
     np.testing.assert_allclose(ds.boundary["T_amb_K"] - 273.15, [28, 29, 31, 32, 34, 36])
 
@@ -182,7 +189,7 @@ def test_header_problems_all_reported(tmp_path):
         META,
     )
     with pytest.raises(DatasetError) as ei:
-        load_dataset(path)
+        load_measured(path)
     errs = _errors(ei.value)
     text = str(ei.value)
     assert any("'speed'" in e and "missing unit suffix" in e and "speed_rpm" in e for e in errs)
@@ -196,7 +203,7 @@ def test_header_problems_all_reported(tmp_path):
 def test_same_quantity_twice_is_a_duplicated_column(tmp_path):
     path = _write(tmp_path, "speed_rpm,speed_rev_s,load_fraction\n400,6.67,0.5\n", META)
     with pytest.raises(DatasetError, match=r"column 'speed_rev_s': duplicated column: holds the same quantity"):
-        load_dataset(path)
+        load_measured(path)
 
 
 def test_non_numeric_values_every_cell_listed(tmp_path):
@@ -210,7 +217,7 @@ def test_non_numeric_values_every_cell_listed(tmp_path):
         META,
     )
     with pytest.raises(DatasetError) as ei:
-        load_dataset(path)
+        load_measured(path)
     errs = _errors(ei.value)
     assert len(errs) == 3
     assert any(re.search(r"row 1 \(line 2\), column 'fuel_flow_kg_per_h': non-numeric value 'abc'", e) for e in errs)
@@ -231,7 +238,7 @@ def test_duplicate_operating_points_listed_with_their_rows(tmp_path):
         META,
     )
     with pytest.raises(DatasetError) as ei:
-        load_dataset(path)
+        load_measured(path)
     errs = _errors(ei.value)
     assert len(errs) == 2
     assert any("rows 1, 3 (lines 2, 4)" in e and "duplicate operating point (engine A" in e for e in errs)
@@ -250,7 +257,7 @@ def test_points_outside_the_envelope_listed(tmp_path):
         META,
     )
     with pytest.raises(DatasetError) as ei:
-        load_dataset(path)
+        load_measured(path)
     errs = _errors(ei.value)
     text = "\n".join(errs)
     assert re.search(r"row 2 \(line 3\), column 'load_fraction': load fraction above 1.15", text)
@@ -268,10 +275,10 @@ def test_the_speed_bound_is_the_engine_envelope(tmp_path):
 
     assert ENVELOPE.max_speed_fraction == 1.15
     rows = "0.5,397\n0.75,454\n1.0,560\n"  # 560 rpm: 1.12 x the rated 500 rpm
-    ds = _quiet(load_dataset, _write(tmp_path, "load_fraction,speed_rpm\n" + rows, META))
+    ds = _quiet(load_measured, _write(tmp_path, "load_fraction,speed_rpm\n" + rows, META))
     assert ds.raw["speed_rpm"][2] == 560 and envelope_warnings(560 / 60, 200 / 3.6e9, 500 / 60) == []
     with pytest.raises(DatasetError, match=r"row 3 .*speed above 1.15 x nominal \(575 rpm"):
-        load_dataset(_write(tmp_path, "load_fraction,speed_rpm\n" + rows.replace("560", "580"), META))
+        load_measured(_write(tmp_path, "load_fraction,speed_rpm\n" + rows.replace("560", "580"), META))
     assert envelope_warnings(580 / 60, 200 / 3.6e9, 500 / 60)  # the same bound as the steady states'
 
 
@@ -283,7 +290,7 @@ def test_gauge_pressure_below_minus_ambient_is_an_error_slightly_negative_a_warn
         META,
     )
     with pytest.raises(DatasetError) as ei:
-        load_dataset(path)
+        load_measured(path)
     errs = _errors(ei.value)
     assert len(errs) == 1 and "rows 2, 3 (lines 3, 4)" in errs[0] and "negative absolute pressure" in errs[0]
     warns = [str(p) for p in ei.value.problems if p.severity == "warning"]
@@ -301,7 +308,7 @@ def test_every_kind_of_problem_in_one_error(tmp_path):
         META,
     )
     with pytest.raises(DatasetError) as ei:
-        load_dataset(path)
+        load_measured(path)
     text = "\n".join(_errors(ei.value))
     assert "column 'speed': column 3: missing unit suffix" in text
     assert "column 'weird': column 6: unknown column" in text
@@ -318,7 +325,7 @@ def test_missing_cells_are_nan_and_reported_not_errors(tmp_path):
         "0.25,315,,300\n0.5,397,587,NA\n0.75,454,838,\n1.0,500,1141,350\n",
         META,
     )
-    ds = load_dataset(path)
+    ds = load_measured(path)
     assert math.isnan(ds.raw["fuel_flow_kg_per_h"][0])
     assert ds.quality["columns"]["turbine_outlet_temperature_C"]["missing_rows"] == [2, 3]
     assert ds.quality["columns"]["fuel_flow_kg_per_h"]["missing_rows"] == [1]
@@ -328,12 +335,12 @@ def test_missing_cells_are_nan_and_reported_not_errors(tmp_path):
 def test_sidecar_problems(tmp_path):
     path = _write(tmp_path, "load_fraction,speed_rpm\n0.5,397\n")
     with pytest.raises(DatasetError, match="no sidecar data.meta.json"):
-        load_dataset(path)
-    ds = _quiet(load_dataset, path, params="wartsila-6l46")  # the caller names the engine
+        load_measured(path)
+    ds = _quiet(load_measured, path, params="wartsila-6l46")  # the caller names the engine
     assert ds.params_name == "wartsila-6l46"
     _write(tmp_path, "load_fraction,speed_rpm\n0.5,397\n", {"engine_params": "no-such-engine"})
     with pytest.raises(DatasetError, match="unknown engine parameter set 'no-such-engine'"):
-        load_dataset(path)
+        load_measured(path)
 
 
 def test_column_problem_messages():
@@ -349,8 +356,8 @@ def test_write_dataset_round_trip(tmp_path):
         "speed_rpm": [315, 397, 500],
         "turbine_outlet_temperature_C": [300.0, float("nan"), 350.0],
     }
-    path = write_dataset(tmp_path / "rt.csv", cols, META, engines=["X", "X", "X"])
-    ds = load_dataset(path)
+    path = write_measured(tmp_path / "rt.csv", cols, META, engines=["X", "X", "X"])
+    ds = load_measured(path)
     assert ds.engine_ids() == ["X"]
     np.testing.assert_array_equal(ds.raw["speed_rpm"], [315, 397, 500])
     assert ds.quality["columns"]["turbine_outlet_temperature_C"]["missing"] == 1
@@ -362,3 +369,14 @@ def test_subset_keeps_one_engine():
     assert me3.n_points == 5 and me3.engine_ids() == ["ME3"]
     np.testing.assert_array_equal(me3.raw["fuel_flow_kg_per_h"], ds.raw["fuel_flow_kg_per_h"][10:])
     assert me3.quality["columns"]["charge_air_temperature_C"]["missing"] == 0
+
+
+def test_the_old_names_of_the_measured_data_functions_still_work_and_say_the_new():
+    import marine_fdi_env.validation as v
+
+    with pytest.warns(DeprecationWarning, match="load_measured"):
+        assert v.load_dataset is load_measured
+    with pytest.warns(DeprecationWarning, match="write_measured"):
+        assert v.write_dataset is write_measured
+    with pytest.raises(AttributeError):
+        v.no_such_name

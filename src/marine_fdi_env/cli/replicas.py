@@ -10,7 +10,7 @@ from typing import Sequence
 
 from ..errors import UsageError
 from ..validation.fit.mechanisms import PHYSICAL_MECHANISMS
-from ..validation.fit.problem import Problem
+from ..validation.fit.problem import FitProblem
 from ..validation.measured.dataset import load_data_arg
 from ..validation.select.replicas import NOISE_MODELS, markdown_table, replicate
 from ..validation.select.selection import select_causes
@@ -74,9 +74,9 @@ def replicas_main(argv: Sequence[str] | None = None) -> int:
             ds = load_data_arg(args.data, args.params)
         except ValueError as e:
             raise UsageError(f"--data: {e}") from None
-        pr = Problem(ds, params=args.params, target=args.target, held_out_valves=rules.held_out_valves)
+        pr = FitProblem(ds, params=args.params, target=args.target, held_out_valves=rules.held_out_valves)
         if args.tolerance:
-            pr = Problem(
+            pr = FitProblem(
                 ds,
                 params=args.params,
                 target=args.target,

@@ -10,7 +10,7 @@ from typing import Sequence
 from ..engine.params import list_parameter_sets, load_params
 from ..errors import UsageError
 from ..plotting import pyplot
-from ..validation.fit.problem import Problem
+from ..validation.fit.problem import FitProblem
 from ..validation.measured.dataset import list_shipped, load_data_arg
 from ..validation.measured.matching import TARGETS
 from ..validation.report.build import clean_json, out_path, run_validation, split_engine, summary_lines
@@ -187,7 +187,7 @@ def run(args: argparse.Namespace, argv: Sequence[str], prog: str = "marine-fdi v
                 )
             except ValueError as e:
                 raise UsageError(f"--holdout: {e}") from None
-        problem = Problem(ds, target=args.target, params=params) if args.tolerance or args.check else None
+        problem = FitProblem(ds, target=args.target, params=params) if args.tolerance or args.check else None
         tolerances = problem.stated_tolerances(args.tolerance) if args.tolerance else None
         if args.check:
             print(

@@ -16,9 +16,9 @@ from .measured.dataset import (
     DataWarning,
     MeasuredDataset,
     list_shipped,
-    load_dataset,
+    load_measured,
     load_shipped,
-    write_dataset,
+    write_measured,
 )
 
 __all__ = [
@@ -26,7 +26,25 @@ __all__ = [
     "DatasetError",
     "MeasuredDataset",
     "list_shipped",
-    "load_dataset",
+    "load_measured",
     "load_shipped",
-    "write_dataset",
+    "write_measured",
 ]
+
+# the names these functions had before 0.2.2: kept working, with a DeprecationWarning, for users' code
+_RENAMED = {"load_dataset": "load_measured", "write_dataset": "write_measured"}
+
+
+def __getattr__(name: str):
+    if name in _RENAMED:
+        import warnings
+
+        new = _RENAMED[name]
+        warnings.warn(
+            f"marine_fdi_env.validation.{name} is now {new} (load_dataset is the training features' loader of "
+            "marine_fdi_env.benchmark.dataset)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return globals()[new]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -24,7 +24,7 @@ import numpy as np
 
 from ...engine.operating_point import MODE_P, solve_points, speed_of_power
 from ..fit.fitting import FitResult, channel_rmse, predict_setting
-from ..fit.problem import Problem, _quantity
+from ..fit.problem import FitProblem, _quantity
 
 __all__ = ["LOADS", "NEAR", "Decider", "ambient_cases", "deciding_measurements", "readings_over_load"]
 
@@ -91,7 +91,7 @@ class Decider:
         }
 
 
-def ambient_cases(problem: Problem) -> list[tuple[float, float]]:
+def ambient_cases(problem: FitProblem) -> list[tuple[float, float]]:
     """(ambient pressure [Pa], intake temperature [K]): the data's mean and the corners of its recorded range (the
     parameter set's value for a quantity the data did not record)."""
     b = problem.boundary
@@ -107,7 +107,7 @@ def ambient_cases(problem: Problem) -> list[tuple[float, float]]:
 
 
 def readings_over_load(
-    problem: Problem, fit: FitResult, loads: Sequence[float], p_amb_Pa: float, T_amb_K: float
+    problem: FitProblem, fit: FitResult, loads: Sequence[float], p_amb_Pa: float, T_amb_K: float
 ) -> np.ndarray:
     """Readings (loads x channels, the channels' units; NaN where the model has no steady state) of ``fit``'s
     fitted engine at ``loads`` of the rated power, at the given ambient conditions and the data's back pressure."""
@@ -138,7 +138,7 @@ def readings_over_load(
 
 
 def deciding_measurements(
-    problem: Problem, explanations: Sequence[tuple[str, FitResult]], *, per_pair: int = 3
+    problem: FitProblem, explanations: Sequence[tuple[str, FitResult]], *, per_pair: int = 3
 ) -> list[dict[str, Any]]:
     """For each pair of ``explanations`` (name, fit), best first: the ``per_pair`` channels whose predictions differ
     most in tolerances anywhere on the grid of the module docstring, each at its most telling point."""
@@ -193,7 +193,7 @@ def deciding_measurements(
     return out
 
 
-def _at_measured(problem: Problem, explanations: Sequence[tuple[str, FitResult]], a: str, b: str) -> float:
+def _at_measured(problem: FitProblem, explanations: Sequence[tuple[str, FitResult]], a: str, b: str) -> float:
     """The largest difference in tolerances between ``a`` and ``b`` at the measured points (both fit there)."""
     fits = dict(explanations)
     rows = np.arange(problem.n_points)

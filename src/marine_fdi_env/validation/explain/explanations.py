@@ -44,7 +44,7 @@ import numpy as np
 
 from ..fit.fitting import Combination, FitResult, cell_losses, channel_rmse, fit_combination, predict_setting
 from ..fit.nuisance import NUISANCE
-from ..fit.problem import Problem
+from ..fit.problem import FitProblem
 from ..select.candidates import CandidateScore, paired_p
 from ..select.eligibility import why_pinned
 from ..select.evidence import BESIDE_VALVE_DEFAULT, IN_SAMPLE_ALONE, earns, judged_in_sample
@@ -70,7 +70,7 @@ BAND = 2.0
 EXCLUDE_ALPHA = 0.05
 
 
-def cross_validate_held(problem: Problem, fit: FitResult, max_folds: int | None = None) -> np.ndarray:
+def cross_validate_held(problem: FitProblem, fit: FitResult, max_folds: int | None = None) -> np.ndarray:
     """Cross-validated predictions (points x channels) of ``fit``'s structure: each fold refitted with the valve
     supports held (the left-out point's opening from the schedule through the training points')."""
     pred = np.full((problem.n_points, len(problem.channels)), np.nan)
@@ -126,7 +126,7 @@ class Explanation:
     def key(self):
         return self.structure.key
 
-    def valve_states(self, problem: Problem) -> dict[str, list[dict[str, Any]]]:
+    def valve_states(self, problem: FitProblem) -> dict[str, list[dict[str, Any]]]:
         """Per valve, per measured point (file row order): open or shut, the opening and the diverted flow fraction."""
         out: dict[str, list[dict[str, Any]]] = {}
         if not self.fit.combination.valves:
@@ -148,7 +148,7 @@ class Explanation:
             ]
         return out
 
-    def as_dict(self, problem: Problem, rank: int | None = None) -> dict[str, Any]:
+    def as_dict(self, problem: FitProblem, rank: int | None = None) -> dict[str, Any]:
         fit = self.fit
         rin = channel_rmse(problem, predict_setting(problem, fit, np.arange(problem.n_points)))
         rcv = channel_rmse(problem, self.cv_pred)
@@ -199,7 +199,7 @@ class ExplanationSet:
         """The best-ranked admissible structure outside the set (what the data did decide against)."""
         return next((e for e in self.tried if not e.in_set and e.why_not == ""), None)
 
-    def as_dict(self, problem: Problem) -> dict[str, Any]:
+    def as_dict(self, problem: FitProblem) -> dict[str, Any]:
         return {
             "rule": self.rule,
             "band_delta_aic": BAND,
@@ -227,7 +227,7 @@ def aicc_in_sample(e: "Explanation", M: int) -> float:
 
 
 def _score(
-    problem: Problem, s: Structure, M: int, penalty: float, max_folds: int | None, cv: np.ndarray | None = None
+    problem: FitProblem, s: Structure, M: int, penalty: float, max_folds: int | None, cv: np.ndarray | None = None
 ) -> Explanation:
     pred = cross_validate_held(problem, s.fit, max_folds) if cv is None else cv
     L, _ = cell_losses(problem, pred)
@@ -236,7 +236,7 @@ def _score(
 
 
 def admissibility(
-    problem: Problem,
+    problem: FitProblem,
     e: Explanation,
     scored: Callable[[FitResult, str], Explanation],
     *,
@@ -286,7 +286,7 @@ def nested_in(e: Explanation, other: Explanation) -> bool:
 
 
 def explanation_set(
-    problem: Problem,
+    problem: FitProblem,
     named: FitResult,
     steps: Sequence[dict[str, Any]],
     *,

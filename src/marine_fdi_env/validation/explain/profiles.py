@@ -31,7 +31,7 @@ from scipy.optimize import least_squares
 
 from ..fit.fitting import FitResult, support_objective
 from ..fit.nuisance import NUISANCE
-from ..fit.problem import Problem
+from ..fit.problem import FitProblem
 
 __all__ = ["LEVEL", "ProfileInterval", "fit_profiles", "profile_interval", "profile_threshold"]
 
@@ -187,7 +187,7 @@ def profile_interval(
 
 
 def fit_profiles(
-    problem: Problem, fit: FitResult, *, level: float = LEVEL, max_steps: int = 10, refine: int = 3
+    problem: FitProblem, fit: FitResult, *, level: float = LEVEL, max_steps: int = 10, refine: int = 3
 ) -> dict[str, ProfileInterval]:
     """Profile intervals of every fitted parameter of ``fit`` (its mechanisms' global parameters and each valve's
     opening at the points where it acts; the nuisance is refitted, not reported), its valve supports held.  Keys:

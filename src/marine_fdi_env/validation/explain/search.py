@@ -26,7 +26,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 from ..fit.fitting import Combination, FitResult, fit_combination
 from ..fit.mechanisms import VALVE_MECHANISMS, Mechanism
-from ..fit.problem import Problem
+from ..fit.problem import FitProblem
 from ..select.candidates import CandidateScore
 
 __all__ = ["MAX_STARTS", "START_BAND", "Structure", "accepted_steps", "candidate_structures", "support_key"]
@@ -120,7 +120,7 @@ def _starts(step: Mapping[str, Any], acc: CandidateScore, M: int, penalty: float
 
 
 def candidate_structures(
-    problem: Problem,
+    problem: FitProblem,
     named: FitResult,
     steps: Sequence[Mapping[str, Any]],
     penalty: float,

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from typing import Any, Callable, Mapping, Sequence
 
-from ..fit.problem import Problem
+from ..fit.problem import FitProblem
 from .deciding import deciding_measurements
 from .explanations import BAND, EXCLUDE_ALPHA, Explanation, ExplanationSet, explanation_set_of, nested_in
 
@@ -33,7 +33,7 @@ __all__ = [
 DECIDE_TOP = 2
 
 
-def explanation_name(problem: Problem, e: Explanation) -> str:
+def explanation_name(problem: FitProblem, e: Explanation) -> str:
     """Causes in words, each valve with the loads where it acts: ``waste_gate (open at 100/110 %) + ...``."""
     load = problem.load_axis()
     parts = []
@@ -115,7 +115,11 @@ def _why_outside(e: Explanation, best: Explanation) -> str:
 
 
 def explanations_json(
-    problem: Problem, es: ExplanationSet, names: Mapping[int, str], deciding: Sequence[Any], holdouts: Mapping[int, Any]
+    problem: FitProblem,
+    es: ExplanationSet,
+    names: Mapping[int, str],
+    deciding: Sequence[Any],
+    holdouts: Mapping[int, Any],
 ) -> dict[str, Any]:
     members = []
     for i, e in enumerate(es.members):

@@ -33,7 +33,7 @@ load then predicts a half-open or a too-small opening there: an error of tens of
 with that valve, which swamps what a second mechanism adds to it (study condition (d): a waste gate and a second
 mechanism named as the gate alone; ``docs/validation.md``, "What the misses of (a)-(d) are made of").  The selection
 therefore judges a physical mechanism beside a valve on its in-sample gain and F-test (``evidence.earns``); the held-out
-prediction itself stays the schedule.  The option ``"support"`` (``Problem(..., held_out_valves="support")``,
+prediction itself stays the schedule.  The option ``"support"`` (``FitProblem(..., held_out_valves="support")``,
 :meth:`FitResult.held_out_openings`) predicts it in two parts: *whether* the valve acts there is the full-data fit's
 support (a per-point state the selection counts as one free parameter per open point, like the opening itself), and *how
 much* it opens is interpolated in load among the training points where it acts, extrapolated linearly beyond them (never
@@ -66,7 +66,7 @@ from ...engine.submodels import Schedule
 from .held_out_state import state_predictions
 from .mechanisms import Mechanism, ValveMechanism
 from .nuisance import NUISANCE, nuisance_bounds, prior_residuals, scales_of
-from .problem import HELD_OUT_VALVES, Problem, Setting
+from .problem import HELD_OUT_VALVES, FitProblem, Setting
 
 __all__ = [
     "ROBUST_SCALE",
@@ -174,7 +174,7 @@ class Combination:
                 k += 1
         return out
 
-    def setting(self, problem: Problem, nuis, xg, openings: Mapping[str, np.ndarray] | None = None) -> Setting:
+    def setting(self, problem: FitProblem, nuis, xg, openings: Mapping[str, np.ndarray] | None = None) -> Setting:
         """The :class:`Setting` of nuisance ``nuis``, global parameters ``xg`` and valve ``openings`` (per point)."""
         s = problem.base_setting.replace(scales=scales_of(nuis))
         for m, v in self.unpack(xg):
@@ -223,7 +223,7 @@ class FitResult:
     def values(self) -> dict[str, float]:
         return dict(zip(self.combination.names, map(float, self.x)))
 
-    def setting(self, problem: Problem) -> Setting:
+    def setting(self, problem: FitProblem) -> Setting:
         """The fitted model at the measured points (openings as overrides)."""
         return self.combination.setting(problem, self.nuisance, self.x, self.openings)
 
@@ -244,9 +244,9 @@ class FitResult:
             out[m.id] = Schedule(tuple(map(float, uu)), tuple(map(float, oo))) if uu.size else Schedule.constant(0.0)
         return out
 
-    def held_out_openings(self, problem: Problem, rows) -> dict[str, np.ndarray]:
+    def held_out_openings(self, problem: FitProblem, rows) -> dict[str, np.ndarray]:
         """Per valve id, the openings at every point: this fit's own where it was fitted, at ``rows`` (held out) 0
-        where :attr:`held_out_support` shuts the valve, else interpolated in load (:meth:`Problem.load_axis`) among
+        where :attr:`held_out_support` shuts the valve, else interpolated in load (:meth:`FitProblem.load_axis`) among
         this fit's open rows, extrapolated linearly from the nearest two beyond them, at least 0 (one open row: its
         opening; none: shut)."""
         if self.held_out_support is None:
@@ -276,7 +276,7 @@ class FitResult:
             out[m.id] = o
         return out
 
-    def schedule_setting(self, problem: Problem) -> Setting:
+    def schedule_setting(self, problem: FitProblem) -> Setting:
         """The fitted model with the valves on their schedules (what predicts points it was not fitted on)."""
         s = problem.base_setting.replace(scales=scales_of(self.nuisance))
         for m, v in self.combination.unpack(self.x):
@@ -319,7 +319,7 @@ class _Objective:
 
     def __init__(
         self,
-        problem: Problem,
+        problem: FitProblem,
         comb: Combination,
         rows: np.ndarray,
         free: Mapping[str, np.ndarray],
@@ -385,7 +385,7 @@ def _solve(obj: _Objective, starts: Sequence[np.ndarray], max_nfev: int):
 
 
 def fit_combination(
-    problem: Problem,
+    problem: FitProblem,
     comb: Combination,
     rows=None,
     *,
@@ -561,7 +561,7 @@ def _stderr(obj: _Objective, z: np.ndarray, M: int, k: int) -> np.ndarray:
     return np.sqrt(np.clip(np.diag(cov), 0.0, None))
 
 
-def support_objective(problem: Problem, fit: FitResult):
+def support_objective(problem: FitProblem, fit: FitResult):
     """The objective of ``fit`` with its valve supports held (what a confirmation refit minimises): ``(residuals,
     z, lower, upper, names)``, ``residuals(z)`` the vector whose half sum of squares is the fit's cost, ``z`` the
     fit's optimum in the layout [nuisance | globals | sqrt of each valve's opening at its support rows], and the
@@ -578,7 +578,7 @@ def support_objective(problem: Problem, fit: FitResult):
     return obj, z, lo, hi, names
 
 
-def predict_setting(problem: Problem, fit: FitResult, rows) -> np.ndarray:
+def predict_setting(problem: FitProblem, fit: FitResult, rows) -> np.ndarray:
     """Readings at ``rows`` of a fit: its own openings where it fitted them; elsewhere the held-out openings of a
     cross-validation fold (:meth:`FitResult.held_out_openings`), else the schedule."""
     rows = np.asarray(rows, dtype=int)
@@ -612,7 +612,7 @@ def predict_setting(problem: Problem, fit: FitResult, rows) -> np.ndarray:
 
 
 def cross_validate(
-    problem: Problem, comb: Combination, full: FitResult | None = None, *, max_folds: int | None = None
+    problem: FitProblem, comb: Combination, full: FitResult | None = None, *, max_folds: int | None = None
 ) -> tuple[np.ndarray, list]:
     """Cross-validated predictions (points x channels) of ``comb`` (refit per fold, supports included) and the
     fold fits (a valve's opening at a held-out point as ``problem.held_out_valves`` says, module docstring)."""
@@ -651,7 +651,7 @@ class FoldData:
     folds: list[tuple[str, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]  # name, train, test, pred_train, pred_test
 
 
-def fold_data(problem: Problem, fits: Sequence[tuple[str, FitResult]], max_folds: int | None = None) -> FoldData:
+def fold_data(problem: FitProblem, fits: Sequence[tuple[str, FitResult]], max_folds: int | None = None) -> FoldData:
     """Predictions of every fold fit on its own training rows and on its test rows."""
     _, folds = problem.folds(max_folds)
     test_of = dict((name, test) for name, test in folds)
@@ -662,7 +662,7 @@ def fold_data(problem: Problem, fits: Sequence[tuple[str, FitResult]], max_folds
     return FoldData(out)
 
 
-def fit_sensor(problem: Problem, j: int, pred: np.ndarray, rows: np.ndarray, bounds) -> tuple[float, float]:
+def fit_sensor(problem: FitProblem, j: int, pred: np.ndarray, rows: np.ndarray, bounds) -> tuple[float, float]:
     """Gain and offset of channel ``j`` on fixed model readings ``pred`` (rows x channels) of ``rows``: the robust
     least-squares fit of ``gain * pred + offset`` to the measurements (a sensor calibration changes no model state,
     so the model need not be solved again)."""
@@ -679,14 +679,14 @@ def fit_sensor(problem: Problem, j: int, pred: np.ndarray, rows: np.ndarray, bou
     return float(res.x[0]), float(res.x[1])
 
 
-def cell_losses(problem: Problem, pred: np.ndarray) -> tuple[np.ndarray, int]:
+def cell_losses(problem: FitProblem, pred: np.ndarray) -> tuple[np.ndarray, int]:
     """Robust loss per point (sum over its measured cells) and the number of measured cells."""
     r = problem.normalised_residuals(pred)
     L = np.where(problem.measured_mask, robust_loss(np.nan_to_num(r)), 0.0)
     return L.sum(axis=1), int(problem.measured_mask.sum())
 
 
-def channel_rmse(problem: Problem, pred: np.ndarray, rows=None) -> dict[str, float]:
+def channel_rmse(problem: FitProblem, pred: np.ndarray, rows=None) -> dict[str, float]:
     """RMSE per channel (channel units) over the measured cells of ``rows``."""
     rows = np.arange(problem.n_points) if rows is None else np.asarray(rows, int)
     out = {}
@@ -698,7 +698,7 @@ def channel_rmse(problem: Problem, pred: np.ndarray, rows=None) -> dict[str, flo
     return out
 
 
-def loco_predictions(problem: Problem, fit: FitResult, rows=None) -> np.ndarray:
+def loco_predictions(problem: FitProblem, fit: FitResult, rows=None) -> np.ndarray:
     """Leave-one-channel-out readings (points x channels): each channel as predicted by the fit refitted without it.
 
     A single sensor's anomaly (a bump, a step, a bad calibration) bends a fit that includes the channel towards

@@ -36,7 +36,7 @@ from scipy.interpolate import PchipInterpolator
 from scipy.optimize import minimize_scalar
 
 from .mechanisms import ValveMechanism
-from .problem import Problem, Setting
+from .problem import FitProblem, Setting
 
 __all__ = ["GRID", "state_predictions"]
 
@@ -47,7 +47,7 @@ _FINE = 2001
 
 
 def _readings(
-    problem: Problem,
+    problem: FitProblem,
     setting_of: Callable[[Mapping[str, float]], Setting],
     row: int,
     vid: str,
@@ -85,7 +85,7 @@ def _argmin(grid: np.ndarray, readings: np.ndarray, cost: Callable[[np.ndarray, 
 
 
 def state_predictions(
-    problem: Problem,
+    problem: FitProblem,
     setting_of: Callable[[Mapping[str, float]], Setting],
     valves: Sequence[ValveMechanism],
     rows,

@@ -1,11 +1,11 @@
 """A measured dataset prepared for repeated evaluation of the engine model (with submodels).
 
-:class:`Problem` holds what fixes each operating point (power, fuel flow, speed or fuel rack, as in
+:class:`FitProblem` holds what fixes each operating point (power, fuel flow, speed or fuel rack, as in
 :mod:`.measured.matching`), the comparison channels, the measurements, a tolerance per channel and the per-row
 boundary conditions (ambient pressure, compressor inlet temperature, turbine back pressure).  A
 :class:`Setting` is one candidate model: parameter scales (the model-error nuisance of
 :mod:`.nuisance`), submodels, offsets of the ambient state, sensor gains/offsets and per-point valve
-openings.  :meth:`Problem.predict` runs the one engine model
+openings.  :meth:`FitProblem.predict` runs the one engine model
 (:func:`marine_fdi_env.engine.operating_point.solve_points`)
 at every point and returns the readings in the columns' units.
 
@@ -45,11 +45,11 @@ from ..measured.dataset import MeasuredDataset
 from ..measured.discrepancy import column_tolerance
 from ..measured.matching import _rack_settings, _resolve_target, _target_values, load_law_of
 
-__all__ = ["Setting", "Problem", "BASE_SETTING", "FAIL_RESIDUAL", "VALVES", "HELD_OUT_VALVES"]
+__all__ = ["Setting", "FitProblem", "BASE_SETTING", "FAIL_RESIDUAL", "VALVES", "HELD_OUT_VALVES"]
 
 #: how cross-validation predicts a valve's opening at a held-out point (:mod:`.fitting`'s docstring): ``schedule``
 #: (the default), ``support`` or ``state`` (ablations, not the default: each lets model error pass as a valve or
-#: as a cause beside one; ``Problem(..., held_out_valves="support")``; ``state``: :mod:`.held_out_state`)
+#: as a cause beside one; ``FitProblem(..., held_out_valves="support")``; ``state``: :mod:`.held_out_state`)
 HELD_OUT_VALVES = ("schedule", "support", "state")
 
 FAIL_RESIDUAL = 50.0  # normalised residual of a cell whose point has no steady state
@@ -58,7 +58,7 @@ VALVES = ("waste_gate", "bypass_valve")
 
 @dataclass(frozen=True)
 class Setting:
-    """One candidate model of a :class:`Problem`.
+    """One candidate model of a :class:`FitProblem`.
 
     scales : ``{EngineParams field: multiplier}`` (the model-error nuisance).
     submodels : the engine's submodels.
@@ -88,7 +88,7 @@ class Setting:
 BASE_SETTING = Setting()
 
 
-class Problem:
+class FitProblem:
     """A measured dataset prepared for fitting (see the module docstring).
 
     ds : the dataset.  params : parameter set (name, file or :class:`EngineParams`; default the sidecar's).

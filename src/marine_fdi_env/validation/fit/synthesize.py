@@ -38,7 +38,7 @@ import numpy as np
 from ...engine.operating_point import MODE_P, solve_points, speed_of_power
 from ...engine.params import EngineParams, list_parameter_sets, load_params
 from ..measured.columns import QUANTITIES, ModelContext, column_problem, lookup_column
-from ..measured.dataset import write_dataset
+from ..measured.dataset import write_measured
 from .mechanisms import SensorCalibration, ValveMechanism, get_mechanism, parse_mechanism_spec, sensor_reference
 from .problem import BASE_SETTING, Setting, _quantity
 
@@ -443,7 +443,7 @@ def _engine(p: EngineParams, setting: Setting) -> EngineParams:
 def write_synthesis(syn: Synthesis, path: str | Path, truth_path: str | Path | None = None) -> Path:
     """Write the CSV and its sidecar (and the truth as JSON if ``truth_path``)."""
     path = Path(path)
-    write_dataset(path, syn.columns, syn.meta, engines=syn.engines, digits=7)
+    write_measured(path, syn.columns, syn.meta, engines=syn.engines, digits=7)
     if truth_path is not None:
         Path(truth_path).write_text(
             json.dumps(

@@ -2,7 +2,7 @@
 inlet temperature, exhaust back pressure) with recording errors left out, and the per-cylinder groups whose spread is
 the measurement spread of the engine-mean channel.
 
-Used by :func:`~.dataset.load_dataset`.
+Used by :func:`~.dataset.load_measured`.
 """
 
 from __future__ import annotations

@@ -34,7 +34,7 @@ other rows' median): a reading like a compressor inlet temperature of 0 C among 
 recording error.  It is reported (:attr:`MeasuredDataset.boundary_outliers`), left out, and the row runs
 at the median of the other rows' readings.
 
-:func:`load_dataset` checks units, columns and values and collects *every* problem with its row and
+:func:`load_measured` checks units, columns and values and collects *every* problem with its row and
 column; errors raise one :class:`DatasetError` (a ``ValueError``) listing all of them, suspicious but
 kept values give :class:`DataWarning` warnings (also kept in ``MeasuredDataset.warnings``).
 Row numbers are 1-based data rows; the CSV line is row + 1 (the header is line 1).
@@ -65,12 +65,12 @@ __all__ = [
     "MeasuredDataset",
     "DatasetError",
     "DataWarning",
-    "Problem",
-    "load_dataset",
+    "DataFinding",
+    "load_measured",
     "load_shipped",
     "list_shipped",
     "shipped_path",
-    "write_dataset",
+    "write_measured",
     "parse_ambient",
     "normalise_load_law",
     "MISSING_TOKENS",
@@ -87,7 +87,7 @@ class DataWarning(UserWarning):
 
 
 @dataclass(frozen=True)
-class Problem:
+class DataFinding:
     """One problem found in a dataset: its rows (1-based data rows), column and message."""
 
     severity: str  # "error" | "warning"
@@ -143,7 +143,7 @@ class MeasuredDataset:
     load_law_text: str | None
     rated_power_W: float
     quality: dict[str, Any]
-    warnings: tuple[Problem, ...] = ()
+    warnings: tuple[DataFinding, ...] = ()
     notes: tuple[str, ...] = ()
     path: str | None = None
     column_role: dict[str, str] = field(default_factory=dict)
@@ -375,7 +375,7 @@ def _quality(columns, raw, engines, warns) -> dict[str, Any]:
 
 
 # --------------------------------------------------------------------------------------- loader
-def load_dataset(
+def load_measured(
     path: str | Path,
     meta: str | Path | Mapping[str, Any] | None = None,
     *,
@@ -391,13 +391,13 @@ def load_dataset(
     """
     path = Path(path)
     source = name or path.name
-    problems: list[Problem] = []
+    problems: list[DataFinding] = []
 
     def err(msg, rows=(), column=None):
-        problems.append(Problem("error", msg, tuple(rows), column))
+        problems.append(DataFinding("error", msg, tuple(rows), column))
 
     def warn(msg, rows=(), column=None):
-        problems.append(Problem("warning", msg, tuple(rows), column))
+        problems.append(DataFinding("warning", msg, tuple(rows), column))
 
     meta_d = _read_sidecar(path, meta, params, err, warn)
     params_name = params or meta_d.get("engine_params")
@@ -414,7 +414,7 @@ def load_dataset(
     try:
         content = text if text is not None else path.read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise DatasetError(source, [Problem("error", f"no such file {path}")]) from None
+        raise DatasetError(source, [DataFinding("error", f"no such file {path}")]) from None
     except UnicodeDecodeError as e:  # one line: nothing else can be checked in a file that cannot be read
         line = e.object[: e.start].count(b"\n") + 1
         raise DataFileError(
@@ -424,7 +424,7 @@ def load_dataset(
     while rows and not any(c.strip() for c in rows[-1]):
         rows.pop()
     if not rows:
-        raise DatasetError(source, problems + [Problem("error", "empty file: no header")])
+        raise DatasetError(source, problems + [DataFinding("error", "empty file: no header")])
     header = [h.strip() for h in rows[0]]
     data = rows[1:]
     if not data:
@@ -686,7 +686,7 @@ def _ambient_and_boundary(
 
 
 # --------------------------------------------------------------------------------------- writer
-def write_dataset(
+def write_measured(
     path: str | Path,
     columns: Mapping[str, Iterable],
     meta: Mapping[str, Any],
@@ -742,7 +742,7 @@ def load_shipped(name: str, *, params: str | None = None) -> MeasuredDataset:
     ``man_12v32_40_fpp_iso``); its provenance is the sidecar's ``source``."""
     csv_res = shipped_path(name)
     meta = json.loads((_measured_dir() / f"{name}.meta.json").read_text())
-    return load_dataset(Path(str(csv_res)), meta, params=params, name=name, text=csv_res.read_text())
+    return load_measured(Path(str(csv_res)), meta, params=params, name=name, text=csv_res.read_text())
 
 
 def load_data_arg(text: str, params: str | None = None) -> MeasuredDataset:
@@ -756,7 +756,7 @@ def load_data_arg(text: str, params: str | None = None) -> MeasuredDataset:
                 f"dataset name ({', '.join(list_shipped())})"
             )
         if p.exists():
-            return load_dataset(p, params=params)
+            return load_measured(p, params=params)
         if text in list_shipped():
             return load_shipped(text, params=params)
         raise ValueError(f"no such file {text!r} (shipped datasets: {', '.join(list_shipped())})")

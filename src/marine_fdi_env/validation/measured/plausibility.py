@@ -2,7 +2,7 @@
 :data:`marine_fdi_env.engine.envelope.ENVELOPE` and the fuel-setting range of the steady states), suspicious values
 (warnings, kept), duplicate operating points, and an engine far from the others at the same set point.
 
-Used by :func:`~.dataset.load_dataset`; each check reports through the loader's ``err``/``warn`` callables (message,
+Used by :func:`~.dataset.load_measured`; each check reports through the loader's ``err``/``warn`` callables (message,
 1-based rows, column).
 """
 

@@ -51,7 +51,7 @@ from ..explain.summary import explain
 from ..explain.summary import summary_lines as explanation_summary_lines
 from ..fit.fitting import FitResult, channel_rmse, predict_setting
 from ..fit.mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
-from ..fit.problem import Problem
+from ..fit.problem import FitProblem
 from ..measured.dataset import MeasuredDataset, load_data_arg
 from ..select.rules import SelectionRules
 from ..select.selection import Selection, select_causes
@@ -283,7 +283,7 @@ def build_report(
     return clean_json(report)
 
 
-def _step_dict(pr: Problem, step: Mapping[str, Any]) -> dict[str, Any]:
+def _step_dict(pr: FitProblem, step: Mapping[str, Any]) -> dict[str, Any]:
     """A greedy step without its candidate objects, with the per-channel CV RMSE of its best candidate."""
     d = {k: v for k, v in step.items() if k != "candidates"}
     best = [c for c in step["candidates"] if c.added == step.get("best") and c.cross_validated]
@@ -308,7 +308,7 @@ def holdout_evaluation(
     if conditions not in ("parameter_set", "fit"):
         raise ValueError(f"conditions must be 'parameter_set' or 'fit', not {conditions!r}")
     pr = sel.problem
-    ho = Problem(holdout, params=pr.params, target=pr.target if pr.target in ("power", "fuel_flow") else "auto")
+    ho = FitProblem(holdout, params=pr.params, target=pr.target if pr.target in ("power", "fuel_flow") else "auto")
     cond: dict[str, Any] = {"kind": conditions, "filled": []}
     if conditions == "fit":
         tb = pr.test_bed_conditions()
@@ -375,7 +375,7 @@ def holdout_evaluation(
     return out
 
 
-def _rmse_masked(pr: Problem, pred: np.ndarray, keep: np.ndarray, j: int, rows=None) -> float | None:
+def _rmse_masked(pr: FitProblem, pred: np.ndarray, keep: np.ndarray, j: int, rows=None) -> float | None:
     rows = np.arange(pr.n_points) if rows is None else np.asarray(rows, int)
     e = pred[rows, j] - pr.Y[rows, j]
     m = pr.measured_mask[rows, j] & keep[rows, j]
@@ -402,7 +402,7 @@ def run_validation(
     ``deciding``, ``explanation_rule``).
     ``tolerances``: per channel in its units (default: the sidecar's, else 1 % / 5 K)."""
     rules = rules or SelectionRules()
-    pr = Problem(ds, target=target, params=params, tolerances=tolerances, held_out_valves=rules.held_out_valves)
+    pr = FitProblem(ds, target=target, params=params, tolerances=tolerances, held_out_valves=rules.held_out_valves)
     sel = select_causes(pr, rules=rules, progress=progress)
     ho = holdout_evaluation(sel, holdout) if holdout is not None else None
     rep = build_report(sel, ho, notes, command)

@@ -15,7 +15,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..fit.problem import Problem
+from ..fit.problem import FitProblem
 from ..measured.columns import COLUMNS, GROUP_PATTERNS, QUANTITIES
 from ..measured.dataset import MeasuredDataset
 from ..measured.discrepancy import LOAD_TOL, REL_TOL, TEMPERATURE_TOL_K
@@ -23,7 +23,7 @@ from ..measured.discrepancy import LOAD_TOL, REL_TOL, TEMPERATURE_TOL_K
 __all__ = ["describe", "column_registry", "tolerance_sources"]
 
 
-def tolerance_sources(problem: Problem, stated: Sequence[str] = ()) -> dict[str, str]:
+def tolerance_sources(problem: FitProblem, stated: Sequence[str] = ()) -> dict[str, str]:
     """Where each compared channel's tolerance comes from: ``--tolerance``, ``sidecar`` or ``default``."""
     cli = {str(item).partition("=")[0].strip() for item in stated}
     side = problem.ds.meta.get("tolerances")
@@ -42,7 +42,7 @@ def _default_basis(ds: MeasuredDataset, column: str) -> str:
 
 def describe(
     ds: MeasuredDataset,
-    problem: Problem,
+    problem: FitProblem,
     tolerances: Mapping[str, float],
     stated: Sequence[str] = (),
     max_folds: int | None = None,

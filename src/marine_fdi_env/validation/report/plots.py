@@ -11,13 +11,13 @@ import numpy as np
 
 from ...plotting import pyplot
 from ..fit.fitting import predict_setting
-from ..fit.problem import Problem
+from ..fit.problem import FitProblem
 from ..select.selection import Selection
 
 __all__ = ["write_plots"]
 
 
-def _load_axis(pr: Problem) -> tuple[np.ndarray, str]:
+def _load_axis(pr: FitProblem) -> tuple[np.ndarray, str]:
     v = pr.ds.values
     if "load_fraction" in v:
         return v["load_fraction"], "load fraction"
@@ -163,7 +163,7 @@ def write_plots(
     files.append(f)
 
     if holdout is not None:
-        ho: Problem = holdout["_problem"]
+        ho: FitProblem = holdout["_problem"]
         xh, xlh = _load_axis(ho)
         fig, axes = panel_grid(len(ho.channels))
         axes = list(axes)

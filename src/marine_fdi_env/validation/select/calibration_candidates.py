@@ -10,13 +10,13 @@ import numpy as np
 
 from ..fit.fitting import FitResult, FoldData, cross_validate, fit_combination, fit_sensor, fold_data, robust_loss
 from ..fit.mechanisms import SensorCalibration
-from ..fit.problem import Problem
+from ..fit.problem import FitProblem
 from .candidates import CandidateScore
 
 __all__ = ["CALIBRATION_REFITS", "calibrations_to_refit", "refit_with_calibration", "sensor_candidate", "sensor_fit"]
 
 
-def sensor_fit(problem: Problem, current: FitResult, in_pred: np.ndarray, mech: SensorCalibration) -> FitResult:
+def sensor_fit(problem: FitProblem, current: FitResult, in_pred: np.ndarray, mech: SensorCalibration) -> FitResult:
     """``current`` plus a sensor calibration whose gain and offset are fitted on ``current``'s readings ``in_pred``
     (nothing else refitted)."""
     j = problem.channels.index(mech.channel)
@@ -44,7 +44,7 @@ def sensor_fit(problem: Problem, current: FitResult, in_pred: np.ndarray, mech: 
 
 
 def sensor_candidate(
-    problem: Problem, current: FitResult, in_pred: np.ndarray, folds: FoldData, mech: SensorCalibration
+    problem: FitProblem, current: FitResult, in_pred: np.ndarray, folds: FoldData, mech: SensorCalibration
 ) -> tuple[FitResult, np.ndarray]:
     """``current`` plus a sensor calibration, fitted on ``current``'s readings (in-sample and per fold):
     (the fit, its cross-validated predictions)."""
@@ -84,7 +84,7 @@ def calibrations_to_refit(scored: Sequence[CandidateScore], current_S: float, mi
 
 
 def refit_with_calibration(
-    problem: Problem,
+    problem: FitProblem,
     best: CandidateScore,
     previous: FitResult,
     M: int,

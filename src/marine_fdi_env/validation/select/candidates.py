@@ -12,7 +12,7 @@ import numpy as np
 from scipy import stats
 
 from ..fit.fitting import Combination, FitResult, cell_losses
-from ..fit.problem import Problem
+from ..fit.problem import FitProblem
 
 __all__ = ["CandidateScore", "f_test_p", "paired_p", "finite_or_none"]
 
@@ -48,7 +48,7 @@ class CandidateScore:
 
     def score(
         self,
-        problem: Problem,
+        problem: FitProblem,
         pred: np.ndarray,
         folds,
         M: int,

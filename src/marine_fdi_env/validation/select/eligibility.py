@@ -12,7 +12,7 @@ import numpy as np
 
 from ..fit.fitting import Combination, FitResult, fit_combination, fit_sensor
 from ..fit.mechanisms import Mechanism, SensorCalibration
-from ..fit.problem import Problem
+from ..fit.problem import FitProblem
 from .candidates import CandidateScore, f_test_p
 from .window_scan import noise_ratio, window_excess
 
@@ -33,7 +33,7 @@ __all__ = [
 CALIBRATION_EXPLAINS = 0.75
 
 
-def structure_left(problem: Problem, loco: np.ndarray, mech: SensorCalibration, alpha: float) -> str:
+def structure_left(problem: FitProblem, loco: np.ndarray, mech: SensorCalibration, alpha: float) -> str:
     """A description of what a gain and an offset leave unexplained on the sensor's channel, judged against the model
     fitted without that channel (``loco``, :func:`~.fit.fitting.loco_predictions`); "" when the calibration is an
     explanation.
@@ -110,7 +110,7 @@ RELAX_SPAN = 0.25
 BINDING_ALPHA = 0.05
 
 
-def relaxed_mechanism(m: Mechanism, name: str, side: str, problem: Problem) -> Mechanism | None:
+def relaxed_mechanism(m: Mechanism, name: str, side: str, problem: FitProblem) -> Mechanism | None:
     """``m`` with parameter ``name``'s plausible range widened on ``side`` by :data:`RELAX_SPAN` of its span,
     halved until the submodel accepts the value (None when it accepts no wider value)."""
     import copy
@@ -136,7 +136,7 @@ def relaxed_mechanism(m: Mechanism, name: str, side: str, problem: Problem) -> M
     return None
 
 
-def binding_bounds(problem: Problem, c: "CandidateScore", known: Mapping[str, float], support) -> list[str]:
+def binding_bounds(problem: FitProblem, c: "CandidateScore", known: Mapping[str, float], support) -> list[str]:
     """The bounds of ``c``'s fit that the data want to go beyond: widening the bound (:func:`relaxed_mechanism`) and
     refitting lowers the in-sample loss significantly (one-parameter F-test, p < :data:`BINDING_ALPHA`).  A
     bound the fit merely touches because two parameters trade off costs nothing to keep."""
@@ -165,7 +165,7 @@ def binding_bounds(problem: Problem, c: "CandidateScore", known: Mapping[str, fl
     return out
 
 
-def why_pinned(problem: Problem, c: "CandidateScore", known: Mapping[str, float], support) -> list[str]:
+def why_pinned(problem: FitProblem, c: "CandidateScore", known: Mapping[str, float], support) -> list[str]:
     """Why a cross-validated candidate is pinned (a valve shut everywhere, a bound the data want beyond), empty if
     it is not; notes the parameters its fit leaves undetermined."""
     c.notes += undetermined_params(c.fit)

@@ -25,7 +25,7 @@ from ..fit.fitting import (
     predict_setting,
 )
 from ..fit.mechanisms import Mechanism, SensorCalibration
-from ..fit.problem import Problem
+from ..fit.problem import FitProblem
 from .alternatives import ALTERNATIVE_MARGIN, pair_alternatives, step_alternatives
 from .calibration_candidates import calibrations_to_refit, refit_with_calibration, sensor_candidate
 from .candidates import CandidateScore
@@ -111,7 +111,7 @@ class StepOutcome:
 
 
 def score_singles(
-    problem: Problem,
+    problem: FitProblem,
     cur: CurrentModel,
     pool: Sequence[Mechanism],
     known: Mapping[str, float],
@@ -145,7 +145,7 @@ def score_singles(
 
 
 def cross_validate_promising(
-    problem: Problem,
+    problem: FitProblem,
     cur: CurrentModel,
     scored: Sequence[CandidateScore],
     sensor_cv: Mapping[str, np.ndarray],
@@ -246,7 +246,7 @@ def judge_best_single(
 
 
 def best_pair(
-    problem: Problem,
+    problem: FitProblem,
     cur: CurrentModel,
     scored: Sequence[CandidateScore],
     best: CandidateScore | None,
@@ -353,7 +353,7 @@ def _pair_decision(
 
 
 def forward_step(
-    problem: Problem, cur: CurrentModel, mechanisms: Sequence[Mechanism], rules: StepRules, step: int, say: Say
+    problem: FitProblem, cur: CurrentModel, mechanisms: Sequence[Mechanism], rules: StepRules, step: int, say: Say
 ) -> StepOutcome | None:
     """One greedy step from ``cur``: ``None`` when there is nothing left to try (every mechanism in the model, or
     ``max_causes`` reached), else what the step decided (its model ``None`` when it accepted nothing)."""

@@ -8,7 +8,7 @@ from typing import Mapping, Sequence
 
 from ..fit.fitting import Combination, FitResult, cross_validate, fit_combination
 from ..fit.mechanisms import SensorCalibration
-from ..fit.problem import Problem
+from ..fit.problem import FitProblem
 from .candidates import CandidateScore
 from .evidence import BESIDE_VALVE_DEFAULT, IN_SAMPLE_ALONE, earns, judged_in_sample
 
@@ -19,7 +19,7 @@ PAIR_CV = 3
 
 
 def pair_candidates(
-    problem: Problem,
+    problem: FitProblem,
     current: Combination,
     current_fit: FitResult,
     scored: Sequence[CandidateScore],
@@ -100,7 +100,7 @@ def pair_candidates(
 
 
 def members_earn_their_place(
-    problem: Problem,
+    problem: FitProblem,
     pair: CandidateScore,
     M: int,
     min_gain: float,

@@ -46,7 +46,7 @@ import numpy as np
 
 from ..fit.fitting import Combination, fit_combination, predict_setting
 from ..fit.mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
-from ..fit.problem import Problem
+from ..fit.problem import FitProblem
 from ..measured.dataset import MeasuredDataset
 from .binomial import proportion_ci95
 from .rules import SelectionRules
@@ -88,7 +88,7 @@ def _acts(fit) -> dict[str, tuple[bool, ...]]:
     return {m.id: tuple(bool(math.isfinite(x) and x > 0) for x in fit.openings[m.id]) for m in fit.combination.valves}
 
 
-def _hypothesis(problem: Problem, name: str, fit) -> Hypothesis:
+def _hypothesis(problem: FitProblem, name: str, fit) -> Hypothesis:
     rows = np.arange(problem.n_points)
     M = int(problem.measured_mask[problem.rows_with_data()].sum())
     return Hypothesis(
@@ -151,7 +151,7 @@ def noise_scale(sel: Selection, model: str = "residual") -> np.ndarray:
 
 
 def replica_readings(
-    problem: Problem, hyp: Hypothesis, scale: np.ndarray, seed: int, h: int, r: int, noise: str = "residual"
+    problem: FitProblem, hyp: Hypothesis, scale: np.ndarray, seed: int, h: int, r: int, noise: str = "residual"
 ) -> np.ndarray:
     """Replica ``r`` of hypothesis number ``h``: its readings plus the noise of :func:`noise_scale` (a random sign
     times ``scale`` for ``residual``, N(0, scale²) for ``tolerance``) at the measured cells, NaN elsewhere."""
@@ -180,7 +180,7 @@ def run_replica(
     selection's, as on the data."""
     t0 = time.perf_counter()
     rep = ds.with_readings({c: Y[:, j] for j, c in enumerate(channels)})
-    pr = Problem(rep, params=params, target=target, tolerances=tolerances, held_out_valves=rules.held_out_valves)
+    pr = FitProblem(rep, params=params, target=target, tolerances=tolerances, held_out_valves=rules.held_out_valves)
     s = select_causes(pr, mechanisms, rules=rules)
     return {
         "named": sorted(s.selected_labels),

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..fit.fitting import Combination, FitResult, cross_validate, fit_combination, loco_predictions, predict_setting
 from ..fit.mechanisms import Mechanism, SensorCalibration
-from ..fit.problem import Problem
+from ..fit.problem import FitProblem
 from .calibration_candidates import CALIBRATION_REFITS, sensor_fit
 from .candidates import CandidateScore
 from .eligibility import structure_left, why_pinned
@@ -21,7 +21,7 @@ __all__ = ["exchange_step", "removal_step"]
 
 
 def removal_step(
-    problem: Problem,
+    problem: FitProblem,
     current: Combination,
     current_fit: FitResult,
     current_S: float,
@@ -89,7 +89,7 @@ def removal_step(
 
 
 def exchange_step(
-    problem: Problem,
+    problem: FitProblem,
     current: Combination,
     current_fit: FitResult,
     current_S: float,

@@ -36,7 +36,7 @@ class SelectionRules:
     removal step.  exchange : the exchange of a named physical cause for a sensor calibration.  beside_valve : how a
     cause joining a model with a valve earns its place (:data:`~.evidence.BESIDE_VALVE`).  held_out_valves : how
     cross-validation predicts a valve's opening at a left-out point (:data:`~.fit.problem.HELD_OUT_VALVES`; the
-    :class:`~.fit.problem.Problem` is built with it).
+    :class:`~.fit.problem.FitProblem` is built with it).
     """
 
     max_causes: int = 4

@@ -1,6 +1,6 @@
 """Model selection: which named mechanisms explain the discrepancies, where and by how much.
 
-Pipeline (:func:`select_causes`), on a :class:`~.fit.problem.Problem`:
+Pipeline (:func:`select_causes`), on a :class:`~.fit.problem.FitProblem`:
 
 1. **Base model.**  The parameter set as it is (its errors are reported per channel), and the base
    model calibrated within its uncertainty: every fit adjusts the model-error nuisance of
@@ -85,7 +85,7 @@ from ..fit.fitting import (
     loco_predictions,
 )
 from ..fit.mechanisms import Mechanism, SensorCalibration, library, sensor_reference
-from ..fit.problem import Problem, Setting
+from ..fit.problem import FitProblem, Setting
 from ..measured.columns import QUANTITIES
 from ..measured.discrepancy import DiscrepancyReport, analyse_discrepancies
 from ..measured.matching import MatchResult
@@ -98,7 +98,7 @@ from .unexplained import point_outliers, unexplained_findings
 __all__ = ["CandidateScore", "Selection", "select_causes", "match_result", "ROBUST_SCALE"]
 
 
-def match_result(problem: Problem, setting: Setting | None = None, pred_fn=None) -> MatchResult:
+def match_result(problem: FitProblem, setting: Setting | None = None, pred_fn=None) -> MatchResult:
     """A :class:`~.measured.matching.MatchResult` of a model setting (default the problem's base) at every point (for
     the discrepancy analysis)."""
     setting = problem.base_setting if setting is None else setting
@@ -140,7 +140,7 @@ class Selection:
     cross-validated).  fit / cv_pred / cv_score : the selected combination.
     """
 
-    problem: Problem
+    problem: FitProblem
     cv_scheme: str
     raw_pred: np.ndarray
     base_fit: FitResult
@@ -215,7 +215,7 @@ class Selection:
 
 
 def select_causes(
-    problem: Problem,
+    problem: FitProblem,
     mechanisms: Sequence[Mechanism] | None = None,
     *,
     rules: SelectionRules | None = None,
@@ -243,7 +243,7 @@ def select_causes(
     if rules.held_out_valves != problem.held_out_valves:
         raise ValueError(
             f"the rules' held_out_valves ({rules.held_out_valves!r}) differ from the problem's "
-            f"({problem.held_out_valves!r}): build the Problem with the rules' held_out_valves"
+            f"({problem.held_out_valves!r}): build the FitProblem with the rules' held_out_valves"
         )
     max_causes, alpha, alpha_unexplained = rules.max_causes, rules.alpha, rules.alpha_unexplained
     min_gain, penalty = rules.min_gain, rules.penalty
@@ -357,7 +357,7 @@ def select_causes(
 
 
 def _revise(
-    problem: Problem,
+    problem: FitProblem,
     cur: CurrentModel,
     steps: list[dict[str, Any]],
     alternatives: dict[str, list[dict[str, Any]]],
