@@ -212,7 +212,8 @@ def loaded(syn: Synthesis, name: str = "trial", workdir: str | Path | None = Non
     import tempfile
     import warnings
 
-    from marine_fdi_env.validation.measured.dataset import DataWarning, load_measured
+    from marine_fdi_env.validation.measured.dataset import DataWarning
+    from marine_fdi_env.validation.measured.loader import load_measured
 
     with tempfile.TemporaryDirectory(dir=workdir) as d:
         path = Path(d) / f"{name}.csv"

@@ -1,10 +1,14 @@
-"""Measured-data format: the shipped datasets load, units convert, and bad input is reported in full."""
+"""Measured-data format: the shipped datasets load, units convert, and bad input is reported in full; every test of
+the shipped datasets runs with both readers (CSV, and the same data written to Parquet), and a file read by either
+gives the same dataset and the same findings."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +23,7 @@ from marine_fdi_env.validation import (
     write_measured,
 )
 from marine_fdi_env.validation.measured.columns import COLUMNS, QUANTITIES, column_problem
+from marine_fdi_env.validation.measured.loader import shipped_path
 from tests.paths import ROOT
 
 SHARED = ROOT.parent / "shared" / "data"
@@ -40,14 +45,41 @@ def _errors(exc: DatasetError) -> list[str]:
     return [str(p) for p in exc.problems if p.severity == "error"]
 
 
+def to_parquet(csv_path: Path) -> Path:
+    """The CSV file as Parquet beside it (pyarrow's CSV reader, each column's type inferred as a user's conversion
+    would: numbers, text, nulls for empty cells), with a copy of its sidecar."""
+    pv, pq = pytest.importorskip("pyarrow.csv"), pytest.importorskip("pyarrow.parquet")
+    out = csv_path.with_suffix(".parquet")
+    pq.write_table(pv.read_csv(csv_path), out)
+    side = csv_path.with_name(csv_path.stem + ".meta.json")
+    if side.exists():
+        out.with_name(out.stem + ".meta.json").write_text(side.read_text())
+    return out
+
+
+@pytest.fixture(params=["csv", "parquet"])
+def load(request, tmp_path):
+    """Load a shipped dataset by name: as shipped (CSV), or written to Parquet in the test's folder and read back."""
+
+    def load(name: str, **kw):
+        if request.param == "csv":
+            return load_shipped(name, **kw)
+        src = Path(str(shipped_path(name)))
+        (tmp_path / src.name).write_text(src.read_text())
+        (tmp_path / f"{name}.meta.json").write_text(src.with_name(f"{name}.meta.json").read_text())
+        return load_measured(to_parquet(tmp_path / src.name), name=name, **kw)
+
+    return load
+
+
 # --------------------------------------------------------------------------------------- shipped data
 def test_shipped_datasets_listed():
     assert list_shipped() == [BIRKA, PROTOCOL, MAN]
 
 
-def test_birka_loads_with_missing_temperatures_and_a_warning():
+def test_birka_loads_with_missing_temperatures_and_a_warning(load):
     with pytest.warns(DataWarning, match=r"row 6 .*charge_air_pressure_bar_gauge.*ME2 reads 1.3"):
-        ds = load_shipped(BIRKA)
+        ds = load(BIRKA)
     assert ds.n_points == 15 and ds.params_name == "wartsila-6l46"
     assert ds.engine_ids() == ["ME1", "ME2", "ME3"]
     assert ds.load_law == "propeller"
@@ -66,8 +98,8 @@ def test_birka_loads_with_missing_temperatures_and_a_warning():
     assert ds.values["compressor_outlet_temperature_K"][4] == pytest.approx(212 + 273.15)
 
 
-def test_man_loads():
-    ds = load_shipped(MAN)
+def test_man_loads(load):
+    ds = load(MAN)
     assert ds.n_points == 5 and ds.engines is None and ds.params_name == "man-12v32-40"
     assert ds.ambient["p_amb_Pa"] == pytest.approx(1e5) and ds.ambient["T_amb_K"] == pytest.approx(298.15)
     assert ds.values["sfc_kg_per_J"][0] == pytest.approx(187e-3 / 3.6e6)
@@ -101,9 +133,9 @@ def test_ambiguous_temperature_without_the_key_is_a_warning_naming_the_column():
     assert ds.column_quantity["charge_air_temperature_C"] == "charge_air_cooler_outlet_temperature_K"
 
 
-def test_protocol_every_column_has_a_role_and_nothing_is_dropped():
+def test_protocol_every_column_has_a_role_and_nothing_is_dropped(load):
     with pytest.warns(DataWarning) as rec:
-        ds = load_shipped(PROTOCOL)
+        ds = load(PROTOCOL)
     text = " ".join(str(w.message) for w in rec)
     header = (
         (ROOT / "src" / "marine_fdi_env" / "data" / "measured" / f"{PROTOCOL}.csv")
@@ -363,8 +395,8 @@ def test_write_dataset_round_trip(tmp_path):
     assert ds.quality["columns"]["turbine_outlet_temperature_C"]["missing"] == 1
 
 
-def test_subset_keeps_one_engine():
-    ds = _quiet(load_shipped, BIRKA)
+def test_subset_keeps_one_engine(load):
+    ds = _quiet(load, BIRKA)
     me3 = ds.subset(np.array(ds.engines) == "ME3")
     assert me3.n_points == 5 and me3.engine_ids() == ["ME3"]
     np.testing.assert_array_equal(me3.raw["fuel_flow_kg_per_h"], ds.raw["fuel_flow_kg_per_h"][10:])
@@ -380,3 +412,150 @@ def test_the_old_names_of_the_measured_data_functions_still_work_and_say_the_new
         assert v.write_dataset is write_measured
     with pytest.raises(AttributeError):
         v.no_such_name
+
+
+# --------------------------------------------------------------------------------------- readers
+def _same(a, b) -> bool:
+    """Equal to the last bit (NaN equal to NaN): numbers, arrays, and containers of them."""
+    if isinstance(a, dict) or isinstance(b, dict):
+        return (
+            isinstance(a, dict) and isinstance(b, dict) and a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+        )
+    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
+        return type(a) is type(b) and len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        a, b = np.asarray(a), np.asarray(b)
+        return a.shape == b.shape and a.dtype == b.dtype and np.array_equal(a, b, equal_nan=a.dtype.kind == "f")
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    return type(a) is type(b) and a == b
+
+
+def _both_ways(csv_path: Path, **kw):
+    """(outcome, DataWarning messages) of loading ``csv_path`` and of its Parquet copy; the outcome is the dataset or
+    the DatasetError's findings."""
+    out = []
+    for path in (csv_path, to_parquet(csv_path)):
+        with warnings.catch_warnings(record=True) as rec:
+            warnings.simplefilter("always")
+            try:
+                got = load_measured(path, name=csv_path.stem, **kw)
+            except DatasetError as e:
+                got = e.problems
+        out.append((got, [str(w.message) for w in rec if w.category is DataWarning]))
+    return out
+
+
+@pytest.mark.parametrize("name", [BIRKA, PROTOCOL, MAN])
+def test_a_shipped_dataset_read_from_parquet_is_the_same_dataset(tmp_path, name):
+    """The checks run once, after reading, whatever the format: the Parquet copy of a shipped dataset gives the same
+    dataset (every field, to the last bit; only the path differs) and the same warnings."""
+    src = Path(str(shipped_path(name)))
+    (tmp_path / src.name).write_text(src.read_text())
+    (tmp_path / f"{name}.meta.json").write_text(src.with_name(f"{name}.meta.json").read_text())
+    (a, warned_a), (b, warned_b) = _both_ways(tmp_path / src.name)
+    assert a.path.endswith(".csv") and b.path.endswith(".parquet")
+    for f in dataclasses.fields(a):
+        if f.name != "path":
+            assert _same(getattr(a, f.name), getattr(b, f.name)), f.name
+    assert a.warnings == b.warnings and warned_a == warned_b
+    assert _same(a.raw, _quiet(load_shipped, name).raw)
+
+
+BAD = {
+    "header": "speed,power_kW,colour_index,charge_air_pressure_bar,load_fraction\n400,3000,1,2.0,0.5\n",
+    "non-numeric": "engine,load_fraction,speed_rpm,fuel_flow_kg_per_h\nA,0.25,315,abc\nA,0.5,fast,587\n"
+    "A,0.75,454,8 38\nA,1.0,500,1141\n",
+    "duplicates": "engine,load_fraction,speed_rpm,fuel_flow_kg_per_h\nA,0.5,397,587\nB,0.5,397,590\nA,0.5,397,588\n"
+    "B,1.0,500,1150\nB,1.0,500,1150\n",
+    "envelope": "load_fraction,speed_rpm,power_kW,charge_air_pressure_bar_abs\n0.5,397,2945,2.4\n1.2,520,7000,4.0\n"
+    "0.9,600,5300,-0.5\n-0.1,300,100,1.0\n",
+    "missing cells": "load_fraction,speed_rpm,fuel_flow_kg_per_h,turbine_outlet_temperature_C\n0.25,315,,300\n"
+    "0.5,397,587,NA\n0.75,454,838,\n1.0,500,1141,350\n",
+    "gauge": "load_fraction,speed_rpm,charge_air_pressure_bar_gauge\n0.25,315,-0.05\n0.5,397,-1.5\n0.75,454,-2.0\n"
+    "1.0,500,3.1\n",
+    "empty engine": "engine,load_fraction,speed_rpm\nA,0.5,397\n,0.75,454\n",
+    "no rows": "load_fraction,speed_rpm\n",
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_data_gives_the_same_findings_from_csv_and_parquet(tmp_path, case):
+    (a, warned_a), (b, warned_b) = _both_ways(_write(tmp_path, BAD[case], META))
+    if isinstance(a, list):  # refused: the same errors and warnings, in the same order
+        assert isinstance(b, list) and [str(p) for p in a] == [str(p) for p in b] and a == b
+    else:
+        assert a.warnings == b.warnings and _same(a.raw, b.raw) and _same(a.values, b.values)
+    assert warned_a == warned_b
+
+
+def test_parquet_cells_of_any_type_are_checked_like_text(tmp_path):
+    """A Parquet column of text, booleans or integers goes through the same cell checks as a CSV's text."""
+    pa, pq = pytest.importorskip("pyarrow"), pytest.importorskip("pyarrow.parquet")
+    table = pa.table(
+        {
+            "engine": pa.array([1, 1, None]),
+            "load_fraction": pa.array([0.5, float("nan"), 1.0]),
+            "speed_rpm": pa.array(["397", "x", None]),
+            "fuel_flow_kg_per_h": pa.array([True, False, True]),
+        }
+    )
+    path = tmp_path / "typed.parquet"
+    pq.write_table(table, path)
+    (tmp_path / "typed.meta.json").write_text(json.dumps(META))
+    with pytest.raises(DatasetError) as ei:
+        load_measured(path)
+    errs = _errors(ei.value)
+    assert "row 3 (line 4), column 'engine': empty engine id" in errs
+    assert "row 2 (line 3), column 'speed_rpm': non-numeric value 'x'" in errs
+    assert any("column 'fuel_flow_kg_per_h': non-numeric value 'True'" in e for e in errs)
+    assert not any("load_fraction" in e for e in errs)  # NaN: a missing value
+
+
+def test_the_reader_is_picked_by_the_ending_or_named(tmp_path):
+    from marine_fdi_env.validation.measured.readers import READERS, reader_for
+
+    assert list(READERS) == ["csv", "parquet"]
+    assert reader_for("a.parquet").name == reader_for("b.PQ").name == "parquet"
+    assert reader_for("a.csv").name == reader_for("a.txt").name == "csv"  # any other ending: CSV
+    assert reader_for("a.txt", "parquet").name == "parquet"
+    with pytest.raises(ValueError, match="unknown reader 'xlsx'; readers: csv, parquet"):
+        reader_for("a.xlsx", "xlsx")
+    # the sidecar and the dataset's name drop the format's ending
+    csv_path = _write(tmp_path, "load_fraction,speed_rpm\n0.5,397\n0.75,454\n", META, name="run")
+    ds = load_measured(to_parquet(csv_path))
+    assert ds.name == "run" and ds.params_name == "wartsila-6l46"
+
+
+def test_a_file_the_reader_cannot_read_names_the_file_and_the_reader(tmp_path):
+    from marine_fdi_env.errors import DataFileError
+
+    bad = tmp_path / "broken.parquet"
+    bad.write_bytes(b"not a parquet file at all")
+    with pytest.raises(DataFileError, match=r"broken.parquet: the parquet reader cannot read it"):
+        load_measured(bad, META)
+    latin = tmp_path / "latin.csv"
+    latin.write_bytes("load_fraction,speed_rpm\n0.5,397 \xb0\n".encode("latin-1"))
+    with pytest.raises(DataFileError, match=r"latin.csv: not UTF-8 text .*\(csv reader\)"):
+        load_measured(latin, META)
+    with pytest.raises(DatasetError, match="no such file"):
+        load_measured(tmp_path / "absent.parquet", META)
+
+
+def test_without_pyarrow_a_parquet_file_names_the_extra(tmp_path, monkeypatch):
+    import sys
+
+    from marine_fdi_env.errors import MissingExtra
+
+    monkeypatch.setitem(sys.modules, "pyarrow.parquet", None)  # "import pyarrow.parquet" raises ImportError
+    with pytest.raises(MissingExtra) as ei:
+        load_measured(tmp_path / "x.parquet", META)
+    assert str(ei.value) == "reading x.parquet (parquet reader) needs pyarrow: pip install 'marine-fdi-env[parquet]'"
+
+
+def test_a_sidecar_number_that_is_not_one_is_refused_by_name(tmp_path):
+    from marine_fdi_env.errors import DataFileError
+
+    path = _write(tmp_path, "load_fraction,speed_rpm\n0.5,397\n", {**META, "ambient": {"ambient_pressure_bar": "1"}})
+    with pytest.raises(DataFileError, match=r"^data.meta.json: field 'ambient.ambient_pressure_bar' must be a finite"):
+        load_measured(path)

@@ -184,7 +184,7 @@ def test_nuisance_absorbs_small_model_error_within_its_box():
     import tempfile
     from pathlib import Path
 
-    from marine_fdi_env.validation.measured.dataset import write_measured
+    from marine_fdi_env.validation.measured.loader import write_measured
 
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / "ne.csv"

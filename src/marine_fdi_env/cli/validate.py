@@ -11,7 +11,7 @@ from ..engine.params import list_parameter_sets, load_params
 from ..errors import UsageError
 from ..plotting import pyplot
 from ..validation.fit.problem import FitProblem
-from ..validation.measured.dataset import list_shipped, load_data_arg
+from ..validation.measured.loader import list_shipped, load_data_arg
 from ..validation.measured.matching import TARGETS
 from ..validation.report.build import clean_json, out_path, run_validation, split_engine, summary_lines
 from ..validation.report.data_check import column_registry, describe
@@ -20,7 +20,6 @@ from ..validation.report.plots import write_plots
 from ..validation.select.rules import SelectionRules
 from .failures import fail
 from .selection_options import add_valve_options, rules_from_args
-from .sidecar import check_sidecar_numbers
 
 RULES = SelectionRules()  # the selection's default rules: the options' defaults
 
@@ -33,11 +32,12 @@ def build_parser(prog: str = "marine-fdi validate") -> argparse.ArgumentParser:
     )
     ap.add_argument(
         "--data",
-        metavar="FILE.csv",
-        help=f"measured data (CSV with sidecar FILE.meta.json) or a shipped dataset name ({', '.join(list_shipped())})",
+        metavar="FILE",
+        help="measured data: a CSV or Parquet file (the reader by its ending: .csv, .parquet) with its sidecar "
+        f"FILE.meta.json, or a shipped dataset name ({', '.join(list_shipped())})",
     )
     g = ap.add_mutually_exclusive_group()
-    g.add_argument("--holdout", metavar="FILE.csv", help="data the fit does not see; the report gives its RMSE")
+    g.add_argument("--holdout", metavar="FILE", help="data the fit does not see (as --data); the report gives its RMSE")
     g.add_argument("--holdout-engine", metavar="ID", help="leave this engine of --data out and predict it")
     ap.add_argument("--out", metavar="report.json", help="JSON report (required unless --check)")
     ap.add_argument(
@@ -169,7 +169,6 @@ def run(args: argparse.Namespace, argv: Sequence[str], prog: str = "marine-fdi v
         if args.plots:
             pyplot()
         try:
-            check_sidecar_numbers(args.data)
             ds = load_data_arg(args.data, args.params if args.params in list_parameter_sets() else None)
         except ValueError as e:
             raise UsageError(f"--data: {e}") from None

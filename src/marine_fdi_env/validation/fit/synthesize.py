@@ -38,7 +38,7 @@ import numpy as np
 from ...engine.operating_point import MODE_P, solve_points, speed_of_power
 from ...engine.params import EngineParams, list_parameter_sets, load_params
 from ..measured.columns import QUANTITIES, ModelContext, column_problem, lookup_column
-from ..measured.dataset import write_measured
+from ..measured.loader import write_measured
 from .mechanisms import SensorCalibration, ValveMechanism, get_mechanism, parse_mechanism_spec, sensor_reference
 from .problem import BASE_SETTING, Setting, _quantity
 

@@ -503,7 +503,7 @@ def _bias_p_value(r: np.ndarray, tol: float, min_dof: int = 3) -> tuple[float, s
 
 def _replicate_groups(ds, idx: np.ndarray) -> list[np.ndarray]:
     """Positions (into idx) of points sharing a set point (load, speed, power columns), groups of >= 2."""
-    from .dataset import SETPOINT_QUANTITIES
+    from .plausibility import SETPOINT_QUANTITIES
 
     keys = [q for q in SETPOINT_QUANTITIES if q in ds.values]
     if not keys:

@@ -52,7 +52,8 @@ from ..explain.summary import summary_lines as explanation_summary_lines
 from ..fit.fitting import FitResult, channel_rmse, predict_setting
 from ..fit.mechanisms import PHYSICAL_MECHANISMS, Mechanism, SensorCalibration
 from ..fit.problem import FitProblem
-from ..measured.dataset import MeasuredDataset, load_data_arg
+from ..measured.dataset import MeasuredDataset
+from ..measured.loader import load_data_arg
 from ..select.rules import SelectionRules
 from ..select.selection import Selection, select_causes
 from ..select.unexplained import family_significant
