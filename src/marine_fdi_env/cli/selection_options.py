@@ -34,7 +34,7 @@ def add_valve_options(ap: argparse.ArgumentParser) -> None:
         default="schedule",
         choices=HELD_OUT_VALVES,
         help="how cross-validation predicts a valve's opening at a left-out point: the schedule through "
-        "the other points (default; every study file), or where the fit on all points opens it, "
+        "the other points (default), or where the fit on all points opens it, "
         "interpolated among the open points (support: an ablation; it names a second mechanism "
         "beside a valve too often; docs/figures/validation/held_out_valves/), or estimated as a "
         "state from the left-out point's other channels, each channel predicted without its own "
@@ -51,7 +51,7 @@ def add_valve_options(ap: argparse.ArgumentParser) -> None:
         "second member's in-sample evidence beside the valve (in_sample_pairs, the default: the "
         "valve's held-out openings dilute and scatter the cross-validated score); as that but with "
         "a cross-validated score that must be lower at all and pairs by their penalised score "
-        "(in_sample_exchange, the rule of the study file 360-380); the physical mechanism only "
-        "(in_sample, the rule of 340-360); or by the cross-validated gain and F-test as every other "
-        "candidate (cross_validated, the rule of every study file before 340-360)",
+        "(in_sample_exchange); the physical mechanism only (in_sample); or by the cross-validated gain "
+        "and F-test as every other candidate (cross_validated); which rule made which study file: "
+        "docs/validation.md",
     )

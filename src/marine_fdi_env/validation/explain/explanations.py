@@ -17,8 +17,8 @@ cross-validated difference that one or two held-out points carry is not evidence
 the band in sample too (AICc on the in-sample robust cost with the scale estimated, ``M ln(S) + 2K +
 2K(K+1)/(M-K-1)`` with ``K = k + 1``, against the best's). Cross-validation alone is biased between structures of
 equal fit: a mechanism whose fit sits at the bounds of its range refits less from fold to fold and predicts the
-left-out point better than the true one (development seeds 9 and 17 of condition (f): a blade-speed-ratio loss at
-both its bounds ahead of the true map change, cross-validated 3 AIC units and p = 0.009-0.03 better, within 1 AIC
+left-out point better than the true one (in the open-world study: a blade-speed-ratio loss at both its bounds ahead
+of the true map change, cross-validated 3 AIC units and p = 0.009-0.03 better, within 1 AIC
 unit of it in sample). A structure that is the best one without some of its causes (each remaining valve at the same
 points) is excluded by the best's admissibility: each of its causes earned its place against the structure without
 it (:func:`nested_in`).

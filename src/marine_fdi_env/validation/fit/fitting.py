@@ -30,16 +30,16 @@ time).  A held-out point's valve opening is not known.  By default (:data:`HELD_
 from the schedule through all the training points' openings (piecewise linear in the fuel setting, constant beyond
 the ends), as the fitted engine would predict it.  Leaving out the last shut point, the first open one or the highest
 load then predicts a half-open or a too-small opening there: an error of tens of tolerances shared by every model
-with that valve, which swamps what a second mechanism adds to it (study condition (d): a waste gate and a second
-mechanism named as the gate alone; ``docs/validation.md``, "What the misses of (a)-(d) are made of").  The selection
+with that valve, which swamps what a second mechanism adds to it (a waste gate and a second mechanism named as the
+gate alone; docs/validation.md).  The selection
 therefore judges a physical mechanism beside a valve on its in-sample gain and F-test (``evidence.earns``); the held-out
 prediction itself stays the schedule.  The option ``"support"`` (``FitProblem(..., held_out_valves="support")``,
 :meth:`FitResult.held_out_openings`) predicts it in two parts: *whether* the valve acts there is the full-data fit's
 support (a per-point state the selection counts as one free parameter per open point, like the opening itself), and *how
 much* it opens is interpolated in load among the training points where it acts, extrapolated linearly beyond them (never
-below shut). An ablation, not the default: on the study's development seeds 300-339 it made the two such (d) misses
-exact and lost ten trials of (b)-(d), where model error or proportional noise then passed the selection's bar as a
-second mechanism beside a valve (``docs/figures/validation/held_out_valves/``).  The option ``"state"``
+below shut). An ablation, not the default: in the open-world study it corrected two such misses and lost ten trials,
+where model error or proportional noise then passed the selection's bar as a second mechanism beside a valve
+(``docs/figures/validation/held_out_valves/``).  The option ``"state"``
 (:mod:`.held_out_state`, :attr:`FitResult.held_out_state`) estimates the opening at the held-out point from that point's
 other channels, each channel predicted without its own reading: what a per-point state claims is tested, not a load
 dependence it does not claim; an ablation, not the default (it lets model error in as a valve or beside one:

@@ -20,11 +20,11 @@ solves the readings on a grid of openings over ``[0, opening_max]``, interpolate
 channel, and minimises on a fine grid refined by a bounded scalar search; the prediction is then solved at the
 chosen opening.  Several valves: coordinate-wise, two rounds.
 
-An ablation, not the default (``docs/figures/validation/held_out_state/``): on the study's development seeds 300-339,
-run with the cross-validated bar for every candidate (no dilution left to make up for), it lost two (b) trials and
-traded one (d) trial for another.  An opening free at every held-out point is a per-point knob on the turbocharger's
-power balance: under model error a waste gate imitates a BSR efficiency loss, and a third cause beside a valve passes
-the 10 % bar.
+An ablation, not the default (``docs/figures/validation/held_out_state/``): in the open-world study, run with the
+cross-validated bar for every candidate (no dilution left to make up for), it lost two trials with model error and
+traded one trial with two mechanisms for another.  An opening free at every held-out point is a per-point knob on the
+turbocharger's power balance: under model error a waste gate imitates a BSR efficiency loss, and a third cause beside
+a valve passes the 10 % bar.
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ per cent.  Every fit, the base model's included, therefore adjusts these paramet
 ``σ`` = 3 % (a Gaussian penalty ``((s - 1)/σ)²`` added to the loss, and a hard box of ±2σ).  They are not
 causes and are never *named*; a named mechanism must explain more than model error of this size can.
 Without this, the smallest mismatch of the turbine area or the turbocharger efficiency would be
-"explained" by a named cause (the negative controls of the open-world study, condition (b), measure it).
+"explained" by a named cause (the open-world study's negative controls with model error measure it).
 
 =============================  =======================================================================
 group                          parameters scaled together

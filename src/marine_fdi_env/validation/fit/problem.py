@@ -171,7 +171,7 @@ class FitProblem:
 
         A tolerance is the residual scale of a channel: the fit weights it by its inverse and the tests of
         unexplained structure count in it, so a tolerance that misstates a sensor's noise weights the channels
-        wrongly (docs/validation.md, the study's ``--tolerance noise`` ablation).  Raises ValueError naming the
+        wrongly (docs/validation.md, "What a misstated tolerance costs").  Raises ValueError naming the
         item on an unknown or uncompared column, a malformed or non-positive value, or a column given twice."""
         out = {c: float(t) for c, t in zip(self.channels, self.tolerance)}
         seen: set[str] = set()

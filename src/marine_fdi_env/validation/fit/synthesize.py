@@ -20,9 +20,7 @@ covers its range.  Valve-type mechanisms open at the points above (waste gate) o
 load, with openings growing away from it.  The CSV follows the measured-data conventions of ``shared/data`` with the
 protocol's channels (:data:`DEFAULT_COLUMNS`); the sidecar names the parameter set, the seed and the
 noise but not the hidden effects.  The truth goes to a separate file only when asked for (``--truth``).
-
-The open-world study that runs on these data is ``studies/validation/study.py`` in the repository
-(``python -m studies.validation.study``).
+The open-world study of docs/validation.md runs the pipeline on such data.
 """
 
 from __future__ import annotations
@@ -72,7 +70,7 @@ DEFAULT_COLUMNS = (
 )
 SET_POINT_COLUMNS = ("load_fraction", "power_kW", "power_W", "power_MW", "load_percent")
 LOAD_RANGE = (0.25, 1.1)
-# the true engine's model error (condition b): efficiencies, areas and heat fractions, and the scavenging
+# the true engine's model error (``perturb``): efficiencies, areas and heat fractions, and the scavenging
 # slip, which the pipeline's nuisance does not cover
 PERTURBED_FIELDS = (
     ("A_eff_m2",),
@@ -158,8 +156,8 @@ def _perturbed(p: EngineParams, rng: np.random.Generator, sigma: float) -> tuple
 
 
 def effect_region(effect: dict[str, Any], lo: float = LOAD_RANGE[0], hi: float = LOAD_RANGE[1]) -> tuple[float, float]:
-    """Load range (within the study's load range) where an out-of-library effect exceeds half its largest magnitude
-    there."""
+    """Load range (within the synthetic data's load range) where an out-of-library effect exceeds half its largest
+    magnitude there."""
     x = np.linspace(lo, hi, 2001)
     y = np.abs(effect_shape(effect, x))
     on = x[y >= 0.5 * y.max()] if y.max() > 0 else x[:0]
@@ -182,8 +180,8 @@ def _relative_basis(column: str, values: np.ndarray, p_amb_Pa: float) -> float:
     absolute pressure for a gauge column), the basis of the pipeline's 1 % tolerance
     (:func:`~.measured.discrepancy.column_tolerance`), so that an amplitude of 4 % is 4 tolerances on every channel.
 
-    Not the mean *gauge* reading: on charge-air and turbine inlet pressure the "4-7 tolerance" effects of condition
-    (e) would then be about 2.4-4.3 and 1.9-3.4 tolerances (a 5 % step: 3.0 and 2.4)."""
+    Not the mean *gauge* reading: on charge-air and turbine inlet pressure effects of 4-7 tolerances would then be
+    about 2.4-4.3 and 1.9-3.4 tolerances (a 5 % step: 3.0 and 2.4)."""
     spec = lookup_column(column)
     return float(np.mean(np.abs(spec.to_si(values, p_amb_Pa)))) / spec.scale
 
@@ -244,7 +242,7 @@ def synthesize(
     engines : 0 = no engine column; K >= 1 = K engines E1..EK sharing the same load points.
     noise_model : ``typical`` (standard deviation noise x the channel's mean absolute value) or ``reading``
         (noise x |value|, a relative accuracy of the reading).
-    perturb : relative model error of the true engine (condition b of the study).
+    perturb : relative model error of the true engine.
     effects : out-of-library effects (:func:`draw_effect`) added to the clean readings.
     """
     if noise_model not in ("typical", "reading"):

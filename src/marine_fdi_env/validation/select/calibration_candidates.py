@@ -69,8 +69,8 @@ def calibrations_to_refit(scored: Sequence[CandidateScore], current_S: float, mi
 
     A calibration fitted on the current model's readings (:func:`sensor_candidate`) keeps the nuisance that the
     uncorrected channel pulled, while a physical candidate refits it: compared so, the physical mechanisms are
-    favoured, and a turbine flow law or a friction + heat-loss pair is named where one sensor reads wrong (study
-    trials a48, a51, b58, d40).  Refitting every calibration would cost as much as the physical candidates again;
+    favoured, and a turbine flow law or a friction + heat-loss pair is named where one sensor reads wrong
+    (docs/validation.md, step 4).  Refitting every calibration would cost as much as the physical candidates again;
     the miscalibrated channel is the one whose calibration on the current readings gains most, so the best two
     (those that improve the current score by ``min_gain`` already on the current readings) are refitted."""
     cal = [
@@ -101,8 +101,8 @@ def refit_with_calibration(
     miscalibrated sensor pulls them.  Left so, the next step compares every physical candidate (each fitted with all
     parameters free) against a model that is still bent, and whichever is tried first takes the gain of merely
     refitting: in trials with a calibration and model error, every physical candidate of the next step gained about a
-    third and one of them was named on top of the true calibration (study trials a25, b8, c14, d17, d33, d38).  So the
-    whole model is refitted with the calibration before the next step."""
+    third and one of them was named on top of the true calibration (docs/validation.md, step 4).  So the whole
+    model is refitted with the calibration before the next step."""
     comb = best.combination
     fit = fit_combination(problem, comb, start=best.fit, known=best.fit.values(), support=previous.support)
     c = CandidateScore(comb, best.added, fit, 2.0 * fit.data_cost / M)

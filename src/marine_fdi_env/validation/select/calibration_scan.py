@@ -4,17 +4,17 @@ When the selection names a sensor's gain and offset, the channel's residual is w
 offset remove exactly the part of any effect that is affine in the reading.  What is left of a step in load is a
 sawtooth with a jump, of a kink a hinge: their means are zero and they barely tilt, so the bias, trend and
 change-point tests of :mod:`.measured.discrepancy` see nothing, and the local-window scan of :mod:`.window_scan` (a
-window against the rest) sees little.  Measured on the open-world study (docs/validation.md): of the out-of-library
-effects on seeds 140-159, 10 of 20 were named as that channel's calibration with nothing reported, where a scan
-over the study's shape family at the pipeline's tolerance would have reported about 3 in 4 at 5 %
-(:mod:`.effect_bound`).
+window against the rest) sees little.  Measured on the open-world study (docs/validation.md): of 20 out-of-library
+effects, 10 were named as that channel's calibration with nothing reported, where a scan over the study's shape
+family at the pipeline's tolerance would have reported about 3 in 4 at 5 % (docs/validation.md, the effect bound).
 
 The scan (generalised likelihood ratio over a dictionary, with a simulated null):
 
 * the dictionary, at the channel's measured points in load order x_1 < ... < x_n: a **step** between every two
   neighbouring points (1 above the split), a **kink** at every point and every midpoint, bending up to either side
   (``max(x - c, 0)``, ``max(c - x, 0)``), and every **window** of 2 .. n/2 neighbouring points; generic shapes, not
-  the study generator's (its Gaussian bumps, smooth steps and its ranges of centres and widths are not used);
+  the synthetic effects' (:mod:`.fit.synthesize`: their Gaussian bumps, smooth steps and ranges of centres and
+  widths are not used);
 * each shape is made orthogonal to [1, reading] (what the gain and the offset absorb) and normalised; shapes left
   with nothing are dropped;
 * the statistic is the largest ``|u · r| / σ`` over the shapes, ``r`` the residual in tolerances and ``σ`` the

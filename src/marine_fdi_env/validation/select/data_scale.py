@@ -15,8 +15,8 @@ then judged at its tolerance times that number.  A channel that reads at or abov
 data-scale judgement off for the dataset (every channel is judged at its tolerance).
 
 Why the largest channel and not each channel's own scatter or their median (pure-noise datasets and one effect on
-one channel, 8 points, 13 channels, family-wise 5 %, 2000 draws each; ``python -m
-studies.validation.data_scale_bound``, docs/figures/validation/data_scale_bound.json):
+one channel, 8 points, 13 channels, family-wise 5 %, 2000 draws each; docs/figures/validation/data_scale_bound.json,
+made as docs/validation.md says):
 
 * each channel's own scatter from 7 differences is too uncertain to be used as if known; a null that simulates the
   estimate (a studentised scan) needs a scan statistic of 6.8 instead of 3.5, and finds a 5-noise-level bump in

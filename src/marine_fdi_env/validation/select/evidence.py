@@ -16,15 +16,13 @@ __all__ = ["BESIDE_VALVE", "BESIDE_VALVE_DEFAULT", "EXCHANGE_IN_SAMPLE", "IN_SAM
 #: how a cause joining a model that has a valve must earn its place (:func:`earns`): ``in_sample_pairs`` (the default:
 #: ``in_sample_exchange`` without the cross-validated guard, i.e. in sample the gain and F-test alone decide
 #: (:func:`earns` ``cv_guard``), and a pair that holds the step's best single candidate, a valve, replaces it when its
-#: second member earns its place beside the valve so, not by the penalised score; development check on 135 trials with a
-#: valve: d225 and d358 gained, none lost, docs/figures/validation/in_sample_pairs/), ``in_sample_exchange`` (a physical
-#: mechanism in sample with a cross-validated score that must be lower at all, and the exchange step's swap of a
-#: physical cause for a sensor calibration beside the valve too: the rule of the study file 360-380), ``in_sample``
-#: (physical mechanisms only: the rule of the study files 340-360) or ``cross_validated`` (the rule of every other
-#: candidate, and of every study file up to 320-340; an ablation).  A calibration added at a forward step keeps the
+#: second member earns its place beside the valve so, not by the penalised score; docs/figures/validation/
+#: in_sample_pairs/), ``in_sample_exchange`` (a physical mechanism in sample with a cross-validated score that must be
+#: lower at all, and the exchange step's swap of a physical cause for a sensor calibration beside the valve too),
+#: ``in_sample`` (physical mechanisms only) or ``cross_validated`` (the rule of every other candidate; an ablation).
+#: Which rule made which study file: docs/validation.md.  A calibration added at a forward step keeps the
 #: cross-validated bar under every rule: judged in sample it named a spurious turbine-inlet temperature calibration
-#: beside a bypass valve in development trial d317 (an ablation, not the default:
-#: docs/figures/validation/beside_valve/).
+#: beside a bypass valve (an ablation, not the default: docs/figures/validation/beside_valve/).
 BESIDE_VALVE = ("in_sample_pairs", "in_sample_exchange", "in_sample", "cross_validated")
 #: the rules under which the exchange step's swap beside a valve is judged in sample
 EXCHANGE_IN_SAMPLE = ("in_sample_exchange", "in_sample_pairs")
@@ -62,13 +60,13 @@ def earns(
     held-out point is predicted from the other points' (the schedule), and at its last shut point, its first open
     one and the highest load that prediction misses by tens of tolerances.  That error is the same for every model
     with the valve, so it dominates both cross-validated scores and dilutes a second mechanism's gain below the bar
-    however much it explains (study trial d131: in sample a waste gate with changed ambient conditions halves the
-    gate's loss alone, p ~ 1e-14; cross-validated the gain is 7.2 %).
+    however much it explains (in the open-world study a waste gate with changed ambient conditions halves the gate's
+    loss alone in sample, p ~ 1e-14; cross-validated the gain is 7.2 %).
 
     ``cv_guard=False`` (rule ``in_sample_pairs``): in sample, the cross-validated score need not drop at all.  The
-    held-out openings' error is not the same in both models: it depends on the openings each fit finds (study trial
-    d358: the true gate + turbine flow law is 83 % better in sample than the gate alone on the same four open points,
-    and cross-validates at 11.85 against 10.43)."""
+    held-out openings' error is not the same in both models: it depends on the openings each fit finds (a true gate +
+    turbine flow law, 83 % better in sample than the gate alone on the same four open points, cross-validates at 11.85
+    against 10.43; docs/validation.md)."""
     (ref_cv, ref_in, ref_k), (cv, s_in, k) = ref, cand
     if in_sample:
         gain = (ref_in - s_in) / ref_in if ref_in > 0 else 0.0

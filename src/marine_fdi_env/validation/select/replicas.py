@@ -1,7 +1,7 @@
 """Would the pipeline name the same causes again on data like these?  A parametric bootstrap at the data's design.
 
 The pipeline (:func:`~.selection.select_causes`) names causes on one dataset; the open-world study
-(:mod:`.study`) measures how often it is right on data drawn at *its* design (8 stratified loads, the
+(docs/validation.md) measures how often it is right on data drawn at *its* design (8 stratified loads, the
 parameter set's ambient state, noise it chose).  This module asks the question at the design of the data at
 hand: the same operating points, per-row boundary conditions, channels, tolerances and per-cylinder spreads.
 

@@ -38,8 +38,8 @@ def removal_step(
     without it), or None when each does.
 
     A forward step judges a mechanism against the causes named *before* it; one named later may take over what an
-    earlier one explained (study trial d7: a turbine flow law named at the first step, as one of a pair, and made
-    redundant by the bypass valve and the pressure-gauge calibration named next).  So at the end every named cause
+    earlier one explained (a turbine flow law named at the first step, as one of a pair, made redundant by the bypass
+    valve and the pressure-gauge calibration named next; docs/validation.md, step 4).  So at the end every named cause
     is put to the test its own step put it to, against the model of all the others refitted and cross-validated:
     it must lower the cross-validated score by ``min_gain`` with the F-test's p below the threshold of the step
     that named it (:func:`~.evidence.earns`: in sample for a physical mechanism beside a valve when ``beside_valve``
@@ -110,17 +110,17 @@ def exchange_step(
     Forward selection never takes a cause back, and a calibration is only eligible when its gain and offset leave no
     local departure on its channel (:func:`~.eligibility.structure_left`). When a physical mechanism has absorbed
     part of a miscalibrated sensor, what the calibration would leave on top of it is bent, so the true calibration
-    stays ineligible, and further mechanisms are named to mop up (study trial d260: friction + a p_max
-    gauge reading 5 % high named as cylinder heat loss + friction, then ambient + turbine flow law; the p_max
-    calibration scored best at step 2 but left structure on top of the heat loss). So at the end each named physical
+    stays ineligible, and further mechanisms are named to mop up (friction + a p_max gauge reading 5 % high named as
+    cylinder heat loss + friction, then ambient + turbine flow law; the p_max calibration scored best at step 2 but
+    left structure on top of the heat loss; docs/validation.md, step 4). So at the end each named physical
     cause is taken out in turn (the others refitted, as :func:`removal_step` does), every sensor calibration not yet
     named is fitted on that model's readings, and the best is refitted as a whole model and cross-validated. The
     exchange is made when it lowers the cross-validated score by ``min_gain`` and its penalised score, the
     calibration leaves no local departure against the model without the cause, and no parameter is pinned; the best
     such exchange is made, and the caller runs the removal step again. Beside a valve (the model after the exchange
     keeps one) and with ``beside_valve`` in :data:`~.evidence.EXCHANGE_IN_SAMPLE` the gain is the in-sample one (as
-    :func:`~.evidence.earns`: the valve's held-out openings dilute the cross-validated gain; study trial d346:
-    the swap back to the true calibration gained 7.0 % cross-validated); the penalised cross-validated
+    :func:`~.evidence.earns`: the valve's held-out openings dilute the cross-validated gain; a swap back to the true
+    calibration gained 7.0 % cross-validated, docs/validation.md); the penalised cross-validated
     score must still be lower."""
     phys = [m for m in current.mechanisms if not isinstance(m, SensorCalibration)]
     named = {m.channel for m in current.mechanisms if isinstance(m, SensorCalibration)}

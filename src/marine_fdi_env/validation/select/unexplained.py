@@ -38,9 +38,9 @@ __all__ = [
 #: family-wise level (Bonferroni over the channels) at which a discrepancy left by the final model is reported as
 #: unexplained.  Naming a cause asserts a physical explanation and is held to ``alpha`` (1 %); an unexplained finding
 #: asks an engineer to look at a channel and a load region, and is held to the customary 5 %.  Chosen on
-#: the study's condition (e), whose effects of 4-7 tolerances give scan p-values between 0.001 and 0.004 per
-#: channel (trials e66, e69, e75, e77): above 0.01/13, below 0.05/13.  The price, measured on the negative
-#: controls, is in docs/validation.md.
+#: out-of-library effects of 4-7 tolerances, whose scan p-values lie between 0.001 and 0.004 per channel: above
+#: 0.01/13, below 0.05/13.  The trials it was chosen on and its price, measured on the negative controls, are in
+#: docs/validation.md.
 ALPHA_UNEXPLAINED = 0.05
 
 
@@ -238,7 +238,7 @@ def unexplained_findings(
     and offset explain that sensor", on the channel the calibration names; the other channels are not scanned, so
     they do not enter its multiplicity.  ``alpha`` (5 %) is then the rate at which a true calibration's report
     carries a spurious "left by the calibration" finding; dividing by 13 channels would hold it to 0.4 % and cost
-    the out-of-library effects the selection names as a calibration.  Measured on development trials in
+    the out-of-library effects the selection names as a calibration.  Measured in
     docs/validation.md ("The selection's rules one at a time: what each is designed on and what it changes", "The
     calibration scan at the level of its own claim").  ``scans``, when given, receives every calibration scan
     (:func:`calibration_left`)."""

@@ -18,10 +18,11 @@ ways:
 
 The null's noise level is the dataset's (:func:`noise_ratio`, at least the tolerance), so the test holds its level when
 the data as a whole are noisier than the tolerance says (tested).  It does not when only some channels are: the level is
-a median over channels.  In the study's condition (c) (noise 1.5 % of each reading against a 1 % tolerance of the mean
-reading) the engine and turbocharger speeds and the cylinder-outlet temperature carry noise of 1.3-2 tolerances while
-most other channels carry less, and 5-6 of 20 negative controls still show a local finding on one of them (with the
-Bonferroni p-value: 6 of 20).  A per-channel noise level robust to the channel's own effect is the next step (not done).
+a median over channels.  With noise 1.5 % of each reading against a 1 % tolerance of the mean reading (the open-world
+study, docs/validation.md) the engine and turbocharger speeds and the cylinder-outlet temperature carry noise of 1.3-2
+tolerances while most other channels carry less, and 5-6 of 20 negative controls still show a local finding on one of
+them (with the Bonferroni p-value: 6 of 20).  A per-channel noise level robust to the channel's own effect is the next
+step (not done).
 """
 
 from __future__ import annotations
