@@ -11,11 +11,12 @@ Each stage imports only the stages before it (``python -m marine_fdi_env.info --
 below are the measured-data entry points.
 """
 
-from .measured.dataset import DatasetError, DataWarning, MeasuredDataset
+from .measured.dataset import DataFinding, DatasetError, DataWarning, MeasuredDataset
 from .measured.loader import list_shipped, load_measured, load_shipped, write_measured
 from .measured.readers import READERS, RawTable, Reader
 
 __all__ = [
+    "DataFinding",
     "DataWarning",
     "DatasetError",
     "MeasuredDataset",

@@ -5,16 +5,16 @@ and assembles a JSON-serialisable report; :func:`~.plots.write_plots` draws mode
 before and after the extension (:mod:`.plots`), :func:`~.markdown.markdown_summary` writes it as
 Markdown (:mod:`.markdown`); :func:`fitted_engine` turns the result into an engine (parameter set +
 submodels) that the simulator, the steady-state solver, the environment and the diagnoser run;
-:func:`validate_main` is the command line ``marine-fdi validate``::
+the command line ``marine-fdi validate`` (:mod:`marine_fdi_env.cli.validate`) runs it::
 
-    marine-fdi validate --data FILE.csv [--holdout FILE.csv | --holdout-engine ID] --out report.json
+    marine-fdi validate --data FILE [--holdout FILE | --holdout-engine ID] --out report.json
                         [--plots DIR] [--params NAME|FILE.json] [--target auto|power|fuel_flow|speed|fuel_rack]
                         [--max-causes N] [--alpha A] [--alpha-unexplained A] [--save-params ENGINE.json]
                         [--markdown FILE.md]
 
-``--data`` also takes the name of a shipped dataset (``birka_6l46_shop_test``, ``birka_me1_test_protocol``,
-``man_12v32_40_fpp_iso``).  ``--holdout-engine ID`` leaves one engine of ``--data`` out of everything
-(fit and cross-validation) and reports the fitted model on it.
+``--data`` is a CSV or Parquet file (:mod:`.measured.readers`) or the name of a shipped dataset
+(``birka_6l46_shop_test``, ``birka_me1_test_protocol``, ``man_12v32_40_fpp_iso``).  ``--holdout-engine ID`` leaves
+one engine of ``--data`` out of everything (fit and cross-validation) and reports the fitted model on it.
 
 Report keys, first ``what_the_data_allow`` (:mod:`.conclusion`: how many explanations the data do not decide
 between, the first-ranked one, the measurement that decides, where the forward selection's path ends among
