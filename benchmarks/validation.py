@@ -8,7 +8,7 @@
 
 Every fit of ``marine-fdi validate`` and of the open-world study spends its time in one call, repeated for each
 residual and finite-difference Jacobian column: the model readings of a parameter vector at the measured points
-(:meth:`~marine_fdi_env.validation.fitting._Objective.data_residuals`: the setting of the vector, the steady states
+(:meth:`~marine_fdi_env.validation.fit.fitting._Objective.data_residuals`: the setting of the vector, the steady states
 of the points, the readings in the columns' units, the normalised residuals).  On the Birka ME1 shop-test protocol
 (6 points, 11 channels, each row at its own boundary conditions) with a waste gate open at the four highest loads:
 
@@ -35,9 +35,9 @@ from _report import emit  # noqa: E402  (benchmarks/ is the script directory)
 
 from marine_fdi_env.engine import operating_point
 from marine_fdi_env.validation import load_shipped
-from marine_fdi_env.validation.fitting import Combination, _Objective, fit_combination
-from marine_fdi_env.validation.mechanisms import WasteGateM
-from marine_fdi_env.validation.problem import Problem
+from marine_fdi_env.validation.fit.fitting import Combination, _Objective, fit_combination
+from marine_fdi_env.validation.fit.mechanisms import WasteGateM
+from marine_fdi_env.validation.fit.problem import FitProblem
 
 
 def _best(fn, zs, repeats: int) -> float:
@@ -62,7 +62,7 @@ def main(argv=None) -> int:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         ds = load_shipped("birka_me1_test_protocol")
-    problem = Problem(ds)
+    problem = FitProblem(ds)
     rows = problem.rows_with_data()
     gate = Combination((WasteGateM(),))
     fit = fit_combination(problem, gate)  # a realistic point: the gate open where the data want it
@@ -102,7 +102,11 @@ def main(argv=None) -> int:
         "fit_waste_gate_s": round(time.process_time() - t0, 2),
     }
     if args.trial:
-        from marine_fdi_env.validation import study
+        import sys
+        from pathlib import Path
+
+        sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root, home of studies/
+        from studies.validation import study
 
         t0 = time.process_time()
         study.trial(args.trial[0], int(args.trial[1:]))

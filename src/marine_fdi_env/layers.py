@@ -11,9 +11,15 @@ installed).  Data flows one way::
                          \\-> validation -----------------------------------------> cli
 
 A module may import its own layer and the layers before it on its path: ``validation`` only
-``util``, ``params`` and ``engine`` (and itself); only ``cli`` imports ``validation``.  ``cli`` is
-the command line (:mod:`marine_fdi_env.cli` and the ``python -m marine_fdi_env.info`` entry), and
-nothing outside it imports it; ``top`` is the package ``__init__`` (it registers the environments).
+``util``, ``params`` and ``engine`` (and itself); only ``cli`` imports ``validation``.  Inside
+``validation`` the stages are layers of their own, one way too (:data:`VALIDATION_STAGES`)::
+
+    validation.measured -> validation.fit -> validation.select -> validation.explain -> validation.report
+
+(data in, fit, select, explain, report); the package ``validation`` itself (its ``__init__``, the public
+names) may import every stage.  ``cli`` is the command line (:mod:`marine_fdi_env.cli` and the
+``python -m marine_fdi_env.info`` entry), and nothing outside it imports it; ``top`` is the package
+``__init__`` (it registers the environments).
 ``io`` (run files, the thesis scenarios) sits on the engine because the diagnosis reads run files
 and the suites are built from the scenarios.
 
@@ -36,6 +42,7 @@ from ._version import __version__
 __all__ = [
     "LAYERS",
     "ALLOWED",
+    "VALIDATION_STAGES",
     "ImportEdge",
     "layer_of",
     "package_roots",
@@ -67,6 +74,11 @@ LAYERS: dict[str, tuple[str, ...]] = {
     "engine": ("engine",),
     "io": ("runio", "scenarios"),
     "validation": ("validation",),
+    "validation.measured": ("validation.measured",),
+    "validation.fit": ("validation.fit",),
+    "validation.select": ("validation.select",),
+    "validation.explain": ("validation.explain",),
+    "validation.report": ("validation.report",),
     "diagnosis": ("diagnosis",),
     "envs": ("envs",),
     "benchmark": ("benchmark",),
@@ -75,12 +87,21 @@ LAYERS: dict[str, tuple[str, ...]] = {
     "top": ("",),
 }
 _BASE = ("util", "params", "engine")
+#: the stages of ``validation``, in the order data flows through them
+VALIDATION_STAGES = (
+    "validation.measured",
+    "validation.fit",
+    "validation.select",
+    "validation.explain",
+    "validation.report",
+)
 ALLOWED: dict[str, frozenset[str]] = {
     "util": frozenset({"util"}),
     "params": frozenset({"util", "params"}),
     "engine": frozenset(_BASE),
     "io": frozenset(_BASE + ("io",)),
-    "validation": frozenset(_BASE + ("validation",)),
+    "validation": frozenset(_BASE + ("validation",) + VALIDATION_STAGES),
+    **{stage: frozenset(_BASE + VALIDATION_STAGES[: i + 1]) for i, stage in enumerate(VALIDATION_STAGES)},
     "diagnosis": frozenset(_BASE + ("io", "diagnosis")),
     "envs": frozenset(_BASE + ("io", "diagnosis", "envs")),
     "benchmark": frozenset(_BASE + ("io", "diagnosis", "envs", "benchmark")),
@@ -302,11 +323,12 @@ def print_imports(result: dict, verbose: bool = False, file=None) -> int:
     for m in mods:
         count[layer_of(m)] += 1
     print(f"{PACKAGE} {__version__}: {len(mods)} modules, {len(result['edges'])} imports between them", file=file)
-    print("layer        modules  imports from (number of imports)", file=file)
+    width = max(map(len, LAYERS)) + 1
+    print(f"{'layer':<{width + 2}}modules  imports from (number of imports)", file=file)
     for layer in LAYERS:
         deps = result["layers"][layer]
         txt = ", ".join(f"{b} ({deps[b]})" for b in LAYERS if b in deps) or "-"
-        print(f"  {layer:<11}{count[layer]:>6}   {txt}", file=file)
+        print(f"  {layer:<{width}}{count[layer]:>7}   {txt}", file=file)
     if verbose:
         for e in sorted(result["edges"], key=lambda e: (e.importer, e.imported)):
             print(f"    {e.importer} -> {e.imported}{' (in a function)' if e.in_function else ''}", file=file)

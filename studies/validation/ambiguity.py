@@ -23,10 +23,10 @@ from typing import Any, Callable
 
 import numpy as np
 
-from marine_fdi_env.validation.explanations import BAND
-from marine_fdi_env.validation.fitting import Combination, fit_combination, predict_setting
-from marine_fdi_env.validation.mechanisms import get_mechanism
-from marine_fdi_env.validation.problem import Problem
+from marine_fdi_env.validation.explain.explanations import BAND
+from marine_fdi_env.validation.fit.fitting import Combination, fit_combination, predict_setting
+from marine_fdi_env.validation.fit.mechanisms import get_mechanism
+from marine_fdi_env.validation.fit.problem import FitProblem
 
 __all__ = ["ATTEMPTS", "DRAWS", "PAIRS", "ambiguous_draw"]
 
@@ -62,7 +62,7 @@ def ambiguous_draw(
     :func:`~.synthesize.synthesize`; ``misfit``: the alternative's sum of squared misfit on the clean data in noise
     standard deviations), or None when no draw of :data:`ATTEMPTS` is ambiguous.  ``load``: the study's round trip
     of a synthesis through a CSV file and the loader (:func:`~.study.loaded`).  Cached (a trial asks twice)."""
-    from marine_fdi_env.validation.synthesize import synthesize
+    from marine_fdi_env.validation.fit.synthesize import synthesize
 
     truth_ids, alt_ids = PAIRS[int(seed) % len(PAIRS)]
     for attempt in range(ATTEMPTS):
@@ -70,7 +70,7 @@ def ambiguous_draw(
         specs = _specs(truth_ids, rng)
         try:
             clean = synthesize(params, specs, points=points, noise=0.0, seed=int(seed) * 31 + 7)
-            pr = Problem(load(clean))
+            pr = FitProblem(load(clean))
         except ValueError:
             continue
         comb = Combination(tuple(get_mechanism(m) for m in alt_ids))

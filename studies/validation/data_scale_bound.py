@@ -1,10 +1,11 @@
 """What judging residual structure at the data's own scatter can and cannot do: false findings on pure noise and
-the power on a bump, for three ways of estimating the scatter (validation/data_scale.py's module docstring quotes
-these numbers).
+the power on a bump, for three ways of estimating the scatter (validation/select/data_scale.py's module docstring
+quotes these numbers).
 
 Each draw is a dataset of ``n`` points (load order) on 13 channels of Gaussian noise, every channel's tolerance 1;
-the scan is :func:`~marine_fdi_env.validation.window_scan.window_excess`'s (windows up to ``n/2``), Bonferroni over
-the channels (``alpha = 0.05 / 13``), and a finding must also depart by a tolerance, as in the pipeline.  Rules:
+the scan is :func:`~marine_fdi_env.validation.select.window_scan.window_excess`'s (windows up to ``n/2``),
+Bonferroni over the channels (``alpha = 0.05 / 13``), and a finding must also depart by a tolerance, as in the
+pipeline.  Rules:
 
 * ``own``: each channel judged at its own robust scatter (``median |Δr| / (0.6745 sqrt 2)``) with a null that
   simulates that estimate (studentised), where it is below the tolerance;
@@ -30,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from marine_fdi_env.validation.window_scan import _scan, scan_null
+from marine_fdi_env.validation.select.window_scan import _scan, scan_null
 
 CHANNELS = 13
 ALPHA = 0.05 / CHANNELS

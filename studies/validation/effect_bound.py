@@ -55,8 +55,8 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 from scipy import optimize, stats
 
-from marine_fdi_env.validation.binomial import proportion_ci95
-from marine_fdi_env.validation.calibration_scan import orthonormal_directions
+from marine_fdi_env.validation.select.binomial import proportion_ci95
+from marine_fdi_env.validation.select.calibration_scan import orthonormal_directions
 
 from .study_pool import SIZE_BINS, size_bin
 
@@ -114,7 +114,7 @@ SCAN_ALT_DRAWS = 4000
 def shape_family(loads: Sequence[float]) -> np.ndarray:
     """The scan's shapes at ``loads`` (rows; unit amplitude): every kind of the study's effects at every grid
     centre and width (a bend does not depend on the width: once)."""
-    from marine_fdi_env.validation.synthesize import EFFECT_KINDS, effect_shape
+    from marine_fdi_env.validation.fit.synthesize import EFFECT_KINDS, effect_shape
 
     x = np.asarray(loads, dtype=float)
     rows = []
@@ -157,7 +157,7 @@ def trial_bound(result: Mapping[str, Any]) -> dict[str, Any]:
 
     Raises ValueError when the result is not an (e) trial with an effect, or when the re-drawn effect differs from
     the one the file records (the file was written by another version of the study)."""
-    from marine_fdi_env.validation.synthesize import SET_POINT_COLUMNS
+    from marine_fdi_env.validation.fit.synthesize import SET_POINT_COLUMNS
 
     from .study import trial_data
 
@@ -205,7 +205,7 @@ def trial_bound(result: Mapping[str, Any]) -> dict[str, Any]:
 
 def _tolerance(syn, column: str) -> float:
     """The pipeline's tolerance of ``column`` on the trial's data (written and loaded as the study does)."""
-    from marine_fdi_env.validation.discrepancy import column_tolerance
+    from marine_fdi_env.validation.measured.discrepancy import column_tolerance
 
     from .study import loaded
 

@@ -73,13 +73,13 @@ def passes_bar(
 
 
 def _problem(condition: str, seed: int, params: str, points: int):
-    """The trial's data and :class:`~.problem.Problem`, written and loaded as the study does."""
-    from marine_fdi_env.validation.problem import Problem
+    """The trial's data and :class:`~.problem.FitProblem`, written and loaded as the study does."""
+    from marine_fdi_env.validation.fit.problem import FitProblem
 
     from .study import loaded, trial_data
 
     syn = trial_data(condition, seed, params=params, points=points)
-    return syn, Problem(loaded(syn, f"hidden_{condition}_{seed}"))
+    return syn, FitProblem(loaded(syn, f"hidden_{condition}_{seed}"))
 
 
 def trial_check(result: Mapping[str, Any], *, min_gain: float = 0.10, alpha: float = 0.01) -> dict[str, Any]:
@@ -87,9 +87,9 @@ def trial_check(result: Mapping[str, Any], *, min_gain: float = 0.10, alpha: flo
 
     Raises ValueError when the result is not a scored miss of (a)-(d), or when the re-drawn truth is not the one the
     file records (the file was written by another version of the study)."""
-    from marine_fdi_env.validation.columns import QUANTITIES
-    from marine_fdi_env.validation.fitting import Combination, fit_combination
-    from marine_fdi_env.validation.mechanisms import library, sensor_reference
+    from marine_fdi_env.validation.fit.fitting import Combination, fit_combination
+    from marine_fdi_env.validation.fit.mechanisms import library, sensor_reference
+    from marine_fdi_env.validation.measured.columns import QUANTITIES
 
     cond = result.get("condition")
     if cond not in CONDITIONS or result.get("control") or result.get("outcome") in (None, "skipped", "control"):

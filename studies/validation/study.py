@@ -20,9 +20,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from marine_fdi_env.validation.evidence import BESIDE_VALVE_DEFAULT
-from marine_fdi_env.validation.mechanisms import MECHANISM_IDS, equivalents
-from marine_fdi_env.validation.synthesize import (
+from marine_fdi_env.validation.fit.mechanisms import MECHANISM_IDS, equivalents
+from marine_fdi_env.validation.fit.synthesize import (
     DEFAULT_COLUMNS,
     FAMILIES,
     Synthesis,
@@ -30,6 +29,7 @@ from marine_fdi_env.validation.synthesize import (
     effect_region,
     synthesize,
 )
+from marine_fdi_env.validation.select.evidence import BESIDE_VALVE_DEFAULT
 
 from .study_pool import SIZE_BINS
 
@@ -212,14 +212,15 @@ def loaded(syn: Synthesis, name: str = "trial", workdir: str | Path | None = Non
     import tempfile
     import warnings
 
-    from marine_fdi_env.validation.dataset import DataWarning, load_dataset
+    from marine_fdi_env.validation.measured.dataset import DataWarning
+    from marine_fdi_env.validation.measured.loader import load_measured
 
     with tempfile.TemporaryDirectory(dir=workdir) as d:
         path = Path(d) / f"{name}.csv"
         syn.write(path)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DataWarning)
-            return load_dataset(path)
+            return load_measured(path)
 
 
 def trial_data(
@@ -269,10 +270,10 @@ def trial(
     :data:`TOLERANCE_MODES`; ``exchange``: the selection's exchange step, on by default; ``held_out_valves``: one of
     :data:`~.problem.HELD_OUT_VALVES`; ``beside_valve``: one of :data:`~.evidence.BESIDE_VALVE`; ``explanations``:
     also the explanation set, :mod:`.study_sets`) and compare with the truth."""
-    from marine_fdi_env.validation.dataset import DatasetError
-    from marine_fdi_env.validation.problem import Problem
-    from marine_fdi_env.validation.rules import SelectionRules
-    from marine_fdi_env.validation.selection import select_causes
+    from marine_fdi_env.validation.fit.problem import FitProblem
+    from marine_fdi_env.validation.measured.dataset import DatasetError
+    from marine_fdi_env.validation.select.rules import SelectionRules
+    from marine_fdi_env.validation.select.selection import select_causes
 
     t0 = time.perf_counter()
     draw = trial_draw(condition, seed, control=control)
@@ -322,10 +323,10 @@ def trial(
     rules = SelectionRules(
         max_folds=max_folds, prune=prune, exchange=exchange, beside_valve=beside_valve, held_out_valves=held_out_valves
     )
-    problem = Problem(ds, held_out_valves=rules.held_out_valves)
+    problem = FitProblem(ds, held_out_valves=rules.held_out_valves)
     if tolerance in ("noise", "noise2x"):
         factor = 2.0 if tolerance == "noise2x" else 1.0
-        problem = Problem(
+        problem = FitProblem(
             ds,
             tolerances={c: factor * v for c, v in noise_tolerances(syn, problem.channels).items()},
             held_out_valves=rules.held_out_valves,

@@ -35,7 +35,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from marine_fdi_env.validation.binomial import proportion_ci95
+from marine_fdi_env.validation.select.binomial import proportion_ci95
 
 __all__ = ["SIZE_BINS", "TARGETS", "load_trials", "pool", "pool_markdown", "pool_plot", "pool_main"]
 

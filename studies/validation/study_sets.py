@@ -12,8 +12,8 @@ from __future__ import annotations
 import statistics
 from typing import Any, Mapping, Sequence
 
-from marine_fdi_env.validation.binomial import proportion_ci95
-from marine_fdi_env.validation.explanations import explanation_set_of
+from marine_fdi_env.validation.explain.explanations import explanation_set_of
+from marine_fdi_env.validation.select.binomial import proportion_ci95
 
 __all__ = ["set_outcome", "set_summary"]
 

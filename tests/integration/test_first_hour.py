@@ -259,7 +259,7 @@ def test_the_sweep_writes_to_results_sweep_without_out(tmp_path, monkeypatch, ca
 
 # ----------------------------------------------------------------------------- the validation report's lead
 def test_the_validation_report_leads_with_what_the_data_allow():
-    from marine_fdi_env.validation.report_markdown import markdown_summary
+    from marine_fdi_env.validation.report.markdown import markdown_summary
 
     rep = json.loads((ROOT / "docs/figures/validation/birka_me1_test_protocol.json").read_text())
     assert next(iter(rep)) == "what_the_data_allow"  # the JSON's first key

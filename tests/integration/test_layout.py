@@ -144,6 +144,34 @@ def test_info_imports_reports_circles_and_backward_imports(tmp_path):
     assert print_imports(res, file=open(tmp_path / "out.txt", "w")) == 1
 
 
+def test_the_validation_stages_import_one_way(tmp_path):
+    """Inside validation/ each stage is a layer: data in -> fit -> select -> explain -> report.  Every module of
+    validation/ is in a stage (the package __init__ aside), and an import against that order is reported."""
+    from marine_fdi_env.layers import VALIDATION_STAGES, check_imports, layer_of, package_modules
+
+    stages = {layer_of(m) for m in package_modules() if m.startswith("marine_fdi_env.validation.")}
+    assert stages == set(VALIDATION_STAGES)
+    assert layer_of("marine_fdi_env.validation") == "validation"
+    assert layer_of("marine_fdi_env.validation.measured.readers") == "validation.measured"
+    src = {
+        "marine_fdi_env.validation.measured.a": "def f():\n    from ..fit.problem import FitProblem\n",
+        "marine_fdi_env.validation.fit.problem": "from ..measured import a\n",
+        "marine_fdi_env.validation.explain.e": "from ..select.s import x\nfrom ..report.r import y\n",
+        "marine_fdi_env.validation.select.s": "",
+        "marine_fdi_env.validation.report.r": "",
+    }
+    mods = {}
+    for name, text in src.items():
+        f = tmp_path / (name.replace(".", "_") + ".py")
+        f.write_text(text)
+        mods[name] = f
+    back = {(e.importer, e.imported) for e in check_imports(mods)["backward"]}
+    assert back == {
+        ("marine_fdi_env.validation.measured.a", "marine_fdi_env.validation.fit.problem"),
+        ("marine_fdi_env.validation.explain.e", "marine_fdi_env.validation.report.r"),
+    }
+
+
 def test_agents_and_models_are_named_under_the_namespace(tmp_path):
     """Built-in agents, shipped model folders and the models package are under marine_fdi_env;
     an agent.json with a pre-move class name fails with the new spelling in the message."""

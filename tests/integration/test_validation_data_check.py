@@ -14,7 +14,7 @@ import pytest
 
 from marine_fdi_env.cli.synthesize import synthesize_main
 from marine_fdi_env.cli.validate import validate_main
-from marine_fdi_env.validation.columns import COLUMNS, GROUP_PATTERNS
+from marine_fdi_env.validation.measured.columns import COLUMNS, GROUP_PATTERNS
 from tests.paths import ROOT
 
 EXAMPLE = ROOT / "docs" / "examples" / "measured" / "example_engine.csv"
@@ -102,6 +102,26 @@ def test_check_names_sidecar_tolerances_and_a_suspect_reading(tmp_path, capsys):
     assert "leave-one-engine-out (2 folds)" in held and "hold-out: engine ME2 of shop, 5 points" in held
     assert "suspect reading, kept" in out and "row 6 charge_air_pressure_bar_gauge = 1.3" in out
     assert "fuel_rack" in out and "not compared (the model has no counterpart)" in out
+
+
+def test_check_reads_a_parquet_file_as_it_reads_the_csv(tmp_path, capsys):
+    """``--data`` picks the reader by the file's ending: the shop test as Parquet is checked line for line as the CSV;
+    a file its reader cannot read is one line naming the file and the reader."""
+    from tests.unit.test_validation_dataset import to_parquet
+
+    src = ROOT / "src" / "marine_fdi_env" / "data" / "measured"
+    for f in ("birka_6l46_shop_test.csv", "birka_6l46_shop_test.meta.json"):
+        shutil.copy(src / f, tmp_path / f)
+    parquet = to_parquet(tmp_path / "birka_6l46_shop_test.csv")
+    outs = []
+    for data in (tmp_path / "birka_6l46_shop_test.csv", parquet):
+        assert validate_main(["--data", str(data), "--check"]) == 0
+        outs.append(capsys.readouterr().out)
+    assert outs[0] == outs[1] and "15 points" in outs[0]
+    parquet.write_bytes(b"PAR1 but not really")
+    assert validate_main(["--data", str(parquet), "--check"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"marine-fdi validate: error: --data: {parquet}: the parquet reader")
 
 
 def test_check_and_columns_bad_input(tmp_path, capsys):

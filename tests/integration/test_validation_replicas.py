@@ -1,4 +1,4 @@
-"""Replicas of a dataset drawn from fitted hypotheses (:mod:`marine_fdi_env.validation.replicas`): the noise, the
+"""Replicas of a dataset drawn from fitted hypotheses (:mod:`marine_fdi_env.validation.select.replicas`): the noise, the
 design kept, the seeding, and the pipeline run on them."""
 
 from __future__ import annotations
@@ -8,10 +8,11 @@ import warnings
 import numpy as np
 import pytest
 
-from marine_fdi_env.validation import DataWarning, load_dataset
-from marine_fdi_env.validation.mechanisms import PHYSICAL_MECHANISMS
-from marine_fdi_env.validation.problem import Problem
-from marine_fdi_env.validation.replicas import (
+from marine_fdi_env.validation import DataWarning, load_measured
+from marine_fdi_env.validation.fit.mechanisms import PHYSICAL_MECHANISMS
+from marine_fdi_env.validation.fit.problem import FitProblem
+from marine_fdi_env.validation.fit.synthesize import synthesize
+from marine_fdi_env.validation.select.replicas import (
     hypotheses,
     markdown_table,
     noise_scale,
@@ -19,9 +20,8 @@ from marine_fdi_env.validation.replicas import (
     replicate,
     run_replica,
 )
-from marine_fdi_env.validation.rules import SelectionRules
-from marine_fdi_env.validation.selection import select_causes
-from marine_fdi_env.validation.synthesize import synthesize
+from marine_fdi_env.validation.select.rules import SelectionRules
+from marine_fdi_env.validation.select.selection import select_causes
 from tests.paths import TEST_DATA
 
 #: a small library keeps the pipeline runs of this file to seconds
@@ -38,8 +38,8 @@ def waste_gate_selection(tmp_path_factory):
     syn.write(path)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DataWarning)
-        ds = load_dataset(path)
-    sel = select_causes(Problem(ds), _LIB, pairs=False, max_causes=1)
+        ds = load_measured(path)
+    sel = select_causes(FitProblem(ds), _LIB, pairs=False, max_causes=1)
     return syn, sel
 
 
@@ -96,7 +96,7 @@ def test_a_replica_keeps_the_design_and_only_changes_the_readings(waste_gate_sel
     hyp = hypotheses(sel, [])[0]
     Y = replica_readings(pr, hyp, noise_scale(sel, "tolerance"), 0, 0, 0, "tolerance")
     rep = pr.ds.with_readings({c: Y[:, j] for j, c in enumerate(pr.channels)})
-    q = Problem(rep, params=pr.params, target=pr.target, tolerances=dict(zip(pr.channels, pr.tolerance)))
+    q = FitProblem(rep, params=pr.params, target=pr.target, tolerances=dict(zip(pr.channels, pr.tolerance)))
     np.testing.assert_array_equal(q.Y, Y)
     np.testing.assert_array_equal(q.target_si, pr.target_si)
     np.testing.assert_array_equal(q.tolerance_cells, pr.tolerance_cells)
@@ -141,11 +141,11 @@ def test_every_replica_follows_the_rules_the_data_were_selected_with(waste_gate_
     selection rules: the valve rules (``beside_valve``, ``held_out_valves``) and the exchange step too, not the
     defaults (else ``marine-fdi validate --beside-valve ... --replicas N`` would judge the replicas by another rule
     than the data).  No cause may be named here, so each run is a base fit."""
-    import marine_fdi_env.validation.replicas as replicas
+    import marine_fdi_env.validation.select.replicas as replicas
 
     _, sel0 = waste_gate_selection
     pr = sel0.problem
-    q = Problem(pr.ds, params=pr.params, target=pr.target, held_out_valves="support")
+    q = FitProblem(pr.ds, params=pr.params, target=pr.target, held_out_valves="support")
     sel = select_causes(q, _LIB, pairs=False, max_causes=0, exchange=False, beside_valve="cross_validated")
     seen = []
     real = replicas.select_causes
@@ -176,16 +176,16 @@ def test_a_candidate_pinned_at_a_bound_does_not_screen_the_others_out():
     import json
 
     from marine_fdi_env.validation import load_shipped
-    from marine_fdi_env.validation.mechanisms import SensorCalibration, sensor_reference
+    from marine_fdi_env.validation.fit.mechanisms import SensorCalibration, sensor_reference
 
     rec = json.loads((TEST_DATA / "protocol_replica_flow_law.json").read_text())
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DataWarning)
         ds = load_shipped("birka_me1_test_protocol")
-    pr = Problem(ds)
+    pr = FitProblem(ds)
     assert list(pr.channels) == rec["channels"]
     rep = ds.with_readings(rec["readings"])
-    q = Problem(rep, params=pr.params, target=pr.target, tolerances=dict(zip(pr.channels, pr.tolerance)))
+    q = FitProblem(rep, params=pr.params, target=pr.target, tolerances=dict(zip(pr.channels, pr.tolerance)))
     ch = "cylinder_exhaust_temperature_mean_C"
     lib = [m for m in PHYSICAL_MECHANISMS if m.id in ("waste_gate", "turbine_flow_law", "turbocharger_map")]
     lib.append(SensorCalibration(channel=ch, reference=sensor_reference(ch, q.Y[:, q.channels.index(ch)])))

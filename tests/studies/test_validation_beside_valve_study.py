@@ -1,11 +1,11 @@
-"""How a cause joining a model with a valve earns its place (validation/evidence.py, BESIDE_VALVE)."""
+"""How a cause joining a model with a valve earns its place (validation/select/evidence.py, BESIDE_VALVE)."""
 
 from __future__ import annotations
 
 import pytest
 
-from marine_fdi_env.validation.mechanisms import PHYSICAL_MECHANISMS
-from marine_fdi_env.validation.selection import select_causes
+from marine_fdi_env.validation.fit.mechanisms import PHYSICAL_MECHANISMS
+from marine_fdi_env.validation.select.selection import select_causes
 from studies.validation.study import _trial_settings, trial
 
 MECH = {m.id: m for m in PHYSICAL_MECHANISMS}

@@ -1,4 +1,4 @@
-"""What a named sensor calibration leaves on its channel (validation/calibration_scan.py and its use in the final
+"""What a named sensor calibration leaves on its channel (validation/select/calibration_scan.py and its use in the final
 unexplained analysis of the selection)."""
 
 from __future__ import annotations

@@ -1,11 +1,11 @@
-"""How cross-validation predicts a valve's opening at a held-out point (validation/fitting.py, HELD_OUT_VALVES)."""
+"""How cross-validation predicts a valve's opening at a held-out point (validation/fit/fitting.py, HELD_OUT_VALVES)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from marine_fdi_env.validation.fitting import (
+from marine_fdi_env.validation.fit.fitting import (
     L1_LAMBDA,
     SUPPORT_FRACTION,
     Combination,
@@ -14,9 +14,9 @@ from marine_fdi_env.validation.fitting import (
     fit_combination,
     robust_loss,
 )
-from marine_fdi_env.validation.held_out_state import state_predictions
-from marine_fdi_env.validation.mechanisms import PHYSICAL_MECHANISMS
-from marine_fdi_env.validation.problem import Problem
+from marine_fdi_env.validation.fit.held_out_state import state_predictions
+from marine_fdi_env.validation.fit.mechanisms import PHYSICAL_MECHANISMS
+from marine_fdi_env.validation.fit.problem import FitProblem
 from studies.validation.study import _trial_settings, loaded, trial, trial_data
 
 LOADS = np.array([0.25, 0.36, 0.52, 0.67, 0.77, 0.85, 0.96, 1.08])
@@ -31,34 +31,34 @@ class _Loads:
 
 
 def test_the_option_is_checked_and_recorded_only_when_it_is_not_the_default():
-    from marine_fdi_env.validation.problem import Problem
+    from marine_fdi_env.validation.fit.problem import FitProblem
 
     with pytest.raises(ValueError, match="held_out_valves"):
-        Problem(None, held_out_valves="nearest")  # checked before the dataset is touched
+        FitProblem(None, held_out_valves="nearest")  # checked before the dataset is touched
     assert "held_out_valves" not in _trial_settings()  # every study file so far followed the schedule
     assert _trial_settings(held_out_valves="support")["held_out_valves"] == "support"
     assert _trial_settings(held_out_valves="state")["held_out_valves"] == "state"
 
 
-# --- the opening at a held-out point as a state (held_out_valves="state", validation/held_out_state.py) ---
+# --- the opening at a held-out point as a state (held_out_valves="state", validation/fit/held_out_state.py) ---
 
 OPEN = np.array([0, 0, 0, 0, 0, 0.12, 0.18, 0.25])  # a gate shut below 85 % load, opening with load above
 
 
-def _gated(tmp_path, held_out_valves: str = "schedule") -> Problem:
+def _gated(tmp_path, held_out_valves: str = "schedule") -> FitProblem:
     """The study's first closed-world trial's points and channels, read exactly as the base model with a waste gate
     at :data:`OPEN` says (no noise): whatever a prediction misses is the prediction's own error."""
-    pr = Problem(loaded(trial_data("a", 0), "gated", tmp_path), held_out_valves=held_out_valves)
+    pr = FitProblem(loaded(trial_data("a", 0), "gated", tmp_path), held_out_valves=held_out_valves)
     Y, _, _ = pr.predict(GATE.with_openings(pr.base_setting, OPEN))
     pr.Y = np.where(pr.measured_mask, Y, np.nan)
     return pr
 
 
-def _at(pr: Problem):
+def _at(pr: FitProblem):
     return lambda state: GATE.with_openings(pr.base_setting, np.full(pr.n_points, state.get("waste_gate", 0.0)))
 
 
-def _state(pr: Problem, rows) -> np.ndarray:
+def _state(pr: FitProblem, rows) -> np.ndarray:
     return state_predictions(pr, _at(pr), (GATE,), rows, robust_loss, L1_LAMBDA, SUPPORT_FRACTION)
 
 

@@ -15,17 +15,17 @@ import warnings
 import numpy as np
 import pytest
 
-from marine_fdi_env.validation import DataWarning, load_dataset
-from marine_fdi_env.validation.problem import Problem
-from marine_fdi_env.validation.selection import select_causes
-from marine_fdi_env.validation.synthesize import synthesize
+from marine_fdi_env.validation import DataWarning, load_measured
+from marine_fdi_env.validation.fit.problem import FitProblem
+from marine_fdi_env.validation.fit.synthesize import synthesize
+from marine_fdi_env.validation.select.selection import select_causes
 from studies.validation.study import CONDITIONS, study, trial
 
 
 def _load(path):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DataWarning)
-        return load_dataset(path)
+        return load_measured(path)
 
 
 # --------------------------------------------------------------------------------------- the study, CI-sized
@@ -73,7 +73,7 @@ def test_study_told_the_true_noise(monkeypatch):
     where the stated tolerance is 5 K on both), records it in the trial's settings (a resumed study does not mix it
     with the stated-tolerance trials; the default is not recorded, so earlier files still resume) and refuses an
     unknown mode."""
-    import marine_fdi_env.validation.selection as selection
+    import marine_fdi_env.validation.select.selection as selection
     from studies.validation.study import _trial_settings, noise_tolerances, trial_data
 
     seen = {}
@@ -153,7 +153,7 @@ def test_two_mechanisms_that_only_fit_together_are_named_as_a_pair(tmp_path):
     )
     path = tmp_path / "d6.csv"
     syn.write(path)
-    sel = select_causes(Problem(_load(path)))
+    sel = select_causes(FitProblem(_load(path)))
     assert sorted(sel.selected_labels) == ["exhaust_heat_loss", "friction_losses"], sel.selected_labels
     step1 = sel.steps[0]
     assert step1.get("pair") and set(step1["best"].split(" + ")) == {"friction_losses", "exhaust_heat_loss"}

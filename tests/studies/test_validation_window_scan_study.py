@@ -1,4 +1,4 @@
-"""The local-departure scan (:mod:`marine_fdi_env.validation.window_scan`): its p-value holds its level on pure
+"""The local-departure scan (:mod:`marine_fdi_env.validation.select.window_scan`): its p-value holds its level on pure
 noise, also when the noise is larger than the tolerance, it finds a bump of a few tolerances, and the noise level of
 a dataset is estimated blind to biases, trends and one channel's effect."""
 

@@ -1,13 +1,13 @@
-"""How a cause joining a model with a valve earns its place (validation/evidence.py, BESIDE_VALVE)."""
+"""How a cause joining a model with a valve earns its place (validation/select/evidence.py, BESIDE_VALVE)."""
 
 from __future__ import annotations
 
 import pytest
 from scipy import stats
 
-from marine_fdi_env.validation.evidence import BESIDE_VALVE, earns, judged_in_sample
-from marine_fdi_env.validation.fitting import Combination
-from marine_fdi_env.validation.mechanisms import PHYSICAL_MECHANISMS, SensorCalibration
+from marine_fdi_env.validation.fit.fitting import Combination
+from marine_fdi_env.validation.fit.mechanisms import PHYSICAL_MECHANISMS, SensorCalibration
+from marine_fdi_env.validation.select.evidence import BESIDE_VALVE, earns, judged_in_sample
 
 MECH = {m.id: m for m in PHYSICAL_MECHANISMS}
 M = 88  # measured cells of a study trial: 8 points x 11 channels

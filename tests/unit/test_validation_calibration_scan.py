@@ -1,12 +1,12 @@
-"""What a named sensor calibration leaves on its channel (validation/calibration_scan.py and its use in the final
+"""What a named sensor calibration leaves on its channel (validation/select/calibration_scan.py and its use in the final
 unexplained analysis of the selection)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from marine_fdi_env.validation.calibration_scan import shape_dictionary, structure_scan
-from marine_fdi_env.validation.window_scan import window_excess
+from marine_fdi_env.validation.select.calibration_scan import shape_dictionary, structure_scan
+from marine_fdi_env.validation.select.window_scan import window_excess
 from tests.paths import ROOT
 
 LOADS = np.array([0.30, 0.41, 0.52, 0.60, 0.70, 0.81, 0.93, 1.05])
@@ -77,7 +77,7 @@ def test_the_report_says_what_each_named_calibration_leaves():
     import copy
     import json
 
-    from marine_fdi_env.validation.report import markdown_summary
+    from marine_fdi_env.validation.report.build import markdown_summary
 
     path = ROOT / "docs/figures/validation/birka_me1_test_protocol.json"
     rep = json.loads(path.read_text())

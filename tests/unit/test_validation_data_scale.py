@@ -1,14 +1,15 @@
-"""Residual structure judged against the data's own scatter where a tolerance is loose (validation/data_scale.py)."""
+"""Residual structure judged against the data's own scatter where a tolerance is loose
+(validation/select/data_scale.py)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from marine_fdi_env.validation.data_scale import channel_noise, channel_scales
-from marine_fdi_env.validation.problem import Problem
-from marine_fdi_env.validation.selection import select_causes
-from marine_fdi_env.validation.synthesize import synthesize
+from marine_fdi_env.validation.fit.problem import FitProblem
+from marine_fdi_env.validation.fit.synthesize import synthesize
+from marine_fdi_env.validation.select.data_scale import channel_noise, channel_scales
+from marine_fdi_env.validation.select.selection import select_causes
 from studies.validation.study import loaded
 
 
@@ -33,7 +34,7 @@ def test_mixed_noise_gives_no_more_local_findings_than_the_scan_level():
     it), 8 points, 13 channels, Bonferroni 5 %: 400 datasets judged as the pipeline does (the data's scale where it
     applies, else the tolerance) show a local finding in at most 9 % (binomial: 5 % plus 3.7 standard errors of
     1.1 %); judging every channel at the larger of the median scatter and its own gives about 15 %."""
-    from marine_fdi_env.validation.window_scan import window_excess
+    from marine_fdi_env.validation.select.window_scan import window_excess
     from studies.validation.data_scale_bound import CHANNELS, MIXED
 
     rng = np.random.default_rng(7)
@@ -92,7 +93,7 @@ def test_a_bump_below_a_loose_tolerance_is_reported_at_the_data_scale(seed, bump
         else []
     )
     syn = synthesize("wartsila-6l46", ["none"], points=14, noise=0.005, seed=seed, effects=eff)
-    sel = select_causes(Problem(loaded(syn)))
+    sel = select_causes(FitProblem(loaded(syn)))
     assert sel.selected_labels == []
     local = [u for u in sel.unexplained if u["kind"] == "local"]
     if bump:

@@ -1,4 +1,4 @@
-"""The evidence set (validation/explanations.py), profile-likelihood intervals (profiles.py) and the deciding
+"""The evidence set (validation/explain/explanations.py), profile-likelihood intervals (profiles.py) and the deciding
 measurement (deciding.py)."""
 
 from __future__ import annotations
@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from marine_fdi_env.validation.deciding import deciding_measurements, readings_over_load
-from marine_fdi_env.validation.explanations import explanation_set
-from marine_fdi_env.validation.fitting import Combination, cross_validate, fit_combination, predict_setting
-from marine_fdi_env.validation.mechanisms import get_mechanism
-from marine_fdi_env.validation.problem import Problem
-from marine_fdi_env.validation.profiles import fit_profiles, profile_interval, profile_threshold
-from marine_fdi_env.validation.synthesize import synthesize
+from marine_fdi_env.validation.explain.deciding import deciding_measurements, readings_over_load
+from marine_fdi_env.validation.explain.explanations import explanation_set
+from marine_fdi_env.validation.explain.profiles import fit_profiles, profile_interval, profile_threshold
+from marine_fdi_env.validation.fit.fitting import Combination, cross_validate, fit_combination, predict_setting
+from marine_fdi_env.validation.fit.mechanisms import get_mechanism
+from marine_fdi_env.validation.fit.problem import FitProblem
+from marine_fdi_env.validation.fit.synthesize import synthesize
 from studies.validation.study import loaded
 
 
@@ -72,7 +72,7 @@ def gate_case():
     syn = synthesize(
         "wartsila-6l46", ["waste_gate:above=0.75,opening=0.06,turbine_area_scale=0.85"], points=8, noise=0.01, seed=2
     )
-    pr = Problem(loaded(syn))
+    pr = FitProblem(loaded(syn))
     base = fit_combination(pr, Combination())
     base_cv, _ = cross_validate(pr, Combination(), base)
     gate = Combination((get_mechanism("waste_gate"),))

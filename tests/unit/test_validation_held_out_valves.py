@@ -1,12 +1,12 @@
-"""How cross-validation predicts a valve's opening at a held-out point (validation/fitting.py, HELD_OUT_VALVES)."""
+"""How cross-validation predicts a valve's opening at a held-out point (validation/fit/fitting.py, HELD_OUT_VALVES)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from marine_fdi_env.validation.fitting import Combination, FitResult
-from marine_fdi_env.validation.mechanisms import PHYSICAL_MECHANISMS
+from marine_fdi_env.validation.fit.fitting import Combination, FitResult
+from marine_fdi_env.validation.fit.mechanisms import PHYSICAL_MECHANISMS
 
 LOADS = np.array([0.25, 0.36, 0.52, 0.67, 0.77, 0.85, 0.96, 1.08])
 GATE = next(m for m in PHYSICAL_MECHANISMS if m.id == "waste_gate")
@@ -67,6 +67,6 @@ def test_an_extrapolated_opening_never_goes_below_shut_and_a_lone_or_missing_ope
         _fold(lone, [7], None).held_out_openings(_Loads(), [7])
 
 
-# --- the opening at a held-out point as a state (held_out_valves="state", validation/held_out_state.py) ---
+# --- the opening at a held-out point as a state (held_out_valves="state", validation/fit/held_out_state.py) ---
 
 OPEN = np.array([0, 0, 0, 0, 0, 0.12, 0.18, 0.25])  # a gate shut below 85 % load, opening with load above

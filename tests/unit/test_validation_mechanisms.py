@@ -11,9 +11,9 @@ import pytest
 
 from marine_fdi_env.cli.synthesize import synthesize_main
 from marine_fdi_env.engine.params import load_params
-from marine_fdi_env.validation import DataWarning, load_dataset, load_shipped
-from marine_fdi_env.validation.fitting import Combination, fit_combination, predict_setting
-from marine_fdi_env.validation.mechanisms import (
+from marine_fdi_env.validation import DataWarning, load_measured, load_shipped
+from marine_fdi_env.validation.fit.fitting import Combination, fit_combination, predict_setting
+from marine_fdi_env.validation.fit.mechanisms import (
     MECHANISM_IDS,
     PHYSICAL_MECHANISMS,
     BypassValveM,
@@ -23,9 +23,9 @@ from marine_fdi_env.validation.mechanisms import (
     equivalents,
     parse_mechanism_spec,
 )
-from marine_fdi_env.validation.nuisance import NUISANCE
-from marine_fdi_env.validation.problem import BASE_SETTING, Problem
-from marine_fdi_env.validation.synthesize import DEFAULT_COLUMNS, synthesize
+from marine_fdi_env.validation.fit.nuisance import NUISANCE
+from marine_fdi_env.validation.fit.problem import BASE_SETTING, FitProblem
+from marine_fdi_env.validation.fit.synthesize import DEFAULT_COLUMNS, synthesize
 
 
 def _quiet(f, *a, **k):
@@ -112,7 +112,7 @@ def test_problem_runs_each_row_at_its_own_boundary_conditions():
     the model's compressor outlet moves one to one with the inlet temperature, and the 50 % row (inlet recorded as
     0 C, a recording error) runs at the other rows' median instead."""
     ds = _quiet(load_shipped, "birka_me1_test_protocol")
-    pr = Problem(ds)
+    pr = FitProblem(ds)
     assert pr.target == "power"
     assert "turbocharger_speed_rpm" in pr.channels and "relative_humidity_percent" not in pr.channels
     vals, conv = pr.solve(BASE_SETTING)
@@ -148,7 +148,7 @@ def test_valve_support_found_without_enumeration(bypass_data, tmp_path):
     right openings, in one fit (no search over the 2^7 subsets)."""
     path = tmp_path / "bp.csv"
     bypass_data.write(path)
-    pr = Problem(_quiet(load_dataset, path))
+    pr = FitProblem(_quiet(load_measured, path))
     fit = fit_combination(pr, Combination((BypassValveM(),)))
     true = np.array(bypass_data.truth[0]["openings"])
     assert sorted(fit.support["bypass_valve"]) == [int(i) for i in np.flatnonzero(true > 0)]
@@ -169,7 +169,7 @@ def test_waste_gate_with_rematched_turbine_recovered(tmp_path):
     )
     path = tmp_path / "wg.csv"
     syn.write(path)
-    pr = Problem(_quiet(load_dataset, path))
+    pr = FitProblem(_quiet(load_measured, path))
     fit = fit_combination(pr, Combination((WasteGateM(),)))
     assert fit.values()["waste_gate.turbine_area_scale"] == pytest.approx(0.8, abs=0.02)
     true = np.array(syn.truth[0]["openings"])
@@ -184,12 +184,12 @@ def test_nuisance_absorbs_small_model_error_within_its_box():
     import tempfile
     from pathlib import Path
 
-    from marine_fdi_env.validation.dataset import write_dataset
+    from marine_fdi_env.validation.measured.loader import write_measured
 
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / "ne.csv"
-        write_dataset(path, syn.columns, syn.meta, digits=9)
-        pr = Problem(_quiet(load_dataset, path))
+        write_measured(path, syn.columns, syn.meta, digits=9)
+        pr = FitProblem(_quiet(load_measured, path))
     fit = fit_combination(pr, Combination())
     got = dict(zip([g.name for g in NUISANCE], fit.nuisance))
     assert got["turbine_area"] == pytest.approx(0.96, abs=0.01)
@@ -220,7 +220,7 @@ def test_synthesized_data_load_and_hide_the_effect(tmp_path):
         "X_ct_nom",
         "s_sl_nom",
     }
-    ds = _quiet(load_dataset, path)
+    ds = _quiet(load_measured, path)
     assert ds.n_points == 6 and set(ds.columns) == set(DEFAULT_COLUMNS)
 
 

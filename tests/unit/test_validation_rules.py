@@ -1,4 +1,4 @@
-"""The selection's rules in one object (validation/rules.py): checked on construction, shared by validate, the
+"""The selection's rules in one object (validation/select/rules.py): checked on construction, shared by validate, the
 replicas and the study, and consistent with the problem they select on."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ import dataclasses
 import pytest
 
 from marine_fdi_env.cli.validate import validate_main
-from marine_fdi_env.validation.evidence import BESIDE_VALVE_DEFAULT
-from marine_fdi_env.validation.rules import SelectionRules
-from marine_fdi_env.validation.selection import select_causes
+from marine_fdi_env.validation.select.evidence import BESIDE_VALVE_DEFAULT
+from marine_fdi_env.validation.select.rules import SelectionRules
+from marine_fdi_env.validation.select.selection import select_causes
 
 
 def test_the_defaults_are_the_pipelines():
@@ -60,3 +60,35 @@ def test_rules_must_agree_with_the_problems_held_out_valves():
 def test_validate_refuses_a_bad_level_with_exit_code_2(capsys):
     assert validate_main(["--data", "man_12v32_40_fpp_iso", "--out", "x.json", "--alpha", "2"]) == 2
     assert "--alpha must lie in (0, 1)" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "option, value, said",
+    [
+        ("--max-causes", "-1", "--max-causes must be >= 0, got -1"),
+        ("--max-folds", "1", "--max-folds must be >= 2 (unset: leave one point out), got 1"),
+        ("--alpha-unexplained", "0", "--alpha-unexplained must lie in (0, 1), got 0.0"),
+    ],
+)
+def test_the_rules_check_the_options_once_and_the_line_names_the_option(capsys, option, value, said):
+    """validate keeps no copy of the rules' bounds: SelectionRules refuses, the command says which option, before any
+    data is read."""
+    assert validate_main(["--data", "no-such-file.csv", "--out", "x.json", option, value]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"marine-fdi validate: error: {said}"]
+
+
+def test_the_marine_fdi_command_parses_validate_once(monkeypatch, capsys):
+    """The dispatcher parses validate's options and hands them to the command: one parse per run."""
+    from marine_fdi_env.cli import validate
+    from marine_fdi_env.cli.main import main
+
+    calls = []
+    parse = validate.parse
+    monkeypatch.setattr(validate, "parse", lambda argv, prog: calls.append(list(argv)) or parse(argv, prog))
+    assert main(["validate", "--columns"]) == 0
+    assert calls == [["--columns"]] and "speed_<unit>" in capsys.readouterr().out
+    assert main(["validate", "--data", "man_12v32_40_fpp_iso", "--out", "x.json", "--alpha", "2"]) == 2
+    assert len(calls) == 2 and "--alpha must lie in (0, 1)" in capsys.readouterr().err
+    assert main(["validate", "--no-such-option"]) == 2
+    assert len(calls) == 3 and "unrecognized arguments: --no-such-option" in capsys.readouterr().err

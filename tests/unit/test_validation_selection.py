@@ -19,18 +19,18 @@ from marine_fdi_env.cli.validate import validate_main
 from marine_fdi_env.engine.operating_point import MODE_U, solve_points
 from marine_fdi_env.engine.params import load_params
 from marine_fdi_env.engine.submodels import NO_SUBMODELS
-from marine_fdi_env.validation import DataWarning, load_dataset, load_shipped
-from marine_fdi_env.validation.problem import Problem
-from marine_fdi_env.validation.report import run_validation
-from marine_fdi_env.validation.selection import match_result
-from marine_fdi_env.validation.synthesize import effect_region, synthesize
-from marine_fdi_env.validation.unexplained import local_excess
+from marine_fdi_env.validation import DataWarning, load_measured, load_shipped
+from marine_fdi_env.validation.fit.problem import FitProblem
+from marine_fdi_env.validation.fit.synthesize import effect_region, synthesize
+from marine_fdi_env.validation.report.build import run_validation
+from marine_fdi_env.validation.select.selection import match_result
+from marine_fdi_env.validation.select.unexplained import local_excess
 
 
 def _load(path):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DataWarning)
-        return load_dataset(path)
+        return load_measured(path)
 
 
 def _shipped(name):
@@ -43,13 +43,13 @@ def test_a_bound_is_widened_within_the_submodels_validity(tmp_path):
     """The binding-bound test widens one bound of one parameter (a quarter of its span, halved until the submodel
     accepts the value), keeps the mechanism's type, label and other parameters, and the widened mechanism still
     builds its submodel at the new bound."""
-    from marine_fdi_env.validation.eligibility import relaxed_mechanism
-    from marine_fdi_env.validation.mechanisms import TurbineEfficiencyBSRM
+    from marine_fdi_env.validation.fit.mechanisms import TurbineEfficiencyBSRM
+    from marine_fdi_env.validation.select.eligibility import relaxed_mechanism
 
     syn = synthesize("wartsila-6l46", ["none"], points=5, noise=0.005, seed=3)
     path = tmp_path / "x.csv"
     syn.write(path)
-    pr = Problem(_load(path))
+    pr = FitProblem(_load(path))
     m = TurbineEfficiencyBSRM()
     r = relaxed_mechanism(m, "bsr_opt_rel", "lower", pr)
     assert isinstance(r, TurbineEfficiencyBSRM) and r.label == m.label
@@ -67,11 +67,11 @@ def test_a_named_cause_touching_a_bound_says_so():
     the widening test that let it stay (the three-engine Birka shop test: four channels, a weakly identified
     cause: the friction losses the full pipeline names there, with the library restricted to them so the test
     runs in seconds), in the JSON ``cause_notes`` and the Markdown summary."""
-    from marine_fdi_env.validation.mechanisms import get_mechanism
-    from marine_fdi_env.validation.report import build_report, markdown_summary
-    from marine_fdi_env.validation.selection import select_causes
+    from marine_fdi_env.validation.fit.mechanisms import get_mechanism
+    from marine_fdi_env.validation.report.build import build_report, markdown_summary
+    from marine_fdi_env.validation.select.selection import select_causes
 
-    sel = select_causes(Problem(_shipped("birka_6l46_shop_test")), [get_mechanism("friction_losses")], pairs=False)
+    sel = select_causes(FitProblem(_shipped("birka_6l46_shop_test")), [get_mechanism("friction_losses")], pairs=False)
     rep = build_report(sel, None, (), None)
     at_bound = [f"{lab}.{k}" for lab, ps in rep["parameters"].items() for k, v in ps.items() if v["at_bound"]]
     assert at_bound, "the shop test's cause no longer touches a bound: pick another example"
@@ -88,15 +88,15 @@ def test_leave_one_channel_out_refit_at_a_natural_upper_bound(tmp_path):
     refuses; this stopped a study run)."""
     import dataclasses
 
-    from marine_fdi_env.validation.fitting import Combination, fit_combination, loco_predictions
-    from marine_fdi_env.validation.mechanisms import get_mechanism
+    from marine_fdi_env.validation.fit.fitting import Combination, fit_combination, loco_predictions
+    from marine_fdi_env.validation.fit.mechanisms import get_mechanism
 
     syn = synthesize(
         "wartsila-6l46", ["intercooler_effectiveness:effectiveness=1.0,dT_outlet_K=6"], points=6, noise=0.003, seed=5
     )
     path = tmp_path / "x.csv"
     syn.write(path)
-    pr = Problem(_load(path))
+    pr = FitProblem(_load(path))
     fit = fit_combination(pr, Combination((get_mechanism("intercooler_effectiveness"),)))
     names = fit.combination.names
     x = fit.x.copy()
@@ -121,7 +121,7 @@ def test_effect_region_and_local_excess_on_a_known_bump(tmp_path):
     syn = synthesize("wartsila-6l46", ["none"], points=9, noise=0.005, seed=4, effects=[e])
     path = tmp_path / "bump.csv"
     syn.write(path)
-    pr = Problem(_load(path))
+    pr = FitProblem(_load(path))
     found = local_excess(match_result(pr), dict(zip(pr.channels, pr.tolerance)), 0.01)
     hits = [f for f in found if f["channel"] == e["channel"]]
     assert hits and hits[0]["load_range"][0] <= hi and hits[0]["load_range"][1] >= lo
@@ -135,7 +135,7 @@ def test_a_relative_effect_is_as_many_tolerances_as_its_amplitude_says(channel, 
     """An out-of-library step of 5 % is 5 of the pipeline's tolerances (1 % of the mean reading in SI, absolute for a
     gauge pressure) on the loaded data, on gauge and absolute channels alike; measured noise-free, the ratio can only
     differ by the effect's own share of the mean reading (< 5 % of 5 tolerances, the step covers part of the loads)."""
-    from marine_fdi_env.validation.discrepancy import column_tolerance
+    from marine_fdi_env.validation.measured.discrepancy import column_tolerance
 
     e = {
         "kind": "step",
@@ -216,7 +216,7 @@ def test_validate_params_runs_the_fitted_engine_with_its_submodels(waste_gate_va
     syn, _, _, eng_file = waste_gate_validation
     path = tmp_path / "wg.csv"
     syn.write(path)
-    pr = Problem(_load(path), params=str(eng_file))
+    pr = FitProblem(_load(path), params=str(eng_file))
     assert pr.base_setting.submodels.waste_gate is not None
     pred, conv, vals = pr.predict()
     assert conv.all()
@@ -241,7 +241,7 @@ def test_a_holdout_takes_the_unrecorded_boundary_conditions_from_the_fitted_test
     shop-test file recorded none.  ``test_bed_conditions`` summarises the first (means; back pressure over load,
     the 0 C recording error already replaced by the median), ``assume_boundary`` fills exactly what the second
     lacks (its gauge readings then refer to the assumed ambient) and never replaces a recorded value."""
-    prot, shop = Problem(_shipped("birka_me1_test_protocol")), Problem(_shipped("birka_6l46_shop_test"))
+    prot, shop = FitProblem(_shipped("birka_me1_test_protocol")), FitProblem(_shipped("birka_6l46_shop_test"))
     tb = prot.test_bed_conditions()
     assert tb["p_amb_Pa"] == pytest.approx(np.mean([102500, 102400, 102400, 102500, 102500, 102600]))
     assert tb["T_amb_K"] == pytest.approx(273.15 + np.mean([28, 32, 32, 32, 34, 36]))

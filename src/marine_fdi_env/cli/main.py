@@ -309,26 +309,18 @@ _VALIDATION_OUTPUTS = {
 
 def _run_validation_command(command: str, argv: list[str]) -> int:
     """``validate`` and ``synthesize-measurements`` under the conventions of the other commands
-    (:mod:`.common`): ``--plots`` without matplotlib is one line before any work; the parent
-    of each output path is created when missing (one level, never more) and removed again when
-    the command fails, so a failing command leaves no new folder."""
+    (:mod:`.common`): their options parsed once (the command's ``parse``, then its ``run``); ``--plots``
+    without matplotlib is one line before any work; the parent of each output path is created when missing
+    (one level, never more) and removed again when the command fails, so a failing command leaves no new
+    folder."""
     import importlib
 
-    mod_name, fn = OWN_PARSER_COMMANDS[command]
-    mod = importlib.import_module(mod_name)
-    run = getattr(mod, fn)
-    if any(a in ("-h", "--help") for a in argv):
-        return run(argv)
-    parser = mod.build_parser(f"{PROG} {command}")
-
-    def error(message):
-        raise ValueError(message)
-
-    parser.error = error  # type: ignore[method-assign]
+    mod = importlib.import_module(OWN_PARSER_COMMANDS[command][0])
+    prog = f"{PROG} {command}"
     try:
-        args = parser.parse_args(argv)
-    except ValueError:
-        return run(argv)  # the command prints its own usage error
+        args = mod.parse(argv, prog)
+    except SystemExit as e:  # --help
+        return int(e.code or 0)
     created: list[Path] = []
     try:
         if getattr(args, "plots", None):
@@ -344,10 +336,10 @@ def _run_validation_command(command: str, argv: list[str]) -> int:
                 parent.mkdir()
                 created.append(parent)
     except ValueError as e:
-        return fail(f"{PROG} {command}", e)
+        return fail(prog, e)
     rc = 1
     try:
-        rc = run(argv)
+        rc = mod.run(args, argv, prog)
         return rc
     finally:
         if rc != 0:

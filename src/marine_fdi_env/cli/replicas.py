@@ -9,16 +9,14 @@ from pathlib import Path
 from typing import Sequence
 
 from ..errors import UsageError
-from ..validation.dataset import load_data_arg
-from ..validation.mechanisms import PHYSICAL_MECHANISMS
-from ..validation.problem import Problem
-from ..validation.replicas import NOISE_MODELS, markdown_table, replicate
-from ..validation.rules import SelectionRules
-from ..validation.selection import select_causes
+from ..validation.fit.mechanisms import PHYSICAL_MECHANISMS
+from ..validation.fit.problem import FitProblem
+from ..validation.measured.loader import load_data_arg
+from ..validation.select.replicas import NOISE_MODELS, markdown_table, replicate
+from ..validation.select.selection import select_causes
 from .common import parse_cli
 from .failures import fail
-from .selection_options import add_valve_options
-from .sidecar import check_sidecar_numbers
+from .selection_options import add_valve_options, rules_from_args
 
 
 def replicas_main(argv: Sequence[str] | None = None) -> int:
@@ -27,7 +25,9 @@ def replicas_main(argv: Sequence[str] | None = None) -> int:
         description="Would the pipeline name the same causes again on data like these? "
         "(a parametric bootstrap at the data's design; module docstring)",
     )
-    ap.add_argument("--data", required=True, metavar="NAME|FILE.csv", help="shipped dataset name or CSV path")
+    ap.add_argument(
+        "--data", required=True, metavar="NAME|FILE", help="shipped dataset name or data file (as marine-fdi validate)"
+    )
     ap.add_argument("--params", default=None, help="parameter set or engine file (default: the dataset's)")
     ap.add_argument("--target", default="auto", help="what fixes each point (as marine-fdi validate)")
     ap.add_argument("--replicas", type=int, default=10, help="replicas per hypothesis (default 10)")
@@ -69,17 +69,14 @@ def replicas_main(argv: Sequence[str] | None = None) -> int:
                 f"--alternatives: unknown physical mechanism(s) {', '.join(sorted(set(alts) - known))}; "
                 f"known: {', '.join(sorted(known))}"
             )
+        rules = rules_from_args(args)
         try:
-            check_sidecar_numbers(args.data)
             ds = load_data_arg(args.data, args.params)
         except ValueError as e:
             raise UsageError(f"--data: {e}") from None
-        rules = SelectionRules(
-            max_folds=args.max_folds, beside_valve=args.beside_valve, held_out_valves=args.held_out_valves
-        )
-        pr = Problem(ds, params=args.params, target=args.target, held_out_valves=rules.held_out_valves)
+        pr = FitProblem(ds, params=args.params, target=args.target, held_out_valves=rules.held_out_valves)
         if args.tolerance:
-            pr = Problem(
+            pr = FitProblem(
                 ds,
                 params=args.params,
                 target=args.target,

@@ -9,8 +9,8 @@ from typing import Sequence
 
 from ..engine.params import list_parameter_sets
 from ..errors import UsageError
-from ..validation.mechanisms import MECHANISM_IDS, parse_mechanism_spec
-from ..validation.synthesize import DEFAULT_COLUMNS, LOAD_RANGE, synthesize
+from ..validation.fit.mechanisms import MECHANISM_IDS, parse_mechanism_spec
+from ..validation.fit.synthesize import DEFAULT_COLUMNS, LOAD_RANGE, synthesize
 from .failures import fail
 
 
@@ -60,25 +60,32 @@ def build_parser(prog: str = "marine-fdi synthesize-measurements") -> argparse.A
     return ap
 
 
-def _parser_no_exit(prog: str) -> argparse.ArgumentParser:
+def parse(argv: Sequence[str], prog: str = "marine-fdi synthesize-measurements") -> argparse.Namespace:
+    """The options of ``argv``, parsed once; a usage error raises :class:`~marine_fdi_env.errors.UsageError` (one
+    line), ``--help`` exits through ``SystemExit``."""
     ap = build_parser(prog)
 
     def error(message):
         raise UsageError(message)
 
     ap.error = error  # type: ignore[method-assign]
-    return ap
+    return ap.parse_args(list(argv))
 
 
 def synthesize_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi synthesize-measurements") -> int:
     """Command line: returns 0 on success, 2 on bad input (message on stderr)."""
+    argv = list(argv) if argv is not None else sys.argv[1:]
     try:
-        args = _parser_no_exit(prog).parse_args(list(argv) if argv is not None else None)
+        args = parse(argv, prog)
     except UsageError as e:
-        print(f"{prog}: error: {e}", file=sys.stderr)
-        return 2
+        return fail(prog, e)
     except SystemExit as e:  # --help
         return int(e.code or 0)
+    return run(args, argv, prog)
+
+
+def run(args: argparse.Namespace, argv: Sequence[str], prog: str = "marine-fdi synthesize-measurements") -> int:
+    """``marine-fdi synthesize-measurements`` with its parsed options."""
     try:
         try:
             lo, hi = (float(x) for x in args.load_range.split(","))

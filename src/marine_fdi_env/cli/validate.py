@@ -10,17 +10,16 @@ from typing import Sequence
 from ..engine.params import list_parameter_sets, load_params
 from ..errors import UsageError
 from ..plotting import pyplot
-from ..validation.data_check import column_registry, describe
-from ..validation.dataset import list_shipped, load_data_arg
-from ..validation.matching import TARGETS
-from ..validation.problem import Problem
-from ..validation.report import clean_json, out_path, run_validation, split_engine, summary_lines
-from ..validation.report_markdown import markdown_summary
-from ..validation.report_plots import write_plots
-from ..validation.rules import SelectionRules
+from ..validation.fit.problem import FitProblem
+from ..validation.measured.loader import list_shipped, load_data_arg
+from ..validation.measured.matching import TARGETS
+from ..validation.report.build import clean_json, out_path, run_validation, split_engine, summary_lines
+from ..validation.report.data_check import column_registry, describe
+from ..validation.report.markdown import markdown_summary
+from ..validation.report.plots import write_plots
+from ..validation.select.rules import SelectionRules
 from .failures import fail
-from .selection_options import add_valve_options
-from .sidecar import check_sidecar_numbers
+from .selection_options import add_valve_options, rules_from_args
 
 RULES = SelectionRules()  # the selection's default rules: the options' defaults
 
@@ -33,11 +32,12 @@ def build_parser(prog: str = "marine-fdi validate") -> argparse.ArgumentParser:
     )
     ap.add_argument(
         "--data",
-        metavar="FILE.csv",
-        help=f"measured data (CSV with sidecar FILE.meta.json) or a shipped dataset name ({', '.join(list_shipped())})",
+        metavar="FILE",
+        help="measured data: a CSV or Parquet file (the reader by its ending: .csv, .parquet) with its sidecar "
+        f"FILE.meta.json, or a shipped dataset name ({', '.join(list_shipped())})",
     )
     g = ap.add_mutually_exclusive_group()
-    g.add_argument("--holdout", metavar="FILE.csv", help="data the fit does not see; the report gives its RMSE")
+    g.add_argument("--holdout", metavar="FILE", help="data the fit does not see (as --data); the report gives its RMSE")
     g.add_argument("--holdout-engine", metavar="ID", help="leave this engine of --data out and predict it")
     ap.add_argument("--out", metavar="report.json", help="JSON report (required unless --check)")
     ap.add_argument(
@@ -117,22 +117,32 @@ def build_parser(prog: str = "marine-fdi validate") -> argparse.ArgumentParser:
     return ap
 
 
-def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi validate") -> int:
-    """Command line ``marine-fdi validate``: 0 on success, 2 on bad input (message on stderr), 130 on Ctrl-C."""
+def parse(argv: Sequence[str], prog: str = "marine-fdi validate") -> argparse.Namespace:
+    """The options of ``argv``, parsed once; a usage error raises :class:`~marine_fdi_env.errors.UsageError` (one
+    line), ``--help`` exits through ``SystemExit``."""
     ap = build_parser(prog)
 
     def error(message):
         raise UsageError(message)
 
     ap.error = error  # type: ignore[method-assign]
+    return ap.parse_args(list(argv))
+
+
+def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi validate") -> int:
+    """Command line ``marine-fdi validate``: 0 on success, 2 on bad input (message on stderr), 130 on Ctrl-C."""
     argv = list(argv) if argv is not None else sys.argv[1:]
     try:
-        args = ap.parse_args(argv)
+        args = parse(argv, prog)
     except UsageError as e:
-        print(f"{prog}: error: {e}", file=sys.stderr)
-        return 2
+        return fail(prog, e)
     except SystemExit as e:  # --help
         return int(e.code or 0)
+    return run(args, argv, prog)
+
+
+def run(args: argparse.Namespace, argv: Sequence[str], prog: str = "marine-fdi validate") -> int:
+    """``marine-fdi validate`` with its parsed options (``argv``: the command line, for the report's command)."""
     if args.columns:
         print(column_registry())
         return 0
@@ -142,6 +152,7 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
             raise ValueError("--data is required (or --columns to list the known column names)")
         if args.out is None and not args.check:
             raise ValueError("--out is required (or --check to only check the data)")
+        rules = rules_from_args(args)
         params = None
         if args.params is not None:
             try:
@@ -150,14 +161,6 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
                 raise ValueError(f"--params: {e}") from None
         if args.target not in TARGETS:
             raise ValueError(f"--target: unknown target {args.target!r}; allowed: {', '.join(TARGETS)}")
-        if args.max_causes < 0:
-            raise ValueError(f"--max-causes must be >= 0, got {args.max_causes}")
-        if args.max_folds is not None and args.max_folds < 2:
-            raise ValueError(f"--max-folds must be >= 2, got {args.max_folds}")
-        if not 0.0 < args.alpha < 1.0:
-            raise ValueError(f"--alpha must lie in (0, 1), got {args.alpha}")
-        if not 0.0 < args.alpha_unexplained < 1.0:
-            raise ValueError(f"--alpha-unexplained must lie in (0, 1), got {args.alpha_unexplained}")
         if args.replicas < 0 or args.workers < 1:
             raise ValueError(f"--replicas must be >= 0 and --workers >= 1, got {args.replicas}, {args.workers}")
         out = out_path(args.out, "--out") if args.out else None
@@ -166,7 +169,6 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
         if args.plots:
             pyplot()
         try:
-            check_sidecar_numbers(args.data)
             ds = load_data_arg(args.data, args.params if args.params in list_parameter_sets() else None)
         except ValueError as e:
             raise UsageError(f"--data: {e}") from None
@@ -184,7 +186,7 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
                 )
             except ValueError as e:
                 raise UsageError(f"--holdout: {e}") from None
-        problem = Problem(ds, target=args.target, params=params) if args.tolerance or args.check else None
+        problem = FitProblem(ds, target=args.target, params=params) if args.tolerance or args.check else None
         tolerances = problem.stated_tolerances(args.tolerance) if args.tolerance else None
         if args.check:
             print(
@@ -201,15 +203,6 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
                 print(f"hold-out: {what}, {holdout.n_points} points (predicted, not fitted)")
             print("--check: nothing fitted, nothing written")
             return 0
-        rules = SelectionRules(
-            max_causes=args.max_causes,
-            alpha=args.alpha,
-            alpha_unexplained=args.alpha_unexplained,
-            cv_all=args.cv_all,
-            max_folds=args.max_folds,
-            beside_valve=args.beside_valve,
-            held_out_valves=args.held_out_valves,
-        )
         rep, sel, ho = run_validation(
             ds,
             holdout=holdout,
@@ -223,7 +216,7 @@ def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi val
             explanations=not args.no_explanations,
         )
         if args.replicas:
-            from ..validation.replicas import replicate
+            from ..validation.select.replicas import replicate
 
             if say:
                 say(f"replicas: {args.replicas} per hypothesis, each through the whole pipeline")

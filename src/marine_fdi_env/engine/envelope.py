@@ -1,9 +1,13 @@
-"""Is a steady state inside the operating envelope of a real engine?  Plausibility bounds that a
-steady state of the model can fall outside of at very low or very high fuel settings.
+"""The operating envelope of a real engine: the bounds a steady state of the model can fall outside of at
+very low or very high fuel settings, and beyond which a measured reading is not a steady operating point
+(the measured-data checks of :mod:`marine_fdi_env.validation` read the same :data:`ENVELOPE`).
 
 * Speed: a medium-speed four-stroke diesel runs stably from about a quarter of its rated speed
-  (idle) up to the overspeed trip at about 115 % of it (classification societies' overspeed limit);
-  outside that band the mean-value model is extrapolating.
+  (idle) up to 115 % of it: its speed governor must keep it within 15 % above the rated speed (IACS
+  UR M3.1.1; the separate overspeed trip acts at up to 120 %); outside that band the mean-value model
+  is extrapolating.
+* Brake power: a shop test runs up to the 110 % overload; no engine delivers more than about 115 % of
+  its rated power at a steady point.
 * Specific fuel consumption: no diesel engine converts fuel to brake work at more than about 55 %
   (150 g/kWh with 42.7 MJ/kg fuel), and above about 350 g/kWh (24 %) it is idling or barely
   loaded, where the model's combustion and friction laws are not calibrated.
@@ -19,11 +23,12 @@ __all__ = ["Envelope", "ENVELOPE", "envelope_warnings"]
 
 @dataclass(frozen=True)
 class Envelope:
-    """Plausibility bounds of a steady state: speed as a fraction of the rated speed [-], brake
-    specific fuel consumption [g/kWh]."""
+    """Plausibility bounds of a steady state: speed as a fraction of the rated speed [-], brake power as a
+    fraction of the rated power [-], brake specific fuel consumption [g/kWh]."""
 
     min_speed_fraction: float = 0.25
     max_speed_fraction: float = 1.15
+    max_power_fraction: float = 1.15
     min_sfc_g_per_kWh: float = 150.0
     max_sfc_g_per_kWh: float = 350.0
 
