@@ -230,3 +230,26 @@ def test_submit_says_what_is_wrong_in_one_line(made, tmp_path, capsys):
     assert code == 2 and "neither an entry folder" in err
     assert not (tmp_path / "x").exists()  # a refused command creates nothing
     assert verify_entry(tmp_path).problems[0].endswith("(not an entry folder written by marine-fdi submit)")
+
+
+def test_ctrl_c_keeps_the_finished_suites_and_the_same_command_resumes(tmp_path, capsys, monkeypatch):
+    """Interrupted in its second suite, submit keeps the first in OUT/.work; rerun, it scores only the rest."""
+    from marine_fdi_env.benchmark import evaluate as ev
+
+    real, calls = ev.evaluate_agents, []
+
+    def interrupted_at_nominal(specs, suite, outs, **kw):
+        calls.append(suite)
+        if suite == "nominal-v1":
+            raise KeyboardInterrupt
+        return real(specs, suite, outs, **kw)
+
+    monkeypatch.setattr(ev, "evaluate_agents", interrupted_at_nominal)
+    out = tmp_path / "entry"
+    argv = ["submit", "reference", "--suites", "thesis-v1", "nominal-v1", "--out", out, "--no-progress"]
+    code, _, err = run(capsys, *argv)
+    assert code == 130 and "interrupted; the finished suites are kept in OUT/.work" in err
+    assert (out / ".work" / "thesis-v1.json").is_file() and not (out / ENTRY_FILE).exists()
+    calls.clear()
+    code, _, _ = run(capsys, *argv)
+    assert code == 130 and calls == ["nominal-v1"]  # thesis-v1 is not scored again
