@@ -171,9 +171,9 @@ def write_minari(
         shutil.rmtree(folder)  # the caller checked --force
     buffers = [EpisodeBuffer(**ep) for ep in _episodes(arrays, scenarios)]
     text = _card_text(dataset_id, card, len(buffers), int(sum(len(b.rewards) for b in buffers)))
-    with datasets_path(root), warnings.catch_warnings():
+    with datasets_path(root), warnings.catch_warnings(), _size_once():
         warnings.simplefilter("ignore")  # Minari's advice to add a code permalink and author e-mail
-        m.create_dataset_from_buffers(
+        ds = m.create_dataset_from_buffers(
             dataset_id,
             buffers,
             env=_env_spec(env_kwargs),
@@ -184,12 +184,28 @@ def write_minari(
             data_format="arrow",
             requirements=[f"marine-fdi-env=={__version__}"],
         )
+    ds.storage.update_metadata({"dataset_size": ds.storage.get_size()})
     (folder / "scenarios.json").write_text(json.dumps(truth, indent=1) + "\n")
     manifest = minari_manifest(root, dataset_id)
     manifest["made_with"] = dict(card, package_version=__version__, minari_version=m.__version__)
     (folder / MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n")
     (folder / "README.md").write_text(text + f"\nManifest sha256 (decoded arrays): `{manifest['sha256']}`\n")
     return folder
+
+
+@contextmanager
+def _size_once() -> Iterator[None]:
+    """Minari 0.5 measures the dataset's size on disk (a walk over all its files) after every episode it
+    writes, which makes writing n episodes take time in n^2; inside the block the walk is skipped (the
+    size is measured once, after the last episode)."""
+    from minari.dataset.minari_storage import MinariStorage
+
+    real = MinariStorage.get_size
+    MinariStorage.get_size = lambda self: 0.0
+    try:
+        yield
+    finally:
+        MinariStorage.get_size = real
 
 
 def _card_text(dataset_id: str, card: dict, n_episodes: int, n_steps: int) -> str:
