@@ -253,3 +253,19 @@ def test_ctrl_c_keeps_the_finished_suites_and_the_same_command_resumes(tmp_path,
     calls.clear()
     code, _, _ = run(capsys, *argv)
     assert code == 130 and calls == ["nominal-v1"]  # thesis-v1 is not scored again
+
+
+def test_hashes_only_catches_corruption_not_an_edited_metric(entry, capsys):
+    """``verify --hashes-only`` (the fast check of the leaderboard's entries) reads no record: a changed
+    trace is refused by its sha256, an edited metric needs the recomputation."""
+    _edit_entry(entry, lambda e: e["suites"][0]["metrics"].update(isolation_accuracy=1.0))
+    code, out, _ = run(capsys, "verify", "--hashes-only", entry)
+    assert code == 0 and "suite and trace sha256" in out
+    code, _, err = run(capsys, "verify", entry)
+    assert code == 2 and "metrics.isolation_accuracy: the entry says 1.0" in err, err
+    block = read_entry(entry)["suites"][0]
+    (entry / block["trace"]).write_bytes(gzip.compress(b"[]", mtime=0))
+    code, _, err = run(capsys, "verify", "--hashes-only", entry)
+    assert code == 2 and "does not have the entry's sha256" in err, err
+    code, _, err = run(capsys, "verify", "--hashes-only", "--rerun", entry)
+    assert code == 2 and "choose one" in err

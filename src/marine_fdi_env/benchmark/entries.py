@@ -323,10 +323,30 @@ def _check_truth(records: list[dict], suite, name: str) -> str | None:
     return None
 
 
-def verify_entry(entry_dir: Path, *, check_agent: bool = True) -> Verification:
+def verify_entry(entry_dir: Path, *, check_agent: bool = True, recompute: bool = True) -> Verification:
     """Check an entry without simulating: every hash, the ground truth of its traces, and every metric,
     DX metric and interval recomputed from its traces (module docstring).  ``check_agent``: also hash
-    the agent's files where they are (the shipped model in this installation, the entry's copy)."""
+    the agent's files where they are (the shipped model in this installation, the entry's copy).
+    ``recompute=False`` (``verify --hashes-only``): the hashes alone (agent files, suites, traces),
+    without reading the traces' records: corruption and provenance, not an edited metric."""
+    from .metrics import scored_once
+
+    with scored_once():
+        return _verify_entry(Path(entry_dir), check_agent, recompute)
+
+
+def _trace_sha256(entry_dir: Path, block: dict) -> str:
+    """The sha256 of a trace's decoded JSON, without parsing it; DataFileError naming the file."""
+    path = Path(entry_dir) / str(block.get("trace", ""))
+    try:
+        return hashlib.sha256(gzip.decompress(path.read_bytes())).hexdigest()
+    except FileNotFoundError:
+        raise DataFileError(f"{path}: the trace of suite {block.get('name')!r} is missing") from None
+    except (OSError, EOFError, gzip.BadGzipFile) as e:
+        raise DataFileError(f"{path}: not a readable gzip'd JSON trace ({e})") from None
+
+
+def _verify_entry(entry_dir: Path, check_agent: bool, recompute: bool) -> Verification:
     from .agent_registry import models_dir
     from .metrics import compute_metrics, dx_metrics, validate_record
     from .provenance import AGENT_FOLDER, file_sha256, software_versions, suite_sha256
@@ -380,7 +400,10 @@ def verify_entry(entry_dir: Path, *, check_agent: bool = True) -> Verification:
             )
             continue
         try:
-            records, sha = read_trace(entry_dir, block)
+            if recompute:
+                records, sha = read_trace(entry_dir, block)
+            else:
+                sha = _trace_sha256(entry_dir, block)
         except ValueError as e:
             v.problems.append(str(e))
             continue
@@ -388,6 +411,9 @@ def verify_entry(entry_dir: Path, *, check_agent: bool = True) -> Verification:
             v.problems.append(
                 f"suite {name}: the trace {block.get('trace')} does not have the entry's sha256 (corrupt or edited)"
             )
+            continue
+        if not recompute:
+            v.checked.append(f"{name}: suite and trace sha256")
             continue
         try:
             for r in records:

@@ -91,6 +91,7 @@ from __future__ import annotations
 
 import bisect
 import math
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
@@ -108,6 +109,7 @@ __all__ = [
     "dx_aggregate",
     "FAULT_CLASSES",
     "DX_KEYS",
+    "scored_once",
 ]
 
 FAULT_CLASSES: tuple[str, ...] = ("sensor", "process", "mixed", "none")
@@ -360,7 +362,9 @@ def _class_of(faults: Sequence[Mapping]) -> str:
 
 
 def _dx_counts(rec: Mapping, tr: _Trace) -> dict:
-    """The DX counts of one episode over its decision grid (module docstring)."""
+    """The DX counts of one episode over its decision grid (module docstring).  One pass over the grid:
+    the declaration in force at ``t`` is the last change at or before ``t`` (:meth:`_Trace.state`, found
+    by walking the changes as ``t`` grows), a fault is active at ``t`` as in :func:`_true_set`."""
     if not tr.times:
         return {}
     t0, period = tr.times[0], tr.period
@@ -368,24 +372,65 @@ def _dx_counts(rec: Mapping, tr: _Trace) -> dict:
     if not isinstance(n, int) or isinstance(n, bool) or n < 1:
         n = int(round((tr.last_decision - t0) / period)) + 1
     shares = {round(float(t), 6): float(v) for t, v in (rec.get("belief_on_truth") or [])}
-    faults = rec["faults"]
-    out = {"dx_fault": 0, "dx_fault_alarm": 0, "dx_free": 0, "dx_free_alarm": 0, "dx_share": 0.0}
+    spans = [(f["onset_s"], f["end_s"]) for f in rec["faults"]]
+    times, alarms, last = tr.times, tr.alarms, len(tr.times) - 1
+    fault = fault_alarm = free = free_alarm = 0
+    share: float | None = 0.0
+    i = -1
     for k in range(n):
         t = t0 + k * period
-        _, alarm = tr.state(t)
-        if _true_set(faults, t):
-            out["dx_fault"] += 1
+        te = t + _EPS
+        while i < last and times[i + 1] <= te:
+            i += 1
+        alarm = i >= 0 and alarms[i]
+        if any(on <= te and (end is None or end > te) for on, end in spans):
+            fault += 1
             if alarm:
-                out["dx_fault_alarm"] += 1
+                fault_alarm += 1
                 v = shares.get(round(t, 6))
-                out["dx_share"] = None if v is None or out["dx_share"] is None else out["dx_share"] + v
+                share = None if v is None or share is None else share + v
         else:
-            out["dx_free"] += 1
-            out["dx_free_alarm"] += int(alarm)
-    return out
+            free += 1
+            free_alarm += int(alarm)
+    return {
+        "dx_fault": fault,
+        "dx_fault_alarm": fault_alarm,
+        "dx_free": free,
+        "dx_free_alarm": free_alarm,
+        "dx_share": share,
+    }
+
+
+_SCORED: dict[int, tuple[Mapping, EpisodeOutcome]] | None = None
+
+
+@contextmanager
+def scored_once():
+    """Within the block, each record (the same object) is scored once: :func:`compute_metrics`,
+    :func:`dx_metrics` and :func:`.uncertainty.outcomes` of the same records share the outcomes (the
+    records must not change inside the block).  ``marine-fdi verify`` and the leaderboard use it."""
+    global _SCORED
+    outer = _SCORED
+    if outer is None:
+        _SCORED = {}
+    try:
+        yield
+    finally:
+        _SCORED = outer
 
 
 def _outcome(rec: Mapping) -> EpisodeOutcome:
+    if _SCORED is not None:
+        hit = _SCORED.get(id(rec))
+        if hit is not None and hit[0] is rec:
+            return hit[1]
+        out = _score(rec)
+        _SCORED[id(rec)] = (rec, out)  # the record kept alive: its id is not reused inside the block
+        return out
+    return _score(rec)
+
+
+def _score(rec: Mapping) -> EpisodeOutcome:
     validate_record(rec)
     faults = rec["faults"]
     tr = _Trace.from_record(rec)

@@ -197,6 +197,12 @@ def verify_main(argv=None) -> int:
         help="also simulate the suites again and replay the agents (together, in lockstep), comparing every "
         "record field by field (minutes per entry; an interrupted rerun starts over)",
     )
+    ap.add_argument(
+        "--hashes-only",
+        action="store_true",
+        help="only the hashes (agent files, suites, traces), without recomputing the metrics: a second for "
+        "all the leaderboard's entries; catches corruption, not an edited metric",
+    )
     add_backend_args(ap)
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     args, code = parse_cli(ap, argv)
@@ -205,17 +211,19 @@ def verify_main(argv=None) -> int:
     try:
         from ..benchmark.entries import rerun_entries, verify_entry
         from ..benchmark.leaderboard import find_entries
-        from ..errors import DataFileError
+        from ..errors import DataFileError, UsageError
         from .common import backend_from_args
 
         backend = backend_from_args(args)
         dirs = find_entries(args.entries)
+        if args.rerun and args.hashes_only:
+            raise UsageError("--rerun and --hashes-only: choose one (--rerun checks the hashes too)")
         if args.rerun:
             checks = rerun_entries(
                 dirs, workers=args.workers, batch_size=args.batch_size, backend=backend, progress=not args.no_progress
             )
         else:
-            checks = [verify_entry(d) for d in dirs]
+            checks = [verify_entry(d, recompute=not args.hashes_only) for d in dirs]
         for c in checks:
             if c.ok:
                 print(f"verified {c.entry}: " + "; ".join(c.checked[:1] + [f"{len(c.checked)} checks"] + c.notes))
