@@ -11,22 +11,38 @@ ranked by the interquartile mean of its normalised scores:
 * the DX 2025 metrics per decision over all suites' episodes (:func:`.metrics.dx_metrics`).
 
 Every number comes from the entries' traces, never from their stored metrics (which ``verify``
-checks against the same traces).  The table needs the entries of ``null`` and ``oracle`` (the
-normalisers) and of ``reference``.
+checks against the same traces).  The block ends with two fingerprints: the sha256 of every file of
+the entries it was built from and the sha256 of its own text, so that a stale table (entries added,
+removed or changed since) or one edited by hand is found in a second (:func:`fingerprint_problem`,
+``marine-fdi leaderboard --check --hashes-only``); ``--check`` alone builds the table again.  The
+table needs the entries of ``null`` and ``oracle`` (the normalisers) and of ``reference``.
 """
 
 from __future__ import annotations
 
+import hashlib
+import re
 from pathlib import Path
 from typing import Sequence
 
-from .entries import ENTRY_FILE, read_entry, read_trace
+from .entries import ENTRY_FILE, WORK, read_entry, read_trace
 
-__all__ = ["find_entries", "load_pooled", "leaderboard_block", "write_block", "BEGIN", "END", "REQUIRED"]
+__all__ = [
+    "find_entries",
+    "load_pooled",
+    "leaderboard_block",
+    "write_block",
+    "entries_sha256",
+    "fingerprint_problem",
+    "BEGIN",
+    "END",
+    "REQUIRED",
+]
 
 BEGIN = "<!-- leaderboard:begin (marine-fdi leaderboard writes this block) -->"
 END = "<!-- leaderboard:end -->"
 REQUIRED = ("null", "oracle", "reference")
+_PRINT = re.compile(r"<!-- entries sha256 ([0-9a-f]{64}); table sha256 ([0-9a-f]{64})[^>]*-->\n")
 
 
 def find_entries(paths: Sequence["str | Path"]) -> list[Path]:
@@ -66,7 +82,8 @@ def load_pooled(entry_dirs: Sequence[Path]) -> dict[str, dict]:
             raise ValueError(f"agent {name!r}: its entries cover different suites ({p['entries']})")
         p["seeds"] = [p["seeds"][i] for i in order]
         p["entries"] = [p["entries"][i] for i in order]
-        traces = [p.pop("traces")[i] for i in order]
+        kept = p.pop("traces")
+        traces = [kept[i] for i in order]
         p["suites"] = {s: [t[s] for t in traces] for s in traces[0]}
     missing = [n for n in REQUIRED if n not in pooled]
     if missing:
@@ -83,12 +100,53 @@ def _fmt(e, scale: float = 1.0, digits: int = 1) -> str:
     return f"{v} ({scale * e.low:.{digits}f}–{scale * e.high:.{digits}f})"
 
 
+def _files(d: Path) -> list[Path]:
+    """The files of an entry folder (an unfinished submit's ``.work`` aside), in a fixed order."""
+    d = Path(d)
+    return sorted(f for f in d.rglob("*") if f.is_file() and WORK not in f.relative_to(d).parts)
+
+
 def _dir_bytes(d: Path) -> int:
-    return sum(f.stat().st_size for f in Path(d).rglob("*") if f.is_file())
+    return sum(f.stat().st_size for f in _files(d))
+
+
+def entries_sha256(entry_dirs: Sequence[Path]) -> str:
+    """One sha256 of every file of the entries (by folder name, path in it and content)."""
+    h = hashlib.sha256()
+    for d in sorted(map(Path, entry_dirs), key=lambda d: d.name):
+        for f in _files(d):
+            h.update(f"{d.name}/{f.relative_to(d).as_posix()}\0{hashlib.sha256(f.read_bytes()).hexdigest()}\n".encode())
+    return h.hexdigest()
+
+
+def fingerprint_problem(text: str, entry_dirs: Sequence[Path]) -> str | None:
+    """Whether the leaderboard block in ``text`` was written from these entries and not edited since,
+    by its fingerprints alone (no table is built); the problem in one line, or None."""
+    if BEGIN not in text or END not in text:
+        return "no leaderboard markers: run marine-fdi leaderboard"
+    block = text[text.index(BEGIN) : text.index(END)]
+    m = _PRINT.search(block)
+    if m is None:
+        return "the table has no fingerprints (entries sha256, table sha256): rerun marine-fdi leaderboard"
+    if hashlib.sha256(block[: m.start()].encode()).hexdigest() != m.group(2):
+        return "the table is not the text marine-fdi leaderboard wrote (edited by hand): rerun marine-fdi leaderboard"
+    if entries_sha256(entry_dirs) != m.group(1):
+        return (
+            f"the table is stale: its {len(entry_dirs)} entries are not those it was built from (an entry added, "
+            "removed or changed since); rerun marine-fdi leaderboard and commit it"
+        )
+    return None
 
 
 def leaderboard_block(entry_dirs: Sequence[Path], shown_root: Path | None = None) -> str:
     """The Markdown between the markers: the ranked table, the DX table and the entries."""
+    from .metrics import scored_once
+
+    with scored_once():
+        return _block(entry_dirs, shown_root)
+
+
+def _block(entry_dirs: Sequence[Path], shown_root: Path | None) -> str:
     from .suites import SUITE_NAMES
     from .uncertainty import interval, iqm_score, normalised_score, outcomes, probability_of_improvement
 
@@ -173,9 +231,14 @@ def leaderboard_block(entry_dirs: Sequence[Path], shown_root: Path | None = None
         f"{sum(len(p['entries']) for p in pooled.values())} entries of {len(pooled)} agents, {total / 2**20:.1f} MiB "
         "on disk (gzip'd JSON traces).",
         "",
-        END,
     ]
-    return "\n".join(lines)
+    text = "\n".join(lines) + "\n"
+    table = hashlib.sha256(text.encode()).hexdigest()
+    return (
+        text
+        + f"<!-- entries sha256 {entries_sha256(entry_dirs)}; table sha256 {table} (marine-fdi leaderboard --check "
+        "--hashes-only compares them) -->\n" + END
+    )
 
 
 def write_block(path: Path, block: str) -> bool:
