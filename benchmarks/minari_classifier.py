@@ -132,6 +132,7 @@ def main() -> int:
         "dataset_ids": src.get("dataset_ids"),
         "training_episodes": cfg.get("training_episodes"),
         "cpu_minutes": cfg.get("cpu_minutes"),
+        "shipped_cpu_minutes": json.loads((shipped / "config.json").read_text()).get("cpu_minutes"),
     }
     out["same_weights_as_shipped"] = same_weights(args.model, shipped)
     out["learning_curves"] = compare_curves(args.model, shipped)
@@ -208,7 +209,8 @@ def write_doc(out: dict) -> None:
         f"({100 * d['low']:+.1f} to {100 * d['high']:+.1f}); the Minari-trained classifier's isolation "
         f"{'lies within' if out['within_shipped_interval'] else 'lies outside'} the shipped one's interval.  "
         f"{same}  {entry_note}Its training took {out['minari_model']['cpu_minutes']} CPU min "
-        f"({out['minari_model']['training_episodes']} training episodes, the Minari export included).\n"
+        f"({out['minari_model']['training_episodes']} training episodes, the Minari export included, on a 2-core "
+        f"machine shared with other jobs; the shipped run {out['minari_model']['shipped_cpu_minutes']}).\n"
         f"{END}"
     )
     text = DOC.read_text(encoding="utf-8")
