@@ -1,7 +1,7 @@
 """The classifier trained from Minari datasets alone beside the shipped one, on single-v1.
 
     python benchmarks/minari_classifier.py [--seed 0] [--minari-root runs/minari/data]
-        [--model runs/minari/classifier-minari] [--suite single-v1] [--write]
+        [--model runs/minari/classifier-minari] [--npz-model DIR] [--suite single-v1] [--write]
 
 1. trains the classifier with the shipped training config (``--hyperparams robust``, seed ``--seed``) from
    Minari datasets only, unless ``--model`` already holds a model::
@@ -17,7 +17,10 @@
    difference of isolation accuracy with its interval, whether the two models' weights are equal and
    whether the two agents declared the same at every decision, and the shipped one's isolation accuracy as
    its leaderboard entry holds it (leaderboard/entries/classifier-seedK);
-3. ``--write`` keeps the output in ``docs/data/minari_classifier.json`` and writes the result into
+3. ``--npz-model DIR``: a model of the same command trained from the npz datasets with this installation,
+   whose weights are compared with both (does reading through Minari change anything; does this
+   installation reproduce the shipped weights);
+4. ``--write`` keeps the output in ``docs/data/minari_classifier.json`` and writes the result into
    docs/minari.md between its ``minari-result`` markers.
 """
 
@@ -111,6 +114,13 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--minari-root", type=Path, default=ROOT / "runs" / "minari" / "data")
     ap.add_argument("--model", type=Path, default=ROOT / "runs" / "minari" / "classifier-minari")
+    ap.add_argument(
+        "--npz-model",
+        type=Path,
+        default=None,
+        help="a model of the same command from the npz datasets (marine-fdi train --algo classifier --hyperparams "
+        "robust --seed 0 --out DIR), trained with this installation: its weights compared with both",
+    )
     ap.add_argument("--suite", default="single-v1")
     ap.add_argument("--write", action="store_true")
     ap.add_argument("--json", action="store_true", help="one JSON line (default: one line per field)")
@@ -120,7 +130,9 @@ def main() -> int:
     from marine_fdi_env.benchmark.uncertainty import difference, interval, outcomes
 
     shipped = ROOT / "training" / "models" / "classifier" / f"seed{args.seed}"
-    out: dict = {"suite": args.suite, "seed": args.seed}
+    argv = [a for a in sys.argv[1:] if a != "--json"]
+    out: dict = {"command": " ".join(["python", "benchmarks/minari_classifier.py"] + argv), "suite": args.suite}
+    out["seed"] = args.seed
     if not (args.model / "agent.json").is_file():
         out["trained"] = train(args.model, args.minari_root, args.seed)
     cfg = json.loads((args.model / "config.json").read_text())
@@ -136,6 +148,15 @@ def main() -> int:
     }
     out["same_weights_as_shipped"] = same_weights(args.model, shipped)
     out["learning_curves"] = compare_curves(args.model, shipped)
+    if args.npz_model is not None:
+        npz_cfg = json.loads((args.npz_model / "config.json").read_text())
+        if npz_cfg.get("data_source") or npz_cfg.get("seed") != args.seed:
+            raise SystemExit(f"{args.npz_model}: not a seed {args.seed} model trained from the npz datasets")
+        out["npz_model"] = {
+            "command": npz_cfg.get("command"),
+            "same_weights_as_minari": same_weights(args.npz_model, args.model),
+            "same_weights_as_shipped": same_weights(args.npz_model, shipped),
+        }
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         results = evaluate_agents(
@@ -180,9 +201,32 @@ def write_doc(out: dict) -> None:
         f"and validation losses agree to 4 digits through epoch {lc['equal_to_4_digits_through_epoch']} of "
         f"{lc['epochs'][1]} and then part (final validation loss {lc['final_val_loss'][0]:.4f} from Minari, "
         f"{lc['final_val_loss'][1]:.4f} shipped).  The Minari datasets decode to the arrays of the npz datasets "
-        "bit for bit (tests/integration/test_minari.py); whether the shipped npz run itself still reproduces "
-        "with this installation (a second 16 CPU min training) is not measured here."
+        "bit for bit (tests/integration/test_minari.py)."
+        + (
+            ""
+            if out.get("npz_model")
+            else "  Whether the shipped npz run itself still reproduces with this installation (a second 16 CPU "
+            "min training, --npz-model) is not measured here."
+        )
     )
+    npz = out.get("npz_model")
+    if npz:
+        same += (
+            "  The same command from the npz datasets, run with this installation "
+            f"(`{npz['command']}`), gives weights "
+            + (
+                "equal to the Minari run's, bit for bit"
+                if npz["same_weights_as_minari"]
+                else "not equal to the Minari run's"
+            )
+            + (" and to the shipped model's" if npz["same_weights_as_shipped"] else ", and not the shipped model's")
+            + (
+                ": reading the data through Minari changes nothing; the shipped weights are not reproduced by this "
+                "installation."
+                if npz["same_weights_as_minari"] and not npz["same_weights_as_shipped"]
+                else "."
+            )
+        )
     e = out.get("shipped_entry_isolation")
     entry_note = (
         f"The shipped one's isolation accuracy as its leaderboard entry holds it "
@@ -193,7 +237,7 @@ def write_doc(out: dict) -> None:
     )
     block = (
         f"{BEGIN} (python benchmarks/minari_classifier.py --write) -->\n"
-        f"Measured with `python benchmarks/minari_classifier.py --write` (training seed {out['seed']}; "
+        f"Measured with `{out['command']}` (training seed {out['seed']}; "
         f"[data/minari_classifier.json](data/minari_classifier.json)), on {out['suite']} "
         f"({m['n_episodes']} episodes, both evaluated in lockstep on one simulation; "
         "95 % intervals, the results tables' stratified bootstrap):\n\n"
