@@ -36,7 +36,14 @@ from marine_fdi_env.envs.fdi_env import ENV_ID
 from marine_fdi_env.envs.observation import feature_names
 
 from .artifacts import _observation_meta, _write_curve, save_meta  # noqa: F401 - used here and by tests
-from .datasets import _dataset, _ensure_dataset, dataset_scenarios, for_training_seed, scenario_config_of  # noqa: F401
+from .datasets import (  # noqa: F401
+    _dataset,
+    _ensure_dataset,
+    dataset_scenarios,
+    for_training_seed,
+    minari_id,
+    scenario_config_of,
+)
 
 __all__ = ["train_agent", "load_hyperparams", "train_sb3", "train_classifier_run", "training_specs", "ALGOS"]
 
@@ -171,6 +178,13 @@ def train_classifier_run(seed: int, hp: dict, out: Path | None, use_cache: bool 
     hp = dict(hp)
     c0, w0 = time.process_time(), time.perf_counter()
     torch.set_num_threads(int(hp.pop("torch_threads", 1)))
+    # data_source=minari minari_root=ROOT: every dataset through a Minari dataset under ROOT (docs/minari.md)
+    source = str(hp.pop("data_source", "npz"))
+    if source not in ("npz", "minari"):
+        raise ValueError(f"data_source must be npz or minari, got {source!r}")
+    minari_root = hp.pop("minari_root", None)
+    if source == "minari" and not minari_root:
+        raise ValueError("data_source=minari needs minari_root=ROOT (a Minari datasets root)")
     datasets, calibration, iso_calibration = training_specs(hp, seed)
     names = feature_names(False)
     features = AgentFeatures(names, **hp["features"]) if hp.get("features") else None
@@ -178,7 +192,7 @@ def train_classifier_run(seed: int, hp: dict, out: Path | None, use_cache: bool 
 
     def load(spec):
         nonlocal data_cpu, fresh_cpu
-        arr, cpu, fresh = _dataset(spec, use_cache, log)
+        arr, cpu, fresh = _dataset(spec, use_cache, log, minari_root if source == "minari" else None)
         data_cpu += cpu
         fresh_cpu += cpu if fresh else 0.0
         if features is not None:  # the agent's own preprocessing, computed once
@@ -275,6 +289,9 @@ def train_classifier_run(seed: int, hp: dict, out: Path | None, use_cache: bool 
         "cpu_s": round(cpu_here - fresh_cpu + data_cpu, 1),
         "wall_s": round(time.perf_counter() - w0, 1),
     }
+    if source == "minari":  # where the data came from: Minari datasets, by id
+        sets = datasets + [c for c in (calibration, iso_calibration) if c]
+        cfg["data_source"] = {"format": "minari", "root": str(minari_root), "dataset_ids": [minari_id(s) for s in sets]}
     if features is not None:
         cfg["features"] = features.to_dict()
     if out is not None:

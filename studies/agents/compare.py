@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import time
@@ -127,7 +128,13 @@ METRICS = (  # (key, title, format)
     ("engine_failures", "engine failures", "int"),
     ("feature_compute_s_per_sample", "features [µs/sample]", "us"),
     ("agent_compute_s_per_decision", "agent [µs/decision]", "us"),
+    ("dx_true_detection_rate", "DX TDR", "pct"),
+    ("dx_false_alarm_rate", "DX FAR", "pct"),
+    ("dx_fault_isolation_accuracy", "DX FIA", "pct"),
 )
+# the DX 2025 metrics per decision (marine_fdi_env.benchmark.metrics.dx_metrics): computed from the stored
+# episode records (results written before them lack a dx_metrics field)
+DX = ("dx_true_detection_rate", "dx_false_alarm_rate", "dx_fault_isolation_accuracy")
 WITH_INTERVAL = (
     "detection_rate",
     "median_detection_delay_censored_s",
@@ -135,7 +142,7 @@ WITH_INTERVAL = (
     "false_alarm_rate",
     "false_alarm_episode_rate",
     "mean_return",
-)
+) + DX
 
 
 def _current_spelling(command: str) -> str:
@@ -290,10 +297,30 @@ def _outcomes(agent: str, suite: str):
 
 
 def _est(agent: str, suite: str, metric: str):
+    """``metric`` of ``agent`` on ``suite`` (``ALL``: every suite's episodes pooled) with its 95 % interval."""
     from marine_fdi_env.benchmark.uncertainty import interval
 
-    o = _outcomes(agent, suite)
+    o = _outcomes_all(agent) if suite == ALL else _outcomes(agent, suite)
     return None if o is None else interval(o, metric)
+
+
+ALL = "all suites"
+
+
+def _outcomes_all(agent: str):
+    """The outcomes of ``agent`` over the episodes of every suite (one row per training seed)."""
+    per = [_results(agent, s) for s in SUITE_NAMES]
+    if any(r is None for r in per):
+        return None
+    return _all_cached(agent, tuple(p.stat().st_mtime_ns for s in SUITE_NAMES for p in _result_paths(agent, s)))
+
+
+@lru_cache(maxsize=None)
+def _all_cached(agent: str, stamp: tuple):
+    from marine_fdi_env.benchmark.uncertainty import outcomes
+
+    per = [_results(agent, s) for s in SUITE_NAMES]
+    return outcomes([[e for r in per for e in r[k]["episodes"]] for k in range(len(per[0]))])
 
 
 def _seed_values(agent: str, suite: str, metric: str) -> list:
@@ -361,6 +388,9 @@ SUMMARY_COLS = (
     ("transfer-v3", "detection_rate", "pct", "transfer-v3 detection"),
     ("transfer-v3", "isolation_accuracy", "pct", "transfer-v3 iso. acc."),
     ("transfer-v3", "false_alarm_rate", "rate", "transfer-v3 FA [1/h]"),
+    (ALL, "dx_true_detection_rate", "pct", "DX TDR, all suites"),
+    (ALL, "dx_false_alarm_rate", "pct", "DX FAR, all suites"),
+    (ALL, "dx_fault_isolation_accuracy", "pct", "DX FIA, all suites"),
 )
 
 
@@ -376,14 +406,12 @@ def _cells(agent: str, cols) -> list[str]:
     """One table row's cells: each (suite, metric, format, title) of ``cols`` for ``agent``."""
     out = []
     for suite, key, kind, _ in cols:
+        if suite == ALL or key in WITH_INTERVAL:
+            e = _est(agent, suite, key)
+            out.append("n/a" if e is None else _fmt_est(e, kind))
+            continue
         m = _load(agent, suite)
-        out.append(
-            "n/a"
-            if m is None
-            else _fmt_est(_est(agent, suite, key), kind)
-            if key in WITH_INTERVAL
-            else _fmt(m.get(key), kind)
-        )
+        out.append("n/a" if m is None else _fmt(m.get(key), kind))
     return out
 
 
@@ -852,29 +880,54 @@ def _all_files() -> list[Path]:
 HEADLINE_COLS = (
     ("single-v1", "isolation_accuracy", "pct", "single-v1 isolation"),
     ("multi-v1", "isolation_accuracy", "pct", "multi-v1 isolation"),
-    ("incipient-v1", "detection_rate", "pct", "incipient-v1 detection"),
-    ("transfer-v2", "isolation_accuracy", "pct", "transfer-v2 isolation"),
     ("transfer-v3", "isolation_accuracy", "pct", "transfer-v3 isolation"),
     ("nominal-v1", "n_false_alarms", "int", "nominal-v1 false alarms"),
+    (ALL, "dx_true_detection_rate", "pct", "DX TDR"),
+    (ALL, "dx_false_alarm_rate", "pct", "DX FAR"),
+    (ALL, "dx_fault_isolation_accuracy", "pct", "DX FIA"),
 )
 README_AGENTS = 9  # rows of the README's table (the hybrid classifier-v1+reference is in docs/results.md)
 
 
+def _headline_cell(e, kind: str) -> str:
+    """A compact cell of the README's table: a rate in % with its 95 % interval rounded outward to whole
+    percent (``94.0 (90-98)``), a count as it is."""
+    if e is None:
+        return "n/a"
+    if kind != "pct" or e.value is None or e.low is None or e.high is None:
+        return _fmt_est(e, kind).replace(" %", "")
+    return f"{100 * e.value:.1f} ({math.floor(100 * e.low + 1e-9):.0f}-{math.ceil(100 * e.high - 1e-9):.0f})"
+
+
+HEADLINE_NOTE = (
+    "Rates in % with 95 % intervals (rounded outward); isolation: the final declaration is exactly the active "
+    "faults; DX: the DX 2025 competition's metrics per decision, all suites "
+    "([submitting.md](docs/submitting.md#the-dx-metrics)); verified entries: [leaderboard](leaderboard/README.md)."
+)
+
+
 def headline_table(agents) -> str:
-    """The README's table: one row per agent (at most 8), one headline metric per suite family, each
-    rate with its 95 % interval."""
+    """The README's table: one row per agent (at most 9), one headline metric per suite family and the DX
+    metrics, each rate with its 95 % interval."""
     rows = [
         "| agent | seeds | " + " | ".join(c[3] for c in HEADLINE_COLS) + " |",
         "|---|---:|" + "---:|" * len(HEADLINE_COLS),
     ]
     for a in [a for a in agents if not a.endswith("+reference")][:README_AGENTS]:
-        rows.append(f"| `{a}` | {len(AGENTS[a])} | " + " | ".join(_cells(a, HEADLINE_COLS)) + " |")
+        cells = []
+        for suite, key, kind, _ in HEADLINE_COLS:
+            if kind == "pct":
+                cells.append(_headline_cell(_est(a, suite, key), kind))
+            else:
+                m = _load(a, suite)
+                cells.append("n/a" if m is None else _fmt(m.get(key), kind))
+        rows.append(f"| `{a}` | {len(AGENTS[a])} | " + " | ".join(cells) + " |")
     return "\n".join(rows) + "\n"
 
 
 def readme_block() -> str:
     """The README's generated block: the headline table and where the rest is."""
-    return "\n".join([BEGIN, "", headline_table(AGENTS), END])
+    return "\n".join([BEGIN, HEADLINE_NOTE, "", headline_table(AGENTS), END])
 
 
 def results_block() -> str:

@@ -133,6 +133,38 @@ def test_round_trip_reference_outputs_score_like_evaluate(suite, idx, tmp_path):
     dx = sc["dx_metrics"]
     assert 0 < dx["true_detection_rate"] <= 1 and dx["false_alarm_rate"] == 0.0
     assert 0 < dx["fault_isolation_accuracy"] <= 1
+    check_dx_bound(ev, dx)
+
+
+def dx_bound(episodes: list[dict], dx: dict) -> dict:
+    """How far evaluate's DX metrics per decision (1 s) may lie from score-raw's per 100 Hz sample.
+
+    The samples in [t_k, t_k + 1 s) carry decision k (predict-raw), so a decision interval counts the
+    same in both unless the truth changes inside it: at a fault's onset (or end), in the interval before
+    the first decision (samples from t = 0, never alarmed) and in the last one (one sample, at the end).
+    Per episode at most B_e = faults + 2 intervals differ, each by at most one decision's worth of
+    samples in a numerator and a denominator: a ratio A/N moves by at most 2 B / (N - B), B = sum B_e
+    and N the ratio's denominator in decisions."""
+    B = sum(len(e["faults"]) + 2 for e in episodes)
+
+    def tol(n):
+        return 2 * B / (n - B) if n > B else 1.0
+
+    alarmed = dx["true_detection_rate"] * dx["n_fault_decisions"]
+    return {
+        "true_detection_rate": tol(dx["n_fault_decisions"]),
+        "false_alarm_rate": tol(dx["n_fault_free_decisions"]),
+        "fault_isolation_accuracy": tol(alarmed),
+    }
+
+
+def check_dx_bound(ev: dict, raw_dx: dict) -> None:
+    """evaluate's DX metrics (from its records) within :func:`dx_bound` of score-raw's 100 Hz ones."""
+    mine = ev["dx_metrics"]
+    bound = dx_bound(ev["episodes"], mine)
+    for k, tol in bound.items():
+        assert tol < 0.1, (k, tol)  # a bound that says something
+        assert abs(mine[k] - raw_dx[k]) <= tol, (k, mine[k], raw_dx[k], tol)
 
 
 def _bad(pred: Path, tmp_path: Path, name: str) -> Path:

@@ -42,6 +42,7 @@ __all__ = [
     "load_agent",
     "resolve_agent_spec",
     "agent_file_stem",
+    "split_file_spec",
     "user_agent_files",
     "zoo_run_model",
 ]
@@ -86,6 +87,11 @@ def _split_file_spec(spec: str) -> tuple[Path, str] | None:
     if sep and head.endswith(".py") and cls.isidentifier():
         return Path(head), cls
     return None
+
+
+def split_file_spec(spec: str) -> tuple[Path, str] | None:
+    """``path/to/file.py:ClassName`` -> (path, ClassName); None for a name or a folder."""
+    return _split_file_spec(spec)
 
 
 def user_agent_files() -> frozenset[str]:

@@ -46,11 +46,20 @@ from ..engine.faults import FAULT_IDS
 from ..envs.scenario_sampler import ScenarioSpec, with_noise_scale
 from ..envs.vector import MarineFDIVectorEnv
 
-__all__ = ["export_dataset", "load_dataset", "dataset_chunk", "dataset_bytes", "kept_episodes", "FORMATS", "PARTIAL"]
+__all__ = [
+    "export_dataset",
+    "regenerate_minari",
+    "load_dataset",
+    "dataset_chunk",
+    "dataset_bytes",
+    "kept_episodes",
+    "FORMATS",
+    "PARTIAL",
+]
 
 PARTIAL = "dataset.partial"  # the folder of finished chunks inside OUT_DIR, until the dataset is written
 
-FORMATS = ("npz", "parquet")
+FORMATS = ("npz", "parquet", "minari")
 _COL = {f: j for j, f in enumerate(FAULT_IDS)}
 
 
@@ -81,6 +90,11 @@ def dataset_chunk(scenario_dicts: list[dict], env_kwargs: dict, T: int, progress
     valid = np.zeros((n, T), dtype=bool)
     active = np.zeros((n, T, len(FAULT_IDS)), dtype=bool)
     t_all = np.zeros((n, T))
+    reward = np.zeros((n, T))
+    ended = np.zeros((n, T, 2), dtype=bool)  # terminated, truncated at each decision
+    final = np.zeros((n, D), dtype=np.float32)  # the observation the last step returned, its time and faults
+    t_final = np.zeros(n)
+    active_final = np.zeros((n, len(FAULT_IDS)), dtype=bool)
     live = np.ones(n, dtype=bool)
     k = 0
     while live.any() and k < T:
@@ -91,7 +105,15 @@ def dataset_chunk(scenario_dicts: list[dict], env_kwargs: dict, T: int, progress
             t_all[i, k] = infos["t_s"][i]
             for f in infos["active_faults"][i]:
                 active[i, k, _COL[f]] = True
-        obs, _, term, trunc, infos = venv.step(np.zeros((n, 28), dtype=np.float32))
+        obs, rew, term, trunc, infos = venv.step(np.zeros((n, 28), dtype=np.float32))
+        reward[rows, k] = rew[rows]
+        ended[rows, k, 0], ended[rows, k, 1] = term[rows], trunc[rows]
+        final[rows] = obs[rows]
+        active_final[rows] = False
+        for i in rows:
+            t_final[i] = infos["t_s"][i]
+            for f in infos["active_faults"][i]:
+                active_final[i, _COL[f]] = True
         before = int(live.sum())
         live &= ~(term | trunc)
         k += 1
@@ -102,6 +124,11 @@ def dataset_chunk(scenario_dicts: list[dict], env_kwargs: dict, T: int, progress
         "active": active,
         "valid": valid,
         "t_s": t_all,
+        "reward": reward,
+        "ended": ended,
+        "obs_final": final,
+        "t_final": t_final,
+        "active_final": active_final,
         "feature_names": np.array(venv.feature_names),
     }
 
@@ -119,8 +146,12 @@ def export_dataset(
     backend=None,
     fmt: str = "npz",
     force: bool = False,
+    dataset_id: str | None = None,
+    card: dict | None = None,
 ) -> Path:
-    """Write the dataset of ``scenarios`` to ``out_dir`` (resumably); returns the dataset file.
+    """Write the dataset of ``scenarios`` to ``out_dir`` (resumably); returns the dataset file (the
+    dataset's folder ``out_dir/dataset_id`` for ``fmt`` ``minari``, ``out_dir`` being a Minari
+    datasets root: :mod:`.minari_data`, with ``card`` for its dataset card).
 
     ``force``: discard the kept chunks of another export in ``out_dir`` instead of refusing
     (a finished dataset in ``out_dir`` is the caller's to check: :func:`dataset_main` asks for
@@ -136,6 +167,14 @@ def export_dataset(
     backend = backend if isinstance(backend, Backend) else Backend.make(backend)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    root = out_dir
+    if fmt == "minari":  # finished chunks in a hidden folder of the root (Minari creates the dataset's own)
+        from .minari_data import work_dir
+
+        env_kwargs["reward"] = env_kwargs.get("reward") or "v1"  # the rewards a Minari dataset holds
+
+        out_dir = work_dir(root, str(dataset_id))
+        out_dir.mkdir(parents=True, exist_ok=True)
     T = _n_decisions(scenarios, env_kwargs)
     E = len(scenarios)
     env_json = _env_json(env_kwargs)
@@ -191,7 +230,18 @@ def export_dataset(
         run_tasks(backend, dataset_chunk, tasks, on_result=keep, on_progress=advance)
     finally:
         bar.close()
-    arrays = _assemble(stored, E, T)
+    arrays = _assemble(stored, E, T, full=fmt == "minari")
+    if fmt == "minari":
+        from .minari_data import write_minari
+
+        truth = {"env": env_json, "scenarios": scen_json}
+        path = write_minari(arrays, scenarios, root, str(dataset_id), env_kwargs, truth, card or {})
+        shutil.rmtree(out_dir, ignore_errors=True)  # the finished chunks
+        try:
+            out_dir.parent.rmdir()  # the hidden folder of chunks, when no other export is unfinished
+        except OSError:
+            pass
+        return path
     if fmt == "npz":
         path = out_dir / "dataset.npz"
         np.savez_compressed(path, **arrays, fault_ids=np.array(FAULT_IDS))
@@ -268,7 +318,13 @@ def _stored_chunks(part_dir: Path, head_now: dict) -> list[tuple[np.ndarray, Pat
     return []
 
 
-def _assemble(stored, E: int, T: int) -> dict:
+_FULL = {"reward": ((), np.float64), "ended": ((2,), bool)}  # the arrays only a Minari dataset keeps
+_FINAL = ("obs_final", "t_final", "active_final")
+
+
+def _assemble(stored, E: int, T: int, full: bool = False) -> dict:
+    """The arrays of the kept chunks; ``full``: also each decision's reward, whether the episode ended
+    there (terminated, truncated), and each episode's last observation."""
     arrays = None
     for idx, f in stored:
         with np.load(f) as z:
@@ -281,7 +337,12 @@ def _assemble(stored, E: int, T: int) -> dict:
                     "t_s": np.zeros((E, T)),
                     "feature_names": z["feature_names"],
                 }
-            for k in ("obs", "active", "valid", "t_s"):
+                if full:
+                    arrays.update({k: np.zeros((E, T) + tail, dtype=dt) for k, (tail, dt) in _FULL.items()})
+                    arrays["obs_final"] = np.zeros((E, D), dtype=np.float32)
+                    arrays["t_final"] = np.zeros(E)
+                    arrays["active_final"] = np.zeros((E, len(FAULT_IDS)), dtype=bool)
+            for k in ("obs", "active", "valid", "t_s") + (tuple(_FULL) + _FINAL if full else ()):
                 arrays[k][idx] = z[k]
     return arrays
 
@@ -366,3 +427,30 @@ def load_dataset(path: "str | Path") -> dict:
         "feature_names": np.array(names),
         "fault_ids": np.array(fids),
     }
+
+
+def regenerate_minari(root: "str | Path", dataset_id: str, scratch: "str | Path", progress: bool = False) -> dict:
+    """Simulate the dataset again from its ``scenarios.json`` (seeds, scenarios, environment) into the
+    Minari root ``scratch`` and compare the manifests; returns the manifest, or a ValueError naming
+    what differs."""
+    from ..envs.scenario_sampler import ScenarioSpec
+    from ..jsonfile import read_json
+    from .minari_data import kept_manifest, manifest_difference, minari_manifest
+
+    kept = kept_manifest(root, dataset_id)
+    truth = read_json(Path(root) / dataset_id / "scenarios.json", "dataset scenarios")
+    scenarios = [ScenarioSpec.from_dict({k: v for k, v in s.items() if k != "truth"}) for s in truth["scenarios"]]
+    export_dataset(
+        scenarios,
+        Path(scratch),
+        dict(truth["env"]),
+        progress=progress,
+        fmt="minari",
+        force=True,
+        dataset_id=dataset_id,
+        card=dict(kept.get("made_with") or {}),
+    )
+    bad = manifest_difference(kept, minari_manifest(scratch, dataset_id), f"{dataset_id} regenerated from its seeds")
+    if bad:
+        raise ValueError(bad)
+    return kept

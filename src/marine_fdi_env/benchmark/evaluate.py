@@ -18,7 +18,8 @@ Episodes run in batches (all episodes of a suite have the same length, so a batc
 together; an episode ended early by an engine failure is simply left).  Every finished chunk's
 episode records are appended at once to ``OUT.partial.jsonl`` (one per agent), so an interrupted
 run resumes where it stopped and loses nothing; when all are done the results file ``OUT`` (the
-suite's episodes in suite order and the metrics of :mod:`.metrics`) is written and the partial
+suite's episodes in suite order, the metrics of :mod:`.metrics` and the DX 2025 metrics per decision,
+``dx_metrics``) is written and the partial
 log removed.
 
 Reproducibility: the numbers of an episode depend only on its scenario, the seed offset and the
@@ -66,7 +67,7 @@ from ..envs.vector import MarineFDIVectorEnv
 from .agent_api import load_agent, resolve_agent_spec
 from .backends import Backend, chunk_size, run_tasks
 from .lockstep import agent_view, episode_seed, score_agents
-from .metrics import compute_metrics
+from .metrics import compute_metrics, dx_metrics
 from .suites import load_suite
 
 __all__ = [
@@ -521,7 +522,11 @@ def evaluate_agents(
         episodes = [d[i] for i in ids]
         result = dict(header)
         result.update(
-            package_version=__version__, n_scenarios=len(episodes), metrics=compute_metrics(episodes), episodes=episodes
+            package_version=__version__,
+            n_scenarios=len(episodes),
+            metrics=compute_metrics(episodes),
+            dx_metrics=dx_metrics(episodes),
+            episodes=episodes,
         )
         if used:
             result["feature_cache"] = sorted(used.values())

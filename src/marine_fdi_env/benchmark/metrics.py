@@ -66,6 +66,22 @@ Definitions
   ``isolation_rate`` = share of faulty episodes with an isolation time.
 * A ratio with an empty denominator is ``None`` (never NaN).
 
+DX metrics (:func:`dx_metrics`)
+------------------------------
+The DX 2025 diagnosis competition's three (LiU-ICE engine; ``marine-fdi score-raw`` computes them on
+100 Hz samples), here per decision, pooled over all decisions of all episodes:
+
+* ``true_detection_rate`` (TDR): share of the decisions with a fault active (the true set at ``t``
+  non-empty) at which the alarm is on;
+* ``false_alarm_rate`` (FAR): share of the decisions with no fault active at which the alarm is on
+  (also after a fault that ended);
+* ``fault_isolation_accuracy`` (FIA): mean, over the decisions with a fault active and the alarm
+  on, of the agent's share of belief on the true faults (``belief_on_truth`` of that decision);
+  ``None`` when a record lacks the share of one of those decisions.
+
+A decision grid point is a decision ``t0 + k * decision_period_s`` for ``k < n_decisions`` (or up to
+the last decision time when a record has no ``n_decisions``).
+
 Breakdown: ``by_class`` holds the same metrics for episodes whose faults are all ``sensor``, all
 ``process``, ``mixed``, and ``none`` (fault-free; only the false-alarm metrics are meaningful);
 ``by_fault`` for single-fault episodes (one distinct fault id), keyed by fault id.
@@ -75,6 +91,7 @@ from __future__ import annotations
 
 import bisect
 import math
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
@@ -82,7 +99,18 @@ import numpy as np
 
 from ..engine.faults import FAULT_IDS, fault_class
 
-__all__ = ["EpisodeOutcome", "validate_record", "episode_outcome", "compute_metrics", "aggregate", "FAULT_CLASSES"]
+__all__ = [
+    "EpisodeOutcome",
+    "validate_record",
+    "episode_outcome",
+    "compute_metrics",
+    "aggregate",
+    "dx_metrics",
+    "dx_aggregate",
+    "FAULT_CLASSES",
+    "DX_KEYS",
+    "scored_once",
+]
 
 FAULT_CLASSES: tuple[str, ...] = ("sensor", "process", "mixed", "none")
 _EPS = 1e-9
@@ -236,6 +264,14 @@ class EpisodeOutcome:
     feature_compute_s: float | None = None
     agent_compute_s: float | None = None
     n_decisions: int | None = None
+    # the DX counts (decisions): with a fault active, and of those with the alarm on; without a fault, and
+    # of those with the alarm on; the sum of the share of belief on the truth over the alarmed faulty ones
+    # (None: a share missing from the record)
+    dx_fault: int = 0
+    dx_fault_alarm: int = 0
+    dx_free: int = 0
+    dx_free_alarm: int = 0
+    dx_share: float | None = 0.0
 
     @property
     def faulty(self) -> bool:
@@ -325,7 +361,76 @@ def _class_of(faults: Sequence[Mapping]) -> str:
     return classes.pop() if len(classes) == 1 else "mixed"
 
 
+def _dx_counts(rec: Mapping, tr: _Trace) -> dict:
+    """The DX counts of one episode over its decision grid (module docstring).  One pass over the grid:
+    the declaration in force at ``t`` is the last change at or before ``t`` (:meth:`_Trace.state`, found
+    by walking the changes as ``t`` grows), a fault is active at ``t`` as in :func:`_true_set`."""
+    if not tr.times:
+        return {}
+    t0, period = tr.times[0], tr.period
+    n = rec.get("n_decisions")
+    if not isinstance(n, int) or isinstance(n, bool) or n < 1:
+        n = int(round((tr.last_decision - t0) / period)) + 1
+    shares = {round(float(t), 6): float(v) for t, v in (rec.get("belief_on_truth") or [])}
+    spans = [(f["onset_s"], f["end_s"]) for f in rec["faults"]]
+    times, alarms, last = tr.times, tr.alarms, len(tr.times) - 1
+    fault = fault_alarm = free = free_alarm = 0
+    share: float | None = 0.0
+    i = -1
+    for k in range(n):
+        t = t0 + k * period
+        te = t + _EPS
+        while i < last and times[i + 1] <= te:
+            i += 1
+        alarm = i >= 0 and alarms[i]
+        if any(on <= te and (end is None or end > te) for on, end in spans):
+            fault += 1
+            if alarm:
+                fault_alarm += 1
+                v = shares.get(round(t, 6))
+                share = None if v is None or share is None else share + v
+        else:
+            free += 1
+            free_alarm += int(alarm)
+    return {
+        "dx_fault": fault,
+        "dx_fault_alarm": fault_alarm,
+        "dx_free": free,
+        "dx_free_alarm": free_alarm,
+        "dx_share": share,
+    }
+
+
+_SCORED: dict[int, tuple[Mapping, EpisodeOutcome]] | None = None
+
+
+@contextmanager
+def scored_once():
+    """Within the block, each record (the same object) is scored once: :func:`compute_metrics`,
+    :func:`dx_metrics` and :func:`.uncertainty.outcomes` of the same records share the outcomes (the
+    records must not change inside the block).  ``marine-fdi verify`` and the leaderboard use it."""
+    global _SCORED
+    outer = _SCORED
+    if outer is None:
+        _SCORED = {}
+    try:
+        yield
+    finally:
+        _SCORED = outer
+
+
 def _outcome(rec: Mapping) -> EpisodeOutcome:
+    if _SCORED is not None:
+        hit = _SCORED.get(id(rec))
+        if hit is not None and hit[0] is rec:
+            return hit[1]
+        out = _score(rec)
+        _SCORED[id(rec)] = (rec, out)  # the record kept alive: its id is not reused inside the block
+        return out
+    return _score(rec)
+
+
+def _score(rec: Mapping) -> EpisodeOutcome:
     validate_record(rec)
     faults = rec["faults"]
     tr = _Trace.from_record(rec)
@@ -378,6 +483,7 @@ def _outcome(rec: Mapping) -> EpisodeOutcome:
         terminated=bool(rec["terminated"]),
         failure_reason=rec["failure_reason"],
         **_compute_split(rec),
+        **_dx_counts(rec, tr),
     )
 
 
@@ -475,4 +581,31 @@ def compute_metrics(records: Sequence[Mapping]) -> dict:
             single.setdefault(o.fault_ids[0], []).append(o)
     order = {f: i for i, f in enumerate(FAULT_IDS)}
     out["by_fault"] = {f: aggregate(single[f]) for f in sorted(single, key=order.__getitem__)}
+    return out
+
+
+# ----------------------------------------------------------------------------- DX metrics
+DX_KEYS = ("true_detection_rate", "false_alarm_rate", "fault_isolation_accuracy")
+
+
+def dx_aggregate(outcomes: Sequence[EpisodeOutcome]) -> dict:
+    """The DX metrics (module docstring) pooled over the decisions of a group of scored episodes."""
+    fault = sum(o.dx_fault for o in outcomes)
+    alarmed = sum(o.dx_fault_alarm for o in outcomes)
+    free = sum(o.dx_free for o in outcomes)
+    shares = [o.dx_share for o in outcomes]
+    return {
+        "true_detection_rate": _ratio(alarmed, fault),
+        "false_alarm_rate": _ratio(sum(o.dx_free_alarm for o in outcomes), free),
+        "fault_isolation_accuracy": None if any(v is None for v in shares) else _ratio(sum(shares), alarmed),
+        "n_fault_decisions": fault,
+        "n_fault_free_decisions": free,
+    }
+
+
+def dx_metrics(records: Sequence[Mapping]) -> dict:
+    """The DX 2025 metrics per decision (module docstring) over ``records``, and ``by_class``."""
+    outcomes = [_outcome(r) for r in records]
+    out = dx_aggregate(outcomes)
+    out["by_class"] = {c: dx_aggregate([o for o in outcomes if o.fault_class == c]) for c in FAULT_CLASSES}
     return out

@@ -179,7 +179,7 @@ def read_results_parquet(path: "str | Path") -> dict:
 def sweep_results(records: list[dict], source: str = "") -> list[dict]:
     """Results objects (as ``marine-fdi evaluate`` writes them) per agent x suite, pooled over
     the seed offsets, from sweep records (with ``agent_spec`` and ``seed_offset``)."""
-    from .metrics import compute_metrics
+    from .metrics import compute_metrics, dx_metrics
 
     groups: dict[tuple, list[dict]] = {}
     for r in records:
@@ -196,6 +196,7 @@ def sweep_results(records: list[dict], source: str = "") -> list[dict]:
                 "seed_offsets": offsets,
                 "n_episodes": len(recs),
                 "metrics": compute_metrics(clean),
+                "dx_metrics": dx_metrics(clean),
                 "episodes": clean,
                 "path": f"{source}[{spec} on {suite}]" if source else f"{spec} on {suite}",
             }

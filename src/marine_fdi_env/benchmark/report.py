@@ -232,6 +232,12 @@ COLUMNS: tuple[_Col, ...] = (
     _Col("Features [µs/sample]", "feature_compute_s_per_sample", _usps),
     _Col("Agent [µs/decision]", "agent_compute_s_per_decision", _usps),
 )
+# the DX 2025 metrics per decision (:func:`.metrics.dx_metrics`), beside ours in the main table
+DX_COLUMNS: tuple[_Col, ...] = (
+    _Col("DX TDR", "dx_true_detection_rate", _pct),
+    _Col("DX FAR", "dx_false_alarm_rate", _pct),
+    _Col("DX FIA", "dx_fault_isolation_accuracy", _pct),
+)
 _FA_COLUMNS = tuple(
     c
     for c in COLUMNS
@@ -255,7 +261,23 @@ _INTERVAL_KEYS = (
     "false_alarm_rate",
     "false_alarm_episode_rate",
     "mean_return",
+    "dx_true_detection_rate",
+    "dx_false_alarm_rate",
+    "dx_fault_isolation_accuracy",
 )
+
+
+def _value(r: Mapping, key: str):
+    """A metric of a result: ``metrics[key]``, or a DX metric (``dx_*``) from its ``dx_metrics`` or its
+    episodes (results written before the DX metrics lack them)."""
+    if not key.startswith("dx_"):
+        return r.get("metrics", r).get(key)
+    dx = r.get("dx_metrics")
+    if dx is None and "episodes" in r:
+        from .metrics import dx_metrics
+
+        dx = dx_metrics(r["episodes"])
+    return (dx or {}).get(key[3:])
 
 
 def _with_interval(col: _Col, est) -> str:
@@ -272,10 +294,7 @@ def _interval_cells(r: Mapping, cols: Sequence[_Col]) -> list[str]:
     from .uncertainty import interval, outcomes
 
     o = outcomes([x["episodes"] for x in r.get("seed_results") or [r]])
-    return [
-        _with_interval(c, interval(o, c.key)) if c.key in _INTERVAL_KEYS else c.fmt(r["metrics"].get(c.key))
-        for c in cols
-    ]
+    return [_with_interval(c, interval(o, c.key)) if c.key in _INTERVAL_KEYS else c.fmt(_value(r, c.key)) for c in cols]
 
 
 def _table(rows: Sequence[tuple[str, str, Mapping]], cols: Sequence[_Col], intervals: bool = False) -> str:
@@ -290,8 +309,7 @@ def _table(rows: Sequence[tuple[str, str, Mapping]], cols: Sequence[_Col], inter
         if intervals:
             cells = [suite, agent, str(len(r.get("seed_results") or [r])), *_interval_cells(r, cols)]
         else:
-            m = r.get("metrics", r)
-            cells = [suite, agent, *(c.fmt(m.get(c.key)) for c in cols)]
+            cells = [suite, agent, *(c.fmt(_value(r, c.key)) for c in cols)]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
@@ -299,7 +317,7 @@ def _table(rows: Sequence[tuple[str, str, Mapping]], cols: Sequence[_Col], inter
 def markdown_table(results: Sequence[Mapping], intervals: bool = False) -> str:
     """Main Markdown table: one row per (suite, agent), an agent's training seeds pooled; with
     ``intervals``, every rate with its 95 % interval (:mod:`.uncertainty`) and a seeds column."""
-    return _table([(r["suite"], r["agent"], r) for r in _sorted(results)], COLUMNS, intervals)
+    return _table([(r["suite"], r["agent"], r) for r in _sorted(results)], COLUMNS + DX_COLUMNS, intervals)
 
 
 def class_table(results: Sequence[Mapping], fault_class: str) -> str:

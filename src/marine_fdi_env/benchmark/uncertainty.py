@@ -25,6 +25,17 @@ undefined where the null agent and the oracle earn the same (``nominal-v1``: nei
 alarm) and such suites are left out.  Across suites the interquartile mean (rliable's IQM: the
 mean of the middle half of the seed x suite scores, :func:`scipy.stats.trim_mean` at 25 %) with the
 same bootstrap, the episodes resampled within each suite.
+
+The DX 2025 metrics (:func:`.metrics.dx_metrics`: ``dx_true_detection_rate``,
+``dx_false_alarm_rate``, ``dx_fault_isolation_accuracy``) are ratios of decision counts pooled over
+the episodes, resampled the same way (whole episodes: a decision is never resampled apart from its
+episode).  When their bootstrap is degenerate the exact interval counts each episode as one trial
+(an episode's decisions are not independent): Clopper-Pearson over the episodes that have a
+decision of the kind the rate counts.
+
+:func:`probability_of_improvement` is rliable's probability that one agent scores above another
+(per suite, over pairs of training seeds, ties counting one half; averaged over the suites), with
+the same bootstrap over the training seeds of both agents and the suites' shared episodes.
 """
 
 from __future__ import annotations
@@ -50,7 +61,9 @@ __all__ = [
     "difference",
     "normalised_score",
     "iqm_score",
+    "probability_of_improvement",
     "seed_spread",
+    "DX_METRICS",
 ]
 
 CONFIDENCE = 0.95
@@ -58,6 +71,12 @@ N_RESAMPLES = 2000
 _RNG_SEED = 20_250_905  # fixed: the same results give the same intervals
 _NEVER = math.inf
 
+# the denominator of each DX rate: an episode with such decisions is one trial of the exact interval
+_DX_TRIALS = {
+    "dx_true_detection_rate": "dx_fault",
+    "dx_false_alarm_rate": "dx_free",
+    "dx_fault_isolation_accuracy": "dx_fault_alarm",
+}
 _FAULTY_ONLY = ("detection_rate", "isolation_accuracy", "median_detection_delay_censored_s")
 # the metrics with intervals (pooled over seeds and episodes; see _statistic)
 RATE_METRICS = (
@@ -68,6 +87,9 @@ RATE_METRICS = (
     "mean_return",
     "median_detection_delay_censored_s",
 )
+# the DX 2025 metrics per decision (:func:`.metrics.dx_metrics`), with intervals too
+DX_METRICS = ("dx_true_detection_rate", "dx_false_alarm_rate", "dx_fault_isolation_accuracy")
+RATE_METRICS = RATE_METRICS + DX_METRICS
 
 
 @dataclass(frozen=True)
@@ -90,7 +112,8 @@ class Outcomes:
 
     faulty (E,): the episode has a fault; stratum (E,): its fault class; detected, isolated: 0/1 on
     faulty episodes (0 elsewhere); delay: detection delay [s] (inf: not detected; faulty only);
-    false_alarms: count; fault_free_h: fault-free time [h]; ret: the episode's return.
+    false_alarms: count; fault_free_h: fault-free time [h]; ret: the episode's return; dx_*: the
+    episode's DX decision counts (:class:`.metrics.EpisodeOutcome`; ``dx_share`` NaN where missing).
     """
 
     scenario_ids: tuple[str, ...]
@@ -102,6 +125,11 @@ class Outcomes:
     false_alarms: np.ndarray
     fault_free_h: np.ndarray
     ret: np.ndarray
+    dx_fault: np.ndarray | None = None
+    dx_fault_alarm: np.ndarray | None = None
+    dx_free: np.ndarray | None = None
+    dx_free_alarm: np.ndarray | None = None
+    dx_share: np.ndarray | None = None
 
     @property
     def n_seeds(self) -> int:
@@ -138,6 +166,11 @@ def outcomes(episode_lists: Sequence[Sequence[Mapping]]) -> Outcomes:
         false_alarms=grid(lambda o: float(o["false_alarms"])),
         fault_free_h=grid(lambda o: o["fault_free_s"] / 3600.0),
         ret=grid(lambda o: o["episode_return"]),
+        dx_fault=grid(lambda o: o["dx_fault"]),
+        dx_fault_alarm=grid(lambda o: o["dx_fault_alarm"]),
+        dx_free=grid(lambda o: o["dx_free"]),
+        dx_free_alarm=grid(lambda o: o["dx_free_alarm"]),
+        dx_share=grid(lambda o: np.nan if o["dx_share"] is None else o["dx_share"]),
     )
 
 
@@ -184,6 +217,12 @@ def _statistic(o: Outcomes, metric: str):
         return _ratio_stat(o.ret, np.ones_like(o.ret))
     if metric == "median_detection_delay_censored_s":
         return _censored_median_stat(o.delay, o.faulty)
+    if metric == "dx_true_detection_rate":
+        return _ratio_stat(o.dx_fault_alarm, o.dx_fault)
+    if metric == "dx_false_alarm_rate":
+        return _ratio_stat(o.dx_free_alarm, o.dx_free)
+    if metric == "dx_fault_isolation_accuracy":
+        return _ratio_stat(o.dx_share, o.dx_fault_alarm)
     raise ValueError(f"unknown metric {metric!r}; allowed: {', '.join(RATE_METRICS)}")
 
 
@@ -248,11 +287,16 @@ def _exact(metric: str, o: Outcomes, value: float) -> tuple[float, float]:
     from scipy.stats import beta, chi2
 
     a = 1.0 - CONFIDENCE
-    if metric == "false_alarm_rate":
+    if metric in _DX_TRIALS:  # an episode is one trial: those with a decision of the kind counted
+        n = int((getattr(o, _DX_TRIALS[metric])[0] > 0).sum())
+        if n == 0:
+            return value, value
+    elif metric == "false_alarm_rate":
         k, hours = float(o.false_alarms[0].sum()), float(o.fault_free_h[0].sum())
         lo = 0.0 if k == 0 else chi2.ppf(a / 2, 2 * k) / 2
         return float(lo / hours), float(chi2.ppf(1 - a / 2, 2 * k + 2) / 2 / hours)
-    n = int(o.faulty.sum()) if metric in ("detection_rate", "isolation_accuracy") else len(o.faulty)
+    else:
+        n = int(o.faulty.sum()) if metric in ("detection_rate", "isolation_accuracy") else len(o.faulty)
     k = round(value * n)
     lo = 0.0 if k == 0 else float(beta.ppf(a / 2, k, n - k + 1))
     hi = 1.0 if k == n else float(beta.ppf(1 - a / 2, k + 1, n - k))
@@ -362,6 +406,36 @@ def iqm_score(per_suite: Sequence[tuple[Outcomes, Outcomes, Outcomes]]) -> Estim
         [n_seeds],
         [np.arange(bounds[k], bounds[k + 1]) for k in range(len(usable))],
     )
+    return Estimate(value, lo, hi, "bootstrap")
+
+
+def probability_of_improvement(per_suite: Sequence[tuple[Outcomes, Outcomes, Outcomes, Outcomes]]) -> Estimate:
+    """rliable's probability of improvement of X over Y: per suite, the share of (X seed, Y seed) pairs
+    whose normalised score is higher for X (ties one half), averaged over the suites; ``per_suite``:
+    (X, Y, null, oracle) outcomes of each suite (suites where the score is undefined are left out).
+    The 95 % interval resamples each agent's training seeds and each suite's episodes (shared by X and
+    Y: the comparison is paired)."""
+    usable = [t for t in per_suite if _normalisable(t[2], t[3])]
+    if not usable:
+        return Estimate(None, None, None, "none")
+    nx, ny = usable[0][0].n_seeds, usable[0][1].n_seeds
+    if any(t[0].n_seeds != nx or t[1].n_seeds != ny for t in usable):
+        raise ValueError("the probability of improvement needs the same training seeds on every suite")
+    sx = [_norm_stat(t[0], t[2], t[3]) for t in usable]
+    sy = [_norm_stat(t[1], t[2], t[3]) for t in usable]
+    bounds = np.cumsum([0] + [len(t[0].faulty) for t in usable])
+
+    def stat(seeds, eps):  # seeds: [X's (B, nx), Y's (B, ny)]
+        out = []
+        for k in range(len(usable)):
+            e = eps[:, bounds[k] : bounds[k + 1]] - bounds[k]
+            a, b = sx[k](seeds[0], e)[:, :, None], sy[k](seeds[1], e)[:, None, :]
+            out.append(((a > b) + 0.5 * (a == b)).mean(axis=(1, 2)))
+        return np.mean(out, axis=0)
+
+    whole = [np.arange(nx)[None, :], np.arange(ny)[None, :]]
+    value = float(stat(whole, np.arange(bounds[-1])[None, :])[0])
+    lo, hi = _bootstrap(stat, [nx, ny], [np.arange(bounds[k], bounds[k + 1]) for k in range(len(usable))])
     return Estimate(value, lo, hi, "bootstrap")
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import shlex
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +33,12 @@ Runs the episodes of a frozen suite (--suite) or of a scenario preset (--preset,
                    bool column active.<fault id> per fault, plus no_fault
   scenarios.json   the scenarios with their ground truth, in episode order
 
+With --format minari, --out is a Minari datasets root: the dataset goes to OUT/ID (--dataset-id,
+default marine_fdi/<preset or suite>/null-v0), laid out so that MINARI_DATASETS_PATH=OUT and
+minari.load_dataset(ID) open it, with a card (README.md), scenarios.json and manifest.json (the
+sha256 of every decoded array).  --check OUT/ID checks the manifest against the data, and with
+--regenerate simulates the dataset again from its seeds and compares (docs/minari.md).
+
 Load either file with marine_fdi_env.benchmark.dataset.load_dataset(path) (the same arrays, bit for
 bit).  Training data must not come from the evaluation suites: use --preset for training.
 
@@ -55,6 +62,12 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=_HELP,
     )
     src = ap.add_mutually_exclusive_group(required=True)
+    src.add_argument(
+        "--check",
+        type=Path,
+        metavar="DIR",
+        help="a Minari dataset written by --format minari (ROOT/ID): check its manifest against the data",
+    )
     src.add_argument(
         "--suite",
         metavar="NAME|FILE.json",
@@ -82,7 +95,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument(
         "--out",
         type=Path,
-        required=True,
+        default=None,
         metavar="DIR",
         help="output folder (created, and its parent if missing; never more levels)",
     )
@@ -90,7 +103,19 @@ def build_parser() -> argparse.ArgumentParser:
         "--format",
         choices=FORMATS,
         default="npz",
-        help="npz (dense arrays, default) or parquet (long format, one row per decision; needs pyarrow)",
+        help="npz (dense arrays, default), parquet (long format, one row per decision; needs pyarrow) or minari "
+        "(a Minari dataset under the datasets root --out; needs minari)",
+    )
+    ap.add_argument(
+        "--dataset-id",
+        default=None,
+        metavar="ID",
+        help="the Minari dataset id (--format minari; default marine_fdi/<preset or suite>/null-v0)",
+    )
+    ap.add_argument(
+        "--regenerate",
+        action="store_true",
+        help="with --check: simulate the dataset again from its seeds and compare the manifests",
     )
     ap.add_argument(
         "--observe-sensors", action="store_true", help="append the normalised sensor readings to the features"
@@ -125,8 +150,18 @@ def dataset_main(argv=None) -> int:
     args, code = parse_cli(ap, argv)
     if args is None:
         return code
+    if args.check is not None:
+        return _check_main(args)
     try:
         backend = backend_from_args(args)
+        if args.out is None:
+            raise ValueError("--out is required (the dataset's folder; with --format minari, a Minari datasets root)")
+        if args.regenerate:
+            raise ValueError("--regenerate goes with --check DIR (a Minari dataset to simulate again)")
+        if args.dataset_id is not None and args.format != "minari":
+            raise ValueError("--dataset-id names a Minari dataset: it goes with --format minari")
+        if args.format == "minari":
+            require_extra("minari", "--format minari")
         if args.suite and (args.episodes is not None or args.seed is not None):
             raise ValueError("--episodes and --seed draw episodes from a --preset; a --suite has its own episodes")
         episodes = 256 if args.episodes is None else args.episodes
@@ -154,8 +189,22 @@ def dataset_main(argv=None) -> int:
             env_kwargs = {"scenario_config": cfg}
         if args.observe_sensors:
             env_kwargs["observe_sensors"] = True
+        dataset_id = card = None
+        if args.format == "minari":
+            from ..benchmark.minari_data import check_dataset_id, dataset_id_for
+
+            source = Path(args.suite).stem if args.suite else args.preset
+            dataset_id = check_dataset_id(args.dataset_id or dataset_id_for(source))
+            what = f"suite {source}" if args.suite else f"preset {args.preset}, {episodes} episodes, seed {seed}"
+            card = {
+                "description": f"Episodes of MarineFDI-v1 ({what})",
+                "command": shlex.join(["marine-fdi", "dataset"] + list(argv or [])),
+                "n_features": len(feature_names(args.observe_sensors)),
+            }
         out = prepare_out(args.out, "--out", is_dir=True)
         finished = [f.name for f in (out / "dataset.npz", out / "dataset.parquet") if f.is_file()]
+        if dataset_id is not None:
+            finished = [dataset_id] if (out / dataset_id).is_dir() else []
         if finished and not (out / "dataset.partial").is_dir() and not args.force:
             raise ValueError(
                 f"--out {out} already holds a dataset ({', '.join(finished)}); pass --force to overwrite "
@@ -163,7 +212,12 @@ def dataset_main(argv=None) -> int:
             )
         if args.force:
             for name in finished:
-                (out / name).unlink()
+                if (out / name).is_dir():
+                    import shutil
+
+                    shutil.rmtree(out / name)
+                else:
+                    (out / name).unlink()
         T = max(int(round(sc.duration_s / EPISODE_DECISION_PERIOD_S)) for sc in scenarios)
         say_cost(
             "marine-fdi dataset",
@@ -183,10 +237,45 @@ def dataset_main(argv=None) -> int:
             backend=backend,
             fmt=args.format,
             force=args.force,
+            dataset_id=dataset_id,
+            card=card,
         )
     except ValueError as e:
         return fail("marine-fdi dataset", e)
     except KeyboardInterrupt:
         return interrupted("marine-fdi dataset", _kept(locals().get("out"), locals().get("scenarios")))
+    if dataset_id is not None:
+        print(
+            f"wrote the Minari dataset {dataset_id} ({len(scenarios)} episodes) in {path}: "
+            f"MINARI_DATASETS_PATH={out} and minari.load_dataset({dataset_id!r}) open it"
+        )
+        return 0
     print(f"wrote {path} and {out / 'scenarios.json'} ({len(scenarios)} episodes)")
+    return 0
+
+
+def _check_main(args) -> int:
+    """``--check DIR [--regenerate]``: a Minari dataset's manifest against its data (and its seeds)."""
+    import tempfile
+
+    try:
+        from ..benchmark.dataset import regenerate_minari
+        from ..benchmark.minari_data import check_minari
+        from ..errors import require_extra
+        from ..jsonfile import read_json
+
+        require_extra("minari", "--check")
+        folder = args.check
+        if not (folder / "manifest.json").is_file():
+            raise ValueError(f"--check {folder}: no manifest.json (not a dataset written by --format minari)")
+        dataset_id = str(read_json(folder / "manifest.json", "Minari dataset manifest").get("dataset_id", ""))
+        root = folder.resolve().parents[dataset_id.count("/")]
+        kept = check_minari(root, dataset_id)
+        print(f"{dataset_id}: {kept['n_episodes']} episodes, every decoded array has the manifest's sha256")
+        if args.regenerate:
+            with tempfile.TemporaryDirectory() as tmp:
+                regenerate_minari(root, dataset_id, tmp, progress=not args.no_progress)
+            print(f"{dataset_id}: regenerated from its seeds, the same manifest ({kept['sha256'][:16]}...)")
+    except ValueError as e:
+        return fail("marine-fdi dataset", e)
     return 0

@@ -269,6 +269,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub.add_parser("suites", add_help=False, help="list the frozen evaluation suites (see suites --help)")
     sub.add_parser("train", add_help=False, help="train a learned agent: PPO or the GRU classifier (needs [train])")
+    sub.add_parser("submit", add_help=False, help="score an agent on the frozen suites into an entry anyone can verify")
+    sub.add_parser("verify", add_help=False, help="check entries: hashes, metrics recomputed, --rerun replays them")
+    sub.add_parser("leaderboard", add_help=False, help="build the leaderboard's table from its entries")
 
     p = sub.add_parser(
         "info",
@@ -298,6 +301,9 @@ OWN_PARSER_COMMANDS = {
     "replicas": ("marine_fdi_env.cli.replicas", "replicas_main"),
     "suites": ("marine_fdi_env.cli.suites", "suites_main"),
     "train": ("marine_fdi_env.cli.train", "train_main"),
+    "submit": ("marine_fdi_env.cli.submit", "submit_main"),
+    "verify": ("marine_fdi_env.cli.submit", "verify_main"),
+    "leaderboard": ("marine_fdi_env.cli.leaderboard", "leaderboard_main"),
 }
 
 # the output options of the validation commands: option -> (argparse dest, is a folder)
