@@ -30,6 +30,7 @@ EXTRAS: dict[str, str] = {
     "torch": "train",
     "stable_baselines3": "train",
     "rl_zoo3": "zoo",
+    "pettingzoo": "multiagent",
 }
 
 
