@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["CACHE", "scenario_config_of", "dataset_scenarios", "for_training_seed", "spec_name"]
+__all__ = ["CACHE", "scenario_config_of", "dataset_scenarios", "for_training_seed", "spec_name", "training_dataset"]
 
 CACHE = Path(__file__).resolve().parent / ".cache"
 
@@ -119,3 +119,9 @@ def _dataset(spec: dict, use_cache: bool, log=print) -> tuple[dict, float, bool]
 
     d, cpu, fresh = _ensure_dataset(spec, use_cache, log)
     return load_dataset(d), cpu, fresh
+
+
+def training_dataset(spec: dict, use_cache: bool = True, log=print) -> tuple[dict, float, bool]:
+    """The arrays (``obs``, ``active``, ``valid``) of a dataset spec, exported once and then read from
+    the cache; returns (arrays, CPU s of the export, whether it was exported now)."""
+    return _dataset(spec, use_cache, log)

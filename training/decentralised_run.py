@@ -1,0 +1,159 @@
+"""Train the decentralised team of every message budget for one seed (:mod:`.decentralised`): simulate
+the training and calibration episodes once, train one team per budget on them, calibrate its alarm and
+isolation, and save each as a model folder (``training/models/dec-classifier-BUDGET/seedS``).
+
+The CPU time of each budget's model counts the whole simulation of the episodes (``cpu_s_data``, also
+when read from the cache) plus its own training and calibration (``cpu_s_train``): the cost of training
+that model alone.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from marine_fdi_env.envs.observation import feature_names
+from marine_fdi_env.multiagent.budgets import get_budget
+from marine_fdi_env.multiagent.roles import LOCAL_AGENTS
+
+from .artifacts import observation_meta, write_curve
+from .datasets import training_dataset
+
+__all__ = ["load_decentralised_hyperparams", "train_decentralised_run"]
+
+HERE = Path(__file__).resolve().parent
+
+
+def load_decentralised_hyperparams(entry: str = "decentralised") -> dict:
+    """The entry of ``training/hyperparams/decentralised.yml``."""
+    data = yaml.safe_load((HERE / "hyperparams" / "decentralised.yml").read_text())
+    if entry not in data:
+        raise ValueError(f"decentralised.yml: no entry {entry!r} (has {', '.join(data)})")
+    return dict(data[entry])
+
+
+def train_decentralised_run(
+    seed: int, hp: dict, out_root: Path | None, *, budgets=None, use_cache: bool = True, command: str = "", log=print
+) -> list[dict]:
+    """Train every budget of ``hp`` (or ``budgets``) with ``seed``; returns the configs (saved to
+    ``out_root/NAME-BUDGET/seedS`` unless ``out_root`` is None)."""
+    import torch
+
+    from .classifier import calibrate_isolation, calibrate_threshold
+    from .decentralised import episode_probabilities, local_inputs, train_decentralised
+    from .features import AgentFeatures, transform_episodes
+    from .train import training_specs
+
+    hp = dict(hp)
+    torch.set_num_threads(int(hp.get("torch_threads", 1)))
+    datasets, calibration, iso_calibration = training_specs(hp, seed)
+    features = AgentFeatures(feature_names(False), **hp["features"])
+    in_names = features.input_names()
+    columns = {a: local_inputs(in_names, a) for a in LOCAL_AGENTS}
+    data_cpu = 0.0
+    c_load = time.process_time()
+
+    def load(spec):
+        nonlocal data_cpu
+        arr, cpu, fresh = training_dataset(spec, use_cache, log)
+        data_cpu += cpu
+        arr["obs"] = transform_episodes(features, arr["obs"])  # the locals' own preprocessing, computed once
+        return arr
+
+    parts = [load(s) for s in datasets]
+    data = {k: np.concatenate([p[k] for p in parts]) for k in ("obs", "active", "valid")}
+    del parts
+    cal, iso = load(calibration), load(iso_calibration)
+    prep_cpu = time.process_time() - c_load  # loading and transforming (the exports' CPU is data_cpu)
+    configs = []
+    for b in budgets or hp["budgets"]:
+        budget = get_budget(b)
+        c0 = time.process_time()
+        res = train_decentralised(
+            data["obs"],
+            data["active"],
+            data["valid"],
+            budget,
+            columns,
+            seed=seed,
+            hidden_local=int(hp["hidden_local"]),
+            hidden_global=int(hp["hidden_global"]),
+            epochs=int(hp["epochs"]),
+            batch_size=int(hp["batch_size"]),
+            lr=float(hp["lr"]),
+            weight_decay=float(hp["weight_decay"]),
+            alarm_weight=float(hp["alarm_weight"]),
+            log=log,
+        )
+        alarm = calibrate_threshold(
+            episode_probabilities(res.net, cal["obs"])[..., -1],
+            cal["valid"],
+            target_per_hour=float(hp["target_false_alarms_per_hour"]),
+            margin=float(hp["margin_logodds"]),
+        )
+        conf = calibrate_isolation(
+            episode_probabilities(res.net, iso["obs"]),
+            iso["active"],
+            iso["valid"],
+            alpha=float(hp["isolation_alpha"]),
+            isolation_threshold=float(hp["isolation_threshold"]),
+        )
+        train_cpu = time.process_time() - c0
+        name = f"{hp['name']}-{budget.name}"
+        log(
+            f"{name} seed {seed}: alarm threshold {alarm['alarm_threshold']:.4f}, "
+            f"isolation quantile {conf['quantile']:.3f}"
+        )
+        cfg = {
+            "name": name,
+            "algo": "dec-classifier",
+            "seed": seed,
+            "budget": budget.to_dict(),
+            "bits_per_decision": budget.bits_per_decision,
+            "hyperparams": hp,
+            "datasets": datasets,
+            "calibration_sets": [calibration, iso_calibration],
+            "architecture": {
+                "kind": "local GRU encoders + GRU global decoder",
+                "hidden_local": int(hp["hidden_local"]),
+                "hidden_global": int(hp["hidden_global"]),
+                "columns": {a: c.tolist() for a, c in columns.items()},
+                "inputs": in_names,
+            },
+            "features": {k: v for k, v in features.to_dict().items() if k not in ("mean", "scale")},
+            "declaration": {
+                "alarm_threshold": alarm["alarm_threshold"],
+                "isolation_threshold": float(hp["isolation_threshold"]),
+                "calibration": alarm,
+                "isolation_conformal": conf,
+            },
+            "observation": observation_meta(),
+            "training_episodes": int(len(data["obs"])),
+            "n_parameters": int(sum(p.numel() for p in res.net.parameters())),
+            "cpu_s_data": round(data_cpu + prep_cpu, 1),
+            "cpu_s_train": round(train_cpu, 1),
+            "cpu_s": round(data_cpu + prep_cpu + train_cpu, 1),
+            "cpu_minutes": round((data_cpu + prep_cpu + train_cpu) / 60.0, 2),
+            "command": command,
+            "machine": {"cpus": os.cpu_count(), "python": platform.python_version()},
+        }
+        if out_root is not None:
+            out = Path(out_root) / name / f"seed{seed}"
+            out.mkdir(parents=True, exist_ok=True)
+            torch.save(res.net.state_dict(), out / "model.pt")
+            write_curve(out / "learning_curve.csv", res.curve)
+            cfg["model_bytes"] = (out / "model.pt").stat().st_size
+            (out / "config.json").write_text(json.dumps(cfg, indent=1) + "\n")
+            agent = {"class": "marine_fdi_env.training.decentralised_agent:DecentralisedAgent"}
+            (out / "agent.json").write_text(json.dumps(agent, indent=1) + "\n")
+            top = out.parent / "agent.json"
+            if not top.exists():
+                top.write_text(json.dumps(dict(agent, kwargs={"model": "seed0"}), indent=1) + "\n")
+        configs.append(cfg)
+    return configs
