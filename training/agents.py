@@ -23,6 +23,16 @@ from marine_fdi_env.jsonfile import read_json
 __all__ = ["SB3Agent", "ClassifierAgent", "read_config", "check_observation"]
 
 
+def __getattr__(name: str):
+    """``DecentralisedAgent`` (the multi-agent track's learned teams, :mod:`.decentralised_agent`), imported
+    when a model folder names it: every ``agent.json`` of ``training/models`` names a class of this module."""
+    if name == "DecentralisedAgent":
+        from .decentralised_agent import DecentralisedAgent
+
+        return DecentralisedAgent
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 def read_config(path: Path) -> dict:
     f = Path(path) / "config.json"
     if not f.is_file():

@@ -1,5 +1,6 @@
 """A trained decentralised team (:mod:`.decentralised`) as policies of the multi-agent track and as a
-benchmark agent (``marine-fdi evaluate --agent dec-classifier-decision``).
+benchmark agent (``marine-fdi evaluate --agent dec-classifier-decision``; the model folders'
+``agent.json`` name it as ``marine_fdi_env.training.agents:DecentralisedAgent``).
 
 A model folder holds ``config.json`` (the budget, the networks' sizes, the declaration's calibration,
 the training command and cost) and ``model.pt`` (the five networks' weights).  Each local policy

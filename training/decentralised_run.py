@@ -150,7 +150,7 @@ def train_decentralised_run(
             write_curve(out / "learning_curve.csv", res.curve)
             cfg["model_bytes"] = (out / "model.pt").stat().st_size
             (out / "config.json").write_text(json.dumps(cfg, indent=1) + "\n")
-            agent = {"class": "marine_fdi_env.training.decentralised_agent:DecentralisedAgent"}
+            agent = {"class": "marine_fdi_env.training.agents:DecentralisedAgent"}
             (out / "agent.json").write_text(json.dumps(agent, indent=1) + "\n")
             top = out.parent / "agent.json"
             if not top.exists():

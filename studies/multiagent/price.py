@@ -104,8 +104,8 @@ def evaluate_missing(cache_dir: Path | None, workers: int = 1) -> None:
             reward="v1",
             progress=False,
             workers=workers,
-            # the first pass (reference-distributed) simulates and keeps each suite; later passes read it
-            cache="off" if cache_dir is None else "write" if todo[0][0] == "reference-distributed" else "use",
+            # the first pass simulates and keeps each suite's features; later passes read them
+            cache="off" if cache_dir is None else "use" if any(cache_dir.glob(f"{suite}_o0_*.parquet")) else "write",
             cache_dir=cache_dir,
         )
 
