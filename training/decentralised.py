@@ -15,7 +15,9 @@ time each is a policy of its own agent (:class:`DecentralisedLocal`, :class:`Dec
 * **Messages**: ``bits`` budgets: the sign of a linear head (1 where positive), trained with the
   straight-through estimator (the forward pass sends the bit, the backward pass the gradient of a
   sigmoid); ``numbers`` budgets: ``MESSAGE_BOUND tanh`` of the head.  Everything a local sends is the
-  message: nothing else leaves it.
+  message: nothing else leaves it.  ``locals: thesis`` (the ``decision`` budget only): the locals are
+  the thesis's, sending their decision vectors D^(l) (the latched ``fired`` features of their modules,
+  :class:`ThesisBits`), and only the global is trained (``dec-global-decision``).
 * **Declaration**: the ``classifier``'s rule (:class:`~marine_fdi_env.training.agents.ClassifierAgent`):
   a latched alarm when P(some fault) passes a threshold set for zero false alarms on fault-free
   calibration episodes plus a margin, and the most probable fault set unless it is less decisive than
@@ -37,10 +39,20 @@ from marine_fdi_env.multiagent.roles import LOCAL_AGENTS, local_modules
 
 from .classifier import alarm_balance_weights
 
-__all__ = ["LocalEncoder", "GlobalDecoder", "DecentralisedNet", "TrainResult", "train_decentralised", "local_inputs"]
+__all__ = [
+    "LocalEncoder",
+    "ThesisBits",
+    "GlobalDecoder",
+    "DecentralisedNet",
+    "TrainResult",
+    "train_decentralised",
+    "local_inputs",
+]
 
 N_FAULTS = len(FAULT_IDS)
 PER_MODULE_INPUTS = 6  # AgentFeatures (noise_window 4): 3 invariant features + 3 EWMAs per module
+# what the locals are: trained encoders, or the thesis's decision vectors (only the global learns)
+LOCALS = ("learned", "thesis")
 
 
 def local_inputs(input_names: list[str], agent: str) -> np.ndarray:
@@ -81,6 +93,16 @@ class LocalEncoder(nn.Module):
         return MESSAGE_BOUND * torch.tanh(logits), h
 
 
+class ThesisBits(nn.Module):
+    """A local that sends the thesis's decision vector D^(l) (eq. 5.19): its inputs are its modules' latched
+    ``fired`` features (0/1), sent as they are; no parameters (``locals: thesis`` in the hyperparameters)."""
+
+    kind = "bits"
+
+    def forward(self, x: torch.Tensor, h=None):
+        return x, h
+
+
 class GlobalDecoder(nn.Module):
     """The global agent: (B, T, total) messages -> (B, T, 27) logits (26 faults, then "some fault")."""
 
@@ -98,13 +120,21 @@ class GlobalDecoder(nn.Module):
 class DecentralisedNet(nn.Module):
     """The four local encoders and the global decoder, for training (inputs of every local side by side)."""
 
-    def __init__(self, budget: MessageBudget, columns: dict, hidden_local: int, hidden_global: int) -> None:
+    def __init__(
+        self, budget: MessageBudget, columns: dict, hidden_local: int, hidden_global: int, locals_: str = "learned"
+    ) -> None:
         super().__init__()
+        if locals_ not in LOCALS:
+            raise ValueError(f"locals must be one of {', '.join(LOCALS)}, got {locals_!r}")
+        if locals_ == "thesis" and budget.name != "decision":
+            raise ValueError(f"the thesis's locals send decision vectors: budget 'decision', got {budget.name!r}")
         self.budget = budget
         self.columns = {a: torch.as_tensor(c) for a, c in columns.items()}
         self.locals = nn.ModuleDict(
             {
-                a: LocalEncoder(len(columns[a]), budget.size(a), budget.kind, hidden_local, hidden_local)
+                a: ThesisBits()
+                if locals_ == "thesis"
+                else LocalEncoder(len(columns[a]), budget.size(a), budget.kind, hidden_local, hidden_local)
                 for a in LOCAL_AGENTS
             }
         )
@@ -138,10 +168,12 @@ def train_decentralised(
     weight_decay: float = 1e-5,
     alarm_weight: float = 4.0,
     val_fraction: float = 0.1,
+    locals_: str = "learned",
     log=print,
 ) -> TrainResult:
     """Train a :class:`DecentralisedNet` end to end on invariant inputs ``x`` (E, T, 114) with labels
-    ``active`` (E, T, 26) and ``valid`` (E, T); seeded (torch and numpy)."""
+    ``active`` (E, T, 26) and ``valid`` (E, T); seeded (torch and numpy).  With ``locals_="thesis"``
+    ``x`` is the 19 ``fired`` features (E, T, 19) and only the global is trained."""
     c0 = time.process_time()
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
@@ -152,9 +184,9 @@ def train_decentralised(
     perm = rng.permutation(E)
     n_val = int(round(val_fraction * E)) if E >= 10 else 0
     val_idx, tr_idx = perm[:n_val], perm[n_val:]
-    net = DecentralisedNet(budget, columns, hidden_local, hidden_global)
+    net = DecentralisedNet(budget, columns, hidden_local, hidden_global, locals_)
     flat = X[tr_idx][v[tr_idx] > 0]
-    for a in LOCAL_AGENTS:
+    for a in LOCAL_AGENTS if locals_ == "learned" else ():
         sel = flat[:, net.columns[a]]
         net.locals[a].mean.copy_(sel.mean(0))
         net.locals[a].scale.copy_(sel.std(0).clamp_min(1e-3))

@@ -99,17 +99,23 @@ def load_team(path) -> Team:
     arch = cfg["architecture"]
     budget = get_budget(cfg["budget"])
     columns = {a: np.asarray(c, dtype=np.int64) for a, c in arch["columns"].items()}
-    net = DecentralisedNet(budget, columns, int(arch["hidden_local"]), int(arch["hidden_global"]))
+    locals_ = arch.get("locals", "learned")
+    net = DecentralisedNet(budget, columns, int(arch["hidden_local"]), int(arch["hidden_global"]), locals_)
     try:
         net.load_state_dict(torch.load(f, map_location="cpu", weights_only=True))
     except Exception as e:  # noqa: BLE001 - any failure inside torch is a bad file
         raise ValueError(f"{f}: weights do not fit the architecture in config.json ({type(e).__name__}: {e})") from None
     net.eval()
-    locals_ = {a: DecentralisedLocal(a, net.locals[a], cfg["features"]) for a in LOCAL_AGENTS}
+    if locals_ == "thesis":
+        from marine_fdi_env.baselines.reference_distributed_agent import DecisionVectorLocal
+
+        policies = {a: DecisionVectorLocal(a) for a in LOCAL_AGENTS}
+    else:
+        policies = {a: DecentralisedLocal(a, net.locals[a], cfg["features"]) for a in LOCAL_AGENTS}
     return Team(
         cfg.get("name", "dec-classifier"),
         budget,
-        locals_,
+        policies,
         DecentralisedGlobal(net.glob, cfg["declaration"]),
         training_seed=cfg.get("seed"),
     )

@@ -20,7 +20,7 @@ import yaml
 
 from marine_fdi_env.envs.observation import feature_names
 from marine_fdi_env.multiagent.budgets import get_budget
-from marine_fdi_env.multiagent.roles import LOCAL_AGENTS
+from marine_fdi_env.multiagent.roles import LOCAL_AGENTS, local_modules
 
 from .artifacts import observation_meta, write_curve
 from .datasets import training_dataset
@@ -53,9 +53,18 @@ def train_decentralised_run(
     hp = dict(hp)
     torch.set_num_threads(int(hp.get("torch_threads", 1)))
     datasets, calibration, iso_calibration = training_specs(hp, seed)
+    locals_ = str(hp.get("locals", "learned"))
     features = AgentFeatures(feature_names(False), **hp["features"])
     in_names = features.input_names()
-    columns = {a: local_inputs(in_names, a) for a in LOCAL_AGENTS}
+    if locals_ == "thesis":  # the inputs are the 19 fired features, local l's are its modules'
+        in_names = [n for n in feature_names(False) if n.endswith(".fired")]
+        fired = np.array([feature_names(False).index(n) for n in in_names])
+        columns = {
+            a: np.array([j for j, n in enumerate(in_names) if n.rpartition(".")[0] in local_modules(a)])
+            for a in LOCAL_AGENTS
+        }
+    else:
+        columns = {a: local_inputs(in_names, a) for a in LOCAL_AGENTS}
     data_cpu = 0.0
     c_load = time.process_time()
 
@@ -63,7 +72,10 @@ def train_decentralised_run(
         nonlocal data_cpu
         arr, cpu, fresh = training_dataset(spec, use_cache, log)
         data_cpu += cpu
-        arr["obs"] = transform_episodes(features, arr["obs"])  # the locals' own preprocessing, computed once
+        if locals_ == "thesis":
+            arr["obs"] = (arr["obs"][..., fired] >= 0.5).astype(np.float32)  # the decision vectors
+        else:
+            arr["obs"] = transform_episodes(features, arr["obs"])  # the locals' own preprocessing, computed once
         return arr
 
     parts = [load(s) for s in datasets]
@@ -89,6 +101,7 @@ def train_decentralised_run(
             lr=float(hp["lr"]),
             weight_decay=float(hp["weight_decay"]),
             alarm_weight=float(hp["alarm_weight"]),
+            locals_=locals_,
             log=log,
         )
         alarm = calibrate_threshold(
@@ -112,7 +125,7 @@ def train_decentralised_run(
         )
         cfg = {
             "name": name,
-            "algo": "dec-classifier",
+            "algo": str(hp["name"]),
             "seed": seed,
             "budget": budget.to_dict(),
             "bits_per_decision": budget.bits_per_decision,
@@ -120,7 +133,10 @@ def train_decentralised_run(
             "datasets": datasets,
             "calibration_sets": [calibration, iso_calibration],
             "architecture": {
-                "kind": "local GRU encoders + GRU global decoder",
+                "kind": "local GRU encoders + GRU global decoder"
+                if locals_ == "learned"
+                else "the thesis's decision vectors + GRU global decoder",
+                "locals": locals_,
                 "hidden_local": int(hp["hidden_local"]),
                 "hidden_global": int(hp["hidden_global"]),
                 "columns": {a: c.tolist() for a, c in columns.items()},

@@ -2,6 +2,7 @@
 one simulation of the training episodes (``training/hyperparams/decentralised.yml``).
 
     python -m studies.multiagent.train --seed 0 --out training/models   # dec-classifier-BUDGET/seed0, every budget
+    python -m studies.multiagent.train --seed 0 --entry thesis_locals --out training/models   # dec-global-decision
     python -m studies.multiagent.train --seed 0 --out /tmp/x --params epochs=1 --episodes-scale 0.05   # a smoke run
 """
 
@@ -20,11 +21,16 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seed", type=int, required=True)
     ap.add_argument("--out", type=Path, default=None, help="the models folder (default: nothing saved)")
+    ap.add_argument(
+        "--entry",
+        default="decentralised",
+        help="the entry of decentralised.yml (thesis_locals: a learned global on the thesis's locals)",
+    )
     ap.add_argument("--budgets", nargs="*", default=None, help="default: the entry's budgets")
     ap.add_argument("--params", nargs="*", default=[], help="key=value overrides (YAML values)")
     ap.add_argument("--episodes-scale", type=float, default=1.0, help="scale every dataset's episodes (smoke runs)")
     args = ap.parse_args(argv)
-    hp = load_decentralised_hyperparams()
+    hp = load_decentralised_hyperparams(args.entry)
     for kv in args.params:
         k, _, v = kv.partition("=")
         hp[k] = yaml.safe_load(v)

@@ -7,6 +7,7 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
+from marine_fdi_env.baselines.reference_distributed_agent import DecisionVectorLocal  # noqa: E402
 from marine_fdi_env.benchmark.evaluate import WALL_CLOCK_FIELDS, run_episodes, suite_env_kwargs  # noqa: E402
 from marine_fdi_env.benchmark.suites import load_suite  # noqa: E402
 from marine_fdi_env.envs.observation import feature_names  # noqa: E402
@@ -21,33 +22,36 @@ from marine_fdi_env.training.features import AgentFeatures  # noqa: E402
 FEATURES = {"noise_window": 4, "ewma_features": ["signed_mean_ratio"], "taus": [5, 20, 60], "previous_alarm": False}
 
 
-def untrained_team(budget: str, seed: int = 0) -> Team:
-    """A team with seeded random weights and a low alarm threshold (so that it declares)."""
+def untrained_team(budget: str, seed: int = 0, locals_: str = "learned") -> Team:
+    """A team with seeded random weights and a low alarm threshold (so that it declares); ``locals_``
+    ``thesis``: the thesis's decision vectors and a learned global (``dec-global-decision``)."""
     torch.set_num_threads(1)  # as load_team: tiny networks, one row per engine
     torch.manual_seed(seed)
     names = AgentFeatures(feature_names(False), drop=(), **FEATURES).input_names()
     cols = {a: local_inputs(names, a) for a in LOCAL_AGENTS}
-    net = DecentralisedNet(BUDGETS[budget], cols, 8, 16).eval()
+    net = DecentralisedNet(BUDGETS[budget], cols, 8, 16, locals_).eval()
     decl = {"alarm_threshold": 0.3, "isolation_threshold": 0.45, "isolation_conformal": {"quantile": 0.6}}
-    return Team(
-        f"untrained-{budget}",
-        BUDGETS[budget],
-        {a: DecentralisedLocal(a, net.locals[a], dict(FEATURES, drop=[])) for a in LOCAL_AGENTS},
-        DecentralisedGlobal(net.glob, decl),
-    )
+    if locals_ == "thesis":
+        policies = {a: DecisionVectorLocal(a) for a in LOCAL_AGENTS}
+    else:
+        policies = {a: DecentralisedLocal(a, net.locals[a], dict(FEATURES, drop=[])) for a in LOCAL_AGENTS}
+    return Team(f"untrained-{budget}-{locals_}", BUDGETS[budget], policies, DecentralisedGlobal(net.glob, decl))
 
 
 def _strip(rec: dict) -> dict:
     return {k: v for k, v in rec.items() if k not in WALL_CLOCK_FIELDS}
 
 
-@pytest.mark.parametrize("budget", ["decision", "scalar"])
-def test_learned_team_declares_the_same_in_both_environments(budget):
+@pytest.mark.parametrize(
+    "budget, locals_",
+    [("decision", "learned"), ("decision", "thesis"), pytest.param("scalar", "learned", marks=pytest.mark.slow)],
+)
+def test_learned_team_declares_the_same_in_both_environments(budget, locals_):
     suite = load_suite("multi-v1")
     scs = [suite.scenarios[i] for i in (1, 9, 22)]
     env_kwargs, _ = suite_env_kwargs(suite)
-    single = run_episodes(TeamAgent(untrained_team(budget)), scs, env_kwargs, suite="multi-v1")
-    multi = team_records(untrained_team(budget), scs, env_kwargs, suite="multi-v1")
+    single = run_episodes(TeamAgent(untrained_team(budget, locals_=locals_)), scs, env_kwargs, suite="multi-v1")
+    multi = team_records(untrained_team(budget, locals_=locals_), scs, env_kwargs, suite="multi-v1")
     assert [_strip(r) for r in single] == [_strip(r) for r in multi]
     assert any(len(r["declared_changes"]) > 1 for r in single)  # the declarations change: the test can fail
 
