@@ -25,7 +25,14 @@ from marine_fdi_env.multiagent.roles import LOCAL_AGENTS, local_modules
 from .artifacts import observation_meta, write_curve
 from .datasets import training_dataset
 
-__all__ = ["load_decentralised_hyperparams", "train_decentralised_run"]
+__all__ = [
+    "load_decentralised_hyperparams",
+    "train_decentralised_run",
+    "isolation_declaration",
+    "recalibrate_isolation",
+]
+
+ISOLATION_GRID = (0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5)
 
 HERE = Path(__file__).resolve().parent
 
@@ -45,7 +52,7 @@ def train_decentralised_run(
     ``out_root/NAME-BUDGET/seedS`` unless ``out_root`` is None)."""
     import torch
 
-    from .classifier import calibrate_isolation, calibrate_threshold
+    from .classifier import calibrate_threshold
     from .decentralised import episode_probabilities, local_inputs, train_decentralised
     from .features import AgentFeatures, transform_episodes
     from .train import training_specs
@@ -110,12 +117,8 @@ def train_decentralised_run(
             target_per_hour=float(hp["target_false_alarms_per_hour"]),
             margin=float(hp["margin_logodds"]),
         )
-        conf = calibrate_isolation(
-            episode_probabilities(res.net, iso["obs"]),
-            iso["active"],
-            iso["valid"],
-            alpha=float(hp["isolation_alpha"]),
-            isolation_threshold=float(hp["isolation_threshold"]),
+        iso_threshold, conf, search = isolation_declaration(
+            episode_probabilities(res.net, iso["obs"]), iso["active"], iso["valid"], hp
         )
         train_cpu = time.process_time() - c0
         name = f"{hp['name']}-{budget.name}"
@@ -145,8 +148,9 @@ def train_decentralised_run(
             "features": {k: v for k, v in features.to_dict().items() if k not in ("mean", "scale")},
             "declaration": {
                 "alarm_threshold": alarm["alarm_threshold"],
-                "isolation_threshold": float(hp["isolation_threshold"]),
+                "isolation_threshold": iso_threshold,
                 "calibration": alarm,
+                "isolation_threshold_search": search,
                 "isolation_conformal": conf,
             },
             "observation": observation_meta(),
@@ -173,3 +177,65 @@ def train_decentralised_run(
                 top.write_text(json.dumps(dict(agent, kwargs={"model": "seed0"}), indent=1) + "\n")
         configs.append(cfg)
     return configs
+
+
+def isolation_declaration(
+    probs: np.ndarray, active: np.ndarray, valid: np.ndarray, hp: dict
+) -> tuple[float, dict, dict]:
+    """The isolation threshold and its conformal quantile from held-in faulty episodes (``probs`` (E, T, 27)).
+
+    ``isolation_threshold: calibrated``: the threshold of :data:`ISOLATION_GRID` whose fault set (the faults
+    at or above it) equals the active faults at the last decision of the most episodes (the highest on a
+    tie); a number: that threshold.  Then the split-conformal quantile at that threshold
+    (:func:`~.classifier.calibrate_isolation`).  Returns (threshold, conformal record, search record)."""
+    from .classifier import N_FAULTS, calibrate_isolation
+
+    search: dict = {"rule": "fixed"}
+    if hp["isolation_threshold"] == "calibrated":
+        last = valid.sum(axis=1) - 1
+        rows = np.arange(len(probs))
+        faulty = active[rows, last].any(axis=1) & (last >= 0)
+        p, truth = probs[rows, last, :N_FAULTS][faulty], active[rows, last][faulty]
+        exact = [float(np.mean(((p >= t) == truth).all(axis=1))) if len(p) else 0.0 for t in ISOLATION_GRID]
+        best = max(range(len(ISOLATION_GRID)), key=lambda i: (exact[i], ISOLATION_GRID[i]))
+        threshold = float(ISOLATION_GRID[best])
+        search = {"rule": "most exact sets at the last decision", "grid": list(ISOLATION_GRID), "exact": exact}
+    else:
+        threshold = float(hp["isolation_threshold"])
+    conf = calibrate_isolation(probs, active, valid, alpha=float(hp["isolation_alpha"]), isolation_threshold=threshold)
+    return threshold, conf, search
+
+
+def recalibrate_isolation(folder: Path, hp: dict, *, use_cache: bool = True, log=print) -> dict:
+    """Calibrate a trained team's isolation again with ``hp`` (:func:`isolation_declaration` on its own
+    isolation-calibration episodes) and rewrite its ``config.json``: what training with ``hp`` gives,
+    the networks unchanged."""
+    import torch
+
+    from .decentralised import DecentralisedNet, episode_probabilities
+    from .features import AgentFeatures, transform_episodes
+
+    folder = Path(folder)
+    cfg = json.loads((folder / "config.json").read_text())
+    arch = cfg["architecture"]
+    locals_ = arch.get("locals", "learned")
+    columns = {a: np.asarray(c, dtype=np.int64) for a, c in arch["columns"].items()}
+    net = DecentralisedNet(
+        get_budget(cfg["budget"]["name"]), columns, int(arch["hidden_local"]), int(arch["hidden_global"]), locals_
+    )
+    net.load_state_dict(torch.load(folder / "model.pt", map_location="cpu", weights_only=True))
+    net.eval()
+    iso, _, _ = training_dataset(cfg["calibration_sets"][1], use_cache, log)
+    if locals_ == "thesis":
+        fired = np.array([feature_names(False).index(n) for n in arch["inputs"]])
+        x = (iso["obs"][..., fired] >= 0.5).astype(np.float32)
+    else:
+        x = transform_episodes(AgentFeatures(feature_names(False), **hp["features"]), iso["obs"])
+    threshold, conf, search = isolation_declaration(episode_probabilities(net, x), iso["active"], iso["valid"], hp)
+    cfg["hyperparams"]["isolation_threshold"] = hp["isolation_threshold"]
+    cfg["declaration"].update(
+        isolation_threshold=threshold, isolation_threshold_search=search, isolation_conformal=conf
+    )
+    (folder / "config.json").write_text(json.dumps(cfg, indent=1) + "\n")
+    log(f"{folder}: isolation threshold {threshold}, conformal quantile {conf['quantile']:.3f}")
+    return cfg

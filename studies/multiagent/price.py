@@ -37,6 +37,7 @@ FIGURE = REPO / "docs" / "figures" / "multiagent" / "isolation_vs_budget.png"
 MESSAGE = HERE / "reference_message.json"
 SEEDS = (0, 1, 2)
 DEC = "dec-classifier"
+GLOBAL = "dec-global-decision"  # the thesis's locals, a learned global (decision budget)
 
 # the headline metric of each suite (the README's), and the metric's column title
 HEADLINE = {
@@ -69,6 +70,7 @@ def rows() -> list[tuple[str, str, str, tuple[Path, ...]]]:
     msg = json.loads(MESSAGE.read_text())["bits"]["quantised_bits_per_decision"] if MESSAGE.is_file() else None
     return [
         ("reference-distributed", "distributed (thesis)", "19", ("reference-distributed",)),
+        (GLOBAL, "thesis's locals, learned global", "19", tuple(f"{GLOBAL}_s{s}" for s in SEEDS)),
         *dec,
         ("reference", "centralised evidence", f"{msg} (its evidence)" if msg else "-", ("reference",)),
         ("classifier", "centralised, learned", "all features", tuple(f"classifier_s{s}" for s in SEEDS)),
@@ -77,15 +79,15 @@ def rows() -> list[tuple[str, str, str, tuple[Path, ...]]]:
 
 
 def _file(stem: str, suite: str) -> Path:
-    base = RESULTS if stem.startswith((DEC, "reference-distributed")) else CENTRAL
+    base = RESULTS if stem.startswith((DEC, GLOBAL, "reference-distributed")) else CENTRAL
     return base / f"{stem}_{suite}.json"
 
 
 def evaluate_missing(cache_dir: Path | None, workers: int = 1) -> None:
     specs = {"reference-distributed": "reference-distributed"}
-    for b in BUDGETS:
+    for name in (GLOBAL, *(dec_name(b) for b in BUDGETS)):
         for s in SEEDS:
-            specs[f"{dec_name(b)}_s{s}"] = str(REPO / "training" / "models" / dec_name(b) / f"seed{s}")
+            specs[f"{name}_s{s}"] = str(REPO / "training" / "models" / name / f"seed{s}")
     RESULTS.mkdir(parents=True, exist_ok=True)
     for suite in SUITE_NAMES:
         todo = [
@@ -158,7 +160,9 @@ def report() -> dict:
         data["rows"][name] = {"information": info, "bits_per_decision": bits, "seeds": len(stems), "suites": rec}
         table.append(f"| `{name}` | {info} | {bits} | {len(stems)} | " + " | ".join(cells) + " |")
     # paired differences: every decentralised row against the distributed scheme and the centralised learned rows
-    pairs = [(dec_name(b), ref) for b in BUDGETS for ref in ("reference-distributed", "classifier", "ppo")]
+    pairs = [
+        (a, ref) for a in (GLOBAL, *map(dec_name, BUDGETS)) for ref in ("reference-distributed", "classifier", "ppo")
+    ]
     pairs += [("reference-distributed", "reference")]
     diff = ["| A - B | " + " | ".join(t for _, t in HEADLINE.values()) + " |", "|---|" + "---:|" * len(HEADLINE)]
     for a, b in pairs:
@@ -219,7 +223,8 @@ def figure(data: dict) -> None:
             ax.plot(xs, [100 * y for y in ys], "-", color="C0", alpha=0.5)
         for b in BUDGETS:
             point(dec_name(b), BUDGETS[b].bits_per_decision, "o", f"{DEC} ({b})")
-        point("reference-distributed", 19, "s", "reference-distributed")
+        point("reference-distributed", 19 * 0.93, "s", "reference-distributed")  # beside the other 19-bit rows
+        point(GLOBAL, 19 * 1.08, "^", GLOBAL)  # beside the other 19-bit rows
         if msg:
             point("reference", msg, "D", "reference (its evidence)")
         for name, style in (("classifier", "--"), ("ppo", ":")):

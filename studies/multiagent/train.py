@@ -4,6 +4,7 @@ one simulation of the training episodes (``training/hyperparams/decentralised.ym
     python -m studies.multiagent.train --seed 0 --out training/models   # dec-classifier-BUDGET/seed0, every budget
     python -m studies.multiagent.train --seed 0 --entry thesis_locals --out training/models   # dec-global-decision
     python -m studies.multiagent.train --seed 0 --out /tmp/x --params epochs=1 --episodes-scale 0.05   # a smoke run
+    python -m studies.multiagent.train --recalibrate training/models/dec-classifier-decision/seed*   # isolation only
 """
 
 from __future__ import annotations
@@ -14,12 +15,19 @@ from pathlib import Path
 
 import yaml
 
-from marine_fdi_env.training.decentralised_run import load_decentralised_hyperparams, train_decentralised_run
+from marine_fdi_env.training.decentralised_run import (
+    load_decentralised_hyperparams,
+    recalibrate_isolation,
+    train_decentralised_run,
+)
 
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--seed", type=int, required=True)
+    ap.add_argument("--seed", type=int, default=None, help="the training seed (required unless --recalibrate)")
+    ap.add_argument(
+        "--recalibrate", nargs="*", type=Path, default=None, help="model folders: calibrate their isolation again"
+    )
     ap.add_argument("--out", type=Path, default=None, help="the models folder (default: nothing saved)")
     ap.add_argument(
         "--entry",
@@ -39,6 +47,12 @@ def main(argv: list[str] | None = None) -> None:
             hp[key] = [dict(s, episodes=max(8, int(s["episodes"] * args.episodes_scale))) for s in hp[key]]
         for key in ("calibration", "isolation_calibration"):
             hp[key] = dict(hp[key], episodes=max(8, int(hp[key]["episodes"] * args.episodes_scale)))
+    if args.recalibrate is not None:
+        for folder in args.recalibrate:
+            recalibrate_isolation(folder, hp)
+        return
+    if args.seed is None:
+        ap.error("--seed is required")
     command = "python -m studies.multiagent.train " + " ".join(argv if argv is not None else sys.argv[1:])
     for cfg in train_decentralised_run(args.seed, hp, args.out, budgets=args.budgets, command=command):
         print(f"{cfg['name']} seed {cfg['seed']}: {cfg['cpu_minutes']:.2f} CPU min ({cfg['cpu_s_data']:.0f} s data)")
