@@ -19,7 +19,7 @@ from marine_fdi_env.multiagent.budgets import get_budget
 from marine_fdi_env.multiagent.roles import LOCAL_AGENTS, local_feature_names
 from marine_fdi_env.multiagent.team import Team, TeamAgent
 
-from .agents import check_observation, read_config
+from .model_config import check_observation, read_config
 
 __all__ = ["DecentralisedLocal", "DecentralisedGlobal", "load_team", "DecentralisedAgent"]
 

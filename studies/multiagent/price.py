@@ -236,7 +236,7 @@ def figure(data: dict) -> None:
         ax.set_title(f"{suite}: isolation accuracy (95 % intervals)")
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("isolation accuracy [%]")
-    axes[1].legend(fontsize=7, loc="lower right")
+    axes[1].legend(fontsize=7, loc="center right")
     fig.tight_layout()
     FIGURE.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(FIGURE, dpi=110)
