@@ -18,33 +18,20 @@ import numpy as np
 
 from marine_fdi_env.envs.hypotheses import N_HYPOTHESES, UNKNOWN
 from marine_fdi_env.envs.observation import feature_names
-from marine_fdi_env.jsonfile import read_json
+
+from .model_config import check_observation, read_config
 
 __all__ = ["SB3Agent", "ClassifierAgent", "read_config", "check_observation"]
 
 
-def read_config(path: Path) -> dict:
-    f = Path(path) / "config.json"
-    if not f.is_file():
-        raise ValueError(f"{f}: missing (a model directory needs config.json beside its weights)")
-    cfg = read_json(f, "model config")
-    if not isinstance(cfg, dict) or "observation" not in cfg:
-        raise ValueError(f"{f}: not a model config (no 'observation' entry)")
-    return cfg
+def __getattr__(name: str):
+    """``DecentralisedAgent`` (the multi-agent track's learned teams, :mod:`.decentralised_agent`), imported
+    when a model folder names it: every ``agent.json`` of ``training/models`` names a class of this module."""
+    if name == "DecentralisedAgent":
+        from .decentralised_agent import DecentralisedAgent
 
-
-def check_observation(cfg: dict, where: Path, observe_sensors: bool = False) -> int:
-    """The per-decision observation size of a model; ValueError if it is not this env's."""
-    ob = cfg["observation"]
-    names = feature_names(bool(ob.get("observe_sensors", observe_sensors)))
-    if ob.get("feature_names") != names:
-        size = ob.get("size")
-        same = " with different names" if size == len(names) else ""
-        raise ValueError(
-            f"{where}: model made for another observation space ({size} features{same}); "
-            f"this environment has {len(names)} features ({names[0]}, ..., {names[-1]})"
-        )
-    return len(names)
+        return DecentralisedAgent
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _need_file(f: Path) -> Path:

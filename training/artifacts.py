@@ -10,7 +10,7 @@ from pathlib import Path
 from marine_fdi_env.envs.observation import feature_names
 from marine_fdi_env.outputs import prepare_out
 
-__all__ = ["save_sb3_agent"]
+__all__ = ["save_sb3_agent", "observation_meta", "write_curve"]
 
 
 def _observation_meta(observe_sensors: bool = False) -> dict:
@@ -60,3 +60,13 @@ def save_sb3_agent(model, folder: "str | Path", venv=None, *, name: str | None =
     }
     save_meta(out, cfg, "marine_fdi_env.training.agents:SB3Agent")
     return out
+
+
+def observation_meta(observe_sensors: bool = False) -> dict:
+    """The ``observation`` entry of a model's ``config.json`` (size, options, feature names)."""
+    return _observation_meta(observe_sensors)
+
+
+def write_curve(path: Path, rows: list[dict]) -> None:
+    """A learning curve as CSV (one row per epoch or rollout)."""
+    _write_curve(path, rows)

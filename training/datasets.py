@@ -20,7 +20,15 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["CACHE", "scenario_config_of", "dataset_scenarios", "for_training_seed", "spec_name", "minari_id"]
+__all__ = [
+    "CACHE",
+    "scenario_config_of",
+    "dataset_scenarios",
+    "for_training_seed",
+    "spec_name",
+    "minari_id",
+    "training_dataset",
+]
 
 CACHE = Path(__file__).resolve().parent / ".cache"
 
@@ -167,3 +175,9 @@ def _dataset(spec: dict, use_cache: bool, log=print, minari_root: "Path | None" 
         return _minari_dataset(spec, Path(minari_root), log)
     d, cpu, fresh = _ensure_dataset(spec, use_cache, log)
     return load_dataset(d), cpu, fresh
+
+
+def training_dataset(spec: dict, use_cache: bool = True, log=print) -> tuple[dict, float, bool]:
+    """The arrays (``obs``, ``active``, ``valid``) of a dataset spec, exported once and then read from
+    the cache; returns (arrays, CPU s of the export, whether it was exported now)."""
+    return _dataset(spec, use_cache, log)

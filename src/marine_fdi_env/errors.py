@@ -31,6 +31,7 @@ EXTRAS: dict[str, str] = {
     "stable_baselines3": "train",
     "rl_zoo3": "zoo",
     "minari": "minari",
+    "pettingzoo": "multiagent",
 }
 
 

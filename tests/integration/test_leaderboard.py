@@ -23,7 +23,7 @@ LEADERBOARD = ROOT / "leaderboard"
 ENTRIES = LEADERBOARD / "entries"
 NAMES = sorted(d.name for d in ENTRIES.iterdir() if (d / ENTRY_FILE).is_file()) if ENTRIES.is_dir() else []
 DIRS = [ENTRIES / n for n in NAMES]
-ONE_OF_EACH_KIND = ("reference", "classifier-seed0", "ppo-seed0")  # baseline, classifier, ppo
+ONE_OF_EACH_KIND = ("reference", "classifier-seed0", "ppo-seed0", "dec-classifier-decision-seed0")  # one per family
 
 
 def test_every_shipped_agent_and_training_seed_has_an_entry():
@@ -31,7 +31,19 @@ def test_every_shipped_agent_and_training_seed_has_an_entry():
     assert NAMES == sorted(n for n, _ in shipped_specs())
     assert {"reference-lipschitz", "classifier-seed2", "ppo-seed0", "classifier-v1+reference"} <= set(NAMES)
     kinds = {n: read_entry(ENTRIES / n)["agent"]["family"] for n in ONE_OF_EACH_KIND}
-    assert kinds == {"reference": "baseline", "classifier-seed0": "classifier", "ppo-seed0": "ppo"}
+    assert kinds == {
+        "reference": "baseline",
+        "classifier-seed0": "classifier",
+        "ppo-seed0": "ppo",
+        "dec-classifier-decision-seed0": "dec-classifier",
+    }
+
+
+def test_submit_shipped_adds_only_the_missing_entries(capsys):
+    """``submit --shipped`` into the full leaderboard scores nothing and says so in one line (exit 2)."""
+    code = cli_main(["submit", "--shipped", "--out", str(ENTRIES), "--no-progress"])
+    err = capsys.readouterr().err
+    assert code == 2 and "every shipped agent has an entry; pass --force" in err
 
 
 def test_every_entry_has_its_hashes():

@@ -37,6 +37,7 @@ BUILTIN_AGENTS = {
     "null": "marine_fdi_env.baselines.null_agent:NullAgent",
     "random": "marine_fdi_env.baselines.random_agent:RandomAgent",
     "reference": "marine_fdi_env.baselines.reference_agent:ReferenceAgent",
+    "reference-distributed": "marine_fdi_env.baselines.reference_distributed_agent:ReferenceDistributedAgent",
     "sequential": "marine_fdi_env.baselines.sequential_agent:SequentialAgent",
     "reference-thesis": "marine_fdi_env.baselines.reference_agent:ReferenceThesisAgent",
     "reference-grid": "marine_fdi_env.baselines.reference_agent:ReferenceGridAgent",

@@ -74,7 +74,11 @@ def submit_main(argv=None) -> int:
         metavar="AGENT",
         help="an agent name ('marine-fdi agents'), a folder with agent.json, or path/to/file.py:ClassName",
     )
-    ap.add_argument("--shipped", action="store_true", help="every shipped agent and training seed, one entry each")
+    ap.add_argument(
+        "--shipped",
+        action="store_true",
+        help="every shipped agent and training seed without an entry in --out, one entry each",
+    )
     ap.add_argument(
         "--suites", nargs="+", default=["all"], metavar="SUITE", help=f"default all: {' '.join(SUITE_NAMES)}"
     )
@@ -131,6 +135,16 @@ def submit_main(argv=None) -> int:
         else:
             specs, outs = [args.agent], [root]
         taken = [o for o in outs if (o / ENTRY_FILE).is_file()]
+        if args.shipped and taken and not args.force:  # --shipped adds the entries that are missing
+            keep = [i for i, o in enumerate(outs) if o not in taken]
+            if not keep:
+                raise UsageError(f"--out {root}: every shipped agent has an entry; pass --force to score them again")
+            print(
+                f"marine-fdi submit: {len(taken)} shipped agents have an entry in {root}; scoring the other "
+                f"{len(keep)} ({', '.join(outs[i].name for i in keep)})",
+                file=sys.stderr,
+            )
+            specs, outs, taken = [specs[i] for i in keep], [outs[i] for i in keep], []
         if taken and not args.force:
             raise UsageError(
                 f"--out {taken[0]} already holds an entry; pass --force to score again and overwrite it, "
