@@ -22,7 +22,7 @@ from ..engine.steady_state import FUEL_SETTING_RANGE
 from ..errors import require_extra
 from ..outputs import prepare_out
 from ..scenarios import SCENARIOS
-from .common import PROG
+from .common import PROG, CommandParser, parse_cli
 from .diagnose import cmd_diagnose
 from .failures import DEBUG_ENV, DEBUG_FLAG, debugging, fail, run_command, split_debug
 from .simulation import (
@@ -44,7 +44,7 @@ __all__ = ["main", "console_main", "build_parser", "OWN_PARSER_COMMANDS"]
 # ----------------------------------------------------------------------------- parser
 def build_parser() -> argparse.ArgumentParser:
     fmt = argparse.RawDescriptionHelpFormatter
-    parser = argparse.ArgumentParser(
+    parser = CommandParser(
         prog=PROG,
         description=textwrap.fill(
             "Marine diesel engine fault detection and isolation benchmark: steady states, "
@@ -309,7 +309,7 @@ _VALIDATION_OUTPUTS = {
 
 def _run_validation_command(command: str, argv: list[str]) -> int:
     """``validate`` and ``synthesize-measurements`` under the conventions of the other commands
-    (:mod:`.common`): their options parsed once (the command's ``parse``, then its ``run``); ``--plots``
+    (:mod:`.common`): their options parsed once (the command's parser, then its ``run``); ``--plots``
     without matplotlib is one line before any work; the parent of each output path is created when missing
     (one level, never more) and removed again when the command fails, so a failing command leaves no new
     folder."""
@@ -317,10 +317,9 @@ def _run_validation_command(command: str, argv: list[str]) -> int:
 
     mod = importlib.import_module(OWN_PARSER_COMMANDS[command][0])
     prog = f"{PROG} {command}"
-    try:
-        args = mod.parse(argv, prog)
-    except SystemExit as e:  # --help
-        return int(e.code or 0)
+    args, code = parse_cli(mod.build_parser(prog), argv)
+    if args is None:
+        return code
     created: list[Path] = []
     try:
         if getattr(args, "plots", None):
@@ -357,7 +356,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     Every command ends a failure the same way (:mod:`.failures`: one line, the traceback with
     ``--debug`` anywhere on the command line); Ctrl-C prints "interrupted" and returns 130 (commands
     that write incrementally keep their finished work and resume when rerun); a cold numba cache
-    prints one line before the first compilation (:mod:`marine_fdi_env._coldstart`).
+    prints one line before the first compilation (:mod:`marine_fdi_env.coldstart`).
     """
     argv, debug = split_debug(sys.argv[1:] if argv is None else argv)
     prog = PROG + (f" {argv[0]}" if argv and not argv[0].startswith("-") else "")
@@ -366,9 +365,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _dispatch(argv: list[str]) -> int:
-    from .. import _coldstart
+    from .. import coldstart
 
-    _coldstart.enable(PROG)
+    coldstart.enable(PROG)
     if argv and argv[0] in _VALIDATION_OUTPUTS:
         return _run_validation_command(argv[0], argv[1:])
     if argv and argv[0] in OWN_PARSER_COMMANDS:
@@ -381,10 +380,9 @@ def _dispatch(argv: list[str]) -> int:
 
 def _main(argv: list[str]) -> int:
     parser = build_parser()
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as exc:  # --help, --version, argparse usage errors (exit code 2)
-        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
+    args, code = parse_cli(parser, argv)
+    if args is None:  # --help, --version, a usage error (its line printed)
+        return code
     if args.command is None:
         parser.print_help(sys.stderr)
         return 2

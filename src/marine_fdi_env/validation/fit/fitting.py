@@ -71,6 +71,7 @@ from .problem import HELD_OUT_VALVES, FitProblem, Setting
 __all__ = [
     "ROBUST_SCALE",
     "robust_loss",
+    "training_folds",
     "Combination",
     "FitResult",
     "fit_combination",
@@ -611,6 +612,17 @@ def predict_setting(problem: FitProblem, fit: FitResult, rows) -> np.ndarray:
     return out
 
 
+def training_folds(problem: FitProblem, max_folds: int | None = None):
+    """The cross-validation folds that can be fitted, as ``(name, training rows, test rows)``: a fold whose
+    training rows are empty or hold no measurement is left out."""
+    _, folds = problem.folds(max_folds)
+    rows = problem.rows_with_data()
+    for name, test in folds:
+        train = np.setdiff1d(rows, test)
+        if train.size and problem.measured_mask[train].any():
+            yield name, train, test
+
+
 def cross_validate(
     problem: FitProblem, comb: Combination, full: FitResult | None = None, *, max_folds: int | None = None
 ) -> tuple[np.ndarray, list]:
@@ -618,15 +630,10 @@ def cross_validate(
     fold fits (a valve's opening at a held-out point as ``problem.held_out_valves`` says, module docstring)."""
     n, C = problem.n_points, len(problem.channels)
     pred = np.full((n, C), np.nan)
-    _, folds = problem.folds(max_folds)
     if full is None:
         full = fit_combination(problem, comb)
-    all_rows = problem.rows_with_data()
     fits = []
-    for name, test in folds:
-        train = np.setdiff1d(all_rows, test)
-        if train.size == 0 or not problem.measured_mask[train].any():
-            continue
+    for name, train, test in training_folds(problem, max_folds):
         f = fit_combination(
             problem,
             comb,

@@ -15,10 +15,10 @@ import numpy as np
 from scipy import stats
 
 from ..measured.discrepancy import (
-    _VAR_QUANTITY,
+    VAR_QUANTITY,
     DiscrepancyReport,
-    _replicate_groups,
     operating_variables,
+    replicate_groups,
     theil_sen_detrend,
 )
 from ..measured.matching import MatchResult
@@ -48,7 +48,7 @@ def _local_deviations(ds, idx: np.ndarray, r: np.ndarray, ops: Mapping[str, np.n
     """Deviations of the residuals from their local structure (as :mod:`.measured.discrepancy`: the median of
     replicated set points, else a Theil-Sen line on load); returns (positions into idx, deviations,
     mask of the deviations that carry information (not the zero of an odd group's median member))."""
-    groups = _replicate_groups(ds, idx)
+    groups = replicate_groups(ds, idx)
     n = r.size
     if groups and sum(len(g) for g in groups) >= max(5, n // 2):
         pos, dev, info = [], [], []
@@ -87,7 +87,7 @@ def point_outliers(match: MatchResult, tolerances: Mapping[str, float], alpha: f
         if idx.size < 5:
             continue
         q = ds.column_quantity[col]
-        ch_ops = {k: v[ok] for k, v in ops.items() if q not in _VAR_QUANTITY[k]}
+        ch_ops = {k: v[ok] for k, v in ops.items() if q not in VAR_QUANTITY[k]}
         tol = float(tolerances[col])
         pos, d, info = _local_deviations(ds, idx, r_all[ok], ch_ops)
         m = int(info.sum())
