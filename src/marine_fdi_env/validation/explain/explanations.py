@@ -49,9 +49,9 @@ from ..fit.fitting import (
     channel_rmse,
     fit_combination,
     predict_setting,
+    refit_fold,
     training_folds,
 )
-from ..fit.nuisance import NUISANCE
 from ..fit.problem import FitProblem
 from ..select.candidates import CandidateScore, paired_p
 from ..select.eligibility import why_pinned
@@ -84,17 +84,7 @@ def cross_validate_held(problem: FitProblem, fit: FitResult, max_folds: int | No
     pred = np.full((problem.n_points, len(problem.channels)), np.nan)
     comb = fit.combination
     for _, train, test in training_folds(problem, max_folds):
-        f = fit_combination(
-            problem,
-            comb,
-            train,
-            start=fit,
-            known=fit.values(),
-            support=fit.support,
-            uncertainty=False,
-            max_nfev=25 * (len(NUISANCE) + comb.n_global + 1),
-            eliminate=False,
-        )
+        f = refit_fold(problem, comb, train, fit, known=fit.values(), support=fit.support)
         pred[test] = predict_setting(problem, f, test)
     return pred
 

@@ -72,6 +72,7 @@ __all__ = [
     "ROBUST_SCALE",
     "robust_loss",
     "training_folds",
+    "refit_fold",
     "Combination",
     "FitResult",
     "fit_combination",
@@ -623,6 +624,21 @@ def training_folds(problem: FitProblem, max_folds: int | None = None):
             yield name, train, test
 
 
+def refit_fold(problem: FitProblem, comb: Combination, train: np.ndarray, start: FitResult, **held) -> FitResult:
+    """A cross-validation fold's refit of ``comb`` on the rows ``train``, started from ``start``: no uncertainty,
+    no elimination, a bounded number of evaluations; ``held``: what the refit keeps (``known``, ``support``)."""
+    return fit_combination(
+        problem,
+        comb,
+        train,
+        start=start,
+        uncertainty=False,
+        max_nfev=25 * (N_NUIS + comb.n_global + 1),
+        eliminate=False,
+        **held,
+    )
+
+
 def cross_validate(
     problem: FitProblem, comb: Combination, full: FitResult | None = None, *, max_folds: int | None = None
 ) -> tuple[np.ndarray, list]:
@@ -634,15 +650,7 @@ def cross_validate(
         full = fit_combination(problem, comb)
     fits = []
     for name, train, test in training_folds(problem, max_folds):
-        f = fit_combination(
-            problem,
-            comb,
-            train,
-            start=full,
-            uncertainty=False,
-            max_nfev=25 * (N_NUIS + comb.n_global + 1),
-            eliminate=False,
-        )
+        f = refit_fold(problem, comb, train, full)
         if comb.valves and problem.held_out_valves == "support":
             f.held_out_support = {k: list(v) for k, v in full.support.items()}
         f.held_out_state = bool(comb.valves) and problem.held_out_valves == "state"

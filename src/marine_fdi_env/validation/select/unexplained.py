@@ -194,29 +194,23 @@ def local_excess(
             region = f"load {lo:.3g}-{hi:.3g}"
         unit = ds.spec(col).unit
         out.append(
-            {
-                "channel": col,
-                "kind": "local",
-                "region": region,
-                "load_range": [lo, hi],
-                "points": sorted(int(i) + 1 for i in best["positions"]),
-                "magnitude": best["d"],
-                "score": abs(best["d"]) / tol,
-                "p_value": best["p"],
-                "p_at_floor": best["p_at_floor"],
-                "noise": best["sigma"],
-                "noise_ratio": best["noise"],
-                "unit": unit,
-                "significant": True,
-                "scale": "tolerance" if own is None else "data",
-                "text": f"unexplained: {col}, {region} (local, magnitude {best['d']:+.4g} {unit}"
+            _local_finding(
+                col,
+                region,
+                best,
+                tol,
+                unit,
+                sorted(int(i) + 1 for i in best["positions"]),
+                {"noise": best["sigma"], "noise_ratio": best["noise"]},
+                scale="tolerance" if own is None else "data",
+                text=f"unexplained: {col}, {region} (local, magnitude {best['d']:+.4g} {unit}"
                 + (
                     ""
                     if own is None
                     else f"; judged at the data's scatter {own:.3g} {unit}, below the tolerance {tol:.3g}"
                 )
                 + ")",
-            }
+            )
         )
     return out
 
@@ -298,22 +292,37 @@ def calibration_left(
         region = f"load {lo:.3g}-{hi:.3g}"
         unit = ds.spec(col).unit
         out.append(
-            {
-                "channel": col,
-                "kind": "local",
-                "region": region,
-                "load_range": [lo, hi],
-                "points": [i + 1 for i in best["positions"]],
-                "magnitude": best["d"],
-                "score": abs(best["d"]) / t,
-                "p_value": best["p"],
-                "p_at_floor": best["p_at_floor"],
-                "shape": best["kind"],
-                "left_by": "sensor_calibration",
-                "unit": unit,
-                "significant": True,
-                "text": f"unexplained: {col}, {region} (a {best['kind']} the named calibration leaves, "
+            _local_finding(
+                col,
+                region,
+                best,
+                t,
+                unit,
+                [i + 1 for i in best["positions"]],
+                {"shape": best["kind"], "left_by": "sensor_calibration"},
+                text=f"unexplained: {col}, {region} (a {best['kind']} the named calibration leaves, "
                 f"magnitude {best['d']:+.4g} {unit})",
-            }
+            )
         )
     return out
+
+
+def _local_finding(col: str, region: str, best: dict, tol: float, unit: str, points, own: dict, **tail) -> dict:
+    """A local finding of ``col`` in ``region`` (a scan's ``best`` window, scored against ``tol``), in the report's
+    key order: the common keys, then ``own`` (the scan's own fields), the unit, and ``tail``."""
+    lo, hi = best["load_range"]
+    return {
+        "channel": col,
+        "kind": "local",
+        "region": region,
+        "load_range": [lo, hi],
+        "points": points,
+        "magnitude": best["d"],
+        "score": abs(best["d"]) / tol,
+        "p_value": best["p"],
+        "p_at_floor": best["p_at_floor"],
+        **own,
+        "unit": unit,
+        "significant": True,
+        **tail,
+    }
