@@ -227,48 +227,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=cmd_diagnose)
 
-    # implemented in marine_fdi_env.validation (own argument parsers; see main())
-    sub.add_parser(
-        "validate", add_help=False, help="compare the model with measured data, name the causes of misfit (see --help)"
-    )
-    sub.add_parser("evaluate", add_help=False, help="run an agent on a frozen evaluation suite (see evaluate --help)")
-    sub.add_parser("report", add_help=False, help="Markdown table and plots from results files (see report --help)")
-    sub.add_parser(
-        "dataset", add_help=False, help="export features and labels for offline learning (see dataset --help)"
-    )
-    sub.add_parser(
-        "synthesize-measurements",
-        add_help=False,
-        help="write 'measured' data from the model with hidden mechanisms (see --help)",
-    )
-    sub.add_parser("agents", add_help=False, help="list the agents known by name (see agents --help)")
-    sub.add_parser(
-        "sweep",
-        add_help=False,
-        help="agents x suites x seed offsets on a backend, resumably, into one Parquet table (see --help)",
-    )
-    sub.add_parser(
-        "export-raw",
-        add_help=False,
-        help="write a suite's 100 Hz sensor samples and ground truth in the DX competition layout",
-    )
-    sub.add_parser(
-        "predict-raw",
-        add_help=False,
-        help="write an agent's per-sample diagnoses of a suite in the DX layout (see --help)",
-    )
-    sub.add_parser(
-        "score-raw",
-        add_help=False,
-        help="score per-sample diagnoses in the DX layout with the benchmark's and DX metrics",
-    )
-    sub.add_parser(
-        "replicas",
-        add_help=False,
-        help="would validate name the same causes again on data like these? (a bootstrap; see --help)",
-    )
-    sub.add_parser("suites", add_help=False, help="list the frozen evaluation suites (see suites --help)")
-    sub.add_parser("train", add_help=False, help="train a learned agent: PPO or the GRU classifier (needs [train])")
+    for name, (_, _, summary) in OWN_PARSER_COMMANDS.items():  # they parse their own arguments (see main())
+        sub.add_parser(name, add_help=False, help=summary)
 
     p = sub.add_parser(
         "info",
@@ -282,22 +242,66 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-# command -> (module of this package, function): the commands that parse their own arguments, imported
-# only when run (a command's import cost is paid by that command alone)
+# command -> (module of this package, function, its line in --help): the commands that parse their own arguments,
+# imported only when run (a command's import cost is paid by that command alone), in the order --help lists them
 OWN_PARSER_COMMANDS = {
-    "evaluate": ("marine_fdi_env.cli.evaluate", "evaluate_main"),
-    "report": ("marine_fdi_env.cli.report", "report_main"),
-    "dataset": ("marine_fdi_env.cli.dataset", "dataset_main"),
-    "agents": ("marine_fdi_env.cli.agents", "agents_main"),
-    "sweep": ("marine_fdi_env.cli.sweep", "sweep_main"),
-    "export-raw": ("marine_fdi_env.cli.raw", "export_raw_main"),
-    "predict-raw": ("marine_fdi_env.cli.raw", "predict_raw_main"),
-    "score-raw": ("marine_fdi_env.cli.raw", "score_raw_main"),
-    "validate": ("marine_fdi_env.cli.validate", "validate_main"),
-    "synthesize-measurements": ("marine_fdi_env.cli.synthesize", "synthesize_main"),
-    "replicas": ("marine_fdi_env.cli.replicas", "replicas_main"),
-    "suites": ("marine_fdi_env.cli.suites", "suites_main"),
-    "train": ("marine_fdi_env.cli.train", "train_main"),
+    "validate": (
+        "marine_fdi_env.cli.validate",
+        "validate_main",
+        "compare the model with measured data, name the causes of misfit (see --help)",
+    ),
+    "evaluate": (
+        "marine_fdi_env.cli.evaluate",
+        "evaluate_main",
+        "run an agent on a frozen evaluation suite (see evaluate --help)",
+    ),
+    "report": (
+        "marine_fdi_env.cli.report",
+        "report_main",
+        "Markdown table and plots from results files (see report --help)",
+    ),
+    "dataset": (
+        "marine_fdi_env.cli.dataset",
+        "dataset_main",
+        "export features and labels for offline learning (see dataset --help)",
+    ),
+    "synthesize-measurements": (
+        "marine_fdi_env.cli.synthesize",
+        "synthesize_main",
+        "write 'measured' data from the model with hidden mechanisms (see --help)",
+    ),
+    "agents": ("marine_fdi_env.cli.agents", "agents_main", "list the agents known by name (see agents --help)"),
+    "sweep": (
+        "marine_fdi_env.cli.sweep",
+        "sweep_main",
+        "agents x suites x seed offsets on a backend, resumably, into one Parquet table (see --help)",
+    ),
+    "export-raw": (
+        "marine_fdi_env.cli.raw",
+        "export_raw_main",
+        "write a suite's 100 Hz sensor samples and ground truth in the DX competition layout",
+    ),
+    "predict-raw": (
+        "marine_fdi_env.cli.raw",
+        "predict_raw_main",
+        "write an agent's per-sample diagnoses of a suite in the DX layout (see --help)",
+    ),
+    "score-raw": (
+        "marine_fdi_env.cli.raw",
+        "score_raw_main",
+        "score per-sample diagnoses in the DX layout with the benchmark's and DX metrics",
+    ),
+    "replicas": (
+        "marine_fdi_env.cli.replicas",
+        "replicas_main",
+        "would validate name the same causes again on data like these? (a bootstrap; see --help)",
+    ),
+    "suites": ("marine_fdi_env.cli.suites", "suites_main", "list the frozen evaluation suites (see suites --help)"),
+    "train": (
+        "marine_fdi_env.cli.train",
+        "train_main",
+        "train a learned agent: PPO or the GRU classifier (needs [train])",
+    ),
 }
 
 # the output options of the validation commands: option -> (argparse dest, is a folder)
@@ -373,7 +377,7 @@ def _dispatch(argv: list[str]) -> int:
     if argv and argv[0] in OWN_PARSER_COMMANDS:
         import importlib
 
-        mod, fn = OWN_PARSER_COMMANDS[argv[0]]
+        mod, fn, _ = OWN_PARSER_COMMANDS[argv[0]]
         return getattr(importlib.import_module(mod), fn)(argv[1:])
     return _main(argv)
 
