@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import json
 
-from marine_fdi_env import _coldstart
+from marine_fdi_env import coldstart
 
-_coldstart.enable("benchmark")  # one line when numba compiles a cold cache (the timings exclude it)
+coldstart.enable("benchmark")  # one line when numba compiles a cold cache (the timings exclude it)
 
 
 def emit(out: dict, as_json: bool) -> None:

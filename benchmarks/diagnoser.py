@@ -85,8 +85,8 @@ def main(argv=None) -> int:
         np.ascontiguousarray(Ub[:n_k]),
         agent.dt,
         agent.noise_bounds,
-        rs._SIDE_COLS,
-        rs._T_OUT_COL,
+        rs.SIDE_COLS,
+        rs.T_OUT_COL,
         Rk,
         THk,
     )

@@ -114,7 +114,7 @@ def _nodes(address: str) -> int:
     return int(out.stdout.strip().splitlines()[-1])
 
 
-def _sweep(address: str, out: Path, cwd: Path) -> dict:
+def speed_sweep(address: str, out: Path, cwd: Path) -> dict:
     load0 = os.getloadavg()[0]
     t0 = time.perf_counter()
     proc = subprocess.run(
@@ -201,12 +201,12 @@ def main(argv=None) -> int:
             if _nodes(address) != 1:
                 raise SystemExit("the cluster should have one node here")
             folders.append(tmp / f"one{r}")
-            runs["one_node"].append(_sweep(address, folders[-1], tmp))
+            runs["one_node"].append(speed_sweep(address, folders[-1], tmp))
             _ray(["start", "--address", address, *node])
             if _nodes(address) != 2:
                 raise SystemExit("the second node did not join")
             folders.append(tmp / f"two{r}")
-            runs["two_nodes"].append(_sweep(address, folders[-1], tmp))
+            runs["two_nodes"].append(speed_sweep(address, folders[-1], tmp))
             if r + 1 < args.repeats:  # remove the second node; the head notices within about a minute
                 _stop(_pids(str(tmp / "ray")) - head)
                 deadline = time.monotonic() + 180

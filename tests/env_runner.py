@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from marine_fdi_env.benchmark.evaluate import _offset, warm_up
+from marine_fdi_env.benchmark.evaluate import offset_scenario, warm_up
 from marine_fdi_env.benchmark.lockstep import episode_seed
 from marine_fdi_env.envs.scenario_sampler import ScenarioSpec, with_noise_scale
 from marine_fdi_env.envs.vector import MarineFDIVectorEnv
@@ -52,7 +52,7 @@ def run_episodes(
         kw = with_noise_scale(env_kwargs, noise_scale)
         for start in range(0, len(idx), batch_size):
             part = idx[start : start + batch_size]
-            chunk = [_offset(scenarios[i], seed_offset) for i in part]
+            chunk = [offset_scenario(scenarios[i], seed_offset) for i in part]
             for i, rec in zip(part, _run_batch(agent, chunk, kw, suite, seed_offset, progress, on_decision)):
                 records[i] = rec
                 if on_episode is not None:

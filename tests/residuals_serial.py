@@ -14,7 +14,7 @@ import numpy as np
 
 from marine_fdi_env._jit import jit
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
-from marine_fdi_env.engine.integrators import THREADED_MIN_ENGINES, _etd_scalar, _executor
+from marine_fdi_env.engine.integrators import THREADED_MIN_ENGINES, etd_scalar, thread_pool
 from marine_fdi_env.engine.seiliger import seiliger_cycle
 from marine_fdi_env.engine.sensors import NOISE_BOUNDS, SENSOR_IDS
 from marine_fdi_env.engine.subsystems.air_intake import (
@@ -23,7 +23,12 @@ from marine_fdi_env.engine.subsystems.air_intake import (
     eta_tc,
     inlet_air_temperature,
 )
-from marine_fdi_env.engine.subsystems.engine_block import _sweep, constant_volume_portion, engine_block, friction_torque
+from marine_fdi_env.engine.subsystems.engine_block import (
+    constant_volume_portion,
+    engine_block,
+    friction_torque,
+    speed_sweep,
+)
 from marine_fdi_env.engine.subsystems.exhaust_receiver import (
     receiver_and_turbine,
     receiver_forcing,
@@ -52,26 +57,26 @@ SAFETY = 1.05
 MODEL_MARGIN = 1e-6  # η̄ per step, relative to the state, and relative margin of algebraic ARRs
 SPEED_SWEEPS = 4
 ONE_SIDED = False  # measured and rejected (see the module docstring)
-LINEAR_SPEED = True  # perturbed points: one sweep + linearisation in the speed (see _cycle_table)
+LINEAR_SPEED = True  # perturbed points: one sweep + linearisation in the speed (see cycle_table)
 SLOPE_STEP = 1e-5  # relative step of the centre's speed slope
 
 # sensor columns
 S = {sid: i for i, sid in enumerate(SENSOR_IDS)}
 # per side (0: odd sensors, 1: even sensors): x1, p6, T6, torque, x3, T_in, x4, T1, T_co
-_SIDE_COLS = np.array(
+SIDE_COLS = np.array(
     [
         [S["S1.1"], S["S2.1"], S["S2.3"], S["S2.5"], S["S3.1"], S["S3.3"], S["S4.1"], S["S4.3"], S["S4.5"]],
         [S["S1.2"], S["S2.2"], S["S2.4"], S["S2.6"], S["S3.2"], S["S3.4"], S["S4.2"], S["S4.4"], S["S4.6"]],
     ],
     dtype=np.int64,
 )
-_T_OUT_COL = S["S3.5"]
+T_OUT_COL = S["S3.5"]
 # module column of each module id (for output arrays)
 _M = {m: i for i, m in enumerate(MODULE_IDS)}
 
 
 @jit
-def _centre_speed(c, x1, x4, T1, n_guess):
+def centre_speed(c, x1, x4, T1, n_guess):
     """Σ2's speed loop at the centre from the previous sample's speed: two sweeps and an Aitken
     extrapolation (as ``engine_block``), one sweep and a second extrapolation with the slope of
     the first two sweeps, and the output sweep; returns (n, p6, T6).  Four sweeps where
@@ -81,26 +86,26 @@ def _centre_speed(c, x1, x4, T1, n_guess):
     q = (c.eta_comb * c.h_L_J_per_kg) * x1 / m1
     X_ct = c.X_ct_nom * x1 / c.x1_nom_kg
     n0 = n_guess
-    n1, torque, cyc = _sweep(n0, x4, T1, q, m1, X_ct, c)
-    n2, torque, cyc = _sweep(n1, x4, T1, q, m1, X_ct, c)
+    n1, torque, cyc = speed_sweep(n0, x4, T1, q, m1, X_ct, c)
+    n2, torque, cyc = speed_sweep(n1, x4, T1, q, m1, X_ct, c)
     den = (n2 - n1) - (n1 - n0)
     k = (n2 - n1) / (n1 - n0) if n1 != n0 else 0.0
     a = n2 - (n2 - n1) ** 2 / den if den != 0.0 else n2
-    b, torque, cyc = _sweep(a, x4, T1, q, m1, X_ct, c)
+    b, torque, cyc = speed_sweep(a, x4, T1, q, m1, X_ct, c)
     if math.isfinite(k) and abs(k) < 0.5:
         a = a + (b - a) / (1.0 - k)
     else:
         a = b
-    n, torque, cyc = _sweep(a, x4, T1, q, m1, X_ct, c)
+    n, torque, cyc = speed_sweep(a, x4, T1, q, m1, X_ct, c)
     return n, cyc[5], cyc[3]
 
 
 @jit
-def _cycle_table(c, x1, x4, T1, dx1, dx4, dT1, n_guess, tab):
+def cycle_table(c, x1, x4, T1, dx1, dx4, dT1, n_guess, tab):
     """Σ2 at the centre and at +d̄ (and -d̄ unless ``ONE_SIDED``) of x1, x4, T1: rows (n, p6, T6) in
     the order centre, x1+, x1-, x4+, x4-, T1+, T1- (fills tab 7x3; skipped rows repeat the centre).
 
-    The centre is solved to ~1e-12 relative by :func:`_centre_speed` (from the previous sample's speed).
+    The centre is solved to ~1e-12 relative by :func:`centre_speed` (from the previous sample's speed).
     A perturbed point is one sweep from the centre's speed n_c, linearised in the speed with the
     centre's slopes (one more sweep at n_c + h)::
 
@@ -113,7 +118,7 @@ def _cycle_table(c, x1, x4, T1, dx1, dx4, dT1, n_guess, tab):
     slope is not a contraction (never seen in the envelope) every point is solved in full.
     """
     V1 = c.V1_m3
-    n_c, p6, T6 = _centre_speed(c, x1, x4, T1, n_guess)
+    n_c, p6, T6 = centre_speed(c, x1, x4, T1, n_guess)
     tab[0, 0] = n_c
     tab[0, 1] = p6
     tab[0, 2] = T6
@@ -260,9 +265,9 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST):
     """
     T = Y.shape[0]
     L1, L3, L4 = OBSERVER_GAINS
-    E1, q1, r1 = _etd_scalar(-1.0 / c.tau_X_s, dt)
-    E3, q3, r3 = _etd_scalar(-1.0 / c.tau_pd_s, dt)
-    E4, q4, r4 = _etd_scalar(-1.0 / c.tau_TC_s, dt)
+    E1, q1, r1 = etd_scalar(-1.0 / c.tau_X_s, dt)
+    E3, q3, r3 = etd_scalar(-1.0 / c.tau_pd_s, dt)
+    E4, q4, r4 = etd_scalar(-1.0 / c.tau_TC_s, dt)
     Ld1, Ld3, Ld4 = -math.expm1(-L1 * dt), -math.expm1(-L3 * dt), -math.expm1(-L4 * dt)
     fuel_gain = c.x1_nom_kg / c.tau_X_s
     T1_model = inlet_air_temperature(0.0, c)
@@ -304,7 +309,7 @@ def compute_residuals(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST):
             d1, d3, d4, dT1, dTin = dbar[cx1], dbar[cx3], dbar[cx4], dbar[cT1], dbar[cTin]
             base_ok = math.isfinite(x1) and math.isfinite(x4) and math.isfinite(T1)
             if base_ok:
-                _cycle_table(c, x1, x4, T1, d1, d4, dT1, st[12], tab[side])
+                cycle_table(c, x1, x4, T1, d1, d4, dT1, st[12], tab[side])
                 if math.isfinite(tab[side, 0, 0]):
                     st[12] = tab[side, 0, 0]
             t = tab[side]
@@ -525,7 +530,7 @@ def residuals_for_run(
     R = np.zeros((T, len(MODULE_IDS)))
     THR = np.zeros((T, len(MODULE_IDS)))
     st = new_state(1, constants.n_nom_rev_s)[0]
-    compute_residuals(constants, Y, U, float(dt), db, _SIDE_COLS, _T_OUT_COL, R, THR, st)
+    compute_residuals(constants, Y, U, float(dt), db, SIDE_COLS, T_OUT_COL, R, THR, st)
     return ResidualTrace(R, THR)
 
 
@@ -549,7 +554,7 @@ def compute_residuals_batch(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST)
         _batch_range(*args, 0, n)
         return
     edges = np.linspace(0, n, THREAD_CHUNKS + 1).astype(np.int64)
-    list(_executor().map(lambda r: _batch_range(*args, r[0], r[1]), list(zip(edges[:-1], edges[1:]))))
+    list(thread_pool().map(lambda r: _batch_range(*args, r[0], r[1]), list(zip(edges[:-1], edges[1:]))))
 
 
 THREAD_CHUNKS = 8

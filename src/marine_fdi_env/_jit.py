@@ -27,11 +27,11 @@ from pathlib import Path
 
 import numba
 
-from . import _coldstart
+from . import coldstart
 
 __all__ = ["jit", "jit_inline", "source_key"]
 
-_coldstart.install()  # one line on stderr at a cold compilation, when the command asked for it
+coldstart.install()  # one line on stderr at a cold compilation, when the command asked for it
 
 _ROOT = Path(__file__).resolve().parent
 # the folders whose sources a compiled function of each layer may depend on (the one-way layers)

@@ -60,7 +60,7 @@ LAYERS: dict[str, tuple[str, ...]] = {
     "util": (
         "_version",
         "_jit",
-        "_coldstart",
+        "coldstart",
         "suggest",
         "plotting",
         "jsonfile",

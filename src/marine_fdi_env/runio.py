@@ -43,6 +43,7 @@ import numpy as np
 from .engine.faults import FAULT_IDS, PROCESS_FAULT_DEFAULTS, PROCESS_FAULT_IDS, FaultSpec
 from .engine.profiles import Profile
 from .engine.sensors import SENSOR_IDS, SENSORS
+from .jsonfile import json_safe
 
 __all__ = ["save_run", "load_run", "RunData", "fault_unit", "FORMAT_NAME", "FORMAT_VERSION", "REQUIRED_ARRAYS"]
 
@@ -60,27 +61,6 @@ REQUIRED_ARRAYS: tuple[str, ...] = (
     "metadata",
 )
 _SENSOR_UNIT = {s.id: s.unit for s in SENSORS}
-
-
-# ----------------------------------------------------------------------------- JSON helpers
-def _jsonable(obj: Any) -> Any:
-    """Strict-JSON version of ``obj``: non-finite floats become strings, numpy scalars Python ones."""
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        v = float(obj)
-        if math.isfinite(v):
-            return v
-        return "nan" if math.isnan(v) else ("inf" if v > 0 else "-inf")
-    return obj
 
 
 def _num(v: Any) -> float | None:
@@ -175,7 +155,7 @@ def save_run(
         "fault_ids": np.array(FAULT_IDS),
         "fault_active": np.asarray(result.fault_active, dtype=bool),
         "fault_value": np.asarray(result.fault_value, dtype=float),
-        "metadata": np.array(json.dumps(_jsonable(meta), allow_nan=False)),
+        "metadata": np.array(json.dumps(json_safe(meta, nonfinite="string"), allow_nan=False)),
     }
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
@@ -326,6 +306,17 @@ def _first_nonfinite(a: np.ndarray) -> tuple[int, ...] | None:
     return (k,) + tuple(int(i) for i in rest)
 
 
+def _refuse_nonfinite(where: str, a: np.ndarray, t: np.ndarray, subject, show_value=False, hint="") -> None:
+    """``ValueError`` naming the first non-finite value of ``a`` (T, N, K): ``subject(e, j)`` says whose, with
+    its sample and time (and the value itself, and ``hint``)."""
+    bad = _first_nonfinite(a)
+    if bad is None:
+        return
+    i, e, j = bad
+    value = f" ({a[i, e, j]})" if show_value else ""
+    raise ValueError(f"{where}: {subject(e, j)} has a non-finite value{value} at sample {i} (t={t[i]:.6g} s){hint}")
+
+
 def _strings(z, name: str, where: str) -> tuple[str, ...]:
     a = z[name]
     if a.ndim != 1 or a.dtype.kind not in "US":
@@ -430,27 +421,16 @@ def load_run(path: "str | os.PathLike[str]", *, allow_nonfinite: bool = False) -
             f"does not follow sample {k0} (t={t[k0]:g} s)"
         )
     if not allow_nonfinite:
-        bad = _first_nonfinite(meas)
-        if bad is not None:
-            i, e, j = bad
-            raise ValueError(
-                f"{where}: sensor {sensor_ids[j]} of engine {e} has a non-finite value "
-                f"({meas[i, e, j]}) at sample {i} (t={t[i]:.6g} s); "
-                f"pass allow_nonfinite=True to accept dropouts"
-            )
-    bad = _first_nonfinite(truth)
-    if bad is not None:
-        i, e, j = bad
-        raise ValueError(
-            f"{where}: truth variable {truth_vars[j]} of engine {e} has a non-finite value "
-            f"at sample {i} (t={t[i]:.6g} s)"
+        _refuse_nonfinite(
+            where,
+            meas,
+            t,
+            lambda e, j: f"sensor {sensor_ids[j]} of engine {e}",
+            show_value=True,
+            hint="; pass allow_nonfinite=True to accept dropouts",
         )
-    bad = _first_nonfinite(f_val)
-    if bad is not None:
-        i, e, j = bad
-        raise ValueError(
-            f"{where}: fault_value of {fault_ids[j]} (engine {e}) has a non-finite value at sample {i} (t={t[i]:.6g} s)"
-        )
+    _refuse_nonfinite(where, truth, t, lambda e, j: f"truth variable {truth_vars[j]} of engine {e}")
+    _refuse_nonfinite(where, f_val, t, lambda e, j: f"fault_value of {fault_ids[j]} (engine {e})")
 
     run = RunData(
         t=t.astype(float, copy=False),

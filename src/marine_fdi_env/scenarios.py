@@ -81,11 +81,6 @@ def scenario_names() -> list[str]:
 
 def get_scenario(name: str) -> Scenario:
     """The scenario called ``name``; ``ValueError`` naming the allowed names otherwise."""
-    try:
-        return SCENARIOS[name]
-    except (KeyError, TypeError):
-        from .suggest import did_you_mean
+    from .suggest import lookup
 
-        raise ValueError(
-            f"unknown scenario {name!r}{did_you_mean(name, SCENARIOS)}; allowed: {', '.join(SCENARIOS)}"
-        ) from None
+    return lookup(SCENARIOS, name, "scenario")

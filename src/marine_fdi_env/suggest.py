@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import difflib
-from typing import Iterable
+from typing import Iterable, Mapping, TypeVar
 
-__all__ = ["did_you_mean"]
+__all__ = ["did_you_mean", "lookup"]
+
+T = TypeVar("T")
 
 
 def did_you_mean(word: object, choices: Iterable[str], n: int = 2) -> str:
@@ -21,3 +23,13 @@ def did_you_mean(word: object, choices: Iterable[str], n: int = 2) -> str:
     if not hits:
         return ""
     return " (did you mean " + " or ".join(repr(by_lower[h]) for h in hits) + "?)"
+
+
+def lookup(table: Mapping[str, T], key: object, what: str) -> T:
+    """``table[key]``; else ``ValueError("unknown WHAT 'KEY' (did you mean ...?); allowed: A, B, ...")``."""
+    try:
+        return table[key]  # type: ignore[index]
+    except (KeyError, TypeError):
+        raise ValueError(
+            f"unknown {what} {key!r}{did_you_mean(str(key), tuple(table))}; allowed: {', '.join(table)}"
+        ) from None

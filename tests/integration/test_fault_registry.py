@@ -146,8 +146,8 @@ def test_cell_files_select_and_merge_per_fault_columns():
 _TOY_RUN = """
 import json, sys
 import numpy as np
-from marine_fdi_env import _coldstart
-_coldstart.enable(stream=sys.stderr)
+from marine_fdi_env import coldstart
+coldstart.enable(stream=sys.stderr)
 from marine_fdi_env.engine.faults import FAULT_IDS
 from marine_fdi_env.engine.simulator import Simulator, TRUTH_VARIABLES
 from marine_fdi_env.diagnosis.structure import fault_modules
@@ -156,7 +156,7 @@ out = {"fault_ids": FAULT_IDS, "modules": fault_modules("exhaust_valve_leak"), "
 sim = Simulator("thesis-12v28", n_engines=2, seeds=[4, 4], faults=[["exhaust_valve_leak@5:5e-3"], []])
 r = sim.run(30.0)
 np.savez(sys.argv[1], measurements=r.measurements, truth=r.truth, value=r.fault_value, active=r.fault_active)
-out["compiled"] = _coldstart.announced()
+out["compiled"] = coldstart.announced()
 refused = {}
 def refuse(name, fn):
     try:

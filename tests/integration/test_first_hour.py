@@ -15,8 +15,8 @@ from pathlib import Path
 import pytest
 from test_ux import tiny  # noqa: F401 - the two-episode suite fixture
 
-from marine_fdi_env._coldstart import COMPILING
 from marine_fdi_env.cli import main as cli_main
+from marine_fdi_env.coldstart import COMPILING
 from tests.paths import ROOT
 
 AGENT = """\

@@ -49,6 +49,7 @@ def _assert_lockstep_equals_alone(scenarios, env_kwargs, suite, seed_offset=0, b
     return together
 
 
+@pytest.mark.study  # the breadth version (every shipped suite); fast: the tests below, noise scales included
 def test_every_shipped_agent_scored_together_equals_it_alone():
     """The first episode of every shipped suite (one batch; transfer-v2's and transfer-v3's noise scales in theirs),
     every shipped agent in one pass (``sequential`` asks for observe_sequential, the ``-thesis`` and
@@ -71,6 +72,14 @@ def test_every_shipped_agent_scored_together_equals_it_alone():
     # a non-trivial comparison: the oracle isolates (its trace changes) on every faulty episode
     assert all(len(r["declared_changes"]) >= 2 for r, sc in zip(oracle, firsts) if sc.faults)
     assert sum(1 for sc in firsts if sc.faults) >= 5 and {sc.noise_scale for sc in firsts} == {1.0, 0.7, 1.3}
+
+
+def test_noise_scales_of_one_batch_scored_together_equal_each_agent_alone():
+    """Episodes at the transfer suites' noise scales (0.7, 1.3) beside the nominal one, in one batch."""
+    from dataclasses import replace
+
+    scenarios = [replace(SCENARIOS[0], noise_scale=0.7), replace(SCENARIOS[1], noise_scale=1.3)]
+    _assert_lockstep_equals_alone(scenarios, {}, "noise-scales")
 
 
 def test_a_batch_with_an_engine_failure_and_a_seed_offset():

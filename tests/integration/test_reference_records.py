@@ -26,7 +26,7 @@ def _no_clock(o):
     return o
 
 
-@pytest.mark.parametrize("suite", ["thesis-v1", "multi-v1"])
+@pytest.mark.parametrize("suite", ["thesis-v1", pytest.param("multi-v1", marks=pytest.mark.study)])
 def test_the_reference_scores_as_recorded(suite, tmp_path):
     recorded = json.loads((RESULTS / f"reference_{suite}.json").read_text())
     now = evaluate_agents(["reference"], suite, [tmp_path / "r.json"], progress=False)[0]

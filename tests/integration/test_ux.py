@@ -149,14 +149,11 @@ def test_a_missing_extra_is_one_line_before_any_work(module, argv, extra, tmp_pa
         raise AssertionError("the command started working before checking its extras")
 
     import marine_fdi_env.benchmark.backends as backends
-    import marine_fdi_env.benchmark.evaluate as ev
     import marine_fdi_env.benchmark.report as report
-    import marine_fdi_env.benchmark.sweep as sw
     import marine_fdi_env.cli.diagnose as cd
 
     monkeypatch.setattr(cd, "diagnose_run", no_work)
-    for mod in (backends, ev, sw):
-        monkeypatch.setattr(mod, "run_tasks", no_work)
+    monkeypatch.setattr(backends, "run_tasks", no_work)  # evaluate, dataset and sweep run their tasks through it
     monkeypatch.setattr(report, "load_results", no_work)
     import marine_fdi_env.cli.validate as vreport
 
@@ -174,11 +171,11 @@ def test_a_missing_extra_is_one_line_before_any_work(module, argv, extra, tmp_pa
 _PROBE = """
 import sys
 import numpy as np
-from marine_fdi_env import _coldstart
-_coldstart.enable("probe")
+from marine_fdi_env import coldstart
+coldstart.enable("probe")
 from marine_fdi_env.engine.profiles import _value_right
 _value_right(np.array([0.0, 1.0]), np.array([1.0, 2.0]), 2, 0.5)
-print("announced" if _coldstart.announced() else "silent")
+print("announced" if coldstart.announced() else "silent")
 """
 
 
@@ -198,7 +195,7 @@ def test_cold_cache_prints_one_line_and_a_warm_cache_none(tmp_path):
 
 
 def test_the_notice_ignores_other_compilations():
-    from marine_fdi_env import _coldstart
+    from marine_fdi_env import coldstart
 
     class Fake:
         def __init__(self, module, cache):
@@ -207,10 +204,10 @@ def test_the_notice_ignores_other_compilations():
 
     from numba.core.caching import NullCache
 
-    assert not _coldstart._ours(Fake("someone_else.mod", object()))
-    assert not _coldstart._ours(Fake("marine_fdi_env.engine.model", NullCache()))  # not cached: compiles every run
-    assert _coldstart._ours(Fake("marine_fdi_env.engine.model", object()))
-    assert not _coldstart._ours(None)
+    assert not coldstart._ours(Fake("someone_else.mod", object()))
+    assert not coldstart._ours(Fake("marine_fdi_env.engine.model", NullCache()))  # not cached: compiles every run
+    assert coldstart._ours(Fake("marine_fdi_env.engine.model", object()))
+    assert not coldstart._ours(None)
 
 
 def test_the_warm_up_episode_changes_no_number(tiny, tmp_path, monkeypatch):

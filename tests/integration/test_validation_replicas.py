@@ -108,6 +108,7 @@ def test_a_replica_keeps_the_design_and_only_changes_the_readings(waste_gate_sel
         pr.ds.with_readings({pr.channels[0]: Y[:3, 0]})
 
 
+@pytest.mark.study  # a few pipeline runs per hypothesis; fast: the replica tests around it and validate --replicas
 def test_replicas_of_each_hypothesis_name_it(waste_gate_selection):
     """At the data's design, a waste gate and a flow law are told apart: each hypothesis, taken as the truth with
     noise at the tolerance, is named again (2 replicas each, a few seconds per run); the summary counts it."""

@@ -184,11 +184,11 @@ def test_threaded_batch_equals_single_thread_loop():
         st = a.state.copy()
         if threaded:
             rs.compute_residuals_batch(
-                a.c, Y, U, a.dt, a.noise_bounds, rs._SIDE_COLS, rs._T_OUT_COL, R, THR, st, a._table
+                a.c, Y, U, a.dt, a.noise_bounds, rs.SIDE_COLS, rs.T_OUT_COL, R, THR, st, a._table
             )
         else:
             rs._batch_range(
-                a.c, Y, U, a.dt, a.noise_bounds, rs._SIDE_COLS, rs._T_OUT_COL, R, THR, st, a._table, True, 0, n
+                a.c, Y, U, a.dt, a.noise_bounds, rs.SIDE_COLS, rs.T_OUT_COL, R, THR, st, a._table, True, 0, n
             )
         outs.append((R, THR, st))
     for x, y in zip(*outs):
@@ -208,7 +208,7 @@ def test_linearised_perturbed_speeds_match_full_solves():
     worst = 0.0
     for y in Y.reshape(-1, 19)[::37]:
         x1, x4, T1 = y[0], y[13], y[15]
-        rs._cycle_table(c, x1, x4, T1, db[0], db[13], db[15], c.n_nom_rev_s, tab)
+        rs.cycle_table(c, x1, x4, T1, db[0], db[13], db[15], c.n_nom_rev_s, tab)
         pts = [(db[0], 0, 0), (-db[0], 0, 0), (0, db[13], 0), (0, -db[13], 0), (0, 0, db[15]), (0, 0, -db[15])]
         for p, (a1, a4, aT) in enumerate(pts, start=1):
             full = engine_block(x1 + a1, x4 + a4, T1 + aT, c.V1_m3, tab[0, 0], c, 8)

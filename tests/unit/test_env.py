@@ -308,7 +308,7 @@ def test_discrete_wrapper_declares_one_hypothesis():
 def test_compiled_period_statistics_equal_the_numpy_reductions():
     # the observation's per-module statistics come from one compiled pass; they must equal the
     # numpy definitions in the observation docstring bit for bit (inf, NaN, zero thresholds included)
-    from marine_fdi_env.envs.observation import RATIO_CAP, _period_stats
+    from marine_fdi_env.diagnosis.peak_ratio import RATIO_CAP, period_stats
 
     rng = np.random.default_rng(0)
     for B in (1, 7, 100):
@@ -322,7 +322,7 @@ def test_compiled_period_statistics_equal_the_numpy_reductions():
         ratio = np.abs(signed)
         want = np.stack([ratio.max(axis=1), ratio.mean(axis=1), signed.mean(axis=1), (ratio > 1.0).mean(axis=1)], -1)
         got = np.empty((20, 19, 4))
-        _period_stats(R, THR, got)
+        period_stats(R, THR, got)
         assert np.array_equal(got, want)
         # the same statistics from the reference diagnoser's one post-processing pass
         from marine_fdi_env.diagnosis.agent import _violations_and_peaks

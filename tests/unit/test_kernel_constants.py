@@ -7,7 +7,7 @@ import pytest
 from test_submodels import ALL_ON
 
 from marine_fdi_env.engine.constants import KernelConstants, ModelConstants, kernel_constants, model_constants
-from marine_fdi_env.engine.model import HEALTHY_PF, N_ALG, _solve_algebraic, solve_algebraic
+from marine_fdi_env.engine.model import HEALTHY_PF, N_ALG, solve_algebraic, solve_algebraic_kernel
 from marine_fdi_env.engine.params import load_params
 
 
@@ -43,7 +43,7 @@ def test_kernel_form_of_the_algebraic_solve_gives_the_same_numbers(sub):
         a, b = np.empty(N_ALG), np.empty(N_ALG)
         for sweeps in (1, 2, 3):
             solve_algebraic(c, x1, x3, x4, pf, c.n_nom_rev_s, sweeps, a)
-            _solve_algebraic(kc, csm, x1, x3, x4, pf, c.n_nom_rev_s, sweeps, b)
+            solve_algebraic_kernel(kc, csm, x1, x3, x4, pf, c.n_nom_rev_s, sweeps, b)
             assert np.array_equal(a, b, equal_nan=True), (u, sweeps)
 
 

@@ -58,9 +58,9 @@ def _run(module, Y, U, table=None):
     Rr, TH = np.empty((N, T, 19)), np.empty((N, T, 19))
     st = module.new_state(N, C.n_nom_rev_s)
     if module is R:
-        R.compute_residuals_batch(C, Y, U, 0.01, DB, R._SIDE_COLS, R._T_OUT_COL, Rr, TH, st, table)
+        R.compute_residuals_batch(C, Y, U, 0.01, DB, R.SIDE_COLS, R.T_OUT_COL, Rr, TH, st, table)
     else:
-        module.compute_residuals_batch(C, Y, U, 0.01, DB, module._SIDE_COLS, module._T_OUT_COL, Rr, TH, st)
+        module.compute_residuals_batch(C, Y, U, 0.01, DB, module.SIDE_COLS, module.T_OUT_COL, Rr, TH, st)
     return Rr, TH, st
 
 

@@ -314,3 +314,10 @@ def test_v1_vector_env_rewards_equal_single_envs():
                 continue
             _, r, t, tr, _ = e.step(acts[i])
             assert r == vr[i] and (t, tr) == (vt[i], vtr[i])
+
+
+@pytest.mark.parametrize("version", ["v0", "v1"])
+def test_a_reward_weight_is_a_number_not_a_bool(version):
+    """Both reward versions refuse a bool weight alike (v0 took True as the weight 1 before)."""
+    with pytest.raises(ValueError, match=r"reward config field 'false_alarm' must be a finite number >= 0, got True"):
+        make_reward_config({"version": version, "false_alarm": True})

@@ -84,8 +84,15 @@ def test_the_marine_fdi_command_parses_validate_once(monkeypatch, capsys):
     from marine_fdi_env.cli.main import main
 
     calls = []
-    parse = validate.parse
-    monkeypatch.setattr(validate, "parse", lambda argv, prog: calls.append(list(argv)) or parse(argv, prog))
+    build = validate.build_parser
+
+    def counted(prog):
+        ap = build(prog)
+        parse_args = ap.parse_args
+        ap.parse_args = lambda argv: calls.append(list(argv)) or parse_args(argv)
+        return ap
+
+    monkeypatch.setattr(validate, "build_parser", counted)
     assert main(["validate", "--columns"]) == 0
     assert calls == [["--columns"]] and "speed_<unit>" in capsys.readouterr().out
     assert main(["validate", "--data", "man_12v32_40_fpp_iso", "--out", "x.json", "--alpha", "2"]) == 2

@@ -28,11 +28,13 @@ custom agent needs nothing else; see docs/agent_api.md).
 from __future__ import annotations
 
 import importlib
+import importlib.util
 from pathlib import Path
 from typing import Protocol
 
 import numpy as np
 
+from ..errors import MissingExtra
 from ..jsonfile import read_json
 from .agent_registry import BUILTIN_AGENTS, LEGACY_PACKAGES  # the names live in the registry
 
@@ -81,17 +83,12 @@ def _import(target: str, where: str):
         raise ValueError(f"{where}: module {mod_name!r} has no {attr!r}") from None
 
 
-def _split_file_spec(spec: str) -> tuple[Path, str] | None:
+def split_file_spec(spec: str) -> tuple[Path, str] | None:
     """``path/to/file.py:ClassName`` -> (path, ClassName); None for other specs."""
     head, sep, cls = str(spec).rpartition(":")
     if sep and head.endswith(".py") and cls.isidentifier():
         return Path(head), cls
     return None
-
-
-def split_file_spec(spec: str) -> tuple[Path, str] | None:
-    """``path/to/file.py:ClassName`` -> (path, ClassName); None for a name or a folder."""
-    return _split_file_spec(spec)
 
 
 def user_agent_files() -> frozenset[str]:
@@ -153,7 +150,7 @@ def resolve_agent_spec(spec: str) -> str:
     spec = str(spec)
     if spec in BUILTIN_AGENTS:
         return spec
-    fs = _split_file_spec(spec)
+    fs = split_file_spec(spec)
     if fs is not None:
         return f"{fs[0].resolve()}:{fs[1]}"
     p = Path(spec)
@@ -162,7 +159,7 @@ def resolve_agent_spec(spec: str) -> str:
 
 def agent_file_stem(spec: str) -> str:
     """A short name for file names: the agent name, the model folder or the class name."""
-    fs = _split_file_spec(str(spec))
+    fs = split_file_spec(str(spec))
     if fs is not None:
         return fs[1]
     p = Path(str(spec))
@@ -187,7 +184,7 @@ def load_agent(spec: str) -> Agent:
     spec = str(spec)
     if spec in BUILTIN_AGENTS:
         return _import(BUILTIN_AGENTS[spec], f"built-in agent {spec!r}")()
-    fs = _split_file_spec(spec)
+    fs = split_file_spec(spec)
     if fs is not None:
         return _load_file_agent(fs[0], fs[1], spec)
     path = Path(spec)
@@ -198,9 +195,8 @@ def load_agent(spec: str) -> Agent:
         if entry is not None and entry.kind == "model":
             path = Path(entry.spec)
             if not entry.available:
-                from .agent_registry import TRAIN_EXTRA_HINT
-
-                raise ValueError(f"agent {spec!r} needs {', '.join(entry.needs)}: {TRAIN_EXTRA_HINT}")
+                missing = [m for m in entry.needs if importlib.util.find_spec(m) is None] or list(entry.needs)
+                raise MissingExtra(missing[0], f"agent {spec!r}")
         else:
             from ..suggest import did_you_mean
 

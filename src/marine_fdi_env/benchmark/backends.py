@@ -29,10 +29,11 @@ import time
 from dataclasses import dataclass
 from typing import Any, Callable, Sequence
 
-__all__ = ["BACKENDS", "Backend", "run_tasks", "chunk_size", "RAY_MISSING"]
+from ..errors import MissingExtra
+
+__all__ = ["BACKENDS", "Backend", "run_tasks", "run_tasks_counted", "chunk_size"]
 
 BACKENDS: tuple[str, ...] = ("serial", "process", "ray")
-RAY_MISSING = "the ray backend needs Ray: pip install 'marine-fdi-env[ray]'"
 _PROGRESS_INTERVAL_S = 0.5  # workers report progress at most this often (one message each time)
 _POLL_S = 0.1
 
@@ -159,6 +160,39 @@ def _drain(queue, report) -> None:
         report(i, x)
 
 
+def run_tasks_counted(
+    backend: Backend,
+    fn: Callable,
+    tasks: Sequence[tuple],
+    *,
+    bar,
+    on_result: Callable[[int, Any], None],
+    settled: Callable[[], float],
+    per_episode: int = 1,
+) -> None:
+    """:func:`run_tasks` with a progress bar that counts episodes (:func:`~marine_fdi_env.progress.progress_bar`).
+
+    A task's progress reports move ``bar`` by ``x / per_episode`` (``per_episode``: the agents that share
+    an episode's reports); when its result is stored by ``on_result``, the bar is set to ``settled()``
+    (the episodes stored so far) plus what the tasks still in flight have reported.  The bar is closed
+    at the end, also after an error or an interruption."""
+    in_flight: dict[int, float] = {}
+
+    def advance(i: int, x: float) -> None:
+        in_flight[i] = in_flight.get(i, 0.0) + x
+        bar.advance(x / per_episode)
+
+    def result(i: int, res: Any) -> None:
+        on_result(i, res)
+        in_flight.pop(i, None)  # this task now counts as stored; the others as far as they got
+        bar.set_done(settled() + sum(in_flight.values()) / per_episode)
+
+    try:
+        run_tasks(backend, fn, tasks, on_result=result, on_progress=advance)
+    finally:
+        bar.close()
+
+
 def _run_process(backend, fn, tasks, on_result, report) -> None:
     import multiprocessing as mp
 
@@ -190,7 +224,7 @@ def _import_ray():
     try:
         import ray
     except ImportError:
-        raise ValueError(RAY_MISSING) from None
+        raise MissingExtra("ray", "the ray backend") from None
     return ray
 
 

@@ -157,7 +157,7 @@ def export_dataset(
     (a finished dataset in ``out_dir`` is the caller's to check: :func:`dataset_main` asks for
     ``--force``)."""
     from ..progress import progress_bar
-    from .backends import Backend, chunk_size, run_tasks
+    from .backends import Backend, chunk_size, run_tasks_counted
 
     env_kwargs = dict(env_kwargs or {})
     if fmt not in FORMATS:
@@ -209,11 +209,6 @@ def export_dataset(
 
         warm_up(env_kwargs)  # compile a cold cache once, here, before the bar and the workers
     bar = progress_bar(E, int(done.sum()), "dataset", progress)
-    in_flight: dict[int, float] = {}
-
-    def advance(i, x):
-        in_flight[i] = in_flight.get(i, 0.0) + x
-        bar.advance(x)
 
     def keep(i, arrays):
         idx = plan[i]
@@ -223,13 +218,8 @@ def export_dataset(
         tmp.replace(f)
         stored.append((idx, f))
         done[idx] = True
-        in_flight.pop(i, None)  # this chunk now counts as done; the others as far as they got
-        bar.set_done(float(done.sum()) + sum(in_flight.values()))
 
-    try:
-        run_tasks(backend, dataset_chunk, tasks, on_result=keep, on_progress=advance)
-    finally:
-        bar.close()
+    run_tasks_counted(backend, dataset_chunk, tasks, bar=bar, on_result=keep, settled=lambda: float(done.sum()))
     arrays = _assemble(stored, E, T, full=fmt == "minari")
     if fmt == "minari":
         from .minari_data import write_minari

@@ -64,13 +64,15 @@ from ..envs.reward import make_reward_config
 from ..envs.scenario_sampler import ScenarioSpec
 from ..envs.trajectory import Trajectory, assemble, cell_sets_of, one_cell_set, simulate
 from ..envs.vector import MarineFDIVectorEnv
+from ..jsonfile import json_safe
 from .agent_api import load_agent, resolve_agent_spec
-from .backends import Backend, chunk_size, run_tasks
+from .backends import Backend, chunk_size, run_tasks_counted
 from .lockstep import agent_view, episode_seed, score_agents
 from .metrics import compute_metrics, dx_metrics
 from .suites import load_suite
 
 __all__ = [
+    "offset_scenario",
     "run_episodes",
     "run_agents",
     "evaluate",
@@ -99,7 +101,8 @@ _SIMULATION_SHARE = 0.8  # of a chunk's progress when it simulates (the rest is 
 _MAX_SEED = 2**63 - 1
 
 
-def _offset(sc: ScenarioSpec, seed_offset: int) -> ScenarioSpec:
+def offset_scenario(sc: ScenarioSpec, seed_offset: int) -> ScenarioSpec:
+    """``sc`` with its noise seed shifted by ``seed_offset`` (new noise, the same scenario); ``sc`` itself at 0."""
     if not seed_offset:
         return sc
     return replace(sc, noise_seed=(int(sc.noise_seed) + int(seed_offset)) % _MAX_SEED)
@@ -150,10 +153,12 @@ def _is_default(option: str, value) -> bool:
 
 
 def _key(env_kwargs: dict) -> str:
-    from .feature_cache import _jsonable
-
     return json.dumps(
-        {k: _jsonable(v) for k, v in env_kwargs.items() if k not in _SHARED_OPTIONS and not _is_default(k, v)},
+        {
+            k: json_safe(v, nonfinite="keep")
+            for k, v in env_kwargs.items()
+            if k not in _SHARED_OPTIONS and not _is_default(k, v)
+        },
         sort_keys=True,
         default=repr,
     )
@@ -233,7 +238,9 @@ def run_agents(
             if given is not None:
                 traj = given.take(idx)
             else:
-                traj = simulate([_offset(scenarios[i], seed_offset) for i in idx], p.env_kwargs, progress=sim_cb)
+                traj = simulate(
+                    [offset_scenario(scenarios[i], seed_offset) for i in idx], p.env_kwargs, progress=sim_cb
+                )
             views = [agent_view(kw, traj) for kw in p.agent_env]
             cb = None if on_decision is None else (lambda j, *a, p=p: on_decision(p.agents[j], *a))
             for j, recs in zip(
@@ -290,9 +297,9 @@ _AGENTS: dict[tuple, object] = {}  # agents loaded in this process (workers reus
 def _spec_stamp(spec: str) -> float:
     """The newest modification time of the files a spec loads (0 for names): a retrained model
     folder or an edited agent file is loaded anew."""
-    from .agent_api import _split_file_spec
+    from .agent_api import split_file_spec
 
-    fs = _split_file_spec(str(spec))
+    fs = split_file_spec(str(spec))
     path = fs[0] if fs is not None else Path(str(spec))
     try:
         if path.is_dir():
@@ -364,7 +371,7 @@ def suite_caches(mode: str, cache_dir, suite, seed_offset: int, agents: list, en
         return {}
     from .feature_cache import SuiteCache, cache_header
 
-    scs = [_offset(s, seed_offset) for s in suite.scenarios]
+    scs = [offset_scenario(s, seed_offset) for s in suite.scenarios]
     return {
         p.key: SuiteCache(mode, cache_dir, cache_header(suite.name, suite["version"], seed_offset, p.env_kwargs, scs))
         for p in plan_passes(agents, env_kwargs, all_options=True)
@@ -490,7 +497,6 @@ def evaluate_agents(
         )
         for idx, given in chunks
     ]
-    in_flight: dict[int, float] = {}
     finished = [0]
 
     def record(i, res):
@@ -502,18 +508,17 @@ def evaluate_agents(
                 for rec in recs:
                     fh.write(json.dumps(rec) + "\n")
                     done[j][rec["scenario_id"]] = rec
-        in_flight.pop(i, None)  # this chunk now counts as done; the others as far as they got
         finished[0] += len(idx)
-        bar.set_done(n_done + finished[0] + sum(in_flight.values()) / len(agents))
 
-    def advance(i, x):
-        in_flight[i] = in_flight.get(i, 0.0) + x
-        bar.advance(x / len(agents))
-
-    try:
-        run_tasks(backend, evaluate_chunk, tasks, on_result=record, on_progress=advance)
-    finally:
-        bar.close()
+    run_tasks_counted(
+        backend,
+        evaluate_chunk,
+        tasks,
+        bar=bar,
+        on_result=record,
+        settled=lambda: n_done + finished[0],
+        per_episode=len(agents),
+    )
     used = {k: str(c.path) for k, c in caches.items() if c.trajectory is not None}
     for c in caches.values():
         c.finish()

@@ -53,6 +53,7 @@ from .._version import __version__
 from ..envs.scenario_sampler import ScenarioSpec
 from ..envs.trajectory import Trajectory, assemble
 from ..errors import DataFileError, MissingExtra
+from ..jsonfile import json_safe
 
 __all__ = [
     "CACHE_MODES",
@@ -109,21 +110,11 @@ def code_version() -> dict:
     }
 
 
-def _jsonable(v):
-    if hasattr(v, "to_dict"):
-        return v.to_dict()
-    if isinstance(v, dict):
-        return {str(k): _jsonable(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_jsonable(x) for x in v]
-    return v
-
-
 def cache_header(
     suite_name: str, suite_version, seed_offset: int, env_kwargs: dict, scenarios: list[ScenarioSpec]
 ) -> dict:
     """The header a cache of these episodes (seed offset applied) on this environment must carry."""
-    env = {k: _jsonable(v) for k, v in sorted(env_kwargs.items()) if k != "reward"}
+    env = {k: json_safe(v, nonfinite="keep") for k, v in sorted(env_kwargs.items()) if k != "reward"}
     scen = hashlib.sha256(json.dumps([s.to_dict() for s in scenarios], sort_keys=True).encode()).hexdigest()
     return {
         "kind": KIND,

@@ -45,7 +45,6 @@ from .._version import __version__
 from ..engine.faults import FAULT_IDS
 from ..engine.sensors import SENSORS
 from ..envs.hypotheses import DECLARE_THRESHOLD, N_FAULTS, UNKNOWN
-from ..envs.scenario_sampler import ScenarioSpec
 from .suites import load_suite
 
 __all__ = [
@@ -79,12 +78,6 @@ def _columns_doc() -> list[dict]:
     out = [{"name": c, "unit": _UNITS[c][0], "description": _UNITS[c][1]} for c in ("time", "fuel_setting")]
     out += [{"name": s.id, "unit": s.unit, "description": s.description, "noise_bound": s.noise_bound} for s in SENSORS]
     return out
-
-
-def _offset(sc: ScenarioSpec, seed_offset: int) -> ScenarioSpec:
-    from .evaluate import _offset as off
-
-    return off(sc, seed_offset)
 
 
 def _manifest(suite, seed_offset: int, dt: float, entries: list[dict], source: str) -> dict:
@@ -144,10 +137,11 @@ def export_raw(suite_name: str, out_dir: "str | Path", *, seed_offset: int = 0, 
     """Write a suite's raw samples and ground truth (module docstring); resumable; returns the manifest."""
     from ..engine.simulator import Simulator
     from ..progress import progress_bar
+    from .evaluate import offset_scenario
 
     suite = load_suite(suite_name)
     env = suite["env"]
-    scenarios = [_offset(s, seed_offset) for s in suite.scenarios]
+    scenarios = [offset_scenario(s, seed_offset) for s in suite.scenarios]
     _check_names(scenarios)
     dt = float(env.get("dt", 0.01))
     out = Path(out_dir)

@@ -53,7 +53,7 @@ from pathlib import Path
 import numpy as np
 
 from .._version import __version__
-from ..engine.faults import FAULT_IDS, _window_time, fault_class
+from ..engine.faults import FAULT_IDS, fault_class, window_time
 from ..errors import DataFileError
 from .metrics import compute_metrics
 from .rawdata import OUTPUT_COLUMNS, RANK_COLUMNS, read_manifest, scenario_stem
@@ -189,7 +189,7 @@ def _active(faults, t: np.ndarray) -> np.ndarray:
     col = {f: j for j, f in enumerate(FAULT_IDS)}
     inf = np.inf
     for f in faults:
-        w = _window_time(
+        w = window_time(
             t,
             f.onset_s,
             inf if f.end_s is None else f.end_s,
@@ -295,9 +295,9 @@ def score_raw(
     agent = agent or meta.get("agent") or pred.name
     if data_dir is None:
         seed_offset = int(meta.get("seed_offset", 0))
-    from .evaluate import _offset
+    from .evaluate import offset_scenario
 
-    scenarios = [_offset(s, seed_offset) for s in suite.scenarios]
+    scenarios = [offset_scenario(s, seed_offset) for s in suite.scenarios]
     files = {s.scenario_id: pred / f"output_{scenario_stem(s.scenario_id)}.csv" for s in scenarios}
     missing = [f.name for f in files.values() if not f.is_file()]
     if missing:

@@ -23,6 +23,8 @@ import json
 from pathlib import Path
 from typing import Iterable, Mapping
 
+from ..errors import MissingExtra
+
 __all__ = [
     "pyarrow",
     "records_to_table",
@@ -31,22 +33,20 @@ __all__ = [
     "read_records",
     "write_results_parquet",
     "read_results_parquet",
-    "PARQUET_MISSING",
     "sweep_results",
 ]
 
-PARQUET_MISSING = "Parquet files need pyarrow: pip install 'marine-fdi-env[parquet]'"
 META_KEY = b"marine_fdi"
 _EXTRA = {"agent_spec": "string", "seed_offset": "int64"}
 
 
 def pyarrow():
-    """``(pyarrow, pyarrow.parquet)``; ``ValueError`` naming the extra when missing."""
+    """``(pyarrow, pyarrow.parquet)``; :class:`~marine_fdi_env.errors.MissingExtra` naming the extra when missing."""
     try:
         import pyarrow as pa
         import pyarrow.parquet as pq
     except ImportError:
-        raise ValueError(PARQUET_MISSING) from None
+        raise MissingExtra("pyarrow", "reading or writing Parquet") from None
     return pa, pq
 
 

@@ -55,6 +55,7 @@ __all__ = [
     "NO_FAULT_LABEL",
     "UNKNOWN_LABEL",
     "NOTHING_LABEL",
+    "report_pyplot",
 ]
 
 _FIXED_FIRST = ("null", "random", "reference")
@@ -445,7 +446,8 @@ def confusion_markdown(cm: Mapping) -> str:
 # ----------------------------------------------------------------------------- plots
 
 
-def _pyplot():
+def report_pyplot():
+    """matplotlib's pyplot for the report's figures (a missing extra's message offers --no-plots)."""
     return pyplot("or pass --no-plots")
 
 
@@ -464,7 +466,7 @@ def plot_detection_delays(results: Sequence[Mapping], path: Path) -> Path | None
     """Detection delays per agent (box and points), one panel per suite that has faulty episodes
     (none is drawn for a fault-free suite such as nominal-v1); ``None`` when no suite has one.
     The delay axis is linear up to 1 s (the decision period) and logarithmic above."""
-    plt = _pyplot()
+    plt = report_pyplot()
     groups = {s: rs for s, rs in _by_suite(results).items() if _has_faults(rs)}
     if not groups:
         return None
@@ -513,7 +515,7 @@ def plot_summary(results: Sequence[Mapping], path: Path) -> Path:
     """Grouped bars of detection rate, isolation accuracy, false-alarm episodes (%), one panel per
     suite, each bar labelled with its value ("n/a" where undefined, e.g. detection on a
     fault-free suite); one legend above the panels, never over a bar."""
-    plt = _pyplot()
+    plt = report_pyplot()
     groups = _by_suite(results)
     fig, axes = plt.subplots(len(groups), 1, figsize=(9, 2.9 * len(groups) + 0.6), squeeze=False)
     width = 0.8 / len(_BARS)
@@ -564,7 +566,7 @@ def plot_confusion(rs: Sequence[Mapping], path: Path) -> Path:
     """One suite's confusion matrices (module docstring) as heat maps, one panel per agent."""
     import numpy as np
 
-    plt = _pyplot()
+    plt = report_pyplot()
     rows, cols = _suite_labels(rs)
     n = len(rs)
     ncol = min(3, n)
@@ -630,7 +632,7 @@ def write_report(paths: Iterable[str | Path], out_dir: str | Path, *, plots: boo
 
 def _write_report(paths, out_dir, plots: bool) -> Path:
     if plots:
-        _pyplot()  # a missing matplotlib is an error before any work
+        report_pyplot()  # a missing matplotlib is an error before any work
     results = load_results(list(paths))
     if not results:
         raise ValueError("no results files given")

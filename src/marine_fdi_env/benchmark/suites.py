@@ -8,7 +8,7 @@ A suite is a JSON file ``data/suites/NAME.json``::
 
 Once published a suite file never changes: results on it are comparable across versions of the
 code that keep the simulator's numbers.  A change of content is a new name (``-v2``).  The files
-were made by :func:`build_suite` (``python -m studies.benchmark.build_suites NAME``); the test
+were made by :func:`build_suite` (the repository's suite builder, docs/environment.md); the test
 suite checks that the builders still reproduce them, so a change of the sampler or of the
 detectability table (which sets the magnitudes) cannot silently alter a published suite: such a
 change needs new suite versions.
@@ -54,7 +54,7 @@ from pathlib import Path
 import numpy as np
 
 from ..engine.fault_registry import suite_fault_ids
-from ..envs.scenario_sampler import PRESETS, ScenarioConfig, ScenarioSpec, _fault_at_scale
+from ..envs.scenario_sampler import PRESETS, ScenarioConfig, ScenarioSpec, fault_at_scale
 from ..jsonfile import read_json
 from ..scenarios import get_scenario
 
@@ -168,7 +168,7 @@ def _grid(name: str, fault_ids, scales, reps: int, signed: bool) -> list[Scenari
                 r = np.random.default_rng(s_onset)
                 onset = round(float(r.uniform(*base.onset_range_s)), 2)
                 sign = (1.0 if r.random() < 0.5 else -1.0) if signed else 1.0
-                f = _fault_at_scale(fid, "offset", onset, scale, sign)
+                f = fault_at_scale(fid, "offset", onset, scale, sign)
                 out.append(
                     ScenarioSpec(
                         faults=(f,),

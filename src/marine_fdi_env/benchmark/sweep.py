@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from .._version import __version__
-from .backends import Backend, chunk_size, run_tasks
+from .backends import Backend, chunk_size, run_tasks_counted
 from .evaluate import cached_agent, chunk_tasks, evaluate_chunk, suite_caches, suite_env_kwargs
 from .records import sweep_results  # noqa: F401 - part of this module's API
 from .suites import SUITE_NAMES, load_suite
@@ -199,11 +199,6 @@ def run_sweep(
 
         warm_up(tasks[0][2])  # compile a cold cache once, here, before the bar and the workers
     bar = progress_bar(total, n_before, "sweep", progress)
-    in_flight: dict[int, float] = {}
-
-    def advance(i, x):
-        in_flight[i] = in_flight.get(i, 0.0) + x
-        bar.advance(x)
 
     def keep(i, res):
         run, k, idx, caches = plan[i]
@@ -215,14 +210,9 @@ def run_sweep(
                     rec = dict(rec, agent_spec=a, seed_offset=k)
                     fh.write(json.dumps(rec) + "\n")
                     done[_key(rec)] = rec
-        in_flight.pop(i, None)  # this chunk now counts as done; the others as far as they got
-        bar.set_done(len(done) + sum(in_flight.values()))
 
     load0, t0 = os.getloadavg(), time.perf_counter()
-    try:
-        run_tasks(backend, evaluate_chunk, tasks, on_result=keep, on_progress=advance)
-    finally:
-        bar.close()
+    run_tasks_counted(backend, evaluate_chunk, tasks, bar=bar, on_result=keep, settled=lambda: len(done))
     wall = time.perf_counter() - t0
     load1 = os.getloadavg()
     read = sorted({str(c.path) for c in all_caches if c.trajectory is not None})

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 
+from .common import CommandParser
 from .failures import fail
 
 __all__ = ["agents_main"]
@@ -14,7 +14,7 @@ def agents_main(argv=None) -> int:
     from ..benchmark.agent_registry import TRAIN_EXTRA_HINT, list_agents
     from .common import parse_cli
 
-    ap = argparse.ArgumentParser(
+    ap = CommandParser(
         prog="marine-fdi agents",
         description="List the agents that 'marine-fdi evaluate --agent NAME' and 'marine-fdi sweep --agents' know by "
         "name: the baselines and every shipped model (a folder of training/models/). Any other agent: "

@@ -12,7 +12,7 @@ predict-raw, and the backends of evaluate and dataset):
   ``--backend ray``: Ray) is checked before any work starts: one line naming the extra
   (``pip install 'marine-fdi-env[plots]'``), exit code 2;
 * on a cold numba cache the first compilation prints one line, "compiling the model (first run
-  only, about a minute)" (:mod:`marine_fdi_env._coldstart`), and timings (the ``compute_s`` of
+  only, about a minute)" (:mod:`marine_fdi_env.coldstart`), and timings (the ``compute_s`` of
   episodes) start after a warm-up, so compilation never counts.
 """
 
@@ -24,15 +24,17 @@ import math
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from ..errors import UsageError, require_extra
+from ..jsonfile import json_safe
+from .failures import INTERRUPTED, USAGE_ERROR, fail
 
 __all__ = [
     "PROG",
     "INTERRUPTED",
     "USAGE_ERROR",
+    "CommandParser",
     "parse_cli",
+    "run_parsed",
     "interrupted",
     "add_backend_args",
     "backend_from_args",
@@ -40,24 +42,43 @@ __all__ = [
     "cache_from_args",
     "option_value",
     "positive_seconds",
-    "strict_json",
     "dumps",
 ]
 
 PROG = "marine-fdi"
 
 
-INTERRUPTED = 130  # exit code after Ctrl-C (128 + SIGINT)
-USAGE_ERROR = 2  # exit code of an invalid input (argparse's convention)
+class CommandParser(argparse.ArgumentParser):
+    """The parser of every ``marine-fdi`` command: a usage error raises :class:`~marine_fdi_env.errors.UsageError`
+    (its ``prog`` the command's, subcommands included) instead of printing the usage and exiting, so it ends
+    like every other refused input (:mod:`.failures`: one line, exit code 2)."""
+
+    def error(self, message: str):
+        exc = UsageError(message)
+        exc.prog = self.prog
+        raise exc
 
 
 def parse_cli(ap: argparse.ArgumentParser, argv) -> tuple[argparse.Namespace | None, int | None]:
-    """``(args, None)``, or ``(None, exit code)`` where argparse would exit (``--help``: 0, a usage error: 2):
-    the commands return their exit code instead of raising ``SystemExit``."""
+    """``(args, None)``, or ``(None, exit code)``: ``--help`` and ``--version`` 0; a usage error of a
+    :class:`CommandParser` 2, after its one line (:func:`.failures.fail`).  The commands return their
+    exit code instead of raising ``SystemExit``."""
     try:
         return ap.parse_args(argv), None
     except SystemExit as e:
         return None, (e.code if isinstance(e.code, int) else 0)
+    except UsageError as e:
+        return None, fail(getattr(e, "prog", ap.prog), e)
+
+
+def run_parsed(build_parser, run, argv, prog: str) -> int:
+    """A command that parses its options once and hands them to ``run(args, argv, prog)`` (``argv``: the
+    command line, for the outputs that record it); ``argv`` None: the process's arguments."""
+    argv = list(argv) if argv is not None else sys.argv[1:]
+    args, code = parse_cli(build_parser(prog), argv)
+    if args is None:
+        return code
+    return run(args, argv, prog)
 
 
 def interrupted(prog: str, kept: str = "") -> int:
@@ -152,20 +173,6 @@ def positive_seconds(option: str, value: float) -> float:
     return float(value)
 
 
-def strict_json(obj):
-    """JSON-safe copy: non-finite floats become null."""
-    if isinstance(obj, dict):
-        return {k: strict_json(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [strict_json(v) for v in obj]
-    if isinstance(obj, (float, np.floating)):
-        return float(obj) if math.isfinite(obj) else None
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    return obj
-
-
 def dumps(obj) -> str:
-    return json.dumps(strict_json(obj), indent=2, allow_nan=False)
+    """``obj`` as indented strict JSON (non-finite numbers as null) for a command's listing."""
+    return json.dumps(json_safe(obj), indent=2, allow_nan=False)

@@ -13,6 +13,7 @@ from ..benchmark.suites import load_suite
 from ..costs import CostEstimate, check_memory, episode_cpu_s, say_cost
 from ..envs.observation import feature_names
 from ..envs.scenario_sampler import get_preset
+from .common import CommandParser
 from .failures import fail
 
 EPISODE_DECISION_PERIOD_S = 1.0  # the environment's decision period, which the exported episodes keep
@@ -55,7 +56,7 @@ def build_parser() -> argparse.ArgumentParser:
     from ..envs.scenario_sampler import PRESETS
     from .common import add_backend_args
 
-    ap = argparse.ArgumentParser(
+    ap = CommandParser(
         prog="marine-fdi dataset",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Export observations, fault labels and ground truth of episodes for offline learning.",

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 from pathlib import Path
 
 from ..diagnosis.recorded_run import diagnose_run, plot_residuals
 from ..errors import UsageError, require_extra
+from ..jsonfile import json_safe
 from ..outputs import prepare_out
 from ..runio import load_run
 
@@ -44,16 +44,7 @@ def _diagnose(args: argparse.Namespace) -> int:
     if args.plots:
         report["plots"] = [str(p) for p in plot_residuals(run, block, Path(args.plots), report)]
 
-    def clean(o):
-        if isinstance(o, dict):
-            return {k: clean(v) for k, v in o.items()}
-        if isinstance(o, (list, tuple)):
-            return [clean(v) for v in o]
-        if isinstance(o, float) and not math.isfinite(o):
-            return None
-        return o
-
-    text = json.dumps(clean(report), indent=2)
+    text = json.dumps(json_safe(report), indent=2)
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(text + "\n")
     first = report["first_detection_time_s"]

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from ..benchmark.evaluate import evaluate
 from ..errors import UsageError
+from .common import CommandParser
 from .failures import fail
 
 RESULT_SUFFIXES = (".json", ".parquet")  # the formats a results file is written in
@@ -53,7 +54,7 @@ def default_results(path: Path, args: argparse.Namespace) -> tuple[Path, dict | 
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(
+    ap = CommandParser(
         prog="marine-fdi evaluate",
         description="Run an agent on a frozen evaluation suite and print its metrics. With no arguments: the "
         "reference diagnoser on thesis-v1.",

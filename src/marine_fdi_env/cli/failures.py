@@ -30,13 +30,25 @@ from pathlib import Path
 from typing import Callable, Iterator, Sequence
 
 from ..errors import MarineFDIError
-from .common import INTERRUPTED, USAGE_ERROR
 
-__all__ = ["DEBUG_FLAG", "DEBUG_ENV", "FAILURE", "split_debug", "debugging", "debug_on", "fail", "run_command"]
+__all__ = [
+    "DEBUG_FLAG",
+    "DEBUG_ENV",
+    "FAILURE",
+    "USAGE_ERROR",
+    "INTERRUPTED",
+    "split_debug",
+    "debugging",
+    "debug_on",
+    "fail",
+    "run_command",
+]
 
 DEBUG_FLAG = "--debug"
 DEBUG_ENV = "MARINE_FDI_DEBUG"
 FAILURE = 1  # exit code of a failure that is not the input's fault (an agent's exception, a bug)
+USAGE_ERROR = 2  # exit code of an invalid input (argparse's convention)
+INTERRUPTED = 130  # exit code after Ctrl-C (128 + SIGINT)
 
 _debug = False
 _FRAME = re.compile(r'File "([^"]+)", line (\d+)')

@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import argparse
 import importlib.util
 import sys
 
 from .._version import __version__
 from ..layers import PACKAGE, check_imports, package_roots, print_imports
-from .common import parse_cli
+from .common import CommandParser, parse_cli
 
 
 def _summary() -> None:
@@ -25,7 +24,7 @@ def _summary() -> None:
 
 
 def info_main(argv=None) -> int:
-    ap = argparse.ArgumentParser(
+    ap = CommandParser(
         prog="python -m marine_fdi_env.info",
         description="Facts about the installed package, and the check of its layers.",
     )

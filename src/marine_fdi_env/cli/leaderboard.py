@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 from .failures import fail
@@ -11,9 +10,9 @@ __all__ = ["leaderboard_main"]
 
 
 def leaderboard_main(argv=None) -> int:
-    from .common import parse_cli
+    from .common import CommandParser, parse_cli
 
-    ap = argparse.ArgumentParser(
+    ap = CommandParser(
         prog="marine-fdi leaderboard",
         description="Build the leaderboard's table from entry folders (marine-fdi submit): per agent, its training "
         "seeds pooled, the normalised score of every suite, their interquartile mean and the probability of "

@@ -22,7 +22,7 @@ from ..engine.steady_state import FUEL_SETTING_RANGE
 from ..errors import require_extra
 from ..outputs import prepare_out
 from ..scenarios import SCENARIOS
-from .common import PROG
+from .common import PROG, CommandParser, parse_cli
 from .diagnose import cmd_diagnose
 from .failures import DEBUG_ENV, DEBUG_FLAG, debugging, fail, run_command, split_debug
 from .simulation import (
@@ -44,7 +44,7 @@ __all__ = ["main", "console_main", "build_parser", "OWN_PARSER_COMMANDS"]
 # ----------------------------------------------------------------------------- parser
 def build_parser() -> argparse.ArgumentParser:
     fmt = argparse.RawDescriptionHelpFormatter
-    parser = argparse.ArgumentParser(
+    parser = CommandParser(
         prog=PROG,
         description=textwrap.fill(
             "Marine diesel engine fault detection and isolation benchmark: steady states, "
@@ -227,51 +227,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=cmd_diagnose)
 
-    # implemented in marine_fdi_env.validation (own argument parsers; see main())
-    sub.add_parser(
-        "validate", add_help=False, help="compare the model with measured data, name the causes of misfit (see --help)"
-    )
-    sub.add_parser("evaluate", add_help=False, help="run an agent on a frozen evaluation suite (see evaluate --help)")
-    sub.add_parser("report", add_help=False, help="Markdown table and plots from results files (see report --help)")
-    sub.add_parser(
-        "dataset", add_help=False, help="export features and labels for offline learning (see dataset --help)"
-    )
-    sub.add_parser(
-        "synthesize-measurements",
-        add_help=False,
-        help="write 'measured' data from the model with hidden mechanisms (see --help)",
-    )
-    sub.add_parser("agents", add_help=False, help="list the agents known by name (see agents --help)")
-    sub.add_parser(
-        "sweep",
-        add_help=False,
-        help="agents x suites x seed offsets on a backend, resumably, into one Parquet table (see --help)",
-    )
-    sub.add_parser(
-        "export-raw",
-        add_help=False,
-        help="write a suite's 100 Hz sensor samples and ground truth in the DX competition layout",
-    )
-    sub.add_parser(
-        "predict-raw",
-        add_help=False,
-        help="write an agent's per-sample diagnoses of a suite in the DX layout (see --help)",
-    )
-    sub.add_parser(
-        "score-raw",
-        add_help=False,
-        help="score per-sample diagnoses in the DX layout with the benchmark's and DX metrics",
-    )
-    sub.add_parser(
-        "replicas",
-        add_help=False,
-        help="would validate name the same causes again on data like these? (a bootstrap; see --help)",
-    )
-    sub.add_parser("suites", add_help=False, help="list the frozen evaluation suites (see suites --help)")
-    sub.add_parser("train", add_help=False, help="train a learned agent: PPO or the GRU classifier (needs [train])")
-    sub.add_parser("submit", add_help=False, help="score an agent on the frozen suites into an entry anyone can verify")
-    sub.add_parser("verify", add_help=False, help="check entries: hashes, metrics recomputed, --rerun replays them")
-    sub.add_parser("leaderboard", add_help=False, help="build the leaderboard's table from its entries")
+    for name, (_, _, summary) in OWN_PARSER_COMMANDS.items():  # they parse their own arguments (see main())
+        sub.add_parser(name, add_help=False, help=summary)
 
     p = sub.add_parser(
         "info",
@@ -285,25 +242,81 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-# command -> (module of this package, function): the commands that parse their own arguments, imported
-# only when run (a command's import cost is paid by that command alone)
+# command -> (module of this package, function, its line in --help): the commands that parse their own arguments,
+# imported only when run (a command's import cost is paid by that command alone), in the order --help lists them
 OWN_PARSER_COMMANDS = {
-    "evaluate": ("marine_fdi_env.cli.evaluate", "evaluate_main"),
-    "report": ("marine_fdi_env.cli.report", "report_main"),
-    "dataset": ("marine_fdi_env.cli.dataset", "dataset_main"),
-    "agents": ("marine_fdi_env.cli.agents", "agents_main"),
-    "sweep": ("marine_fdi_env.cli.sweep", "sweep_main"),
-    "export-raw": ("marine_fdi_env.cli.raw", "export_raw_main"),
-    "predict-raw": ("marine_fdi_env.cli.raw", "predict_raw_main"),
-    "score-raw": ("marine_fdi_env.cli.raw", "score_raw_main"),
-    "validate": ("marine_fdi_env.cli.validate", "validate_main"),
-    "synthesize-measurements": ("marine_fdi_env.cli.synthesize", "synthesize_main"),
-    "replicas": ("marine_fdi_env.cli.replicas", "replicas_main"),
-    "suites": ("marine_fdi_env.cli.suites", "suites_main"),
-    "train": ("marine_fdi_env.cli.train", "train_main"),
-    "submit": ("marine_fdi_env.cli.submit", "submit_main"),
-    "verify": ("marine_fdi_env.cli.submit", "verify_main"),
-    "leaderboard": ("marine_fdi_env.cli.leaderboard", "leaderboard_main"),
+    "validate": (
+        "marine_fdi_env.cli.validate",
+        "validate_main",
+        "compare the model with measured data, name the causes of misfit (see --help)",
+    ),
+    "evaluate": (
+        "marine_fdi_env.cli.evaluate",
+        "evaluate_main",
+        "run an agent on a frozen evaluation suite (see evaluate --help)",
+    ),
+    "report": (
+        "marine_fdi_env.cli.report",
+        "report_main",
+        "Markdown table and plots from results files (see report --help)",
+    ),
+    "dataset": (
+        "marine_fdi_env.cli.dataset",
+        "dataset_main",
+        "export features and labels for offline learning (see dataset --help)",
+    ),
+    "synthesize-measurements": (
+        "marine_fdi_env.cli.synthesize",
+        "synthesize_main",
+        "write 'measured' data from the model with hidden mechanisms (see --help)",
+    ),
+    "agents": ("marine_fdi_env.cli.agents", "agents_main", "list the agents known by name (see agents --help)"),
+    "sweep": (
+        "marine_fdi_env.cli.sweep",
+        "sweep_main",
+        "agents x suites x seed offsets on a backend, resumably, into one Parquet table (see --help)",
+    ),
+    "export-raw": (
+        "marine_fdi_env.cli.raw",
+        "export_raw_main",
+        "write a suite's 100 Hz sensor samples and ground truth in the DX competition layout",
+    ),
+    "predict-raw": (
+        "marine_fdi_env.cli.raw",
+        "predict_raw_main",
+        "write an agent's per-sample diagnoses of a suite in the DX layout (see --help)",
+    ),
+    "score-raw": (
+        "marine_fdi_env.cli.raw",
+        "score_raw_main",
+        "score per-sample diagnoses in the DX layout with the benchmark's and DX metrics",
+    ),
+    "replicas": (
+        "marine_fdi_env.cli.replicas",
+        "replicas_main",
+        "would validate name the same causes again on data like these? (a bootstrap; see --help)",
+    ),
+    "suites": ("marine_fdi_env.cli.suites", "suites_main", "list the frozen evaluation suites (see suites --help)"),
+    "train": (
+        "marine_fdi_env.cli.train",
+        "train_main",
+        "train a learned agent: PPO or the GRU classifier (needs [train])",
+    ),
+    "submit": (
+        "marine_fdi_env.cli.submit",
+        "submit_main",
+        "score an agent on the frozen suites into an entry anyone can verify",
+    ),
+    "verify": (
+        "marine_fdi_env.cli.submit",
+        "verify_main",
+        "check entries: hashes, metrics recomputed, --rerun replays them",
+    ),
+    "leaderboard": (
+        "marine_fdi_env.cli.leaderboard",
+        "leaderboard_main",
+        "build the leaderboard's table from its entries",
+    ),
 }
 
 # the output options of the validation commands: option -> (argparse dest, is a folder)
@@ -315,7 +328,7 @@ _VALIDATION_OUTPUTS = {
 
 def _run_validation_command(command: str, argv: list[str]) -> int:
     """``validate`` and ``synthesize-measurements`` under the conventions of the other commands
-    (:mod:`.common`): their options parsed once (the command's ``parse``, then its ``run``); ``--plots``
+    (:mod:`.common`): their options parsed once (the command's parser, then its ``run``); ``--plots``
     without matplotlib is one line before any work; the parent of each output path is created when missing
     (one level, never more) and removed again when the command fails, so a failing command leaves no new
     folder."""
@@ -323,10 +336,9 @@ def _run_validation_command(command: str, argv: list[str]) -> int:
 
     mod = importlib.import_module(OWN_PARSER_COMMANDS[command][0])
     prog = f"{PROG} {command}"
-    try:
-        args = mod.parse(argv, prog)
-    except SystemExit as e:  # --help
-        return int(e.code or 0)
+    args, code = parse_cli(mod.build_parser(prog), argv)
+    if args is None:
+        return code
     created: list[Path] = []
     try:
         if getattr(args, "plots", None):
@@ -363,7 +375,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     Every command ends a failure the same way (:mod:`.failures`: one line, the traceback with
     ``--debug`` anywhere on the command line); Ctrl-C prints "interrupted" and returns 130 (commands
     that write incrementally keep their finished work and resume when rerun); a cold numba cache
-    prints one line before the first compilation (:mod:`marine_fdi_env._coldstart`).
+    prints one line before the first compilation (:mod:`marine_fdi_env.coldstart`).
     """
     argv, debug = split_debug(sys.argv[1:] if argv is None else argv)
     prog = PROG + (f" {argv[0]}" if argv and not argv[0].startswith("-") else "")
@@ -372,25 +384,24 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _dispatch(argv: list[str]) -> int:
-    from .. import _coldstart
+    from .. import coldstart
 
-    _coldstart.enable(PROG)
+    coldstart.enable(PROG)
     if argv and argv[0] in _VALIDATION_OUTPUTS:
         return _run_validation_command(argv[0], argv[1:])
     if argv and argv[0] in OWN_PARSER_COMMANDS:
         import importlib
 
-        mod, fn = OWN_PARSER_COMMANDS[argv[0]]
+        mod, fn, _ = OWN_PARSER_COMMANDS[argv[0]]
         return getattr(importlib.import_module(mod), fn)(argv[1:])
     return _main(argv)
 
 
 def _main(argv: list[str]) -> int:
     parser = build_parser()
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as exc:  # --help, --version, argparse usage errors (exit code 2)
-        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
+    args, code = parse_cli(parser, argv)
+    if args is None:  # --help, --version, a usage error (its line printed)
+        return code
     if args.command is None:
         parser.print_help(sys.stderr)
         return 2

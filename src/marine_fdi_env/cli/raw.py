@@ -11,6 +11,7 @@ from pathlib import Path
 from ..benchmark import rawdata, rawscore
 from ..benchmark.rawdata import export_raw, predict_raw, read_manifest
 from ..benchmark.rawscore import dx_table, score_raw
+from .common import CommandParser
 from .failures import fail
 
 
@@ -36,7 +37,7 @@ def export_raw_main(argv=None) -> int:
     from ..outputs import prepare_out
     from .common import interrupted, parse_cli
 
-    ap = argparse.ArgumentParser(
+    ap = CommandParser(
         prog="marine-fdi export-raw",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Write a suite's 100 Hz sensor samples (named columns, SI units) and "
@@ -71,7 +72,7 @@ def predict_raw_main(argv=None) -> int:
     from ..outputs import prepare_out
     from .common import interrupted, parse_cli
 
-    ap = argparse.ArgumentParser(
+    ap = CommandParser(
         prog="marine-fdi predict-raw",
         description="Write a benchmark agent's per-sample diagnoses of a raw suite (written by export-raw) in the "
         "LiU-ICE / DX'25 output layout: one output_<data file> per scenario. The reference's outputs "
@@ -107,7 +108,7 @@ def score_raw_main(argv=None) -> int:
     from ..outputs import prepare_out
     from .common import INTERRUPTED, parse_cli
 
-    ap = argparse.ArgumentParser(
+    ap = CommandParser(
         prog="marine-fdi score-raw",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Score per-sample diagnoses in the LiU-ICE / DX'25 layout with the "

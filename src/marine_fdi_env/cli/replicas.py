@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
@@ -14,13 +13,13 @@ from ..validation.fit.problem import FitProblem
 from ..validation.measured.loader import load_data_arg
 from ..validation.select.replicas import NOISE_MODELS, markdown_table, replicate
 from ..validation.select.selection import select_causes
-from .common import parse_cli
+from .common import CommandParser, parse_cli
 from .failures import fail
 from .selection_options import add_valve_options, rules_from_args
 
 
 def replicas_main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(
+    ap = CommandParser(
         prog="marine-fdi replicas",
         description="Would the pipeline name the same causes again on data like these? "
         "(a parametric bootstrap at the data's design; module docstring)",

@@ -6,13 +6,14 @@ import argparse
 import sys
 from typing import Sequence
 
-from ..benchmark.report import _pyplot, write_report
+from ..benchmark.report import report_pyplot, write_report
 from ..errors import UsageError
+from .common import CommandParser
 from .failures import fail
 
 
 def build_report_parser(prog: str = "marine-fdi report") -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=prog, description="Markdown report and plots from results files.")
+    p = CommandParser(prog=prog, description="Markdown report and plots from results files.")
     p.add_argument(
         "results",
         nargs="+",
@@ -42,7 +43,7 @@ def report_main(argv: Sequence[str] | None = None) -> int:
         from ..outputs import prepare_out
 
         if not args.no_plots:
-            _pyplot()
+            report_pyplot()
         out = prepare_out(args.out, "--out", is_dir=True, create=False)  # write_report creates it
         if (out / "report.md").exists() and not args.force:
             raise UsageError(

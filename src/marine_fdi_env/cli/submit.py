@@ -59,10 +59,10 @@ def _clear(out: Path) -> None:
 
 def submit_main(argv=None) -> int:
     from ..benchmark.suites import SUITE_NAMES
-    from .common import add_backend_args, interrupted, parse_cli
+    from .common import CommandParser, add_backend_args, interrupted, parse_cli
 
     argv = list(sys.argv[1:] if argv is None else argv)
-    ap = argparse.ArgumentParser(
+    ap = CommandParser(
         prog="marine-fdi submit",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Score an agent on the frozen suites and write an entry anyone can verify.",
@@ -193,9 +193,9 @@ def _say_cost(specs: list[str], suites: list[str], workers: int) -> None:
 
 
 def verify_main(argv=None) -> int:
-    from .common import add_backend_args, parse_cli
+    from .common import CommandParser, add_backend_args, parse_cli
 
-    ap = argparse.ArgumentParser(
+    ap = CommandParser(
         prog="marine-fdi verify",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Check entries written by 'marine-fdi submit': every hash, and every metric recomputed from "

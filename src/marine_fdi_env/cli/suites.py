@@ -2,17 +2,16 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 
 from ..benchmark.suites import SUITE_NAMES, load_suite
-from .common import parse_cli
+from .common import CommandParser, parse_cli
 
 __all__ = ["suites_main"]
 
 
 def suites_main(argv=None) -> int:
-    ap = argparse.ArgumentParser(
+    ap = CommandParser(
         prog="marine-fdi suites",
         description="List the frozen evaluation suites "
         "('marine-fdi evaluate --suite NAME'): name, episodes, description.",

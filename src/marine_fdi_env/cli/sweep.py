@@ -9,6 +9,7 @@ from pathlib import Path
 from ..benchmark import sweep
 from ..benchmark.suites import SUITE_NAMES
 from ..benchmark.sweep import TABLE, run_sweep
+from .common import CommandParser
 from .failures import fail
 
 
@@ -38,7 +39,7 @@ def sweep_main(argv=None) -> int:
     from ..outputs import prepare_out
     from .common import add_backend_args, add_cache_args, backend_from_args, cache_from_args, interrupted, parse_cli
 
-    ap = argparse.ArgumentParser(
+    ap = CommandParser(
         prog="marine-fdi sweep",
         description=sweep.__doc__.splitlines()[0],
         formatter_class=argparse.RawDescriptionHelpFormatter,

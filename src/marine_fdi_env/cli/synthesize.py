@@ -3,19 +3,18 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import Sequence
 
 from ..engine.params import list_parameter_sets
-from ..errors import UsageError
 from ..validation.fit.mechanisms import MECHANISM_IDS, parse_mechanism_spec
 from ..validation.fit.synthesize import DEFAULT_COLUMNS, LOAD_RANGE, synthesize
+from .common import CommandParser, run_parsed
 from .failures import fail
 
 
 def build_parser(prog: str = "marine-fdi synthesize-measurements") -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(
+    ap = CommandParser(
         prog=prog,
         description="Write synthetic measured data from the model with hidden mechanisms.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -60,28 +59,9 @@ def build_parser(prog: str = "marine-fdi synthesize-measurements") -> argparse.A
     return ap
 
 
-def parse(argv: Sequence[str], prog: str = "marine-fdi synthesize-measurements") -> argparse.Namespace:
-    """The options of ``argv``, parsed once; a usage error raises :class:`~marine_fdi_env.errors.UsageError` (one
-    line), ``--help`` exits through ``SystemExit``."""
-    ap = build_parser(prog)
-
-    def error(message):
-        raise UsageError(message)
-
-    ap.error = error  # type: ignore[method-assign]
-    return ap.parse_args(list(argv))
-
-
 def synthesize_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi synthesize-measurements") -> int:
     """Command line: returns 0 on success, 2 on bad input (message on stderr)."""
-    argv = list(argv) if argv is not None else sys.argv[1:]
-    try:
-        args = parse(argv, prog)
-    except UsageError as e:
-        return fail(prog, e)
-    except SystemExit as e:  # --help
-        return int(e.code or 0)
-    return run(args, argv, prog)
+    return run_parsed(build_parser, run, argv, prog)
 
 
 def run(args: argparse.Namespace, argv: Sequence[str], prog: str = "marine-fdi synthesize-measurements") -> int:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import shlex
 import sys
 from pathlib import Path
@@ -12,7 +11,7 @@ import numpy as np
 from ..envs.fdi_env import ENV_ID, ENV_ID_V1
 from ..errors import UsageError, require_extra
 from ..outputs import prepare_out
-from .common import parse_cli
+from .common import CommandParser, parse_cli
 from .failures import fail
 
 __all__ = ["train_main"]
@@ -69,7 +68,7 @@ def _parse_params(items: list[str]) -> dict:
 
 def train_main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    ap = argparse.ArgumentParser(
+    ap = CommandParser(
         prog="marine-fdi train",
         description="Train a learned diagnoser for MarineFDI-v1 / "
         "MarineFDI-v0 (RL Zoo style): the model, config.json with the exact command, "

@@ -9,15 +9,17 @@ from typing import Sequence
 
 from ..engine.params import list_parameter_sets, load_params
 from ..errors import UsageError
+from ..jsonfile import json_safe
 from ..plotting import pyplot
 from ..validation.fit.problem import FitProblem
 from ..validation.measured.loader import list_shipped, load_data_arg
 from ..validation.measured.matching import TARGETS
-from ..validation.report.build import clean_json, out_path, run_validation, split_engine, summary_lines
+from ..validation.report.build import out_path, run_validation, split_engine, summary_lines
 from ..validation.report.data_check import column_registry, describe
 from ..validation.report.markdown import markdown_summary
 from ..validation.report.plots import write_plots
 from ..validation.select.rules import SelectionRules
+from .common import CommandParser, run_parsed
 from .failures import fail
 from .selection_options import add_valve_options, rules_from_args
 
@@ -25,7 +27,7 @@ RULES = SelectionRules()  # the selection's default rules: the options' defaults
 
 
 def build_parser(prog: str = "marine-fdi validate") -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(
+    ap = CommandParser(
         prog=prog,
         description="Validate the engine model against measured data: "
         "discrepancies, named causes, cross-validated gain, the fitted engine.",
@@ -117,28 +119,9 @@ def build_parser(prog: str = "marine-fdi validate") -> argparse.ArgumentParser:
     return ap
 
 
-def parse(argv: Sequence[str], prog: str = "marine-fdi validate") -> argparse.Namespace:
-    """The options of ``argv``, parsed once; a usage error raises :class:`~marine_fdi_env.errors.UsageError` (one
-    line), ``--help`` exits through ``SystemExit``."""
-    ap = build_parser(prog)
-
-    def error(message):
-        raise UsageError(message)
-
-    ap.error = error  # type: ignore[method-assign]
-    return ap.parse_args(list(argv))
-
-
 def validate_main(argv: Sequence[str] | None = None, prog: str = "marine-fdi validate") -> int:
     """Command line ``marine-fdi validate``: 0 on success, 2 on bad input (message on stderr), 130 on Ctrl-C."""
-    argv = list(argv) if argv is not None else sys.argv[1:]
-    try:
-        args = parse(argv, prog)
-    except UsageError as e:
-        return fail(prog, e)
-    except SystemExit as e:  # --help
-        return int(e.code or 0)
-    return run(args, argv, prog)
+    return run_parsed(build_parser, run, argv, prog)
 
 
 def run(args: argparse.Namespace, argv: Sequence[str], prog: str = "marine-fdi validate") -> int:
@@ -220,7 +203,7 @@ def run(args: argparse.Namespace, argv: Sequence[str], prog: str = "marine-fdi v
 
             if say:
                 say(f"replicas: {args.replicas} per hypothesis, each through the whole pipeline")
-            rep["replicas"] = clean_json(
+            rep["replicas"] = json_safe(
                 replicate(sel, replicas=args.replicas, workers=args.workers, progress=not args.quiet)
             )
     except ValueError as e:

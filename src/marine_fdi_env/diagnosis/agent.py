@@ -24,11 +24,19 @@ from marine_fdi_env._jit import jit
 from marine_fdi_env.diagnosis.cell_sets import DEFAULT_CELLS, CellDecisions, DecidesWithCellSets, check_cells
 from marine_fdi_env.diagnosis.decision import candidate_classes, sorted_diagnoses
 from marine_fdi_env.diagnosis.modules import MODULE_IDS
-from marine_fdi_env.diagnosis.peak_ratio import ratios, running_peaks
+from marine_fdi_env.diagnosis.peak_ratio import (
+    PEAK_CAP,
+    add_period_ratio,
+    clipped_signed_ratio,
+    finish_period_stats,
+    ratios,
+    reset_period_stats,
+    running_peaks,
+)
 from marine_fdi_env.diagnosis.residuals import (
-    _SIDE_COLS,
-    _T_OUT_COL,
     INCLUSIONS,
+    SIDE_COLS,
+    T_OUT_COL,
     compute_residuals_batch,
     inclusion_arrays,
     new_state,
@@ -36,8 +44,8 @@ from marine_fdi_env.diagnosis.residuals import (
 from marine_fdi_env.diagnosis.sized_decision import SizedDiagnosisState, drive_block
 from marine_fdi_env.diagnosis.thresholds import DEFAULT_THRESHOLDS, check_thresholds, threshold_array
 from marine_fdi_env.engine.constants import model_constants
-from marine_fdi_env.engine.integrators import THREADED_MIN_ENGINES, _executor
-from marine_fdi_env.engine.params import EngineParams, load_params
+from marine_fdi_env.engine.integrators import THREADED_MIN_ENGINES, thread_pool
+from marine_fdi_env.engine.params import EngineParams, engine_batch
 from marine_fdi_env.engine.sensors import N_SENSORS, NOISE_BOUNDS
 
 __all__ = ["ReferenceDiagnoser", "ReferenceDecisions", "BlockOutput", "N_FEATURES_PER_MODULE"]
@@ -46,7 +54,6 @@ N_MODULES = len(MODULE_IDS)
 # per module: max |r|/threshold over the block, latched decision, time since first violation [s]
 N_FEATURES_PER_MODULE = 3
 TIME_SINCE_CAP_S = 300.0
-PEAK_CAP = 1e3
 
 
 @dataclass
@@ -62,24 +69,17 @@ class BlockOutput:
     peaks: np.ndarray | None = None  # (N, 19) max |r|/threshold over the block (capped at PEAK_CAP)
 
 
-RATIO_CAP = PEAK_CAP  # the observation's ratio cap (envs.observation.RATIO_CAP)
-
-
 @jit
 def _violations_and_peaks(R, THR, viol, peak, stats, i0, i1):
     """For engines i0..i1-1: viol = not |R| <= THR (inf/nan residuals violate); peak[i, m] = max over
     the block of |R|/THR, where a ratio that is not finite or THR <= 0 counts as the cap 1e3,
-    capped at 1e3; and the observation's period statistics of the block (one pass, in sample
-    order, as ``envs.observation``'s numpy definition): stats[i, m] = (max ratio, mean ratio, mean
-    signed ratio, share of ratios > 1) of the signed ratio r/thr clipped to ±RATIO_CAP (NaN: +cap)."""
+    capped at 1e3; and the observation's period statistics of the block in the same pass
+    (:func:`~marine_fdi_env.diagnosis.peak_ratio.period_stats`)."""
     N, B, M = R.shape
     for i in range(i0, i1):
         for m in range(M):
             peak[i, m] = 0.0
-            stats[i, m, 0] = 0.0
-            stats[i, m, 1] = 0.0
-            stats[i, m, 2] = 0.0
-            stats[i, m, 3] = 0.0
+        reset_period_stats(stats, i)
         for k in range(B):
             for m in range(M):
                 r = abs(R[i, k, m])
@@ -90,24 +90,8 @@ def _violations_and_peaks(R, THR, viol, peak, stats, i0, i1):
                     q = PEAK_CAP
                 if q > peak[i, m]:
                     peak[i, m] = q
-                s = R[i, k, m] / thr
-                if s != s:
-                    s = RATIO_CAP
-                elif s > RATIO_CAP:
-                    s = RATIO_CAP
-                elif s < -RATIO_CAP:
-                    s = -RATIO_CAP
-                a = abs(s)
-                if a > stats[i, m, 0]:
-                    stats[i, m, 0] = a
-                stats[i, m, 1] += a
-                stats[i, m, 2] += s
-                if a > 1.0:
-                    stats[i, m, 3] += 1.0
-        for m in range(M):
-            stats[i, m, 1] /= B
-            stats[i, m, 2] /= B
-            stats[i, m, 3] /= B
+                add_period_ratio(stats, i, m, clipped_signed_ratio(R[i, k, m], thr))
+        finish_period_stats(stats, i, B)
 
 
 def _post_process(R, THR, viol, peak, stats) -> None:
@@ -118,7 +102,7 @@ def _post_process(R, THR, viol, peak, stats) -> None:
         return
     edges = np.linspace(0, n, 9).astype(np.int64)
     list(
-        _executor().map(
+        thread_pool().map(
             lambda r: _violations_and_peaks(R, THR, viol, peak, stats, r[0], r[1]), list(zip(edges[:-1], edges[1:]))
         )
     )
@@ -201,7 +185,7 @@ class ReferenceDiagnoser(DecidesWithCellSets):
     noise_bounds : (19,) sensor noise bounds (default: table 6.3).
     max_cardinality : largest diagnosis considered by the hitting-set search.
     exoneration : ``"sure"`` (default): a module that has not fired clears the faults it surely
-        detects (measured cells, :mod:`studies.diagnosis.certainty`; the thesis's '1'
+        detects (measured cells, the certainty study of docs/diagnosis.md; the thesis's '1'
         cells), with the temporal check that a fault explains a module only if its sure modules
         fired no later than shortly after it; ``"none"``: plain consistency-based diagnosis;
         ``"all"``: every structural sensitivity counts as sure.
@@ -234,13 +218,7 @@ class ReferenceDiagnoser(DecidesWithCellSets):
         cells: str = DEFAULT_CELLS,
         thresholds: str = DEFAULT_THRESHOLDS,
     ) -> None:
-        self.params = load_params(params) if isinstance(params, str) else params
-        if not isinstance(n_engines, (int, np.integer)) or n_engines < 1:
-            raise ValueError(f"n_engines must be a positive integer, got {n_engines!r}")
-        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be a positive finite number of seconds, got {dt!r}")
-        self.n = int(n_engines)
-        self.dt = float(dt)
+        self.params, self.n, self.dt = engine_batch(params, n_engines, dt)
         self.c = model_constants(self.params)
         nb = NOISE_BOUNDS if noise_bounds is None else np.asarray(noise_bounds, dtype=float)
         if nb.shape != (N_SENSORS,) or not np.all(np.isfinite(nb)) or np.any(nb < 0):
@@ -316,7 +294,7 @@ class ReferenceDiagnoser(DecidesWithCellSets):
         R = np.empty((N, B, N_MODULES))
         THR = np.empty((N, B, N_MODULES))
         compute_residuals_batch(
-            self.c, Y, U, self.dt, self.noise_bounds, _SIDE_COLS, _T_OUT_COL, R, THR, self.state, self._table, self._thr
+            self.c, Y, U, self.dt, self.noise_bounds, SIDE_COLS, T_OUT_COL, R, THR, self.state, self._table, self._thr
         )
         viol = np.empty((N, B, N_MODULES), dtype=np.bool_)
         peak = np.empty((N, N_MODULES))

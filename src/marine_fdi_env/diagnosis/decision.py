@@ -59,6 +59,9 @@ __all__ = [
     "diagnose_decisions",
     "ThesisExample",
     "THESIS_EXAMPLES",
+    "set_from_mask",
+    "mhs_masks",
+    "diagnosis_sort_key",
 ]
 
 N_MODULES = len(MODULE_IDS)
@@ -115,7 +118,7 @@ def _bits(mask: int):
         mask ^= low
 
 
-def _mhs_masks(conflicts: Sequence[int], k: int) -> list[int]:
+def mhs_masks(conflicts: Sequence[int], k: int) -> list[int]:
     """Berge's algorithm on bitmasks, truncated at cardinality k (exact up to k)."""
     if k < 0:
         return []
@@ -161,7 +164,8 @@ def _to_masks(conflicts: Iterable[Iterable], index: dict) -> list[int]:
     return out
 
 
-def _from_mask(mask: int, items: Sequence) -> frozenset:
+def set_from_mask(mask: int, items: Sequence) -> frozenset:
+    """The items whose bits are set in ``mask`` (bit i: ``items[i]``)."""
     return frozenset(items[i] for i in range(len(items)) if mask >> i & 1)
 
 
@@ -183,8 +187,8 @@ def minimal_hitting_sets(conflicts: Iterable[Iterable], max_cardinality: int | N
     conflicts = [list(c) for c in conflicts]
     items = _items_of(conflicts)
     k = len(items) if max_cardinality is None else int(max_cardinality)
-    masks = _mhs_masks(_to_masks(conflicts, {x: i for i, x in enumerate(items)}), k)
-    return [_from_mask(m, items) for m in masks]
+    masks = mhs_masks(_to_masks(conflicts, {x: i for i, x in enumerate(items)}), k)
+    return [set_from_mask(m, items) for m in masks]
 
 
 def brute_force_minimal_hitting_sets(
@@ -321,13 +325,14 @@ def default_settle_times(sensor_s: float = 5.0, process_s: float = math.inf) -> 
     return np.array([sensor_s if fault_class(f) == "sensor" else process_s for f in FAULT_IDS])
 
 
-def _sort_key(s: frozenset) -> tuple:
+def diagnosis_sort_key(s: frozenset) -> tuple:
+    """Order of diagnoses: by size, then by the fault ids' order in the registry."""
     return (len(s), sorted(_FAULT_INDEX[x] for x in s))
 
 
 def sorted_diagnoses(diagnoses: Iterable[Iterable[str]]) -> list[list[str]]:
     """Diagnoses as sorted lists (faults in ``FAULT_IDS`` order), smallest first (for JSON)."""
-    ds = sorted((frozenset(d) for d in diagnoses), key=_sort_key)
+    ds = sorted((frozenset(d) for d in diagnoses), key=diagnosis_sort_key)
     return [sorted(d, key=_FAULT_INDEX.__getitem__) for d in ds]
 
 
@@ -368,14 +373,14 @@ def minimal_diagnoses(
     )
     k = N_FAULTS if max_cardinality is None else int(max_cardinality)
     if method == "berge":
-        masks = _mhs_masks(conflicts, k)
-        out = [_from_mask(m, FAULT_IDS) for m in masks]
+        masks = mhs_masks(conflicts, k)
+        out = [set_from_mask(m, FAULT_IDS) for m in masks]
     elif method == "brute":
-        sets = [_from_mask(c, FAULT_IDS) for c in conflicts]
+        sets = [set_from_mask(c, FAULT_IDS) for c in conflicts]
         out = brute_force_minimal_hitting_sets(sets, k, universe=FAULT_IDS)
     else:
         raise ValueError(f"method must be 'berge' or 'brute', got {method!r}")
-    return sorted(out, key=_sort_key)
+    return sorted(out, key=diagnosis_sort_key)
 
 
 def _row_masks(mat: np.ndarray) -> list[int]:
@@ -410,7 +415,7 @@ def brute_force_diagnoses(fired, *, support=None, exoneration=None, max_cardinal
             if (cover & fired_mask) == fired_mask and not (sure & ~fired_mask):
                 consistent.append(frozenset(FAULT_IDS[j] for j in combo))
     minimal = [s for s in consistent if not any(o < s for o in consistent)]
-    return sorted(minimal, key=_sort_key)
+    return sorted(minimal, key=diagnosis_sort_key)
 
 
 def candidates(diagnoses: Iterable[Iterable[str]]) -> tuple[str, ...]:
@@ -557,7 +562,7 @@ def thesis_global_diagnosis(
                     chi.append(frozenset(FAULT_IDS[j] for j in combo))
     ds = {s for a in agents for s in local[a]}
     chi_set = set(chi)
-    inter = sorted(ds & chi_set, key=_sort_key)
+    inter = sorted(ds & chi_set, key=diagnosis_sort_key)
     gcand = tuple(f for f in candidates(chi) if f in set(candidates(list(ds))))
 
     diagnoses = []
@@ -570,11 +575,11 @@ def thesis_global_diagnosis(
     return ThesisGlobalDiagnosis(
         local=local,
         d_chi=d_chi,
-        chi=sorted(chi, key=_sort_key),
+        chi=sorted(chi, key=diagnosis_sort_key),
         intersection=inter,
         global_candidates=gcand,
-        diagnoses=sorted(diagnoses, key=_sort_key),
-        minimal=sorted(minimal, key=_sort_key),
+        diagnoses=sorted(diagnoses, key=diagnosis_sort_key),
+        minimal=sorted(minimal, key=diagnosis_sort_key),
     )
 
 

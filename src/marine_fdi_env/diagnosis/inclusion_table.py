@@ -2,7 +2,7 @@
 
 The adaptive thresholds of M2.1-M2.4 need, every sample and for each sensor chain, the Σ2 model
 (Seiliger cycle and speed loop, eq. 3.7-3.13) at the centre and at ±d̄ of x1, x4 and T1
-(:func:`marine_fdi_env.diagnosis.residuals._cycle_table`): 7 Seiliger cycles per chain and sample
+(:func:`marine_fdi_env.diagnosis.residuals.cycle_table`): 7 Seiliger cycles per chain and sample
 besides the centre's speed solve, and the perturbed speeds also feed the inclusion of M3.q, M3.3/4,
 M4.q and M4.5/6.  These 18 differences (row - centre of speed n, p6 and T6 for each of the 6
 perturbed points) are smooth functions of the operating point (x1, x4, T1) alone, for the chain's
@@ -34,7 +34,7 @@ import numpy as np
 from .._jit import jit, jit_inline
 from ..engine.constants import kernel_constants
 from ..engine.subsystems.engine_block import engine_block
-from .sigma2 import SLOPE_LIMIT, SLOPE_STEP, _cycle_table
+from .sigma2 import SLOPE_LIMIT, SLOPE_STEP, cycle_table
 
 __all__ = ["Sigma2Table", "sigma2_table", "TABLE_STEPS", "N_ROWS", "interpolate_rows"]
 
@@ -59,7 +59,7 @@ class Sigma2Table:
 
     lo : (3,) the grid's first node (x1 [kg], x4 [Pa], T1 [K]); step : (3,); shape : (3,) nodes.
     delta : (n1, n4, nT, 6, 3) node values: row p (x1+, x1-, x4+, x4-, T1+, T1-) minus the centre,
-        columns speed [rev/s], p6 [Pa], T6 [K] (as :func:`residuals._cycle_table` computes them).
+        columns speed [rev/s], p6 [Pa], T6 [K] (as :func:`residuals.cycle_table` computes them).
     margin : (n1-1, n4-1, nT-1, 6, 3) certified bound of |interpolated - exact| in each cell.
     valid : (n1-1, n4-1, nT-1) bool; invalid cells are computed exactly.
     """
@@ -75,14 +75,14 @@ class Sigma2Table:
 
 @jit
 def _node(c, x1, x4, T1, dx1, dx4, dT1, n_guess, tab):
-    """Exact rows at one operating point (the speed solved in full first, then _cycle_table's
+    """Exact rows at one operating point (the speed solved in full first, then cycle_table's
     centre and perturbed rows); returns the speed, or NaN where the point is not usable."""
     n, tq, p6, T6, p_max, m1 = engine_block(x1, x4, T1, c.V1_m3, n_guess, c, CENTRE_SWEEPS)
     if not (math.isfinite(n) and n > 0.0):
         return math.nan
-    _cycle_table(c, x1, x4, T1, dx1, dx4, dT1, n, tab)
+    cycle_table(c, x1, x4, T1, dx1, dx4, dT1, n, tab)
     n_c = tab[0, 0]
-    # the slope of the speed loop (the linear path of _cycle_table is taken only below SLOPE_LIMIT)
+    # the slope of the speed loop (the linear path of cycle_table is taken only below SLOPE_LIMIT)
     h = SLOPE_STEP * n_c
     n_h, tq, p6_h, T6_h, p_max, m1 = engine_block(x1, x4, T1, c.V1_m3, n_c + h, c, 1)
     k = (n_h - n_c) / h

@@ -10,6 +10,12 @@ largest ratio since the engine's run started; it only grows.
 reaches each step of a logarithmic scale (``STEP`` = 2 %, from ``FLOOR`` on): the compact record
 the certainty grid stores so that the decision logic can be replayed on it (a replay reads the
 peak at most 2 % low, which can only lower a size bound).
+
+The period statistics of the module ratios (the environment observation's features and the
+reference diagnoser's ``BlockOutput.stats``) are computed here too, by compiled helpers both use:
+the signed ratio ``r / threshold`` clipped to ``±RATIO_CAP`` (NaN: ``+RATIO_CAP``), and per engine and
+module over the B samples of a period (max |ratio|, mean |ratio|, mean signed ratio, share of
+|ratio| > 1), summed in sample order.
 """
 
 from __future__ import annotations
@@ -18,9 +24,26 @@ import math
 
 import numpy as np
 
-__all__ = ["PEAK_CAP", "STEP", "FLOOR", "ratios", "running_peaks", "PeakRecorder", "peak_at"]
+from .._jit import jit, jit_inline
+
+__all__ = [
+    "PEAK_CAP",
+    "RATIO_CAP",
+    "STEP",
+    "FLOOR",
+    "ratios",
+    "running_peaks",
+    "PeakRecorder",
+    "peak_at",
+    "clipped_signed_ratio",
+    "reset_period_stats",
+    "add_period_ratio",
+    "finish_period_stats",
+    "period_stats",
+]
 
 PEAK_CAP = 1e3
+RATIO_CAP = PEAK_CAP  # the cap of the signed ratio in the period statistics
 STEP = 1.02
 FLOOR = 0.25
 _LOG_STEP = math.log(STEP)
@@ -77,3 +100,63 @@ def peak_at(events: list[list[float]], t: float) -> float:
             break
         q = qe
     return q
+
+
+@jit_inline
+def clipped_signed_ratio(r, thr):
+    """The signed ratio ``r / thr`` clipped to ±RATIO_CAP; NaN gives +RATIO_CAP."""
+    s = r / thr
+    if s != s:
+        s = RATIO_CAP
+    elif s > RATIO_CAP:
+        s = RATIO_CAP
+    elif s < -RATIO_CAP:
+        s = -RATIO_CAP
+    return s
+
+
+@jit_inline
+def reset_period_stats(stats, i):
+    """Zero the period statistics ``stats[i]`` (19, 4) of engine i."""
+    for m in range(stats.shape[1]):
+        stats[i, m, 0] = 0.0
+        stats[i, m, 1] = 0.0
+        stats[i, m, 2] = 0.0
+        stats[i, m, 3] = 0.0
+
+
+@jit_inline
+def add_period_ratio(stats, i, m, s):
+    """Add the clipped signed ratio ``s`` of one sample to ``stats[i, m]`` (max, sum |s|, sum s, count |s| > 1)."""
+    a = abs(s)
+    if a > stats[i, m, 0]:
+        stats[i, m, 0] = a
+    stats[i, m, 1] += a
+    stats[i, m, 2] += s
+    if a > 1.0:
+        stats[i, m, 3] += 1.0
+
+
+@jit_inline
+def finish_period_stats(stats, i, B):
+    """Turn the sums of ``stats[i]`` over a period of B samples into means and a share."""
+    for m in range(stats.shape[1]):
+        stats[i, m, 1] /= B
+        stats[i, m, 2] /= B
+        stats[i, m, 3] /= B
+
+
+@jit
+def period_stats(R, THR, stats):
+    """Per engine and module over the B samples of a period (one pass, compiled): stats[:, :, 0] =
+    max ratio, 1 = mean ratio, 2 = mean signed ratio, 3 = share of ratios > 1, with the signed
+    ratio r/thr clipped to ±RATIO_CAP (NaN: +RATIO_CAP) and ratio = |signed ratio|.  The sums run in
+    sample order, as numpy's reduction over axis 1 of a C-contiguous (N, B, 19) array, so the
+    values equal the numpy expressions bit for bit (tested)."""
+    N, B, M = R.shape
+    for i in range(N):
+        reset_period_stats(stats, i)
+        for k in range(B):
+            for m in range(M):
+                add_period_ratio(stats, i, m, clipped_signed_ratio(R[i, k, m], THR[i, k, m]))
+        finish_period_stats(stats, i, B)

@@ -35,7 +35,7 @@ subtraction in the Seiliger cycle.
 
 Cost (see docs/diagnosis.md, "Performance"): the engine speed at the ±d̄ points of x1, x4, T1 is
 one sweep of the speed loop from the centre's converged speed, linearised with the centre's slope
-(:func:`_cycle_table`); this drops only second-order terms and lowers the M2.1-M2.4 inclusion terms
+(:func:`cycle_table`); this drops only second-order terms and lowers the M2.1-M2.4 inclusion terms
 by at most 0.21 % and M3.1-M3.4 by 0.03 % against full solves (measured over 16 runs x 200 s,
 constant and manoeuvring), well inside SAFETY.  The model values of M3.q, M3.(3,4), M4.q and
 M4.(5,6) share their intermediates (m1, slip, mass flow, Ψ_sc, Π_turbo) per point.  The one-sided
@@ -55,8 +55,7 @@ import numpy as np
 
 from .._jit import jit, jit_inline
 from ..engine.constants import kernel_constants
-from ..engine.integrators import THREADED_MIN_ENGINES, _etd_scalar, _executor
-from ..engine.seiliger import seiliger_cycle
+from ..engine.integrators import THREADED_MIN_ENGINES, etd_scalar, thread_pool
 from ..engine.sensors import NOISE_BOUNDS, SENSOR_IDS
 from ..engine.subsystems.air_intake import (
     compressor_forcing,
@@ -66,7 +65,11 @@ from ..engine.subsystems.air_intake import (
     inlet_air_temperature,
     inlet_air_temperature_at,
 )
-from ..engine.subsystems.engine_block import constant_volume_portion, friction_torque, speed_of_torque
+from ..engine.subsystems.engine_block import (
+    speed_of_torque,
+    torque_cycle,
+    torque_from_cycle,
+)
 from ..engine.subsystems.exhaust_receiver import (
     scavenge_flow_function,
     turbine_expansion,
@@ -79,11 +82,11 @@ from .modules import MODULE_IDS
 from .sigma2 import (
     ONE_SIDED,
     SLOPE_STEP,
-    _centre_speed,
-    _centre_speed2,
-    _cycle_table,
-    _perturbed_rows,
-    _perturbed_rows2,
+    centre_speed,
+    centre_speed2,
+    cycle_table,
+    perturbed_rows,
+    perturbed_rows2,
 )
 from .thresholds import DEFAULT_THRESHOLDS, closed_form, threshold_array
 
@@ -104,6 +107,8 @@ __all__ = [
     "INCLUSIONS",
     "inclusion_arrays",
     "table_arrays",
+    "SIDE_COLS",
+    "T_OUT_COL",
 ]
 
 # Observer gains L [1/s] of table 6.1 for M(1,q), M(3,q), M(4,q).
@@ -115,14 +120,14 @@ MODEL_MARGIN = 1e-6  # η̄ per step, relative to the state, and relative margin
 # sensor columns
 S = {sid: i for i, sid in enumerate(SENSOR_IDS)}
 # per side (0: odd sensors, 1: even sensors): x1, p6, T6, torque, x3, T_in, x4, T1, T_co
-_SIDE_COLS = np.array(
+SIDE_COLS = np.array(
     [
         [S["S1.1"], S["S2.1"], S["S2.3"], S["S2.5"], S["S3.1"], S["S3.3"], S["S4.1"], S["S4.3"], S["S4.5"]],
         [S["S1.2"], S["S2.2"], S["S2.4"], S["S2.6"], S["S3.2"], S["S3.4"], S["S4.2"], S["S4.4"], S["S4.6"]],
     ],
     dtype=np.int64,
 )
-_T_OUT_COL = S["S3.5"]
+T_OUT_COL = S["S3.5"]
 # module column of each module id (for output arrays)
 _M = {m: i for i, m in enumerate(MODULE_IDS)}
 
@@ -133,29 +138,6 @@ def _dev(g0, gp, gm):
     if ONE_SIDED:
         return abs(gp - g0)
     return max(abs(gp - g0), abs(gm - g0))
-
-
-@jit
-def _torque_cycle(x1, x4, T1, n, c):
-    """The T6-independent part of :func:`torque_given_speed`: (m1, w without the T6 term, T4, Q_loss).
-
-    Same operations in the same order, so ``_torque_from(...)`` equals ``torque_given_speed`` bit
-    for bit; the measured-T6 perturbations of M2.5/6 then reuse one Seiliger cycle."""
-    m1 = x4 * c.V1_m3 / (c.R_a_J_per_kgK * T1)
-    q = (c.eta_comb * c.h_L_J_per_kg) * x1 / m1
-    X_ct = c.X_ct_nom * x1 / c.x1_nom_kg
-    X_cv = constant_volume_portion(n, X_ct, c)
-    T2, T3, T4, _, _, _, _ = seiliger_cycle(x4, T1, q, X_cv, X_ct, c)
-    R = c.R_a_J_per_kgK
-    w0 = -c.c_v_a_J_per_kgK * (T2 - T1) + R * (T4 - T3) + X_ct * q
-    return m1, w0, T4, friction_torque(n, c)
-
-
-@jit
-def _torque_from(parts, T6, c):
-    m1, w0, T4, q_loss = parts
-    w = w0 + c.R_a_J_per_kgK * (T4 - T6) / (c.n_exp - 1.0)
-    return m1 * w * c.torque_per_work - q_loss
 
 
 @jit
@@ -301,7 +283,7 @@ def _box_points(c, csm, x1, x3, x4, T1, m1, t, psi, Pi, T_in, T_out, T6m, p6m, d
 @jit
 def _model_terms_at(c, x1, x3, x4, T1, T_in, T_out, d1, d3, d4, dT1, dTin, dTo, n_guess, tab, G, out):
     """:func:`model_terms` at one point into out (3, 6); returns the engine speed there."""
-    _cycle_table(c, x1, x4, T1, d1, d4, dT1, n_guess, tab)
+    cycle_table(c, x1, x4, T1, d1, d4, dT1, n_guess, tab)
     psi = scavenge_flow_function(x3 / x4, c)
     Pi = turbine_expansion(x3, c)
     m1 = _charge_mass(x4, T1, c)
@@ -345,13 +327,13 @@ def model_terms(c, readings: np.ndarray, dbar=None, side: int = 0) -> np.ndarray
     if csm is not None and c.sm_on != 0.0:
         raise ValueError("model_terms covers the base model only (a gas-path submodel is on)")
     db = np.array(NOISE_BOUNDS if dbar is None else dbar, dtype=np.float64)
-    cols = _SIDE_COLS[side]
+    cols = SIDE_COLS[side]
     d1, d3, d4, dT1, dTin = (db[cols[0]], db[cols[4]], db[cols[6]], db[cols[7]], db[cols[5]])
-    dTo = db[_T_OUT_COL]
+    dTo = db[T_OUT_COL]
     Y = np.asarray(readings, dtype=np.float64)
     if Y.ndim != 2 or Y.shape[1] != len(SENSOR_IDS):
         raise ValueError(f"readings must have shape (K, {len(SENSOR_IDS)}), got {Y.shape}")
-    X = Y[:, [cols[0], cols[4], cols[6], cols[7], cols[5], _T_OUT_COL]]
+    X = Y[:, [cols[0], cols[4], cols[6], cols[7], cols[5], T_OUT_COL]]
     out = np.zeros((len(X), 3, 6))
     tab = np.empty((7, 3))
     G = np.empty((22, 4))
@@ -368,7 +350,7 @@ def observer_steady_gains(c, dt: float) -> dict[str, tuple[float, float]]:
     aside."""
     out = {}
     for name, tau, L in (("M3", c.tau_pd_s, OBSERVER_GAINS[1]), ("M4", c.tau_TC_s, OBSERVER_GAINS[2])):
-        E, q, _ = _etd_scalar(-1.0 / tau, dt)
+        E, q, _ = etd_scalar(-1.0 / tau, dt)
         Ld = -math.expm1(-L * dt)
         den = 1.0 - E * (1.0 - Ld)
         out[name] = (E * Ld / den, q / den)
@@ -642,7 +624,7 @@ def table_arrays(c, dbar, side_cols=None) -> tuple:
     margin, valid (flat), grid (ntab, 2, 3): first node and 1/step, dims (3,): nodes per axis,
     chain -> table index (2,)), one table per distinct noise-bound triple (x1, x4, T1) of the
     chains (one for table 6.3's bounds)."""
-    cols = _SIDE_COLS if side_cols is None else side_cols
+    cols = SIDE_COLS if side_cols is None else side_cols
     keys, tables, index = [], [], []
     for side in range(2):
         key = (float(dbar[cols[side, 0]]), float(dbar[cols[side, 6]]), float(dbar[cols[side, 7]]))
@@ -706,9 +688,9 @@ def _kernel(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use
     (:func:`~marine_fdi_env.diagnosis.thresholds.threshold_array`: rows M1, M3, M4)."""
     T = Y.shape[0]
     L1, L3, L4 = OBSERVER_GAINS
-    E1, q1, r1 = _etd_scalar(-1.0 / c.tau_X_s, dt)
-    E3, q3, r3 = _etd_scalar(-1.0 / c.tau_pd_s, dt)
-    E4, q4, r4 = _etd_scalar(-1.0 / c.tau_TC_s, dt)
+    E1, q1, r1 = etd_scalar(-1.0 / c.tau_X_s, dt)
+    E3, q3, r3 = etd_scalar(-1.0 / c.tau_pd_s, dt)
+    E4, q4, r4 = etd_scalar(-1.0 / c.tau_TC_s, dt)
     Ld1, Ld3, Ld4 = -math.expm1(-L1 * dt), -math.expm1(-L3 * dt), -math.expm1(-L4 * dt)
     fuel_gain = c.x1_nom_kg / c.tau_X_s
     T1_model = inlet_air_temperature(0.0, c)
@@ -818,28 +800,28 @@ def _kernel(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use
                     n_t = _speed_of(tqm, c)
                     dq = dbar[ctq]
                     dT6 = dbar[cT6]
-                    pc = _torque_cycle(x1, x4, T1, n_t, c)
-                    g0 = _torque_from(pc, T6m, c)
+                    pc = torque_cycle(x1, x4, T1, n_t, c)
+                    g0 = torque_from_cycle(pc, T6m, c)
                     r0 = tqm - g0
                     n_p = _speed_of(tqm + dq, c)
-                    rp = (tqm + dq) - _torque_from(_torque_cycle(x1, x4, T1, n_p, c), T6m, c)
+                    rp = (tqm + dq) - torque_from_cycle(torque_cycle(x1, x4, T1, n_p, c), T6m, c)
                     rm = r0
                     if not ONE_SIDED:
                         n_m = _speed_of(max(tqm - dq, 0.0), c)
-                        rm = (tqm - dq) - _torque_from(_torque_cycle(x1, x4, T1, n_m, c), T6m, c)
+                        rm = (tqm - dq) - torque_from_cycle(torque_cycle(x1, x4, T1, n_m, c), T6m, c)
                     b = _dev(r0, rp, rm)
-                    b += _dev(r0, tqm - _torque_from(pc, T6m + dT6, c), tqm - _torque_from(pc, T6m - dT6, c))
-                    rp = tqm - _torque_from(_torque_cycle(x1 + d1, x4, T1, n_t, c), T6m, c)
+                    b += _dev(r0, tqm - torque_from_cycle(pc, T6m + dT6, c), tqm - torque_from_cycle(pc, T6m - dT6, c))
+                    rp = tqm - torque_from_cycle(torque_cycle(x1 + d1, x4, T1, n_t, c), T6m, c)
                     if not ONE_SIDED:
-                        rm = tqm - _torque_from(_torque_cycle(x1 - d1, x4, T1, n_t, c), T6m, c)
+                        rm = tqm - torque_from_cycle(torque_cycle(x1 - d1, x4, T1, n_t, c), T6m, c)
                     b += _dev(r0, rp, rm)
-                    rp = tqm - _torque_from(_torque_cycle(x1, x4 + d4, T1, n_t, c), T6m, c)
+                    rp = tqm - torque_from_cycle(torque_cycle(x1, x4 + d4, T1, n_t, c), T6m, c)
                     if not ONE_SIDED:
-                        rm = tqm - _torque_from(_torque_cycle(x1, x4 - d4, T1, n_t, c), T6m, c)
+                        rm = tqm - torque_from_cycle(torque_cycle(x1, x4 - d4, T1, n_t, c), T6m, c)
                     b += _dev(r0, rp, rm)
-                    rp = tqm - _torque_from(_torque_cycle(x1, x4, T1 + dT1, n_t, c), T6m, c)
+                    rp = tqm - torque_from_cycle(torque_cycle(x1, x4, T1 + dT1, n_t, c), T6m, c)
                     if not ONE_SIDED:
-                        rm = tqm - _torque_from(_torque_cycle(x1, x4, T1 - dT1, n_t, c), T6m, c)
+                        rm = tqm - torque_from_cycle(torque_cycle(x1, x4, T1 - dT1, n_t, c), T6m, c)
                     b += _dev(r0, rp, rm)
                     R[kk, m] = r0
                     THR[kk, m] = SAFETY * b + MODEL_MARGIN * abs(g0)
@@ -1021,7 +1003,7 @@ def _kernel(c, csm, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST, table, use
 
 @jit
 def _sigma2_chunk(c, Y, dbar, side_cols, ST, table, use_table, k0, k1, tabs, dls, mgs, tabulated):
-    """Σ2 of both chains for samples k0..k1-1 into tabs[k - k0] (rows as :func:`_cycle_table`):
+    """Σ2 of both chains for samples k0..k1-1 into tabs[k - k0] (rows as :func:`cycle_table`):
     the centre speeds in sample order (each from the previous sample's speed, ST[:, 12]), then the
     perturbed rows, from the table or exactly.  A chain whose x1, x4 or T1 is not finite gets no
     rows (its modules do not use them then) and keeps its warm start."""
@@ -1037,13 +1019,13 @@ def _sigma2_chunk(c, Y, dbar, side_cols, ST, table, use_table, k0, k1, tabs, dls
         ta = tabs[kk - k0, 0]
         tb = tabs[kk - k0, 1]
         if oka and okb:
-            ta[0, 0], ta[0, 1], ta[0, 2], tb[0, 0], tb[0, 1], tb[0, 2] = _centre_speed2(
+            ta[0, 0], ta[0, 1], ta[0, 2], tb[0, 0], tb[0, 1], tb[0, 2] = centre_speed2(
                 c, x1a, x4a, T1a, ST[0, 12], x1b, x4b, T1b, ST[1, 12]
             )
         elif oka:
-            ta[0, 0], ta[0, 1], ta[0, 2] = _centre_speed(c, x1a, x4a, T1a, ST[0, 12])
+            ta[0, 0], ta[0, 1], ta[0, 2] = centre_speed(c, x1a, x4a, T1a, ST[0, 12])
         elif okb:
-            tb[0, 0], tb[0, 1], tb[0, 2] = _centre_speed(c, x1b, x4b, T1b, ST[1, 12])
+            tb[0, 0], tb[0, 1], tb[0, 2] = centre_speed(c, x1b, x4b, T1b, ST[1, 12])
         if oka and math.isfinite(ta[0, 0]):
             ST[0, 12] = ta[0, 0]
         if okb and math.isfinite(tb[0, 0]):
@@ -1062,7 +1044,7 @@ def _sigma2_chunk(c, Y, dbar, side_cols, ST, table, use_table, k0, k1, tabs, dls
             exa = oka and not tabulated[kk - k0, 0]
             exb = okb and not tabulated[kk - k0, 1]
         if exa and exb:
-            _perturbed_rows2(
+            perturbed_rows2(
                 c,
                 x1a,
                 x4a,
@@ -1080,9 +1062,9 @@ def _sigma2_chunk(c, Y, dbar, side_cols, ST, table, use_table, k0, k1, tabs, dls
                 tb,
             )
         elif exa:
-            _perturbed_rows(c, x1a, x4a, T1a, dbar[ca[0]], dbar[ca[6]], dbar[ca[7]], ta)
+            perturbed_rows(c, x1a, x4a, T1a, dbar[ca[0]], dbar[ca[6]], dbar[ca[7]], ta)
         elif exb:
-            _perturbed_rows(c, x1b, x4b, T1b, dbar[cb[0]], dbar[cb[6]], dbar[cb[7]], tb)
+            perturbed_rows(c, x1b, x4b, T1b, dbar[cb[0]], dbar[cb[6]], dbar[cb[7]], tb)
 
 
 class ResidualTrace:
@@ -1123,7 +1105,7 @@ def residuals_for_run(
     st = new_state(1, constants.n_nom_rev_s)[0]
     table = inclusion_arrays(constants, db, inclusion)
     thr = threshold_array(thresholds, params_name)
-    compute_residuals(constants, Y, U, float(dt), db, _SIDE_COLS, _T_OUT_COL, R, THR, st, table, thr)
+    compute_residuals(constants, Y, U, float(dt), db, SIDE_COLS, T_OUT_COL, R, THR, st, table, thr)
     return ResidualTrace(R, THR)
 
 
@@ -1172,7 +1154,7 @@ def compute_residuals_batch(c, Y, U, dt, dbar, side_cols, t_out_col, R, THR, ST,
         _batch_loop(*args, 0, n)
         return
     edges = np.linspace(0, n, THREAD_CHUNKS + 1).astype(np.int64)
-    list(_executor().map(lambda r: _batch_loop(*args, r[0], r[1]), list(zip(edges[:-1], edges[1:]))))
+    list(thread_pool().map(lambda r: _batch_loop(*args, r[0], r[1]), list(zip(edges[:-1], edges[1:]))))
 
 
 THREAD_CHUNKS = 8

@@ -16,7 +16,7 @@ sequential test accumulates the evidence instead (Page's CUSUM; Basseville & Nik
   value k (half the shift, in spreads, detected fastest); module m fires when S+ or S- exceeds
   its threshold h_m.  The thresholds are set for at most one false alarm in 200 fault-free
   engine-hours over all modules (measured on calibration runs, checked on other runs:
-  :mod:`studies.diagnosis.sequential_calibration`, docs/diagnosis.md).
+  docs/diagnosis.md).
 * **warm-up.**  The tests start after ``warmup_s`` (the observers' start-up transient: about 15 s
   for the charge-air observer, a few seconds for the others).
 * **inactive region.**  Where the block's mean measured pressure ratio x3/x4 (both chains) exceeds

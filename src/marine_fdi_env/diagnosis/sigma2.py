@@ -3,8 +3,8 @@ the centre (the measured x1, x4, T1 of a sensor chain) and at ±d̄ of each (eq.
 
 Every module that needs the engine speed (M2.x, M3.x, M4.1/2, M4.5/6) takes it from here; the
 perturbed rows are the inclusion terms of M2.1-M2.4 and the perturbed speeds of the M3/M4
-inclusions.  :func:`_cycle_table` does one chain; :func:`_centre_speed2` and
-:func:`_perturbed_rows2` do both chains of a sample at once with each chain's operations in the
+inclusions.  :func:`cycle_table` does one chain; :func:`centre_speed2` and
+:func:`perturbed_rows2` do both chains of a sample at once with each chain's operations in the
 same order (the same numbers bit for bit), interleaved so that the processor overlaps them.
 :mod:`marine_fdi_env.diagnosis.inclusion_table` tabulates the perturbed rows.
 """
@@ -14,19 +14,30 @@ from __future__ import annotations
 import math
 
 from .._jit import jit
-from ..engine.subsystems.engine_block import _sweep, engine_block
+from ..engine.subsystems.engine_block import engine_block, speed_sweep
 
-__all__ = ["SPEED_SWEEPS", "ONE_SIDED", "LINEAR_SPEED", "SLOPE_STEP", "SLOPE_LIMIT"]
+__all__ = [
+    "SPEED_SWEEPS",
+    "ONE_SIDED",
+    "LINEAR_SPEED",
+    "SLOPE_STEP",
+    "SLOPE_LIMIT",
+    "cycle_table",
+    "centre_speed",
+    "centre_speed2",
+    "perturbed_rows",
+    "perturbed_rows2",
+]
 
 SPEED_SWEEPS = 4
 ONE_SIDED = False  # measured and rejected (see residuals' module docstring)
-LINEAR_SPEED = True  # perturbed points: one sweep + linearisation in the speed (see _cycle_table)
+LINEAR_SPEED = True  # perturbed points: one sweep + linearisation in the speed (see cycle_table)
 SLOPE_STEP = 1e-5  # relative step of the centre's speed slope
 SLOPE_LIMIT = 0.5  # the linearised perturbed speeds need a contraction |f'(n)| below this
 
 
 @jit
-def _centre_speed(c, x1, x4, T1, n_guess):
+def centre_speed(c, x1, x4, T1, n_guess):
     """Σ2's speed loop at the centre from the previous sample's speed: two sweeps and an Aitken
     extrapolation (as ``engine_block``), one sweep and a second extrapolation with the slope of
     the first two sweeps, and the output sweep; returns (n, p6, T6).  Four sweeps where
@@ -36,26 +47,26 @@ def _centre_speed(c, x1, x4, T1, n_guess):
     q = (c.eta_comb * c.h_L_J_per_kg) * x1 / m1
     X_ct = c.X_ct_nom * x1 / c.x1_nom_kg
     n0 = n_guess
-    n1, torque, cyc = _sweep(n0, x4, T1, q, m1, X_ct, c)
-    n2, torque, cyc = _sweep(n1, x4, T1, q, m1, X_ct, c)
+    n1, torque, cyc = speed_sweep(n0, x4, T1, q, m1, X_ct, c)
+    n2, torque, cyc = speed_sweep(n1, x4, T1, q, m1, X_ct, c)
     den = (n2 - n1) - (n1 - n0)
     k = (n2 - n1) / (n1 - n0) if n1 != n0 else 0.0
     a = n2 - (n2 - n1) ** 2 / den if den != 0.0 else n2
-    b, torque, cyc = _sweep(a, x4, T1, q, m1, X_ct, c)
+    b, torque, cyc = speed_sweep(a, x4, T1, q, m1, X_ct, c)
     if math.isfinite(k) and abs(k) < SLOPE_LIMIT:
         a = a + (b - a) / (1.0 - k)
     else:
         a = b
-    n, torque, cyc = _sweep(a, x4, T1, q, m1, X_ct, c)
+    n, torque, cyc = speed_sweep(a, x4, T1, q, m1, X_ct, c)
     return n, cyc[5], cyc[3]
 
 
 @jit
-def _cycle_table(c, x1, x4, T1, dx1, dx4, dT1, n_guess, tab):
+def cycle_table(c, x1, x4, T1, dx1, dx4, dT1, n_guess, tab):
     """Σ2 at the centre and at +d̄ (and -d̄ unless ``ONE_SIDED``) of x1, x4, T1: rows (n, p6, T6) in
     the order centre, x1+, x1-, x4+, x4-, T1+, T1- (fills tab 7x3; skipped rows repeat the centre).
 
-    The centre is solved to ~1e-12 relative by :func:`_centre_speed` (from the previous sample's speed).
+    The centre is solved to ~1e-12 relative by :func:`centre_speed` (from the previous sample's speed).
     A perturbed point is one sweep from the centre's speed n_c, linearised in the speed with the
     centre's slopes (one more sweep at n_c + h)::
 
@@ -67,16 +78,16 @@ def _cycle_table(c, x1, x4, T1, dx1, dx4, dT1, n_guess, tab):
     the mixed terms the coordinate-wise inclusion neglects (see the module docstring).  Where the
     slope is not a contraction (never seen in the envelope) every point is solved in full.
     """
-    n_c, p6, T6 = _centre_speed(c, x1, x4, T1, n_guess)
+    n_c, p6, T6 = centre_speed(c, x1, x4, T1, n_guess)
     tab[0, 0] = n_c
     tab[0, 1] = p6
     tab[0, 2] = T6
-    _perturbed_rows(c, x1, x4, T1, dx1, dx4, dT1, tab)
+    perturbed_rows(c, x1, x4, T1, dx1, dx4, dT1, tab)
 
 
 @jit
-def _perturbed_rows(c, x1, x4, T1, dx1, dx4, dT1, tab):
-    """Rows 1-6 of :func:`_cycle_table` given its centre row tab[0]."""
+def perturbed_rows(c, x1, x4, T1, dx1, dx4, dT1, tab):
+    """Rows 1-6 of :func:`cycle_table` given its centre row tab[0]."""
     V1 = c.V1_m3
     n_c, p6, T6 = tab[0, 0], tab[0, 1], tab[0, 2]
     for p in range(1, 7):
@@ -98,9 +109,9 @@ def _perturbed_rows(c, x1, x4, T1, dx1, dx4, dT1, tab):
 
 
 @jit
-def _centre_speed2(c, x1a, x4a, T1a, nga, x1b, x4b, T1b, ngb):
-    """:func:`_centre_speed` at two operating points at once (the two sensor chains): each point's
-    operations in the same order as there, so each result equals :func:`_centre_speed`'s bit for
+def centre_speed2(c, x1a, x4a, T1a, nga, x1b, x4b, T1b, ngb):
+    """:func:`centre_speed` at two operating points at once (the two sensor chains): each point's
+    operations in the same order as there, so each result equals :func:`centre_speed`'s bit for
     bit; interleaved sweep by sweep so that the processor overlaps the two dependent chains
     (measured 1.8x faster than two calls one after the other)."""
     V1 = c.V1_m3
@@ -112,18 +123,18 @@ def _centre_speed2(c, x1a, x4a, T1a, nga, x1b, x4b, T1b, ngb):
     Xb = c.X_ct_nom * x1b / c.x1_nom_kg
     n0a = nga
     n0b = ngb
-    n1a, _, _ = _sweep(n0a, x4a, T1a, qa, m1a, Xa, c)
-    n1b, _, _ = _sweep(n0b, x4b, T1b, qb, m1b, Xb, c)
-    n2a, _, _ = _sweep(n1a, x4a, T1a, qa, m1a, Xa, c)
-    n2b, _, _ = _sweep(n1b, x4b, T1b, qb, m1b, Xb, c)
+    n1a, _, _ = speed_sweep(n0a, x4a, T1a, qa, m1a, Xa, c)
+    n1b, _, _ = speed_sweep(n0b, x4b, T1b, qb, m1b, Xb, c)
+    n2a, _, _ = speed_sweep(n1a, x4a, T1a, qa, m1a, Xa, c)
+    n2b, _, _ = speed_sweep(n1b, x4b, T1b, qb, m1b, Xb, c)
     dena = (n2a - n1a) - (n1a - n0a)
     denb = (n2b - n1b) - (n1b - n0b)
     ka = (n2a - n1a) / (n1a - n0a) if n1a != n0a else 0.0
     kb = (n2b - n1b) / (n1b - n0b) if n1b != n0b else 0.0
     aa = n2a - (n2a - n1a) ** 2 / dena if dena != 0.0 else n2a
     ab = n2b - (n2b - n1b) ** 2 / denb if denb != 0.0 else n2b
-    ba, _, _ = _sweep(aa, x4a, T1a, qa, m1a, Xa, c)
-    bb, _, _ = _sweep(ab, x4b, T1b, qb, m1b, Xb, c)
+    ba, _, _ = speed_sweep(aa, x4a, T1a, qa, m1a, Xa, c)
+    bb, _, _ = speed_sweep(ab, x4b, T1b, qb, m1b, Xb, c)
     if math.isfinite(ka) and abs(ka) < SLOPE_LIMIT:
         aa = aa + (ba - aa) / (1.0 - ka)
     else:
@@ -132,14 +143,14 @@ def _centre_speed2(c, x1a, x4a, T1a, nga, x1b, x4b, T1b, ngb):
         ab = ab + (bb - ab) / (1.0 - kb)
     else:
         ab = bb
-    na, _, cyca = _sweep(aa, x4a, T1a, qa, m1a, Xa, c)
-    nb, _, cycb = _sweep(ab, x4b, T1b, qb, m1b, Xb, c)
+    na, _, cyca = speed_sweep(aa, x4a, T1a, qa, m1a, Xa, c)
+    nb, _, cycb = speed_sweep(ab, x4b, T1b, qb, m1b, Xb, c)
     return na, cyca[5], cyca[3], nb, cycb[5], cycb[3]
 
 
 @jit
-def _perturbed_rows2(c, x1a, x4a, T1a, dx1a, dx4a, dT1a, taba, x1b, x4b, T1b, dx1b, dx4b, dT1b, tabb):
-    """Rows 1-6 of :func:`_cycle_table` for both chains, given their centre rows (tab[0]); each
+def perturbed_rows2(c, x1a, x4a, T1a, dx1a, dx4a, dT1a, taba, x1b, x4b, T1b, dx1b, dx4b, dT1b, tabb):
+    """Rows 1-6 of :func:`cycle_table` for both chains, given their centre rows (tab[0]); each
     chain's operations in the same order as there (equal results bit for bit), the two chains'
     sweeps adjacent so that they overlap."""
     V1 = c.V1_m3
@@ -192,7 +203,7 @@ def _perturbed_rows2(c, x1a, x4a, T1a, dx1a, dx4a, dT1a, taba, x1b, x4b, T1b, dx
 
 @jit
 def _perturbed_row(c, x1, x4, T1, n_c, linear, k, s_p6, s_T6, tab, p):
-    """One perturbed row of :func:`_cycle_table` (the same operations)."""
+    """One perturbed row of :func:`cycle_table` (the same operations)."""
     V1 = c.V1_m3
     if linear:
         f_p, tq, p6_p, T6_p, p_max, m1 = engine_block(x1, x4, T1, V1, n_c, c, 1)

@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from ..engine.faults import FAULT_IDS
-from .decision import N_FAULTS, N_MODULES, DiagnosisState, _from_mask, _mhs_masks, _sort_key
+from .decision import N_FAULTS, N_MODULES, DiagnosisState, diagnosis_sort_key, mhs_masks, set_from_mask
 from .sized_cells import SizedCells
 
 __all__ = ["sized_conflicts", "SizedDiagnosisState", "drive_block"]
@@ -118,7 +118,7 @@ class SizedDiagnosisState(DiagnosisState):
             self.fired, self.detection_times, self.peaks, now, self.cells, self.support, self._margin_s, self._factor
         )
         k = N_FAULTS if self.max_cardinality is None else int(self.max_cardinality)
-        self.diagnoses = sorted((_from_mask(m, FAULT_IDS) for m in _mhs_masks(conflicts, k)), key=_sort_key)
+        self.diagnoses = sorted((set_from_mask(m, FAULT_IDS) for m in mhs_masks(conflicts, k)), key=diagnosis_sort_key)
         self.next_peak = self.cells.next_peak(self.peaks, self.fired)
         self.n_recomputations += 1
 

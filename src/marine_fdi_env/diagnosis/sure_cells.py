@@ -2,7 +2,7 @@
 '1' versus '*'), how far their firing times spread (the settle times of the time-order check) and
 how long a silent sure module is still awaited (the grace periods).
 
-The files are written by :mod:`studies.diagnosis.certainty` (the measurement over a grid of
+The files are written by the repository's certainty study (docs/diagnosis.md: the measurement over a grid of
 fault magnitudes, profiles and seeds); this module only reads them, so that the diagnosers
 (:mod:`.agent`, :mod:`.sequential`) do not depend on the simulation code that measures them.
 
@@ -18,7 +18,7 @@ The files are read from the package's ``data/diagnosis/`` or the folder ``MARINE
 (:func:`~marine_fdi_env.engine.fault_registry.measured_table`); a file may hold more faults than are
 registered (those are read), and a registered fault it lacks is refused by name
 (:class:`~marine_fdi_env.engine.fault_registry.MissingFaultTable`).  :func:`select_faults` and
-:func:`merge_faults` pick and join the per-fault columns (``python -m studies.fault_tables``).
+:func:`merge_faults` pick and join the per-fault columns (the fault-table command of docs/extending.md).
 """
 
 from __future__ import annotations

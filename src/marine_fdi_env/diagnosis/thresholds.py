@@ -127,7 +127,7 @@ def check_thresholds(thresholds: str) -> str:
 @lru_cache(maxsize=None)
 def load_global_bounds(params_name: str = "thesis-12v28") -> dict:
     """The global bounds of the forcing's terms over the operating envelope (written by
-    ``python -m studies.diagnosis.threshold_bounds``): per observer ``M3``/``M4`` the largest
+    the repository's threshold-bounds study, docs/diagnosis.md): per observer ``M3``/``M4`` the largest
     value of each sensor term of :data:`H_TERMS` over the envelope (``terms``, [state unit/s], the
     forcing's deviation at ±d̄ of that sensor without the safety factor) and the largest slope of the
     forcing in the observer's own state (``lambda_state_per_s``, Λ of eq. 5.12).

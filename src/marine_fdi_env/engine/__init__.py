@@ -8,7 +8,7 @@ integrators (:mod:`.integrators`), sensors, faults and load profiles (:mod:`.sen
 :mod:`.faults`, :mod:`.profiles`) and the batched simulator (:mod:`.simulator`).
 
 Layer: the engine imports only the parameters and the package's small utilities
-(``_jit``, ``_coldstart``, ``suggest``); nothing here imports diagnosis, environments or agents
+(``_jit``, ``coldstart``, ``suggest``); nothing here imports diagnosis, environments or agents
 (checked by ``python -m marine_fdi_env.info --imports``).  This ``__init__`` imports nothing, so
 that importing one engine module does not load the others.
 """

@@ -33,7 +33,7 @@ steady state at fuel setting 1.0 *is* that nominal point (``derive_parameters``)
 Choices that no data determines are passed in as inputs with their justification (the
 ``source`` text of the entry): η_com, η_c, Q_loss_grad, σ_f, T_sl, turbochargers per engine.
 
-``python -m studies.engine.parameter_sets`` (in the repository) rewrites the shipped parameter sets from
+The repository's parameter-set command (docs/model.md) rewrites the shipped parameter sets from
 the input tables below (:func:`write_parameter_sets`); ``tests/unit/test_params.py`` checks that the shipped
 files match.
 """

@@ -36,8 +36,8 @@ Plugins: faults declared outside the package join the registry when it is first 
 environment variable ``MARINE_FDI_FAULTS`` (module names or ``.py`` files, separated by ``os.pathsep``); each
 names a module with ``FAULTS``, a sequence of :class:`FaultType`.  A plugin module imports only this module.
 Their measured tables (detectability limit, sure and sized cells) are read from the folder
-``MARINE_FDI_TABLES`` when it is set (:func:`measured_table`); ``python -m studies.fault_tables`` makes them
-(docs/extending.md).
+``MARINE_FDI_TABLES`` when it is set (:func:`measured_table`); the repository's fault-table command
+(:data:`TABLES_COMMAND`, docs/extending.md) makes them.
 """
 
 from __future__ import annotations
@@ -378,14 +378,9 @@ _BY_ID = {f.id: f for f in FAULT_TYPES}
 
 def fault_type(fault_id: str) -> FaultType:
     """The record of a registered fault; ``ValueError`` naming the ids for an unknown one."""
-    try:
-        return _BY_ID[fault_id]
-    except (KeyError, TypeError):
-        from ..suggest import did_you_mean
+    from ..suggest import lookup
 
-        raise ValueError(
-            f"unknown fault id {fault_id!r}{did_you_mean(str(fault_id), tuple(_BY_ID))}; allowed: {', '.join(_BY_ID)}"
-        ) from None
+    return lookup(_BY_ID, fault_id, "fault id")
 
 
 def suite_fault_ids(version: int, kind: str | None = None) -> tuple[str, ...]:

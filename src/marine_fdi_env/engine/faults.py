@@ -50,6 +50,7 @@ __all__ = [
     "parse_fault_spec",
     "random_fault_schedule",
     "fault_class",
+    "window_time",
 ]
 
 PROCESS_FAULT_IDS: tuple[str, ...] = tuple(f.id for f in FAULT_TYPES if f.kind == "process")
@@ -254,7 +255,7 @@ def random_fault_schedule(
 
 
 # ----------------------------------------------------------------------------- compiled schedules
-def _window_time(t: float, onset, end, period, duty):
+def window_time(t: float, onset, end, period, duty):
     """Time since the current window opened (NaN when inactive); arrays of equal shape."""
     s = t - onset
     active = (s >= 0.0) & (t < end)
@@ -344,7 +345,7 @@ class CompiledSchedule:
         d = self.process[fault_id]
         t_arr = np.asarray(t, dtype=float)
         tt = t_arr[..., d["engine"]] if per_engine else t_arr[..., None]
-        s = _window_time(tt, d["onset"], d["end"], d["period"], d["duty"])
+        s = window_time(tt, d["onset"], d["end"], d["period"], d["duty"])
         b = _beta(s, d["kappa"])
         law = fault_type(fault_id).law
         if law == "fraction":
@@ -388,5 +389,5 @@ class CompiledSchedule:
         """(active window time s or NaN, β) for every scheduled sensor fault (or the ``entries``
         given, indices into ``s_engine``) at time(s) t (one column per entry)."""
         p = self.s_params if entries is None else {k: v[entries] for k, v in self.s_params.items()}
-        s = _window_time(t, p["onset"], p["end"], p["period"], p["duty"])
+        s = window_time(t, p["onset"], p["end"], p["period"], p["duty"])
         return s, _beta(s, p["kappa"])

@@ -31,9 +31,19 @@ import numpy as np
 from .._jit import jit, jit_inline
 from .constants import kernel_constants
 from .fault_registry import I_F_U, I_PHI_INT, I_PHI_TUR
-from .model import _solve_algebraic, forcings
+from .model import forcings, solve_algebraic_kernel
 
-__all__ = ["advance_batch", "reference_solve", "FAILURE_REASONS", "PREDICTOR_SWEEPS", "OUTPUT_SWEEPS", "TRANSIENT_TOL"]
+__all__ = [
+    "advance_batch",
+    "reference_solve",
+    "FAILURE_REASONS",
+    "PREDICTOR_SWEEPS",
+    "OUTPUT_SWEEPS",
+    "TRANSIENT_TOL",
+    "thread_pool",
+    "etd_scalar",
+    "failure_code",
+]
 
 # The predictor stage needs the speed only to second order in h: one sweep from the previous
 # sample's speed (contraction 0.06-0.13) leaves an error of about a tenth of the speed change per
@@ -59,7 +69,7 @@ FAILURE_REASONS = (
 
 
 @jit
-def _etd_scalar(a, h):
+def etd_scalar(a, h):
     """exp(a h), h φ1(a h), h φ2(a h) for one rate."""
     z = a * h
     em1 = math.expm1(z)
@@ -85,7 +95,7 @@ def limited_fuel_setting(u_cmd, x4, T1, lam_lim, c):
 @jit
 def healthy_coefficients(c, h):
     """ETD2RK coefficients (E, hφ1, hφ2) of x1, x3, x4 without seal-leak faults, for step h."""
-    return _etd_scalar(-1.0 / c.tau_X_s, h) + _etd_scalar(-1.0 / c.tau_pd_s, h) + _etd_scalar(-1.0 / c.tau_TC_s, h)
+    return etd_scalar(-1.0 / c.tau_X_s, h) + etd_scalar(-1.0 / c.tau_pd_s, h) + etd_scalar(-1.0 / c.tau_TC_s, h)
 
 
 @jit_inline
@@ -101,24 +111,24 @@ def _etd_once(c, csm, h, coef, x1, x3, x4, u0, u1, pf0, pf1, alg0, algp, alg_out
     phi_tur = 0.5 * (pf0[I_PHI_TUR] + pf1[I_PHI_TUR])
     phi_int = 0.5 * (pf0[I_PHI_INT] + pf1[I_PHI_INT])
     if phi_tur != 0.0:
-        E3, q3, r3 = _etd_scalar(-(1.0 + phi_tur) / c.tau_pd_s, h)
+        E3, q3, r3 = etd_scalar(-(1.0 + phi_tur) / c.tau_pd_s, h)
     if phi_int != 0.0:
-        E4, q4, r4 = _etd_scalar(-(1.0 + phi_int) / c.tau_TC_s, h)
+        E4, q4, r4 = etd_scalar(-(1.0 + phi_int) / c.tau_TC_s, h)
     F1, F3, F4 = forcings(limited_fuel_setting(u0, x4, alg0[9], lam_lim, c), pf0, alg0, c)
     y1 = E1 * x1 + q1 * F1
     y3 = E3 * x3 + q3 * F3
     y4 = E4 * x4 + q4 * F4
-    _solve_algebraic(c, csm, y1, y3, y4, pf1, alg0[0], PREDICTOR_SWEEPS, algp)
+    solve_algebraic_kernel(c, csm, y1, y3, y4, pf1, alg0[0], PREDICTOR_SWEEPS, algp)
     G1, G3, G4 = forcings(limited_fuel_setting(u1, y4, algp[9], lam_lim, c), pf1, algp, c)
     z1 = y1 + r1 * (G1 - F1)
     z3 = y3 + r3 * (G3 - F3)
     z4 = y4 + r4 * (G4 - F4)
-    _solve_algebraic(c, csm, z1, z3, z4, pf1, algp[0], OUTPUT_SWEEPS, alg_out)
+    solve_algebraic_kernel(c, csm, z1, z3, z4, pf1, algp[0], OUTPUT_SWEEPS, alg_out)
     return z1, z3, z4
 
 
 @jit_inline
-def _failure_code(c, x1, x3, x4, alg):
+def failure_code(c, x1, x3, x4, alg):
     """0 when the engine is within its physical range, else the index in FAILURE_REASONS."""
     total = x1 + x3 + x4 + alg[0] + alg[7] + alg[10]
     if not math.isfinite(total):
@@ -186,7 +196,7 @@ def _engine_step(
             alg_new[m] = alg_a[m]
     else:
         x1, x3, x4 = _etd_once(c, csm, h, coef, x1, x3, x4, u0, u1, pf0, pf1, alg, algp, alg_new, lam_lim)
-    return x1, x3, x4, _failure_code(c, x1, x3, x4, alg_new)
+    return x1, x3, x4, failure_code(c, x1, x3, x4, alg_new)
 
 
 @jit
@@ -356,14 +366,14 @@ def advance_batch(
         _advance_range(kc, csm, h, substeps, 0, n, *args)
         return
     half = n // 2
-    list(_executor().map(lambda r: _advance_range(kc, csm, h, substeps, r[0], r[1], *args), [(0, half), (half, n)]))
+    list(thread_pool().map(lambda r: _advance_range(kc, csm, h, substeps, r[0], r[1], *args), [(0, half), (half, n)]))
 
 
 THREADED_MIN_ENGINES = 256
 _EXECUTOR = None
 
 
-def _executor():
+def thread_pool():
     """A process-wide pool of two worker threads, created on first use."""
     global _EXECUTOR
     if _EXECUTOR is None:

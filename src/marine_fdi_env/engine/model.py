@@ -41,7 +41,7 @@ from .subsystems.air_intake import (
 from .subsystems.engine_block import engine_block, engine_block_at_speed
 from .subsystems.exhaust_receiver import receiver_and_turbine, slip_ratio
 from .subsystems.fuel_pump import fuel_pump_forcing
-from .subsystems.gas_path import _extended_gas_path
+from .subsystems.gas_path import extended_gas_path_kernel
 
 __all__ = [
     "ProcessFaultValues",
@@ -52,6 +52,7 @@ __all__ = [
     "ALG_FIELDS",
     "PF_FIELDS",
     "HEALTHY_PF",
+    "solve_algebraic_kernel",
 ]
 
 # The process-fault vector of compiled code: one value per equation term of the fault registry, in its order.
@@ -169,7 +170,7 @@ def _gas_exchange(c, csm, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, 
     if csm is not None:  # compiled only where a gas-path submodel may be on
         if c.sm_on != 0.0:
             T_c = cooler_outlet_temperature(x4, c)
-            g = _extended_gas_path(
+            g = extended_gas_path_kernel(
                 x1, x3, x4, m1, s_sl, n, T6, p6, c.T_sl_K + pf[I_DT_SL], T_c, pf[I_DT_C], c, csm, ov_wg, ov_bp, share
             )
             out[14] = g[0]
@@ -206,7 +207,7 @@ def _gas_exchange(c, csm, x1, x3, x4, pf, T1, n, torque, p6, T6, p_max, m1_cyl, 
 
 
 @jit_inline
-def _solve_algebraic(c, csm, x1, x3, x4, pf, n_guess, sweeps, out):
+def solve_algebraic_kernel(c, csm, x1, x3, x4, pf, n_guess, sweeps, out):
     """:func:`solve_algebraic` with the constants of :func:`kernel_constants` (``c`` floats only,
     ``csm`` the full constants or None): the compiled kernels' form, the same numbers."""
     T1 = inlet_air_temperature_at(pf[I_DT_INL], x4, c)
@@ -221,7 +222,7 @@ def solve_algebraic(c, x1, x3, x4, pf, n_guess, sweeps, out):
     ``pf`` is the process-fault vector (order ``PF_FIELDS``); the results are written to ``out``
     in the order of ``ALG_FIELDS``.
     """
-    _solve_algebraic(c, c, x1, x3, x4, pf, n_guess, sweeps, out)
+    solve_algebraic_kernel(c, c, x1, x3, x4, pf, n_guess, sweeps, out)
 
 
 @jit
@@ -249,7 +250,7 @@ def forcings(u, pf, alg, c):
 @jit
 def algebraic_batch(c, csm, x1, x3, x4, pf, n_guess, sweeps, out):
     for i in range(x1.shape[0]):
-        _solve_algebraic(c, csm, x1[i], x3[i], x4[i], pf[i], n_guess[i], sweeps, out[i])
+        solve_algebraic_kernel(c, csm, x1[i], x3[i], x4[i], pf[i], n_guess[i], sweeps, out[i])
 
 
 def _vec(v, n: int) -> np.ndarray:

@@ -17,9 +17,12 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from .submodels import NO_SUBMODELS, EngineSubmodels
 
 __all__ = [
+    "engine_batch",
     "EngineParams",
     "load_params",
     "list_parameter_sets",
@@ -258,6 +261,17 @@ def load_params(name: "str | Path | EngineParams" = "thesis-12v28") -> EnginePar
     if not isinstance(name, str):
         raise ValueError(f"parameter set must be a name, a .json file or EngineParams, got {name!r}")
     return _load_shipped(name)
+
+
+def engine_batch(params: "str | EngineParams", n_engines, dt) -> tuple[EngineParams, int, float]:
+    """``(parameter set, n_engines, dt)`` of a batch of engines, checked (a positive number of engines, a
+    positive finite sample time [s]); a parameter-set name is loaded."""
+    p = load_params(params) if isinstance(params, str) else params
+    if not isinstance(n_engines, (int, np.integer)) or n_engines < 1:
+        raise ValueError(f"n_engines must be a positive integer, got {n_engines!r}")
+    if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be a positive finite number of seconds, got {dt!r}")
+    return p, int(n_engines), float(dt)
 
 
 @lru_cache(maxsize=None)

@@ -27,9 +27,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .faults import FAULT_IDS, CompiledSchedule, FaultSpec, parse_fault_spec
-from .integrators import FAILURE_REASONS, _failure_code, advance_batch, limited_fuel_setting
+from .integrators import FAILURE_REASONS, advance_batch, failure_code, limited_fuel_setting
 from .model import ALG_FIELDS, HEALTHY, HEALTHY_PF, N_ALG, PF_FIELDS, Algebraic, EngineModel, ProcessFaultValues
-from .params import EngineParams, load_params
+from .params import EngineParams, engine_batch
 from .profiles import Profile, ProfileTable, make_profile
 from .sensors import MEASURED_VARIABLES, N_SENSORS, NOISE_BOUNDS, VARIABLE_OF_SENSOR
 from .steady_state import steady_state
@@ -144,15 +144,9 @@ class Simulator:
         substeps: int = 4,
         fuel_limiter_lambda: float = DEFAULT_LIMITER_LAMBDA,
     ) -> None:
-        self.params = load_params(params) if isinstance(params, str) else params
-        if not isinstance(n_engines, (int, np.integer)) or n_engines < 1:
-            raise ValueError(f"n_engines must be a positive integer, got {n_engines!r}")
-        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt must be a positive finite number of seconds, got {dt!r}")
+        self.params, self.n, self.dt = engine_batch(params, n_engines, dt)
         if not (isinstance(noise_scale, (int, float)) and math.isfinite(noise_scale) and noise_scale >= 0):
             raise ValueError(f"noise_scale must be a finite number >= 0, got {noise_scale!r}")
-        self.n = int(n_engines)
-        self.dt = float(dt)
         self.noise_scale = float(noise_scale)
         self.substeps = int(substeps)
         if not (
@@ -212,7 +206,7 @@ class Simulator:
         self.failures: list[EngineFailure] = []
         codes = np.zeros(n, dtype=np.int64)
         for i in range(n):
-            codes[i] = _failure_code(self.model.constants, self.X[i, 0], self.X[i, 1], self.X[i, 2], self.ALG[i])
+            codes[i] = failure_code(self.model.constants, self.X[i, 0], self.X[i, 1], self.X[i, 2], self.ALG[i])
         self._record_failures(codes, 0.0)
         self.y = self._measure_initial()
 
@@ -268,7 +262,7 @@ class Simulator:
         self.failed[idx] = False
         codes = np.zeros(self.n, dtype=np.int64)
         for i in idx:
-            codes[i] = _failure_code(self.model.constants, self.X[i, 0], self.X[i, 1], self.X[i, 2], self.ALG[i])
+            codes[i] = failure_code(self.model.constants, self.X[i, 0], self.X[i, 1], self.X[i, 2], self.ALG[i])
         self._record_failures(codes, 0.0)
         # first reading: the first 19 numbers of each new noise stream, the rest refills the buffer
         state = np.concatenate([self.X, self.ALG], axis=1)

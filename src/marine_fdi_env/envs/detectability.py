@@ -12,8 +12,8 @@ constant nominal fuel setting 1.0.  That is, detected within ``300 s - onset``:
 
 It is found by bisection on a log scale (bracketed from the table 6.3 / 6.4 magnitude by factors
 of 2, then bisected to a 5 % bracket; the limit is the upper, detected end) with
-``python -m studies.diagnosis.kpis min-detectable --all --seeds 4``, which regenerates
-``marine_fdi_env/data/env/detectability.json`` (``python -m studies.fault_tables`` for some faults;
+the repository's minimum-detectable study (its command: docs/environment.md), which regenerates
+``marine_fdi_env/data/env/detectability.json`` (the fault-table command of docs/extending.md for some faults;
 the table of the folder ``MARINE_FDI_TABLES`` is read when it has one,
 :func:`~marine_fdi_env.engine.fault_registry.measured_table`).  A fault never detected at any magnitude
 tried (``turbine_seal_leak``: its effect on the receiver pressure stays far below the sensor noise) has

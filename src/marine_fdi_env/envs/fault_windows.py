@@ -2,7 +2,7 @@
 
 The slots' fault windows are kept as padded arrays (n, width): fault column (-1: none), onset,
 end, period and duty, so the active faults of all slots at given times are one vectorised call
-of the simulator's own window rule (``faults._window_time``: active from the onset until the end,
+of the simulator's own window rule (``faults.window_time``: active from the onset until the end,
 on for ``duty`` of every ``period`` for an intermittent fault).
 """
 
@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from ..engine.faults import FAULT_IDS, _window_time
+from ..engine.faults import FAULT_IDS, window_time
 
 __all__ = ["FaultWindows"]
 
@@ -52,7 +52,7 @@ class FaultWindows:
         slots = np.asarray(slots, dtype=np.int64)
         col = self._fcol[slots]
         onset, end, period, duty = self._fwin[:, slots]
-        on = ~np.isnan(_window_time(np.asarray(t)[:, None], onset, end, period, duty))
+        on = ~np.isnan(window_time(np.asarray(t)[:, None], onset, end, period, duty))
         act = np.zeros((len(slots), len(FAULT_IDS)), dtype=bool)
         rows, ks = np.nonzero(on)
         act[rows, col[rows, ks]] = True

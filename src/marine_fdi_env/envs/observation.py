@@ -48,8 +48,8 @@ import math
 
 import numpy as np
 
-from .._jit import jit
 from ..diagnosis.modules import MODULE_IDS
+from ..diagnosis.peak_ratio import RATIO_CAP, period_stats
 from ..diagnosis.sequential import SEQUENTIAL_FEATURES, Z_CAP
 from ..engine.sensors import SENSOR_IDS
 
@@ -71,7 +71,6 @@ MODULE_FEATURES = (
     "fired",
     "since_first_violation",
 )
-RATIO_CAP = 1000.0
 _LOG_CAP = math.log1p(RATIO_CAP)
 N_MODULES = len(MODULE_IDS)
 
@@ -109,42 +108,6 @@ def observation_bounds(observe_sensors: bool, observe_sequential: bool = False) 
     return low.astype(np.float32), high.astype(np.float32)
 
 
-@jit
-def _period_stats(R, THR, stats):
-    """Per engine and module over the B samples of a period (one pass, compiled): stats[:, :, 0] =
-    max ratio, 1 = mean ratio, 2 = mean signed ratio, 3 = share of ratios > 1, with the signed
-    ratio r/thr clipped to ±RATIO_CAP (NaN: +RATIO_CAP) and ratio = |signed ratio|.  The sums run in
-    sample order, as numpy's reduction over axis 1 of a C-contiguous (N, B, 19) array, so the
-    values equal the numpy expressions bit for bit (tested)."""
-    N, B, M = R.shape
-    for i in range(N):
-        for m in range(M):
-            stats[i, m, 0] = 0.0
-            stats[i, m, 1] = 0.0
-            stats[i, m, 2] = 0.0
-            stats[i, m, 3] = 0.0
-        for k in range(B):
-            for m in range(M):
-                q = R[i, k, m] / THR[i, k, m]
-                if q != q:
-                    q = RATIO_CAP
-                elif q > RATIO_CAP:
-                    q = RATIO_CAP
-                elif q < -RATIO_CAP:
-                    q = -RATIO_CAP
-                a = abs(q)
-                if a > stats[i, m, 0]:
-                    stats[i, m, 0] = a
-                stats[i, m, 1] += a
-                stats[i, m, 2] += q
-                if a > 1.0:
-                    stats[i, m, 3] += 1.0
-        for m in range(M):
-            stats[i, m, 1] /= B
-            stats[i, m, 2] /= B
-            stats[i, m, 3] /= B
-
-
 def module_features(
     R: np.ndarray,
     THR: np.ndarray,
@@ -158,13 +121,14 @@ def module_features(
     first_violation : (N, 19) time of each module's first violation this episode (NaN: never).
     t_now : (N,) each engine's time at the end of the period [s]; duration_s : (N,) episode lengths.
     stats : (N, 19, 4) the period statistics if already computed (the reference diagnoser's
-    ``BlockOutput.stats``, the same numbers as :func:`_period_stats`); else computed here.
+    ``BlockOutput.stats``, the same numbers as :func:`~marine_fdi_env.diagnosis.peak_ratio.period_stats`);
+    else computed here.
     """
     duration_s = np.broadcast_to(np.asarray(duration_s, dtype=float), t_now.shape)
     N = R.shape[0]
     if stats is None:
         stats = np.empty((N, N_MODULES, 4))
-        _period_stats(np.ascontiguousarray(R, dtype=np.float64), np.ascontiguousarray(THR, dtype=np.float64), stats)
+        period_stats(np.ascontiguousarray(R, dtype=np.float64), np.ascontiguousarray(THR, dtype=np.float64), stats)
     out = np.empty((N, N_MODULES, len(MODULE_FEATURES)))
     out[:, :, 0] = np.log1p(stats[:, :, 0])
     out[:, :, 1] = np.log1p(stats[:, :, 1])

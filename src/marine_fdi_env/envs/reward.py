@@ -54,6 +54,13 @@ REWARD_TERMS_V1 = ("false_alarm", "detection_delay", "missed_detection", "isolat
 REWARD_VERSIONS = ("v0", "v1")
 
 
+def _check_weights(config) -> None:
+    """Every field of a reward config is a finite number >= 0 (a bool is not a number here)."""
+    for k, v in asdict(config).items():
+        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v >= 0):
+            raise ValueError(f"reward config field {k!r} must be a finite number >= 0, got {v!r}")
+
+
 @dataclass(frozen=True)
 class RewardConfig:
     """Weights of the reward terms (per decision) and the delay time constant tau_s [s]."""
@@ -68,9 +75,7 @@ class RewardConfig:
     version = "v0"
 
     def __post_init__(self) -> None:
-        for k, v in asdict(self).items():
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise ValueError(f"reward config field {k!r} must be a finite number >= 0, got {v!r}")
+        _check_weights(self)
         if self.tau_s <= 0:
             raise ValueError(f"reward config field 'tau_s' must be > 0, got {self.tau_s!r}")
 
@@ -140,9 +145,7 @@ class RewardConfigV1:
     version = "v1"
 
     def __post_init__(self) -> None:
-        for k, v in asdict(self).items():
-            if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v >= 0):
-                raise ValueError(f"reward config field {k!r} must be a finite number >= 0, got {v!r}")
+        _check_weights(self)
 
     def max_episode_s(self) -> float:
         """Longest episode [s] for which no false alarm can pay for itself (see class docstring)."""

@@ -49,6 +49,7 @@ __all__ = [
     "SAMPLER_COMPONENTS",
     "SAMPLER_PROFILES",
     "HELD_OUT_PROFILES",
+    "fault_at_scale",
 ]
 
 # the profile families a ScenarioConfig can draw; ``harbour`` and ``seastate`` are held out for the
@@ -339,7 +340,7 @@ class ScenarioConfig:
         for fid, kind, onset in zip(ids, kinds, onsets):
             scale = float(math.exp(r_mag.uniform(math.log(lo), math.log(hi))))
             sign = 1.0 if r_mag.random() < 0.5 else -1.0
-            faults.append(_fault_at_scale(fid, kind, onset, scale, sign))
+            faults.append(fault_at_scale(fid, kind, onset, scale, sign))
             scales.append(scale)
         order = np.argsort([f.onset_s for f in faults], kind="stable")
         noise_seed = int(rng["noise"].integers(0, _MAX_SEED))
@@ -372,7 +373,7 @@ class ScenarioConfig:
         return f"manoeuvring:scale={round(float(r.uniform(0.9, 1.05)), 4)}"
 
 
-def _fault_at_scale(fault_id: str, kind: str, onset: float, scale: float, sign: float) -> FaultSpec:
+def fault_at_scale(fault_id: str, kind: str, onset: float, scale: float, sign: float) -> FaultSpec:
     """A fault whose size is ``scale`` times its detectability limit (sign for sensor faults)."""
     from .detectability import sampling_scale
 
@@ -449,10 +450,6 @@ def get_preset(name: "str | ScenarioConfig | dict") -> ScenarioConfig:
         return name
     if isinstance(name, dict):
         return ScenarioConfig.from_dict(name)
-    if name not in PRESETS:
-        from ..suggest import did_you_mean
+    from ..suggest import lookup
 
-        raise ValueError(
-            f"unknown scenario preset {name!r}{did_you_mean(name, PRESETS)}; allowed: {', '.join(PRESETS)}"
-        )
-    return PRESETS[name]
+    return lookup(PRESETS, name, "scenario preset")

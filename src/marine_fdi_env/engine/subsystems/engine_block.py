@@ -37,8 +37,11 @@ __all__ = [
     "friction_torque",
     "engine_block",
     "torque_given_speed",
+    "torque_cycle",
+    "torque_from_cycle",
     "speed_of_torque",
     "engine_block_at_speed",
+    "speed_sweep",
 ]
 
 
@@ -71,7 +74,7 @@ def speed_of_torque(torque: float, c) -> float:
 
 
 @jit
-def _sweep(n, x4, T1, q, m1, X_ct, c):
+def speed_sweep(n, x4, T1, q, m1, X_ct, c):
     """One fixed-point sweep n <- sqrt(2π z3(n)/c) of the speed loop; returns (n_new, torque, cycle)."""
     X_cv = constant_volume_portion(n, X_ct, c)
     cyc = seiliger_cycle(x4, T1, q, X_cv, X_ct, c)
@@ -117,17 +120,17 @@ def engine_block(x1: float, x4: float, T1: float, V1: float, n_guess: float, c, 
     X_ct = c.X_ct_nom * x1 / c.x1_nom_kg  # eq. 3.13
     n0 = n_guess
     if sweeps < 3:  # plain sweeps only (predictor stages, where the warm start is close)
-        n, torque, cyc = _sweep(n0, x4, T1, q, m1, X_ct, c)
+        n, torque, cyc = speed_sweep(n0, x4, T1, q, m1, X_ct, c)
         for _ in range(sweeps - 1):
-            n, torque, cyc = _sweep(n, x4, T1, q, m1, X_ct, c)
+            n, torque, cyc = speed_sweep(n, x4, T1, q, m1, X_ct, c)
         return n, torque, cyc[5], cyc[3], cyc[4], m1
     for _ in range(sweeps - 2):
-        n1, torque, cyc = _sweep(n0, x4, T1, q, m1, X_ct, c)
-        n2, torque, cyc = _sweep(n1, x4, T1, q, m1, X_ct, c)
+        n1, torque, cyc = speed_sweep(n0, x4, T1, q, m1, X_ct, c)
+        n2, torque, cyc = speed_sweep(n1, x4, T1, q, m1, X_ct, c)
         den = (n2 - n1) - (n1 - n0)
         # Aitken Δ² extrapolation; where the sweeps have already converged keep n2
         n0 = n2 - (n2 - n1) ** 2 / den if den != 0.0 else n2
-    n, torque, cyc = _sweep(n0, x4, T1, q, m1, X_ct, c)
+    n, torque, cyc = speed_sweep(n0, x4, T1, q, m1, X_ct, c)
     return n, torque, cyc[5], cyc[3], cyc[4], m1
 
 
@@ -139,11 +142,26 @@ def torque_given_speed(x1: float, x4: float, T1: float, T6: float, n: float, c) 
     measured cylinder temperature there; with the cycle's own T6 this equals the torque of
     :func:`engine_block` at speed n.
     """
+    return torque_from_cycle(torque_cycle(x1, x4, T1, n, c), T6, c)
+
+
+@jit
+def torque_cycle(x1, x4, T1, n, c):
+    """The T6-independent part of :func:`torque_given_speed`: (m1, w without the T6 term, T4, Q_loss), so that
+    torques at several T6 (a monitoring module's perturbations of the measured T6) reuse one Seiliger cycle."""
     m1 = x4 * c.V1_m3 / (c.R_a_J_per_kgK * T1)
     q = (c.eta_comb * c.h_L_J_per_kg) * x1 / m1
     X_ct = c.X_ct_nom * x1 / c.x1_nom_kg
     X_cv = constant_volume_portion(n, X_ct, c)
     T2, T3, T4, _, _, _, _ = seiliger_cycle(x4, T1, q, X_cv, X_ct, c)
     R = c.R_a_J_per_kgK
-    w = -c.c_v_a_J_per_kgK * (T2 - T1) + R * (T4 - T3) + X_ct * q + R * (T4 - T6) / (c.n_exp - 1.0)
-    return m1 * w * c.torque_per_work - friction_torque(n, c)
+    w0 = -c.c_v_a_J_per_kgK * (T2 - T1) + R * (T4 - T3) + X_ct * q
+    return m1, w0, T4, friction_torque(n, c)
+
+
+@jit
+def torque_from_cycle(parts, T6, c):
+    """The shaft torque [N m] of :func:`torque_cycle`'s parts at the exhaust-opening temperature T6 (eq. 3.10)."""
+    m1, w0, T4, q_loss = parts
+    w = w0 + c.R_a_J_per_kgK * (T4 - T6) / (c.n_exp - 1.0)
+    return m1 * w * c.torque_per_work - q_loss

@@ -35,7 +35,14 @@ from ..._jit import jit
 from .air_intake import compressor_forcing
 from .exhaust_receiver import turbine_expansion, turbine_mass_flow, turbine_outlet_from_expansion
 
-__all__ = ["valve_opening", "valve_flows", "flow_law_pressure", "extended_gas_path", "N_GAS_OUT"]
+__all__ = [
+    "valve_opening",
+    "valve_flows",
+    "flow_law_pressure",
+    "extended_gas_path",
+    "N_GAS_OUT",
+    "extended_gas_path_kernel",
+]
 
 N_GAS_OUT = 13
 
@@ -122,11 +129,13 @@ def extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, T_c, dT_c, c, ov_wg
     [kg/s], h4 [Pa/s], T_co [K], T_cyl [K], T_t (turbine gas inlet) [K], ṁ_bp [kg/s], waste-gate flow
     fraction [-], ṁ_c (compressor air) [kg/s], T_exh (after the waste-gate junction) [K])
     """
-    return _extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, T_c, dT_c, c, c, ov_wg, ov_bp, turbine_share)
+    return extended_gas_path_kernel(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, T_c, dT_c, c, c, ov_wg, ov_bp, turbine_share)
 
 
 @jit
-def _extended_gas_path(x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, T_c, dT_c, c, csm, ov_wg, ov_bp, turbine_share) -> tuple:
+def extended_gas_path_kernel(
+    x1, x3, x4, m1, s_sl, n, T6, p6, T_sl, T_c, dT_c, c, csm, ov_wg, ov_bp, turbine_share
+) -> tuple:
     """:func:`extended_gas_path` with the constants split as the compiled kernels take them (``c``
     floats only, ``csm`` the full constants with the valve schedules; see
     :func:`~marine_fdi_env.engine.constants.kernel_constants`): the same numbers."""

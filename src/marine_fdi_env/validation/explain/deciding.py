@@ -24,7 +24,7 @@ import numpy as np
 
 from ...engine.operating_point import MODE_P, solve_points, speed_of_power
 from ..fit.fitting import FitResult, channel_rmse, predict_setting
-from ..fit.problem import FitProblem, _quantity
+from ..fit.problem import FitProblem, quantity_values
 
 __all__ = ["LOADS", "NEAR", "Decider", "ambient_cases", "deciding_measurements", "readings_over_load"]
 
@@ -129,7 +129,7 @@ def readings_over_load(
         p = eng.replace(validate=False, p_amb_Pa=pa, T_amb_K=T_amb_K + setting.dT_amb_K, p_ex_Pa=pa + float(k))
         op = solve_points(p, MODE_P, P[idx], speed_of_power(p, P[idx]))
         for j, c in enumerate(problem.channels):
-            v = problem.ds.spec(c).from_si(_quantity(problem.ds.column_quantity[c], op.values, problem.ctx), pa)
+            v = problem.ds.spec(c).from_si(quantity_values(problem.ds.column_quantity[c], op.values, problem.ctx), pa)
             if c in setting.sensors:
                 g, o = setting.sensors[c]
                 v = g * v + o

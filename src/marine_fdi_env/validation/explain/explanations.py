@@ -42,8 +42,16 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from ..fit.fitting import Combination, FitResult, cell_losses, channel_rmse, fit_combination, predict_setting
-from ..fit.nuisance import NUISANCE
+from ..fit.fitting import (
+    Combination,
+    FitResult,
+    cell_losses,
+    channel_rmse,
+    fit_combination,
+    predict_setting,
+    refit_fold,
+    training_folds,
+)
 from ..fit.problem import FitProblem
 from ..select.candidates import CandidateScore, paired_p
 from ..select.eligibility import why_pinned
@@ -74,24 +82,9 @@ def cross_validate_held(problem: FitProblem, fit: FitResult, max_folds: int | No
     """Cross-validated predictions (points x channels) of ``fit``'s structure: each fold refitted with the valve
     supports held (the left-out point's opening from the schedule through the training points')."""
     pred = np.full((problem.n_points, len(problem.channels)), np.nan)
-    _, folds = problem.folds(max_folds)
-    rows = problem.rows_with_data()
     comb = fit.combination
-    for _, test in folds:
-        train = np.setdiff1d(rows, test)
-        if train.size == 0 or not problem.measured_mask[train].any():
-            continue
-        f = fit_combination(
-            problem,
-            comb,
-            train,
-            start=fit,
-            known=fit.values(),
-            support=fit.support,
-            uncertainty=False,
-            max_nfev=25 * (len(NUISANCE) + comb.n_global + 1),
-            eliminate=False,
-        )
+    for _, train, test in training_folds(problem, max_folds):
+        f = refit_fold(problem, comb, train, fit, known=fit.values(), support=fit.support)
         pred[test] = predict_setting(problem, f, test)
     return pred
 

@@ -71,6 +71,8 @@ from .problem import HELD_OUT_VALVES, FitProblem, Setting
 __all__ = [
     "ROBUST_SCALE",
     "robust_loss",
+    "training_folds",
+    "refit_fold",
     "Combination",
     "FitResult",
     "fit_combination",
@@ -611,6 +613,32 @@ def predict_setting(problem: FitProblem, fit: FitResult, rows) -> np.ndarray:
     return out
 
 
+def training_folds(problem: FitProblem, max_folds: int | None = None):
+    """The cross-validation folds that can be fitted, as ``(name, training rows, test rows)``: a fold whose
+    training rows are empty or hold no measurement is left out."""
+    _, folds = problem.folds(max_folds)
+    rows = problem.rows_with_data()
+    for name, test in folds:
+        train = np.setdiff1d(rows, test)
+        if train.size and problem.measured_mask[train].any():
+            yield name, train, test
+
+
+def refit_fold(problem: FitProblem, comb: Combination, train: np.ndarray, start: FitResult, **held) -> FitResult:
+    """A cross-validation fold's refit of ``comb`` on the rows ``train``, started from ``start``: no uncertainty,
+    no elimination, a bounded number of evaluations; ``held``: what the refit keeps (``known``, ``support``)."""
+    return fit_combination(
+        problem,
+        comb,
+        train,
+        start=start,
+        uncertainty=False,
+        max_nfev=25 * (N_NUIS + comb.n_global + 1),
+        eliminate=False,
+        **held,
+    )
+
+
 def cross_validate(
     problem: FitProblem, comb: Combination, full: FitResult | None = None, *, max_folds: int | None = None
 ) -> tuple[np.ndarray, list]:
@@ -618,24 +646,11 @@ def cross_validate(
     fold fits (a valve's opening at a held-out point as ``problem.held_out_valves`` says, module docstring)."""
     n, C = problem.n_points, len(problem.channels)
     pred = np.full((n, C), np.nan)
-    _, folds = problem.folds(max_folds)
     if full is None:
         full = fit_combination(problem, comb)
-    all_rows = problem.rows_with_data()
     fits = []
-    for name, test in folds:
-        train = np.setdiff1d(all_rows, test)
-        if train.size == 0 or not problem.measured_mask[train].any():
-            continue
-        f = fit_combination(
-            problem,
-            comb,
-            train,
-            start=full,
-            uncertainty=False,
-            max_nfev=25 * (N_NUIS + comb.n_global + 1),
-            eliminate=False,
-        )
+    for name, train, test in training_folds(problem, max_folds):
+        f = refit_fold(problem, comb, train, full)
         if comb.valves and problem.held_out_valves == "support":
             f.held_out_support = {k: list(v) for k, v in full.support.items()}
         f.held_out_state = bool(comb.valves) and problem.held_out_valves == "state"

@@ -43,9 +43,9 @@ from ...engine.submodels import NO_SUBMODELS, EngineSubmodels
 from ..measured.columns import QUANTITIES, ModelContext
 from ..measured.dataset import MeasuredDataset
 from ..measured.discrepancy import column_tolerance
-from ..measured.matching import _rack_settings, _resolve_target, _target_values, load_law_of
+from ..measured.matching import load_law_of, rack_settings, resolve_target, target_values
 
-__all__ = ["Setting", "FitProblem", "BASE_SETTING", "FAIL_RESIDUAL", "VALVES", "HELD_OUT_VALVES"]
+__all__ = ["Setting", "FitProblem", "BASE_SETTING", "FAIL_RESIDUAL", "VALVES", "HELD_OUT_VALVES", "quantity_values"]
 
 #: how cross-validation predicts a valve's opening at a held-out point (:mod:`.fitting`'s docstring): ``schedule``
 #: (the default), ``support`` or ``state`` (ablations, not the default: each lets model error pass as a valve or
@@ -113,17 +113,17 @@ class FitProblem:
         self.held_out_valves = held_out_valves
         self.ds = ds
         self.params: EngineParams = load_params(params) if params is not None else ds.params
-        self.target = _resolve_target(ds, target)
+        self.target = resolve_target(ds, target)
         self.law = load_law_of(ds)
         n = ds.n_points
         self.n_points = n
         nan = np.full(n, np.nan)
         self.speed_measured = ds.values.get("engine_speed_rev_s", nan).astype(float)
         if self.target == "fuel_rack":
-            self.target_si, self.rack_reference = _rack_settings(ds)
+            self.target_si, self.rack_reference = rack_settings(ds)
             self.target_columns: tuple[str, ...] = (ds.column_of("fuel_rack"),)
         else:
-            _, self.target_si, self.target_columns = _target_values(ds, self.target)
+            _, self.target_si, self.target_columns = target_values(ds, self.target)
         roles = ds.column_role
         self.predicted_columns = tuple(
             c
@@ -344,7 +344,7 @@ class FitProblem:
             plan = self._plans.get(col)
             if plan is None:
                 plan = self._plans[col] = (ds.column_quantity[col], ds.spec(col))
-            si = _quantity(plan[0], vals, self.ctx)
+            si = quantity_values(plan[0], vals, self.ctx)
             v = plan[1].from_si(si, p_amb)
             if col in setting.sensors:
                 g, o = setting.sensors[col]
@@ -445,7 +445,7 @@ class FitProblem:
         return t / np.nanmax(t)
 
 
-def _quantity(q: str, V: Mapping[str, np.ndarray], ctx: ModelContext) -> np.ndarray:
+def quantity_values(q: str, V: Mapping[str, np.ndarray], ctx: ModelContext) -> np.ndarray:
     """SI values of quantity ``q`` from summary arrays."""
     if q in V:
         return np.asarray(V[q], float)

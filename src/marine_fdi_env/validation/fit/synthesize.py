@@ -38,7 +38,7 @@ from ...engine.params import EngineParams, list_parameter_sets, load_params
 from ..measured.columns import QUANTITIES, ModelContext, column_problem, lookup_column
 from ..measured.loader import write_measured
 from .mechanisms import SensorCalibration, ValveMechanism, get_mechanism, parse_mechanism_spec, sensor_reference
-from .problem import BASE_SETTING, Setting, _quantity
+from .problem import BASE_SETTING, Setting, quantity_values
 
 __all__ = [
     "DEFAULT_COLUMNS",
@@ -325,7 +325,7 @@ def synthesize(
         if c in SET_POINT_COLUMNS:  # the set points as commanded (the model meets them to ~1e-15)
             si = loads if spec.quantity == "load_fraction" else P
         else:
-            si = _quantity(spec.quantity, op.values, ctx)
+            si = quantity_values(spec.quantity, op.values, ctx)
         clean[c] = spec.from_si(si, p_amb)
     activity = {}
     for m_id in openings:

@@ -212,26 +212,13 @@ class MeasuredDataset:
         if np.ndim(amb["p_amb_Pa"]):
             amb["p_amb_Pa"] = np.asarray(amb["p_amb_Pa"])[m]
         groups = {g: dict(v, spread=v["spread"][m], n=v["n"][m]) for g, v in self.groups.items()}
-        return MeasuredDataset(
-            name=self.name,
-            params_name=self.params_name,
-            meta=self.meta,
-            columns=self.columns,
-            column_quantity=self.column_quantity,
+        return dataclasses.replace(
+            self,
             values={k: v[m] for k, v in self.values.items()},
             raw={k: v[m] for k, v in self.raw.items()},
             engines=eng,
-            provenance=self.provenance,
             ambient=amb,
-            load_law=self.load_law,
-            load_law_text=self.load_law_text,
-            rated_power_W=self.rated_power_W,
             quality=quality_summary(self.columns, {k: v[m] for k, v in self.raw.items()}, eng, self.warnings),
-            warnings=self.warnings,
-            notes=self.notes,
-            path=self.path,
-            column_role=self.column_role,
-            column_spec=self.column_spec,
             boundary={k: v[m] for k, v in self.boundary.items()},
             boundary_outliers=tuple(o for o in self.boundary_outliers if m[o["row"] - 1]),
             groups=groups,

@@ -59,12 +59,14 @@ __all__ = [
     "column_tolerance",
     "KINDS",
     "VARIABLES",
+    "VAR_QUANTITY",
+    "replicate_groups",
 ]
 
 KINDS = ("bias", "trend", "change_point", "outlier")
 VARIABLES = ("load", "speed", "charge_pressure")
 _VAR_UNIT = {"load": "", "speed": " rpm", "charge_pressure": " bar"}
-_VAR_QUANTITY = {
+VAR_QUANTITY = {
     "load": ("load_fraction", "power_W"),
     "speed": ("engine_speed_rev_s",),
     "charge_pressure": ("charge_air_pressure_Pa",),
@@ -433,7 +435,7 @@ def analyse_discrepancies(
                 by_engine[str(e)] = float(np.mean(r[eng == e]))
 
         # a channel's residual is not tested against its own quantity (circular: r = model - x)
-        ch_ops = {k: v[ok] for k, v in ops.items() if q not in _VAR_QUANTITY[k]}
+        ch_ops = {k: v[ok] for k, v in ops.items() if q not in VAR_QUANTITY[k]}
         # ratio quantities: errors scale with the value, so outliers are judged on relative residuals
         if QUANTITIES[q].kind == "ratio":
             w = np.abs(meas_si[ok]) / np.mean(np.abs(meas_si[ok]))
@@ -501,7 +503,7 @@ def _bias_p_value(r: np.ndarray, tol: float, min_dof: int = 3) -> tuple[float, s
     return math.nan, "none"
 
 
-def _replicate_groups(ds, idx: np.ndarray) -> list[np.ndarray]:
+def replicate_groups(ds, idx: np.ndarray) -> list[np.ndarray]:
     """Positions (into idx) of points sharing a set point (load, speed, power columns), groups of >= 2."""
     from .plausibility import SETPOINT_QUANTITIES
 
@@ -537,7 +539,7 @@ def _outliers(
     w = np.ones(r_abs.size) if weight is None else np.asarray(weight, float)
     r = r_abs / w
     n = r.size
-    groups = _replicate_groups(ds, idx)
+    groups = replicate_groups(ds, idx)
     if groups and sum(len(g) for g in groups) >= max(5, n // 2):
         pos = np.concatenate(groups)
         devs = [r[g] - np.median(r[g]) for g in groups]

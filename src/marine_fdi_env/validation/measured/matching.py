@@ -46,6 +46,9 @@ __all__ = [
     "predict_columns",
     "TARGETS",
     "U_BOUNDS",
+    "rack_settings",
+    "resolve_target",
+    "target_values",
 ]
 
 U_BOUNDS = (0.05, 1.2)
@@ -289,7 +292,8 @@ def _point(ds: MeasuredDataset, i: int) -> dict[str, float]:
     return {q: float(v[i]) for q, v in ds.values.items()}
 
 
-def _resolve_target(ds: MeasuredDataset, target: str) -> str:
+def resolve_target(ds: MeasuredDataset, target: str) -> str:
+    """The matching target ``target`` names, with ``auto`` resolved to the one the dataset's columns allow."""
     v = ds.values
     if target not in TARGETS:
         raise ValueError(f"unknown matching target {target!r}; allowed: {', '.join(TARGETS)}")
@@ -308,7 +312,7 @@ def _resolve_target(ds: MeasuredDataset, target: str) -> str:
     )
 
 
-def _target_values(ds: MeasuredDataset, target: str) -> tuple[str, np.ndarray, tuple[str, ...]]:
+def target_values(ds: MeasuredDataset, target: str) -> tuple[str, np.ndarray, tuple[str, ...]]:
     """(summary key, SI target per point, data columns used) of a matching target."""
     v = ds.values
     col = ds.column_of
@@ -335,7 +339,7 @@ def _target_values(ds: MeasuredDataset, target: str) -> tuple[str, np.ndarray, t
     raise AssertionError(target)
 
 
-def _rack_settings(ds: MeasuredDataset) -> tuple[np.ndarray, str]:
+def rack_settings(ds: MeasuredDataset) -> tuple[np.ndarray, str]:
     """u = rack / rack at nominal fuel (sidecar ``fuel_rack_at_nominal``, else per engine at load fraction 1)."""
     rack = ds.values.get("fuel_rack")
     if rack is None:
@@ -392,7 +396,7 @@ def match_operating_points(
         load_law = LoadLaw(law, "given", None, load_law_of(ds).evidence)
     else:
         load_law = load_law_of(ds)
-    tgt = _resolve_target(ds, target)
+    tgt = resolve_target(ds, target)
     notes: list[str] = list(ds.notes)
     n = ds.n_points
     u = np.full(n, np.nan)
@@ -401,7 +405,7 @@ def match_operating_points(
     lo, hi = u_bounds
 
     if tgt == "fuel_rack":
-        u_rack, how = _rack_settings(ds)
+        u_rack, how = rack_settings(ds)
         notes.append(
             f"fuel setting = fuel rack / rack at nominal fuel ({how}); assumes fuel per cycle "
             "proportional to the rack (no offset)"
@@ -416,7 +420,7 @@ def match_operating_points(
                 u[i] = u_rack[i]
                 summaries[i] = steady(u[i], _point(ds, i))
     else:
-        key, target_si, used = _target_values(ds, tgt)
+        key, target_si, used = target_values(ds, tgt)
         for i in range(n):
             t = float(target_si[i])
             if not math.isfinite(t):

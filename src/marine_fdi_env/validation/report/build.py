@@ -47,6 +47,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ...engine.params import EngineParams, engine_file_dict, list_parameter_sets
+from ...jsonfile import json_safe
 from ..explain.summary import explain
 from ..explain.summary import summary_lines as explanation_summary_lines
 from ..fit.fitting import FitResult, channel_rmse, predict_setting
@@ -70,31 +71,12 @@ __all__ = [
     "markdown_summary",
     "holdout_evaluation",
     "fitted_engine",
-    "clean_json",
     "out_path",
     "summary_lines",
 ]
 
 
 # --------------------------------------------------------------------------------------- helpers
-def clean_json(x: Any) -> Any:
-    """JSON-safe copy: NaN/inf -> None, numpy scalars/arrays -> Python."""
-    if isinstance(x, dict):
-        return {str(k): clean_json(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [clean_json(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return clean_json(x.tolist())
-    if isinstance(x, (np.bool_,)):
-        return bool(x)
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, (float, np.floating)):
-        x = float(x)
-        return x if math.isfinite(x) else None
-    return x
-
-
 def split_engine(ds: MeasuredDataset, engine: str) -> tuple[MeasuredDataset, MeasuredDataset]:
     """(the dataset without ``engine``, the dataset of ``engine`` only)."""
     ids = ds.engine_ids()
@@ -146,7 +128,7 @@ def _engine_file(sel: Selection, eng: EngineParams, command: str | None) -> dict
         "note": "valve openings are schedules over the fuel setting through the fitted points; sensor "
         "calibrations and ambient offsets describe the measurements and are not part of the engine",
     }
-    return clean_json(engine_file_dict(eng, base, prov))
+    return json_safe(engine_file_dict(eng, base, prov))
 
 
 # --------------------------------------------------------------------------------------- report
@@ -281,7 +263,7 @@ def build_report(
             if c in channels:
                 channels[c]["holdout_rmse_base"] = v["holdout_rmse_base"]
                 channels[c]["holdout_rmse_extended"] = v["holdout_rmse_extended"]
-    return clean_json(report)
+    return json_safe(report)
 
 
 def _step_dict(pr: FitProblem, step: Mapping[str, Any]) -> dict[str, Any]:
@@ -411,14 +393,14 @@ def run_validation(
 
         def each(fit, cond):  # a member's hold-out evaluation, JSON-ready
             r = holdout_evaluation(sel, holdout, conditions=cond, fit=fit)
-            return clean_json({k: v for k, v in r.items() if not k.startswith("_")})
+            return json_safe({k: v for k, v in r.items() if not k.startswith("_")})
 
-        rep.update(clean_json(explain(sel, holdout=each if holdout is not None else None, say=progress)))
-    rep = {"what_the_data_allow": clean_json(what_the_data_allow(rep)), **rep}  # the report leads with it
+        rep.update(json_safe(explain(sel, holdout=each if holdout is not None else None, say=progress)))
+    rep = {"what_the_data_allow": json_safe(what_the_data_allow(rep)), **rep}  # the report leads with it
     if ho is not None:
         hf = holdout_evaluation(sel, holdout, conditions="fit")
         if hf["conditions"]["filled"]:
-            rep["holdout_at_fit_conditions"] = clean_json({k: v for k, v in hf.items() if not k.startswith("_")})
+            rep["holdout_at_fit_conditions"] = json_safe({k: v for k, v in hf.items() if not k.startswith("_")})
             ho["_at_fit_conditions"] = hf  # for the plot
     return rep, sel, ho
 

@@ -183,24 +183,12 @@ def write_plots(
             hf = holdout.get("_at_fit_conditions")
             if hf is not None:  # the same at the fitted data's test-bed conditions (what the hold-out did not record)
                 o = np.argsort(xh, kind="stable")
-                ax.plot(
-                    xh[o],
-                    hf["_pred_base"][o, j],
-                    "-.",
-                    color="C0",
-                    lw=1.0,
-                    alpha=0.7,
-                    label="base model, at the fitted test bed's conditions",
-                )
-                ax.plot(
-                    xh[o],
-                    hf["_pred_extended"][o, j],
-                    "-.",
-                    color="C3",
-                    lw=1.2,
-                    alpha=0.8,
-                    label="fitted engine, at the fitted test bed's conditions",
-                )
+                for key, color, lw, alpha, model in (
+                    ("_pred_base", "C0", 1.0, 0.7, "base model"),
+                    ("_pred_extended", "C3", 1.2, 0.8, "fitted engine"),
+                ):
+                    label = f"{model}, at the fitted test bed's conditions"
+                    ax.plot(xh[o], hf[key][o, j], "-.", color=color, lw=lw, alpha=alpha, label=label)
             ax.set_xlabel(xlh, fontsize=8)
         handles, labels = axes[0].get_legend_handles_labels()
         fig.legend(handles, labels, loc="lower center", ncol=min(4, len(labels)), fontsize=8, frameon=False)

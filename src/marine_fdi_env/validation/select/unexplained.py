@@ -15,10 +15,10 @@ import numpy as np
 from scipy import stats
 
 from ..measured.discrepancy import (
-    _VAR_QUANTITY,
+    VAR_QUANTITY,
     DiscrepancyReport,
-    _replicate_groups,
     operating_variables,
+    replicate_groups,
     theil_sen_detrend,
 )
 from ..measured.matching import MatchResult
@@ -48,7 +48,7 @@ def _local_deviations(ds, idx: np.ndarray, r: np.ndarray, ops: Mapping[str, np.n
     """Deviations of the residuals from their local structure (as :mod:`.measured.discrepancy`: the median of
     replicated set points, else a Theil-Sen line on load); returns (positions into idx, deviations,
     mask of the deviations that carry information (not the zero of an odd group's median member))."""
-    groups = _replicate_groups(ds, idx)
+    groups = replicate_groups(ds, idx)
     n = r.size
     if groups and sum(len(g) for g in groups) >= max(5, n // 2):
         pos, dev, info = [], [], []
@@ -87,7 +87,7 @@ def point_outliers(match: MatchResult, tolerances: Mapping[str, float], alpha: f
         if idx.size < 5:
             continue
         q = ds.column_quantity[col]
-        ch_ops = {k: v[ok] for k, v in ops.items() if q not in _VAR_QUANTITY[k]}
+        ch_ops = {k: v[ok] for k, v in ops.items() if q not in VAR_QUANTITY[k]}
         tol = float(tolerances[col])
         pos, d, info = _local_deviations(ds, idx, r_all[ok], ch_ops)
         m = int(info.sum())
@@ -194,29 +194,23 @@ def local_excess(
             region = f"load {lo:.3g}-{hi:.3g}"
         unit = ds.spec(col).unit
         out.append(
-            {
-                "channel": col,
-                "kind": "local",
-                "region": region,
-                "load_range": [lo, hi],
-                "points": sorted(int(i) + 1 for i in best["positions"]),
-                "magnitude": best["d"],
-                "score": abs(best["d"]) / tol,
-                "p_value": best["p"],
-                "p_at_floor": best["p_at_floor"],
-                "noise": best["sigma"],
-                "noise_ratio": best["noise"],
-                "unit": unit,
-                "significant": True,
-                "scale": "tolerance" if own is None else "data",
-                "text": f"unexplained: {col}, {region} (local, magnitude {best['d']:+.4g} {unit}"
+            _local_finding(
+                col,
+                region,
+                best,
+                tol,
+                unit,
+                sorted(int(i) + 1 for i in best["positions"]),
+                {"noise": best["sigma"], "noise_ratio": best["noise"]},
+                scale="tolerance" if own is None else "data",
+                text=f"unexplained: {col}, {region} (local, magnitude {best['d']:+.4g} {unit}"
                 + (
                     ""
                     if own is None
                     else f"; judged at the data's scatter {own:.3g} {unit}, below the tolerance {tol:.3g}"
                 )
                 + ")",
-            }
+            )
         )
     return out
 
@@ -298,22 +292,37 @@ def calibration_left(
         region = f"load {lo:.3g}-{hi:.3g}"
         unit = ds.spec(col).unit
         out.append(
-            {
-                "channel": col,
-                "kind": "local",
-                "region": region,
-                "load_range": [lo, hi],
-                "points": [i + 1 for i in best["positions"]],
-                "magnitude": best["d"],
-                "score": abs(best["d"]) / t,
-                "p_value": best["p"],
-                "p_at_floor": best["p_at_floor"],
-                "shape": best["kind"],
-                "left_by": "sensor_calibration",
-                "unit": unit,
-                "significant": True,
-                "text": f"unexplained: {col}, {region} (a {best['kind']} the named calibration leaves, "
+            _local_finding(
+                col,
+                region,
+                best,
+                t,
+                unit,
+                [i + 1 for i in best["positions"]],
+                {"shape": best["kind"], "left_by": "sensor_calibration"},
+                text=f"unexplained: {col}, {region} (a {best['kind']} the named calibration leaves, "
                 f"magnitude {best['d']:+.4g} {unit})",
-            }
+            )
         )
     return out
+
+
+def _local_finding(col: str, region: str, best: dict, tol: float, unit: str, points, own: dict, **tail) -> dict:
+    """A local finding of ``col`` in ``region`` (a scan's ``best`` window, scored against ``tol``), in the report's
+    key order: the common keys, then ``own`` (the scan's own fields), the unit, and ``tail``."""
+    lo, hi = best["load_range"]
+    return {
+        "channel": col,
+        "kind": "local",
+        "region": region,
+        "load_range": [lo, hi],
+        "points": points,
+        "magnitude": best["d"],
+        "score": abs(best["d"]) / tol,
+        "p_value": best["p"],
+        "p_at_floor": best["p_at_floor"],
+        **own,
+        "unit": unit,
+        "significant": True,
+        **tail,
+    }
