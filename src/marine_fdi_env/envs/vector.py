@@ -24,7 +24,7 @@ from .rendering import supported_render_mode
 from .reward import RewardConfig, RewardConfigV1, make_reward_config
 from .scenario_sampler import ScenarioConfig, ScenarioSpec, get_preset
 
-__all__ = ["MarineFDIVectorEnv", "scatter_infos", "object_array"]
+__all__ = ["MarineFDIVectorEnv", "scatter_infos", "object_array", "reseed_slots"]
 
 
 class MarineFDIVectorEnv(VectorEnv):
@@ -87,17 +87,7 @@ class MarineFDIVectorEnv(VectorEnv):
 
     def reset(self, *, seed: "int | list[int | None] | None" = None, options: dict | None = None):
         n = self.num_envs
-        if seed is None:
-            seeds = [None] * n
-        elif isinstance(seed, (int, np.integer)):
-            seeds = [int(seed) + i for i in range(n)]
-        else:
-            seeds = list(seed)
-            if len(seeds) != n:
-                raise ValueError(f"seed must be an int or a list of {n} seeds, got {len(seeds)}")
-        for i, s in enumerate(seeds):
-            if s is not None:
-                self._rngs[i], _ = seeding.np_random(s)
+        seeds = reseed_slots(self._rngs, seed)
         if seed is not None:
             self._np_random, self._np_random_seed = seeding.np_random(seeds[0])
         scenarios = self._scenarios_from_options(options)
@@ -218,3 +208,21 @@ def _every_slot(n: int, piece: dict) -> dict:
         out[key] = _every_slot(n, v) if isinstance(v, dict) else v.copy()
         out["_" + key] = np.ones(n, dtype=bool)
     return out
+
+
+def reseed_slots(rngs: list, seed: "int | list[int | None] | None") -> list:
+    """Gymnasium's vector seeding: ``seed`` an int seeds slot ``i`` with ``seed + i``, a list one seed per slot
+    (None keeps a slot's generator), None none; reseeds ``rngs`` in place and returns the per-slot seeds."""
+    n = len(rngs)
+    if seed is None:
+        seeds = [None] * n
+    elif isinstance(seed, (int, np.integer)):
+        seeds = [int(seed) + i for i in range(n)]
+    else:
+        seeds = list(seed)
+        if len(seeds) != n:
+            raise ValueError(f"seed must be an int or a list of {n} seeds, got {len(seeds)}")
+    for i, s in enumerate(seeds):
+        if s is not None:
+            rngs[i], _ = seeding.np_random(s)
+    return seeds

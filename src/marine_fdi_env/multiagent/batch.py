@@ -51,6 +51,7 @@ from ..envs.observation import feature_names, observation_bounds
 from ..envs.reward import RewardConfigV1, make_reward_config
 from ..envs.scenario_sampler import ScenarioConfig, ScenarioSpec, get_preset
 from ..envs.scoring import DecisionScorer, StepOutcome
+from ..envs.vector import reseed_slots
 from .budgets import MessageBudget, get_budget
 from .roles import AGENT_IDS, GLOBAL_AGENT, LOCAL_AGENTS, local_columns, local_modules
 
@@ -151,17 +152,7 @@ class MultiAgentBatchEnv:
         vector environment), or ``options={"scenarios": [ScenarioSpec | dict, ...]}``.  Returns
         (observations, infos)."""
         n = self.num_envs
-        if seed is None:
-            seeds = [None] * n
-        elif isinstance(seed, (int, np.integer)):
-            seeds = [int(seed) + i for i in range(n)]
-        else:
-            seeds = list(seed)
-            if len(seeds) != n:
-                raise ValueError(f"seed must be an int or a list of {n} seeds, got {len(seeds)}")
-        for i, s in enumerate(seeds):
-            if s is not None:
-                self._rngs[i], _ = seeding.np_random(s)
+        reseed_slots(self._rngs, seed)
         scenarios = None
         if options:
             if not isinstance(options, dict) or set(options) - {"scenarios"}:
