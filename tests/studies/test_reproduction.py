@@ -9,6 +9,7 @@ import math
 import pytest
 
 import studies.diagnosis.reproduction as rep
+from marine_fdi_env.benchmark.suites import SUITE_NAMES
 from studies.diagnosis.reproduction_table import (
     README_BEGIN,
     README_END,
@@ -55,16 +56,7 @@ def tiny_column(tmp_path_factory):
     work = tmp_path_factory.mktemp("reproduction")
     stub = {
         s: {"episodes": 10, "faulty": 8, "isolated": 4, "detected": 6, "false_alarms": 0, "fault_free_hours": 1.0}
-        for s in (
-            "thesis-v1",
-            "single-v1",
-            "multi-v1",
-            "incipient-v1",
-            "transfer-v1",
-            "nominal-v1",
-            "transfer-v2",
-            "transfer-v3",
-        )
+        for s in SUITE_NAMES
     }
     stub["nominal-v1"]["faulty"] = 0
     mp = pytest.MonkeyPatch()
