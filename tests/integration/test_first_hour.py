@@ -169,6 +169,26 @@ def test_train_refuses_a_budget_that_is_not_positive_and_says_its_default_env(tm
     assert code == 0 and "default MarineFDI-v0" in " ".join(out.split())
 
 
+def test_train_does_not_overwrite_a_trained_model_without_force(tmp_path, capsys, monkeypatch):
+    pytest.importorskip("stable_baselines3")
+    import marine_fdi_env.training.train as training
+
+    out = tmp_path / "m"
+    out.mkdir()
+    (out / "config.json").write_text("{}")
+    argv = ["train", "--algo", "classifier", "--seed", "3", "--out", str(out)]
+    code, err = _run(capsys, argv)
+    line = _one_line(err)
+    assert code == 2 and "--force" in line and "config.json" in line
+    assert (out / "config.json").read_text() == "{}"  # untouched
+    calls = []
+    monkeypatch.setattr(training, "train_agent", lambda *a, **kw: calls.append(kw) or {"cpu_minutes": 0.0})
+    assert cli_main([*argv, "--force", "--no-cache"]) == 0
+    # the recorded command makes the model again: neither the overwrite nor the re-export is part of it
+    assert calls[0]["command"] == f"marine-fdi train --algo classifier --seed 3 --out {out}"
+    assert calls[0]["use_cache"] is False
+
+
 def test_report_does_not_overwrite_a_report_without_force(tmp_path, capsys, tiny):  # noqa: F811
     res = tmp_path / "r.json"
     assert cli_main(["evaluate", "--agent", "null", "--suite", str(tiny), "--out", str(res), "--no-progress"]) == 0

@@ -16,6 +16,8 @@ from .failures import fail
 
 __all__ = ["train_main"]
 
+TRAINED_FILES = ("config.json", "model.pt", "model.zip")  # what a finished run leaves in its folder
+
 
 # ----------------------------------------------------------------------------- CLI
 def shipped_training_config(algo: str, entry: str | None = None) -> dict | None:
@@ -100,6 +102,9 @@ def train_main(argv=None) -> int:
         action="store_true",
         help="simulate the training datasets again (classifier, replayed PPO) instead of using training/.cache",
     )
+    ap.add_argument(
+        "--force", action="store_true", help="overwrite a trained model in the run directory (without it: an error)"
+    )
     args, code = parse_cli(ap, argv)
     if args is None:
         return code
@@ -116,15 +121,22 @@ def train_main(argv=None) -> int:
         load_hyperparams(args.algo, args.hyperparams or args.env, over)  # its checks, before any work
         if args.out is not None:
             prepare_out(args.out, "--out", is_dir=True, create=False)
+        seed = args.seed
+        if seed < 0:
+            seed = int(np.random.SeedSequence().entropy % (2**31))
+            print(f"drew seed {seed}")
+        out = args.out or HERE / "logs" / f"{args.algo}_s{seed}"
+        trained = [f for f in TRAINED_FILES if (Path(out) / f).is_file()]
+        if trained and not args.force:
+            raise UsageError(
+                f"--out {out} already holds a trained model ({', '.join(trained)}); pass --force to overwrite it, "
+                "or choose another --out"
+            )
     except ValueError as e:
         return fail("marine-fdi train", e)
-    seed = args.seed
-    if seed < 0:
-        seed = int(np.random.SeedSequence().entropy % (2**31))
-        print(f"drew seed {seed}")
-    out = args.out or HERE / "logs" / f"{args.algo}_s{seed}"
-    # the command that makes the model (--no-cache only re-exports the same data: not recorded)
-    cmd = ["marine-fdi", "train"] + [a for a in argv if a != "--no-cache"]
+    # the command that makes the model (--no-cache only re-exports the same data, --force only allows the
+    # overwrite: neither is recorded)
+    cmd = ["marine-fdi", "train"] + [a for a in argv if a not in ("--no-cache", "--force")]
     if args.seed < 0:
         cmd = [a if a != str(args.seed) else str(seed) for a in cmd]
     say_training_cost(args.algo, over.get("n_timesteps"), args.hyperparams)
