@@ -5,12 +5,39 @@ from __future__ import annotations
 
 import csv
 import json
+import os
+import platform
 from pathlib import Path
 
 from marine_fdi_env.envs.observation import feature_names
 from marine_fdi_env.outputs import prepare_out
 
-__all__ = ["save_sb3_agent", "observation_meta", "write_curve"]
+__all__ = ["save_sb3_agent", "observation_meta", "write_curve", "machine_record"]
+
+
+def machine_record() -> dict:
+    """Where a model was trained: cores, Python, the CPU's model name and the numerical libraries' versions.
+
+    The CPU matters for bit-for-bit retraining: torch's BLAS (Intel MKL) picks its matrix-multiply kernels by
+    CPU vendor, and the backward pass's long sums round differently on another kind of CPU (training/NOTES.md)."""
+    import numpy as np
+
+    cpu = platform.processor()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.partition(":")[2].strip()
+                break
+    except OSError:
+        pass
+    rec = {"cpus": os.cpu_count(), "python": platform.python_version(), "cpu": cpu, "numpy": np.__version__}
+    try:
+        import torch
+
+        rec["torch"] = torch.__version__
+    except ImportError:
+        pass
+    return rec
 
 
 def _observation_meta(observe_sensors: bool = False) -> dict:

@@ -10,8 +10,6 @@ that model alone.
 from __future__ import annotations
 
 import json
-import os
-import platform
 import time
 from pathlib import Path
 
@@ -22,7 +20,7 @@ from marine_fdi_env.envs.observation import feature_names
 from marine_fdi_env.multiagent.budgets import get_budget
 from marine_fdi_env.multiagent.roles import LOCAL_AGENTS, local_modules
 
-from .artifacts import observation_meta, write_curve
+from .artifacts import machine_record, observation_meta, write_curve
 from .datasets import training_dataset
 
 __all__ = [
@@ -161,7 +159,7 @@ def train_decentralised_run(
             "cpu_s": round(data_cpu + prep_cpu + train_cpu, 1),
             "cpu_minutes": round((data_cpu + prep_cpu + train_cpu) / 60.0, 2),
             "command": command,
-            "machine": {"cpus": os.cpu_count(), "python": platform.python_version()},
+            "machine": machine_record(),
         }
         if out_root is not None:
             out = Path(out_root) / name / f"seed{seed}"

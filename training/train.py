@@ -24,8 +24,6 @@ An entry with ``replay: true`` (``ppo.yml``, ``MarineFDI-v1``) trains on recorde
 
 from __future__ import annotations
 
-import os
-import platform
 import time
 from pathlib import Path
 
@@ -35,7 +33,7 @@ import yaml
 from marine_fdi_env.envs.fdi_env import ENV_ID
 from marine_fdi_env.envs.observation import feature_names
 
-from .artifacts import _observation_meta, _write_curve, save_meta  # noqa: F401 - used here and by tests
+from .artifacts import _observation_meta, _write_curve, machine_record, save_meta  # noqa: F401 - used here and by tests
 from .datasets import (  # noqa: F401
     _dataset,
     _ensure_dataset,
@@ -335,7 +333,7 @@ def train_agent(
         command=command,
         seed_drawn=seed_drawn,
         cpu_minutes=round(cfg["cpu_s"] / 60.0, 2),
-        machine={"cpus": os.cpu_count(), "python": platform.python_version()},
+        machine=machine_record(),
     )
     save_meta(out, cfg, agent_class)
     return cfg
