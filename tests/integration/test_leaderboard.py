@@ -41,6 +41,8 @@ def test_every_shipped_agent_and_training_seed_has_an_entry():
 
 def test_submit_shipped_adds_only_the_missing_entries(capsys):
     """``submit --shipped`` into the full leaderboard scores nothing and says so in one line (exit 2)."""
+    missing = sorted({n for n, _ in shipped_specs()} - set(NAMES))
+    assert not missing, f"no entry (the command below would score them into the repository): {missing}"
     code = cli_main(["submit", "--shipped", "--out", str(ENTRIES), "--no-progress"])
     err = capsys.readouterr().err
     assert code == 2 and "every shipped agent has an entry; pass --force" in err
