@@ -36,6 +36,11 @@ __all__ = [
     "parse_cli",
     "run_parsed",
     "interrupted",
+    "add_agent_option",
+    "add_suite_option",
+    "add_seed_offset_option",
+    "add_json_option",
+    "add_progress_option",
     "add_backend_args",
     "backend_from_args",
     "add_cache_args",
@@ -87,6 +92,40 @@ def interrupted(prog: str, kept: str = "") -> int:
         f"{prog}: interrupted; " + (f"{kept}, " if kept else "") + "rerun the same command to resume", file=sys.stderr
     )
     return INTERRUPTED
+
+
+def add_agent_option(ap: argparse.ArgumentParser) -> None:
+    """``--agent``: the agent to run, by name, folder or file (default reference)."""
+    ap.add_argument(
+        "--agent",
+        default="reference",
+        help="an agent name (see 'marine-fdi agents': null, random, reference, sequential, oracle, "
+        "the shipped models), a directory with agent.json, or path/to/file.py:ClassName (default: reference)",
+    )
+
+
+def add_suite_option(ap: argparse.ArgumentParser, default: str | None = None, what: str = "") -> None:
+    """``--suite``: a suite by name or JSON path; required unless it has a ``default``; ``what`` ends its help."""
+    help = "suite name or JSON path" + (f" {what}" if what else "")
+    if default is None:
+        ap.add_argument("--suite", required=True, help=help)
+    else:
+        ap.add_argument("--suite", default=default, help=f"{help} (default: {default})")
+
+
+def add_seed_offset_option(ap: argparse.ArgumentParser) -> None:
+    """``--seed-offset``: new noise on the same scenarios."""
+    ap.add_argument("--seed-offset", type=int, default=0, help="shift every noise seed (new noise, same scenarios)")
+
+
+def add_json_option(ap: argparse.ArgumentParser, help: str = "print JSON") -> None:
+    """``--json``: print a command's answer as JSON."""
+    ap.add_argument("--json", action="store_true", help=help)
+
+
+def add_progress_option(ap: argparse.ArgumentParser) -> None:
+    """``--no-progress``: no progress bar."""
+    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def add_backend_args(ap: argparse.ArgumentParser, default_batch: int = 32) -> None:

@@ -59,7 +59,7 @@ def _clear(out: Path) -> None:
 
 def submit_main(argv=None) -> int:
     from ..benchmark.suites import SUITE_NAMES
-    from .common import CommandParser, add_backend_args, interrupted, parse_cli
+    from .common import CommandParser, add_backend_args, add_progress_option, interrupted, parse_cli
 
     argv = list(sys.argv[1:] if argv is None else argv)
     ap = CommandParser(
@@ -105,7 +105,7 @@ def submit_main(argv=None) -> int:
     )
     ap.add_argument("--force", action="store_true", help="overwrite an entry in --out")
     add_backend_args(ap)
-    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_progress_option(ap)
     args, code = parse_cli(ap, argv)
     if args is None:
         return code
@@ -193,7 +193,7 @@ def _say_cost(specs: list[str], suites: list[str], workers: int) -> None:
 
 
 def verify_main(argv=None) -> int:
-    from .common import CommandParser, add_backend_args, parse_cli
+    from .common import CommandParser, add_backend_args, add_progress_option, parse_cli
 
     ap = CommandParser(
         prog="marine-fdi verify",
@@ -218,7 +218,7 @@ def verify_main(argv=None) -> int:
         "all the leaderboard's entries; catches corruption, not an edited metric",
     )
     add_backend_args(ap)
-    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_progress_option(ap)
     args, code = parse_cli(ap, argv)
     if args is None:
         return code

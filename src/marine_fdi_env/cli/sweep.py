@@ -37,7 +37,15 @@ def sweep_main(argv=None) -> int:
     from ..benchmark.report import markdown_table
     from ..errors import require_extra
     from ..outputs import prepare_out
-    from .common import add_backend_args, add_cache_args, backend_from_args, cache_from_args, interrupted, parse_cli
+    from .common import (
+        add_backend_args,
+        add_cache_args,
+        add_progress_option,
+        backend_from_args,
+        cache_from_args,
+        interrupted,
+        parse_cli,
+    )
 
     ap = CommandParser(
         prog="marine-fdi sweep",
@@ -76,7 +84,7 @@ def sweep_main(argv=None) -> int:
     )
     add_backend_args(ap)
     add_cache_args(ap)
-    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_progress_option(ap)
     args, code = parse_cli(ap, argv)
     if args is None:
         return code
