@@ -45,6 +45,7 @@ __all__ = [
     "backend_from_args",
     "add_cache_args",
     "cache_from_args",
+    "lockstep_cost",
     "option_value",
     "positive_seconds",
     "dumps",
@@ -196,6 +197,20 @@ def cache_from_args(args) -> tuple[str, Path]:
     if args.cache == "write":
         require_extra("pyarrow", "--cache write")
     return args.cache, args.cache_dir
+
+
+def lockstep_cost(agents: list[str], suites: list, n_offsets: int = 1) -> tuple[float, int]:
+    """The expected CPU seconds and the number of episodes of scoring ``agents`` (specs) together, in lockstep,
+    on the loaded ``suites``, each with ``n_offsets`` seed offsets (:mod:`marine_fdi_env.costs`)."""
+    from ..benchmark.agent_api import BUILTIN_AGENTS, load_agent
+    from ..benchmark.evaluate import plan_passes
+    from ..costs import lockstep_episode_cpu_s
+
+    # the simulation passes: the baselines say which diagnoser they need (cheap to make); a model, the default
+    passes = len(plan_passes([load_agent(a) for a in agents if a in BUILTIN_AGENTS], {})) or 1
+    episodes = sum(len(s.scenarios) for s in suites) * n_offsets
+    cpu = n_offsets * sum(lockstep_episode_cpu_s(agents, passes, sc.duration_s) for s in suites for sc in s.scenarios)
+    return cpu, episodes
 
 
 def option_value(option: str, fn, *args, **kwargs):

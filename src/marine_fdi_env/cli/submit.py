@@ -179,16 +179,11 @@ def submit_main(argv=None) -> int:
 
 
 def _say_cost(specs: list[str], suites: list[str], workers: int) -> None:
-    from ..benchmark.agent_api import BUILTIN_AGENTS, load_agent
-    from ..benchmark.evaluate import plan_passes
     from ..benchmark.suites import load_suite
-    from ..costs import CostEstimate, lockstep_episode_cpu_s, say_cost
+    from ..costs import CostEstimate, say_cost
+    from .common import lockstep_cost
 
-    names = [str(s) for s in specs]
-    # the simulation passes: the baselines say which diagnoser they need (cheap to make); a model, the default
-    passes = len(plan_passes([load_agent(a) for a in names if a in BUILTIN_AGENTS], {})) or 1
-    cpu = sum(lockstep_episode_cpu_s(names, passes, sc.duration_s) for s in suites for sc in load_suite(s).scenarios)
-    n = sum(len(load_suite(s).scenarios) for s in suites)
+    cpu, n = lockstep_cost([str(s) for s in specs], [load_suite(s) for s in suites])
     say_cost("marine-fdi submit", f"{len(specs)} agent(s) x {n} episodes", CostEstimate(cpu, workers=workers))
 
 

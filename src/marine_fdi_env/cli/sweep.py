@@ -15,21 +15,17 @@ from .failures import fail
 
 def say_sweep_cost(agents: list[str], suites: list[str], n_offsets: int, workers: int) -> None:
     """The grid's expected time, said before it starts (:mod:`marine_fdi_env.costs`)."""
-    from ..benchmark.agent_api import BUILTIN_AGENTS, load_agent
     from ..benchmark.agent_registry import list_agents
-    from ..benchmark.evaluate import plan_passes
     from ..benchmark.suites import load_suite
-    from ..costs import CostEstimate, lockstep_episode_cpu_s, say_cost
+    from ..costs import CostEstimate, say_cost
+    from .common import lockstep_cost
 
     names = [e.name for e in list_agents() if e.available] if "all" in agents else agents
     try:
         loaded = [load_suite(s) for s in (SUITE_NAMES if "all" in suites else suites)]
     except ValueError:
         return  # run_sweep names the bad suite
-    # the simulation passes: the baselines say which diagnoser they need (cheap to make); a model, the default
-    passes = len(plan_passes([load_agent(a) for a in names if a in BUILTIN_AGENTS], {})) or 1
-    episodes = sum(len(s.scenarios) for s in loaded) * n_offsets
-    cpu = n_offsets * sum(lockstep_episode_cpu_s(names, passes, sc.duration_s) for s in loaded for sc in s.scenarios)
+    cpu, episodes = lockstep_cost(names, loaded, n_offsets)
     say_cost("marine-fdi sweep", f"{len(names)} agents x {episodes} episodes", CostEstimate(cpu, workers=workers))
 
 
