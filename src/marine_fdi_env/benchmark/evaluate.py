@@ -68,7 +68,7 @@ from ..jsonfile import json_safe
 from .agent_api import load_agent, resolve_agent_spec
 from .backends import Backend, chunk_size, run_tasks_counted
 from .lockstep import agent_view, episode_seed, score_agents
-from .metrics import compute_metrics, dx_metrics
+from .metrics import metric_blocks
 from .suites import load_suite
 
 __all__ = [
@@ -532,8 +532,7 @@ def evaluate_agents(
         result.update(
             package_version=__version__,
             n_scenarios=len(episodes),
-            metrics=compute_metrics(episodes),
-            dx_metrics=dx_metrics(episodes),
+            **metric_blocks(episodes),
             episodes=episodes,
         )
         if used:

@@ -229,7 +229,7 @@ def read_results_parquet(path: "str | Path") -> dict:
 def sweep_results(records: list[dict], source: str = "") -> list[dict]:
     """Results objects (as ``marine-fdi evaluate`` writes them) per agent x suite, pooled over
     the seed offsets, from sweep records (with ``agent_spec`` and ``seed_offset``)."""
-    from .metrics import compute_metrics, dx_metrics
+    from .metrics import metric_blocks
 
     groups: dict[tuple, list[dict]] = {}
     for r in records:
@@ -245,8 +245,7 @@ def sweep_results(records: list[dict], source: str = "") -> list[dict]:
                 "suite": suite,
                 "seed_offsets": offsets,
                 "n_episodes": len(recs),
-                "metrics": compute_metrics(clean),
-                "dx_metrics": dx_metrics(clean),
+                **metric_blocks(clean),
                 "episodes": clean,
                 "path": f"{source}[{spec} on {suite}]" if source else f"{spec} on {suite}",
             }
