@@ -107,11 +107,11 @@ def add_agent_option(ap: argparse.ArgumentParser) -> None:
 
 def add_suite_option(ap: argparse.ArgumentParser, default: str | None = None, what: str = "") -> None:
     """``--suite``: a suite by name or JSON path; required unless it has a ``default``; ``what`` ends its help."""
-    help = "suite name or JSON path" + (f" {what}" if what else "")
+    text = "suite name or JSON path" + (f" {what}" if what else "")
     if default is None:
-        ap.add_argument("--suite", required=True, help=help)
+        ap.add_argument("--suite", required=True, help=text)
     else:
-        ap.add_argument("--suite", default=default, help=f"{help} (default: {default})")
+        ap.add_argument("--suite", default=default, help=f"{text} (default: {default})")
 
 
 def add_seed_offset_option(ap: argparse.ArgumentParser) -> None:
@@ -119,9 +119,9 @@ def add_seed_offset_option(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--seed-offset", type=int, default=0, help="shift every noise seed (new noise, same scenarios)")
 
 
-def add_json_option(ap: argparse.ArgumentParser, help: str = "print JSON") -> None:
-    """``--json``: print a command's answer as JSON."""
-    ap.add_argument("--json", action="store_true", help=help)
+def add_json_option(ap: argparse.ArgumentParser, text: str = "print JSON") -> None:
+    """``--json``: print a command's answer as JSON (``text``: its help)."""
+    ap.add_argument("--json", action="store_true", help=text)
 
 
 def add_progress_option(ap: argparse.ArgumentParser) -> None:
