@@ -21,7 +21,7 @@ agent's code in their source (``python -m marine_fdi_env.info --imports``).
 from __future__ import annotations
 
 import importlib.util
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
@@ -86,15 +86,8 @@ class AgentEntry:
         return all(importlib.util.find_spec(m) is not None for m in self.needs)
 
     def to_dict(self) -> dict:
-        return {
-            "name": self.name,
-            "kind": self.kind,
-            "spec": self.spec,
-            "description": self.description,
-            "aliases": list(self.aliases),
-            "needs": list(self.needs),
-            "available": self.available,
-        }
+        """The fields (tuples as lists) and whether the agent is available, as JSON."""
+        return {**asdict(self), "aliases": list(self.aliases), "needs": list(self.needs), "available": self.available}
 
 
 def models_dir() -> Path | None:

@@ -125,9 +125,15 @@ def _estimates(episode_lists: Sequence[Sequence[dict]]) -> dict:
     return {m: interval(o, m).to_dict() for m in RATE_METRICS}
 
 
+def _suite_scores(records: list[dict]) -> dict:
+    """What an entry's suite block holds of its trace: ``metrics``, ``dx_metrics`` and ``intervals``."""
+    from .metrics import metric_blocks
+
+    return {**metric_blocks(records), "intervals": _estimates([records])}
+
+
 def suite_block(suite, records: list[dict], trace: str, trace_sha256: str, env_id: str, env: dict) -> dict:
     """The block of ``entry.json`` for one suite: its identity, the trace and what it gives."""
-    from .metrics import compute_metrics, dx_metrics
     from .provenance import suite_sha256
 
     return {
@@ -140,9 +146,7 @@ def suite_block(suite, records: list[dict], trace: str, trace_sha256: str, env_i
         "env": env,
         "trace": trace,
         "trace_sha256": trace_sha256,
-        "metrics": compute_metrics(records),
-        "dx_metrics": dx_metrics(records),
-        "intervals": _estimates([records]),
+        **_suite_scores(records),
     }
 
 
@@ -348,7 +352,7 @@ def _trace_sha256(entry_dir: Path, block: dict) -> str:
 
 def _verify_entry(entry_dir: Path, check_agent: bool, recompute: bool) -> Verification:
     from .agent_registry import models_dir
-    from .metrics import compute_metrics, dx_metrics, validate_record
+    from .metrics import validate_record
     from .provenance import AGENT_FOLDER, file_sha256, software_versions, suite_sha256
     from .suites import SUITE_NAMES, load_suite
 
@@ -430,11 +434,7 @@ def _verify_entry(entry_dir: Path, check_agent: bool, recompute: bool) -> Verifi
                 f"suite {name}: n_episodes: the entry says {block.get('n_episodes')}, the trace holds {len(records)}"
             )
             continue
-        for key, now in (
-            ("metrics", compute_metrics(records)),
-            ("dx_metrics", dx_metrics(records)),
-            ("intervals", _estimates([records])),
-        ):
+        for key, now in _suite_scores(records).items():
             d = _first_difference(block.get(key), json.loads(json.dumps(now)), f"suite {name}: {key}")
             if d:
                 v.problems.append(d)

@@ -68,7 +68,7 @@ from ..jsonfile import json_safe
 from .agent_api import load_agent, resolve_agent_spec
 from .backends import Backend, chunk_size, run_tasks_counted
 from .lockstep import agent_view, episode_seed, score_agents
-from .metrics import compute_metrics, dx_metrics
+from .metrics import metric_blocks
 from .suites import load_suite
 
 __all__ = [
@@ -434,7 +434,10 @@ def evaluate_agents(
     """Evaluate several agents on a suite in one pass over its episodes, resumably; returns the
     results object written to each ``outs[j]`` (as :func:`evaluate` writes it for one agent).
 
-    ``cache``: ``use`` (replay the suite's feature cache in ``cache_dir`` when there is one),
+    ``backend``: a :class:`~.backends.Backend` or its name (default: ``process`` if
+    ``workers > 1``, else ``serial``).  ``reward``: the reward to score (``v0``, ``v1`` or a config
+    dict); default: the suite's ``env.reward``, else ``v1``.  A suite that fixes its reward refuses
+    another one.  ``cache``: ``use`` (replay the suite's feature cache in ``cache_dir`` when there is one),
     ``write`` (simulate and write it) or ``off`` (:mod:`.feature_cache`)."""
     if not isinstance(backend, Backend):
         backend = Backend.make(backend, workers, ray_address)
@@ -529,8 +532,7 @@ def evaluate_agents(
         result.update(
             package_version=__version__,
             n_scenarios=len(episodes),
-            metrics=compute_metrics(episodes),
-            dx_metrics=dx_metrics(episodes),
+            **metric_blocks(episodes),
             episodes=episodes,
         )
         if used:
@@ -548,39 +550,10 @@ def evaluate_agents(
     return results
 
 
-def evaluate(
-    agent_spec: str,
-    suite_name: str,
-    out: Path,
-    *,
-    workers: int = 1,
-    seed_offset: int = 0,
-    batch_size: int = 32,
-    progress: bool = True,
-    backend: "Backend | str | None" = None,
-    ray_address: str | None = None,
-    reward: "str | dict | None" = None,
-    cache: str = "off",
-    cache_dir=None,
-) -> dict:
+def evaluate(agent_spec: str, suite_name: str, out: Path, **options) -> dict:
     """Evaluate an agent on a suite, resumably; returns the results object written to ``out``.
 
-    ``backend``: a :class:`~.backends.Backend` or its name (default: ``process`` if
-    ``workers > 1``, else ``serial``).  ``reward``: the reward to score (``v0``, ``v1`` or a config
-    dict); default: the suite's ``env.reward``, else ``v1``.  A suite that fixes its reward refuses
-    another one.  ``cache``, ``cache_dir``: the feature cache (:func:`evaluate_agents`).
+    ``options``: the keyword options of :func:`evaluate_agents` (``workers``, ``seed_offset``, ``batch_size``,
+    ``progress``, ``backend``, ``ray_address``, ``reward``, ``cache``, ``cache_dir``).
     """
-    return evaluate_agents(
-        [agent_spec],
-        suite_name,
-        [out],
-        workers=workers,
-        seed_offset=seed_offset,
-        batch_size=batch_size,
-        progress=progress,
-        backend=backend,
-        ray_address=ray_address,
-        reward=reward,
-        cache=cache,
-        cache_dir=cache_dir,
-    )[0]
+    return evaluate_agents([agent_spec], suite_name, [out], **options)[0]

@@ -30,6 +30,7 @@ from ..envs.reward import RewardConfig, RewardConfigV1
 from ..envs.scoring import DecisionScorer
 from ..envs.trajectory import Trajectory, cell_sets_of, feature_columns
 from ..envs.vector import object_array, scatter_infos
+from .records import episode_record
 
 __all__ = ["episode_seed", "AgentView", "agent_view", "score_agents"]
 
@@ -100,29 +101,22 @@ class _Episodes:
             share = self.share[:d, r]
             ok = ~np.isnan(share)
             term = bool(tr.terminated[i])
-            feature_s = float(tr.compute_s[i])
             out.append(
-                {
-                    "scenario_id": sc.scenario_id,
-                    "suite": suite,
-                    "seed": int(sc.noise_seed),
-                    "agent": name,
-                    "profile": sc.profile,
-                    "duration_s": float(t[-1]) if term else float(sc.duration_s),
-                    "decision_period_s": tr.decision_period_s,
-                    "n_samples": int(d * tr.period_samples),
-                    "faults": sc.truth(),
-                    "declared_changes": self.trace[r],
-                    "belief_on_truth": np.column_stack((t[ok], share[ok])).tolist(),
-                    "terminated": term,
-                    "failure_reason": (tr.failures[i] or {}).get("reason") or None if term else None,
-                    "compute_s": float(feature_s + self.agent_s[r]),
-                    "return": float(self.ret[r]),
-                    "reward_terms": {k: float(v[r]) for k, v in self.terms.items()},
-                    "feature_compute_s": feature_s,
-                    "agent_compute_s": float(self.agent_s[r]),
-                    "n_decisions": d,
-                }
+                episode_record(
+                    sc,
+                    suite,
+                    name,
+                    duration_s=float(t[-1]) if term else float(sc.duration_s),
+                    decision_period_s=tr.decision_period_s,
+                    n_samples=int(d * tr.period_samples),
+                    declared_changes=self.trace[r],
+                    belief_on_truth=np.column_stack((t[ok], share[ok])).tolist(),
+                    failure=tr.failures[i],
+                    terminated=term,
+                    ret=float(self.ret[r]),
+                    reward_terms={k: float(v[r]) for k, v in self.terms.items()},
+                    split=(float(tr.compute_s[i]), float(self.agent_s[r]), d),
+                )
             )
         return out
 

@@ -107,6 +107,7 @@ __all__ = [
     "aggregate",
     "dx_metrics",
     "dx_aggregate",
+    "metric_blocks",
     "FAULT_CLASSES",
     "DX_KEYS",
     "scored_once",
@@ -609,3 +610,9 @@ def dx_metrics(records: Sequence[Mapping]) -> dict:
     out = dx_aggregate(outcomes)
     out["by_class"] = {c: dx_aggregate([o for o in outcomes if o.fault_class == c]) for c in FAULT_CLASSES}
     return out
+
+
+def metric_blocks(records: Sequence[Mapping]) -> dict:
+    """``{"metrics": compute_metrics(records), "dx_metrics": dx_metrics(records)}``: the scores of a results
+    object, of an entry's suite and of a sweep's cell."""
+    return {"metrics": compute_metrics(records), "dx_metrics": dx_metrics(records)}

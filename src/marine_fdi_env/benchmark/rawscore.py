@@ -57,6 +57,7 @@ from ..engine.faults import FAULT_IDS, fault_class, window_time
 from ..errors import DataFileError
 from .metrics import compute_metrics
 from .rawdata import OUTPUT_COLUMNS, RANK_COLUMNS, read_manifest, scenario_stem
+from .records import episode_record
 from .suites import load_suite
 
 __all__ = ["score_raw", "read_predictions", "dx_metrics", "RANK_SUM_TOL", "TIME_TOL_S"]
@@ -217,25 +218,18 @@ def _record(sc, entry: dict, suite: str, agent: str, dt: float, comp, det, ranks
     if on.any():
         share = (ranks[:, :_N_FAULTS] * act).sum(axis=1)[on]
         bot = [[float(t[np.argmax(on)]), float(share.mean())]]
-    fail = entry.get("engine_failure")
-    return {
-        "scenario_id": sc.scenario_id,
-        "suite": suite,
-        "seed": int(sc.noise_seed),
-        "agent": agent,
-        "profile": sc.profile,
-        "duration_s": float(t[-1]) if n else 0.0,
-        "decision_period_s": dt,
-        "n_samples": n,
-        "faults": sc.truth(),
-        "declared_changes": trace,
-        "belief_on_truth": bot,
-        "terminated": fail is not None,
-        "failure_reason": None if fail is None else str(fail["reason"]),
-        "compute_s": float(comp.sum()),
-        "return": 0.0,
-        "reward_terms": {},
-    }
+    return episode_record(
+        sc,
+        suite,
+        agent,
+        duration_s=float(t[-1]) if n else 0.0,
+        decision_period_s=dt,
+        n_samples=n,
+        declared_changes=trace,
+        belief_on_truth=bot,
+        failure=entry.get("engine_failure"),
+        compute_s=float(comp.sum()),
+    )
 
 
 def dx_metrics(parts: list[dict]) -> dict:

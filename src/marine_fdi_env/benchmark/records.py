@@ -26,6 +26,7 @@ from typing import Iterable, Mapping
 from ..errors import MissingExtra
 
 __all__ = [
+    "episode_record",
     "pyarrow",
     "records_to_table",
     "table_to_records",
@@ -40,6 +41,59 @@ META_KEY = b"marine_fdi"
 _EXTRA = {"agent_spec": "string", "seed_offset": "int64"}
 
 
+# record fields that older results do not have (null in the table, left out of a record read back)
+_OPTIONAL = {"feature_compute_s": "float64", "agent_compute_s": "float64", "n_decisions": "int64"}
+
+
+def episode_record(
+    sc,
+    suite: str,
+    agent: str,
+    *,
+    duration_s: float,
+    decision_period_s: float,
+    n_samples: int,
+    declared_changes: list,
+    belief_on_truth: list,
+    failure: Mapping | None,
+    terminated: bool | None = None,
+    compute_s: float | None = None,
+    ret: float = 0.0,
+    reward_terms: Mapping[str, float] | None = None,
+    split: tuple[float, float, int] | None = None,
+) -> dict:
+    """The record of one episode of scenario ``sc`` (a :class:`~marine_fdi_env.envs.scenario_sampler.ScenarioSpec`),
+    its fields in their order.  ``failure``: the engine failure of the episode (its ``reason`` is the record's
+    ``failure_reason`` when the episode is ``terminated``, by default when there is a failure); ``ret``: the
+    return; ``split``: ``(feature_compute_s, agent_compute_s, n_decisions)``, the optional fields, whose two
+    times add up to ``compute_s`` when it is not given."""
+    if terminated is None:
+        terminated = failure is not None
+    if compute_s is None:
+        compute_s = float(split[0] + split[1])
+    rec = {
+        "scenario_id": sc.scenario_id,
+        "suite": suite,
+        "seed": int(sc.noise_seed),
+        "agent": agent,
+        "profile": sc.profile,
+        "duration_s": duration_s,
+        "decision_period_s": decision_period_s,
+        "n_samples": n_samples,
+        "faults": sc.truth(),
+        "declared_changes": declared_changes,
+        "belief_on_truth": belief_on_truth,
+        "terminated": terminated,
+        "failure_reason": (failure or {}).get("reason") or None if terminated else None,
+        "compute_s": compute_s,
+        "return": ret,
+        "reward_terms": dict(reward_terms or {}),
+    }
+    if split is not None:
+        rec.update(zip(_OPTIONAL, split))
+    return rec
+
+
 def pyarrow():
     """``(pyarrow, pyarrow.parquet)``; :class:`~marine_fdi_env.errors.MissingExtra` naming the extra when missing."""
     try:
@@ -48,10 +102,6 @@ def pyarrow():
     except ImportError:
         raise MissingExtra("pyarrow", "reading or writing Parquet") from None
     return pa, pq
-
-
-# record fields that older results do not have (null in the table, left out of a record read back)
-_OPTIONAL = {"feature_compute_s": "float64", "agent_compute_s": "float64", "n_decisions": "int64"}
 
 
 def _schema(pa, extra: Iterable[str] = ()):
@@ -179,7 +229,7 @@ def read_results_parquet(path: "str | Path") -> dict:
 def sweep_results(records: list[dict], source: str = "") -> list[dict]:
     """Results objects (as ``marine-fdi evaluate`` writes them) per agent x suite, pooled over
     the seed offsets, from sweep records (with ``agent_spec`` and ``seed_offset``)."""
-    from .metrics import compute_metrics, dx_metrics
+    from .metrics import metric_blocks
 
     groups: dict[tuple, list[dict]] = {}
     for r in records:
@@ -195,8 +245,7 @@ def sweep_results(records: list[dict], source: str = "") -> list[dict]:
                 "suite": suite,
                 "seed_offsets": offsets,
                 "n_episodes": len(recs),
-                "metrics": compute_metrics(clean),
-                "dx_metrics": dx_metrics(clean),
+                **metric_blocks(clean),
                 "episodes": clean,
                 "path": f"{source}[{spec} on {suite}]" if source else f"{spec} on {suite}",
             }

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 
-from .common import CommandParser
+from .common import CommandParser, add_json_option
 from .failures import fail
 
 __all__ = ["agents_main"]
@@ -20,7 +20,7 @@ def agents_main(argv=None) -> int:
         "name: the baselines and every shipped model (a folder of training/models/). Any other agent: "
         "a model folder by path, or path/to/file.py:ClassName (docs/agent_api.md).",
     )
-    ap.add_argument("--json", action="store_true", help="print JSON")
+    add_json_option(ap)
     args, code = parse_cli(ap, argv)
     if args is None:
         return code

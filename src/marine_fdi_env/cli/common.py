@@ -36,10 +36,16 @@ __all__ = [
     "parse_cli",
     "run_parsed",
     "interrupted",
+    "add_agent_option",
+    "add_suite_option",
+    "add_seed_offset_option",
+    "add_json_option",
+    "add_progress_option",
     "add_backend_args",
     "backend_from_args",
     "add_cache_args",
     "cache_from_args",
+    "lockstep_cost",
     "option_value",
     "positive_seconds",
     "dumps",
@@ -87,6 +93,40 @@ def interrupted(prog: str, kept: str = "") -> int:
         f"{prog}: interrupted; " + (f"{kept}, " if kept else "") + "rerun the same command to resume", file=sys.stderr
     )
     return INTERRUPTED
+
+
+def add_agent_option(ap: argparse.ArgumentParser) -> None:
+    """``--agent``: the agent to run, by name, folder or file (default reference)."""
+    ap.add_argument(
+        "--agent",
+        default="reference",
+        help="an agent name (see 'marine-fdi agents': null, random, reference, sequential, oracle, "
+        "the shipped models), a directory with agent.json, or path/to/file.py:ClassName (default: reference)",
+    )
+
+
+def add_suite_option(ap: argparse.ArgumentParser, default: str | None = None, what: str = "") -> None:
+    """``--suite``: a suite by name or JSON path; required unless it has a ``default``; ``what`` ends its help."""
+    text = "suite name or JSON path" + (f" {what}" if what else "")
+    if default is None:
+        ap.add_argument("--suite", required=True, help=text)
+    else:
+        ap.add_argument("--suite", default=default, help=f"{text} (default: {default})")
+
+
+def add_seed_offset_option(ap: argparse.ArgumentParser) -> None:
+    """``--seed-offset``: new noise on the same scenarios."""
+    ap.add_argument("--seed-offset", type=int, default=0, help="shift every noise seed (new noise, same scenarios)")
+
+
+def add_json_option(ap: argparse.ArgumentParser, text: str = "print JSON") -> None:
+    """``--json``: print a command's answer as JSON (``text``: its help)."""
+    ap.add_argument("--json", action="store_true", help=text)
+
+
+def add_progress_option(ap: argparse.ArgumentParser) -> None:
+    """``--no-progress``: no progress bar."""
+    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def add_backend_args(ap: argparse.ArgumentParser, default_batch: int = 32) -> None:
@@ -157,6 +197,20 @@ def cache_from_args(args) -> tuple[str, Path]:
     if args.cache == "write":
         require_extra("pyarrow", "--cache write")
     return args.cache, args.cache_dir
+
+
+def lockstep_cost(agents: list[str], suites: list, n_offsets: int = 1) -> tuple[float, int]:
+    """The expected CPU seconds and the number of episodes of scoring ``agents`` (specs) together, in lockstep,
+    on the loaded ``suites``, each with ``n_offsets`` seed offsets (:mod:`marine_fdi_env.costs`)."""
+    from ..benchmark.agent_api import BUILTIN_AGENTS, load_agent
+    from ..benchmark.evaluate import plan_passes
+    from ..costs import lockstep_episode_cpu_s
+
+    # the simulation passes: the baselines say which diagnoser they need (cheap to make); a model, the default
+    passes = len(plan_passes([load_agent(a) for a in agents if a in BUILTIN_AGENTS], {})) or 1
+    episodes = sum(len(s.scenarios) for s in suites) * n_offsets
+    cpu = n_offsets * sum(lockstep_episode_cpu_s(agents, passes, sc.duration_s) for s in suites for sc in s.scenarios)
+    return cpu, episodes
 
 
 def option_value(option: str, fn, *args, **kwargs):

@@ -54,7 +54,7 @@ finished dataset is not overwritten without --force.
 def build_parser() -> argparse.ArgumentParser:
     from ..benchmark.suites import SUITE_NAMES
     from ..envs.scenario_sampler import PRESETS
-    from .common import add_backend_args
+    from .common import add_backend_args, add_progress_option
 
     ap = CommandParser(
         prog="marine-fdi dataset",
@@ -127,7 +127,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="overwrite a finished dataset in --out, or discard another export's kept chunks there",
     )
     add_backend_args(ap, default_batch=64)
-    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_progress_option(ap)
     return ap
 
 

@@ -7,7 +7,15 @@ from pathlib import Path
 
 from ..benchmark.evaluate import evaluate
 from ..errors import UsageError
-from .common import CommandParser
+from .common import (
+    CommandParser,
+    add_agent_option,
+    add_backend_args,
+    add_cache_args,
+    add_progress_option,
+    add_seed_offset_option,
+    add_suite_option,
+)
 from .failures import fail
 
 RESULT_SUFFIXES = (".json", ".parquet")  # the formats a results file is written in
@@ -59,13 +67,8 @@ def build_parser() -> argparse.ArgumentParser:
         description="Run an agent on a frozen evaluation suite and print its metrics. With no arguments: the "
         "reference diagnoser on thesis-v1.",
     )
-    ap.add_argument(
-        "--agent",
-        default="reference",
-        help="an agent name (see 'marine-fdi agents': null, random, reference, sequential, oracle, "
-        "the shipped models), a directory with agent.json, or path/to/file.py:ClassName (default: reference)",
-    )
-    ap.add_argument("--suite", default="thesis-v1", help="suite name or JSON path (default: thesis-v1)")
+    add_agent_option(ap)
+    add_suite_option(ap, default="thesis-v1")
     ap.add_argument(
         "--out",
         type=Path,
@@ -74,15 +77,13 @@ def build_parser() -> argparse.ArgumentParser:
         "(default: results/AGENT_SUITE.json; when that holds this run's results they are shown, "
         "when it holds another run's a new file RESULTS-2.json is written beside it)",
     )
-    ap.add_argument("--seed-offset", type=int, default=0, help="shift every noise seed (new noise, same scenarios)")
+    add_seed_offset_option(ap)
     ap.add_argument(
         "--force",
         action="store_true",
         help="recompute and overwrite the results file when it already holds results (without it: an "
         "explicit --out is an error, the default file is shown)",
     )
-    from .common import add_backend_args, add_cache_args
-
     add_backend_args(ap)
     add_cache_args(ap)
     ap.add_argument(
@@ -91,7 +92,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="reward scored in the results' return (default: the suite's, else v1 = MarineFDI-v1)",
     )
-    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_progress_option(ap)
     return ap
 
 

@@ -22,7 +22,7 @@ from ..engine.steady_state import FUEL_SETTING_RANGE
 from ..errors import require_extra
 from ..outputs import prepare_out
 from ..scenarios import SCENARIOS
-from .common import PROG, CommandParser, parse_cli
+from .common import PROG, CommandParser, add_json_option, parse_cli
 from .diagnose import cmd_diagnose
 from .failures import DEBUG_ENV, DEBUG_FLAG, debugging, fail, run_command, split_debug
 from .simulation import (
@@ -83,7 +83,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="U",
         help=f"fuel setting in [{FUEL_SETTING_RANGE[0]:g}, {FUEL_SETTING_RANGE[1]:g}], 1.0 = nominal",
     )
-    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    add_json_option(p, "print JSON instead of a table")
     p.set_defaults(func=cmd_operating_point)
 
     p = sub.add_parser(
@@ -162,7 +162,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="List the shipped parameter sets, or print one set's parameters with value, unit and source.",
     )
     p.add_argument("--name", default=None, metavar="NAME|FILE.json", help="parameter set or fitted-engine file to show")
-    p.add_argument("--json", action="store_true", help="print JSON")
+    add_json_option(p)
     p.set_defaults(func=cmd_params)
 
     p = sub.add_parser(
@@ -170,7 +170,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="list the thesis fault scenarios",
         description="The named scenarios usable with 'simulate --scenario'.",
     )
-    p.add_argument("--json", action="store_true", help="print JSON")
+    add_json_option(p)
     p.set_defaults(func=cmd_scenarios)
 
     p = sub.add_parser(
@@ -237,7 +237,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("file", metavar="FILE", help="run file written by 'marine-fdi simulate'")
     p.add_argument("--allow-nonfinite", action="store_true", help="accept NaN/inf measurements (dropouts)")
-    p.add_argument("--json", action="store_true", help="print JSON")
+    add_json_option(p)
     p.set_defaults(func=cmd_info)
     return parser
 

@@ -11,7 +11,13 @@ from pathlib import Path
 from ..benchmark import rawdata, rawscore
 from ..benchmark.rawdata import export_raw, predict_raw, read_manifest
 from ..benchmark.rawscore import dx_table, score_raw
-from .common import CommandParser
+from .common import (
+    CommandParser,
+    add_agent_option,
+    add_progress_option,
+    add_seed_offset_option,
+    add_suite_option,
+)
 from .failures import fail
 
 
@@ -44,10 +50,10 @@ def export_raw_main(argv=None) -> int:
         "ground truth in the LiU-ICE / DX'25 kit layout.",
         epilog=rawdata.__doc__,
     )
-    ap.add_argument("--suite", required=True, help="suite name or JSON path")
+    add_suite_option(ap)
     ap.add_argument("--out", type=Path, required=True, help="output folder (its parent is created if missing)")
-    ap.add_argument("--seed-offset", type=int, default=0, help="shift every noise seed (new noise, same scenarios)")
-    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_seed_offset_option(ap)
+    add_progress_option(ap)
     args, code = parse_cli(ap, argv)
     if args is None:
         return code
@@ -78,13 +84,11 @@ def predict_raw_main(argv=None) -> int:
         "LiU-ICE / DX'25 output layout: one output_<data file> per scenario. The reference's outputs "
         "written this way are the baseline a DX participant compares with.",
     )
-    ap.add_argument(
-        "--agent", default="reference", help="an agent name, model folder or file.py:Class (default: reference)"
-    )
+    add_agent_option(ap)
     ap.add_argument("--data", type=Path, required=True, help="raw suite folder (marine-fdi export-raw --out)")
     ap.add_argument("--out", type=Path, required=True, help="predictions folder (its parent is created if missing)")
     ap.add_argument("--batch-size", type=int, default=32, help="episodes advanced together (default 32)")
-    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_progress_option(ap)
     args, code = parse_cli(ap, argv)
     if args is None:
         return code
@@ -115,7 +119,7 @@ def score_raw_main(argv=None) -> int:
         "benchmark's metrics and the DX per-sample ones.",
         epilog=rawscore.__doc__,
     )
-    ap.add_argument("--suite", required=True, help="suite name or JSON path the predictions are for")
+    add_suite_option(ap, what="the predictions are for")
     ap.add_argument("--predictions", type=Path, required=True, help="folder of output_<scenario>.csv files")
     ap.add_argument(
         "--data",
@@ -129,7 +133,7 @@ def score_raw_main(argv=None) -> int:
     ap.add_argument(
         "--out", type=Path, default=None, help="write the results (.json or .parquet; readable by 'marine-fdi report')"
     )
-    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_progress_option(ap)
     args, code = parse_cli(ap, argv)
     if args is None:
         return code

@@ -13,7 +13,7 @@ from ..validation.fit.problem import FitProblem
 from ..validation.measured.loader import load_data_arg
 from ..validation.select.replicas import NOISE_MODELS, markdown_table, replicate
 from ..validation.select.selection import select_causes
-from .common import CommandParser, parse_cli
+from .common import CommandParser, add_progress_option, parse_cli
 from .failures import fail
 from .selection_options import add_valve_options, rules_from_args
 
@@ -52,7 +52,7 @@ def replicas_main(argv: Sequence[str] | None = None) -> int:
         help="a channel's tolerance in its units or as P%% of its mean value (as marine-fdi validate)",
     )
     add_valve_options(ap)
-    ap.add_argument("--no-progress", action="store_true")
+    add_progress_option(ap)
     args, code = parse_cli(ap, list(argv) if argv is not None else None)
     if args is None:
         return code

@@ -59,7 +59,7 @@ def _clear(out: Path) -> None:
 
 def submit_main(argv=None) -> int:
     from ..benchmark.suites import SUITE_NAMES
-    from .common import CommandParser, add_backend_args, interrupted, parse_cli
+    from .common import CommandParser, add_backend_args, add_progress_option, interrupted, parse_cli
 
     argv = list(sys.argv[1:] if argv is None else argv)
     ap = CommandParser(
@@ -105,7 +105,7 @@ def submit_main(argv=None) -> int:
     )
     ap.add_argument("--force", action="store_true", help="overwrite an entry in --out")
     add_backend_args(ap)
-    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_progress_option(ap)
     args, code = parse_cli(ap, argv)
     if args is None:
         return code
@@ -179,21 +179,16 @@ def submit_main(argv=None) -> int:
 
 
 def _say_cost(specs: list[str], suites: list[str], workers: int) -> None:
-    from ..benchmark.agent_api import BUILTIN_AGENTS, load_agent
-    from ..benchmark.evaluate import plan_passes
     from ..benchmark.suites import load_suite
-    from ..costs import CostEstimate, lockstep_episode_cpu_s, say_cost
+    from ..costs import CostEstimate, say_cost
+    from .common import lockstep_cost
 
-    names = [str(s) for s in specs]
-    # the simulation passes: the baselines say which diagnoser they need (cheap to make); a model, the default
-    passes = len(plan_passes([load_agent(a) for a in names if a in BUILTIN_AGENTS], {})) or 1
-    cpu = sum(lockstep_episode_cpu_s(names, passes, sc.duration_s) for s in suites for sc in load_suite(s).scenarios)
-    n = sum(len(load_suite(s).scenarios) for s in suites)
+    cpu, n = lockstep_cost([str(s) for s in specs], [load_suite(s) for s in suites])
     say_cost("marine-fdi submit", f"{len(specs)} agent(s) x {n} episodes", CostEstimate(cpu, workers=workers))
 
 
 def verify_main(argv=None) -> int:
-    from .common import CommandParser, add_backend_args, parse_cli
+    from .common import CommandParser, add_backend_args, add_progress_option, parse_cli
 
     ap = CommandParser(
         prog="marine-fdi verify",
@@ -218,7 +213,7 @@ def verify_main(argv=None) -> int:
         "all the leaderboard's entries; catches corruption, not an edited metric",
     )
     add_backend_args(ap)
-    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_progress_option(ap)
     args, code = parse_cli(ap, argv)
     if args is None:
         return code

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 
 from ..benchmark.suites import SUITE_NAMES, load_suite
-from .common import CommandParser, parse_cli
+from .common import CommandParser, add_json_option, parse_cli
 
 __all__ = ["suites_main"]
 
@@ -16,7 +16,7 @@ def suites_main(argv=None) -> int:
         description="List the frozen evaluation suites "
         "('marine-fdi evaluate --suite NAME'): name, episodes, description.",
     )
-    ap.add_argument("--json", action="store_true", help="print JSON")
+    add_json_option(ap)
     args, code = parse_cli(ap, argv)
     if args is None:
         return code

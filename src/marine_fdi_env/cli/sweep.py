@@ -15,21 +15,17 @@ from .failures import fail
 
 def say_sweep_cost(agents: list[str], suites: list[str], n_offsets: int, workers: int) -> None:
     """The grid's expected time, said before it starts (:mod:`marine_fdi_env.costs`)."""
-    from ..benchmark.agent_api import BUILTIN_AGENTS, load_agent
     from ..benchmark.agent_registry import list_agents
-    from ..benchmark.evaluate import plan_passes
     from ..benchmark.suites import load_suite
-    from ..costs import CostEstimate, lockstep_episode_cpu_s, say_cost
+    from ..costs import CostEstimate, say_cost
+    from .common import lockstep_cost
 
     names = [e.name for e in list_agents() if e.available] if "all" in agents else agents
     try:
         loaded = [load_suite(s) for s in (SUITE_NAMES if "all" in suites else suites)]
     except ValueError:
         return  # run_sweep names the bad suite
-    # the simulation passes: the baselines say which diagnoser they need (cheap to make); a model, the default
-    passes = len(plan_passes([load_agent(a) for a in names if a in BUILTIN_AGENTS], {})) or 1
-    episodes = sum(len(s.scenarios) for s in loaded) * n_offsets
-    cpu = n_offsets * sum(lockstep_episode_cpu_s(names, passes, sc.duration_s) for s in loaded for sc in s.scenarios)
+    cpu, episodes = lockstep_cost(names, loaded, n_offsets)
     say_cost("marine-fdi sweep", f"{len(names)} agents x {episodes} episodes", CostEstimate(cpu, workers=workers))
 
 
@@ -37,7 +33,15 @@ def sweep_main(argv=None) -> int:
     from ..benchmark.report import markdown_table
     from ..errors import require_extra
     from ..outputs import prepare_out
-    from .common import add_backend_args, add_cache_args, backend_from_args, cache_from_args, interrupted, parse_cli
+    from .common import (
+        add_backend_args,
+        add_cache_args,
+        add_progress_option,
+        backend_from_args,
+        cache_from_args,
+        interrupted,
+        parse_cli,
+    )
 
     ap = CommandParser(
         prog="marine-fdi sweep",
@@ -76,7 +80,7 @@ def sweep_main(argv=None) -> int:
     )
     add_backend_args(ap)
     add_cache_args(ap)
-    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_progress_option(ap)
     args, code = parse_cli(ap, argv)
     if args is None:
         return code

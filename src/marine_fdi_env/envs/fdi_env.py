@@ -141,17 +141,6 @@ class MarineFDIEnv(gym.Env):
         self.scenario_config = get_preset(scenario_config)
         reward = make_reward_config(reward)
         self.render_mode = supported_render_mode(render_mode, self.metadata["render_modes"])
-        self._init_kwargs = dict(
-            scenario_config=self.scenario_config,
-            decision_period_s=decision_period_s,
-            observe_sensors=observe_sensors,
-            reward=reward,
-            params=params,
-            dt=dt,
-            observe_sequential=observe_sequential,
-            diagnosis_cells=diagnosis_cells,
-            diagnosis_thresholds=diagnosis_thresholds,
-        )
         self.batch = EpisodeBatch(
             1,
             params,

@@ -17,6 +17,7 @@ import numpy as np
 from ..benchmark.evaluate import suite_env_kwargs, warm_up
 from ..benchmark.lockstep import episode_seed
 from ..benchmark.metrics import compute_metrics
+from ..benchmark.records import episode_record
 from ..benchmark.suites import load_suite
 from ..envs.scenario_sampler import ScenarioSpec
 from .batch import MultiAgentBatchEnv
@@ -93,29 +94,22 @@ def team_records(
     for i, sc in enumerate(scenarios):
         d = int(rec.decisions[i])
         term = bool(env.ended_by_failure[i])
-        feature_s = float(b.compute_s[i])
         out.append(
-            {
-                "scenario_id": sc.scenario_id,
-                "suite": suite,
-                "seed": int(sc.noise_seed),
-                "agent": team.name,
-                "profile": sc.profile,
-                "duration_s": float(rec.last_t[i]) if term else float(sc.duration_s),
-                "decision_period_s": b.decision_period_s,
-                "n_samples": int(d * b.period_samples),
-                "faults": sc.truth(),
-                "declared_changes": rec.trace[i],
-                "belief_on_truth": rec.share[i],
-                "terminated": term,
-                "failure_reason": (b.failure[i] or {}).get("reason") or None if term else None,
-                "compute_s": feature_s + float(rec.agent_s[i]),
-                "return": float(rec.ret[i]),
-                "reward_terms": {k: float(v[i]) for k, v in rec.terms.items()},
-                "feature_compute_s": feature_s,
-                "agent_compute_s": float(rec.agent_s[i]),
-                "n_decisions": d,
-            }
+            episode_record(
+                sc,
+                suite,
+                team.name,
+                duration_s=float(rec.last_t[i]) if term else float(sc.duration_s),
+                decision_period_s=b.decision_period_s,
+                n_samples=int(d * b.period_samples),
+                declared_changes=rec.trace[i],
+                belief_on_truth=rec.share[i],
+                failure=b.failure[i],
+                terminated=term,
+                ret=float(rec.ret[i]),
+                reward_terms={k: float(v[i]) for k, v in rec.terms.items()},
+                split=(float(b.compute_s[i]), float(rec.agent_s[i]), d),
+            )
         )
     return out
 
