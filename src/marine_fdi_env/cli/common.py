@@ -40,6 +40,7 @@ __all__ = [
     "add_suite_option",
     "add_seed_offset_option",
     "add_json_option",
+    "add_force_option",
     "add_progress_option",
     "add_backend_args",
     "backend_from_args",
@@ -122,6 +123,11 @@ def add_seed_offset_option(ap: argparse.ArgumentParser) -> None:
 def add_json_option(ap: argparse.ArgumentParser, text: str = "print JSON") -> None:
     """``--json``: print a command's answer as JSON (``text``: its help)."""
     ap.add_argument("--json", action="store_true", help=text)
+
+
+def add_force_option(ap: argparse.ArgumentParser, text: str) -> None:
+    """``--force``: overwrite what ``--out`` already holds (``text``: what, and what happens without it)."""
+    ap.add_argument("--force", action="store_true", help=text)
 
 
 def add_progress_option(ap: argparse.ArgumentParser) -> None:

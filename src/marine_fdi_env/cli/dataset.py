@@ -13,7 +13,7 @@ from ..benchmark.suites import load_suite
 from ..costs import CostEstimate, check_memory, episode_cpu_s, say_cost
 from ..envs.observation import feature_names
 from ..envs.scenario_sampler import get_preset
-from .common import CommandParser
+from .common import CommandParser, add_force_option
 from .failures import fail
 
 EPISODE_DECISION_PERIOD_S = 1.0  # the environment's decision period, which the exported episodes keep
@@ -121,11 +121,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument(
         "--observe-sensors", action="store_true", help="append the normalised sensor readings to the features"
     )
-    ap.add_argument(
-        "--force",
-        action="store_true",
-        help="overwrite a finished dataset in --out, or discard another export's kept chunks there",
-    )
+    add_force_option(ap, "overwrite a finished dataset in --out, or discard another export's kept chunks there")
     add_backend_args(ap, default_batch=64)
     add_progress_option(ap)
     return ap

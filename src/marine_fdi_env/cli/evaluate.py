@@ -12,6 +12,7 @@ from .common import (
     add_agent_option,
     add_backend_args,
     add_cache_args,
+    add_force_option,
     add_progress_option,
     add_seed_offset_option,
     add_suite_option,
@@ -78,10 +79,9 @@ def build_parser() -> argparse.ArgumentParser:
         "when it holds another run's a new file RESULTS-2.json is written beside it)",
     )
     add_seed_offset_option(ap)
-    ap.add_argument(
-        "--force",
-        action="store_true",
-        help="recompute and overwrite the results file when it already holds results (without it: an "
+    add_force_option(
+        ap,
+        "recompute and overwrite the results file when it already holds results (without it: an "
         "explicit --out is an error, the default file is shown)",
     )
     add_backend_args(ap)

@@ -22,7 +22,7 @@ from ..engine.steady_state import FUEL_SETTING_RANGE
 from ..errors import require_extra
 from ..outputs import prepare_out
 from ..scenarios import SCENARIOS
-from .common import PROG, CommandParser, add_json_option, parse_cli
+from .common import PROG, CommandParser, add_force_option, add_json_option, parse_cli
 from .diagnose import cmd_diagnose
 from .failures import DEBUG_ENV, DEBUG_FLAG, debugging, fail, run_command, split_debug
 from .simulation import (
@@ -147,7 +147,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="FILE.npz",
         help="output run file (its folder is created if missing, never more levels)",
     )
-    p.add_argument("--force", action="store_true", help="overwrite --out if it exists (without it: an error)")
+    add_force_option(p, "overwrite --out if it exists (without it: an error)")
     p.add_argument(
         "--progress",
         action=argparse.BooleanOptionalAction,

@@ -8,7 +8,7 @@ from typing import Sequence
 
 from ..benchmark.report import report_pyplot, write_report
 from ..errors import UsageError
-from .common import CommandParser
+from .common import CommandParser, add_force_option
 from .failures import fail
 
 
@@ -26,9 +26,7 @@ def build_report_parser(prog: str = "marine-fdi report") -> argparse.ArgumentPar
         help="output folder (default: ./report; created, and its parent if missing, never more levels)",
     )
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots (no matplotlib needed)")
-    p.add_argument(
-        "--force", action="store_true", help="overwrite the report in --out (without it: an error when it has one)"
-    )
+    add_force_option(p, "overwrite the report in --out (without it: an error when it has one)")
     return p
 
 

@@ -59,7 +59,7 @@ def _clear(out: Path) -> None:
 
 def submit_main(argv=None) -> int:
     from ..benchmark.suites import SUITE_NAMES
-    from .common import CommandParser, add_backend_args, add_progress_option, interrupted, parse_cli
+    from .common import CommandParser, add_backend_args, add_force_option, add_progress_option, interrupted, parse_cli
 
     argv = list(sys.argv[1:] if argv is None else argv)
     ap = CommandParser(
@@ -103,7 +103,7 @@ def submit_main(argv=None) -> int:
         metavar="EXTRA",
         help="optional extras the agent needs (e.g. train), recorded with those of a shipped model",
     )
-    ap.add_argument("--force", action="store_true", help="overwrite an entry in --out")
+    add_force_option(ap, "overwrite an entry in --out")
     add_backend_args(ap)
     add_progress_option(ap)
     args, code = parse_cli(ap, argv)

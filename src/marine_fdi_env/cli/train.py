@@ -11,7 +11,7 @@ import numpy as np
 from ..envs.fdi_env import ENV_ID, ENV_ID_V1
 from ..errors import UsageError, require_extra
 from ..outputs import prepare_out
-from .common import CommandParser, parse_cli
+from .common import CommandParser, add_force_option, parse_cli
 from .failures import fail
 
 __all__ = ["train_main"]
@@ -102,9 +102,7 @@ def train_main(argv=None) -> int:
         action="store_true",
         help="simulate the training datasets again (classifier, replayed PPO) instead of using training/.cache",
     )
-    ap.add_argument(
-        "--force", action="store_true", help="overwrite a trained model in the run directory (without it: an error)"
-    )
+    add_force_option(ap, "overwrite a trained model in the run directory (without it: an error)")
     args, code = parse_cli(ap, argv)
     if args is None:
         return code
