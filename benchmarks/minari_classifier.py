@@ -221,8 +221,8 @@ def write_doc(out: dict) -> None:
             )
             + (" and to the shipped model's" if npz["same_weights_as_shipped"] else ", and not the shipped model's")
             + (
-                ": reading the data through Minari changes nothing; the shipped weights are not reproduced by this "
-                "installation."
+                ": reading the data through Minari changes nothing; the shipped weights are not reproduced on this "
+                "CPU (MKL's kernels differ by CPU vendor: training/NOTES.md)."
                 if npz["same_weights_as_minari"] and not npz["same_weights_as_shipped"]
                 else "."
             )
