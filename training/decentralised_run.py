@@ -237,3 +237,38 @@ def recalibrate_isolation(folder: Path, hp: dict, *, use_cache: bool = True, log
     (folder / "config.json").write_text(json.dumps(cfg, indent=1) + "\n")
     log(f"{folder}: isolation threshold {threshold}, conformal quantile {conf['quantile']:.3f}")
     return cfg
+
+
+def derive_thesis_pairs(folder: Path, out_root: Path, *, command: str = "", log=print) -> Path:
+    """A model folder of ``folder``'s team with the thesis's logic for fault pairs
+    (:class:`~.decentralised_agent.ThesisPairsGlobal`): the same weights and calibration, ``declaration.pairs``
+    set to ``thesis``, saved as ``out_root/NAME+thesis-pairs/seedS``; nothing is trained.  ``ValueError``
+    unless the team's messages are the thesis's decision vectors."""
+    import hashlib
+    import shutil
+
+    folder = Path(folder)
+    cfg = json.loads((folder / "config.json").read_text())
+    if cfg["architecture"].get("locals") != "thesis":
+        raise ValueError(f"{folder}: the thesis's logic for pairs needs the thesis's locals (dec-global teams)")
+    name = f"{cfg['name']}+thesis-pairs"
+    out = Path(out_root) / name / f"seed{cfg['seed']}"
+    out.mkdir(parents=True, exist_ok=True)
+    for f in ("model.pt", "learning_curve.csv"):
+        shutil.copyfile(folder / f, out / f)
+    cfg["name"] = name
+    cfg["declaration"]["pairs"] = "thesis"
+    cfg["derived_from"] = {
+        "folder": f"{folder.parent.name}/{folder.name}",
+        "model_sha256": hashlib.sha256((folder / "model.pt").read_bytes()).hexdigest(),
+        "training_command": cfg.get("command", ""),
+    }
+    cfg["command"] = command
+    (out / "config.json").write_text(json.dumps(cfg, indent=1) + "\n")
+    agent = {"class": "marine_fdi_env.training.agents:DecentralisedAgent"}
+    (out / "agent.json").write_text(json.dumps(agent, indent=1) + "\n")
+    top = out.parent / "agent.json"
+    if not top.exists():
+        top.write_text(json.dumps(dict(agent, kwargs={"model": "seed0"}), indent=1) + "\n")
+    log(f"{out}: {folder}'s team, the thesis's logic for pairs")
+    return out

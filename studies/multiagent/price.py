@@ -38,6 +38,10 @@ MESSAGE = HERE / "reference_message.json"
 SEEDS = (0, 1, 2)
 DEC = "dec-classifier"
 GLOBAL = "dec-global-decision"  # the thesis's locals, a learned global (decision budget)
+# the decision-budget teams trained and calibrated within the sensors' rated noise (0.5-1.0x; noise_premise.py)
+RATED = {"dec-global-rated-decision": GLOBAL, "dec-classifier-rated-decision": "dec-classifier-decision"}
+# the rated learned global with the thesis's logic where it names a fault pair (a combination: named for both)
+HYBRID = "dec-global-rated-decision+thesis-pairs"
 
 # the headline metric of each suite (the README's), and the metric's column title
 HEADLINE = {
@@ -72,6 +76,16 @@ def rows() -> list[tuple[str, str, str, tuple[Path, ...]]]:
         ("reference-distributed", "distributed (thesis)", "19", ("reference-distributed",)),
         (GLOBAL, "thesis's locals, learned global", "19", tuple(f"{GLOBAL}_s{s}" for s in SEEDS)),
         *dec,
+        *(
+            (name, f"{info}; trained at noise 0.5-1.0x", "19", tuple(f"{name}_s{s}" for s in SEEDS))
+            for name, info in zip(RATED, ("thesis's locals, learned global", "decentralised, learned"))
+        ),
+        (
+            HYBRID,
+            "thesis's locals, learned global + the thesis's logic for pairs; trained at noise 0.5-1.0x",
+            "19",
+            tuple(f"{HYBRID}_s{s}" for s in SEEDS),
+        ),
         ("reference", "centralised evidence", f"{msg} (its evidence)" if msg else "-", ("reference",)),
         ("classifier", "centralised, learned", "all features", tuple(f"classifier_s{s}" for s in SEEDS)),
         ("ppo", "centralised, learned", "all features", tuple(f"ppo_s{s}" for s in SEEDS)),
@@ -79,13 +93,13 @@ def rows() -> list[tuple[str, str, str, tuple[Path, ...]]]:
 
 
 def _file(stem: str, suite: str) -> Path:
-    base = RESULTS if stem.startswith((DEC, GLOBAL, "reference-distributed")) else CENTRAL
+    base = RESULTS if stem.startswith((DEC, "dec-global", "reference-distributed")) else CENTRAL
     return base / f"{stem}_{suite}.json"
 
 
 def evaluate_missing(cache_dir: Path | None, workers: int = 1) -> None:
     specs = {"reference-distributed": "reference-distributed"}
-    for name in (GLOBAL, *(dec_name(b) for b in BUDGETS)):
+    for name in (GLOBAL, *(dec_name(b) for b in BUDGETS), *RATED, HYBRID):
         for s in SEEDS:
             specs[f"{name}_s{s}"] = str(REPO / "training" / "models" / name / f"seed{s}")
     RESULTS.mkdir(parents=True, exist_ok=True)
@@ -161,8 +175,12 @@ def report() -> dict:
         table.append(f"| `{name}` | {info} | {bits} | {len(stems)} | " + " | ".join(cells) + " |")
     # paired differences: every decentralised row against the distributed scheme and the centralised learned rows
     pairs = [
-        (a, ref) for a in (GLOBAL, *map(dec_name, BUDGETS)) for ref in ("reference-distributed", "classifier", "ppo")
+        (a, ref)
+        for a in (GLOBAL, *map(dec_name, BUDGETS), *RATED, HYBRID)
+        for ref in ("reference-distributed", "classifier", "ppo")
     ]
+    pairs += list(RATED.items())  # the rated noise range against the same team trained at 0.5-1.5x
+    pairs += [(HYBRID, "dec-global-rated-decision")]  # what the thesis's logic for pairs adds
     pairs += [("reference-distributed", "reference")]
     diff = ["| A - B | " + " | ".join(t for _, t in HEADLINE.values()) + " |", "|---|" + "---:|" * len(HEADLINE)]
     for a, b in pairs:
@@ -225,6 +243,8 @@ def figure(data: dict) -> None:
             point(dec_name(b), BUDGETS[b].bits_per_decision, "o", f"{DEC} ({b})")
         point("reference-distributed", 19 * 0.93, "s", "reference-distributed")  # beside the other 19-bit rows
         point(GLOBAL, 19 * 1.08, "^", GLOBAL)  # beside the other 19-bit rows
+        for (name, style), x in zip(zip((*RATED, HYBRID), ("v", "P", "X")), (19 * 1.16, 19 * 1.25, 19 * 1.35)):
+            point(name, x, style, f"{name} (noise 0.5-1.0x)")
         if msg:
             point("reference", msg, "D", "reference (its evidence)")
         for name, style in (("classifier", "--"), ("ppo", ":")):
