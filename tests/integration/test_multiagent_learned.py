@@ -85,3 +85,48 @@ def test_messages_respect_the_budget():
     team.reset([0, 1])
     msgs = team.messages(obs, 2)
     assert [m.shape[1] for m in msgs.values()] == [12, 36, 30, 36]
+
+
+def test_thesis_pairs_global_takes_the_thesis_declaration_only_where_it_names_a_pair():
+    """``...+thesis-pairs``: the learned global's declaration, replaced by the thesis's logic's on exactly the
+    rows where that names two faults or more (a pair pattern, a single-fault pattern, no bit)."""
+    from marine_fdi_env.baselines.reference_distributed_agent import ThesisGlobal
+    from marine_fdi_env.training.decentralised_agent import ThesisPairsGlobal
+
+    thesis = ThesisGlobal()
+    rng = np.random.default_rng(3)
+    rows = [np.zeros(19, dtype=np.float32)] + [(rng.random(19) < p).astype(np.float32) for p in (0.1, 0.2, 0.5) * 20]
+    bits = np.stack(rows)
+    named = np.array([(thesis.belief(b)[:-2] >= 0.5).sum() for b in bits])
+    assert (named >= 2).any() and (named < 2).any()  # both kinds of row: the test can fail
+    learned = untrained_team("decision", locals_="thesis").global_policy
+    hybrid = ThesisPairsGlobal(untrained_team("decision", locals_="thesis").global_policy)
+    learned.reset(list(range(len(bits))))
+    hybrid.reset(list(range(len(bits))))
+    a, b = learned.declare(bits), hybrid.declare(bits)
+    pairs = named >= 2
+    assert np.array_equal(b[~pairs], a[~pairs])
+    assert np.array_equal(b[pairs], np.stack([thesis.belief(x) for x in bits[pairs]]))
+
+
+def test_shipped_thesis_pairs_teams_are_the_rated_teams_weights():
+    """Each seed of ``dec-global-rated-decision+thesis-pairs`` holds its source team's weights (sha256) and
+    calibration, with only the pairs rule and the name changed."""
+    import hashlib
+    import json
+
+    from tests.paths import ROOT
+
+    root = ROOT / "training" / "models"
+    for s in (0, 1, 2):
+        hybrid = root / "dec-global-rated-decision+thesis-pairs" / f"seed{s}"
+        source = root / "dec-global-rated-decision" / f"seed{s}"
+        cfg, src = (json.loads((d / "config.json").read_text()) for d in (hybrid, source))
+        sha = hashlib.sha256((source / "model.pt").read_bytes()).hexdigest()
+        assert (
+            cfg["derived_from"]["model_sha256"] == sha == hashlib.sha256((hybrid / "model.pt").read_bytes()).hexdigest()
+        )
+        assert cfg["declaration"] == dict(src["declaration"], pairs="thesis")
+        assert {k: v for k, v in cfg.items() if k not in ("name", "declaration", "derived_from", "command")} == {
+            k: v for k, v in src.items() if k not in ("name", "declaration", "command")
+        }
