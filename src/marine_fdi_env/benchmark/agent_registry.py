@@ -106,6 +106,13 @@ def _first_line(doc: str | None) -> str:
     return para.split(". ")[0].rstrip(".")
 
 
+def _pairs_note(cfg: dict) -> str:
+    """What a team config's declaration takes from the thesis's logic (``declaration.pairs``), or ''."""
+    if (cfg.get("declaration") or {}).get("pairs") == "thesis":
+        return ", with the thesis's logic where it names a fault pair: a hybrid"
+    return ""
+
+
 def _model_entry(folder: Path) -> AgentEntry | None:
     meta = folder / "agent.json"
     if not meta.is_file():
@@ -132,6 +139,7 @@ def _model_entry(folder: Path) -> AgentEntry | None:
             f"trained {sub_cfg.get('algo', '?')} model in {where}/{folder.name}: {sub.name} by default, "
             f"{len(seeds)} training seeds ({', '.join(seeds)})"
             + (f", {float(minutes):.1f} CPU min of training ({sub.name})" if minutes is not None else "")
+            + _pairs_note(sub_cfg)
         )
     if not desc:
         algo = cfg.get("algo", "?")
@@ -145,7 +153,7 @@ def _model_entry(folder: Path) -> AgentEntry | None:
         ref = (cfg.get("declaration") or {}).get("use_reference")
         if ref:
             parts.append(f"uses the reference diagnoser's conclusion ({ref})")
-        desc = ", ".join(parts)
+        desc = ", ".join(parts) + _pairs_note(cfg)
     needs = ("torch",) + (("stable_baselines3",) if "SB3" in cls else ())
     aliases = (folder.name,) if folder.name != name else ()
     return AgentEntry(name, "model", str(folder), str(desc), aliases, needs)
