@@ -219,7 +219,7 @@ def figure(data: dict) -> None:
 
     plt = pyplot()
     msg = json.loads(MESSAGE.read_text())["bits"]["quantised_bits_per_decision"] if MESSAGE.is_file() else None
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4.8), sharey=True)
     for ax, suite in zip(axes, ("single-v1", "multi-v1")):
 
         def point(name, x, style, label):
@@ -256,8 +256,9 @@ def figure(data: dict) -> None:
         ax.set_title(f"{suite}: isolation accuracy (95 % intervals)")
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("isolation accuracy [%]")
-    axes[1].legend(fontsize=7, loc="center right")
-    fig.tight_layout()
+    handles, labels = axes[1].get_legend_handles_labels()
+    fig.legend(handles, labels, fontsize=7, loc="lower center", ncol=4, frameon=False)
+    fig.tight_layout(rect=(0, 0.16, 1, 1))
     FIGURE.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(FIGURE, dpi=110)
     plt.close(fig)
