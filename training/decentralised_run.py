@@ -167,14 +167,20 @@ def train_decentralised_run(
             torch.save(res.net.state_dict(), out / "model.pt")
             write_curve(out / "learning_curve.csv", res.curve)
             cfg["model_bytes"] = (out / "model.pt").stat().st_size
-            (out / "config.json").write_text(json.dumps(cfg, indent=1) + "\n")
-            agent = {"class": "marine_fdi_env.training.agents:DecentralisedAgent"}
-            (out / "agent.json").write_text(json.dumps(agent, indent=1) + "\n")
-            top = out.parent / "agent.json"
-            if not top.exists():
-                top.write_text(json.dumps(dict(agent, kwargs={"model": "seed0"}), indent=1) + "\n")
+            write_team_folder(out, cfg)
         configs.append(cfg)
     return configs
+
+
+def write_team_folder(out: Path, cfg: dict) -> None:
+    """A team's seed folder beside its ``model.pt``: ``config.json``, ``agent.json`` naming
+    :class:`~.agents.DecentralisedAgent`, and the parent folder's ``agent.json`` (seed 0 by default) if missing."""
+    (out / "config.json").write_text(json.dumps(cfg, indent=1) + "\n")
+    agent = {"class": "marine_fdi_env.training.agents:DecentralisedAgent"}
+    (out / "agent.json").write_text(json.dumps(agent, indent=1) + "\n")
+    top = out.parent / "agent.json"
+    if not top.exists():
+        top.write_text(json.dumps(dict(agent, kwargs={"model": "seed0"}), indent=1) + "\n")
 
 
 def isolation_declaration(
@@ -264,11 +270,6 @@ def derive_thesis_pairs(folder: Path, out_root: Path, *, command: str = "", log=
         "training_command": cfg.get("command", ""),
     }
     cfg["command"] = command
-    (out / "config.json").write_text(json.dumps(cfg, indent=1) + "\n")
-    agent = {"class": "marine_fdi_env.training.agents:DecentralisedAgent"}
-    (out / "agent.json").write_text(json.dumps(agent, indent=1) + "\n")
-    top = out.parent / "agent.json"
-    if not top.exists():
-        top.write_text(json.dumps(dict(agent, kwargs={"model": "seed0"}), indent=1) + "\n")
+    write_team_folder(out, cfg)
     log(f"{out}: {folder}'s team, the thesis's logic for pairs")
     return out
