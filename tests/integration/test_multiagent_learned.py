@@ -130,3 +130,24 @@ def test_shipped_thesis_pairs_teams_are_the_rated_teams_weights():
         assert {k: v for k, v in cfg.items() if k not in ("name", "declaration", "derived_from", "command")} == {
             k: v for k, v in src.items() if k not in ("name", "declaration", "command")
         }
+
+
+def test_a_pairs_rule_is_refused_by_name_where_it_cannot_apply(tmp_path):
+    """``declaration.pairs``: ``thesis`` needs the thesis's decision vectors as messages; anything else but
+    ``learned`` is refused, naming the config file."""
+    import json
+    import shutil
+
+    from marine_fdi_env.training.decentralised_agent import load_team
+    from tests.paths import ROOT
+
+    src = ROOT / "training" / "models" / "dec-classifier-decision" / "seed0"
+    for pairs, words in (("thesis", "decision vectors"), ("both", "must be one of")):
+        d = tmp_path / pairs
+        shutil.copytree(src, d)
+        cfg = json.loads((d / "config.json").read_text())
+        cfg["declaration"]["pairs"] = pairs
+        (d / "config.json").write_text(json.dumps(cfg))
+        with pytest.raises(ValueError, match=words) as e:
+            load_team(d)
+        assert "config.json" in str(e.value)
