@@ -42,6 +42,7 @@ __all__ = [
     "GRUDiagnoser",
     "TrainResult",
     "train_classifier",
+    "fit_epochs",
     "calibrate_threshold",
     "load_dataset",
     "episode_scores",
@@ -204,15 +205,27 @@ def train_classifier(
         m = valid[idx] * ew[idx, None]
         return (per * m).sum() / m.sum().clamp_min(1.0)
 
+    curve = fit_epochs(
+        model, opt, loss_of, tr_idx, val_idx, epochs=epochs, batch_size=batch_size, rng=rng, c0=c0, sched=sched, log=log
+    )
+    return TrainResult(model, curve, time.process_time() - c0)
+
+
+def fit_epochs(
+    model, opt, loss_of, tr_idx, val_idx, *, epochs: int, batch_size: int, rng, c0: float, sched=None, log=print
+) -> list[dict]:
+    """The supervised training loop of the classifier and the decentralised teams: each epoch, minibatches of
+    the training episodes in a fresh order from ``rng`` (an ``opt`` step on ``loss_of(idx)``, gradients clipped
+    at norm 1), ``sched`` stepped, then the loss on ``val_idx``; returns the learning curve (one row per epoch,
+    CPU s since ``c0``) with ``model`` left in eval mode."""
     curve = []
     for ep in range(epochs):
         model.train()
         order = rng.permutation(tr_idx)
         tot, nb = 0.0, 0
         for s in range(0, len(order), batch_size):
-            idx = order[s : s + batch_size]
             opt.zero_grad()
-            loss = loss_of(idx)
+            loss = loss_of(order[s : s + batch_size])
             loss.backward()
             nn.utils.clip_grad_norm_(model.parameters(), 1.0)
             opt.step()
@@ -221,7 +234,7 @@ def train_classifier(
         if sched is not None:
             sched.step()
         row = {"epoch": ep + 1, "train_loss": tot / max(nb, 1), "cpu_s": time.process_time() - c0}
-        if n_val:
+        if len(val_idx):
             model.eval()
             with torch.no_grad():
                 row["val_loss"] = float(loss_of(val_idx))
@@ -229,11 +242,11 @@ def train_classifier(
         if log:
             log(
                 f"epoch {ep + 1:3d}  train {row['train_loss']:.4f}"
-                + (f"  val {row['val_loss']:.4f}" if n_val else "")
+                + (f"  val {row['val_loss']:.4f}" if len(val_idx) else "")
                 + f"  cpu {row['cpu_s']:.0f} s"
             )
     model.eval()
-    return TrainResult(model, curve, time.process_time() - c0)
+    return curve
 
 
 def alarm_balance_weights(fault: np.ndarray, valid: np.ndarray, cap: float = 5.0) -> np.ndarray:

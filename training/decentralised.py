@@ -37,7 +37,7 @@ from marine_fdi_env.engine.faults import FAULT_IDS
 from marine_fdi_env.multiagent.budgets import MESSAGE_BOUND, MessageBudget
 from marine_fdi_env.multiagent.roles import LOCAL_AGENTS, local_modules
 
-from .classifier import alarm_balance_weights
+from .classifier import alarm_balance_weights, fit_epochs
 
 __all__ = [
     "LocalEncoder",
@@ -202,32 +202,9 @@ def train_decentralised(
         m = v[idx]
         return (terms.sum(-1) * m).sum() / m.sum().clamp_min(1.0)
 
-    curve = []
-    for ep in range(epochs):
-        net.train()
-        order = rng.permutation(tr_idx)
-        tot, nb = 0.0, 0
-        for s in range(0, len(order), batch_size):
-            opt.zero_grad()
-            loss = loss_of(order[s : s + batch_size])
-            loss.backward()
-            nn.utils.clip_grad_norm_(net.parameters(), 1.0)
-            opt.step()
-            tot += loss.item()
-            nb += 1
-        row = {"epoch": ep + 1, "train_loss": tot / max(nb, 1), "cpu_s": time.process_time() - c0}
-        if n_val:
-            net.eval()
-            with torch.no_grad():
-                row["val_loss"] = float(loss_of(val_idx))
-        curve.append(row)
-        if log:
-            log(
-                f"epoch {ep + 1:3d}  train {row['train_loss']:.4f}"
-                + (f"  val {row['val_loss']:.4f}" if n_val else "")
-                + f"  cpu {row['cpu_s']:.0f} s"
-            )
-    net.eval()
+    curve = fit_epochs(
+        net, opt, loss_of, tr_idx, val_idx, epochs=epochs, batch_size=batch_size, rng=rng, c0=c0, log=log
+    )
     return TrainResult(net, curve, time.process_time() - c0)
 
 
